@@ -1,0 +1,8 @@
+//! # bmc-irradiance
+//!
+//! Bayesian Monte Carlo (BMC) estimation of irradiance and radiance on the
+//! hemisphere, with precomputed quadrature weights `w = Q⁻¹ z` and cached
+//! factorisations (see `shared/docs/bmc-math.md`).
+//!
+//! ## Layout
+//! Modules are listed here as they land; the math never knows about HTTP.
