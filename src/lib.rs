@@ -6,3 +6,5 @@
 //!
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
+
+pub mod sphere;

@@ -3,7 +3,11 @@
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "bmc-irradiance", version, about = "Bayesian Monte Carlo irradiance caching")]
+#[command(
+    name = "bmc-irradiance",
+    version,
+    about = "Bayesian Monte Carlo irradiance caching"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
