@@ -6,5 +6,8 @@
 //!
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
+//! - `render`: light transport — BSDFs, light sampling, incident radiance
+//!   `L_i(x, ω)` and irradiance `E(x, n)` at points.
 
+pub mod render;
 pub mod sphere;
