@@ -6,5 +6,8 @@
 //!
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
+//! - `scene`: JSON scene loading, shapes, materials, emitters, environment
+//!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
 
+pub mod scene;
 pub mod sphere;
