@@ -16,6 +16,7 @@ use glam::DVec3;
 
 use super::rgb::Rgb;
 use super::warp;
+use crate::scene::Material;
 use crate::sphere::Frame;
 use std::f64::consts::{FRAC_1_PI, TAU};
 
@@ -123,6 +124,23 @@ impl Bsdf {
             value: self.eval(wo, wi),
             pdf,
         })
+    }
+}
+
+impl From<&Material> for Bsdf {
+    fn from(material: &Material) -> Self {
+        match material {
+            Material::Diffuse { reflectance } => Bsdf::lambert(Rgb::from_array(*reflectance)),
+            Material::Glossy {
+                diffuse,
+                specular,
+                exponent,
+            } => Bsdf::new(
+                Rgb::from_array(*diffuse),
+                Rgb::from_array(*specular),
+                *exponent,
+            ),
+        }
     }
 }
 
