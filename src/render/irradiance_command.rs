@@ -95,11 +95,10 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     let points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
     let root = match &args.scenes_root {
         Some(root) => root.clone(),
-        None => args
-            .scene
-            .parent()
-            .map(PathBuf::from)
-            .unwrap_or_else(|| PathBuf::from(".")),
+        None => match args.scene.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+            _ => PathBuf::from("."),
+        },
     };
     let scene = Scene::load(&args.scene, &root)
         .with_context(|| format!("loading scene {}", args.scene.display()))?;
