@@ -26,8 +26,16 @@ fn run(points: &Path, extra: &[&str]) -> Output {
         .expect("binary runs")
 }
 
-fn rows(output: &Output) -> Vec<Vec<f64>> {
-    let text = String::from_utf8(output.stdout.clone()).expect("utf-8 output");
+/// Runs with whitespace-separated `args`, expects success and returns the
+/// numeric rows of the CSV written with `--std-error`.
+fn run_ok(points: &Path, args: &str) -> Vec<Vec<f64>> {
+    let output = run(points, &args.split_whitespace().collect::<Vec<_>>());
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let text = String::from_utf8(output.stdout).expect("utf-8 output");
     let mut lines = text.lines();
     assert_eq!(lines.next(), Some("x,y,z,r,g,b,se_r,se_g,se_b"));
     lines
@@ -41,40 +49,11 @@ fn cornell_box_irradiance_is_written_as_csv() {
         "cornell",
         "x,y,z,nx,ny,nz\n0,-0.999,0.8,0,1,0\n-0.999,0,0,1,0,0\n0.999,0,0,-1,0,0\n",
     );
-    let direct = run(
+    let direct = run_ok(
         &points,
-        &[
-            "--samples",
-            "1024",
-            "--direct-only",
-            "--std-error",
-            "--threads",
-            "2",
-        ],
+        "--samples 1024 --direct-only --std-error --threads 2",
     );
-    assert!(
-        direct.status.success(),
-        "{}",
-        String::from_utf8_lossy(&direct.stderr)
-    );
-    let full = run(
-        &points,
-        &[
-            "--samples",
-            "1024",
-            "--max-depth",
-            "8",
-            "--std-error",
-            "--seed",
-            "3",
-        ],
-    );
-    assert!(
-        full.status.success(),
-        "{}",
-        String::from_utf8_lossy(&full.stderr)
-    );
-    let (direct, full) = (rows(&direct), rows(&full));
+    let full = run_ok(&points, "--samples 1024 --max-depth 8 --std-error --seed 3");
     assert_eq!(direct.len(), 3);
     assert_eq!(full.len(), 3);
     for (d, f) in direct.iter().zip(&full) {

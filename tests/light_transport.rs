@@ -16,15 +16,41 @@ use glam::DVec3;
 
 const CAMERA: &str = r#"{"fov": 40, "width": 8, "height": 8, "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}"#;
 
-/// `to_world` of a rectangle centred at `c` with front normal `n`, half sizes
-/// `sx` along `t` and `sy` along `n × t` (a right-handed frame, so the
-/// rectangle's +z maps to `n`).
-fn rectangle_matrix(c: DVec3, n: DVec3, t: DVec3, sx: f64, sy: f64) -> String {
+/// A rectangle shape centred at `c` with front normal `n`, half sizes `sx`
+/// along `t` and `sy` along `n × t`, as scene JSON. The `to_world` matrix has
+/// the right-handed columns `(t·sx, (n×t)·sy, n)`, so the rectangle's local
+/// +z (its front) maps to `n`. `emitter` is its radiance, if it is a light.
+fn rectangle(
+    c: DVec3,
+    n: DVec3,
+    t: DVec3,
+    (sx, sy): (f64, f64),
+    material: &str,
+    emitter: Option<[f64; 3]>,
+) -> String {
     let (a, b) = (t * sx, n.cross(t) * sy);
+    let emitter = emitter.map_or(String::new(), |[r, g, b]| {
+        format!(r#", "emitter": {{"type": "area", "radiance": [{r}, {g}, {b}]}}"#)
+    });
     format!(
-        "[{{\"matrix\": [[{}, {}, {}, {}], [{}, {}, {}, {}], [{}, {}, {}, {}], [0, 0, 0, 1]]}}]",
+        r#"{{"type": "rectangle", "material": "{material}", "to_world": [{{"matrix": [[{}, {}, {}, {}], [{}, {}, {}, {}], [{}, {}, {}, {}], [0, 0, 0, 1]]}}]{emitter}}}"#,
         a.x, b.x, n.x, c.x, a.y, b.y, n.y, c.y, a.z, b.z, n.z, c.z
     )
+}
+
+/// Walls of the cube [-1, 1]³ facing inwards; `material(i)` and
+/// `emitter(i)` choose per face. Face 5 is the top (z = 1); `faces` < 6
+/// leaves the box open at the top.
+fn box_walls(
+    faces: usize,
+    material: impl Fn(usize) -> &'static str,
+    emitter: impl Fn(usize) -> Option<[f64; 3]>,
+) -> Vec<String> {
+    inward_faces()[..faces]
+        .iter()
+        .enumerate()
+        .map(|(i, &(c, n, t))| rectangle(c, n, t, (1.0, 1.0), material(i), emitter(i)))
+        .collect()
 }
 
 /// The faces of the cube [-1, 1]³ with normals pointing inwards, as
@@ -97,9 +123,13 @@ const METHODS: [IrradianceMethod; 2] = [IrradianceMethod::Split, IrradianceMetho
 fn rectangle_light_matches_lamberts_formula() {
     // A 1 × 1.6 light facing down at z = 1, centred at (0.3, -0.2).
     let (c, half) = (DVec3::new(0.3, -0.2, 1.0), DVec3::new(0.5, 0.8, 0.0));
-    let light = format!(
-        r#"{{"type": "rectangle", "material": "black", "to_world": {}, "emitter": {{"type": "area", "radiance": [1, 2, 3]}}}}"#,
-        rectangle_matrix(c, -DVec3::Z, DVec3::X, half.x, half.y)
+    let light = rectangle(
+        c,
+        -DVec3::Z,
+        DVec3::X,
+        (half.x, half.y),
+        "black",
+        Some([1.0, 2.0, 3.0]),
     );
     let materials = r#"[{"id": "black", "type": "diffuse", "reflectance": [0, 0, 0]}]"#;
     let t = load(&scene_json(materials, &[light], None), Path::new("."));
@@ -151,15 +181,7 @@ fn rectangle_light_matches_lamberts_formula() {
 #[test]
 fn furnace_open_white_box_under_constant_sky() {
     let sky = Rgb::new(0.5, 1.0, 2.0);
-    let shapes: Vec<String> = inward_faces()[..5]
-        .iter()
-        .map(|&(c, n, t)| {
-            format!(
-                r#"{{"type": "rectangle", "material": "white", "to_world": {}}}"#,
-                rectangle_matrix(c, n, t, 1.0, 1.0)
-            )
-        })
-        .collect();
+    let shapes = box_walls(5, |_| "white", |_| None);
     let materials = r#"[{"id": "white", "type": "diffuse", "reflectance": [1, 1, 1]}]"#;
     let env = r#"{"type": "constant", "radiance": [0.5, 1, 2]}"#;
     let t = load(&scene_json(materials, &shapes, Some(env)), Path::new("."));
@@ -193,15 +215,7 @@ fn furnace_open_white_box_under_constant_sky() {
 fn closed_emitting_box_conserves_energy_at_every_depth() {
     let le = Rgb::new(1.0, 0.5, 0.25);
     let rho = Rgb::new(0.5, 0.25, 0.75);
-    let shapes: Vec<String> = inward_faces()
-        .iter()
-        .map(|&(c, n, t)| {
-            format!(
-                r#"{{"type": "rectangle", "material": "wall", "to_world": {}, "emitter": {{"type": "area", "radiance": [1, 0.5, 0.25]}}}}"#,
-                rectangle_matrix(c, n, t, 1.0, 1.0)
-            )
-        })
-        .collect();
+    let shapes = box_walls(6, |_| "wall", |_| Some(le.to_array()));
     let materials = r#"[{"id": "wall", "type": "diffuse", "reflectance": [0.5, 0.25, 0.75]}]"#;
     let t = load(&scene_json(materials, &shapes, None), Path::new("."));
     let points = [
@@ -227,21 +241,15 @@ fn split_and_hemisphere_methods_agree_with_glossy_surfaces() {
     let materials = r#"[
         {"id": "white", "type": "diffuse", "reflectance": [0.7, 0.7, 0.7]},
         {"id": "shiny", "type": "glossy", "diffuse": [0.2, 0.3, 0.1], "specular": [0.5, 0.4, 0.6], "exponent": 30}]"#;
-    let faces = inward_faces();
-    let mut shapes: Vec<String> = faces
-        .iter()
-        .enumerate()
-        .map(|(i, &(c, n, t))| {
-            let material = if i % 2 == 0 { "shiny" } else { "white" };
-            format!(
-                r#"{{"type": "rectangle", "material": "{material}", "to_world": {}}}"#,
-                rectangle_matrix(c, n, t, 1.0, 1.0)
-            )
-        })
-        .collect();
-    shapes.push(format!(
-        r#"{{"type": "rectangle", "material": "white", "to_world": {}, "emitter": {{"type": "area", "radiance": [10, 8, 6]}}}}"#,
-        rectangle_matrix(DVec3::new(0.0, 0.0, 0.99), -DVec3::Z, DVec3::X, 0.25, 0.25)
+    let material = |i| if i % 2 == 0 { "shiny" } else { "white" };
+    let mut shapes = box_walls(6, material, |_| None);
+    shapes.push(rectangle(
+        DVec3::new(0.0, 0.0, 0.99),
+        -DVec3::Z,
+        DVec3::X,
+        (0.25, 0.25),
+        "white",
+        Some([10.0, 8.0, 6.0]),
     ));
     let t = load(&scene_json(materials, &shapes, None), Path::new("."));
     let points = [
@@ -317,22 +325,7 @@ fn environment_map_importance_sampling_is_unbiased() {
         }
     }
     let points = [point(DVec3::ZERO, DVec3::Y)];
-    let split = estimate(
-        &t,
-        &points,
-        IrradianceOptions {
-            direct_only: true,
-            ..options(8192, 1, IrradianceMethod::Split)
-        },
-    );
-    let hemi = estimate(
-        &t,
-        &points,
-        IrradianceOptions {
-            direct_only: true,
-            ..options(8192, 1, IrradianceMethod::Hemisphere)
-        },
-    );
+    let [split, hemi] = METHODS.map(|m| estimate(&t, &points, options(8192, 1, m)));
     assert_close(&split[0], exact, 0.0, "importance sampled");
     assert_close(&hemi[0], exact, 0.0, "cosine sampled");
     // The sun dominates, so importance sampling must be much less noisy.
@@ -347,21 +340,7 @@ fn environment_map_importance_sampling_is_unbiased() {
 
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
-    let shapes: Vec<String> = inward_faces()
-        .iter()
-        .enumerate()
-        .map(|(i, &(c, n, t))| {
-            let emitter = if i == 5 {
-                r#", "emitter": {"type": "area", "radiance": [3, 3, 3]}"#
-            } else {
-                ""
-            };
-            format!(
-                r#"{{"type": "rectangle", "material": "wall", "to_world": {}{emitter}}}"#,
-                rectangle_matrix(c, n, t, 1.0, 1.0)
-            )
-        })
-        .collect();
+    let shapes = box_walls(6, |_| "wall", |i| (i == 5).then_some([3.0; 3]));
     let materials = r#"[{"id": "wall", "type": "diffuse", "reflectance": [0.6, 0.5, 0.4]}]"#;
     let t = load(&scene_json(materials, &shapes, None), Path::new("."));
     let points: Vec<QueryPoint> = (0..12)

@@ -155,19 +155,8 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64;
 
-    /// Midpoint rule over `(cos θ, φ)` on the upper hemisphere (`dω = dz dφ`).
     fn integrate_hemisphere(f: impl Fn(DVec3) -> f64) -> f64 {
-        let (nz, nphi) = (2000, 256);
-        let mut sum = 0.0;
-        for i in 0..nz {
-            let z = (i as f64 + 0.5) / nz as f64;
-            let r = (1.0 - z * z).sqrt();
-            for j in 0..nphi {
-                let phi = TAU * (j as f64 + 0.5) / nphi as f64;
-                sum += f(DVec3::new(r * phi.cos(), r * phi.sin(), z));
-            }
-        }
-        sum / nz as f64 * TAU / nphi as f64
+        warp::integrate_directions(f, 0.0, 2000, 256)
     }
 
     fn glossy() -> Bsdf {

@@ -55,24 +55,35 @@ pub fn power_cosine_pdf(cos_alpha: f64, exponent: f64) -> f64 {
     }
 }
 
+/// Test quadrature: midpoint rule over `(z, φ)` for `z ∈ [z_min, 1]`, using
+/// `dω = dz dφ` about the z axis (`z_min = -1`: sphere, `0`: hemisphere).
+#[cfg(test)]
+pub(crate) fn integrate_directions(
+    f: impl Fn(DVec3) -> f64,
+    z_min: f64,
+    nz: usize,
+    nphi: usize,
+) -> f64 {
+    let dz = (1.0 - z_min) / nz as f64;
+    let dphi = TAU / nphi as f64;
+    let mut sum = 0.0;
+    for i in 0..nz {
+        let z = z_min + (i as f64 + 0.5) * dz;
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        for j in 0..nphi {
+            let phi = (j as f64 + 0.5) * dphi;
+            sum += f(DVec3::new(r * phi.cos(), r * phi.sin(), z));
+        }
+    }
+    sum * dz * dphi
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Midpoint rule over `(z, φ)`: `dω = dz dφ`, exact for functions of φ
-    /// that are smooth and accurate to O(h²) in z.
     fn integrate_sphere(f: impl Fn(DVec3) -> f64) -> f64 {
-        let (nz, nphi) = (800, 64);
-        let mut sum = 0.0;
-        for i in 0..nz {
-            let z = -1.0 + 2.0 * (i as f64 + 0.5) / nz as f64;
-            let r = (1.0 - z * z).sqrt();
-            for j in 0..nphi {
-                let phi = TAU * (j as f64 + 0.5) / nphi as f64;
-                sum += f(DVec3::new(r * phi.cos(), r * phi.sin(), z));
-            }
-        }
-        sum * 2.0 / nz as f64 * TAU / nphi as f64
+        integrate_directions(f, -1.0, 800, 64)
     }
 
     #[test]
