@@ -8,10 +8,13 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use bmc_irradiance::render::polygon::projected_solid_angle;
+use bmc_irradiance::render::seed::point_rng;
 use bmc_irradiance::render::{
-    IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint, Rgb, Transport,
+    IrradianceEstimate, IrradianceMethod, IrradianceOptions, PathLengths, PathLimits, QueryPoint,
+    Rgb, TraceStats, Transport,
 };
 use bmc_irradiance::scene::{Environment, Scene};
+use bmc_irradiance::sphere::Frame;
 use glam::DVec3;
 
 const CAMERA: &str = r#"{"fov": 40, "width": 8, "height": 8, "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}"#;
@@ -232,6 +235,64 @@ fn closed_emitting_box_conserves_energy_at_every_depth() {
             }
         }
     }
+}
+
+/// The hook for external hemisphere estimators (BMC, QMC): caller-chosen
+/// local directions in a rotated frame come back as radiance samples whose
+/// equal-weight average times π is the irradiance for cosine-distributed sets.
+#[test]
+fn external_direction_sets_plug_into_the_hemisphere_estimate() {
+    let le = Rgb::new(1.0, 0.5, 0.25);
+    let shapes = box_walls(6, |_| "wall", |_| Some(le.to_array()));
+    let materials = r#"[{"id": "wall", "type": "diffuse", "reflectance": [0.5, 0.25, 0.75]}]"#;
+    let t = load(&scene_json(materials, &shapes, None), Path::new("."));
+    let p = point(DVec3::new(0.1, 0.2, -1.0), DVec3::Z);
+    let frame = Frame::from_normal(p.normal()).rotated_about_normal(0.7);
+    // Cosine-distributed spherical Fibonacci set (bmc-math.md §5) plus one
+    // direction below the surface, which must carry nothing.
+    let n = 64;
+    let golden = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut dirs: Vec<DVec3> = (0..n)
+        .map(|i| {
+            let cos = (1.0 - (i as f64 + 0.5) / n as f64).sqrt();
+            let phi = TAU * (i as f64 / golden).fract();
+            let sin = (1.0 - cos * cos).sqrt();
+            DVec3::new(sin * phi.cos(), sin * phi.sin(), cos)
+        })
+        .collect();
+    dirs.push(-DVec3::Z);
+    let mut rng = point_rng(3, 0);
+    let mut stats = TraceStats::default();
+    let limits = |max_depth, lengths| PathLimits { max_depth, lengths };
+    let direct = t.hemisphere_samples(
+        &p,
+        &frame,
+        &dirs,
+        limits(1, PathLengths::All),
+        &mut rng,
+        &mut stats,
+    );
+    assert_eq!(
+        stats.rays, n as u64,
+        "one ray per direction above the surface"
+    );
+    for s in &direct[..n] {
+        assert_eq!(s.radiance, le, "every direction sees an emitting wall");
+        assert!(s.distance > 0.0 && s.distance < 2.0 * 3f64.sqrt());
+    }
+    assert_eq!(direct[n].radiance, Rgb::BLACK);
+    let mean: Rgb = direct[..n].iter().map(|s| s.radiance).sum::<Rgb>() / n as f64;
+    assert!(((mean * PI).r - PI * le.r).abs() < 1e-12);
+    // Without the directly seen emission and one bounce, nothing is left.
+    let none = t.hemisphere_samples(
+        &p,
+        &frame,
+        &dirs,
+        limits(1, PathLengths::Indirect),
+        &mut rng,
+        &mut stats,
+    );
+    assert!(none.iter().all(|s| s.radiance == Rgb::BLACK));
 }
 
 /// The two decompositions estimate the same integral, including glossy

@@ -25,7 +25,7 @@ const DENSITY_FLOOR: f64 = 0.01;
 /// Sampling tables for one scene environment; the environment itself stays
 /// in the scene and is passed to every call.
 ///
-/// Invariant: `distribution` is `Some` exactly when built from a map.
+/// Invariant: `distribution` is `Some` exactly when built from a non-empty map.
 #[derive(Clone, Debug)]
 pub struct EnvironmentSampler {
     distribution: Option<Distribution2D>,
@@ -35,7 +35,11 @@ impl EnvironmentSampler {
     pub fn new(environment: &Environment) -> Self {
         let distribution = match environment {
             Environment::Constant { .. } => None,
-            Environment::Map(map) => Some(map_distribution(map)),
+            // An empty map cannot be tabulated; uniform sampling still works.
+            Environment::Map(map) if map.width() > 0 && map.height() > 0 => {
+                Some(map_distribution(map))
+            }
+            Environment::Map(_) => None,
         };
         Self { distribution }
     }
