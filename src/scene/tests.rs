@@ -477,3 +477,58 @@ fn broken_inputs_name_the_field_or_file() {
         Some("camera.width")
     );
 }
+
+#[test]
+fn bundled_sky_and_mesh_scenes_load() {
+    let sky = bundled("sky.json");
+    let Some(Environment::Map(map)) = &sky.environment else {
+        panic!("sky.json has no environment map");
+    };
+    assert_eq!((map.width(), map.height()), generate::SKY_SIZE);
+    // The committed map is the generator's output (to half precision).
+    let (w, h) = generate::SKY_SIZE;
+    let fresh = generate::sky_texels(w, h);
+    for (i, t) in fresh.iter().enumerate() {
+        let stored = map.texel(i % w, i / w);
+        for c in 0..3 {
+            assert!(
+                (stored[c] - t[c] as f64).abs() <= 1e-3 * t[c] as f64 + 1e-4,
+                "texel {i}"
+            );
+        }
+    }
+    assert!(
+        sky.materials
+            .iter()
+            .any(|m| matches!(m, Material::Glossy { .. }))
+    );
+    assert!(
+        sky.materials
+            .iter()
+            .any(|m| matches!(m, Material::Diffuse { .. }))
+    );
+    // The camera's centre ray lands on something.
+    assert!(
+        sky.intersect(&sky.camera.generate_ray(160.0, 120.0))
+            .is_some()
+    );
+
+    let mesh = bundled("mesh.json");
+    assert!(
+        mesh.triangle_count() >= 100_000,
+        "{}",
+        mesh.triangle_count()
+    );
+    for o in [
+        DVec3::new(0.3, 2.5, 0.2),
+        DVec3::new(-3.0, 0.1, 0.4),
+        DVec3::new(0.2, -0.5, 3.0),
+    ] {
+        let hit = mesh.intersect(&ray(o, -o)).unwrap();
+        assert_eq!(hit.shape, 1);
+        assert!(
+            hit.normal.dot(hit.position) > 0.0,
+            "blob normals face outwards: {hit:?}"
+        );
+    }
+}
