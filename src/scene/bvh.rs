@@ -63,14 +63,18 @@ struct Node {
     count: u32,
 }
 
+/// Largest f32 strictly below `x`. Strictly, so that a ray whose origin lies
+/// exactly on a primitive's bounding plane and whose direction component is
+/// (±)0 is still inside the padded slab whatever the sign of that zero.
 fn round_down(x: f64) -> f32 {
     let f = x as f32;
-    if f as f64 > x { f.next_down() } else { f }
+    if f as f64 >= x { f.next_down() } else { f }
 }
 
+/// Smallest f32 strictly above `x`.
 fn round_up(x: f64) -> f32 {
     let f = x as f32;
-    if (f as f64) < x { f.next_up() } else { f }
+    if (f as f64) <= x { f.next_up() } else { f }
 }
 
 impl Node {
@@ -430,6 +434,8 @@ mod tests {
         // Origin x = 0 lies on the first box's slab plane; dir.x = 0.
         let hits = |o: DVec3, d: DVec3| bvh.any(o, d, 1e9, |_, _| true);
         assert!(hits(DVec3::new(0.0, 5.0, 0.5), -DVec3::Y));
+        assert!(hits(DVec3::new(-0.0, 5.0, 0.5), DVec3::new(0.0, -1.0, 0.0)));
+        assert!(hits(DVec3::new(1.0, 5.0, 1.0), -DVec3::Y));
         assert!(hits(DVec3::new(1.0, 0.5, -2.0), DVec3::Z));
         assert!(!hits(DVec3::new(1.5, 0.5, -2.0), DVec3::Z));
     }
