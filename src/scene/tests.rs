@@ -404,6 +404,13 @@ fn broken_inputs_name_the_field_or_file() {
         .expect("truncated EXR must fail");
     assert_eq!(e.field(), Some("environment.filename"));
     assert!(e.to_string().contains("sky.exr"), "{e}");
+    // An environment transform that is not a rotation.
+    let env = r#", "environment": {"type": "envmap", "filename": "sky.exr", "to_world": {"scale": [2, 2, 2]}}"#;
+    let text = scene_json(r#"{"type": "sphere", "material": "m"}"#, env);
+    assert_eq!(
+        from_str(&text, &root).err().unwrap().field(),
+        Some("environment.to_world")
+    );
     // Unknown material id.
     let text = scene_json(r#"{"type": "sphere", "material": "gold"}"#, "");
     let e = from_str(&text, &root).err().unwrap();
