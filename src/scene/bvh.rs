@@ -63,14 +63,18 @@ struct Node {
     count: u32,
 }
 
+/// Largest f32 strictly below `x`. Strictly, so that a ray whose origin lies
+/// exactly on a primitive's bounding plane and whose direction component is
+/// (±)0 is still inside the padded slab whatever the sign of that zero.
 fn round_down(x: f64) -> f32 {
     let f = x as f32;
-    if f as f64 > x { f.next_down() } else { f }
+    if f as f64 >= x { f.next_down() } else { f }
 }
 
+/// Smallest f32 strictly above `x`.
 fn round_up(x: f64) -> f32 {
     let f = x as f32;
-    if (f as f64) < x { f.next_up() } else { f }
+    if (f as f64) <= x { f.next_up() } else { f }
 }
 
 impl Node {
@@ -90,8 +94,8 @@ impl Node {
     /// Entry distance of the ray into this box if it enters before `t_max`.
     #[inline(always)]
     fn hit(&self, o: DVec3, inv: DVec3, t_max: f64) -> Option<f64> {
-        // NaN (0·∞ when the origin lies on a slab of a parallel ray) is
-        // ignored by f64::min/max, which only widens the test.
+        // `inv` is finite (see `traverse`), so no 0·∞ = NaN can arise when
+        // the origin lies on a slab plane of a ray parallel to it.
         let x0 = (self.min[0] as f64 - o.x) * inv.x;
         let x1 = (self.max[0] as f64 - o.x) * inv.x;
         let y0 = (self.min[1] as f64 - o.y) * inv.y;
@@ -218,7 +222,10 @@ impl Bvh {
         let Some(root) = self.nodes.first() else {
             return false;
         };
-        let inv = dir.recip();
+        // Zero components become ±1e-300 so the inverse is huge but finite.
+        let inv = dir
+            .map(|c| if c == 0.0 { 1e-300f64.copysign(c) } else { c })
+            .recip();
         if root.hit(origin, inv, *t_max).is_none() {
             return false;
         }
@@ -409,6 +416,28 @@ mod tests {
             });
             assert_eq!(any, expected.is_some());
         }
+    }
+
+    #[test]
+    fn axis_parallel_rays_on_a_slab_plane_still_hit() {
+        let boxes = vec![
+            Aabb {
+                min: DVec3::ZERO,
+                max: DVec3::ONE,
+            },
+            Aabb {
+                min: DVec3::splat(3.0),
+                max: DVec3::splat(4.0),
+            },
+        ];
+        let (bvh, _) = Bvh::build(&boxes);
+        // Origin x = 0 lies on the first box's slab plane; dir.x = 0.
+        let hits = |o: DVec3, d: DVec3| bvh.any(o, d, 1e9, |_, _| true);
+        assert!(hits(DVec3::new(0.0, 5.0, 0.5), -DVec3::Y));
+        assert!(hits(DVec3::new(-0.0, 5.0, 0.5), DVec3::new(0.0, -1.0, 0.0)));
+        assert!(hits(DVec3::new(1.0, 5.0, 1.0), -DVec3::Y));
+        assert!(hits(DVec3::new(1.0, 0.5, -2.0), DVec3::Z));
+        assert!(!hits(DVec3::new(1.5, 0.5, -2.0), DVec3::Z));
     }
 
     #[test]

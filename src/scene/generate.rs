@@ -77,10 +77,11 @@ pub fn sky_texels(width: usize, height: usize) -> Vec<[f32; 3]> {
 }
 
 /// Radius of the blob at polar angle θ and azimuth φ: a unit sphere with
-/// three octaves of smooth bumps.
+/// three octaves of smooth bumps, each vanishing at the poles (θ = 0, π) so
+/// the surface stays single-valued there.
 fn blob_radius(theta: f64, phi: f64) -> f64 {
     1.0 + 0.06 * (5.0 * phi).sin() * (4.0 * theta).sin()
-        + 0.03 * (13.0 * phi + 2.0 * theta).sin() * (9.0 * theta).cos()
+        + 0.03 * (13.0 * phi + 2.0 * theta).sin() * (9.0 * theta).sin()
         + 0.015 * (31.0 * phi).sin() * (27.0 * theta).sin()
 }
 

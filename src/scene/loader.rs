@@ -17,11 +17,21 @@ use super::mesh::{self, MeshData};
 use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel};
 use super::{Camera, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
 
+/// Largest accepted scene file (inline triangle lists can be big).
+const MAX_SCENE_BYTES: u64 = 1 << 30;
+
 pub(super) fn load(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+    let io = |source| SceneError::Io {
         file: path.to_path_buf(),
         source,
-    })?;
+    };
+    let size = std::fs::metadata(path).map_err(io)?.len();
+    if size > MAX_SCENE_BYTES {
+        return Err(io(std::io::Error::other(format!(
+            "{size} bytes exceeds the {MAX_SCENE_BYTES}-byte limit"
+        ))));
+    }
+    let text = std::fs::read_to_string(path).map_err(io)?;
     let base = path.parent().unwrap_or(Path::new("."));
     let mut scene = from_json_str(&text, &path.display().to_string(), base, scenes_root)?;
     if scene.name.is_empty() {
@@ -534,11 +544,12 @@ fn load_environment(e: &EnvironmentDoc, files: &Files) -> Result<Environment, Sc
                     let t = transform::build(t, "environment.to_world")?;
                     let is_rotation = similarity_scale(&t.matrix3)
                         .is_some_and(|s| (s - 1.0).abs() < 1e-6)
-                        && t.matrix3.determinant() > 0.0;
+                        && t.matrix3.determinant() > 0.0
+                        && t.translation == DVec3::ZERO;
                     if !is_rotation {
                         return Err(SceneError::invalid(
                             "environment.to_world",
-                            "must be a rotation (no scale, shear, mirroring)",
+                            "must be a rotation (no translation, scale, shear or mirroring)",
                         ));
                     }
                     t.matrix3

@@ -92,7 +92,7 @@ impl Scene {
     }
 
     /// Parses a scene from text; relative file names resolve against
-    /// `base_dir`, which (like every referenced file) must be in `scenes_root`.
+    /// `base_dir`, and every referenced file must lie inside `scenes_root`.
     pub fn from_json_str(
         text: &str,
         base_dir: &std::path::Path,

@@ -404,6 +404,13 @@ fn broken_inputs_name_the_field_or_file() {
         .expect("truncated EXR must fail");
     assert_eq!(e.field(), Some("environment.filename"));
     assert!(e.to_string().contains("sky.exr"), "{e}");
+    // An environment transform that is not a rotation.
+    let env = r#", "environment": {"type": "envmap", "filename": "sky.exr", "to_world": {"scale": [2, 2, 2]}}"#;
+    let text = scene_json(r#"{"type": "sphere", "material": "m"}"#, env);
+    assert_eq!(
+        from_str(&text, &root).err().unwrap().field(),
+        Some("environment.to_world")
+    );
     // Unknown material id.
     let text = scene_json(r#"{"type": "sphere", "material": "gold"}"#, "");
     let e = from_str(&text, &root).err().unwrap();
@@ -476,4 +483,82 @@ fn broken_inputs_name_the_field_or_file() {
         from_str(text, &root).err().unwrap().field(),
         Some("camera.width")
     );
+}
+
+#[test]
+fn bundled_sky_and_mesh_scenes_load() {
+    let sky = bundled("sky.json");
+    let Some(Environment::Map(map)) = &sky.environment else {
+        panic!("sky.json has no environment map");
+    };
+    assert_eq!((map.width(), map.height()), generate::SKY_SIZE);
+    // The committed map is the generator's output (to half precision).
+    let (w, h) = generate::SKY_SIZE;
+    let fresh = generate::sky_texels(w, h);
+    for (i, t) in fresh.iter().enumerate() {
+        let stored = map.texel(i % w, i / w);
+        for c in 0..3 {
+            assert!(
+                (stored[c] - t[c] as f64).abs() <= 1e-3 * t[c] as f64 + 1e-4,
+                "texel {i}"
+            );
+        }
+    }
+    assert!(
+        sky.materials
+            .iter()
+            .any(|m| matches!(m, Material::Glossy { .. }))
+    );
+    assert!(
+        sky.materials
+            .iter()
+            .any(|m| matches!(m, Material::Diffuse { .. }))
+    );
+    // The camera's centre ray lands on something.
+    assert!(
+        sky.intersect(&sky.camera.generate_ray(160.0, 120.0))
+            .is_some()
+    );
+
+    let mesh = bundled("mesh.json");
+    assert!(
+        mesh.triangle_count() >= 100_000,
+        "{}",
+        mesh.triangle_count()
+    );
+    for o in [
+        DVec3::new(0.3, 2.5, 0.2),
+        DVec3::new(-3.0, 0.1, 0.4),
+        DVec3::new(0.2, -0.5, 3.0),
+    ] {
+        let hit = mesh.intersect(&ray(o, -o)).unwrap();
+        assert_eq!(hit.shape, 1);
+        assert!(
+            hit.normal.dot(hit.position) > 0.0,
+            "blob normals face outwards: {hit:?}"
+        );
+    }
+}
+
+#[test]
+fn vertex_normals_set_the_front_and_interpolate() {
+    let dir = TempDir::new("normals");
+    // Wound to face +z, but the vertex normals lean towards -z: the front
+    // follows the vertex normals.
+    let shapes = r#"{"type": "triangles", "material": "m",
+        "positions": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "indices": [[0, 1, 2]],
+        "normals": [[0, 0, -1], [1, 0, -1], [0, 1, -1]]}"#;
+    let scene = from_str(&scene_json(shapes, ""), &dir.0).unwrap();
+    let hit = scene
+        .intersect(&ray(DVec3::new(0.5, 0.25, 1.0), -DVec3::Z))
+        .unwrap();
+    assert!((hit.normal + DVec3::Z).length() < 1e-12);
+    // Barycentrics (0.25, 0.5, 0.25) weight the three normals.
+    let n0 = DVec3::new(0.0, 0.0, -1.0);
+    let n1 = DVec3::new(1.0, 0.0, -1.0).normalize();
+    let n2 = DVec3::new(0.0, 1.0, -1.0).normalize();
+    let expected = (n0 * 0.25 + n1 * 0.5 + n2 * 0.25).normalize();
+    assert!((hit.shading_normal - expected).length() < 1e-12, "{hit:?}");
+    let (_, n, _) = scene.sample_shape_area(0, [0.3, 0.6]);
+    assert!((n + DVec3::Z).length() < 1e-12);
 }
