@@ -122,3 +122,46 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     write_irradiance(out, &points, &estimates, args.std_error).context("writing results")?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: IrradianceArgs,
+    }
+
+    fn parse(line: &str) -> Result<IrradianceArgs, clap::Error> {
+        let words = std::iter::once("irradiance").chain(line.split_whitespace());
+        Cli::try_parse_from(words).map(|cli| cli.args)
+    }
+
+    #[test]
+    fn arguments_map_to_options() {
+        let args = parse("--scene s.json --points p.csv --samples 64 --max-depth 3 --seed 9")
+            .expect("valid");
+        let o = args.options();
+        assert_eq!((o.samples, o.max_depth, o.seed), (64, 3, 9));
+        assert_eq!(o.method, IrradianceMethod::Split);
+        assert!(!o.direct_only);
+
+        let args =
+            parse("--scene s.json --points p.csv --reference --direct-only --method hemisphere")
+                .expect("valid");
+        let expected = IrradianceOptions {
+            method: IrradianceMethod::Hemisphere,
+            direct_only: true,
+            ..IrradianceOptions::reference(1)
+        };
+        assert_eq!(args.options(), expected);
+    }
+
+    #[test]
+    fn reference_mode_conflicts_with_explicit_budgets() {
+        assert!(parse("--scene s.json --points p.csv --reference --samples 5").is_err());
+        assert!(parse("--scene s.json --points p.csv --method sideways").is_err());
+    }
+}
