@@ -52,12 +52,8 @@ impl Distribution1D {
         }
     }
 
-    pub fn len(&self) -> usize {
+    fn len(&self) -> usize {
         self.weights.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.weights.is_empty()
     }
 
     /// Integral of the (unnormalised) step function over `[0, 1)`; zero when

@@ -91,11 +91,6 @@ impl LightSampler {
         }
     }
 
-    /// True when the scene has no light at all (every estimate is zero).
-    pub fn is_empty(&self) -> bool {
-        self.area_distribution.is_none() && self.environment.is_none()
-    }
-
     /// Samples a light as seen from `x`. `u_select` chooses the light, `u`
     /// the point on it. `None` when the sample carries nothing (the back of
     /// an emitter faces `x`, or the scene has no light).

@@ -49,10 +49,6 @@ impl Rgb {
         self.r == 0.0 && self.g == 0.0 && self.b == 0.0
     }
 
-    pub fn is_finite(self) -> bool {
-        self.r.is_finite() && self.g.is_finite() && self.b.is_finite()
-    }
-
     pub fn map(self, f: impl Fn(f64) -> f64) -> Self {
         Self::new(f(self.r), f(self.g), f(self.b))
     }

@@ -4,7 +4,6 @@
 //! index)`, never on which thread evaluated it or in which order, so a
 //! request gives bit-identical results with 1 or 64 threads.
 
-use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
 /// SplitMix64 finaliser (Steele, Lea & Flood, "Fast Splittable Pseudorandom
@@ -29,12 +28,6 @@ pub fn point_rng(seed: u64, index: u64) -> Pcg64 {
     Pcg64::new(state, stream)
 }
 
-/// Generator for a request-level purpose (e.g. a random sample-set
-/// rotation shared by all points), distinct from every [`point_rng`] stream.
-pub fn request_rng(seed: u64) -> Pcg64 {
-    Pcg64::seed_from_u64(splitmix64(!seed))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -50,6 +43,5 @@ mod tests {
         sorted.dedup();
         assert_eq!(sorted.len(), firsts.len());
         assert_ne!(point_rng(1, 0).next_u64(), point_rng(2, 0).next_u64());
-        assert_ne!(request_rng(1).next_u64(), point_rng(1, 0).next_u64());
     }
 }
