@@ -27,10 +27,11 @@ use rand::{Rng, RngExt};
 use rayon::prelude::*;
 
 use super::error::RenderError;
-use super::path::{PathLengths, PathLimits, RadianceSample, TraceStats, Transport};
+use super::path::{PathLengths, PathLimits, RadianceSample, TraceStats};
 use super::query::QueryPoint;
 use super::rgb::Rgb;
 use super::seed::point_rng;
+use super::transport::Transport;
 use super::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;

@@ -9,8 +9,8 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::irradiance::{IrradianceMethod, IrradianceOptions};
-use super::path::Transport;
 use super::points_csv::{parse_points, write_irradiance};
+use super::transport::Transport;
 use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance irradiance`.

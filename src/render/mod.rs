@@ -23,11 +23,13 @@ pub mod polygon;
 pub mod query;
 pub mod rgb;
 pub mod seed;
+pub mod transport;
 pub mod warp;
 
 pub use bsdf::{Bsdf, BsdfSample};
 pub use error::RenderError;
 pub use irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions, MeanEstimate};
-pub use path::{PathLengths, PathLimits, RadianceSample, TraceStats, Transport};
+pub use path::{PathLengths, PathLimits, RadianceSample, TraceStats};
 pub use query::QueryPoint;
 pub use rgb::Rgb;
+pub use transport::Transport;

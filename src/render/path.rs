@@ -18,10 +18,10 @@
 use glam::DVec3;
 use rand::{Rng, RngExt};
 
-use super::bsdf::Bsdf;
-use super::lights::{LightSampler, emitted_radiance, environment_radiance};
+use super::lights::{emitted_radiance, environment_radiance};
 use super::rgb::Rgb;
-use crate::scene::{Ray, Scene};
+use super::transport::Transport;
+use crate::scene::Ray;
 use crate::sphere::Frame;
 
 /// Russian roulette starts once a path has this many segments: the first
@@ -63,38 +63,11 @@ pub struct RadianceSample {
     pub distance: f64,
 }
 
-/// Per-scene state for light transport: the scene, its light-selection
-/// tables and one BSDF per material. Build once per scene and share.
-pub struct Transport {
-    scene: std::sync::Arc<Scene>,
-    lights: LightSampler,
-    /// `bsdfs[i]` reflects like `scene.materials[i]`.
-    bsdfs: Vec<Bsdf>,
-}
-
 impl Transport {
-    pub fn new(scene: std::sync::Arc<Scene>) -> Self {
-        let lights = LightSampler::new(&scene);
-        let bsdfs = scene.materials.iter().map(Bsdf::from).collect();
-        Self {
-            scene,
-            lights,
-            bsdfs,
-        }
-    }
-
-    pub fn scene(&self) -> &Scene {
-        &self.scene
-    }
-
-    pub fn lights(&self) -> &LightSampler {
-        &self.lights
-    }
-
     /// Incident radiance at `ray.origin` from direction `ray.dir` (world),
     /// summed over the paths `limits` allows.
     ///
-    /// Spawn the ray with [`Scene::spawn_ray`] so it leaves the query surface
+    /// Spawn the ray with [`crate::scene::Scene::spawn_ray`] so it leaves the query surface
     /// cleanly. `max_depth = 0` returns black.
     pub fn incident_radiance<R: Rng + ?Sized>(
         &self,
@@ -103,7 +76,7 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> RadianceSample {
-        let scene = &*self.scene;
+        let scene = self.scene();
         let PathLimits { max_depth, lengths } = limits;
         let mut radiance = Rgb::BLACK;
         let mut distance = f64::INFINITY;
@@ -119,7 +92,7 @@ impl Transport {
                 let le = environment_radiance(scene, ray.dir);
                 if counts && !le.is_black() {
                     let weight = previous.map_or(1.0, |(_, pdf)| {
-                        power_heuristic(pdf, self.lights.pdf_environment(scene, ray.dir))
+                        power_heuristic(pdf, self.lights().pdf_environment(scene, ray.dir))
                     });
                     radiance += beta * le * weight;
                 }
@@ -131,14 +104,14 @@ impl Transport {
             let le = emitted_radiance(scene, &hit, ray.dir);
             if counts && !le.is_black() {
                 let weight = previous.map_or(1.0, |(origin, pdf)| {
-                    power_heuristic(pdf, self.lights.pdf_area_hit(scene, origin, &hit))
+                    power_heuristic(pdf, self.lights().pdf_area_hit(scene, origin, &hit))
                 });
                 radiance += beta * le * weight;
             }
             if depth == max_depth {
                 break;
             }
-            let Some(bsdf) = self.bsdfs.get(hit.material) else {
+            let Some(bsdf) = self.bsdf(hit.material) else {
                 break;
             };
             // Reflection happens in the shading frame (interpolated mesh
@@ -152,7 +125,7 @@ impl Transport {
             }
 
             // Next-event estimation: a path of length depth + 1 ending on a light.
-            if let Some(light) = self.lights.sample(
+            if let Some(light) = self.lights().sample(
                 scene,
                 hit.position,
                 rng.random(),
