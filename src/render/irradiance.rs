@@ -36,6 +36,10 @@ use super::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;
 
+/// Largest accepted `max_depth`. Russian roulette cannot end paths in a
+/// closed scene of albedo 1, so the depth bound is what keeps a request finite.
+pub const MAX_DEPTH: u32 = 1024;
+
 /// How the irradiance integral is split between estimators (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IrradianceMethod {
@@ -96,10 +100,13 @@ impl IrradianceOptions {
                 reason: "must be at least 1".into(),
             });
         }
-        if self.max_depth == 0 {
+        if self.max_depth == 0 || self.max_depth > MAX_DEPTH {
             return Err(RenderError::InvalidOption {
                 field: "max_depth",
-                reason: "must be at least 1 (1 = direct light only)".into(),
+                reason: format!(
+                    "must be in 1..={MAX_DEPTH} (1 = direct light only), got {}",
+                    self.max_depth
+                ),
             });
         }
         Ok(())
@@ -346,6 +353,8 @@ mod tests {
                 ..
             })
         ));
+        o.max_depth = MAX_DEPTH + 1;
+        assert!(o.validate().is_err());
         o.direct_only = true;
         o.max_depth = 9;
         assert_eq!(o.effective_max_depth(), 1);
