@@ -68,7 +68,9 @@ impl Transport {
     /// summed over the paths `limits` allows.
     ///
     /// Spawn the ray with [`crate::scene::Scene::spawn_ray`] so it leaves the query surface
-    /// cleanly. `max_depth = 0` returns black.
+    /// cleanly. `max_depth = 0` returns black; callers bound `max_depth`
+    /// (see [`super::irradiance::MAX_DEPTH`]), since Russian roulette alone
+    /// does not end paths in a closed scene of albedo 1.
     pub fn incident_radiance<R: Rng + ?Sized>(
         &self,
         ray: Ray,
