@@ -248,8 +248,8 @@ fn external_direction_sets_plug_into_the_hemisphere_estimate() {
     let t = load(&scene_json(materials, &shapes, None), Path::new("."));
     let p = point(DVec3::new(0.1, 0.2, -1.0), DVec3::Z);
     let frame = Frame::from_normal(p.normal()).rotated_about_normal(0.7);
-    // Cosine-distributed spherical Fibonacci set (bmc-math.md §5) plus one
-    // direction below the surface, which must carry nothing.
+    // Cosine-distributed spherical Fibonacci set (bmc-math.md §5) plus a
+    // direction below the surface and a NaN one, which must carry nothing.
     let n = 64;
     let golden = (1.0 + 5f64.sqrt()) / 2.0;
     let mut dirs: Vec<DVec3> = (0..n)
@@ -261,6 +261,7 @@ fn external_direction_sets_plug_into_the_hemisphere_estimate() {
         })
         .collect();
     dirs.push(-DVec3::Z);
+    dirs.push(DVec3::new(0.0, f64::NAN, 1.0));
     let mut rng = point_rng(3, 0);
     let mut stats = TraceStats::default();
     let limits = |max_depth, lengths| PathLimits { max_depth, lengths };
@@ -280,7 +281,7 @@ fn external_direction_sets_plug_into_the_hemisphere_estimate() {
         assert_eq!(s.radiance, le, "every direction sees an emitting wall");
         assert!(s.distance > 0.0 && s.distance < 2.0 * 3f64.sqrt());
     }
-    assert_eq!(direct[n].radiance, Rgb::BLACK);
+    assert!(direct[n..].iter().all(|s| s.radiance == Rgb::BLACK));
     let mean: Rgb = direct[..n].iter().map(|s| s.radiance).sum::<Rgb>() / n as f64;
     assert!(((mean * PI).r - PI * le.r).abs() < 1e-12);
     // Without the directly seen emission and one bounce, nothing is left.

@@ -165,7 +165,8 @@ impl MeanEstimate {
 impl Transport {
     /// Radiance along each local-frame direction of `local_dirs` (z = the
     /// frame's normal, which should be the point's normal, possibly rotated
-    /// about it). Directions with `z ≤ 0` carry nothing and trace no ray.
+    /// about it). Directions with `z ≤ 0` (or not finite) carry nothing and
+    /// trace no ray; the others need not be normalised.
     pub fn hemisphere_samples<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
@@ -178,7 +179,7 @@ impl Transport {
         local_dirs
             .iter()
             .map(|local| {
-                if local.z <= 0.0 {
+                if local.z.is_nan() || local.z <= 0.0 || !local.is_finite() {
                     return RadianceSample {
                         radiance: Rgb::BLACK,
                         distance: f64::INFINITY,
