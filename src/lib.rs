@@ -6,5 +6,8 @@
 //!
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
+//! - `sphere`: local shading frames and hemisphere sample sets (local frame, z = normal).
+//! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance.
 
+pub mod bmc;
 pub mod sphere;
