@@ -6,5 +6,8 @@
 //!
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
+//! - `study`: synthetic environments with known irradiance and the estimator
+//!   convergence study (MC vs QMC vs BMC).
 
 pub mod sphere;
+pub mod study;

@@ -1,0 +1,3 @@
+//! Numerical studies of the estimators on environments with known integrals.
+
+pub mod synthetic;
