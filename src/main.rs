@@ -1,5 +1,6 @@
 //! Thin command-line front end; all work lives in the library.
 
+use bmc_irradiance::cli;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -14,9 +15,19 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Print the BMC quadrature (directions, kernel means, weights, variances) of one configuration.
+    Quadrature(cli::quadrature::QuadratureArgs),
+    /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
+    Study(cli::study::StudyArgs),
+}
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    let output = match cli.command {
+        Command::Quadrature(args) => cli::quadrature::run(&args)?,
+        Command::Study(args) => cli::study::run(&args)?,
+    };
+    println!("{output}");
+    Ok(())
 }
