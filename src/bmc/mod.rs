@@ -2,9 +2,12 @@
 //! kernels, densities, exact kernel means, the factorisation of `Q` and the
 //! resulting weights and posterior variance.
 
+pub mod cache;
 pub mod density;
 pub mod error;
+pub mod estimator;
 pub mod factorisation;
+pub mod hyperparameters;
 pub mod kernel;
 pub mod kernel_mean;
 pub mod quadrature;

@@ -186,6 +186,12 @@ mod tests {
         (f, q)
     }
 
+    /// A grazing, clipped glossy lobe.
+    const PHONG: Density = Density::Phong {
+        exponent: 12.0,
+        mirror_elevation: 1.1,
+    };
+
     fn kernels() -> [Kernel; 3] {
         [
             Kernel::new(KernelKind::SquaredExponential, 0.4, 1.0, 0.0).unwrap(),
@@ -215,6 +221,18 @@ mod tests {
                 }
             }
         }
+        let k = kernels()[0];
+        let (_, q) = rule(&s, &k, &PHONG, PriorMean::Zero);
+        let zmax = q.kernel_means.iter().fold(0.0f64, |a, b| a.max(*b));
+        for (j, wj) in s.directions.iter().enumerate() {
+            let kw: f64 = s
+                .directions
+                .iter()
+                .zip(&q.weights)
+                .map(|(wi, w)| w * k.eval(*wi, *wj))
+                .sum();
+            assert!((kw - q.kernel_means[j]).abs() < 1e-9 * zmax, "Phong j={j}");
+        }
     }
 
     /// bmc-math.md §8: `0 ≤ V ≤ V₀` and `V` shrinks as samples are added
@@ -239,6 +257,19 @@ mod tests {
                 }
             }
         }
+        let k = kernels()[0];
+        let mut last = f64::INFINITY;
+        for n in [4, 16] {
+            let (_, q) = rule(
+                &set(SampleSetKind::Uniform, n, 11),
+                &k,
+                &PHONG,
+                PriorMean::Zero,
+            );
+            assert!(q.posterior_variance >= 0.0 && q.posterior_variance < last);
+            assert!(q.posterior_variance <= q.prior_variance);
+            last = q.posterior_variance;
+        }
     }
 
     fn q0(k: &Kernel, d: &Density) -> f64 {
@@ -255,6 +286,11 @@ mod tests {
                 let (_, q) = rule(&s, &k, &d, PriorMean::Gls);
                 let sum: f64 = q.weights.iter().sum();
                 assert!((sum - d.integral()).abs() < 1e-12, "{k:?} {d:?}");
+            }
+            if k.kind != KernelKind::Matern32 {
+                let (_, q) = rule(&s, &k, &PHONG, PriorMean::Gls);
+                let sum: f64 = q.weights.iter().sum();
+                assert!((sum - PHONG.integral()).abs() < 1e-12, "{k:?} Phong");
             }
             let (_, q) = rule(&s, &k, &Density::Lambert, PriorMean::Gls);
             let radiance = 3.7;
@@ -311,6 +347,10 @@ mod tests {
             ),
             (
                 Kernel::new(KernelKind::Matern32, 0.4, 2.0, 0.01).unwrap(),
+                PHONG,
+            ),
+            (
+                Kernel::new(KernelKind::Matern52, 0.3, 1.0, 0.0).unwrap(),
                 Density::Uniform,
             ),
         ] {

@@ -21,7 +21,7 @@
 //! `V₀ = ∫ z(ω) p(ω) dω` reuses these: 1-D over `μ` for the rotation-invariant
 //! densities, 2-D over `(u, ψ)` for Phong (symmetric in `ψ`, so `ψ ≥ 0` only).
 
-use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI};
+use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI, TAU};
 
 use glam::DVec3;
 
@@ -37,7 +37,7 @@ const REL_TOL: f64 = 1e-10;
 
 /// Relative tolerance of the outer integral of `V₀ = ∫ z p`, whose integrand
 /// is smooth at the scale of the kernel and of the lobe.
-const PRIOR_REL_TOL: f64 = 1e-8;
+const PRIOR_REL_TOL: f64 = 1e-10;
 
 /// Absolute floor, as a fraction of `σ² ∫p` (the largest possible kernel
 /// mean): kernel means below ~1e-15 of that are not resolved relatively.
@@ -45,7 +45,7 @@ const ABS_FLOOR: f64 = 1e-16;
 
 /// Kernel-width multiples placed as breaks so narrow kernels are never
 /// stepped over by the first panels.
-const WIDTHS: [f64; 2] = [2.0, 6.0];
+const WIDTHS: [f64; 1] = [3.0];
 
 fn tolerance(kernel: &Kernel, density: &Density, rel: f64) -> Tolerance {
     Tolerance {
@@ -64,6 +64,11 @@ fn kernel_mean_with(w: DVec3, kernel: &Kernel, density: &Density, tol: Tolerance
     match *density {
         Density::Uniform | Density::Lambert => {
             let mu = w.z.clamp(-1.0, 1.0);
+            // 1-D integrals are cheap: ask for two more digits.
+            let tol = Tolerance {
+                rel: tol.rel * 1e-2,
+                abs: tol.abs,
+            };
             if kernel.kind == KernelKind::SquaredExponential {
                 bessel_mean(mu, kernel, density, tol)
             } else {
@@ -206,9 +211,7 @@ fn lobe_mean(w: DVec3, kernel: &Kernel, density: &Density, m: f64, tol: Toleranc
 
 /// Exact prior variance `V₀ = ∫∫ k(ω, ω') p(ω) p(ω') dω dω'`.
 pub(crate) fn prior_variance(kernel: &Kernel, density: &Density) -> f64 {
-    // Outer panels need less than the inner ones: the outer integrand z(ω)
-    // is smooth at the scale of the kernel and of the lobe.
-    let base = tolerance(kernel, density, 10.0 * PRIOR_REL_TOL);
+    let base = tolerance(kernel, density, REL_TOL);
     let outer = Tolerance {
         rel: PRIOR_REL_TOL,
         abs: base.abs * density.integral(),
@@ -222,25 +225,111 @@ pub(crate) fn prior_variance(kernel: &Kernel, density: &Density) -> f64 {
             };
             adaptive(&f, 0.0, 1.0, outer)
         }
-        Density::Phong { exponent: m, .. } => {
-            let frame = LobeFrame::new(density);
-            let norm = phong_normalisation(m);
-            let inner_outer = outer.scaled(norm).nested(1.0);
-            let f = |u: f64| {
-                let (a, b, v) = frame.cosine(u);
-                let half = positive_half_arc(a, b);
-                if half <= 0.0 {
-                    return 0.0;
-                }
-                let g = |psi: f64| {
-                    let w = frame.direction(u, v, psi);
-                    kernel_mean_with(w, kernel, density, base) * (a + b * psi.cos())
-                };
-                // z(ω) p(ω) is even in ψ (the density is symmetric about the
-                // plane of n and r, the kernel is isotropic).
-                2.0 * u.powf(m) * adaptive(&g, 0.0, half, inner_outer)
-            };
-            norm * adaptive_split(&f, 0.0, 1.0, &frame.u_breaks(m), outer.scaled(norm))
+        Density::Phong { exponent: m, .. } => phong_prior_variance(kernel, density, m, outer),
+    }
+}
+
+/// `V₀` for a Phong density as a 3-D integral. With both directions in the
+/// frame about `r`, `ω = (u, ψ)`, `ω' = (u', ψ + δ)`, the kernel depends on
+/// `(u, u', δ)` only (`ω·ω' = uu' + vv' cos δ`), so the integral over `ψ` of
+/// the two clipped cosines is a closed-form correlation
+/// ([`clipped_cosine_correlation`]):
+/// `V₀ = N_m² ∫∫ u^m u'^m ∫_{−π}^{π} k(uu' + vv' cos δ) C(u, u', δ) dδ du' du`.
+/// The integrand is even in `δ` (mirror symmetry about the `n`–`r` plane) and
+/// symmetric in `(u, u')`, so only `δ ≥ 0`, `u' ≤ u` is integrated.
+fn phong_prior_variance(kernel: &Kernel, density: &Density, m: f64, tol: Tolerance) -> f64 {
+    let frame = LobeFrame::new(density);
+    let norm = phong_normalisation(m);
+    let ell = kernel.lengthscale;
+    let tol = tol.scaled(norm * norm);
+    let u_breaks = frame.u_breaks(m);
+    let f = |u: f64| {
+        let (a, b, v) = frame.cosine(u);
+        let g = positive_half_arc(a, b);
+        if g <= 0.0 {
+            return 0.0;
         }
+        let inner = |u2: f64| {
+            let (a2, b2, v2) = frame.cosine(u2);
+            let g2 = positive_half_arc(a2, b2);
+            if g2 <= 0.0 {
+                return 0.0;
+            }
+            let h = |delta: f64| {
+                let c = u * u2 + v * v2 * delta.cos();
+                let chord = (2.0 - 2.0 * c).max(0.0).sqrt();
+                kernel.eval_chord(chord)
+                    * clipped_cosine_correlation((a, b, g), (a2, b2, g2), delta)
+            };
+            let mut breaks = vec![(g - g2).abs(), g + g2, TAU - g - g2];
+            let vv = (v * v2).sqrt();
+            if vv > 0.0 {
+                breaks.extend(WIDTHS.iter().map(|k| k * ell / vv));
+            }
+            2.0 * u2.powf(m) * adaptive_split(&h, 0.0, PI, &breaks, tol)
+        };
+        let mut breaks = u_breaks.clone();
+        let alpha = u.acos();
+        for k in WIDTHS {
+            for t in [alpha - k * ell, alpha + k * ell] {
+                breaks.push(t.clamp(0.0, PI).cos());
+            }
+        }
+        // The integrand is symmetric in (u, u'): integrate u' < u, twice.
+        2.0 * u.powf(m) * adaptive_split(&inner, 0.0, u, &breaks, tol.nested(1.0))
+    };
+    norm * norm * adaptive_split(&f, 0.0, 1.0, &u_breaks, tol)
+}
+
+/// `C(δ) = ∫_{−π}^{π} max(0, a + b cos ψ) · max(0, a₂ + b₂ cos(ψ + δ)) dψ`
+/// for two circles with positive arcs `|ψ| ≤ g` and `|ψ + δ| ≤ g₂` (`g`, `g₂`
+/// from [`positive_half_arc`]). On the overlap of the arcs the product is a
+/// trigonometric polynomial with the closed-form antiderivative below; the
+/// second arc is shifted by `2πk`, `k ∈ {−1, 0, 1}`, to account for wrap-around
+/// (the product is 2π-periodic, and the shifted copies of the second arc are
+/// disjoint, so each point of the first arc is counted once, full circles
+/// included).
+fn clipped_cosine_correlation(
+    (a, b, g): (f64, f64, f64),
+    (a2, b2, g2): (f64, f64, f64),
+    delta: f64,
+) -> f64 {
+    let (sd, cd) = delta.sin_cos();
+    // P(ψ) = (a + b cos ψ)(a₂ + b₂ cos δ cos ψ − b₂ sin δ sin ψ)
+    let antiderivative = |x: f64| {
+        let (s, c) = x.sin_cos();
+        let (s2, c2) = (2.0 * x).sin_cos();
+        a * a2 * x
+            + (a * b2 * cd + a2 * b) * s
+            + a * b2 * sd * c
+            + b * b2 * cd * (0.5 * x + 0.25 * s2)
+            + b * b2 * sd * 0.25 * c2
+    };
+    let (lo1, hi1) = (-g, g);
+    let mut total = 0.0;
+    for k in [-1.0, 0.0, 1.0] {
+        let shift = k * TAU;
+        let lo = lo1.max(-delta - g2 + shift);
+        let hi = hi1.min(-delta + g2 + shift);
+        if hi > lo {
+            total += antiderivative(hi) - antiderivative(lo);
+        }
+    }
+    total.max(0.0)
+}
+
+#[cfg(test)]
+pub(super) mod tests_support {
+    //! The individual reductions, for cross-checks in `kernel_mean::tests`.
+    use super::*;
+
+    pub fn tolerance(kernel: &Kernel, density: &Density) -> Tolerance {
+        super::tolerance(kernel, density, REL_TOL)
+    }
+    pub fn bessel(mu: f64, kernel: &Kernel, density: &Density, tol: Tolerance) -> f64 {
+        bessel_mean(mu, kernel, density, tol)
+    }
+    pub fn axis(mu: f64, kernel: &Kernel, density: &Density, tol: Tolerance) -> f64 {
+        axis_mean(mu, kernel, density, tol)
     }
 }
