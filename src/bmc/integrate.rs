@@ -95,16 +95,6 @@ pub(crate) struct Tolerance {
 }
 
 impl Tolerance {
-    /// Tolerance for an integral nested inside an outer one over an interval
-    /// of length `outer_length`: inner absolute errors integrate to at most
-    /// `outer_length ×` their size.
-    pub fn nested(self, outer_length: f64) -> Tolerance {
-        Tolerance {
-            rel: self.rel,
-            abs: self.abs / outer_length.max(1e-300),
-        }
-    }
-
     /// Tolerance for an integral that is multiplied by `factor` afterwards.
     pub fn scaled(self, factor: f64) -> Tolerance {
         Tolerance {

@@ -14,7 +14,7 @@
 //!   `z = ∫₀^π k(β) sin β g(β) dβ`; `g` has kinks where the circle of radius
 //!   `β` touches the horizon (`β = |π/2 − θ_i|`, `π/2 + θ_i`), which are breaks.
 //! - **Phong density, any kernel**: in a frame about the mirror direction `r`
-//!   (`u = cos α`, azimuth `ψ`) the lobe is `u^m`, the clip is an arc
+//!   (angle `α`, `u = cos α`, azimuth `ψ`) the lobe is `u^m`, the clip is an arc
 //!   `|ψ| ≤ γ₀(u)` (the cosine `A + B cos ψ` vanishes at its ends), and the
 //!   kernel peak sits at `(u_i, ψ_i)`: a nested adaptive 2-D integral.
 //!
@@ -153,10 +153,11 @@ impl LobeFrame {
         }
     }
 
-    /// `(A, B)` of the cosine `A + B cos ψ` on the circle `u`, and `v = sin α`.
-    fn cosine(&self, u: f64) -> (f64, f64, f64) {
-        let v = (1.0 - u * u).max(0.0).sqrt();
-        (u * self.cos_r, v * self.sin_r, v)
+    /// On the circle at angle `α` from `r`: `(A, B, u, v)` with the cosine
+    /// `cos θ = A + B cos ψ`, `u = cos α`, `v = sin α`.
+    fn circle(&self, alpha: f64) -> (f64, f64, f64, f64) {
+        let (v, u) = alpha.sin_cos();
+        (u * self.cos_r, v * self.sin_r, u, v)
     }
 
     fn direction(&self, u: f64, v: f64, psi: f64) -> DVec3 {
@@ -164,16 +165,19 @@ impl LobeFrame {
         u * self.r + v * (cp * self.e1 + sp * DVec3::Y)
     }
 
-    /// Breaks in `u` for the lobe `u^m` (width `~1/m` in `u`) and the horizon
-    /// clip (`u = sin θ_r`, below which the circle dips under the horizon).
-    fn u_breaks(&self, m: f64) -> Vec<f64> {
-        let mut b = vec![self.sin_r];
-        b.extend([3.0, 30.0].map(|k| 1.0 - k / (m + 1.0)));
+    /// Breaks in `α` for the lobe `cos^m α ≈ e^{−mα²/2}` (width `~1/sqrt(m)`)
+    /// and the horizon clip (`α = π/2 − θ_r`, beyond which the circle dips
+    /// under the horizon).
+    fn alpha_breaks(&self, m: f64) -> Vec<f64> {
+        let mut b = vec![FRAC_PI_2 - self.cos_r.acos()];
+        b.extend([6.0, 60.0].map(|k: f64| (k / (m + 1.0)).sqrt()));
         b
     }
 }
 
-/// Phong density (any kernel), 2-D in the frame about `r`.
+/// Phong density (any kernel), 2-D in the frame about `r`. Integrating over
+/// the angle `α` rather than `u = cos α` keeps `sin α` analytic, which matters
+/// for grazing `r`, where the circles are clipped right up to `α = 0`.
 fn lobe_mean(w: DVec3, kernel: &Kernel, density: &Density, m: f64, tol: Tolerance) -> f64 {
     let frame = LobeFrame::new(density);
     let u_i = w.dot(frame.r).clamp(-1.0, 1.0);
@@ -181,9 +185,9 @@ fn lobe_mean(w: DVec3, kernel: &Kernel, density: &Density, m: f64, tol: Toleranc
     let alpha_i = u_i.acos();
     let ell = kernel.lengthscale;
     let norm = phong_normalisation(m);
-    let inner_tol = tol.scaled(norm).nested(1.0);
-    let f = |u: f64| {
-        let (a, b, v) = frame.cosine(u);
+    let outer_tol = tol.scaled(norm);
+    let f = |alpha: f64| {
+        let (a, b, u, v) = frame.circle(alpha);
         let half = positive_half_arc(a, b);
         if half <= 0.0 {
             return 0.0;
@@ -197,16 +201,18 @@ fn lobe_mean(w: DVec3, kernel: &Kernel, density: &Density, m: f64, tol: Toleranc
                 breaks.push(psi_i + k * ell / v);
             }
         }
-        u.powf(m) * adaptive_split(&g, -half, half, &breaks, inner_tol)
+        // Inner errors are weighted by u^m sin α: circles far out in a sharp
+        // lobe need no more absolute accuracy than the total asks for.
+        let weight = u.powf(m) * v;
+        weight * adaptive_split(&g, -half, half, &breaks, outer_tol.scaled(weight))
     };
-    let mut breaks = frame.u_breaks(m);
-    breaks.push(u_i);
+    let mut breaks = frame.alpha_breaks(m);
+    breaks.push(alpha_i);
     for k in WIDTHS {
-        for t in [alpha_i - k * ell, alpha_i + k * ell] {
-            breaks.push(t.clamp(0.0, PI).cos());
-        }
+        breaks.push(alpha_i - k * ell);
+        breaks.push(alpha_i + k * ell);
     }
-    norm * adaptive_split(&f, 0.0, 1.0, &breaks, tol.scaled(norm))
+    norm * adaptive_split(&f, 0.0, FRAC_PI_2, &breaks, outer_tol)
 }
 
 /// Exact prior variance `V₀ = ∫∫ k(ω, ω') p(ω) p(ω') dω dω'`.
@@ -234,23 +240,26 @@ pub(crate) fn prior_variance(kernel: &Kernel, density: &Density) -> f64 {
 /// `(u, u', δ)` only (`ω·ω' = uu' + vv' cos δ`), so the integral over `ψ` of
 /// the two clipped cosines is a closed-form correlation
 /// ([`clipped_cosine_correlation`]):
-/// `V₀ = N_m² ∫∫ u^m u'^m ∫_{−π}^{π} k(uu' + vv' cos δ) C(u, u', δ) dδ du' du`.
+/// `V₀ = N_m² ∫∫ u^m v u'^m v' ∫_{−π}^{π} k(uu' + vv' cos δ) C(u, u', δ) dδ dα' dα`
+/// (`u = cos α`, `v = sin α`).
 /// The integrand is even in `δ` (mirror symmetry about the `n`–`r` plane) and
-/// symmetric in `(u, u')`, so only `δ ≥ 0`, `u' ≤ u` is integrated.
+/// symmetric in `(α, α')`, so only `δ ≥ 0`, `α' ≥ α` is integrated.
 fn phong_prior_variance(kernel: &Kernel, density: &Density, m: f64, tol: Tolerance) -> f64 {
     let frame = LobeFrame::new(density);
     let norm = phong_normalisation(m);
     let ell = kernel.lengthscale;
     let tol = tol.scaled(norm * norm);
-    let u_breaks = frame.u_breaks(m);
-    let f = |u: f64| {
-        let (a, b, v) = frame.cosine(u);
+    let alpha_breaks = frame.alpha_breaks(m);
+    let f = |alpha: f64| {
+        let (a, b, u, v) = frame.circle(alpha);
         let g = positive_half_arc(a, b);
         if g <= 0.0 {
             return 0.0;
         }
-        let inner = |u2: f64| {
-            let (a2, b2, v2) = frame.cosine(u2);
+        let weight = 2.0 * u.powf(m) * v;
+        let middle_tol = tol.scaled(weight);
+        let inner = |alpha2: f64| {
+            let (a2, b2, u2, v2) = frame.circle(alpha2);
             let g2 = positive_half_arc(a2, b2);
             if g2 <= 0.0 {
                 return 0.0;
@@ -266,19 +275,15 @@ fn phong_prior_variance(kernel: &Kernel, density: &Density, m: f64, tol: Toleran
             if vv > 0.0 {
                 breaks.extend(WIDTHS.iter().map(|k| k * ell / vv));
             }
-            2.0 * u2.powf(m) * adaptive_split(&h, 0.0, PI, &breaks, tol)
+            let weight = 2.0 * u2.powf(m) * v2;
+            weight * adaptive_split(&h, 0.0, PI, &breaks, middle_tol.scaled(weight))
         };
-        let mut breaks = u_breaks.clone();
-        let alpha = u.acos();
-        for k in WIDTHS {
-            for t in [alpha - k * ell, alpha + k * ell] {
-                breaks.push(t.clamp(0.0, PI).cos());
-            }
-        }
-        // The integrand is symmetric in (u, u'): integrate u' < u, twice.
-        2.0 * u.powf(m) * adaptive_split(&inner, 0.0, u, &breaks, tol.nested(1.0))
+        let mut breaks = alpha_breaks.clone();
+        breaks.extend(WIDTHS.iter().map(|k| alpha + k * ell));
+        // The integrand is symmetric in (α, α'): integrate α' > α, twice.
+        weight * adaptive_split(&inner, alpha, FRAC_PI_2, &breaks, middle_tol)
     };
-    norm * norm * adaptive_split(&f, 0.0, 1.0, &u_breaks, tol)
+    norm * norm * adaptive_split(&f, 0.0, FRAC_PI_2, &alpha_breaks, tol)
 }
 
 /// `C(δ) = ∫_{−π}^{π} max(0, a + b cos ψ) · max(0, a₂ + b₂ cos(ψ + δ)) dψ`
