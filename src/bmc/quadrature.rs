@@ -204,34 +204,25 @@ mod tests {
     #[test]
     fn weights_integrate_kernel_sections_exactly() {
         let s = set(SampleSetKind::Uniform, 24, 4);
-        for k in kernels() {
-            for d in [Density::Lambert, Density::Uniform] {
-                let (f, q) = rule(&s, &k, &d, PriorMean::Zero);
-                let diag = k.noise + f.jitter;
-                let zmax = q.kernel_means.iter().fold(0.0f64, |a, b| a.max(*b));
-                for (j, wj) in s.directions.iter().enumerate() {
-                    let kw: f64 = s
-                        .directions
-                        .iter()
-                        .zip(&q.weights)
-                        .map(|(wi, w)| w * k.eval(*wi, *wj))
-                        .sum();
-                    let expected = q.kernel_means[j] - diag * q.weights[j];
-                    assert!((kw - expected).abs() < 1e-9 * zmax, "{k:?} {d:?} j={j}");
-                }
+        let mut cases: Vec<(Kernel, Density)> = kernels()
+            .into_iter()
+            .flat_map(|k| [(k, Density::Lambert), (k, Density::Uniform)])
+            .collect();
+        cases.push((kernels()[0], PHONG));
+        for (k, d) in cases {
+            let (f, q) = rule(&s, &k, &d, PriorMean::Zero);
+            let diag = k.noise + f.jitter;
+            let zmax = q.kernel_means.iter().fold(0.0f64, |a, b| a.max(*b));
+            for (j, wj) in s.directions.iter().enumerate() {
+                let kw: f64 = s
+                    .directions
+                    .iter()
+                    .zip(&q.weights)
+                    .map(|(wi, w)| w * k.eval(*wi, *wj))
+                    .sum();
+                let expected = q.kernel_means[j] - diag * q.weights[j];
+                assert!((kw - expected).abs() < 1e-9 * zmax, "{k:?} {d:?} j={j}");
             }
-        }
-        let k = kernels()[0];
-        let (_, q) = rule(&s, &k, &PHONG, PriorMean::Zero);
-        let zmax = q.kernel_means.iter().fold(0.0f64, |a, b| a.max(*b));
-        for (j, wj) in s.directions.iter().enumerate() {
-            let kw: f64 = s
-                .directions
-                .iter()
-                .zip(&q.weights)
-                .map(|(wi, w)| w * k.eval(*wi, *wj))
-                .sum();
-            assert!((kw - q.kernel_means[j]).abs() < 1e-9 * zmax, "Phong j={j}");
         }
     }
 
