@@ -318,6 +318,42 @@ mod tests {
         assert!((PI * q.estimate(&y) / exact - 1.0).abs() < 1e-6);
     }
 
+    /// Both variances are the exact error variance of their linear
+    /// estimator: for any weights, `Var(Σ w_i Y_i − I) = wᵀQw − 2wᵀz + V₀`
+    /// under `f ~ GP(0, k)`; with the GLS weights, the error does not depend on
+    /// the unknown constant at all (the weights sum to `∫p`), so the
+    /// universal-kriging formula must agree with this identity exactly.
+    #[test]
+    fn variances_equal_the_error_variance_of_their_weights() {
+        let s = set(SampleSetKind::Cosine, 20, 8);
+        for k in kernels() {
+            for d in [Density::Lambert, PHONG] {
+                for mean in [PriorMean::Zero, PriorMean::Gls] {
+                    if k.kind == KernelKind::Matern32 && d == PHONG {
+                        continue; // slowest combination; covered by calibration
+                    }
+                    let (f, q) = rule(&s, &k, &d, mean);
+                    let n = s.len();
+                    let w = &q.weights;
+                    let mut wqw = 0.0;
+                    for i in 0..n {
+                        for j in 0..n {
+                            wqw += w[i] * w[j] * k.eval(s.directions[i], s.directions[j]);
+                        }
+                        wqw += w[i] * w[i] * (k.noise + f.jitter);
+                    }
+                    let wz: f64 = w.iter().zip(&q.kernel_means).map(|(a, b)| a * b).sum();
+                    let direct = wqw - 2.0 * wz + q.prior_variance;
+                    assert!(
+                        (direct - q.raw_posterior_variance).abs() < 1e-9 * q.prior_variance,
+                        "{k:?} {d:?} {mean:?}: {direct} vs {}",
+                        q.raw_posterior_variance
+                    );
+                }
+            }
+        }
+    }
+
     fn standard_normal(rng: &mut Pcg64) -> f64 {
         // Box–Muller; 1 − U keeps the logarithm finite.
         let u1: f64 = 1.0 - rng.random::<f64>();
