@@ -25,6 +25,7 @@
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI, TAU};
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::bmc::bessel::i0_scaled;
 use crate::bmc::density::{Density, clipped_cosine_arc, phong_normalisation, positive_half_arc};
@@ -55,10 +56,14 @@ fn tolerance(kernel: &Kernel, density: &Density, rel: f64) -> Tolerance {
     }
 }
 
-/// Exact `z(ω) = ∫_H k(ω, ω') p(ω') dω'` for a unit direction `ω` (local frame;
-/// may lie anywhere on the sphere).
-pub(crate) fn kernel_mean(w: DVec3, kernel: &Kernel, density: &Density) -> f64 {
-    kernel_mean_with(w, kernel, density, tolerance(kernel, density, REL_TOL))
+/// Exact `z(ω) = ∫_H k(ω, ω') p(ω') dω'` for unit directions `ω` (local
+/// frame; they may lie anywhere on the sphere), in parallel.
+pub(crate) fn kernel_means(directions: &[DVec3], kernel: &Kernel, density: &Density) -> Vec<f64> {
+    let tol = tolerance(kernel, density, REL_TOL);
+    directions
+        .par_iter()
+        .map(|&w| kernel_mean_with(w, kernel, density, tol))
+        .collect()
 }
 
 fn kernel_mean_with(w: DVec3, kernel: &Kernel, density: &Density, tol: Tolerance) -> f64 {
@@ -96,8 +101,9 @@ fn bessel_mean(mu_i: f64, kernel: &Kernel, density: &Density, tol: Tolerance) ->
     let f = |mu: f64| {
         let s = (1.0 - mu * mu).max(0.0).sqrt();
         let a = lambda * s_i * s;
-        // λ(μ_i μ + s_i s − 1) = −λ |ω_i − ω|²/2 in the φ = 0 plane.
-        let e = lambda * (mu_i * mu + s_i * s - 1.0);
+        // λ(μ_i μ + s_i s − 1) = −λ |ω_i − ω|²/2 in the φ = 0 plane; ≤ 0 up
+        // to rounding, which must not be amplified by a large λ.
+        let e = (lambda * (mu_i * mu + s_i * s - 1.0)).min(0.0);
         e.exp() * i0_scaled(a) * zonal_density(density, mu)
     };
     let mut breaks = vec![mu_i];

@@ -10,7 +10,6 @@ mod exact;
 mod spherical_gaussian;
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use super::density::Density;
 use super::error::BmcError;
@@ -27,10 +26,7 @@ pub fn kernel_means(
     kernel.validate()?;
     density.validate()?;
     match method {
-        KernelMeanMethod::Exact => Ok(directions
-            .par_iter()
-            .map(|&w| exact::kernel_mean(w, kernel, density))
-            .collect()),
+        KernelMeanMethod::Exact => Ok(exact::kernel_means(directions, kernel, density)),
         KernelMeanMethod::SphericalGaussian => {
             spherical_gaussian::kernel_means(directions, kernel, density)
         }
