@@ -76,9 +76,11 @@ impl Quadrature {
     /// `Î = m̂ P + zᵀQ⁻¹(Y − m̂1)`, `m̂ = uᵀY/s`, so `w = Q⁻¹z + u R/s` (and
     /// `Σ w = P`), and `V = V₀ − zᵀQ⁻¹z + R²/s`, the extra term being the
     /// uncertainty of `m̂` (Rasmussen & Williams, *Gaussian Processes for
-    /// Machine Learning*, 2006, §2.7 eq. 2.42 with basis `h = 1`, whose
-    /// "test" basis value is `∫ 1 p = P` and cross-covariance `z`; O'Hagan
-    /// 1991, "Bayes–Hermite quadrature", §3).
+    /// Machine Learning*, 2006, §2.7, eqs. 2.41–2.42, with a vague prior on
+    /// the coefficient and basis `h = 1`, whose "test" value is `∫ 1 p = P`
+    /// and whose cross-covariance is `z`; O'Hagan 1991, "Bayes–Hermite
+    /// quadrature"). The test `variances_equal_the_error_variance_of_their_weights`
+    /// checks it against `wᵀQw − 2wᵀz + V₀`.
     pub fn new(
         set: &SampleSet,
         kernel: &Kernel,
