@@ -12,8 +12,11 @@
 //!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
 //!   `L_i(x, ω)` and irradiance `E(x, n)` at points.
+//! - `cache`: Bayesian irradiance cache — BMC records with variance and
+//!   gradients, concurrent spatial index, interpolation, reproducible placement.
 
 pub mod bmc;
+pub mod cache;
 pub mod render;
 pub mod scene;
 pub mod sphere;
