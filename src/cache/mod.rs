@@ -3,7 +3,14 @@
 //! interpolation with gradients, and reproducible record placement.
 
 pub mod error;
+pub mod index;
+pub mod irradiance_cache;
+pub mod record;
 pub mod record_rule;
 
 pub use error::CacheError;
+pub use irradiance_cache::{
+    Accuracy, CacheConfig, CacheStats, Interpolated, IrradianceCache, RECORD_BYTES,
+};
+pub use record::{PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
 pub use record_rule::{RecordEstimate, RecordRule, RecordRuleSpec};
