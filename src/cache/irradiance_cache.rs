@@ -519,6 +519,48 @@ mod tests {
         assert!(s.bytes <= budget as u64);
     }
 
+    /// Without evictions no concurrent insertion is lost: every record is
+    /// stored once and found at its own position.
+    #[test]
+    fn concurrent_inserts_lose_nothing() {
+        let c = cache(1 << 24);
+        std::thread::scope(|s| {
+            for t in 0..8 {
+                let c = &c;
+                s.spawn(move || {
+                    for i in 0..400 {
+                        let x = DVec3::new(i as f64 * 0.05, t as f64 * 0.05, 0.0);
+                        c.insert(record(x, DVec3::Z, 1.0 + t as f64, 0.01)).unwrap();
+                    }
+                });
+            }
+        });
+        let s = c.stats();
+        assert_eq!((s.records, s.inserts, s.evictions), (3200, 3200, 0));
+        let mut keys: Vec<(i64, i64)> = c
+            .records()
+            .iter()
+            .map(|r| {
+                (
+                    (r.position.x * 20.0).round() as i64,
+                    (r.position.y * 20.0).round() as i64,
+                )
+            })
+            .collect();
+        keys.sort_unstable();
+        keys.dedup();
+        assert_eq!(keys.len(), 3200);
+        let a = Accuracy::new(0.5).unwrap();
+        for t in 0..8 {
+            for i in (0..400).step_by(37) {
+                let x = DVec3::new(i as f64 * 0.05, t as f64 * 0.05, 0.0);
+                let got = c.lookup(&point(x, DVec3::Z), a).unwrap();
+                assert_eq!(got.records_used, 1);
+                assert!((got.irradiance.r - (1.0 + t as f64)).abs() < 1e-9);
+            }
+        }
+    }
+
     #[test]
     fn bad_configuration_and_records_are_typed_errors() {
         let bad = |cfg: CacheConfig| IrradianceCache::new(cfg).unwrap_err();

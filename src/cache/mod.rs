@@ -1,6 +1,20 @@
-//! Bayesian irradiance cache (bmc-math.md §9): records computed by BMC with
-//! their posterior variance, a concurrent spatial index, Ward-weighted
-//! interpolation with gradients, and reproducible record placement.
+//! Bayesian irradiance cache (bmc-math.md §9; Ward et al. 1988 with BMC
+//! records as in Brouillat et al. 2009): records computed once by BMC, with
+//! their posterior variance, serve many shading points and many requests.
+//!
+//! One concept per file:
+//! - `record_rule`: the shared BMC rule — irradiance, posterior variance and
+//!   rotation/translation gradients (derivatives of the GP posterior mean).
+//! - `record`: a record, its validity radius (harmonic mean distance, clamps)
+//!   and Ward's weight, in-front test and gradient extrapolation.
+//! - `index`: the concurrent multi-level hash grid over records.
+//! - `irradiance_cache`: the shared cache — lookup, insertion with the
+//!   neighbour clamp, byte budget with FIFO eviction, stats.
+//! - `placement`: records at points, the reproducible placement + shading
+//!   passes, variance-driven placement and the occlusion check.
+//!
+//! No HTTP here; the service keeps one [`IrradianceCache`] per (scene
+//! version, estimator configuration).
 
 pub mod error;
 pub mod index;
