@@ -267,6 +267,60 @@ mod tests {
         assert_eq!(bad.validate().unwrap_err().field(), Some("radius"));
     }
 
+    /// A record of the linear field `L = a + b·ω` (world) extrapolated to a
+    /// tilted normal tracks `E(n) = aπ + (2π/3) b·n` (bmc-math.md §8) far
+    /// better than the record's own value does (to first order).
+    #[test]
+    fn rotation_gradient_tracks_a_tilted_normal() {
+        use crate::bmc::{Kernel, KernelKind, PriorMean};
+        use crate::cache::record_rule::{RecordRule, RecordRuleSpec};
+        use crate::render::RadianceSample;
+        use crate::sphere::{SampleSetKind, SampleSetSpec};
+        let rule = RecordRule::new(RecordRuleSpec {
+            samples: SampleSetSpec {
+                kind: SampleSetKind::Fibonacci,
+                count: 64,
+                seed: 0,
+            },
+            kernel: Kernel::new(KernelKind::SquaredExponential, 1.0, 1.0, 1e-8).unwrap(),
+            prior_mean: PriorMean::Gls,
+        })
+        .unwrap();
+        let (a, b) = (1.0, DVec3::new(0.4, 0.2, -0.3));
+        let truth =
+            |n: DVec3| a * std::f64::consts::PI + 2.0 * std::f64::consts::PI / 3.0 * b.dot(n);
+        let normal = DVec3::new(0.2, 0.3, 1.0).normalize();
+        let frame = Frame::from_normal(normal).rotated_about_normal(0.7);
+        let samples: Vec<RadianceSample> = rule
+            .directions()
+            .iter()
+            .map(|d| RadianceSample {
+                radiance: Rgb::splat(a + b.dot(frame.to_world(*d))),
+                distance: f64::INFINITY,
+            })
+            .collect();
+        let estimate = rule.estimate(&samples).unwrap();
+        let p = QueryPoint::new(DVec3::ZERO, normal).unwrap();
+        let r = Record::from_estimate(
+            &p,
+            &frame,
+            &estimate,
+            &[],
+            RadiusLimits::new(0.1, 1.0).unwrap(),
+        );
+        assert!((r.irradiance.r - truth(normal)).abs() < 1e-6);
+        let errors = |s: f64| {
+            let tilted = (normal + s * DVec3::new(0.15, -0.1, 0.0)).normalize();
+            let with = (r.extrapolate(DVec3::ZERO, tilted).r - truth(tilted)).abs();
+            (with, (r.irradiance.r - truth(tilted)).abs())
+        };
+        let (with, without) = errors(1.0);
+        assert!(with < 0.1 * without, "{with} vs {without}");
+        // The remaining error is second order in the tilt.
+        let (half, _) = errors(0.5);
+        assert!(half < 0.3 * with, "{half} vs {with}");
+    }
+
     #[test]
     fn translation_gradient_is_clamped_to_the_radius() {
         let estimate = RecordEstimate {
