@@ -119,7 +119,7 @@ fn two_pass_placement_is_bit_identical_across_thread_counts_and_history() {
     assert!(one.iter().all(Option::is_some));
     let records = cache_one.stats().records;
     assert_eq!(records, report.records_created);
-    assert!(records < points.len() as u64 / 2, "{records} records");
+    assert!(records < points.len() as u64 * 3 / 4, "{records} records");
     assert!(one.iter().any(|v| v.is_some_and(|v| v.records_used > 1)));
     // A different seed gives different values.
     let (other, _, _) = place_and_shade(&transport, &rule, config(), &points, &options(8)).unwrap();

@@ -136,7 +136,9 @@ pub struct Interpolated {
     pub records_used: usize,
 }
 
-/// Counters, serialisable for the service's stats endpoint.
+/// Counters, serialisable for the service's stats endpoint. `records =
+/// inserts − evictions − cleared` always holds; `hits + misses = lookups`
+/// holds whenever no lookup is in flight.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct CacheStats {
     pub records: u64,
