@@ -17,9 +17,12 @@
 //!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
 //!   `L_i(x, ω)` and irradiance `E(x, n)` at points.
+//! - `cache`: Bayesian irradiance cache — BMC records with variance and
+//!   gradients, concurrent spatial index, interpolation, reproducible placement.
 //! - `cli`: the binary's subcommands (`quadrature`, `study`) as library functions.
 
 pub mod bmc;
+pub mod cache;
 pub mod cli;
 pub mod render;
 pub mod scene;
