@@ -16,6 +16,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Irradiance (W/m²) at the points of a CSV file, as CSV on stdout.
+    Irradiance(bmc_irradiance::render::irradiance_command::IrradianceArgs),
     /// Print the BMC quadrature (directions, kernel means, weights, variances) of one configuration.
     Quadrature(cli::quadrature::QuadratureArgs),
     /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
@@ -24,10 +26,17 @@ enum Command {
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    let output = match cli.command {
-        Command::Quadrature(args) => cli::quadrature::run(&args)?,
-        Command::Study(args) => cli::study::run(&args)?,
-    };
+    match cli.command {
+        Command::Irradiance(args) => bmc_irradiance::render::irradiance_command::run_irradiance(
+            &args,
+            &mut std::io::stdout().lock(),
+        ),
+        Command::Quadrature(args) => print(cli::quadrature::run(&args)?),
+        Command::Study(args) => print(cli::study::run(&args)?),
+    }
+}
+
+fn print(output: String) -> anyhow::Result<()> {
     println!("{output}");
     Ok(())
 }
