@@ -18,6 +18,6 @@ mod integrate;
 pub use density::{Density, DensityKey};
 pub use error::BmcError;
 pub use factorisation::Factorisation;
-pub use kernel::{Kernel, KernelKey, KernelKind};
+pub use kernel::{Kernel, KernelKey, KernelKind, MAX_LENGTHSCALE, MIN_LENGTHSCALE};
 pub use kernel_mean::{kernel_means, prior_variance};
 pub use quadrature::{KernelMeanMethod, PriorMean, Quadrature};

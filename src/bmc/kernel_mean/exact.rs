@@ -14,29 +14,31 @@
 //!   `z = ∫₀^π k(β) sin β g(β) dβ`; `g` has kinks where the circle of radius
 //!   `β` touches the horizon (`β = |π/2 − θ_i|`, `π/2 + θ_i`), which are breaks.
 //! - **Phong density, any kernel**: in a frame about the mirror direction `r`
-//!   (`u = cos α`, azimuth `ψ`) the lobe is `u^m`, the clip is an arc
-//!   `|ψ| ≤ γ₀(u)` (the cosine `A + B cos ψ` vanishes at its ends), and the
-//!   kernel peak sits at `(u_i, ψ_i)`: a nested adaptive 2-D integral.
+//!   (angle `α`, `u = cos α`, azimuth `ψ`) the lobe is `u^m`, the clip is an arc
+//!   `|ψ| ≤ γ₀(α)` (the cosine `A + B cos ψ` vanishes at its ends), and the
+//!   kernel peak sits at `(α_i, ψ_i)`: a nested adaptive 2-D integral.
 //!
-//! `V₀ = ∫ z(ω) p(ω) dω` reuses these: 1-D over `μ` for the rotation-invariant
-//! densities, 2-D over `(u, ψ)` for Phong (symmetric in `ψ`, so `ψ ≥ 0` only).
+//! `V₀`: for the rotation-invariant densities `V₀ = ∫ z(μ) 2π p(μ) dμ`, 1-D
+//! over exact `z`; for Phong a 3-D reduction whose innermost azimuthal
+//! integral is closed-form ([`phong_prior_variance`]).
 
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI, TAU};
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::bmc::bessel::i0_scaled;
 use crate::bmc::density::{Density, clipped_cosine_arc, phong_normalisation, positive_half_arc};
 use crate::bmc::integrate::{Tolerance, adaptive, adaptive_split};
 use crate::bmc::kernel::{Kernel, KernelKind};
 
-/// Relative tolerance requested of every exact kernel mean. The adaptive
-/// driver's error estimate is that of the coarser rule, so the delivered
-/// accuracy is far better (measured ≤ 1e-12 in the tests).
+/// Relative tolerance requested of the 2-D (Phong) kernel means; 1-D ones ask
+/// for 1e-12. The adaptive driver's error estimate is that of the coarser
+/// rule, so the delivered accuracy is better (measured 1e-14 … 2e-11 against
+/// brute force, `docs/BENCHMARKS.md`).
 const REL_TOL: f64 = 1e-10;
 
-/// Relative tolerance of the outer integral of `V₀ = ∫ z p`, whose integrand
-/// is smooth at the scale of the kernel and of the lobe.
+/// Relative tolerance of the outermost integral of `V₀`.
 const PRIOR_REL_TOL: f64 = 1e-10;
 
 /// Absolute floor, as a fraction of `σ² ∫p` (the largest possible kernel
@@ -54,10 +56,14 @@ fn tolerance(kernel: &Kernel, density: &Density, rel: f64) -> Tolerance {
     }
 }
 
-/// Exact `z(ω) = ∫_H k(ω, ω') p(ω') dω'` for a unit direction `ω` (local frame;
-/// may lie anywhere on the sphere).
-pub(crate) fn kernel_mean(w: DVec3, kernel: &Kernel, density: &Density) -> f64 {
-    kernel_mean_with(w, kernel, density, tolerance(kernel, density, REL_TOL))
+/// Exact `z(ω) = ∫_H k(ω, ω') p(ω') dω'` for unit directions `ω` (local
+/// frame; they may lie anywhere on the sphere), in parallel.
+pub(crate) fn kernel_means(directions: &[DVec3], kernel: &Kernel, density: &Density) -> Vec<f64> {
+    let tol = tolerance(kernel, density, REL_TOL);
+    directions
+        .par_iter()
+        .map(|&w| kernel_mean_with(w, kernel, density, tol))
+        .collect()
 }
 
 fn kernel_mean_with(w: DVec3, kernel: &Kernel, density: &Density, tol: Tolerance) -> f64 {
@@ -95,8 +101,9 @@ fn bessel_mean(mu_i: f64, kernel: &Kernel, density: &Density, tol: Tolerance) ->
     let f = |mu: f64| {
         let s = (1.0 - mu * mu).max(0.0).sqrt();
         let a = lambda * s_i * s;
-        // λ(μ_i μ + s_i s − 1) = −λ |ω_i − ω|²/2 in the φ = 0 plane.
-        let e = lambda * (mu_i * mu + s_i * s - 1.0);
+        // λ(μ_i μ + s_i s − 1) = −λ |ω_i − ω|²/2 in the φ = 0 plane; ≤ 0 up
+        // to rounding, which must not be amplified by a large λ.
+        let e = (lambda * (mu_i * mu + s_i * s - 1.0)).min(0.0);
         e.exp() * i0_scaled(a) * zonal_density(density, mu)
     };
     let mut breaks = vec![mu_i];
@@ -153,10 +160,11 @@ impl LobeFrame {
         }
     }
 
-    /// `(A, B)` of the cosine `A + B cos ψ` on the circle `u`, and `v = sin α`.
-    fn cosine(&self, u: f64) -> (f64, f64, f64) {
-        let v = (1.0 - u * u).max(0.0).sqrt();
-        (u * self.cos_r, v * self.sin_r, v)
+    /// On the circle at angle `α` from `r`: `(A, B, u, v)` with the cosine
+    /// `cos θ = A + B cos ψ`, `u = cos α`, `v = sin α`.
+    fn circle(&self, alpha: f64) -> (f64, f64, f64, f64) {
+        let (v, u) = alpha.sin_cos();
+        (u * self.cos_r, v * self.sin_r, u, v)
     }
 
     fn direction(&self, u: f64, v: f64, psi: f64) -> DVec3 {
@@ -164,16 +172,19 @@ impl LobeFrame {
         u * self.r + v * (cp * self.e1 + sp * DVec3::Y)
     }
 
-    /// Breaks in `u` for the lobe `u^m` (width `~1/m` in `u`) and the horizon
-    /// clip (`u = sin θ_r`, below which the circle dips under the horizon).
-    fn u_breaks(&self, m: f64) -> Vec<f64> {
-        let mut b = vec![self.sin_r];
-        b.extend([3.0, 30.0].map(|k| 1.0 - k / (m + 1.0)));
+    /// Breaks in `α` for the lobe `cos^m α ≈ e^{−mα²/2}` (width `~1/sqrt(m)`)
+    /// and the horizon clip (`α = π/2 − θ_r`, beyond which the circle dips
+    /// under the horizon).
+    fn alpha_breaks(&self, m: f64) -> Vec<f64> {
+        let mut b = vec![FRAC_PI_2 - self.cos_r.acos()];
+        b.extend([6.0, 60.0].map(|k: f64| (k / (m + 1.0)).sqrt()));
         b
     }
 }
 
-/// Phong density (any kernel), 2-D in the frame about `r`.
+/// Phong density (any kernel), 2-D in the frame about `r`. Integrating over
+/// the angle `α` rather than `u = cos α` keeps `sin α` analytic, which matters
+/// for grazing `r`, where the circles are clipped right up to `α = 0`.
 fn lobe_mean(w: DVec3, kernel: &Kernel, density: &Density, m: f64, tol: Tolerance) -> f64 {
     let frame = LobeFrame::new(density);
     let u_i = w.dot(frame.r).clamp(-1.0, 1.0);
@@ -181,9 +192,9 @@ fn lobe_mean(w: DVec3, kernel: &Kernel, density: &Density, m: f64, tol: Toleranc
     let alpha_i = u_i.acos();
     let ell = kernel.lengthscale;
     let norm = phong_normalisation(m);
-    let inner_tol = tol.scaled(norm).nested(1.0);
-    let f = |u: f64| {
-        let (a, b, v) = frame.cosine(u);
+    let outer_tol = tol.scaled(norm);
+    let f = |alpha: f64| {
+        let (a, b, u, v) = frame.circle(alpha);
         let half = positive_half_arc(a, b);
         if half <= 0.0 {
             return 0.0;
@@ -197,16 +208,18 @@ fn lobe_mean(w: DVec3, kernel: &Kernel, density: &Density, m: f64, tol: Toleranc
                 breaks.push(psi_i + k * ell / v);
             }
         }
-        u.powf(m) * adaptive_split(&g, -half, half, &breaks, inner_tol)
+        // Inner errors are weighted by u^m sin α: circles far out in a sharp
+        // lobe need no more absolute accuracy than the total asks for.
+        let weight = u.powf(m) * v;
+        weight * adaptive_split(&g, -half, half, &breaks, outer_tol.scaled(weight))
     };
-    let mut breaks = frame.u_breaks(m);
-    breaks.push(u_i);
+    let mut breaks = frame.alpha_breaks(m);
+    breaks.push(alpha_i);
     for k in WIDTHS {
-        for t in [alpha_i - k * ell, alpha_i + k * ell] {
-            breaks.push(t.clamp(0.0, PI).cos());
-        }
+        breaks.push(alpha_i - k * ell);
+        breaks.push(alpha_i + k * ell);
     }
-    norm * adaptive_split(&f, 0.0, 1.0, &breaks, tol.scaled(norm))
+    norm * adaptive_split(&f, 0.0, FRAC_PI_2, &breaks, outer_tol)
 }
 
 /// Exact prior variance `V₀ = ∫∫ k(ω, ω') p(ω) p(ω') dω dω'`.
@@ -234,23 +247,26 @@ pub(crate) fn prior_variance(kernel: &Kernel, density: &Density) -> f64 {
 /// `(u, u', δ)` only (`ω·ω' = uu' + vv' cos δ`), so the integral over `ψ` of
 /// the two clipped cosines is a closed-form correlation
 /// ([`clipped_cosine_correlation`]):
-/// `V₀ = N_m² ∫∫ u^m u'^m ∫_{−π}^{π} k(uu' + vv' cos δ) C(u, u', δ) dδ du' du`.
+/// `V₀ = N_m² ∫∫ u^m v u'^m v' ∫_{−π}^{π} k(uu' + vv' cos δ) C(u, u', δ) dδ dα' dα`
+/// (`u = cos α`, `v = sin α`).
 /// The integrand is even in `δ` (mirror symmetry about the `n`–`r` plane) and
-/// symmetric in `(u, u')`, so only `δ ≥ 0`, `u' ≤ u` is integrated.
+/// symmetric in `(α, α')`, so only `δ ≥ 0`, `α' ≥ α` is integrated.
 fn phong_prior_variance(kernel: &Kernel, density: &Density, m: f64, tol: Tolerance) -> f64 {
     let frame = LobeFrame::new(density);
     let norm = phong_normalisation(m);
     let ell = kernel.lengthscale;
     let tol = tol.scaled(norm * norm);
-    let u_breaks = frame.u_breaks(m);
-    let f = |u: f64| {
-        let (a, b, v) = frame.cosine(u);
+    let alpha_breaks = frame.alpha_breaks(m);
+    let f = |alpha: f64| {
+        let (a, b, u, v) = frame.circle(alpha);
         let g = positive_half_arc(a, b);
         if g <= 0.0 {
             return 0.0;
         }
-        let inner = |u2: f64| {
-            let (a2, b2, v2) = frame.cosine(u2);
+        let weight = 2.0 * u.powf(m) * v;
+        let middle_tol = tol.scaled(weight);
+        let inner = |alpha2: f64| {
+            let (a2, b2, u2, v2) = frame.circle(alpha2);
             let g2 = positive_half_arc(a2, b2);
             if g2 <= 0.0 {
                 return 0.0;
@@ -266,19 +282,15 @@ fn phong_prior_variance(kernel: &Kernel, density: &Density, m: f64, tol: Toleran
             if vv > 0.0 {
                 breaks.extend(WIDTHS.iter().map(|k| k * ell / vv));
             }
-            2.0 * u2.powf(m) * adaptive_split(&h, 0.0, PI, &breaks, tol)
+            let weight = 2.0 * u2.powf(m) * v2;
+            weight * adaptive_split(&h, 0.0, PI, &breaks, middle_tol.scaled(weight))
         };
-        let mut breaks = u_breaks.clone();
-        let alpha = u.acos();
-        for k in WIDTHS {
-            for t in [alpha - k * ell, alpha + k * ell] {
-                breaks.push(t.clamp(0.0, PI).cos());
-            }
-        }
-        // The integrand is symmetric in (u, u'): integrate u' < u, twice.
-        2.0 * u.powf(m) * adaptive_split(&inner, 0.0, u, &breaks, tol.nested(1.0))
+        let mut breaks = alpha_breaks.clone();
+        breaks.extend(WIDTHS.iter().map(|k| alpha + k * ell));
+        // The integrand is symmetric in (α, α'): integrate α' > α, twice.
+        weight * adaptive_split(&inner, alpha, FRAC_PI_2, &breaks, middle_tol)
     };
-    norm * norm * adaptive_split(&f, 0.0, 1.0, &u_breaks, tol)
+    norm * norm * adaptive_split(&f, 0.0, FRAC_PI_2, &alpha_breaks, tol)
 }
 
 /// `C(δ) = ∫_{−π}^{π} max(0, a + b cos ψ) · max(0, a₂ + b₂ cos(ψ + δ)) dψ`

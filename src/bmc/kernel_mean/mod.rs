@@ -10,7 +10,6 @@ mod exact;
 mod spherical_gaussian;
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use super::density::Density;
 use super::error::BmcError;
@@ -27,10 +26,7 @@ pub fn kernel_means(
     kernel.validate()?;
     density.validate()?;
     match method {
-        KernelMeanMethod::Exact => Ok(directions
-            .par_iter()
-            .map(|&w| exact::kernel_mean(w, kernel, density))
-            .collect()),
+        KernelMeanMethod::Exact => Ok(exact::kernel_means(directions, kernel, density)),
         KernelMeanMethod::SphericalGaussian => {
             spherical_gaussian::kernel_means(directions, kernel, density)
         }
@@ -101,6 +97,21 @@ mod tests {
         total
     }
 
+    /// Asserts that the exact mean at `w` is within `rel_tol` of the brute force.
+    fn assert_matches_brute_force(
+        w: DVec3,
+        kernel: &Kernel,
+        density: &Density,
+        extra: &[f64],
+        n_phi: usize,
+        rel_tol: f64,
+    ) {
+        let exact = kernel_means(&[w], kernel, density, KernelMeanMethod::Exact).unwrap()[0];
+        let brute = brute_force_mean(w, kernel, density, extra, 40, n_phi);
+        let rel = (exact / brute - 1.0).abs();
+        assert!(rel < rel_tol, "{kernel:?} {density:?} ω={w}: {rel:e}");
+    }
+
     fn direction(theta: f64, phi: f64) -> DVec3 {
         DVec3::new(
             theta.sin() * phi.cos(),
@@ -118,11 +129,7 @@ mod tests {
             for density in [Density::Lambert, Density::Uniform] {
                 for theta in [0.0, 0.4, 1.1, 1.5, FRAC_PI_2] {
                     let w = direction(theta, 0.7);
-                    let exact =
-                        kernel_means(&[w], &k, &density, KernelMeanMethod::Exact).unwrap()[0];
-                    let brute = brute_force_mean(w, &k, &density, &[], 40, 512);
-                    let rel = (exact / brute - 1.0).abs();
-                    assert!(rel < 1e-10, "ℓ={ell} {density:?} θ={theta}: {rel:e}");
+                    assert_matches_brute_force(w, &k, &density, &[], 512, 1e-10);
                 }
             }
         }
@@ -140,14 +147,7 @@ mod tests {
                     // (1 − μ)^{3/2} endpoint singularity for the brute force.
                     for theta in [0.3, 0.8, 1.45] {
                         let w = direction(theta, -2.0);
-                        let exact =
-                            kernel_means(&[w], &k, &density, KernelMeanMethod::Exact).unwrap()[0];
-                        let brute = brute_force_mean(w, &k, &density, &[], 40, 1024);
-                        let rel = (exact / brute - 1.0).abs();
-                        assert!(
-                            rel < 1e-9,
-                            "{kind:?} ℓ={ell} {density:?} θ={theta}: {rel:e}"
-                        );
+                        assert_matches_brute_force(w, &k, &density, &[], 1024, 1e-9);
                     }
                 }
             }
@@ -193,22 +193,14 @@ mod tests {
             ] {
                 for (theta, phi) in [(0.0, 0.0), (0.5, 0.3), (1.2, 2.5), (1.5, -0.2)] {
                     let w = direction(theta, phi);
-                    let exact =
-                        kernel_means(&[w], &kernel, &density, KernelMeanMethod::Exact).unwrap()[0];
-                    let brute = brute_force_mean(w, &kernel, &density, &[theta_r.cos()], 40, 1024);
-                    let rel = (exact / brute - 1.0).abs();
-                    assert!(
-                        rel < 1e-9,
-                        "m={m} θr={theta_r} {kernel:?} θ={theta}: {rel:e}"
-                    );
+                    assert_matches_brute_force(w, &kernel, &density, &[theta_r.cos()], 1024, 1e-9);
                 }
             }
         }
     }
 
-    /// Sharp lobes: the mean of a kernel far narrower and far wider than the
-    /// lobe is `≈ k(ω, r)·∫p` resp. `≈ σ² ∫p` near r; both are checked through
-    /// `z(r)/(σ²∫p) → 1` as ℓ grows relative to the lobe width `1/sqrt(m)`.
+    /// A sharp lobe (m = 2000, angular width ~0.02) under a wide SE kernel
+    /// (ℓ = 1): `z(r) ≈ σ²∫p (1 − E[d²]/(2ℓ²))` with `E[d²] ≈ E[α²] ≈ 2/m`.
     #[test]
     fn sharp_lobe_means_approach_their_limits() {
         let density = Density::Phong {
