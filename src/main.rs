@@ -14,9 +14,17 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Irradiance (W/m²) at the points of a CSV file, as CSV on stdout.
+    Irradiance(bmc_irradiance::render::irradiance_command::IrradianceArgs),
+}
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::Irradiance(args) => bmc_irradiance::render::irradiance_command::run_irradiance(
+            &args,
+            &mut std::io::stdout().lock(),
+        ),
+    }
 }

@@ -539,3 +539,26 @@ fn bundled_sky_and_mesh_scenes_load() {
         );
     }
 }
+
+#[test]
+fn vertex_normals_set_the_front_and_interpolate() {
+    let dir = TempDir::new("normals");
+    // Wound to face +z, but the vertex normals lean towards -z: the front
+    // follows the vertex normals.
+    let shapes = r#"{"type": "triangles", "material": "m",
+        "positions": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "indices": [[0, 1, 2]],
+        "normals": [[0, 0, -1], [1, 0, -1], [0, 1, -1]]}"#;
+    let scene = from_str(&scene_json(shapes, ""), &dir.0).unwrap();
+    let hit = scene
+        .intersect(&ray(DVec3::new(0.5, 0.25, 1.0), -DVec3::Z))
+        .unwrap();
+    assert!((hit.normal + DVec3::Z).length() < 1e-12);
+    // Barycentrics (0.25, 0.5, 0.25) weight the three normals.
+    let n0 = DVec3::new(0.0, 0.0, -1.0);
+    let n1 = DVec3::new(1.0, 0.0, -1.0).normalize();
+    let n2 = DVec3::new(0.0, 1.0, -1.0).normalize();
+    let expected = (n0 * 0.25 + n1 * 0.5 + n2 * 0.25).normalize();
+    assert!((hit.shading_normal - expected).length() < 1e-12, "{hit:?}");
+    let (_, n, _) = scene.sample_shape_area(0, [0.3, 0.6]);
+    assert!((n + DVec3::Z).length() < 1e-12);
+}
