@@ -8,8 +8,9 @@
 //! Modules are listed here as they land; the math never knows about HTTP.
 //! - `sphere`: local shading frames and hemisphere sample sets (local frame, z = normal).
 //! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance.
-//! - `scene`: JSON scene loading, shapes, materials, emitters, environment
-//!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
+//! - `scene`: JSON and Mitsuba 3 XML (`scene::mitsuba`) scene loading, shapes,
+//!   materials, emitters, environment maps, camera, BVH ray tracing
+//!   (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
 //!   `L_i(x, ω)` and irradiance `E(x, n)` at points.
 

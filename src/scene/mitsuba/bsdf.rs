@@ -3,9 +3,9 @@
 //!
 //! Mapping (documented in `docs/scene-format.md`):
 //! - `diffuse`: exact.
-//! - `twosided`: its nested BSDF. The scene model has no one-sided
-//!   materials, so a bare Mitsuba BSDF (black from behind in Mitsuba) maps to
-//!   the same material as its `twosided` wrapper.
+//! - `twosided`: its nested BSDF, with a warning: the project's BSDFs are
+//!   one-sided like Mitsuba's plain ones (back faces are black, see
+//!   `render::bsdf`), so back faces stay black where Mitsuba would reflect.
 //! - `plastic` / `roughplastic`: diffuse `ρ_d·(1 − F₀)`, specular
 //!   `ρ_s·F₀` with `F₀ = ((η − 1)/(η + 1))²`, `η = int_ior / ext_ior`
 //!   (Fresnel reflectance at normal incidence).
@@ -119,6 +119,10 @@ fn describe<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<MaterialDoc, XmlEr
         "diffuse" => diffuse(color(ctx, &mut props, "reflectance", [0.5; 3])?),
         "twosided" => {
             let inner = props.nested(ctx, "bsdf")?;
+            ctx.warn(
+                el,
+                "BSDFs are one-sided in the scene model: back faces stay black",
+            );
             match inner[..] {
                 [front] => describe(ctx, front)?,
                 [front, _] => {
