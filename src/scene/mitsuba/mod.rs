@@ -199,6 +199,13 @@ impl<'a> Ctx<'a> {
         if self.resolving.contains(&el.key()) {
             return Err(el.error("", "reference cycle: this element refers back to itself"));
         }
+        // Chains of references recurse like nesting does.
+        if self.resolving.len() >= MAX_DEPTH {
+            return Err(el.error(
+                "",
+                format!("references and nesting chained deeper than {MAX_DEPTH} levels"),
+            ));
+        }
         self.resolving.push(el.key());
         Ok(())
     }

@@ -238,7 +238,7 @@ mod tests {
 
     #[test]
     fn deep_nesting_is_capped() {
-        let depth = 10_000;
+        let depth = 100_000;
         let text = format!(
             "<scene version=\"3.0.0\">{}{}</scene>",
             "<bsdf type=\"twosided\">".repeat(depth),

@@ -554,6 +554,23 @@ fn reference_errors() {
            <bsdf type="diffuse"><ref name="reflectance" id="t"/></bsdf>"#,
     );
     assert!(e.contains("cycle"), "{e}");
+    // A long chain of references is capped like deep nesting.
+    let chain: String = (0..1000)
+        .map(|i| {
+            format!(
+                r#"<bsdf type="twosided" id="c{i}"><ref id="c{}"/></bsdf>"#,
+                i + 1
+            )
+        })
+        .chain(std::iter::once(
+            r#"<bsdf type="diffuse" id="c1000"/>"#.to_string(),
+        ))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .collect();
+    let e = err(&chain);
+    assert!(e.contains("deeper than"), "{e}");
     let e = err(r#"<shape type="rectangle"><ref id="missing"/></shape>"#);
     assert!(e.contains("missing"), "{e}");
     let e = err(r#"<bsdf type="diffuse" id="w"/>"#);
@@ -627,6 +644,26 @@ proptest! {
     ) {
         let body: String = picks.iter().map(|&i| FRAGMENTS[i]).collect();
         check_no_panic(&wrap(&body), lenient);
+    }
+
+    #[test]
+    fn random_ply_payloads_never_panic(
+        binary in any::<bool>(),
+        payload in proptest::collection::vec(any::<u8>(), 0..256),
+    ) {
+        let dir = Scratch::new("ply-fuzz");
+        let format = if binary { "binary_little_endian" } else { "ascii" };
+        let mut bytes = format!(
+            "ply\nformat {format} 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        bytes.extend(payload);
+        std::fs::write(dir.0.join("f.ply"), bytes).unwrap();
+        let text = wrap(r#"<shape type="ply"><string name="filename" value="f.ply"/></shape>"#);
+        if let Err(e) = load_in(&text, &dir.0, false) {
+            prop_assert!(!e.to_string().is_empty());
+        }
     }
 
     #[test]
