@@ -17,3 +17,11 @@ ia = np.array(mi.render(a, spp=64, seed=1));
 b2 = mi.cornell_box(); b2['sensor']['film']['width']=64; b2['sensor']['film']['height']=64
 ib = np.array(mi.render(mi.load_dict(b2), spp=64, seed=1))
 print("mean xml", ia.mean(axis=(0,1)), "mean dict", ib.mean(axis=(0,1)), "max abs diff", np.abs(ia-ib).max())
+
+# Every supported element in one scene (tests/data/mitsuba/all.xml): Mitsuba
+# loads it; its scene bounds and horizontal field of view are what
+# tests/mitsuba_xml.rs compares our reading against.
+s = mi.load_file('tests/data/mitsuba/all.xml')
+print("all.xml: shapes", len(s.shapes()), "emitters", len(s.emitters()))
+print("all.xml bbox", s.bbox())
+print("all.xml x_fov", mi.traverse(s.sensors()[0])['x_fov'])
