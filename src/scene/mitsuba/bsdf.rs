@@ -80,12 +80,18 @@ pub(crate) fn material<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<String,
 
 /// Mitsuba's default material for shapes without a BSDF (diffuse, ρ = 0.5).
 pub(crate) fn default_material(ctx: &mut Ctx) -> String {
-    if !ctx.materials.iter().any(|m| m.id == DEFAULT_MATERIAL_ID) {
-        ctx.materials.push(diffuse([0.5; 3]));
-        let last = ctx.materials.len() - 1;
-        ctx.materials[last].id = DEFAULT_MATERIAL_ID.into();
+    builtin_diffuse(ctx, DEFAULT_MATERIAL_ID, [0.5; 3])
+}
+
+/// A diffuse material the translation itself needs, added once under `id`.
+pub(crate) fn builtin_diffuse(ctx: &mut Ctx, id: &str, reflectance: Rgb) -> String {
+    if !ctx.materials.iter().any(|m| m.id == id) {
+        ctx.materials.push(MaterialDoc {
+            id: id.to_string(),
+            ..diffuse(reflectance)
+        });
     }
-    DEFAULT_MATERIAL_ID.into()
+    id.to_string()
 }
 
 fn diffuse(reflectance: Rgb) -> MaterialDoc {

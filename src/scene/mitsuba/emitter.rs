@@ -3,9 +3,7 @@
 //! small black sphere emitting uniformly with the same radiant intensity.
 //! Area emitters live on shapes (`shape.rs`).
 
-use crate::scene::format::{
-    EmitterDoc, EmitterKind, EnvironmentDoc, EnvironmentKind, MaterialDoc, MaterialKind, ShapeKind,
-};
+use crate::scene::format::{EmitterDoc, EmitterKind, EnvironmentDoc, EnvironmentKind, ShapeKind};
 use crate::scene::transform;
 
 use super::parse::Element;
@@ -85,16 +83,13 @@ fn point<'a>(ctx: &mut Ctx<'a>, el: &'a Element, mut props: Props<'a>) -> Result
     let intensity = color(ctx, &mut props, "intensity", [1.0; 3])?;
     let position = match (props.point("position")?, props.get("to_world")?) {
         (Some(p), None) => p,
-        (None, Some(t)) => {
-            let doc = Ops::read(t)?.into_doc(ctx, "point.to_world");
-            match doc {
-                Some(doc) => transform::build(&doc, "to_world")
-                    .map_err(|e| t.error("", e.to_string()))?
-                    .translation
-                    .to_array(),
-                None => [0.0; 3],
-            }
-        }
+        (None, Some(t)) => match Ops::read(t)?.doc() {
+            Some(doc) => transform::build(&doc, "to_world")
+                .map_err(|e| t.error("", e.to_string()))?
+                .translation
+                .to_array(),
+            None => [0.0; 3],
+        },
         (None, None) => [0.0; 3],
         (Some(_), Some(_)) => {
             return Err(el.error("position", "give `position` or `to_world`, not both"));
@@ -109,17 +104,8 @@ fn point<'a>(ctx: &mut Ctx<'a>, el: &'a Element, mut props: Props<'a>) -> Result
         el,
         format!("point light approximated by an emitting sphere of radius {r}"),
     );
-    if !ctx.materials.iter().any(|m| m.id == POINT_MATERIAL_ID) {
-        ctx.materials.push(MaterialDoc {
-            id: POINT_MATERIAL_ID.into(),
-            kind: MaterialKind::Diffuse,
-            reflectance: Some([0.0; 3]),
-            diffuse: None,
-            specular: None,
-            exponent: None,
-        });
-    }
-    let mut doc = shape_doc(ShapeKind::Sphere, POINT_MATERIAL_ID.into());
+    let material = super::bsdf::builtin_diffuse(ctx, POINT_MATERIAL_ID, [0.0; 3]);
+    let mut doc = shape_doc(ShapeKind::Sphere, material);
     doc.center = Some(position);
     doc.radius = Some(r);
     let area = std::f64::consts::PI * r * r;

@@ -104,13 +104,15 @@ impl Ops {
     /// The document value for field `field` (None = identity), recording
     /// where each operation came from.
     pub fn into_doc(self, ctx: &mut Ctx, field: &str) -> Option<TransformDoc> {
-        if self.ops.is_empty() {
-            return None;
+        for (i, o) in self.origins.iter().enumerate() {
+            ctx.origins.push((format!("{field}[{i}]"), o.clone()));
         }
-        for (i, o) in self.origins.into_iter().enumerate() {
-            ctx.origins.push((format!("{field}[{i}]"), o));
-        }
-        Some(TransformDoc {
+        self.doc()
+    }
+
+    /// The document value (None = identity).
+    pub fn doc(self) -> Option<TransformDoc> {
+        (!self.ops.is_empty()).then_some(TransformDoc {
             ops: self.ops,
             single: false,
         })
