@@ -11,8 +11,9 @@
 //!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
 //!   `bmc::estimator` (MC, QMC, BMC behind one interface), `bmc::hyperparameters`
 //!   (marginal-likelihood fit of ℓ, σ², σ_n²).
-//! - `scene`: JSON scene loading, shapes, materials, emitters, environment
-//!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
+//! - `scene`: JSON and Mitsuba 3 XML (`scene::mitsuba`) scene loading, shapes,
+//!   materials, emitters, environment maps, camera, BVH ray tracing
+//!   (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
 //!   `L_i(x, ω)` and irradiance `E(x, n)` at points.
 //! - `study`: synthetic environments with known irradiance and the estimator
