@@ -4,12 +4,15 @@
 //!
 //! The tree only knows primitive bounds; callers intersect primitives in a
 //! closure, so the same tree type serves triangles and analytic shapes.
-//! The binary SAH tree is collapsed into 4-wide nodes whose f32 boxes
-//! (rounded strictly outwards, so they contain the f64 primitives) are tested
-//! four at a time with SIMD; the slab test pads for the rounding of the ray
-//! origin, so it never misses a box the exact f64 ray enters.
+//! Nodes are 32 bytes (two per cache line): f32 bounds rounded outwards, so
+//! they always contain the f64 primitives, and slab tests done in f64 so the
+//! ray itself is never rounded.
+//!
+//! A 4-wide variant (binary tree collapsed, four f32 boxes per SIMD test) was
+//! tried and measured 12–17 % slower than this scalar binary traversal in an
+//! in-process A/B on the bundled scenes (docs/BENCHMARKS.md), so it was dropped.
 
-use glam::{DVec3, Vec4};
+use glam::DVec3;
 
 /// Axis-aligned box in f64.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -92,95 +95,22 @@ impl Node {
         }
     }
 
-    fn half_area(&self) -> f32 {
-        let d = [0, 1, 2].map(|a| self.max[a] - self.min[a]);
-        d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
-    }
-}
-
-/// Four children's boxes in structure-of-arrays form, tested together with
-/// 4-wide SIMD (glam's `Vec4` is SSE on x86-64, NEON on aarch64). A slot
-/// with `count > 0` is a leaf holding primitives `child .. child + count`;
-/// otherwise `child` indexes `Bvh::nodes`. Unused slots have both bounds
-/// at +∞, which no ray can enter.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(64))]
-struct Wide {
-    lo: [Vec4; 3],
-    hi: [Vec4; 3],
-    child: [u32; 4],
-    count: [u32; 4],
-}
-
-impl Wide {
-    const EMPTY: Wide = Wide {
-        lo: [Vec4::INFINITY; 3],
-        hi: [Vec4::INFINITY; 3],
-        child: [0; 4],
-        count: [0; 4],
-    };
-
-    fn set(&mut self, slot: usize, n: &Node) {
-        for a in 0..3 {
-            self.lo[a][slot] = n.min[a];
-            self.hi[a][slot] = n.max[a];
-        }
-    }
-}
-
-/// Per-ray constants of the conservative f32 slab test.
-///
-/// The f64 origin rounded to f32 is off by at most 2⁻²⁴·|o|; testing the
-/// lower planes from `o + pad` and the upper planes from `o − pad` with
-/// `pad = 2⁻²²·max|o|` widens every box by more than that, so a box the exact
-/// ray enters is never missed. Zero direction components are replaced by
-/// ±1e-30 so the inverse is finite and no 0·∞ = NaN arises.
-struct RayConsts {
-    lo_origin: [Vec4; 3],
-    hi_origin: [Vec4; 3],
-    inv: [Vec4; 3],
-}
-
-impl RayConsts {
-    fn new(origin: DVec3, dir: DVec3) -> Self {
-        let pad = origin.abs().max_element() * (1.0 / 4_194_304.0) + 1e-30;
-        let axis = |a: usize| {
-            let d = dir[a];
-            let d = if d.abs() < 1e-30 {
-                1e-30f64.copysign(d)
-            } else {
-                d
-            };
-            (
-                Vec4::splat(round_up(origin[a] + pad)),
-                Vec4::splat(round_down(origin[a] - pad)),
-                Vec4::splat((1.0 / d) as f32),
-            )
-        };
-        let (x, y, z) = (axis(0), axis(1), axis(2));
-        Self {
-            lo_origin: [x.0, y.0, z.0],
-            hi_origin: [x.1, y.1, z.1],
-            inv: [x.2, y.2, z.2],
-        }
-    }
-
-    /// Entry distances of the four boxes and the mask of those entered
-    /// before `t_max`.
+    /// Entry distance of the ray into this box if it enters before `t_max`.
     #[inline(always)]
-    fn hit(&self, n: &Wide, t_max: f32) -> (Vec4, u32) {
-        let mut near = Vec4::ZERO;
-        let mut far = Vec4::splat(t_max);
-        for a in 0..3 {
-            let t0 = (n.lo[a] - self.lo_origin[a]) * self.inv[a];
-            let t1 = (n.hi[a] - self.hi_origin[a]) * self.inv[a];
-            near = near.max(t0.min(t1));
-            far = far.min(t0.max(t1));
-        }
-        // A few ulps of slack for the rounding of the products (pbrt-v4's
-        // robust slab test scales the exit by 1 + 2γ₃).
-        let mask = near.cmple(far * (1.0 + 1e-6)).bitmask();
-        (near, mask)
+    fn hit(&self, o: DVec3, inv: DVec3, t_max: f64) -> Option<f64> {
+        // `inv` is finite (see `traverse`), so no 0·∞ = NaN can arise when
+        // the origin lies on a slab plane of a ray parallel to it.
+        let x0 = (self.min[0] as f64 - o.x) * inv.x;
+        let x1 = (self.max[0] as f64 - o.x) * inv.x;
+        let y0 = (self.min[1] as f64 - o.y) * inv.y;
+        let y1 = (self.max[1] as f64 - o.y) * inv.y;
+        let z0 = (self.min[2] as f64 - o.z) * inv.z;
+        let z1 = (self.max[2] as f64 - o.z) * inv.z;
+        let near = x0.min(x1).max(y0.min(y1)).max(z0.min(z1)).max(0.0);
+        // Widen the exit by a few ulps so rounding never drops a hit that
+        // lies exactly on the box (pbrt-v4's robust slab test).
+        let far = x0.max(x1).min(y0.max(y1)).min(z0.max(z1)) * (1.0 + 1e-14);
+        (near <= far.min(t_max)).then_some(near)
     }
 }
 
@@ -189,16 +119,11 @@ const TRAVERSAL_COST: f64 = 1.0;
 const BINS: usize = 16;
 /// Leaves larger than this are split even if the SAH prefers a leaf.
 const MAX_LEAF: usize = 8;
-/// Depth bound of the binary build; the wide tree is at most this deep too.
+/// Depth bound; the traversal stack is sized from it.
 const MAX_DEPTH: usize = 60;
-/// Traversal stack: at most 3 entries pushed per level plus the root's 4.
-const STACK: usize = 3 * MAX_DEPTH + 4;
 
-/// A 4-wide BVH: built as a binary SAH tree, then collapsed so each node
-/// holds up to four children (the largest-area grandchildren are pulled up).
 pub struct Bvh {
-    nodes: Vec<Wide>,
-    bounds: Aabb,
+    nodes: Vec<Node>,
 }
 
 impl Bvh {
@@ -209,25 +134,17 @@ impl Bvh {
     pub fn build(bounds: &[Aabb]) -> (Bvh, Vec<u32>) {
         let mut order: Vec<u32> = (0..bounds.len() as u32).collect();
         if bounds.is_empty() {
-            let empty = Bvh {
-                nodes: Vec::new(),
-                bounds: Aabb::EMPTY,
-            };
-            return (empty, order);
+            return (Bvh { nodes: Vec::new() }, order);
         }
         let centroids: Vec<DVec3> = bounds.iter().map(Aabb::centroid).collect();
         let mut nodes = vec![Node::new(&Aabb::EMPTY, 0, 0)];
         nodes.reserve(2 * bounds.len());
         let mut todo = vec![(0usize, 0usize, bounds.len(), 0usize)];
-        let mut total = Aabb::EMPTY;
         while let Some((index, start, end, depth)) = todo.pop() {
             let range = &mut order[start..end];
             let bb = range
                 .iter()
                 .fold(Aabb::EMPTY, |b, &i| b.union(bounds[i as usize]));
-            if index == 0 {
-                total = bb;
-            }
             let split = if depth >= MAX_DEPTH {
                 None
             } else {
@@ -245,19 +162,20 @@ impl Bvh {
                 None => nodes[index] = Node::new(&bb, start as u32, (end - start) as u32),
             }
         }
-        let bvh = Bvh {
-            nodes: collapse(&nodes),
-            bounds: total,
-        };
-        (bvh, order)
+        (Bvh { nodes }, order)
     }
 
     /// Bounds of everything in the tree (empty box if no primitives).
     pub fn bounds(&self) -> Aabb {
-        self.bounds
+        match self.nodes.first() {
+            Some(n) => Aabb {
+                min: DVec3::new(n.min[0] as f64, n.min[1] as f64, n.min[2] as f64),
+                max: DVec3::new(n.max[0] as f64, n.max[1] as f64, n.max[2] as f64),
+            },
+            None => Aabb::EMPTY,
+        }
     }
 
-    /// Number of 4-wide nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -305,101 +223,67 @@ impl Bvh {
         t_max: &mut f64,
         mut visit: impl FnMut(usize, &mut f64) -> bool,
     ) -> bool {
-        if self.nodes.is_empty() {
+        let Some(root) = self.nodes.first() else {
+            return false;
+        };
+        // Zero components become ±1e-300 so the inverse is huge but finite.
+        let inv = dir
+            .map(|c| if c == 0.0 { 1e-300f64.copysign(c) } else { c })
+            .recip();
+        if root.hit(origin, inv, *t_max).is_none() {
             return false;
         }
-        let ray = RayConsts::new(origin, dir);
-        // Finite, so the +∞ entry distance of unused slots always exceeds it.
-        let limit_of = |t: f64| round_up(t).min(f32::MAX);
-        let mut limit = limit_of(*t_max);
-        // Entries: (child, count, entry distance); count > 0 marks a leaf.
-        let mut stack = [(0u32, 0u32, 0f32); STACK];
-        stack[0] = (0, 0, 0.0);
-        let mut top = 1usize;
-        while top > 0 {
-            top -= 1;
-            let (child, count, near) = stack[top];
-            if near > limit {
-                continue;
-            }
-            if count > 0 {
-                for i in child as usize..(child + count) as usize {
+        let mut stack = [0u32; MAX_DEPTH + 2];
+        let mut top = 0usize;
+        let mut node = root;
+        loop {
+            if node.count > 0 {
+                let first = node.first as usize;
+                for i in first..first + node.count as usize {
                     if visit(i, t_max) {
                         return true;
                     }
                 }
-                limit = limit_of(*t_max);
-                continue;
-            }
-            let node = &self.nodes[child as usize];
-            let (dist, mut mask) = ray.hit(node, limit);
-            // Push hit children far to near so the nearest is popped first.
-            let mut hits = [(0f32, 0usize); 4];
-            let mut n = 0;
-            while mask != 0 {
-                let slot = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let d = dist[slot];
-                let mut j = n;
-                while j > 0 && hits[j - 1].0 < d {
-                    hits[j] = hits[j - 1];
-                    j -= 1;
-                }
-                hits[j] = (d, slot);
-                n += 1;
-            }
-            for &(d, slot) in &hits[..n] {
-                stack[top] = (node.child[slot], node.count[slot], d);
-                top += 1;
-            }
-        }
-        false
-    }
-}
-
-/// Collapses a binary tree (root at 0) into 4-wide nodes (root at 0).
-fn collapse(binary: &[Node]) -> Vec<Wide> {
-    let mut wide = vec![Wide::EMPTY];
-    if binary[0].count > 0 {
-        wide[0].set(0, &binary[0]);
-        wide[0].child[0] = binary[0].first;
-        wide[0].count[0] = binary[0].count;
-        return wide;
-    }
-    let mut todo = vec![(0usize, 0usize)];
-    while let Some((b, w)) = todo.pop() {
-        let first = binary[b].first as usize;
-        let mut kids = vec![first, first + 1];
-        while kids.len() < 4 {
-            let widest = kids
-                .iter()
-                .enumerate()
-                .filter(|(_, k)| binary[**k].count == 0)
-                .max_by(|a, b| {
-                    binary[*a.1]
-                        .half_area()
-                        .total_cmp(&binary[*b.1].half_area())
-                });
-            let Some((j, &k)) = widest else { break };
-            let grand = binary[k].first as usize;
-            kids.swap_remove(j);
-            kids.extend([grand, grand + 1]);
-        }
-        let mut node = Wide::EMPTY;
-        for (slot, &k) in kids.iter().enumerate() {
-            node.set(slot, &binary[k]);
-            if binary[k].count > 0 {
-                node.child[slot] = binary[k].first;
-                node.count[slot] = binary[k].count;
             } else {
-                node.child[slot] = wide.len() as u32;
-                wide.push(Wide::EMPTY);
-                todo.push((k, wide.len() - 1));
+                let left = node.first as usize;
+                let (a, b) = (&self.nodes[left], &self.nodes[left + 1]);
+                match (a.hit(origin, inv, *t_max), b.hit(origin, inv, *t_max)) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far) = if ta <= tb {
+                            (left, left + 1)
+                        } else {
+                            (left + 1, left)
+                        };
+                        stack[top] = far as u32;
+                        top += 1;
+                        node = &self.nodes[near];
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = a;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = b;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // Pop, skipping nodes that now start beyond the closest hit.
+            loop {
+                if top == 0 {
+                    return false;
+                }
+                top -= 1;
+                let candidate = &self.nodes[stack[top] as usize];
+                if candidate.hit(origin, inv, *t_max).is_some() {
+                    node = candidate;
+                    break;
+                }
             }
         }
-        wide[w] = node;
     }
-    wide
 }
 
 /// Binned SAH split of `range` (reordered in place); `None` makes a leaf.
@@ -573,11 +457,7 @@ mod tests {
         ];
         let (bvh, order) = Bvh::build(&boxes);
         assert_eq!(order.len(), 100);
-        assert!(
-            bvh.nodes
-                .iter()
-                .all(|n| n.count.iter().all(|&c| c as usize <= MAX_LEAF))
-        );
+        assert!(bvh.nodes.iter().all(|n| n.count as usize <= MAX_LEAF));
         let mut seen = 0;
         bvh.closest(DVec3::splat(-1.0), DVec3::ONE.normalize(), 1e9, |_, _| {
             seen += 1;
