@@ -1,5 +1,6 @@
 //! Thin command-line front end; all work lives in the library.
 
+use bmc_irradiance::cli;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -14,9 +15,28 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Irradiance (W/m²) at the points of a CSV file, as CSV on stdout.
+    Irradiance(bmc_irradiance::render::irradiance_command::IrradianceArgs),
+    /// Print the BMC quadrature (directions, kernel means, weights, variances) of one configuration.
+    Quadrature(cli::quadrature::QuadratureArgs),
+    /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
+    Study(cli::study::StudyArgs),
+}
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::Irradiance(args) => bmc_irradiance::render::irradiance_command::run_irradiance(
+            &args,
+            &mut std::io::stdout().lock(),
+        ),
+        Command::Quadrature(args) => print_output(cli::quadrature::run(&args)?),
+        Command::Study(args) => print_output(cli::study::run(&args)?),
+    }
+}
+
+fn print_output(output: String) -> anyhow::Result<()> {
+    println!("{output}");
+    Ok(())
 }
