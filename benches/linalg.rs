@@ -6,6 +6,7 @@
 //! one right-hand side follows the factorisation, as for the weights `Q⁻¹z`.
 //! faer runs sequentially (`Par::Seq`) because the service parallelises across
 //! requests, not inside one factorisation; nalgebra is always sequential.
+//! By these figures production uses faer (docs/BENCHMARKS.md, "Linear algebra").
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use faer::linalg::solvers::Solve;

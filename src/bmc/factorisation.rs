@@ -2,10 +2,18 @@
 //! (bmc-math.md §3), computed once per (sample set, kernel) and shared by
 //! every density, prior mean and shading point.
 //!
-//! The linear algebra (nalgebra today) stays behind this type so that it can
-//! be swapped for another backend without touching callers.
+//! The linear algebra is faer's dense LLᵀ, chosen by measurement against
+//! nalgebra (docs/BENCHMARKS.md, "Linear algebra": 7–18× faster for
+//! N ≥ 256). It stays behind this type so callers never see the backend.
+//!
+//! faer runs sequentially (`Par::Seq`) inside one factorisation: the service
+//! already parallelises across requests with rayon, and nested parallelism
+//! would oversubscribe the cores. The explicit `Par` argument of faer's
+//! low-level routines keeps this independent of faer's global setting.
 
-use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt;
+use faer::{Conj, Mat, MatMut, Par};
 use rayon::prelude::*;
 
 use super::error::BmcError;
@@ -24,7 +32,9 @@ const MAX_CONDITION: f64 = 1e13;
 /// `Q = L Lᵀ` with the jitter that made it numerically positive definite.
 #[derive(Clone, Debug)]
 pub struct Factorisation {
-    cholesky: Cholesky<f64, Dyn>,
+    /// Lower-triangular factor `L` in the lower triangle; the strict upper
+    /// triangle still holds `Q` and is never read.
+    l: Mat<f64>,
     /// The set the factor was built from, to reject mismatched uses.
     spec: SampleSetSpec,
     /// The kernel the factor was built from, likewise.
@@ -67,19 +77,18 @@ impl Factorisation {
                 *value = kernel.eval(dirs[i], dirs[j]);
             }
         });
-        let k = DMatrix::from_vec(n, n, data);
         let mean_diag = kernel.variance + kernel.noise;
         let mut jitter = 0.0;
         loop {
-            let mut q = k.clone();
-            for i in 0..n {
-                q[(i, i)] += kernel.noise + jitter;
-            }
-            if let Some(cholesky) = Cholesky::new(q) {
-                let condition_estimate = condition_estimate(&cholesky);
+            let diagonal = kernel.noise + jitter;
+            let mut l = Mat::from_fn(n, n, |i, j| {
+                data[j * n + i] + if i == j { diagonal } else { 0.0 }
+            });
+            if cholesky_in_place(&mut l) {
+                let condition_estimate = condition_estimate(&l);
                 if condition_estimate <= MAX_CONDITION {
                     return Ok(Factorisation {
-                        cholesky,
+                        l,
                         spec: set.spec,
                         kernel: kernel.cache_key(),
                         jitter,
@@ -102,7 +111,7 @@ impl Factorisation {
 
     /// `N`, the number of sample directions.
     pub fn len(&self) -> usize {
-        self.cholesky.l_dirty().nrows()
+        self.l.nrows()
     }
 
     /// Always false: a factorisation has at least one direction.
@@ -121,10 +130,17 @@ impl Factorisation {
     /// If `b.len() != self.len()` (a programming error; see [`Self::try_solve`]).
     pub fn solve(&self, b: &[f64]) -> Vec<f64> {
         assert_eq!(b.len(), self.len(), "right-hand side length");
-        self.cholesky
-            .solve(&DVector::from_column_slice(b))
-            .as_slice()
-            .to_vec()
+        let mut x = b.to_vec();
+        let n = x.len();
+        // The LLᵀ solve needs no scratch space (faer's `solve_in_place_scratch` is empty).
+        llt::solve::solve_in_place_with_conj(
+            self.l.as_ref(),
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut x, n, 1),
+            Par::Seq,
+            MemStack::new(&mut []),
+        );
+        x
     }
 
     /// `Q⁻¹ b`, or a typed error when the length is wrong.
@@ -141,8 +157,7 @@ impl Factorisation {
 
     /// `log |Q| = 2 Σ log L_ii` (for the marginal likelihood, bmc-math.md §7).
     pub fn log_determinant(&self) -> f64 {
-        let l = self.cholesky.l_dirty();
-        2.0 * (0..l.nrows()).map(|i| l[(i, i)].ln()).sum::<f64>()
+        2.0 * (0..self.len()).map(|i| self.l[(i, i)].ln()).sum::<f64>()
     }
 
     /// Approximate heap + inline size, for byte-bounded caches.
@@ -152,8 +167,26 @@ impl Factorisation {
     }
 }
 
-fn condition_estimate(cholesky: &Cholesky<f64, Dyn>) -> f64 {
-    let l = cholesky.l_dirty();
+/// Overwrites the lower triangle of `q` with its Cholesky factor; false when
+/// a pivot is not positive (Q not numerically positive definite).
+fn cholesky_in_place(q: &mut Mat<f64>) -> bool {
+    let n = q.nrows();
+    let mut scratch = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
+        n,
+        Par::Seq,
+        Default::default(),
+    ));
+    llt::factor::cholesky_in_place(
+        q.as_mut(),
+        Default::default(),
+        Par::Seq,
+        MemStack::new(&mut scratch),
+        Default::default(),
+    )
+    .is_ok()
+}
+
+fn condition_estimate(l: &Mat<f64>) -> f64 {
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
     for i in 0..l.nrows() {
         let d = l[(i, i)];
@@ -165,6 +198,8 @@ fn condition_estimate(cholesky: &Cholesky<f64, Dyn>) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::{DMatrix, DVector};
+
     use super::*;
     use crate::bmc::kernel::KernelKind;
     use crate::sphere::SampleSetKind;
