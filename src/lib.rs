@@ -11,9 +11,11 @@
 //! - `scene`: JSON scene loading, shapes, materials, emitters, environment
 //!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
-//!   `L_i(x, ω)` and irradiance `E(x, n)` at points.
+//!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image.
+//! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
 
 pub mod bmc;
+pub mod image;
 pub mod render;
 pub mod scene;
 pub mod sphere;

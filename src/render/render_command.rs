@@ -1,0 +1,176 @@
+//! The `render` and `compare` subcommands: the scene camera's image to EXR
+//! (and optionally PNG), and the relative RMSE between two EXR images.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::film::ImageSettings;
+use super::tile::ShadingMethod;
+use super::transport::Transport;
+use crate::image::exr_io::{read_exr, write_exr};
+use crate::image::png_io::write_png;
+use crate::image::{ToneMap, relative_rmse};
+use crate::scene::Scene;
+
+/// Command-line arguments of `bmc-irradiance render`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct RenderArgs {
+    /// Scene JSON file.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// Directory that files referenced by the scene may not escape
+    /// (default: the scene file's directory).
+    #[arg(long)]
+    pub scenes_root: Option<PathBuf>,
+    /// Output EXR (channels R, G, B and the per-pixel variance `variance`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write a tone-mapped sRGB PNG here.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// PNG exposure in stops (values scaled by 2^exposure, then clamped).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// How camera rays are shaded.
+    #[arg(long, value_enum, default_value_t = MethodArg::Path)]
+    pub method: MethodArg,
+    /// Camera rays per pixel.
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// Longest light path in segments (1 = emitters seen directly only).
+    #[arg(long, default_value_t = 64)]
+    pub max_depth: u32,
+    /// Seed of all random streams; same seed, same image.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Tile side in pixels. The image does not depend on it.
+    #[arg(long, default_value_t = 64)]
+    pub tile: u32,
+}
+
+/// Shading methods exposed on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MethodArg {
+    /// Path tracing (the reference).
+    Path,
+}
+
+impl RenderArgs {
+    pub fn settings(&self) -> ImageSettings {
+        ImageSettings {
+            samples_per_pixel: self.spp,
+            max_depth: self.max_depth,
+            seed: self.seed,
+            method: match self.method {
+                MethodArg::Path => ShadingMethod::PathTracing,
+            },
+        }
+    }
+}
+
+/// Directory referenced files may not escape: `--scenes-root`, else the
+/// scene file's directory.
+fn scenes_root(scene: &Path, explicit: Option<&Path>) -> PathBuf {
+    match (explicit, scene.parent()) {
+        (Some(root), _) => root.to_path_buf(),
+        (None, Some(dir)) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Runs `render`: progress on stderr (hidden when it is not a terminal),
+/// a one-line summary (time, rays, rays/s) on `out`.
+pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    let root = scenes_root(&args.scene, args.scenes_root.as_deref());
+    let scene = Scene::load(&args.scene, &root)
+        .with_context(|| format!("loading scene {}", args.scene.display()))?;
+    let (width, height) = scene.camera.resolution();
+    let transport = Transport::new(Arc::new(scene));
+    let settings = args.settings();
+    // Fail on a bad request before any work (the first tile would too).
+    settings
+        .tile(0, 0, width, height)
+        .validate((width, height))?;
+
+    let progress = ProgressBar::new(u64::from(width) * u64::from(height));
+    progress.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} pixels, {elapsed} elapsed, ETA {eta}")
+            .context("progress bar template")?,
+    );
+    let start = Instant::now();
+    let render = || {
+        transport.render_image(&settings, args.tile, &|tile| {
+            progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
+        })
+    };
+    let rendered = match args.threads {
+        Some(threads) => rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .context("building the thread pool")?
+            .install(render)?,
+        None => render()?,
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    progress.finish_and_clear();
+
+    write_exr(&rendered.image, &args.out)?;
+    if let Some(png) = &args.png {
+        write_png(
+            &rendered.image,
+            ToneMap {
+                exposure: args.exposure,
+            },
+            png,
+        )?;
+    }
+    writeln!(
+        out,
+        "rendered {width}×{height} at {} spp in {seconds:.2} s: {} rays, {:.3} Mrays/s",
+        args.spp,
+        rendered.rays,
+        rendered.rays as f64 / seconds / 1e6
+    )?;
+    Ok(())
+}
+
+/// Command-line arguments of `bmc-irradiance compare`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CompareArgs {
+    /// The image to assess (EXR).
+    pub image: PathBuf,
+    /// The reference (EXR).
+    pub reference: PathBuf,
+    /// Leave out pixels whose reference value exceeds this in any channel
+    /// (e.g. emitters seen directly), to measure the lit surfaces only.
+    #[arg(long)]
+    pub exclude_above: Option<f32>,
+}
+
+/// Runs `compare`: relative RMSE (overall and per channel) on `out`.
+pub fn run_compare(args: &CompareArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    let image = read_exr(&args.image)?;
+    let reference = read_exr(&args.reference)?;
+    let mask: Option<Vec<bool>> = args.exclude_above.map(|limit| {
+        reference
+            .rgb()
+            .iter()
+            .map(|p| p.iter().all(|&c| c <= limit))
+            .collect()
+    });
+    let e = relative_rmse(&image, &reference, mask.as_deref())?;
+    writeln!(
+        out,
+        "relative RMSE {:.5} (R {:.5}, G {:.5}, B {:.5}) over {} pixels",
+        e.overall, e.per_channel[0], e.per_channel[1], e.per_channel[2], e.pixels
+    )?;
+    Ok(())
+}
