@@ -84,3 +84,36 @@ impl Transport {
         Ok(RenderedImage { image, rays })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::tile::tests::{cornell, request};
+    use std::cell::Cell;
+
+    #[test]
+    fn any_tile_size_gives_the_same_image() {
+        let transport = cornell(12);
+        let whole = transport
+            .render_tile(&request(0, 0, 12, 12))
+            .expect("renders");
+        let r = request(0, 0, 1, 1);
+        let settings = ImageSettings {
+            samples_per_pixel: r.samples_per_pixel,
+            max_depth: r.max_depth,
+            seed: r.seed,
+            method: r.method,
+        };
+        let tiles = Cell::new(0);
+        let rendered = transport
+            .render_image(&settings, 5, &|_| tiles.set(tiles.get() + 1))
+            .expect("renders");
+        assert_eq!(tiles.get(), 9);
+        assert_eq!(rendered.image, whole.image);
+        assert_eq!(rendered.rays, whole.rays);
+        assert!(matches!(
+            transport.render_image(&settings, 0, &|_| {}),
+            Err(RenderError::InvalidOption { field: "tile", .. })
+        ));
+    }
+}

@@ -174,3 +174,83 @@ pub fn run_compare(args: &CompareArgs, out: &mut dyn Write) -> anyhow::Result<()
     )?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(subcommand)]
+        command: Sub,
+    }
+
+    #[derive(clap::Subcommand)]
+    enum Sub {
+        Render(RenderArgs),
+        Compare(CompareArgs),
+    }
+
+    fn parse(line: &str) -> Result<Sub, clap::Error> {
+        let words = std::iter::once("bmc").chain(line.split_whitespace());
+        Cli::try_parse_from(words).map(|cli| cli.command)
+    }
+
+    #[test]
+    fn render_then_compare_end_to_end() {
+        let dir = std::env::temp_dir().join(format!("bmc-render-cli-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let scene = dir.join("quad.json");
+        std::fs::write(
+            &scene,
+            r#"{"materials": [{"id": "m", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+                "shapes": [{"type": "rectangle", "material": "m", "to_world": {"scale": [10, 10, 1]},
+                            "emitter": {"type": "area", "radiance": [2, 1, 0.5]}}],
+                "camera": {"fov": 40, "width": 5, "height": 3,
+                           "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}}"#,
+        )
+        .expect("scene written");
+        let (exr, png) = (dir.join("out.exr"), dir.join("out.png"));
+        let line = format!(
+            "render --scene {} --out {} --png {} --spp 3 --max-depth 4 --tile 2 --threads 1 --exposure -1",
+            scene.display(),
+            exr.display(),
+            png.display()
+        );
+        let Ok(Sub::Render(args)) = parse(&line) else {
+            panic!("render arguments rejected")
+        };
+        assert_eq!(args.settings().samples_per_pixel, 3);
+        let mut summary = Vec::new();
+        let rendered = run_render(&args, &mut summary);
+        let image = read_exr(&exr);
+        let png_size = image::image_dimensions(&png);
+        let compare_line = format!("compare {} {}", exr.display(), exr.display());
+        let mut compared = Vec::new();
+        let compare = match parse(&compare_line) {
+            Ok(Sub::Compare(c)) => run_compare(&c, &mut compared),
+            _ => panic!("compare arguments rejected"),
+        };
+        let _ = std::fs::remove_dir_all(&dir);
+
+        rendered.expect("renders");
+        assert!(String::from_utf8_lossy(&summary).contains("rendered 5×3 at 3 spp"));
+        let image = image.expect("EXR readable");
+        assert!(image.rgb().iter().all(|p| *p == [2.0, 1.0, 0.5]));
+        assert_eq!(png_size.expect("PNG readable"), (5, 3));
+        compare.expect("compares");
+        assert!(String::from_utf8_lossy(&compared).starts_with("relative RMSE 0.00000"));
+    }
+
+    #[test]
+    fn bad_arguments_are_rejected() {
+        assert!(parse("render --scene s.json --out o.exr --method cache").is_err());
+        assert!(parse("render --scene s.json").is_err());
+        let Ok(Sub::Render(args)) = parse("render --scene /nonexistent.json --out o.exr --spp 0")
+        else {
+            panic!("parses")
+        };
+        assert!(run_render(&args, &mut Vec::new()).is_err());
+    }
+}

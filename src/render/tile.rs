@@ -234,7 +234,7 @@ pub fn render_tile_with(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::path::Path;
     use std::sync::Arc;
@@ -242,7 +242,7 @@ mod tests {
     use crate::scene::Scene;
 
     /// The bundled Cornell box with its camera resized to `side`².
-    fn cornell(side: u32) -> Transport {
+    pub(crate) fn cornell(side: u32) -> Transport {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
         let text = std::fs::read_to_string(dir.join("cornell-box.json")).expect("bundled scene");
         let mut doc: serde_json::Value = serde_json::from_str(&text).expect("JSON");
@@ -252,7 +252,7 @@ mod tests {
         Transport::new(Arc::new(scene))
     }
 
-    fn request(x: u32, y: u32, width: u32, height: u32) -> TileRequest {
+    pub(crate) fn request(x: u32, y: u32, width: u32, height: u32) -> TileRequest {
         TileRequest {
             x,
             y,
