@@ -7,15 +7,26 @@
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
 //! - `sphere`: local shading frames and hemisphere sample sets (local frame, z = normal).
-//! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance.
+//! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance;
+//!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
+//!   `bmc::estimator` (MC, QMC, BMC behind one interface), `bmc::hyperparameters`
+//!   (marginal-likelihood fit of ℓ, σ², σ_n²).
+//! - `study`: synthetic environments with known irradiance and the estimator
+//!   convergence study (MC vs QMC vs BMC).
 //! - `scene`: JSON scene loading, shapes, materials, emitters, environment
 //!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
 //!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image.
+//! - `cache`: Bayesian irradiance cache — BMC records with variance and
+//!   gradients, concurrent spatial index, interpolation, reproducible placement.
 //! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
+//! - `cli`: the binary's subcommands (`quadrature`, `study`, `render`, `compare`) as library functions.
 
 pub mod bmc;
+pub mod cache;
+pub mod cli;
 pub mod image;
 pub mod render;
 pub mod scene;
 pub mod sphere;
+pub mod study;

@@ -1,5 +1,6 @@
 //! Thin command-line front end; all work lives in the library.
 
+use bmc_irradiance::cli;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -17,10 +18,14 @@ struct Cli {
 enum Command {
     /// Irradiance (W/m²) at the points of a CSV file, as CSV on stdout.
     Irradiance(bmc_irradiance::render::irradiance_command::IrradianceArgs),
+    /// Print the BMC quadrature (directions, kernel means, weights, variances) of one configuration.
+    Quadrature(cli::quadrature::QuadratureArgs),
+    /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
+    Study(cli::study::StudyArgs),
     /// Render the scene camera's image to EXR (and PNG), tile by tile.
-    Render(bmc_irradiance::render::render_command::RenderArgs),
+    Render(cli::render::RenderArgs),
     /// Relative RMSE of an EXR image against a reference EXR.
-    Compare(bmc_irradiance::render::render_command::CompareArgs),
+    Compare(cli::render::CompareArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -30,12 +35,14 @@ fn main() -> anyhow::Result<()> {
             &args,
             &mut std::io::stdout().lock(),
         ),
-        Command::Render(args) => {
-            bmc_irradiance::render::render_command::run_render(&args, &mut std::io::stdout().lock())
-        }
-        Command::Compare(args) => bmc_irradiance::render::render_command::run_compare(
-            &args,
-            &mut std::io::stdout().lock(),
-        ),
+        Command::Quadrature(args) => print_output(cli::quadrature::run(&args)?),
+        Command::Study(args) => print_output(cli::study::run(&args)?),
+        Command::Render(args) => cli::render::run_render(&args, &mut std::io::stdout().lock()),
+        Command::Compare(args) => cli::render::run_compare(&args, &mut std::io::stdout().lock()),
     }
+}
+
+fn print_output(output: String) -> anyhow::Result<()> {
+    println!("{output}");
+    Ok(())
 }

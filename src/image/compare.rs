@@ -18,6 +18,11 @@ pub struct RelativeRmse {
     pub per_channel: [f64; 3],
     /// Pixels compared (those the mask selects).
     pub pixels: usize,
+    /// The overall figure expected from the image's own noise alone,
+    /// `sqrt(mean(variance)) / mean(b)` from its variance channel (`None`
+    /// without one). If the reference is noisy too, the expected overall
+    /// figure is `sqrt(expected² + reference_noise²)`.
+    pub expected_from_variance: Option<f64>,
 }
 
 /// Relative RMSE of `image` against `reference` over the pixels where
@@ -49,11 +54,13 @@ pub fn relative_rmse(
         ));
     }
     let (mut squared, mut sum, mut pixels) = ([0.0f64; 3], [0.0f64; 3], 0usize);
+    let mut variance = 0.0;
     for (i, (a, b)) in image.rgb().iter().zip(reference.rgb()).enumerate() {
         if mask.is_some_and(|m| !m[i]) {
             continue;
         }
         pixels += 1;
+        variance += image.variance().map_or(0.0, |v| f64::from(v[i]));
         for c in 0..3 {
             let d = f64::from(a[c]) - f64::from(b[c]);
             squared[c] += d * d;
@@ -68,12 +75,17 @@ pub fn relative_rmse(
         ));
     }
     let n = pixels as f64;
-    let overall = (squared.iter().sum::<f64>() / (3.0 * n)).sqrt() / (total / (3.0 * n));
+    let mean = total / (3.0 * n);
+    let overall = (squared.iter().sum::<f64>() / (3.0 * n)).sqrt() / mean;
     let per_channel = [0, 1, 2].map(|c| (squared[c] / n).sqrt() / (sum[c] / n));
+    // `variance` is already the mean over channels, so its pixel mean is
+    // the mean over pixels and channels, like the squared errors.
+    let expected_from_variance = image.variance().map(|_| (variance / n).sqrt() / mean);
     Ok(RelativeRmse {
         overall,
         per_channel,
         pixels,
+        expected_from_variance,
     })
 }
 
@@ -95,6 +107,12 @@ mod tests {
         assert!((e.per_channel[0] - (0.25f64 / 2.0).sqrt() / 2.0).abs() < 1e-12);
         assert_eq!(e.per_channel[1], 0.0);
         assert_eq!(e.pixels, 2);
+        assert_eq!(e.expected_from_variance, None);
+        let noisy = Image::from_parts(2, 1, a.rgb().to_vec(), Some(vec![0.25, 0.75])).expect("ok");
+        let expected = relative_rmse(&noisy, &reference, None)
+            .expect("ok")
+            .expected_from_variance;
+        assert_eq!(expected, Some(0.5f64.sqrt() / 2.0));
         assert_eq!(
             relative_rmse(&reference, &reference, None)
                 .expect("ok")

@@ -23,7 +23,6 @@ pub mod path;
 pub mod points_csv;
 pub mod polygon;
 pub mod query;
-pub mod render_command;
 pub mod rgb;
 pub mod seed;
 pub mod tile;

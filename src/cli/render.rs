@@ -9,12 +9,12 @@ use std::time::Instant;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::film::ImageSettings;
-use super::tile::ShadingMethod;
-use super::transport::Transport;
 use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
+use crate::render::film::ImageSettings;
+use crate::render::tile::ShadingMethod;
+use crate::render::transport::Transport;
 use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance render`.
@@ -172,6 +172,12 @@ pub fn run_compare(args: &CompareArgs, out: &mut dyn Write) -> anyhow::Result<()
         "relative RMSE {:.5} (R {:.5}, G {:.5}, B {:.5}) over {} pixels",
         e.overall, e.per_channel[0], e.per_channel[1], e.per_channel[2], e.pixels
     )?;
+    if let Some(expected) = e.expected_from_variance {
+        writeln!(
+            out,
+            "expected from the image's variance channel alone: {expected:.5}"
+        )?;
+    }
     Ok(())
 }
 
