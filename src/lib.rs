@@ -11,12 +11,13 @@
 //!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
 //!   `bmc::estimator` (MC, QMC, BMC behind one interface), `bmc::hyperparameters`
 //!   (marginal-likelihood fit of ℓ, σ², σ_n²).
-//! - `study`: synthetic environments with known irradiance and the estimator
-//!   convergence study (MC vs QMC vs BMC).
-//! - `scene`: JSON scene loading, shapes, materials, emitters, environment
-//!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
+//! - `scene`: JSON and Mitsuba 3 XML (`scene::mitsuba`) scene loading, shapes,
+//!   materials, emitters, environment maps, camera, BVH ray tracing
+//!   (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
 //!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image.
+//! - `study`: synthetic environments with known irradiance and the estimator
+//!   convergence study (MC vs QMC vs BMC).
 //! - `cache`: Bayesian irradiance cache — BMC records with variance and
 //!   gradients, concurrent spatial index, interpolation, reproducible placement.
 //! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.

@@ -117,22 +117,14 @@ impl SampleMeanEstimator {
     /// Monte Carlo with `count ≥ 2` fresh directions per shading point drawn
     /// from `pdf` (uniform or cosine-weighted).
     pub fn monte_carlo(density: Density, pdf: SamplingPdf, count: usize) -> Result<Self, BmcError> {
-        density.validate()?;
-        let kind = match pdf {
-            SamplingPdf::Uniform => SampleSetKind::Uniform,
-            SamplingPdf::Cosine => SampleSetKind::Cosine,
-        };
-        // Validates the count once, so later draws cannot fail on it.
-        SampleSet::generate(SampleSetSpec {
-            kind,
-            count,
-            seed: 0,
-        })?;
-        Ok(Self {
-            density,
-            pdf,
-            directions: Directions::Random { kind, count },
-        })
+        if count < 2 {
+            // The sample variance needs two draws.
+            return Err(BmcError::invalid(
+                "samples",
+                format!("MC needs at least 2, got {count}"),
+            ));
+        }
+        Self::new(density, pdf, count, true)
     }
 
     /// Quasi-Monte Carlo on `count` spherical Fibonacci points: uniform-area
@@ -144,20 +136,38 @@ impl SampleMeanEstimator {
         pdf: SamplingPdf,
         count: usize,
     ) -> Result<Self, BmcError> {
+        Self::new(density, pdf, count, false)
+    }
+
+    fn new(
+        density: Density,
+        pdf: SamplingPdf,
+        count: usize,
+        random: bool,
+    ) -> Result<Self, BmcError> {
         density.validate()?;
-        let kind = match pdf {
-            SamplingPdf::Uniform => SampleSetKind::Fibonacci,
-            SamplingPdf::Cosine => SampleSetKind::FibonacciCosine,
+        let kind = match (pdf, random) {
+            (SamplingPdf::Uniform, true) => SampleSetKind::Uniform,
+            (SamplingPdf::Cosine, true) => SampleSetKind::Cosine,
+            (SamplingPdf::Uniform, false) => SampleSetKind::Fibonacci,
+            (SamplingPdf::Cosine, false) => SampleSetKind::FibonacciCosine,
         };
+        // Generating once validates the count, so later random draws cannot
+        // fail on it.
         let set = SampleSet::generate(SampleSetSpec {
             kind,
             count,
             seed: 0,
         })?;
+        let directions = if random {
+            Directions::Random { kind, count }
+        } else {
+            Directions::Fixed(set)
+        };
         Ok(Self {
             density,
             pdf,
-            directions: Directions::Fixed(set),
+            directions,
         })
     }
 }

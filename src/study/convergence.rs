@@ -218,10 +218,11 @@ fn row(
     })
 }
 
-/// The rows as a Markdown table (relative RMSE in %).
+/// The rows as a Markdown table (relative RMSE, and BMC's ratios to the
+/// better QMC variant and to MC).
 pub fn markdown_table(rows: &[StudyRow]) -> String {
     let mut out = String::from(
-        "| family | N | MC (cosine) | QMC (Fibonacci) | QMC (Fibonacci, cosine) | BMC | BMC/QMC best | BMC/MC | ℓ | σ_n²/σ² | ±2σ coverage |\n\
+        "| family | N | MC (cosine) | QMC (Fibonacci) | QMC (Fibonacci, cosine) | BMC | BMC / best QMC | BMC / MC | ℓ | σ_n²/σ² | BMC ±2σ coverage |\n\
          |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
@@ -231,12 +232,12 @@ pub fn markdown_table(rows: &[StudyRow]) -> String {
             EnvironmentFamily::Sharp => "sharp",
         };
         out.push_str(&format!(
-            "| {family} | {} | {:.3} % | {:.3} % | {:.3} % | {:.4} % | {:.3} | {:.4} | {:.3}{} | {:.1e}{} | {:.0} % |\n",
+            "| {family} | {} | {:.2e} | {:.2e} | {:.2e} | {:.2e} | {:.2e} | {:.2e} | {:.3}{} | {:.1e}{} | {:.0} % |\n",
             r.samples,
-            100.0 * r.mc_cosine,
-            100.0 * r.qmc_fibonacci,
-            100.0 * r.qmc_fibonacci_cosine,
-            100.0 * r.bmc,
+            r.mc_cosine,
+            r.qmc_fibonacci,
+            r.qmc_fibonacci_cosine,
+            r.bmc,
             r.bmc / best_qmc,
             r.bmc / r.mc_cosine,
             r.lengthscale,
