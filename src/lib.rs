@@ -15,16 +15,18 @@
 //!   materials, emitters, environment maps, camera, BVH ray tracing
 //!   (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
-//!   `L_i(x, ω)` and irradiance `E(x, n)` at points.
+//!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image.
 //! - `study`: synthetic environments with known irradiance and the estimator
 //!   convergence study (MC vs QMC vs BMC).
 //! - `cache`: Bayesian irradiance cache — BMC records with variance and
 //!   gradients, concurrent spatial index, interpolation, reproducible placement.
-//! - `cli`: the binary's subcommands (`quadrature`, `study`) as library functions.
+//! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
+//! - `cli`: the binary's subcommands (`quadrature`, `study`, `render`, `compare`) as library functions.
 
 pub mod bmc;
 pub mod cache;
 pub mod cli;
+pub mod image;
 pub mod render;
 pub mod scene;
 pub mod sphere;

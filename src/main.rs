@@ -22,6 +22,10 @@ enum Command {
     Quadrature(cli::quadrature::QuadratureArgs),
     /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
     Study(cli::study::StudyArgs),
+    /// Render the scene camera's image to EXR (and PNG), tile by tile.
+    Render(cli::render::RenderArgs),
+    /// Relative RMSE of an EXR image against a reference EXR.
+    Compare(cli::render::CompareArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -33,6 +37,8 @@ fn main() -> anyhow::Result<()> {
         ),
         Command::Quadrature(args) => print_output(cli::quadrature::run(&args)?),
         Command::Study(args) => print_output(cli::study::run(&args)?),
+        Command::Render(args) => cli::render::run_render(&args, &mut std::io::stdout().lock()),
+        Command::Compare(args) => cli::render::run_compare(&args, &mut std::io::stdout().lock()),
     }
 }
 

@@ -1,4 +1,5 @@
 //! Command-line subcommands as library functions; `main.rs` only dispatches.
 
 pub mod quadrature;
+pub mod render;
 pub mod study;

@@ -8,12 +8,14 @@
 //!
 //! Entry points: [`Transport`] (built once per scene) with
 //! `incident_radiance`, `hemisphere_samples`, `direct_irradiance`,
-//! `irradiance` and `irradiance_at_points`.
+//! `irradiance` and `irradiance_at_points`; `render_tile` and
+//! `render_image` for the camera's image (`tile`, `film`).
 
 pub mod bsdf;
 pub mod distribution;
 pub mod environment_sampling;
 pub mod error;
+pub mod film;
 pub mod irradiance;
 pub mod irradiance_command;
 pub mod lights;
@@ -23,13 +25,16 @@ pub mod polygon;
 pub mod query;
 pub mod rgb;
 pub mod seed;
+pub mod tile;
 pub mod transport;
 pub mod warp;
 
 pub use bsdf::{Bsdf, BsdfSample};
 pub use error::RenderError;
+pub use film::{ImageSettings, RenderedImage};
 pub use irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions, MeanEstimate};
 pub use path::{PathLengths, PathLimits, RadianceSample, TraceStats};
 pub use query::QueryPoint;
 pub use rgb::Rgb;
+pub use tile::{CameraRayShader, RenderedTile, ShadingMethod, TileRequest};
 pub use transport::Transport;

@@ -1,0 +1,262 @@
+//! The `render` and `compare` subcommands: the scene camera's image to EXR
+//! (and optionally PNG), and the relative RMSE between two EXR images.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::image::exr_io::{read_exr, write_exr};
+use crate::image::png_io::write_png;
+use crate::image::{ToneMap, relative_rmse};
+use crate::render::film::ImageSettings;
+use crate::render::tile::ShadingMethod;
+use crate::render::transport::Transport;
+use crate::scene::Scene;
+
+/// Command-line arguments of `bmc-irradiance render`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct RenderArgs {
+    /// Scene JSON file.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// Directory that files referenced by the scene may not escape
+    /// (default: the scene file's directory).
+    #[arg(long)]
+    pub scenes_root: Option<PathBuf>,
+    /// Output EXR (channels R, G, B and the per-pixel variance `variance`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write a tone-mapped sRGB PNG here.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// PNG exposure in stops (values scaled by 2^exposure, then clamped).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// How camera rays are shaded.
+    #[arg(long, value_enum, default_value_t = MethodArg::Path)]
+    pub method: MethodArg,
+    /// Camera rays per pixel.
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// Longest light path in segments (1 = emitters seen directly only).
+    #[arg(long, default_value_t = 64)]
+    pub max_depth: u32,
+    /// Seed of all random streams; same seed, same image.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Tile side in pixels. The image does not depend on it.
+    #[arg(long, default_value_t = 64)]
+    pub tile: u32,
+}
+
+/// Shading methods exposed on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MethodArg {
+    /// Path tracing (the reference).
+    Path,
+}
+
+impl RenderArgs {
+    pub fn settings(&self) -> ImageSettings {
+        ImageSettings {
+            samples_per_pixel: self.spp,
+            max_depth: self.max_depth,
+            seed: self.seed,
+            method: match self.method {
+                MethodArg::Path => ShadingMethod::PathTracing,
+            },
+        }
+    }
+}
+
+/// Directory referenced files may not escape: `--scenes-root`, else the
+/// scene file's directory.
+fn scenes_root(scene: &Path, explicit: Option<&Path>) -> PathBuf {
+    match (explicit, scene.parent()) {
+        (Some(root), _) => root.to_path_buf(),
+        (None, Some(dir)) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Runs `render`: progress on stderr (hidden when it is not a terminal),
+/// a one-line summary (time, rays, rays/s) on `out`.
+pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    let root = scenes_root(&args.scene, args.scenes_root.as_deref());
+    let scene = Scene::load(&args.scene, &root)
+        .with_context(|| format!("loading scene {}", args.scene.display()))?;
+    let (width, height) = scene.camera.resolution();
+    let transport = Transport::new(Arc::new(scene));
+    let settings = args.settings();
+    // Fail on a bad request before any work (the first tile would too).
+    settings
+        .tile(0, 0, width, height)
+        .validate((width, height))?;
+
+    let progress = ProgressBar::new(u64::from(width) * u64::from(height));
+    progress.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} pixels, {elapsed} elapsed, ETA {eta}")
+            .context("progress bar template")?,
+    );
+    let start = Instant::now();
+    let render = || {
+        transport.render_image(&settings, args.tile, &|tile| {
+            progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
+        })
+    };
+    let rendered = match args.threads {
+        Some(threads) => rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .context("building the thread pool")?
+            .install(render)?,
+        None => render()?,
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    progress.finish_and_clear();
+
+    write_exr(&rendered.image, &args.out)?;
+    if let Some(png) = &args.png {
+        write_png(
+            &rendered.image,
+            ToneMap {
+                exposure: args.exposure,
+            },
+            png,
+        )?;
+    }
+    writeln!(
+        out,
+        "rendered {width}×{height} at {} spp in {seconds:.2} s: {} rays, {:.3} Mrays/s",
+        args.spp,
+        rendered.rays,
+        rendered.rays as f64 / seconds / 1e6
+    )?;
+    Ok(())
+}
+
+/// Command-line arguments of `bmc-irradiance compare`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CompareArgs {
+    /// The image to assess (EXR).
+    pub image: PathBuf,
+    /// The reference (EXR).
+    pub reference: PathBuf,
+    /// Leave out pixels whose reference value exceeds this in any channel
+    /// (e.g. emitters seen directly), to measure the lit surfaces only.
+    #[arg(long)]
+    pub exclude_above: Option<f32>,
+}
+
+/// Runs `compare`: relative RMSE (overall and per channel) on `out`.
+pub fn run_compare(args: &CompareArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    let image = read_exr(&args.image)?;
+    let reference = read_exr(&args.reference)?;
+    let mask: Option<Vec<bool>> = args.exclude_above.map(|limit| {
+        reference
+            .rgb()
+            .iter()
+            .map(|p| p.iter().all(|&c| c <= limit))
+            .collect()
+    });
+    let e = relative_rmse(&image, &reference, mask.as_deref())?;
+    writeln!(
+        out,
+        "relative RMSE {:.5} (R {:.5}, G {:.5}, B {:.5}) over {} pixels",
+        e.overall, e.per_channel[0], e.per_channel[1], e.per_channel[2], e.pixels
+    )?;
+    if let Some(expected) = e.expected_from_variance {
+        writeln!(
+            out,
+            "expected from the image's variance channel alone: {expected:.5}"
+        )?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(subcommand)]
+        command: Sub,
+    }
+
+    #[derive(clap::Subcommand)]
+    enum Sub {
+        Render(RenderArgs),
+        Compare(CompareArgs),
+    }
+
+    fn parse(line: &str) -> Result<Sub, clap::Error> {
+        let words = std::iter::once("bmc").chain(line.split_whitespace());
+        Cli::try_parse_from(words).map(|cli| cli.command)
+    }
+
+    #[test]
+    fn render_then_compare_end_to_end() {
+        let dir = std::env::temp_dir().join(format!("bmc-render-cli-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let scene = dir.join("quad.json");
+        std::fs::write(
+            &scene,
+            r#"{"materials": [{"id": "m", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+                "shapes": [{"type": "rectangle", "material": "m", "to_world": {"scale": [10, 10, 1]},
+                            "emitter": {"type": "area", "radiance": [2, 1, 0.5]}}],
+                "camera": {"fov": 40, "width": 5, "height": 3,
+                           "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}}"#,
+        )
+        .expect("scene written");
+        let (exr, png) = (dir.join("out.exr"), dir.join("out.png"));
+        let line = format!(
+            "render --scene {} --out {} --png {} --spp 3 --max-depth 4 --tile 2 --threads 1 --exposure -1",
+            scene.display(),
+            exr.display(),
+            png.display()
+        );
+        let Ok(Sub::Render(args)) = parse(&line) else {
+            panic!("render arguments rejected")
+        };
+        assert_eq!(args.settings().samples_per_pixel, 3);
+        let mut summary = Vec::new();
+        let rendered = run_render(&args, &mut summary);
+        let image = read_exr(&exr);
+        let png_size = image::image_dimensions(&png);
+        let compare_line = format!("compare {} {}", exr.display(), exr.display());
+        let mut compared = Vec::new();
+        let compare = match parse(&compare_line) {
+            Ok(Sub::Compare(c)) => run_compare(&c, &mut compared),
+            _ => panic!("compare arguments rejected"),
+        };
+        let _ = std::fs::remove_dir_all(&dir);
+
+        rendered.expect("renders");
+        assert!(String::from_utf8_lossy(&summary).contains("rendered 5×3 at 3 spp"));
+        let image = image.expect("EXR readable");
+        assert!(image.rgb().iter().all(|p| *p == [2.0, 1.0, 0.5]));
+        assert_eq!(png_size.expect("PNG readable"), (5, 3));
+        compare.expect("compares");
+        assert!(String::from_utf8_lossy(&compared).starts_with("relative RMSE 0.00000"));
+    }
+
+    #[test]
+    fn bad_arguments_are_rejected() {
+        assert!(parse("render --scene s.json --out o.exr --method cache").is_err());
+        assert!(parse("render --scene s.json").is_err());
+        let Ok(Sub::Render(args)) = parse("render --scene /nonexistent.json --out o.exr --spp 0")
+        else {
+            panic!("parses")
+        };
+        assert!(run_render(&args, &mut Vec::new()).is_err());
+    }
+}

@@ -1,0 +1,119 @@
+//! The whole camera image, rendered tile by tile through
+//! [`Transport::render_tile`] and assembled. Tiles are rendered one after
+//! another (each in parallel over its pixels), so progress can be reported
+//! per tile; by the reproducibility rule of `tile`, the image does not
+//! depend on the tile size.
+
+use super::error::RenderError;
+use super::tile::{RenderedTile, ShadingMethod, TileRequest};
+use super::transport::Transport;
+use crate::image::Image;
+
+/// Largest accepted tile side for [`Transport::render_image`].
+pub const MAX_TILE_SIDE: u32 = 2048;
+
+/// The work per pixel of a whole-image render (see [`TileRequest`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImageSettings {
+    pub samples_per_pixel: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+    pub method: ShadingMethod,
+}
+
+impl ImageSettings {
+    /// The request for the tile at (x, y) of size width × height.
+    pub fn tile(&self, x: u32, y: u32, width: u32, height: u32) -> TileRequest {
+        TileRequest {
+            x,
+            y,
+            width,
+            height,
+            samples_per_pixel: self.samples_per_pixel,
+            max_depth: self.max_depth,
+            seed: self.seed,
+            method: self.method,
+        }
+    }
+}
+
+/// A rendered camera image and the work it took.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderedImage {
+    pub image: Image,
+    /// Closest-hit plus shadow rays traced, camera rays included.
+    pub rays: u64,
+}
+
+impl Transport {
+    /// Renders the camera's whole image as square tiles of side `tile_side`
+    /// (smaller at the right and bottom edges). `on_tile` is called after each tile (e.g. to advance a progress bar).
+    pub fn render_image(
+        &self,
+        settings: &ImageSettings,
+        tile_side: u32,
+        on_tile: &dyn Fn(&RenderedTile),
+    ) -> Result<RenderedImage, RenderError> {
+        let (width, height) = self.scene().camera.resolution();
+        if tile_side == 0 || tile_side > MAX_TILE_SIDE {
+            return Err(RenderError::InvalidOption {
+                field: "tile",
+                reason: format!("{tile_side} is not in 1..={MAX_TILE_SIDE}"),
+            });
+        }
+        let mut image = Image::black(width, height).map_err(|e| RenderError::InvalidOption {
+            field: "width",
+            reason: e.to_string(),
+        })?;
+        let mut rays = 0;
+        for y in (0..height).step_by(tile_side as usize) {
+            for x in (0..width).step_by(tile_side as usize) {
+                let request =
+                    settings.tile(x, y, tile_side.min(width - x), tile_side.min(height - y));
+                let tile = self.render_tile(&request)?;
+                image
+                    .insert(&tile.image, x, y)
+                    .map_err(|e| RenderError::InvalidOption {
+                        field: "tile",
+                        reason: e.to_string(),
+                    })?;
+                rays += tile.rays;
+                on_tile(&tile);
+            }
+        }
+        Ok(RenderedImage { image, rays })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::tile::tests::{cornell, request};
+    use std::cell::Cell;
+
+    #[test]
+    fn any_tile_size_gives_the_same_image() {
+        let transport = cornell(12);
+        let whole = transport
+            .render_tile(&request(0, 0, 12, 12))
+            .expect("renders");
+        let r = request(0, 0, 1, 1);
+        let settings = ImageSettings {
+            samples_per_pixel: r.samples_per_pixel,
+            max_depth: r.max_depth,
+            seed: r.seed,
+            method: r.method,
+        };
+        let tiles = Cell::new(0);
+        let rendered = transport
+            .render_image(&settings, 5, &|_| tiles.set(tiles.get() + 1))
+            .expect("renders");
+        assert_eq!(tiles.get(), 9);
+        assert_eq!(rendered.image, whole.image);
+        assert_eq!(rendered.rays, whole.rays);
+        assert!(matches!(
+            transport.render_image(&settings, 0, &|_| {}),
+            Err(RenderError::InvalidOption { field: "tile", .. })
+        ));
+    }
+}
