@@ -6,5 +6,7 @@
 //!
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
+//! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).
 
+pub mod service;
 pub mod sphere;

@@ -1,0 +1,54 @@
+//! The HTTP service: parses and validates requests, dispatches CPU work to a
+//! bounded pool, serialises results. The library modules it serves know
+//! nothing about HTTP.
+//!
+//! - `config`: `config/default.toml` + file + `BMC_<SECTION>__<KEY>` env + flags;
+//! - `app`: [`Application`] (router, middleware, listener, graceful shutdown);
+//! - `state`: [`AppState`], shared by all requests;
+//! - `error`: [`ApiError`] and the JSON error body;
+//! - `extract`: [`ApiJson`], a JSON extractor whose errors name the field;
+//! - `pool`: [`CpuPool`], bounded rayon pool (503 + `Retry-After` when full);
+//! - `metrics`: Prometheus names, recorder and per-route middleware;
+//! - `routes`: one file per resource.
+
+pub mod app;
+pub mod config;
+pub mod error;
+pub mod extract;
+pub mod metrics;
+pub mod pool;
+pub mod routes;
+pub mod state;
+
+pub use app::{Application, shutdown_signal};
+pub use config::Config;
+pub use error::ApiError;
+pub use extract::ApiJson;
+pub use pool::CpuPool;
+pub use state::AppState;
+
+/// Logs to stderr, filtered by `RUST_LOG` (default: `info`).
+pub fn init_tracing() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    // Ignore a second initialisation (tests, embedding) instead of failing.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+/// Runs the service with `config` until SIGINT or SIGTERM, on a runtime of
+/// `server.runtime_threads` threads (the CPU pool has its own threads).
+pub fn serve(config: Config) -> anyhow::Result<()> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(config.server.runtime_threads())
+        .thread_name("bmc-io")
+        .enable_all()
+        .build()?;
+    runtime.block_on(async {
+        let app = Application::build(config).await?;
+        app.run_until_stopped(shutdown_signal()).await?;
+        Ok(())
+    })
+}
