@@ -6,7 +6,9 @@
 //!
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
+//! - `loadtest`: closed-loop load generator for the service (`loadtest` subcommand).
 //! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).
 
+pub mod loadtest;
 pub mod service;
 pub mod sphere;

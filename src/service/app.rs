@@ -1,7 +1,9 @@
 //! `Application`: the router with its middleware, bound to a listener.
 //!
 //! Middleware, outermost first:
-//! 1. tracing (`tower_http::trace`): one span per request, logged at `info`;
+//! 1. tracing (`tower_http::trace`): one span per request, logged at `debug`
+//!    (`RUST_LOG=tower_http=debug` shows every request; off by default so that
+//!    logging does not dominate under load);
 //! 2. metrics ([`metrics::track`]): count and latency per route template, method, status;
 //! 3. panic catcher: a panicking handler answers 500 with the JSON error body;
 //! 4. request deadline: a request still running after `limits.request_deadline_secs`
@@ -27,8 +29,7 @@ use axum::response::{IntoResponse, Response};
 use axum::{Extension, Router};
 use tokio::net::TcpListener;
 use tower_http::catch_panic::CatchPanicLayer;
-use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
-use tracing::Level;
+use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
@@ -157,11 +158,7 @@ fn with_middleware(routes: Router, limits: &Limits) -> Router {
             },
         ))
         .layer(middleware::from_fn(metrics::track))
-        .layer(
-            TraceLayer::new_for_http()
-                .make_span_with(DefaultMakeSpan::new().level(Level::INFO))
-                .on_response(DefaultOnResponse::new().level(Level::INFO)),
-        )
+        .layer(TraceLayer::new_for_http())
 }
 
 async fn not_found(uri: Uri) -> ApiError {
