@@ -337,7 +337,7 @@ fn next_request(options: &LoadTestOptions, client_index: usize, sequence: u64) -
         Scenario::Health => Planned::Get("/health"),
         Scenario::Points => points(seed),
         Scenario::Tiles => tile(seed),
-        Scenario::Mixed if sequence % 2 == 0 => points(seed),
+        Scenario::Mixed if sequence.is_multiple_of(2) => points(seed),
         Scenario::Mixed => tile(seed),
     }
 }
