@@ -162,6 +162,62 @@ impl Tally {
     }
 }
 
+/// Arguments of `bmc-irradiance loadtest`.
+#[derive(Debug, clap::Args)]
+pub struct LoadTestArgs {
+    /// Base URL of the service (loopback only).
+    #[arg(long, default_value = "http://127.0.0.1:8080")]
+    pub url: String,
+    /// Concurrent closed-loop clients.
+    #[arg(long, default_value_t = 8)]
+    pub clients: usize,
+    /// How long to send requests, e.g. 30s, 500ms, 2m.
+    #[arg(long, default_value = "10s", value_parser = humantime::parse_duration)]
+    pub duration: Duration,
+    #[arg(long, value_enum, default_value = "health")]
+    pub scenario: Scenario,
+    /// Scene id used by the points, tiles and mixed scenarios.
+    #[arg(long, default_value = "cornell-box")]
+    pub scene: String,
+    /// Shading points per points request.
+    #[arg(long, default_value_t = 16)]
+    pub points_per_request: usize,
+    /// Hemisphere samples per estimate.
+    #[arg(long, default_value_t = 64)]
+    pub samples: usize,
+    /// Tile side in pixels.
+    #[arg(long, default_value_t = 32)]
+    pub tile_size: u32,
+    /// Sample this process's resident memory (Linux /proc) during the run.
+    #[arg(long)]
+    pub server_pid: Option<u32>,
+    /// Print the report as JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `loadtest`: runs the load test and prints the report on stdout.
+pub fn run_loadtest(args: &LoadTestArgs) -> anyhow::Result<()> {
+    let options = LoadTestOptions {
+        url: args.url.clone(),
+        clients: args.clients,
+        duration: args.duration,
+        scenario: args.scenario,
+        scene: args.scene.clone(),
+        points_per_request: args.points_per_request,
+        samples: args.samples,
+        tile_size: args.tile_size,
+        server_pid: args.server_pid,
+    };
+    let report = tokio::runtime::Runtime::new()?.block_on(run(&options))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!("{report}");
+    }
+    Ok(())
+}
+
 /// Validates the options and runs the load test to completion.
 pub async fn run(options: &LoadTestOptions) -> anyhow::Result<Report> {
     let base = check_options(options)?;

@@ -39,6 +39,7 @@ use super::error::{ApiError, ErrorBody};
 use super::metrics::{self, Metrics};
 use super::pool::CpuPool;
 use super::routes;
+use super::scenes::{self, SceneRegistry};
 use super::state::AppState;
 
 /// How often histogram samples are folded into buckets when nobody scrapes.
@@ -63,10 +64,20 @@ impl Application {
         let listener = TcpListener::bind(config.server.bind)
             .await
             .with_context(|| format!("cannot bind {}", config.server.bind))?;
+        let dir = config.scenes.dir.clone();
+        let loaded = tokio::task::spawn_blocking(move || scenes::load_dir(&dir))
+            .await
+            .context("scene loading panicked")?;
+        let registry = SceneRegistry::default();
+        for scene in loaded {
+            registry.insert(scene);
+        }
+        tracing::info!(scenes = registry.len(), dir = %config.scenes.dir.display(), "scenes loaded");
         let state = Arc::new(AppState {
             config,
             pool,
             metrics,
+            scenes: registry,
         });
         let router = router(state.clone());
         Ok(Application {
@@ -124,7 +135,8 @@ impl Application {
 #[openapi(
     info(description = "Bayesian Monte Carlo irradiance caching over REST."),
     components(schemas(ErrorBody)),
-    tags((name = "service", description = "Health, metrics and this document"))
+    tags((name = "service", description = "Health, metrics and this document"),
+         (name = "scenes", description = "Scenes and queries on them"))
 )]
 struct ApiDoc;
 
@@ -134,6 +146,14 @@ pub fn router(state: Arc<AppState>) -> Router {
         .routes(routes!(routes::health::health))
         .routes(routes!(routes::metrics::metrics))
         .routes(routes!(routes::openapi::openapi))
+        .routes(routes!(
+            routes::scenes::list_scenes,
+            routes::scenes::post_scene
+        ))
+        .routes(routes!(
+            routes::scenes::get_scene,
+            routes::scenes::delete_scene
+        ))
         .split_for_parts();
     let limits = state.config.limits.clone();
     with_middleware(

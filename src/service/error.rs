@@ -161,6 +161,31 @@ impl ApiError {
     }
 }
 
+/// Scene documents are request bodies: every field error is the client's (422);
+/// only an unreadable file on the server side is ours (500).
+impl From<crate::scene::SceneError> for ApiError {
+    fn from(err: crate::scene::SceneError) -> Self {
+        match err.field() {
+            Some(field) => ApiError::invalid(field, err.to_string()),
+            None => ApiError::Internal {
+                message: err.to_string(),
+            },
+        }
+    }
+}
+
+/// Bad query points or options name their field (422).
+impl From<crate::render::RenderError> for ApiError {
+    fn from(err: crate::render::RenderError) -> Self {
+        let field = match &err {
+            crate::render::RenderError::InvalidPoint { field, .. }
+            | crate::render::RenderError::InvalidOption { field, .. } => (*field).to_owned(),
+            crate::render::RenderError::PointsRow { line, .. } => format!("line {line}"),
+        };
+        ApiError::invalid(field, err.to_string())
+    }
+}
+
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         if let ApiError::Internal { message } = &self {

@@ -9,6 +9,7 @@
 //! - `extract`: [`ApiJson`], a JSON extractor whose errors name the field;
 //! - `pool`: [`CpuPool`], bounded rayon pool (503 + `Retry-After` when full);
 //! - `metrics`: Prometheus names, recorder and per-route middleware;
+//! - `scenes`: the scene registry ([`SceneRegistry`]) and startup loading;
 //! - `routes`: one file per resource.
 
 pub mod app;
@@ -18,6 +19,7 @@ pub mod extract;
 pub mod metrics;
 pub mod pool;
 pub mod routes;
+pub mod scenes;
 pub mod state;
 
 pub use app::{Application, shutdown_signal};
@@ -25,7 +27,27 @@ pub use config::Config;
 pub use error::ApiError;
 pub use extract::ApiJson;
 pub use pool::CpuPool;
+pub use scenes::{LoadedScene, SceneRegistry};
 pub use state::AppState;
+
+/// Arguments of `bmc-irradiance serve`.
+#[derive(Debug, clap::Args)]
+pub struct ServeArgs {
+    /// TOML file merged over the defaults (config/default.toml); may set any subset of keys.
+    /// Environment variables BMC_<SECTION>__<KEY> override both.
+    #[arg(long)]
+    pub config: Option<std::path::PathBuf>,
+    /// Listen address, overriding `server.bind`.
+    #[arg(long)]
+    pub bind: Option<std::net::SocketAddr>,
+}
+
+/// `serve`: loads the configuration layers, initialises logging and runs the service.
+pub fn run_serve(args: &ServeArgs) -> anyhow::Result<()> {
+    init_tracing();
+    let config = Config::load(args.config.as_deref(), std::env::vars(), args.bind)?;
+    serve(config)
+}
 
 /// Logs to stderr, filtered by `RUST_LOG` (default: `info`).
 pub fn init_tracing() {

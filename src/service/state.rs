@@ -5,6 +5,7 @@
 use super::config::Config;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
+use super::scenes::SceneRegistry;
 
 /// Shared, read-mostly state of one running service.
 pub struct AppState {
@@ -14,4 +15,6 @@ pub struct AppState {
     pub pool: CpuPool,
     /// Renders `/metrics`; domain counters are recorded through the `metrics` facade.
     pub metrics: Metrics,
+    /// Loaded scenes by id; each keeps its light-transport state so requests never rebuild it.
+    pub scenes: SceneRegistry,
 }

@@ -62,7 +62,27 @@ pub async fn spawn_app() -> TestApp {
 
 /// Starts the service with the test configuration changed by `adjust`.
 pub async fn spawn_app_with(adjust: impl FnOnce(&mut Config)) -> TestApp {
+    spawn_app_with_scenes(&[], adjust).await
+}
+
+/// A small valid scene: a diffuse unit rectangle under a constant white sky.
+pub const TINY_SCENE: &str = r#"{
+    "materials": [{"id": "white", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+    "shapes": [{"type": "rectangle", "material": "white"}],
+    "environment": {"type": "constant", "radiance": [1, 1, 1]},
+    "camera": {"type": "perspective", "fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0],
+               "up": [0, 1, 0], "width": 8, "height": 8}
+}"#;
+
+/// Starts the service after writing `files` (name, contents) into its scenes directory.
+pub async fn spawn_app_with_scenes(
+    files: &[(&str, &str)],
+    adjust: impl FnOnce(&mut Config),
+) -> TestApp {
     let scenes_dir = tempfile::tempdir().unwrap();
+    for (name, contents) in files {
+        std::fs::write(scenes_dir.path().join(name), contents).unwrap();
+    }
     let config = test_config(&scenes_dir, adjust);
     let app = Application::build(config).await.unwrap();
     let base = format!("http://{}", app.local_addr());

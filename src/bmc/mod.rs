@@ -1,0 +1,20 @@
+//! Bayesian Monte Carlo quadrature on the hemisphere (bmc-math.md §2–4, §8):
+//! kernels, densities, exact kernel means, the factorisation of `Q` and the
+//! resulting weights and posterior variance.
+
+pub mod density;
+pub mod error;
+pub mod factorisation;
+pub mod kernel;
+pub mod kernel_mean;
+pub mod quadrature;
+
+mod bessel;
+mod integrate;
+
+pub use density::{Density, DensityKey};
+pub use error::BmcError;
+pub use factorisation::Factorisation;
+pub use kernel::{Kernel, KernelKey, KernelKind};
+pub use kernel_mean::{kernel_means, prior_variance};
+pub use quadrature::{KernelMeanMethod, PriorMean, Quadrature};

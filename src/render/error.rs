@@ -1,0 +1,17 @@
+//! Errors of the light-transport API: bad query points, bad options and
+//! unreadable point files. Each names the offending field or line.
+
+use thiserror::Error;
+
+#[derive(Debug, Error, PartialEq)]
+pub enum RenderError {
+    /// A query point or normal that cannot be used (NaN, infinite, zero length).
+    #[error("invalid query point: {field} {reason}")]
+    InvalidPoint { field: &'static str, reason: String },
+    /// An option outside its domain, e.g. zero samples.
+    #[error("invalid option `{field}`: {reason}")]
+    InvalidOption { field: &'static str, reason: String },
+    /// A row of a points CSV file that is not `x,y,z,nx,ny,nz` (1-based line).
+    #[error("points file line {line}: {reason}")]
+    PointsRow { line: usize, reason: String },
+}

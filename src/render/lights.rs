@@ -1,0 +1,184 @@
+//! Light sampling for next-event estimation: pick a light, pick a point or
+//! direction on it, and evaluate the density of any direction that a
+//! BSDF-sampled ray happened to find on a light (needed for MIS).
+//!
+//! Strategy (pbrt-v4 §12.6 "Light Sampling" and §12.5 "Infinite Lights"):
+//! - Area emitters are chosen in proportion to their power `π · A · lum(L_e)`;
+//!   a point is drawn uniformly by area with `Scene::sample_shape_area` and
+//!   converted to solid angle, `p_ω = p_A · d² / |cos θ_l|`. Emitters radiate on
+//!   their front side only (as in Mitsuba 3).
+//! - The environment, when present, is one more light. Its power cannot be
+//!   compared with finite emitters without a scene radius, so it gets a fixed
+//!   selection probability of ½ when area emitters exist (1 otherwise).
+//! - A constant environment is sampled uniformly over the sphere; a lat-long
+//!   map by its texel luminance (see [`super::environment_sampling`]).
+//!
+//! All densities returned are in solid angle at the shading point and already
+//! include the probability of selecting the light.
+
+use glam::DVec3;
+
+use super::distribution::Distribution1D;
+use super::environment_sampling::EnvironmentSampler;
+use super::rgb::Rgb;
+use crate::scene::{Emitter, Scene, SurfaceHit};
+
+/// Probability of choosing the environment when both kinds of light exist.
+const ENVIRONMENT_SELECTION: f64 = 0.5;
+
+/// A direction towards a light with what it carries.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit world direction from the shading point towards the light.
+    pub wi: DVec3,
+    /// Emitted radiance arriving along `-wi` if nothing is in between, W/(m²·sr).
+    pub radiance: Rgb,
+    /// Solid-angle density including light selection, sr⁻¹.
+    pub pdf: f64,
+    /// Point on an area light and its normal, for the shadow ray; `None` for
+    /// the environment (the shadow ray is then unbounded).
+    pub target: Option<(DVec3, DVec3)>,
+}
+
+/// Precomputed light-selection tables for one scene.
+#[derive(Clone, Debug)]
+pub struct LightSampler {
+    /// Indices into `scene.emitters` of emitters with positive power.
+    area_emitters: Vec<usize>,
+    /// Selection among `area_emitters` by power.
+    area_distribution: Option<Distribution1D>,
+    /// Selection probability of each `scene.emitters` entry (0 for dark ones),
+    /// conditional on choosing an area light.
+    area_probability: Vec<f64>,
+    environment: Option<EnvironmentSampler>,
+    /// Probability of sampling the environment rather than an area emitter.
+    environment_probability: f64,
+}
+
+impl LightSampler {
+    pub fn new(scene: &Scene) -> Self {
+        let mut area_emitters = Vec::new();
+        let mut powers = Vec::new();
+        for (i, emitter) in scene.emitters.iter().enumerate() {
+            let Emitter::Area { shape, radiance } = emitter;
+            let power = std::f64::consts::PI
+                * scene.shape_area(*shape)
+                * Rgb::from_array(*radiance).luminance();
+            if power > 0.0 && power.is_finite() {
+                area_emitters.push(i);
+                powers.push(power);
+            }
+        }
+        let area_distribution = (!powers.is_empty()).then(|| Distribution1D::new(&powers));
+        let mut area_probability = vec![0.0; scene.emitters.len()];
+        if let Some(d) = &area_distribution {
+            for (k, &i) in area_emitters.iter().enumerate() {
+                area_probability[i] = d.probability(k);
+            }
+        }
+        let environment = scene.environment.as_ref().map(EnvironmentSampler::new);
+        let environment_probability = match (&environment, &area_distribution) {
+            (None, _) => 0.0,
+            (Some(_), None) => 1.0,
+            (Some(_), Some(_)) => ENVIRONMENT_SELECTION,
+        };
+        Self {
+            area_emitters,
+            area_distribution,
+            area_probability,
+            environment,
+            environment_probability,
+        }
+    }
+
+    /// Samples a light as seen from `x`. `u_select` chooses the light, `u`
+    /// the point on it. `None` when the sample carries nothing (the back of
+    /// an emitter faces `x`, or the scene has no light).
+    pub fn sample(
+        &self,
+        scene: &Scene,
+        x: DVec3,
+        u_select: f64,
+        u: [f64; 2],
+    ) -> Option<LightSample> {
+        let pe = self.environment_probability;
+        if u_select < pe {
+            let (sampler, env) = self.environment.as_ref().zip(scene.environment.as_ref())?;
+            let (wi, radiance, pdf) = sampler.sample(env, u)?;
+            return Some(LightSample {
+                wi,
+                radiance,
+                pdf: pdf * pe,
+                target: None,
+            });
+        }
+        let dist = self.area_distribution.as_ref()?;
+        let (k, p_select, _) = dist.sample_discrete(((u_select - pe) / (1.0 - pe)).min(1.0));
+        let emitter = self.area_emitters[k];
+        let Emitter::Area { shape, radiance } = &scene.emitters[emitter];
+        let (point, normal, pdf_area) = scene.sample_shape_area(*shape, u);
+        let d = point - x;
+        let dist2 = d.length_squared();
+        if dist2 <= 0.0 || pdf_area <= 0.0 {
+            return None;
+        }
+        let wi = d / dist2.sqrt();
+        let cos_light = -normal.dot(wi);
+        if cos_light <= 0.0 {
+            return None;
+        }
+        Some(LightSample {
+            wi,
+            radiance: Rgb::from_array(*radiance),
+            pdf: (1.0 - pe) * p_select * pdf_area * dist2 / cos_light,
+            target: Some((point, normal)),
+        })
+    }
+
+    /// Solid-angle density with which [`LightSampler::sample`] would produce
+    /// the direction of a ray from `x` that hit emitter surface `hit`.
+    pub fn pdf_area_hit(&self, scene: &Scene, x: DVec3, hit: &SurfaceHit) -> f64 {
+        let Some(emitter) = hit.emitter else {
+            return 0.0;
+        };
+        let p_select = self.area_probability.get(emitter).copied().unwrap_or(0.0);
+        if p_select == 0.0 {
+            return 0.0;
+        }
+        let d = hit.position - x;
+        let dist2 = d.length_squared();
+        let cos_light = hit.normal.dot(-d.normalize_or_zero());
+        if cos_light <= 0.0 {
+            return 0.0;
+        }
+        // Uniform area sampling: p_A = 1 / A (checked in the tests).
+        let pdf_area = 1.0 / scene.shape_area(hit.shape);
+        (1.0 - self.environment_probability) * p_select * pdf_area * dist2 / cos_light
+    }
+
+    /// Solid-angle density of sampling the environment in world direction `dir`.
+    pub fn pdf_environment(&self, scene: &Scene, dir: DVec3) -> f64 {
+        match (&self.environment, &scene.environment) {
+            (Some(sampler), Some(env)) => self.environment_probability * sampler.pdf(env, dir),
+            _ => 0.0,
+        }
+    }
+}
+
+/// Radiance of the environment along world direction `dir` (zero without one).
+pub fn environment_radiance(scene: &Scene, dir: DVec3) -> Rgb {
+    scene
+        .environment
+        .as_ref()
+        .map_or(Rgb::BLACK, |env| Rgb::from_array(env.radiance(dir)))
+}
+
+/// Radiance emitted by the surface at `hit` towards `-dir` (front side only).
+pub fn emitted_radiance(scene: &Scene, hit: &SurfaceHit, dir: DVec3) -> Rgb {
+    match hit.emitter.and_then(|e| scene.emitters.get(e)) {
+        Some(Emitter::Area { radiance, .. }) if hit.normal.dot(dir) < 0.0 => {
+            Rgb::from_array(*radiance)
+        }
+        _ => Rgb::BLACK,
+    }
+}

@@ -1,0 +1,35 @@
+//! Light transport: reflection models, light sampling, incident radiance
+//! along a ray and irradiance at points. Knows scenes, never HTTP.
+//!
+//! Conventions shared by every file here: radiance in W/(m²·sr) and
+//! irradiance in W/m², per linear RGB channel ([`Rgb`]); local frames have
+//! z = surface normal ([`crate::sphere::Frame`]); surfaces reflect and emit on
+//! their front side only, as in Mitsuba 3 (see `bsdf`).
+//!
+//! Entry points: [`Transport`] (built once per scene) with
+//! `incident_radiance`, `hemisphere_samples`, `direct_irradiance`,
+//! `irradiance` and `irradiance_at_points`.
+
+pub mod bsdf;
+pub mod distribution;
+pub mod environment_sampling;
+pub mod error;
+pub mod irradiance;
+pub mod irradiance_command;
+pub mod lights;
+pub mod path;
+pub mod points_csv;
+pub mod polygon;
+pub mod query;
+pub mod rgb;
+pub mod seed;
+pub mod transport;
+pub mod warp;
+
+pub use bsdf::{Bsdf, BsdfSample};
+pub use error::RenderError;
+pub use irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions, MeanEstimate};
+pub use path::{PathLengths, PathLimits, RadianceSample, TraceStats};
+pub use query::QueryPoint;
+pub use rgb::Rgb;
+pub use transport::Transport;

@@ -1,0 +1,207 @@
+//! Incident radiance `L_i(x, ω)` along one ray by unidirectional path tracing
+//! with next-event estimation, multiple importance sampling and Russian
+//! roulette (pbrt-v4 §13.4 `PathIntegrator`; Veach 1997 ch. 9 for the power
+//! heuristic).
+//!
+//! **Path length** counts segments from the query point: length 1 is light
+//! arriving straight from an emitter or the environment along `ω`; length
+//! `k` has `k − 1` reflections. `max_depth` bounds the length, so
+//! `max_depth = 1` is direct light only — the same meaning as Mitsuba 3's
+//! `max_depth` for an `irradiancemeter` sensor.
+//!
+//! The first direction is chosen by the caller (a hemisphere estimator), so
+//! emission found by the first segment is taken at full weight. At later
+//! vertices light is gathered twice — by a light sample and by the BSDF-sampled
+//! continuation — and the two are weighted by the power heuristic so nothing is
+//! counted twice.
+
+use glam::DVec3;
+use rand::{Rng, RngExt};
+
+use super::lights::{emitted_radiance, environment_radiance};
+use super::rgb::Rgb;
+use super::transport::Transport;
+use crate::scene::Ray;
+use crate::sphere::Frame;
+
+/// Russian roulette starts once a path has this many segments: the first
+/// bounces carry most of the energy and are never cut (pbrt-v4 uses `depth > 1`).
+const ROULETTE_START: u32 = 2;
+
+/// Which path lengths a radiance estimate includes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathLengths {
+    /// Lengths `1..=max_depth`: everything arriving along `ω`.
+    All,
+    /// Lengths `2..=max_depth`: everything except emission seen directly
+    /// along `ω` (used when direct light is estimated separately).
+    Indirect,
+}
+
+/// Which paths an incident-radiance estimate sums.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PathLimits {
+    /// Longest path counted, in segments (1 = direct light only).
+    pub max_depth: u32,
+    pub lengths: PathLengths,
+}
+
+/// Counters a caller sums over a request.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraceStats {
+    /// Closest-hit plus shadow rays traced.
+    pub rays: u64,
+}
+
+/// Radiance arriving along one direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadianceSample {
+    /// Incident radiance, W/(m²·sr).
+    pub radiance: Rgb,
+    /// Distance to the first surface along the direction (∞ when the ray
+    /// escaped); irradiance-cache records derive their validity radius from it.
+    pub distance: f64,
+}
+
+impl Transport {
+    /// Incident radiance at `ray.origin` from direction `ray.dir` (world),
+    /// summed over the paths `limits` allows.
+    ///
+    /// Spawn the ray with [`crate::scene::Scene::spawn_ray`] so it leaves the query surface
+    /// cleanly. `max_depth = 0` returns black; callers bound `max_depth`
+    /// (see [`super::irradiance::MAX_DEPTH`]), since Russian roulette alone
+    /// does not end paths in a closed scene of albedo 1.
+    pub fn incident_radiance<R: Rng + ?Sized>(
+        &self,
+        ray: Ray,
+        limits: PathLimits,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> RadianceSample {
+        let scene = self.scene();
+        let PathLimits { max_depth, lengths } = limits;
+        let mut radiance = Rgb::BLACK;
+        let mut distance = f64::INFINITY;
+        let mut beta = Rgb::WHITE;
+        let mut ray = ray;
+        // Previous vertex and the BSDF density that chose the current ray;
+        // `None` on the first segment, whose direction came from the caller.
+        let mut previous: Option<(DVec3, f64)> = None;
+        for depth in 1..=max_depth {
+            let counts = depth > 1 || lengths == PathLengths::All;
+            stats.rays += 1;
+            let Some(hit) = scene.intersect(&ray) else {
+                let le = environment_radiance(scene, ray.dir);
+                if counts && !le.is_black() {
+                    let weight = previous.map_or(1.0, |(_, pdf)| {
+                        power_heuristic(pdf, self.lights().pdf_environment(scene, ray.dir))
+                    });
+                    radiance += beta * le * weight;
+                }
+                break;
+            };
+            if depth == 1 {
+                distance = hit.t;
+            }
+            let le = emitted_radiance(scene, &hit, ray.dir);
+            if counts && !le.is_black() {
+                let weight = previous.map_or(1.0, |(origin, pdf)| {
+                    power_heuristic(pdf, self.lights().pdf_area_hit(scene, origin, &hit))
+                });
+                radiance += beta * le * weight;
+            }
+            if depth == max_depth {
+                break;
+            }
+            let Some(bsdf) = self.bsdf(hit.material) else {
+                break;
+            };
+            // Reflection happens in the shading frame (interpolated mesh
+            // normals where present), as in Mitsuba 3; rays still leave
+            // from the geometric surface.
+            let frame = Frame::from_normal(hit.shading_normal);
+            let wo = frame.to_local(-ray.dir);
+            if wo.z <= 0.0 || bsdf.is_black() {
+                // Back faces are black (one-sided BSDFs, as in Mitsuba 3).
+                break;
+            }
+
+            // Next-event estimation: a path of length depth + 1 ending on a light.
+            if let Some(light) = self.lights().sample(
+                scene,
+                hit.position,
+                rng.random(),
+                [rng.random(), rng.random()],
+            ) {
+                let wi = frame.to_local(light.wi);
+                let f = bsdf.eval(wo, wi);
+                if !f.is_black() {
+                    let shadow = match light.target {
+                        Some((p, n)) => scene.spawn_ray_to(hit.position, hit.normal, p, Some(n)),
+                        None => scene.spawn_ray(hit.position, hit.normal, light.wi),
+                    };
+                    stats.rays += 1;
+                    if !scene.occluded(&shadow) {
+                        let weight = power_heuristic(light.pdf, bsdf.pdf(wo, wi));
+                        radiance += beta * f * light.radiance * (wi.z * weight / light.pdf);
+                    }
+                }
+            }
+
+            // Continue the path by sampling the BSDF.
+            let Some(sample) = bsdf.sample(wo, rng.random(), [rng.random(), rng.random()]) else {
+                break;
+            };
+            beta *= sample.value * (sample.wi.z / sample.pdf);
+            if depth >= ROULETTE_START {
+                let max = beta.max_component();
+                if max < 1.0 {
+                    let q = (1.0 - max).max(0.0);
+                    if rng.random::<f64>() < q {
+                        break;
+                    }
+                    beta *= 1.0 / (1.0 - q);
+                }
+            }
+            previous = Some((hit.position, sample.pdf));
+            ray = scene.spawn_ray(hit.position, hit.normal, frame.to_world(sample.wi));
+        }
+        RadianceSample { radiance, distance }
+    }
+}
+
+/// Veach's power heuristic with β = 2 for one sample from each strategy.
+pub fn power_heuristic(pdf_this: f64, pdf_other: f64) -> f64 {
+    // Scaled by the larger density so tiny or huge densities neither
+    // underflow nor overflow when squared.
+    let m = pdf_this.max(pdf_other);
+    if m.is_nan() || m <= 0.0 {
+        return 0.0;
+    }
+    if m.is_infinite() {
+        return if pdf_this.is_infinite() { 1.0 } else { 0.0 };
+    }
+    let (a, b) = (pdf_this / m, pdf_other / m);
+    a * a / (a * a + b * b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn power_heuristic_weights_sum_to_one() {
+        for (a, b) in [
+            (1.0, 1.0),
+            (3.0, 0.5),
+            (0.0, 2.0),
+            (1e-300, 3e-300),
+            (1e300, 1e301),
+        ] {
+            let sum = power_heuristic(a, b) + power_heuristic(b, a);
+            assert!((sum - 1.0).abs() < 1e-12 || a == 0.0, "{a} {b}");
+        }
+        assert_eq!(power_heuristic(2.0, 0.0), 1.0);
+        assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+    }
+}

@@ -1,0 +1,126 @@
+//! CSV exchange for irradiance queries: `x,y,z,nx,ny,nz` rows in,
+//! `x,y,z,r,g,b` rows out (W/m²).
+//!
+//! Input rules: an optional header line (a first line none of whose fields is
+//! a number); blank lines and lines starting with `#` are skipped; every other
+//! line must hold exactly six finite numbers and a non-zero normal, or the
+//! whole file is rejected with the 1-based line number.
+
+use std::io::{self, Write};
+
+use glam::DVec3;
+
+use super::error::RenderError;
+use super::irradiance::IrradianceEstimate;
+use super::query::QueryPoint;
+
+/// Parses a points file; see the module docs for the accepted format.
+pub fn parse_points(text: &str) -> Result<Vec<QueryPoint>, RenderError> {
+    let mut points = Vec::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        let row = raw.trim();
+        if row.is_empty() || row.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = row.split(',').map(str::trim).collect();
+        if line == 1 && fields.iter().all(|f| f.parse::<f64>().is_err()) {
+            continue;
+        }
+        let row_error = |reason: String| RenderError::PointsRow { line, reason };
+        if fields.len() != 6 {
+            return Err(row_error(format!(
+                "expected 6 fields x,y,z,nx,ny,nz, found {}",
+                fields.len()
+            )));
+        }
+        let mut values = [0.0; 6];
+        for (k, (field, value)) in fields.iter().zip(values.iter_mut()).enumerate() {
+            *value = field
+                .parse::<f64>()
+                .map_err(|_| row_error(format!("field {} ({field:?}) is not a number", k + 1)))?;
+        }
+        let position = DVec3::new(values[0], values[1], values[2]);
+        let normal = DVec3::new(values[3], values[4], values[5]);
+        let point = QueryPoint::new(position, normal).map_err(|e| row_error(e.to_string()))?;
+        points.push(point);
+    }
+    Ok(points)
+}
+
+/// Writes one `x,y,z,r,g,b` row per point, with a header; with
+/// `with_std_error`, three more columns `se_r,se_g,se_b` hold the standard
+/// errors. Numbers use Rust's shortest round-trip formatting.
+pub fn write_irradiance(
+    out: &mut dyn Write,
+    points: &[QueryPoint],
+    estimates: &[IrradianceEstimate],
+    with_std_error: bool,
+) -> io::Result<()> {
+    write!(out, "x,y,z,r,g,b")?;
+    if with_std_error {
+        write!(out, ",se_r,se_g,se_b")?;
+    }
+    writeln!(out)?;
+    for (point, estimate) in points.iter().zip(estimates) {
+        let p = point.position();
+        let e = estimate.irradiance;
+        write!(out, "{},{},{},{},{},{}", p.x, p.y, p.z, e.r, e.g, e.b)?;
+        if with_std_error {
+            let s = estimate.std_error;
+            write!(out, ",{},{},{}", s.r, s.g, s.b)?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::Rgb;
+
+    #[test]
+    fn header_comments_and_blank_lines_are_skipped() {
+        let text = "x,y,z,nx,ny,nz\n0,0,0,0,0,2\n\n# a comment\n 1.5, -1 ,2e-1,1,0,0\n";
+        let points = parse_points(text).unwrap();
+        assert_eq!(points.len(), 2);
+        assert_eq!(points[0].normal(), DVec3::Z);
+        assert_eq!(points[1].position(), DVec3::new(1.5, -1.0, 0.2));
+    }
+
+    #[test]
+    fn bad_rows_report_their_line() {
+        let cases = [
+            ("0,0,0,0,0,1\n0,0,0,0,1\n", 2, "expected 6 fields"),
+            ("0,0,0,0,0,1\n\n0,0,zero,0,1,0\n", 3, "field 3"),
+            ("0,0,0,0,0,0\n", 1, "non-zero length"),
+            ("x,y,z,nx,ny,nz\n0,0,0,NaN,0,1\n", 2, "finite"),
+        ];
+        for (text, line, needle) in cases {
+            match parse_points(text) {
+                Err(RenderError::PointsRow { line: l, reason }) => {
+                    assert_eq!(l, line, "{text:?}");
+                    assert!(reason.contains(needle), "{reason}");
+                }
+                other => panic!("{text:?}: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn output_has_one_row_per_point() {
+        let points = parse_points("1,2,3,0,0,1\n").unwrap();
+        let estimates = [IrradianceEstimate {
+            irradiance: Rgb::new(0.5, 1.0, 2.0),
+            std_error: Rgb::splat(0.25),
+            rays: 10,
+        }];
+        let mut out = Vec::new();
+        write_irradiance(&mut out, &points, &estimates, true).unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "x,y,z,r,g,b,se_r,se_g,se_b\n1,2,3,0.5,1,2,0.25,0.25,0.25\n"
+        );
+    }
+}

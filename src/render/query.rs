@@ -1,0 +1,94 @@
+//! Query points: where and facing which way irradiance is wanted.
+
+use glam::DVec3;
+
+use super::error::RenderError;
+
+/// A position with a unit normal; the hemisphere of interest is the side the
+/// normal points to.
+///
+/// Invariant: every coordinate is finite and `normal` has unit length, so
+/// downstream code never sees NaN or a degenerate frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QueryPoint {
+    position: DVec3,
+    normal: DVec3,
+}
+
+impl QueryPoint {
+    /// Validates and normalises `normal`. Errors name the bad field.
+    pub fn new(position: DVec3, normal: DVec3) -> Result<Self, RenderError> {
+        if !position.is_finite() {
+            return Err(RenderError::InvalidPoint {
+                field: "position",
+                reason: format!("must be finite, got {position}"),
+            });
+        }
+        if !normal.is_finite() {
+            return Err(RenderError::InvalidPoint {
+                field: "normal",
+                reason: format!("must be finite, got {normal}"),
+            });
+        }
+        let length = normal.length();
+        if length.is_nan() || length <= 1e-12 || !length.is_finite() {
+            return Err(RenderError::InvalidPoint {
+                field: "normal",
+                reason: format!("must have non-zero length, got {normal}"),
+            });
+        }
+        Ok(Self {
+            position,
+            normal: normal / length,
+        })
+    }
+
+    /// World-space position.
+    pub fn position(&self) -> DVec3 {
+        self.position
+    }
+
+    /// Unit world-space normal.
+    pub fn normal(&self) -> DVec3 {
+        self.normal
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normal_is_normalised() {
+        let q = QueryPoint::new(DVec3::ONE, DVec3::new(0.0, 3.0, 4.0)).unwrap();
+        assert!((q.normal() - DVec3::new(0.0, 0.6, 0.8)).length() < 1e-15);
+    }
+
+    #[test]
+    fn bad_inputs_name_the_field() {
+        let err = QueryPoint::new(DVec3::ONE, DVec3::ZERO).unwrap_err();
+        assert!(matches!(
+            err,
+            RenderError::InvalidPoint {
+                field: "normal",
+                ..
+            }
+        ));
+        let err = QueryPoint::new(DVec3::new(f64::NAN, 0.0, 0.0), DVec3::Z).unwrap_err();
+        assert!(matches!(
+            err,
+            RenderError::InvalidPoint {
+                field: "position",
+                ..
+            }
+        ));
+        let err = QueryPoint::new(DVec3::ZERO, DVec3::new(0.0, f64::INFINITY, 0.0)).unwrap_err();
+        assert!(matches!(
+            err,
+            RenderError::InvalidPoint {
+                field: "normal",
+                ..
+            }
+        ));
+    }
+}

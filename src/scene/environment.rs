@@ -1,0 +1,263 @@
+//! Light arriving from infinitely far away: a constant colour or a lat-long
+//! environment map read from an EXR file.
+//!
+//! ## Lat-long convention (Mitsuba 3's `envmap`)
+//! In the map's own frame +Y is up. A direction `d` has polar angle
+//! `θ = acos(d.y)` from +Y and azimuth `φ = atan2(d.x, -d.z)`, and
+//! `u = φ / 2π` (wrapped to [0, 1)), `v = θ / π`. Conversely
+//! `d = (sin φ sin θ, cos θ, −cos φ sin θ)`. Row `y = 0` of the image is the
+//! top (towards +Y); column `x = 0` starts at `φ = 0`, i.e. towards −Z.
+//! The map's `to_world` rotation carries map directions into the world.
+//!
+//! The radiance is piecewise constant per texel (nearest texel, no
+//! filtering), so an importance sampler that picks texels in proportion to
+//! `luminance · sin θ` has an exact pdf. Solid angle and the (u, v) square are
+//! related by `dω = 2π² sin θ du dv`.
+
+use std::path::Path;
+
+use glam::{DMat3, DVec3};
+
+use super::error::SceneError;
+
+/// Largest accepted map width and height in texels.
+pub const MAX_ENVMAP_SIDE: usize = 16384;
+/// Largest accepted number of texels (keeps memory under ~1.6 GB).
+pub const MAX_ENVMAP_TEXELS: usize = 1 << 27;
+
+/// Distant illumination; `Scene::environment` is `None` for black.
+#[derive(Clone, Debug)]
+pub enum Environment {
+    /// The same radiance, W/(m²·sr), from every direction.
+    Constant {
+        radiance: [f64; 3],
+    },
+    Map(EnvironmentMap),
+}
+
+impl Environment {
+    /// Radiance arriving along `-world_dir`, i.e. seen when looking towards
+    /// `world_dir` (unit length).
+    pub fn radiance(&self, world_dir: DVec3) -> [f64; 3] {
+        match self {
+            Environment::Constant { radiance } => *radiance,
+            Environment::Map(map) => map.radiance(world_dir),
+        }
+    }
+}
+
+/// An RGB lat-long image, a scale and a rotation; see the module docs.
+#[derive(Clone, Debug)]
+pub struct EnvironmentMap {
+    width: usize,
+    height: usize,
+    /// Row-major texels as stored in the file (f32 is what EXR holds at most).
+    texels: Vec<[f32; 3]>,
+    /// Multiplier applied to every texel.
+    scale: f64,
+    /// World → map rotation (transpose of `to_world`).
+    world_to_map: DMat3,
+}
+
+impl EnvironmentMap {
+    /// A map from row-major `texels` (`width × height`, top row first).
+    /// `to_world` must be a rotation; the loader checks this.
+    pub fn new(
+        width: usize,
+        height: usize,
+        texels: Vec<[f32; 3]>,
+        scale: f64,
+        to_world: DMat3,
+    ) -> Self {
+        debug_assert_eq!(texels.len(), width * height);
+        Self {
+            width,
+            height,
+            texels,
+            scale,
+            world_to_map: to_world.transpose(),
+        }
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Scaled radiance of texel (x, y), W/(m²·sr); row 0 is the top.
+    pub fn texel(&self, x: usize, y: usize) -> [f64; 3] {
+        let t = self.texels[y * self.width + x];
+        [
+            t[0] as f64 * self.scale,
+            t[1] as f64 * self.scale,
+            t[2] as f64 * self.scale,
+        ]
+    }
+
+    /// Map → world rotation.
+    pub fn to_world(&self) -> DMat3 {
+        self.world_to_map.transpose()
+    }
+
+    /// Radiance seen looking towards `world_dir` (unit length).
+    pub fn radiance(&self, world_dir: DVec3) -> [f64; 3] {
+        let (u, v) = self.direction_to_uv(world_dir);
+        let (x, y) = self.uv_to_texel(u, v);
+        self.texel(x, y)
+    }
+
+    /// Texel containing (u, v) ∈ [0, 1]².
+    pub fn uv_to_texel(&self, u: f64, v: f64) -> (usize, usize) {
+        let x = ((u * self.width as f64) as usize).min(self.width - 1);
+        let y = ((v * self.height as f64) as usize).min(self.height - 1);
+        (x, y)
+    }
+
+    /// (u, v) ∈ [0, 1)×[0, 1] of a unit world direction.
+    pub fn direction_to_uv(&self, world_dir: DVec3) -> (f64, f64) {
+        let d = self.world_to_map * world_dir;
+        let mut u = d.x.atan2(-d.z) / std::f64::consts::TAU;
+        if u < 0.0 {
+            u += 1.0;
+        }
+        if u >= 1.0 {
+            u = 0.0;
+        }
+        let v = d.y.clamp(-1.0, 1.0).acos() / std::f64::consts::PI;
+        (u, v)
+    }
+
+    /// Unit world direction of (u, v); inverse of [`Self::direction_to_uv`].
+    pub fn uv_to_direction(&self, u: f64, v: f64) -> DVec3 {
+        let (sin_phi, cos_phi) = (u * std::f64::consts::TAU).sin_cos();
+        let (sin_theta, cos_theta) = (v * std::f64::consts::PI).sin_cos();
+        let d = DVec3::new(sin_phi * sin_theta, cos_theta, -cos_phi * sin_theta);
+        self.world_to_map.transpose() * d
+    }
+}
+
+/// Reads the RGB channels of the first layer of an EXR file: `(width,
+/// height, texels)`, top row first. Errors name `field` and the file; the
+/// size is checked from the header before any pixel memory is allocated.
+pub fn read_exr(path: &Path, field: &str) -> Result<(usize, usize, Vec<[f32; 3]>), SceneError> {
+    use exr::prelude::*;
+    let err = |message: String| SceneError::file(field, path, message);
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| err(format!("not a readable EXR file: {e}")))?;
+    let size = meta
+        .headers
+        .first()
+        .map(|h| h.layer_size)
+        .ok_or_else(|| err("EXR file has no layers".into()))?;
+    if size.width() == 0
+        || size.height() == 0
+        || size.width() > MAX_ENVMAP_SIDE
+        || size.height() > MAX_ENVMAP_SIDE
+        || size.area() > MAX_ENVMAP_TEXELS
+    {
+        return Err(err(format!(
+            "image is {}×{}; each side must be in 1..={MAX_ENVMAP_SIDE} and the area ≤ {MAX_ENVMAP_TEXELS}",
+            size.width(),
+            size.height()
+        )));
+    }
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgb_channels(
+            |resolution, _| (resolution.width(), vec![[0f32; 3]; resolution.area()]),
+            |pixels: &mut (usize, Vec<[f32; 3]>), position, (r, g, b): (f32, f32, f32)| {
+                pixels.1[position.y() * pixels.0 + position.x()] = [r, g, b];
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| err(format!("cannot decode EXR: {e}")))?;
+    let layer = image.layer_data;
+    let (width, height) = (layer.size.width(), layer.size.height());
+    let texels = layer.channel_data.pixels.1;
+    if texels.len() != width * height {
+        return Err(err("EXR layer size disagrees with its header".into()));
+    }
+    if let Some(i) = texels
+        .iter()
+        .position(|t| t.iter().any(|c| !c.is_finite() || *c < 0.0))
+    {
+        return Err(err(format!(
+            "texel ({}, {}) is {:?}; radiance must be finite and ≥ 0",
+            i % width,
+            i / width,
+            texels[i]
+        )));
+    }
+    Ok((width, height, texels))
+}
+
+/// Writes `texels` (row-major, top row first) as a half-float RGB EXR, the
+/// format the bundled maps use.
+pub fn write_exr_half(
+    path: &Path,
+    width: usize,
+    height: usize,
+    texels: &[[f32; 3]],
+) -> Result<(), exr::error::Error> {
+    use exr::prelude::f16;
+    exr::prelude::write_rgb_file(path, width, height, |x, y| {
+        let t = texels[y * width + x];
+        (
+            f16::from_f32(t[0]),
+            f16::from_f32(t[1]),
+            f16::from_f32(t[2]),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map(width: usize, height: usize, to_world: DMat3) -> EnvironmentMap {
+        let texels = (0..width * height)
+            .map(|i| [i as f32, (i % width) as f32, (i / width) as f32])
+            .collect();
+        EnvironmentMap::new(width, height, texels, 2.0, to_world)
+    }
+
+    #[test]
+    fn uv_and_direction_are_inverse_and_follow_mitsuba() {
+        let m = map(8, 4, DMat3::IDENTITY);
+        // Top of the map is +Y; u = 0 looks towards −Z, u = 1/4 towards +X.
+        assert!((m.uv_to_direction(0.3, 0.0) - DVec3::Y).length() < 1e-12);
+        assert!((m.uv_to_direction(0.0, 0.5) + DVec3::Z).length() < 1e-12);
+        assert!((m.uv_to_direction(0.25, 0.5) - DVec3::X).length() < 1e-12);
+        for &(u, v) in &[(0.1, 0.2), (0.6, 0.9), (0.99, 0.5)] {
+            let (u2, v2) = m.direction_to_uv(m.uv_to_direction(u, v));
+            assert!((u - u2).abs() < 1e-12 && (v - v2).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn rotation_turns_the_map() {
+        // 90° about +Y carries map −Z (u = 0) to world −X.
+        let r = DMat3::from_rotation_y(std::f64::consts::FRAC_PI_2);
+        let m = map(8, 4, r);
+        let d = m.uv_to_direction(0.0, 0.5);
+        assert!((d + DVec3::X).length() < 1e-12, "{d}");
+        let (u, v) = m.direction_to_uv(-DVec3::X);
+        assert!(u.abs() < 1e-12 || (u - 1.0).abs() < 1e-12);
+        assert!((v - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn radiance_is_the_scaled_nearest_texel() {
+        let m = map(8, 4, DMat3::IDENTITY);
+        let d = m.uv_to_direction((3.0 + 0.5) / 8.0, (2.0 + 0.5) / 4.0);
+        let expected = m.texel(3, 2);
+        assert_eq!(m.radiance(d), expected);
+        assert_eq!(expected, [2.0 * 19.0, 2.0 * 3.0, 2.0 * 2.0]);
+    }
+}

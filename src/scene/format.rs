@@ -1,0 +1,233 @@
+//! The JSON scene document as serde types (`docs/scene-format.md` is the
+//! user-facing description). These types mirror the file one to one; the
+//! loader validates them and builds the [`Scene`](super::Scene).
+//!
+//! Objects are flat structs with a `type` field rather than serde-tagged
+//! enums so that errors keep an exact field path and line/column (tagged enums
+//! buffer their content and lose both). Fields that do not belong to the
+//! declared `type` are rejected by the loader.
+
+use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
+use serde::de::{MapAccess, SeqAccess, Visitor};
+use serde::{Deserialize, Deserializer};
+
+pub type Rgb = [f64; 3];
+pub type Vec3 = [f64; 3];
+
+/// Top level of a scene file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneDoc {
+    /// Display name; defaults to the file stem.
+    pub name: Option<String>,
+    /// Free text for humans; ignored.
+    pub description: Option<String>,
+    #[serde(default)]
+    pub materials: Vec<MaterialDoc>,
+    pub shapes: Vec<ShapeDoc>,
+    pub environment: Option<EnvironmentDoc>,
+    pub camera: CameraDoc,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum MaterialKind {
+    Diffuse,
+    Glossy,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialDoc {
+    pub id: String,
+    #[serde(rename = "type")]
+    pub kind: MaterialKind,
+    /// diffuse: albedo in [0, 1] per channel.
+    pub reflectance: Option<Rgb>,
+    /// glossy: diffuse albedo.
+    pub diffuse: Option<Rgb>,
+    /// glossy: albedo of the normalised Phong lobe at normal incidence.
+    pub specular: Option<Rgb>,
+    /// glossy: Phong exponent.
+    pub exponent: Option<f64>,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ShapeKind {
+    Rectangle,
+    Cube,
+    Sphere,
+    Disk,
+    Obj,
+    Triangles,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeDoc {
+    #[serde(rename = "type")]
+    pub kind: ShapeKind,
+    /// Optional name for messages and tooling.
+    pub id: Option<String>,
+    /// Id of an entry of `materials`.
+    pub material: String,
+    pub to_world: Option<TransformDoc>,
+    pub emitter: Option<EmitterDoc>,
+    /// Turn the front side (and with it the emitting side) around.
+    #[serde(default)]
+    pub flip_normals: bool,
+    /// sphere: centre in local coordinates (default origin).
+    pub center: Option<Vec3>,
+    /// sphere: radius in local units (default 1).
+    pub radius: Option<f64>,
+    /// obj: path relative to the scene file.
+    pub filename: Option<String>,
+    /// triangles: vertex positions.
+    pub positions: Option<Vec<Vec3>>,
+    /// triangles: counter-clockwise (seen from the front) vertex indices.
+    pub indices: Option<Vec<[u64; 3]>>,
+    /// triangles: optional per-vertex shading normals.
+    pub normals: Option<Vec<Vec3>>,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum EmitterKind {
+    Area,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EmitterDoc {
+    #[serde(rename = "type")]
+    pub kind: EmitterKind,
+    /// Emitted radiance, W/(m²·sr) per channel, from the front side.
+    pub radiance: Rgb,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum EnvironmentKind {
+    Constant,
+    Envmap,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentDoc {
+    #[serde(rename = "type")]
+    pub kind: EnvironmentKind,
+    /// constant: radiance from every direction.
+    pub radiance: Option<Rgb>,
+    /// envmap: lat-long EXR, relative to the scene file.
+    pub filename: Option<String>,
+    /// envmap: multiplier on the texels (default 1).
+    pub scale: Option<f64>,
+    /// envmap: rotation from map to world.
+    pub to_world: Option<TransformDoc>,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum CameraKind {
+    #[default]
+    Perspective,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum FovAxis {
+    #[default]
+    X,
+    Y,
+    Smaller,
+    Larger,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDoc {
+    #[serde(rename = "type", default)]
+    pub kind: CameraKind,
+    /// Full field of view in degrees along `fov_axis`.
+    pub fov: f64,
+    #[serde(default)]
+    pub fov_axis: FovAxis,
+    pub width: u32,
+    pub height: u32,
+    /// Camera to world; the camera looks along local +z with +y up.
+    pub to_world: Option<TransformDoc>,
+    pub origin: Option<Vec3>,
+    pub target: Option<Vec3>,
+    pub up: Option<Vec3>,
+}
+
+/// One step of a `to_world` transform.
+#[derive(Debug, Deserialize, Clone, PartialEq)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum TransformOp {
+    /// Row-major 4×4 affine matrix (last row 0 0 0 1).
+    Matrix([[f64; 4]; 4]),
+    Translate(Vec3),
+    /// Rotation by `angle` degrees, counter-clockwise looking down `axis`.
+    Rotate {
+        axis: Vec3,
+        angle: f64,
+    },
+    /// Per-axis scale factors.
+    Scale(Vec3),
+    /// Frame at `origin` whose +z looks at `target` with +y towards `up`.
+    LookAt {
+        origin: Vec3,
+        target: Vec3,
+        up: Vec3,
+    },
+}
+
+/// A `to_world` value: one operation object or a list applied in order
+/// (later operations apply after earlier ones, as in Mitsuba).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TransformDoc {
+    pub ops: Vec<TransformOp>,
+    /// True when written as a single object rather than a list; only used to
+    /// print field paths the way the user wrote them.
+    pub single: bool,
+}
+
+impl<'de> Deserialize<'de> for TransformDoc {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct OneOrMany;
+        impl<'de> Visitor<'de> for OneOrMany {
+            type Value = TransformDoc;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str(
+                    "a transform operation such as {\"translate\": [x, y, z]} or a list of them",
+                )
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<TransformDoc, A::Error> {
+                let ops = Vec::deserialize(SeqAccessDeserializer::new(seq))?;
+                Ok(TransformDoc { ops, single: false })
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<TransformDoc, A::Error> {
+                let op = TransformOp::deserialize(MapAccessDeserializer::new(map))?;
+                Ok(TransformDoc {
+                    ops: vec![op],
+                    single: true,
+                })
+            }
+        }
+        deserializer.deserialize_any(OneOrMany)
+    }
+}
+
+impl TransformDoc {
+    /// Field path of operation `i` below `base` (e.g. `shapes[2].to_world[1]`).
+    pub fn op_field(&self, base: &str, i: usize) -> String {
+        if self.single {
+            base.to_string()
+        } else {
+            format!("{base}[{i}]")
+        }
+    }
+}

@@ -1,0 +1,566 @@
+//! Builds a [`Scene`] from the JSON document: validation with field paths,
+//! file resolution confined to the scenes directory, and acceleration
+//! structure construction.
+
+use std::collections::HashMap;
+use std::path::{Component, Path, PathBuf};
+
+use glam::{DAffine3, DMat3, DVec3};
+
+use super::bvh::{Aabb, Bvh};
+use super::emitter::{self, Emitter};
+use super::environment::{self, Environment, EnvironmentMap};
+use super::error::SceneError;
+use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKind};
+use super::material::Material;
+use super::mesh::{self, MeshData};
+use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel};
+use super::{Camera, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
+
+/// Largest accepted scene file (inline triangle lists can be big).
+const MAX_SCENE_BYTES: u64 = 1 << 30;
+
+pub(super) fn load(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError> {
+    let io = |source| SceneError::Io {
+        file: path.to_path_buf(),
+        source,
+    };
+    let size = std::fs::metadata(path).map_err(io)?.len();
+    if size > MAX_SCENE_BYTES {
+        return Err(io(std::io::Error::other(format!(
+            "{size} bytes exceeds the {MAX_SCENE_BYTES}-byte limit"
+        ))));
+    }
+    let text = std::fs::read_to_string(path).map_err(io)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut scene = from_json_str(&text, &path.display().to_string(), base, scenes_root)?;
+    if scene.name.is_empty() {
+        scene.name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+    }
+    Ok(scene)
+}
+
+/// Parses and validates; `file` is used in syntax error messages.
+pub(super) fn from_json_str(
+    text: &str,
+    file: &str,
+    base_dir: &Path,
+    scenes_root: &Path,
+) -> Result<Scene, SceneError> {
+    let mut de = serde_json::Deserializer::from_str(text);
+    let syntax = |field: String, e: &serde_json::Error| {
+        let message = e.to_string();
+        // serde_json appends the position, which we report separately.
+        let message = match message.rsplit_once(" at line ") {
+            Some((m, _)) => m.to_string(),
+            None => message,
+        };
+        SceneError::Syntax {
+            file: file.to_string(),
+            line: e.line(),
+            column: e.column(),
+            field,
+            message,
+        }
+    };
+    let doc: SceneDoc = serde_path_to_error::deserialize(&mut de)
+        .map_err(|e| syntax(e.path().to_string(), e.inner()))?;
+    de.end().map_err(|e| syntax(".".into(), &e))?;
+    let files = Files::new(base_dir, scenes_root)?;
+    build(doc, &files)
+}
+
+/// Resolves referenced file names: relative to the scene file, never outside
+/// the scenes directory (checked lexically and again after following links).
+struct Files {
+    base: PathBuf,
+    root: PathBuf,
+}
+
+impl Files {
+    fn new(base_dir: &Path, scenes_root: &Path) -> Result<Self, SceneError> {
+        let canon = |p: &Path| {
+            p.canonicalize().map_err(|e| {
+                SceneError::file("scenes_root", p, format!("cannot resolve directory: {e}"))
+            })
+        };
+        Ok(Self {
+            base: canon(base_dir)?,
+            root: canon(scenes_root)?,
+        })
+    }
+
+    fn resolve(&self, name: &str, field: &str) -> Result<PathBuf, SceneError> {
+        let escape = || SceneError::PathEscape {
+            field: field.to_string(),
+            path: name.to_string(),
+            root: self.root.clone(),
+        };
+        let mut path = PathBuf::new();
+        for c in self.base.join(name).components() {
+            match c {
+                Component::ParentDir => {
+                    if !path.pop() {
+                        return Err(escape());
+                    }
+                }
+                Component::CurDir => {}
+                other => path.push(other),
+            }
+        }
+        if !path.starts_with(&self.root) {
+            return Err(escape());
+        }
+        let real = path
+            .canonicalize()
+            .map_err(|e| SceneError::file(field, &path, format!("cannot open: {e}")))?;
+        if !real.starts_with(&self.root) {
+            return Err(escape());
+        }
+        Ok(real)
+    }
+}
+
+/// Errors if any of the named optional fields is present.
+fn reject_fields(field: &str, kind: &str, present: &[(&str, bool)]) -> Result<(), SceneError> {
+    match present.iter().find(|(_, p)| *p) {
+        Some((name, _)) => Err(SceneError::invalid(
+            format!("{field}.{name}"),
+            format!("not a field of a {kind}"),
+        )),
+        None => Ok(()),
+    }
+}
+
+fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
+    let mut materials = Vec::new();
+    let mut material_ids = Vec::new();
+    let mut by_id = HashMap::new();
+    for (i, m) in doc.materials.iter().enumerate() {
+        let field = format!("materials[{i}]");
+        if by_id.insert(m.id.clone(), i).is_some() {
+            return Err(SceneError::invalid(
+                format!("{field}.id"),
+                format!("duplicate material id {:?}", m.id),
+            ));
+        }
+        materials.push(Material::from_doc(m, &field)?);
+        material_ids.push(m.id.clone());
+    }
+
+    if doc.shapes.len() > MAX_SHAPES {
+        return Err(SceneError::invalid(
+            "shapes",
+            format!(
+                "{} shapes exceed the limit of {MAX_SHAPES}",
+                doc.shapes.len()
+            ),
+        ));
+    }
+    let mut builder = GeometryBuilder::default();
+    let mut emitters = Vec::new();
+    for (i, s) in doc.shapes.iter().enumerate() {
+        let field = format!("shapes[{i}]");
+        let material = *by_id.get(&s.material).ok_or_else(|| {
+            SceneError::invalid(
+                format!("{field}.material"),
+                format!(
+                    "unknown material id {:?} (known: {})",
+                    s.material,
+                    material_ids.join(", ")
+                ),
+            )
+        })?;
+        let emitter = match &s.emitter {
+            Some(e) => {
+                emitters.push(Emitter::from_doc(e, i, &format!("{field}.emitter"))?);
+                Some(emitters.len() - 1)
+            }
+            None => None,
+        };
+        builder.add_shape(s, &field, material, emitter, files)?;
+    }
+
+    let environment = doc
+        .environment
+        .as_ref()
+        .map(|e| load_environment(e, files))
+        .transpose()?;
+    let camera = Camera::from_doc(&doc.camera, "camera")?;
+    let mut scene = builder.finish();
+    scene.name = doc.name.unwrap_or_default();
+    Ok(Scene {
+        materials,
+        material_ids,
+        emitters,
+        environment,
+        camera,
+        ..scene
+    })
+}
+
+/// Accumulates shapes and world-space triangles, then builds the BVHs.
+#[derive(Default)]
+struct GeometryBuilder {
+    shapes: Vec<Shape>,
+    triangles: Vec<Triangle>,
+    vertex_normals: Vec<[DVec3; 3]>,
+}
+
+impl GeometryBuilder {
+    fn add_shape(
+        &mut self,
+        s: &ShapeDoc,
+        field: &str,
+        material: usize,
+        emitter: Option<usize>,
+        files: &Files,
+    ) -> Result<(), SceneError> {
+        let to_world = match &s.to_world {
+            Some(t) => transform::build(t, &format!("{field}.to_world"))?,
+            None => DAffine3::IDENTITY,
+        };
+        let kind = format!("{:?}", s.kind).to_lowercase();
+        let sphere_fields = [
+            ("center", s.center.is_some()),
+            ("radius", s.radius.is_some()),
+        ];
+        let inline_fields = [
+            ("positions", s.positions.is_some()),
+            ("indices", s.indices.is_some()),
+            ("normals", s.normals.is_some()),
+        ];
+        let file_field = [("filename", s.filename.is_some())];
+        let (reject_sphere, reject_inline, reject_file) = match s.kind {
+            ShapeKind::Sphere => (false, true, true),
+            ShapeKind::Triangles => (true, false, true),
+            ShapeKind::Obj => (true, true, false),
+            _ => (true, true, true),
+        };
+        for (reject, fields) in [
+            (reject_sphere, &sphere_fields[..]),
+            (reject_inline, &inline_fields[..]),
+            (reject_file, &file_field[..]),
+        ] {
+            if reject {
+                reject_fields(field, &kind, fields)?;
+            }
+        }
+        let remaining = MAX_TRIANGLES - self.triangles.len();
+        let (geometry, area) = match s.kind {
+            ShapeKind::Rectangle => {
+                self.add_mesh(mesh::rectangle(), &to_world, s.flip_normals, field)?
+            }
+            ShapeKind::Cube => self.add_mesh(mesh::cube(), &to_world, s.flip_normals, field)?,
+            ShapeKind::Obj => {
+                let name_field = format!("{field}.filename");
+                let name = s
+                    .filename
+                    .as_deref()
+                    .ok_or_else(|| SceneError::invalid(field, "missing field `filename`"))?;
+                let path = files.resolve(name, &name_field)?;
+                let data = mesh::load_obj(&path, &name_field, remaining)?;
+                self.add_mesh(data, &to_world, s.flip_normals, field)?
+            }
+            ShapeKind::Triangles => {
+                let data = inline_mesh(s, field, remaining)?;
+                self.add_mesh(data, &to_world, s.flip_normals, field)?
+            }
+            ShapeKind::Sphere => sphere(s, &to_world, field)?,
+            ShapeKind::Disk => {
+                let normal = (transform::normal_matrix(&to_world) * DVec3::Z).normalize();
+                let geometry = Geometry::Disk {
+                    to_world,
+                    to_local: to_world.inverse(),
+                    normal,
+                };
+                (geometry, shape::disk_area(&to_world))
+            }
+        };
+        if !(area > 0.0 && area.is_finite()) {
+            return Err(SceneError::invalid(
+                field,
+                format!("surface area is {area}"),
+            ));
+        }
+        self.shapes.push(Shape {
+            geometry,
+            material,
+            emitter,
+            flip: s.flip_normals,
+            area,
+        });
+        Ok(())
+    }
+
+    /// Places a local mesh in the world as this shape's triangles.
+    ///
+    /// Front sides follow the authored normal through the normal transform:
+    /// a mirroring `to_world` (negative determinant) would reverse the
+    /// winding, so it is swapped back. Triangles whose vertex normals all
+    /// disagree with the winding are re-wound to face the vertex normals.
+    fn add_mesh(
+        &mut self,
+        data: MeshData,
+        to_world: &DAffine3,
+        flip: bool,
+        field: &str,
+    ) -> Result<(Geometry, f64), SceneError> {
+        let shape_index = self.shapes.len() as u32;
+        let positions: Vec<DVec3> = data
+            .positions
+            .iter()
+            .map(|p| to_world.transform_point3(*p))
+            .collect();
+        let normal_matrix = transform::normal_matrix(to_world);
+        let normals: Option<Vec<DVec3>> = data.normals.as_ref().map(|ns| {
+            ns.iter()
+                .map(|n| (normal_matrix * *n).try_normalize().unwrap_or(DVec3::ZERO))
+                .collect()
+        });
+        let mirrored = to_world.matrix3.determinant() < 0.0;
+        let first = self.triangles.len();
+        let mut cdf = Vec::with_capacity(data.indices.len());
+        let mut total = 0.0;
+        for (k, idx) in data.indices.iter().enumerate() {
+            let mut idx = idx.map(|i| i as usize);
+            if mirrored {
+                idx.swap(1, 2);
+            }
+            let mut p = idx.map(|i| positions[i]);
+            let mut ns = normals.as_ref().map(|ns| idx.map(|i| ns[i]));
+            if let Some(n) = ns
+                && (p[1] - p[0]).cross(p[2] - p[0]).dot(n[0] + n[1] + n[2]) < 0.0
+            {
+                p.swap(1, 2);
+                ns = Some([n[0], n[2], n[1]]);
+            }
+            if flip {
+                p.swap(1, 2);
+                ns = ns.map(|n| [-n[0], -n[2], -n[1]]);
+            }
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(SceneError::invalid(
+                    field,
+                    format!("triangle {k} is not finite after to_world"),
+                ));
+            }
+            let normals_index = match ns {
+                Some(n) => {
+                    self.vertex_normals.push(n);
+                    (self.vertex_normals.len() - 1) as u32
+                }
+                None => u32::MAX,
+            };
+            let tri = Triangle {
+                p,
+                shape: shape_index,
+                primitive: k as u32,
+                normals: normals_index,
+            };
+            total += tri.area();
+            cdf.push(total);
+            self.triangles.push(tri);
+        }
+        if total > 0.0 {
+            cdf.iter_mut().for_each(|c| *c /= total);
+        }
+        let count = self.triangles.len() - first;
+        Ok((Geometry::Mesh { first, count, cdf }, total))
+    }
+
+    fn finish(self) -> Scene {
+        let bounds: Vec<Aabb> = self.triangles.iter().map(Triangle::bounds).collect();
+        let (triangle_bvh, order) = Bvh::build(&bounds);
+        let accel = order
+            .iter()
+            .map(|&i| TriangleAccel::new(&self.triangles[i as usize]))
+            .collect();
+        let analytic: Vec<u32> = (0..self.shapes.len() as u32)
+            .filter(|&i| !matches!(self.shapes[i as usize].geometry, Geometry::Mesh { .. }))
+            .collect();
+        let analytic_bounds: Vec<Aabb> = analytic
+            .iter()
+            .map(|&i| self.shapes[i as usize].analytic_bounds())
+            .collect();
+        let (analytic_bvh, analytic_order) = Bvh::build(&analytic_bounds);
+        let analytic_shapes = analytic_order
+            .iter()
+            .map(|&i| analytic[i as usize])
+            .collect();
+        let all = bounds
+            .iter()
+            .chain(&analytic_bounds)
+            .fold(Aabb::EMPTY, |a, b| a.union(*b));
+        Scene {
+            name: String::new(),
+            materials: Vec::new(),
+            material_ids: Vec::new(),
+            emitters: Vec::new(),
+            environment: None,
+            camera: Camera::new(DAffine3::IDENTITY, 45.0, Default::default(), 1, 1),
+            shapes: self.shapes,
+            triangles: self.triangles,
+            vertex_normals: self.vertex_normals,
+            accel,
+            accel_index: order,
+            triangle_bvh,
+            analytic_bvh,
+            analytic_shapes,
+            bounds: all,
+        }
+    }
+}
+
+fn inline_mesh(s: &ShapeDoc, field: &str, max_triangles: usize) -> Result<MeshData, SceneError> {
+    let missing = |name: &str| SceneError::invalid(field, format!("missing field `{name}`"));
+    let positions = s.positions.as_ref().ok_or_else(|| missing("positions"))?;
+    let indices = s.indices.as_ref().ok_or_else(|| missing("indices"))?;
+    if indices.is_empty() || indices.len() > max_triangles {
+        return Err(SceneError::invalid(
+            format!("{field}.indices"),
+            format!("{} triangles; need 1..={max_triangles}", indices.len()),
+        ));
+    }
+    let positions = positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| transform::check_vec3(p, &format!("{field}.positions[{i}]")))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut out = Vec::with_capacity(indices.len());
+    for (k, tri) in indices.iter().enumerate() {
+        for (j, &i) in tri.iter().enumerate() {
+            if i as usize >= positions.len() {
+                return Err(SceneError::invalid(
+                    format!("{field}.indices[{k}][{j}]"),
+                    format!("vertex {i} does not exist ({} positions)", positions.len()),
+                ));
+            }
+        }
+        out.push(tri.map(|i| i as u32));
+    }
+    let normals = match &s.normals {
+        None => None,
+        Some(ns) => {
+            if ns.len() != positions.len() {
+                return Err(SceneError::invalid(
+                    format!("{field}.normals"),
+                    format!("{} normals for {} positions", ns.len(), positions.len()),
+                ));
+            }
+            let mut out = Vec::with_capacity(ns.len());
+            for (i, n) in ns.iter().enumerate() {
+                let f = format!("{field}.normals[{i}]");
+                let n = transform::check_vec3(n, &f)?
+                    .try_normalize()
+                    .ok_or_else(|| SceneError::invalid(f, "zero-length normal"))?;
+                out.push(n);
+            }
+            Some(out)
+        }
+    };
+    Ok(MeshData {
+        positions,
+        indices: out,
+        normals,
+    })
+}
+
+fn sphere(s: &ShapeDoc, to_world: &DAffine3, field: &str) -> Result<(Geometry, f64), SceneError> {
+    let center = transform::check_vec3(&s.center.unwrap_or([0.0; 3]), &format!("{field}.center"))?;
+    let radius = s.radius.unwrap_or(1.0);
+    if !(radius > 0.0 && radius.is_finite()) {
+        return Err(SceneError::invalid(
+            format!("{field}.radius"),
+            format!("{radius} is not a positive radius"),
+        ));
+    }
+    let scale = similarity_scale(&to_world.matrix3).ok_or_else(|| {
+        SceneError::invalid(
+            format!("{field}.to_world"),
+            "a sphere's transform must be a similarity (rotation, uniform scale, translation); use a mesh for ellipsoids",
+        )
+    })?;
+    let radius = radius * scale;
+    let geometry = Geometry::Sphere {
+        center: to_world.transform_point3(center),
+        radius,
+    };
+    Ok((geometry, 4.0 * std::f64::consts::PI * radius * radius))
+}
+
+/// The uniform scale `s` if `m = s·R` with `R` orthogonal (to 1e-6).
+fn similarity_scale(m: &DMat3) -> Option<f64> {
+    let cols = [m.x_axis, m.y_axis, m.z_axis];
+    let s = cols[0].length();
+    let tol = 1e-6 * s * s;
+    let ok = cols
+        .iter()
+        .all(|c| (c.length_squared() - s * s).abs() <= tol)
+        && cols[0].dot(cols[1]).abs() <= tol
+        && cols[1].dot(cols[2]).abs() <= tol
+        && cols[0].dot(cols[2]).abs() <= tol;
+    ok.then_some(s)
+}
+
+fn load_environment(e: &EnvironmentDoc, files: &Files) -> Result<Environment, SceneError> {
+    let field = "environment";
+    match e.kind {
+        EnvironmentKind::Constant => {
+            reject_fields(
+                field,
+                "constant environment",
+                &[
+                    ("filename", e.filename.is_some()),
+                    ("scale", e.scale.is_some()),
+                    ("to_world", e.to_world.is_some()),
+                ],
+            )?;
+            let radiance = e
+                .radiance
+                .ok_or_else(|| SceneError::invalid(field, "missing field `radiance`"))?;
+            Ok(Environment::Constant {
+                radiance: emitter::check_radiance(radiance, "environment.radiance")?,
+            })
+        }
+        EnvironmentKind::Envmap => {
+            reject_fields(field, "envmap", &[("radiance", e.radiance.is_some())])?;
+            let name = e
+                .filename
+                .as_deref()
+                .ok_or_else(|| SceneError::invalid(field, "missing field `filename`"))?;
+            let scale = e.scale.unwrap_or(1.0);
+            if !(0.0..=emitter::MAX_RADIANCE).contains(&scale) {
+                return Err(SceneError::invalid(
+                    "environment.scale",
+                    format!("{scale} is not in [0, {:e}]", emitter::MAX_RADIANCE),
+                ));
+            }
+            let rotation = match &e.to_world {
+                Some(t) => {
+                    let t = transform::build(t, "environment.to_world")?;
+                    let is_rotation = similarity_scale(&t.matrix3)
+                        .is_some_and(|s| (s - 1.0).abs() < 1e-6)
+                        && t.matrix3.determinant() > 0.0
+                        && t.translation == DVec3::ZERO;
+                    if !is_rotation {
+                        return Err(SceneError::invalid(
+                            "environment.to_world",
+                            "must be a rotation (no translation, scale, shear or mirroring)",
+                        ));
+                    }
+                    t.matrix3
+                }
+                None => DMat3::IDENTITY,
+            };
+            let path = files.resolve(name, "environment.filename")?;
+            let (width, height, texels) = environment::read_exr(&path, "environment.filename")?;
+            Ok(Environment::Map(EnvironmentMap::new(
+                width, height, texels, scale, rotation,
+            )))
+        }
+    }
+}

@@ -1,0 +1,249 @@
+//! Triangle meshes before placement in the world: the built-in rectangle and
+//! cube, inline triangle lists and OBJ files (via `tobj`).
+//!
+//! Front faces wind counter-clockwise seen from the front; the geometric
+//! normal is `(p1 − p0) × (p2 − p0)`, normalised.
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
+
+use glam::DVec3;
+
+use super::error::SceneError;
+
+/// Largest accepted OBJ file, bytes.
+pub const MAX_OBJ_BYTES: u64 = 1 << 30;
+
+/// Vertices and triangles in local coordinates.
+#[derive(Clone, Debug, Default)]
+pub struct MeshData {
+    pub positions: Vec<DVec3>,
+    pub indices: Vec<[u32; 3]>,
+    /// Optional per-vertex shading normals (same length as `positions`).
+    pub normals: Option<Vec<DVec3>>,
+}
+
+/// `[-1, 1]²` in the xy plane, normal +z (Mitsuba's `rectangle`).
+pub fn rectangle() -> MeshData {
+    MeshData {
+        positions: vec![
+            DVec3::new(-1.0, -1.0, 0.0),
+            DVec3::new(1.0, -1.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(-1.0, 1.0, 0.0),
+        ],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        normals: None,
+    }
+}
+
+/// `[-1, 1]³` with outward normals, two triangles per face (Mitsuba's `cube`).
+pub fn cube() -> MeshData {
+    let mut mesh = MeshData::default();
+    for axis in 0..3 {
+        // (axis, u, v) is a cyclic permutation of (x, y, z), so û × v̂ = +axis.
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [-1.0, 1.0] {
+            let base = mesh.positions.len() as u32;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                let mut p = DVec3::ZERO;
+                p[axis] = side;
+                p[u] = a;
+                p[v] = b;
+                mesh.positions.push(p);
+            }
+            if side > 0.0 {
+                mesh.indices.push([base, base + 1, base + 2]);
+                mesh.indices.push([base, base + 2, base + 3]);
+            } else {
+                mesh.indices.push([base, base + 2, base + 1]);
+                mesh.indices.push([base, base + 3, base + 2]);
+            }
+        }
+    }
+    mesh
+}
+
+/// Counts the lines a `BufRead` consumer has read, so OBJ parse errors can
+/// name the line (tobj reports only the kind of error).
+struct LineCounter<R> {
+    inner: R,
+    lines: usize,
+}
+
+impl<R: BufRead> Read for LineCounter<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.lines += buf[..n].iter().filter(|&&b| b == b'\n').count();
+        Ok(n)
+    }
+}
+
+impl<R: BufRead> BufRead for LineCounter<R> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        self.inner.fill_buf()
+    }
+    fn consume(&mut self, amt: usize) {
+        if let Ok(buf) = self.inner.fill_buf() {
+            let end = amt.min(buf.len());
+            self.lines += buf[..end].iter().filter(|&&b| b == b'\n').count();
+        }
+        self.inner.consume(amt);
+    }
+}
+
+/// Loads all objects of an OBJ file as one triangulated mesh. Material
+/// libraries (`mtllib`) are ignored and never opened: materials come from
+/// the scene file, and opening them could read outside the scenes directory.
+/// Normals are kept only if every vertex has one.
+pub fn load_obj(path: &Path, field: &str, max_triangles: usize) -> Result<MeshData, SceneError> {
+    let err = |message: String| SceneError::file(field, path, message);
+    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot open: {e}")))?;
+    let size = file
+        .metadata()
+        .map_err(|e| err(format!("cannot stat: {e}")))?
+        .len();
+    if size > MAX_OBJ_BYTES {
+        return Err(err(format!(
+            "{size} bytes exceeds the {MAX_OBJ_BYTES}-byte limit"
+        )));
+    }
+    let mut reader = LineCounter {
+        inner: BufReader::new(file),
+        lines: 0,
+    };
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| Ok(Default::default()))
+        .map_err(|e| {
+            SceneError::file(
+                field,
+                format!("{}:{}", path.display(), reader.lines.max(1)),
+                format!("invalid OBJ: {e}"),
+            )
+        })?;
+    let mut mesh = MeshData::default();
+    let mut normals = Vec::new();
+    let mut all_normals = true;
+    for model in &models {
+        let m = &model.mesh;
+        let base = mesh.positions.len();
+        let count = m.positions.len() / 3;
+        mesh.positions.extend(
+            m.positions
+                .chunks_exact(3)
+                .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64)),
+        );
+        if m.normals.len() == m.positions.len() {
+            normals.extend(
+                m.normals
+                    .chunks_exact(3)
+                    .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64)),
+            );
+        } else {
+            all_normals = false;
+        }
+        for tri in m.indices.chunks_exact(3) {
+            if tri.iter().any(|&i| i as usize >= count) {
+                return Err(err(format!("face {tri:?} refers to a missing vertex")));
+            }
+            mesh.indices.push([
+                (base + tri[0] as usize) as u32,
+                (base + tri[1] as usize) as u32,
+                (base + tri[2] as usize) as u32,
+            ]);
+        }
+        if mesh.indices.len() > max_triangles {
+            return Err(err(format!(
+                "more than {max_triangles} triangles (the scene's remaining budget)"
+            )));
+        }
+    }
+    if mesh.indices.is_empty() {
+        return Err(err("no triangles".into()));
+    }
+    if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
+        return Err(err(format!("vertex {} is not finite", i + 1)));
+    }
+    if all_normals && !normals.is_empty() {
+        mesh.normals = Some(normals);
+    }
+    Ok(mesh)
+}
+
+/// Writes `mesh` as an OBJ file (positions, optional normals, 1-based faces),
+/// with `digits` decimals. Used to regenerate the bundled assets.
+pub fn write_obj(path: &Path, mesh: &MeshData, digits: usize) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    for p in &mesh.positions {
+        writeln!(out, "v {:.digits$} {:.digits$} {:.digits$}", p.x, p.y, p.z)?;
+    }
+    if let Some(normals) = &mesh.normals {
+        for n in normals {
+            writeln!(out, "vn {:.4} {:.4} {:.4}", n.x, n.y, n.z)?;
+        }
+    }
+    for t in &mesh.indices {
+        let [a, b, c] = t.map(|i| i + 1);
+        if mesh.normals.is_some() {
+            writeln!(out, "f {a}//{a} {b}//{b} {c}//{c}")?;
+        } else {
+            writeln!(out, "f {a} {b} {c}")?;
+        }
+    }
+    out.flush()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn face_normals(mesh: &MeshData) -> Vec<(DVec3, DVec3)> {
+        mesh.indices
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+                ((b - a).cross(c - a).normalize(), (a + b + c) / 3.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn rectangle_faces_plus_z_and_cube_faces_outwards() {
+        assert!(
+            face_normals(&rectangle())
+                .iter()
+                .all(|(n, _)| *n == DVec3::Z)
+        );
+        let cube = cube();
+        assert_eq!(cube.indices.len(), 12);
+        for (n, centre) in face_normals(&cube) {
+            // The outward normal points the way the face centre lies.
+            assert!(n.dot(centre) > 0.6, "{n} at {centre}");
+        }
+    }
+
+    #[test]
+    fn obj_round_trip_and_errors_name_the_line() {
+        let dir = std::env::temp_dir().join(format!("bmc-mesh-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("cube.obj");
+        write_obj(&path, &cube(), 6).unwrap();
+        let back = load_obj(&path, "shapes[0].filename", 1000).unwrap();
+        assert_eq!(back.indices.len(), 12);
+        assert_eq!(face_normals(&back).len(), 12);
+        assert!(load_obj(&path, "f", 5).is_err());
+
+        let bad = dir.join("bad.obj");
+        std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 x 0\nf 1 2 3\n").unwrap();
+        let err = load_obj(&bad, "shapes[0].filename", 1000).unwrap_err();
+        assert_eq!(err.field(), Some("shapes[0].filename"));
+        assert!(err.to_string().contains("bad.obj:3"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,267 @@
+//! Scene model and ray tracing: loading JSON scenes (`docs/scene-format.md`),
+//! shapes, materials, emitters, environment lighting, the camera and the BVH.
+//!
+//! All geometry is f64 at the API. Everything is immutable after loading, so
+//! a [`Scene`] is `Send + Sync` and callers trace rays in parallel (rayon).
+
+pub mod bvh;
+pub mod camera;
+pub mod emitter;
+pub mod environment;
+pub mod error;
+pub mod format;
+pub mod generate;
+mod loader;
+pub mod material;
+pub mod mesh;
+pub mod ray;
+mod shape;
+pub mod transform;
+
+use glam::DVec3;
+
+pub use camera::Camera;
+pub use emitter::Emitter;
+pub use environment::{Environment, EnvironmentMap};
+pub use error::SceneError;
+pub use material::Material;
+pub use ray::Ray;
+
+use bvh::Bvh;
+use shape::{Geometry, Shape, Triangle, TriangleAccel};
+
+/// Largest number of triangles a scene may hold (≈ 1.6 GB of geometry).
+pub const MAX_TRIANGLES: usize = 10_000_000;
+/// Largest number of shapes in one scene file.
+pub const MAX_SHAPES: usize = 100_000;
+
+/// A ray's closest intersection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    /// Distance along the ray.
+    pub t: f64,
+    /// Hit point, projected onto the surface.
+    pub position: DVec3,
+    /// Unit geometric normal of the front side as authored; NOT flipped
+    /// towards the ray (compare with the ray direction to tell the side).
+    pub normal: DVec3,
+    /// Unit shading normal: interpolated vertex normals where a mesh has
+    /// them (on the front side), otherwise equal to `normal`.
+    pub shading_normal: DVec3,
+    /// Index into [`Scene::materials`].
+    pub material: usize,
+    /// Index into [`Scene::emitters`] if the shape is an area light.
+    pub emitter: Option<usize>,
+    /// Index of the shape in the scene file's `shapes` list.
+    pub shape: usize,
+    /// Triangle index within the shape (0 for spheres and disks).
+    pub primitive: u32,
+}
+
+/// A loaded scene. Immutable; `Send + Sync`.
+pub struct Scene {
+    pub name: String,
+    pub materials: Vec<Material>,
+    /// Material ids from the scene file, parallel to `materials`.
+    pub material_ids: Vec<String>,
+    pub emitters: Vec<Emitter>,
+    pub environment: Option<Environment>,
+    pub camera: Camera,
+    shapes: Vec<Shape>,
+    /// World-space triangles in authoring order (shape by shape).
+    triangles: Vec<Triangle>,
+    /// Per-vertex shading normals of triangles that have them.
+    vertex_normals: Vec<[DVec3; 3]>,
+    /// Triangles in BVH order, and for each its index in `triangles`.
+    accel: Vec<TriangleAccel>,
+    accel_index: Vec<u32>,
+    triangle_bvh: Bvh,
+    /// Spheres and disks: their own small BVH over shape indices.
+    analytic_bvh: Bvh,
+    analytic_shapes: Vec<u32>,
+    bounds: bvh::Aabb,
+}
+
+impl Scene {
+    /// Loads a JSON scene file. Referenced files must lie inside `scenes_root`.
+    pub fn load(
+        path: &std::path::Path,
+        scenes_root: &std::path::Path,
+    ) -> Result<Scene, SceneError> {
+        loader::load(path, scenes_root)
+    }
+
+    /// Parses a scene from text; relative file names resolve against
+    /// `base_dir`, and every referenced file must lie inside `scenes_root`.
+    pub fn from_json_str(
+        text: &str,
+        base_dir: &std::path::Path,
+        scenes_root: &std::path::Path,
+    ) -> Result<Scene, SceneError> {
+        loader::from_json_str(text, "<string>", base_dir, scenes_root)
+    }
+
+    /// Closest hit with `0 < t < ray.t_max`.
+    pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
+        let (o, d) = (ray.origin, ray.dir);
+        let mut tri_hit = (0usize, 0.0, 0.0);
+        let t_tri = self.triangle_bvh.closest(o, d, ray.t_max, |i, t_max| {
+            let (t, u, v) = self.accel[i].intersect(o, d, t_max)?;
+            tri_hit = (i, u, v);
+            Some(t)
+        });
+        let mut analytic_hit = 0usize;
+        let t_analytic = self
+            .analytic_bvh
+            .closest(o, d, t_tri.unwrap_or(ray.t_max), |i, t_max| {
+                let shape = self.analytic_shapes[i] as usize;
+                let t = self.shapes[shape].intersect_analytic(o, d, t_max)?;
+                analytic_hit = shape;
+                Some(t)
+            });
+        if let Some(t) = t_analytic {
+            let shape = &self.shapes[analytic_hit];
+            let (position, normal) = shape.analytic_hit(o, d, t);
+            return Some(SurfaceHit {
+                t,
+                position,
+                normal,
+                shading_normal: normal,
+                material: shape.material,
+                emitter: shape.emitter,
+                shape: analytic_hit,
+                primitive: 0,
+            });
+        }
+        let t = t_tri?;
+        let (i, u, v) = tri_hit;
+        let tri = &self.triangles[self.accel_index[i] as usize];
+        let shape = &self.shapes[tri.shape as usize];
+        let normal = tri.normal();
+        let shading_normal = match self.vertex_normals.get(tri.normals as usize) {
+            Some(n) => (n[0] * (1.0 - u - v) + n[1] * u + n[2] * v)
+                .try_normalize()
+                .unwrap_or(normal),
+            None => normal,
+        };
+        Some(SurfaceHit {
+            t,
+            position: tri.point(u, v),
+            normal,
+            shading_normal,
+            material: shape.material,
+            emitter: shape.emitter,
+            shape: tri.shape as usize,
+            primitive: tri.primitive,
+        })
+    }
+
+    /// True if anything is hit with `0 < t < ray.t_max` (stops at the first).
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let (o, d) = (ray.origin, ray.dir);
+        self.triangle_bvh.any(o, d, ray.t_max, |i, t_max| {
+            self.accel[i].intersect(o, d, t_max).is_some()
+        }) || self.analytic_bvh.any(o, d, ray.t_max, |i, t_max| {
+            self.shapes[self.analytic_shapes[i] as usize]
+                .intersect_analytic(o, d, t_max)
+                .is_some()
+        })
+    }
+
+    /// Ray leaving the surface point `position` (geometric normal `normal`,
+    /// either orientation) along the unit direction `dir`; the origin is
+    /// offset to the side `dir` points to (see [`ray::offset_origin`]).
+    pub fn spawn_ray(&self, position: DVec3, normal: DVec3, dir: DVec3) -> Ray {
+        Ray {
+            origin: ray::offset_origin(position, normal, dir),
+            dir,
+            t_max: f64::INFINITY,
+        }
+    }
+
+    /// Shadow ray from a surface point towards `target`. When `target` lies
+    /// on a surface, pass its geometric normal so the end is offset too and
+    /// the target's own surface never counts as an occluder; otherwise the
+    /// ray stops just short of `target`. A zero-length connection gives a ray
+    /// with `t_max = 0`, which nothing occludes.
+    pub fn spawn_ray_to(
+        &self,
+        position: DVec3,
+        normal: DVec3,
+        target: DVec3,
+        target_normal: Option<DVec3>,
+    ) -> Ray {
+        let origin = ray::offset_origin(position, normal, target - position);
+        let (end, shorten) = match target_normal {
+            Some(n) => (ray::offset_origin(target, n, position - target), 1.0),
+            None => (target, 1.0 - 1e-9),
+        };
+        let d = end - origin;
+        let dist = d.length();
+        if dist.is_nan() || dist <= 0.0 {
+            return Ray {
+                origin,
+                dir: normal,
+                t_max: 0.0,
+            };
+        }
+        Ray {
+            origin,
+            dir: d / dist,
+            t_max: dist * shorten,
+        }
+    }
+
+    /// Uniform point on shape `shape` by area for `u ∈ [0, 1)²`: (point,
+    /// front normal, pdf = 1 / area per unit area).
+    pub fn sample_shape_area(&self, shape: usize, u: [f64; 2]) -> (DVec3, DVec3, f64) {
+        let s = &self.shapes[shape];
+        let pdf = 1.0 / s.area;
+        match &s.geometry {
+            Geometry::Mesh { first, count, cdf } => {
+                let k = cdf.partition_point(|&c| c <= u[0]).min(count - 1);
+                let lo = if k == 0 { 0.0 } else { cdf[k - 1] };
+                let u0 = ((u[0] - lo) / (cdf[k] - lo)).clamp(0.0, 1.0);
+                let tri = &self.triangles[first + k];
+                (shape::sample_triangle(tri, [u0, u[1]]), tri.normal(), pdf)
+            }
+            _ => {
+                let (p, n) = s.sample_analytic(u);
+                (p, n, pdf)
+            }
+        }
+    }
+
+    /// Surface area of shape `shape`, world units².
+    pub fn shape_area(&self, shape: usize) -> f64 {
+        self.shapes[shape].area
+    }
+
+    /// Number of shapes (entries of the scene file's `shapes`).
+    pub fn shape_count(&self) -> usize {
+        self.shapes.len()
+    }
+
+    /// Material index of shape `shape`.
+    pub fn shape_material(&self, shape: usize) -> usize {
+        self.shapes[shape].material
+    }
+
+    /// Emitter index of shape `shape`, if it is an area light.
+    pub fn shape_emitter(&self, shape: usize) -> Option<usize> {
+        self.shapes[shape].emitter
+    }
+
+    /// Axis-aligned bounds of all geometry, (min, max).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        (self.bounds.min, self.bounds.max)
+    }
+
+    /// Number of triangles (spheres and disks are analytic and not counted).
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,351 @@
+//! Placed shapes: triangle meshes (rectangles, cubes, OBJ files and inline
+//! lists all become triangles, exactly) and the analytic sphere and disk.
+//!
+//! Spheres are intersected analytically (no tessellation error); their
+//! `to_world` must therefore be a similarity (rotation, uniform scale,
+//! translation). Disks accept any affine `to_world` (an ellipse stays planar
+//! and its area scales by a constant, so area sampling stays uniform).
+
+use std::f64::consts::PI;
+
+use glam::{DAffine3, DVec2, DVec3};
+
+use super::bvh::Aabb;
+
+#[derive(Clone, Debug)]
+pub(crate) enum Geometry {
+    /// Triangles `first .. first + count` of the scene's triangle list, with
+    /// the cumulative area fractions used to pick one by area.
+    Mesh {
+        first: usize,
+        count: usize,
+        cdf: Vec<f64>,
+    },
+    Sphere {
+        center: DVec3,
+        radius: f64,
+    },
+    /// Image of the unit disk in local xy under `to_world`.
+    Disk {
+        to_world: DAffine3,
+        to_local: DAffine3,
+        /// Unit world normal of the local +z side.
+        normal: DVec3,
+    },
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct Shape {
+    pub geometry: Geometry,
+    pub material: usize,
+    pub emitter: Option<usize>,
+    /// Analytic shapes only (meshes are re-wound at load): front side is −normal.
+    pub flip: bool,
+    /// Surface area in world units².
+    pub area: f64,
+}
+
+/// Triangle in world space (authoring order), for sampling and hit details.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Triangle {
+    pub p: [DVec3; 3],
+    pub shape: u32,
+    /// Index of the triangle within its shape.
+    pub primitive: u32,
+    /// Index into the scene's vertex normal triples, or `u32::MAX` if none.
+    pub normals: u32,
+}
+
+impl Triangle {
+    pub fn area(&self) -> f64 {
+        0.5 * (self.p[1] - self.p[0])
+            .cross(self.p[2] - self.p[0])
+            .length()
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(&self.p)
+    }
+
+    /// Point with barycentrics (1 − u − v, u, v).
+    pub fn point(&self, u: f64, v: f64) -> DVec3 {
+        self.p[0] + (self.p[1] - self.p[0]) * u + (self.p[2] - self.p[0]) * v
+    }
+
+    pub fn normal(&self) -> DVec3 {
+        (self.p[1] - self.p[0])
+            .cross(self.p[2] - self.p[0])
+            .normalize()
+    }
+}
+
+/// Triangle in the form the intersection test wants, stored in BVH order.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TriangleAccel {
+    pub v0: DVec3,
+    pub e1: DVec3,
+    pub e2: DVec3,
+}
+
+impl TriangleAccel {
+    pub fn new(t: &Triangle) -> Self {
+        Self {
+            v0: t.p[0],
+            e1: t.p[1] - t.p[0],
+            e2: t.p[2] - t.p[0],
+        }
+    }
+
+    /// Möller–Trumbore ("Fast, Minimum Storage Ray/Triangle Intersection",
+    /// 1997) in f64: `(t, u, v)` for a hit with `0 < t < t_max`. Edges are
+    /// inclusive, so rays through a shared edge hit one of its triangles.
+    #[inline(always)]
+    pub fn intersect(&self, o: DVec3, d: DVec3, t_max: f64) -> Option<(f64, f64, f64)> {
+        let p = d.cross(self.e2);
+        let det = self.e1.dot(p);
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let s = o - self.v0;
+        let u = s.dot(p) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            return None;
+        }
+        let q = s.cross(self.e1);
+        let v = d.dot(q) * inv;
+        if v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        let t = self.e2.dot(q) * inv;
+        (t > 0.0 && t < t_max).then_some((t, u, v))
+    }
+}
+
+impl Shape {
+    /// World bounds of an analytic shape (meshes are bounded per triangle).
+    pub fn analytic_bounds(&self) -> Aabb {
+        match &self.geometry {
+            Geometry::Sphere { center, radius } => Aabb {
+                min: center - DVec3::splat(*radius),
+                max: center + DVec3::splat(*radius),
+            },
+            Geometry::Disk { to_world, .. } => {
+                let (a, b) = (to_world.matrix3.x_axis, to_world.matrix3.y_axis);
+                let half = (a * a + b * b).map(f64::sqrt);
+                Aabb {
+                    min: to_world.translation - half,
+                    max: to_world.translation + half,
+                }
+            }
+            Geometry::Mesh { .. } => Aabb::EMPTY,
+        }
+    }
+
+    /// Distance to an analytic shape along a unit-direction ray, if in (0, t_max).
+    #[inline]
+    pub fn intersect_analytic(&self, o: DVec3, d: DVec3, t_max: f64) -> Option<f64> {
+        match &self.geometry {
+            Geometry::Sphere { center, radius } => {
+                // Hearn & Baker's form of the discriminant, which stays
+                // accurate for distant spheres (Ray Tracing Gems ch. 7).
+                let oc = o - *center;
+                let b = oc.dot(d);
+                let f = oc - d * b;
+                let disc = radius * radius - f.length_squared();
+                if disc < 0.0 {
+                    return None;
+                }
+                let c = oc.length_squared() - radius * radius;
+                let q = -b - disc.sqrt().copysign(b);
+                let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
+                let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+                [near, far].into_iter().find(|&t| t > 0.0 && t < t_max)
+            }
+            Geometry::Disk { to_local, .. } => {
+                let ol = to_local.transform_point3(o);
+                let dl = to_local.transform_vector3(d);
+                if dl.z == 0.0 {
+                    return None;
+                }
+                let t = -ol.z / dl.z;
+                if !(t > 0.0 && t < t_max) {
+                    return None;
+                }
+                let x = ol.x + t * dl.x;
+                let y = ol.y + t * dl.y;
+                (x * x + y * y <= 1.0).then_some(t)
+            }
+            Geometry::Mesh { .. } => None,
+        }
+    }
+
+    /// Surface point and front normal of an analytic hit at `t`, projected
+    /// back onto the surface so the error is a few ulps.
+    pub fn analytic_hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3) {
+        let p = o + d * t;
+        let (p, n) = match &self.geometry {
+            Geometry::Sphere { center, radius } => {
+                let n = (p - *center).normalize();
+                (*center + n * *radius, n)
+            }
+            Geometry::Disk {
+                to_world,
+                to_local,
+                normal,
+            } => {
+                let l = to_local.transform_point3(p);
+                (
+                    to_world.transform_point3(DVec3::new(l.x, l.y, 0.0)),
+                    *normal,
+                )
+            }
+            Geometry::Mesh { .. } => (p, DVec3::Z),
+        };
+        (p, if self.flip { -n } else { n })
+    }
+
+    /// Uniform point by area on an analytic shape: (point, front normal).
+    pub fn sample_analytic(&self, u: [f64; 2]) -> (DVec3, DVec3) {
+        let (p, n) = match &self.geometry {
+            Geometry::Sphere { center, radius } => {
+                let z = 1.0 - 2.0 * u[0];
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let (s, c) = (2.0 * PI * u[1]).sin_cos();
+                let n = DVec3::new(r * c, r * s, z);
+                (*center + n * *radius, n)
+            }
+            Geometry::Disk {
+                to_world, normal, ..
+            } => {
+                let q = concentric_disk(u);
+                (
+                    to_world.transform_point3(DVec3::new(q.x, q.y, 0.0)),
+                    *normal,
+                )
+            }
+            Geometry::Mesh { .. } => (DVec3::ZERO, DVec3::Z),
+        };
+        (p, if self.flip { -n } else { n })
+    }
+}
+
+/// Shirley & Chiu's concentric map of [0,1)² onto the unit disk
+/// ("A Low Distortion Map Between Disk and Square", 1997); area-preserving.
+pub(crate) fn concentric_disk(u: [f64; 2]) -> DVec2 {
+    let a = 2.0 * u[0] - 1.0;
+    let b = 2.0 * u[1] - 1.0;
+    if a == 0.0 && b == 0.0 {
+        return DVec2::ZERO;
+    }
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, PI / 4.0 * (b / a))
+    } else {
+        (b, PI / 2.0 - PI / 4.0 * (a / b))
+    };
+    let (s, c) = phi.sin_cos();
+    DVec2::new(r * c, r * s)
+}
+
+/// Uniform point on a triangle by area; barycentrics via the square-root
+/// warp (Osada et al., "Shape Distributions", 2002).
+pub(crate) fn sample_triangle(t: &Triangle, u: [f64; 2]) -> DVec3 {
+    let su = u[0].sqrt();
+    let b1 = su * (1.0 - u[1]);
+    let b2 = su * u[1];
+    t.point(b1, b2)
+}
+
+/// Area of the image of the unit disk under `to_world`.
+pub(crate) fn disk_area(to_world: &DAffine3) -> f64 {
+    PI * to_world
+        .matrix3
+        .x_axis
+        .cross(to_world.matrix3.y_axis)
+        .length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sphere_hit_from_outside_and_inside() {
+        let s = Shape {
+            geometry: Geometry::Sphere {
+                center: DVec3::new(0.0, 0.0, 5.0),
+                radius: 1.0,
+            },
+            material: 0,
+            emitter: None,
+            flip: false,
+            area: 4.0 * PI,
+        };
+        let t = s
+            .intersect_analytic(DVec3::ZERO, DVec3::Z, f64::INFINITY)
+            .unwrap();
+        assert!((t - 4.0).abs() < 1e-12);
+        let (p, n) = s.analytic_hit(DVec3::ZERO, DVec3::Z, t);
+        assert!((p - DVec3::new(0.0, 0.0, 4.0)).length() < 1e-12);
+        assert_eq!(n, -DVec3::Z); // outward normal, not flipped toward the ray
+        let t = s
+            .intersect_analytic(DVec3::new(0.0, 0.0, 5.0), DVec3::X, f64::INFINITY)
+            .unwrap();
+        assert!((t - 1.0).abs() < 1e-12);
+        assert!(s.intersect_analytic(DVec3::ZERO, DVec3::Z, 3.5).is_none());
+        assert!(
+            s.intersect_analytic(DVec3::ZERO, -DVec3::Z, f64::INFINITY)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn disk_hit_respects_radius_and_normal() {
+        let to_world = DAffine3::from_translation(DVec3::new(0.0, 1.0, 0.0))
+            * DAffine3::from_rotation_x(-PI / 2.0)
+            * DAffine3::from_scale(DVec3::new(2.0, 1.0, 1.0));
+        let s = Shape {
+            geometry: Geometry::Disk {
+                to_world,
+                to_local: to_world.inverse(),
+                normal: (to_world.matrix3.inverse().transpose() * DVec3::Z).normalize(),
+            },
+            material: 0,
+            emitter: None,
+            flip: true,
+            area: disk_area(&to_world),
+        };
+        assert!((s.area - 2.0 * PI).abs() < 1e-12);
+        // Ellipse in y = 1 with semi-axes 2 (x) and 1 (z); rotating +z by
+        // −90° about x gives +y, and flip turns the front to −y.
+        let o = DVec3::new(1.9, 0.0, 0.0);
+        let t = s.intersect_analytic(o, DVec3::Y, 10.0).unwrap();
+        assert!((t - 1.0).abs() < 1e-12);
+        assert!((s.analytic_hit(o, DVec3::Y, t).1 + DVec3::Y).length() < 1e-12);
+        assert!(
+            s.intersect_analytic(DVec3::new(0.0, 0.0, 1.1), DVec3::Y, 10.0)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn triangle_intersection_reports_barycentrics() {
+        let t = Triangle {
+            p: [DVec3::ZERO, DVec3::X, DVec3::Y],
+            shape: 0,
+            primitive: 0,
+            normals: u32::MAX,
+        };
+        let a = TriangleAccel::new(&t);
+        let o = DVec3::new(0.25, 0.5, 1.0);
+        let (d, u, v) = a.intersect(o, -DVec3::Z, 10.0).unwrap();
+        assert!((d - 1.0).abs() < 1e-15 && (u - 0.25).abs() < 1e-15 && (v - 0.5).abs() < 1e-15);
+        assert_eq!(t.point(u, v), DVec3::new(0.25, 0.5, 0.0));
+        assert!(
+            a.intersect(DVec3::new(0.75, 0.5, 1.0), -DVec3::Z, 10.0)
+                .is_none()
+        );
+        assert!(a.intersect(o, DVec3::Z, 10.0).is_none());
+        assert_eq!(t.normal(), DVec3::Z);
+    }
+}

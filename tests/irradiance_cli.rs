@@ -1,0 +1,90 @@
+//! Runs the real `bmc-irradiance irradiance` binary on the bundled Cornell box.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn manifest_dir() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn write_points(name: &str, text: &str) -> PathBuf {
+    let path =
+        std::env::temp_dir().join(format!("bmc-irradiance-{name}-{}.csv", std::process::id()));
+    std::fs::write(&path, text).expect("write points file");
+    path
+}
+
+fn run(points: &Path, extra: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
+        .arg("irradiance")
+        .arg("--scene")
+        .arg(manifest_dir().join("scenes/cornell-box.json"))
+        .arg("--points")
+        .arg(points)
+        .args(extra)
+        .output()
+        .expect("binary runs")
+}
+
+/// Runs with whitespace-separated `args`, expects success and returns the
+/// numeric rows of the CSV written with `--std-error`.
+fn run_ok(points: &Path, args: &str) -> Vec<Vec<f64>> {
+    let output = run(points, &args.split_whitespace().collect::<Vec<_>>());
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let text = String::from_utf8(output.stdout).expect("utf-8 output");
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,z,r,g,b,se_r,se_g,se_b"));
+    lines
+        .map(|l| l.split(',').map(|f| f.parse().expect("number")).collect())
+        .collect()
+}
+
+#[test]
+fn cornell_box_irradiance_is_written_as_csv() {
+    let points = write_points(
+        "cornell",
+        "x,y,z,nx,ny,nz\n0,-0.999,0.8,0,1,0\n-0.999,0,0,1,0,0\n0.999,0,0,-1,0,0\n",
+    );
+    let direct = run_ok(
+        &points,
+        "--samples 1024 --direct-only --std-error --threads 2",
+    );
+    let full = run_ok(&points, "--samples 1024 --max-depth 8 --std-error --seed 3");
+    assert_eq!(direct.len(), 3);
+    assert_eq!(full.len(), 3);
+    for (d, f) in direct.iter().zip(&full) {
+        assert_eq!(d[..3], f[..3], "rows keep the input order");
+        for c in 3..6 {
+            assert!(d[c] > 0.0 && d[c].is_finite(), "{d:?}");
+        }
+        // Interreflection adds a clearly measurable amount of red and green.
+        for c in 3..5 {
+            let noise = 4.0 * d[c + 3].hypot(f[c + 3]);
+            assert!(f[c] > d[c] + noise, "{d:?} {f:?}");
+        }
+    }
+    std::fs::remove_file(points).ok();
+}
+
+#[test]
+fn bad_rows_and_bad_options_fail_with_a_message() {
+    let points = write_points("bad", "0,0,0,0,1,0\n0,0,0,0,0,0\n");
+    let out = run(&points, &["--samples", "4"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("line 2") && stderr.contains("normal"),
+        "{stderr}"
+    );
+
+    let good = write_points("good", "0,0,0,0,1,0\n");
+    let out = run(&good, &["--samples", "0"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("samples"));
+    std::fs::remove_file(points).ok();
+    std::fs::remove_file(good).ok();
+}
