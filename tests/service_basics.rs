@@ -72,6 +72,11 @@ async fn openapi_lists_every_route() {
         ("/health", "get"),
         ("/metrics", "get"),
         ("/openapi.json", "get"),
+        ("/v1/scenes", "get"),
+        ("/v1/scenes", "post"),
+        ("/v1/scenes/{id}", "get"),
+        ("/v1/scenes/{id}", "delete"),
+        ("/v1/scenes/{id}/irradiance", "post"),
     ] {
         assert!(paths[path].get(method).is_some(), "{path} {method} missing");
     }

@@ -154,6 +154,7 @@ pub fn router(state: Arc<AppState>) -> Router {
             routes::scenes::get_scene,
             routes::scenes::delete_scene
         ))
+        .routes(routes!(routes::irradiance::irradiance))
         .split_for_parts();
     let limits = state.config.limits.clone();
     with_middleware(

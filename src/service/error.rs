@@ -174,18 +174,6 @@ impl From<crate::scene::SceneError> for ApiError {
     }
 }
 
-/// Bad query points or options name their field (422).
-impl From<crate::render::RenderError> for ApiError {
-    fn from(err: crate::render::RenderError) -> Self {
-        let field = match &err {
-            crate::render::RenderError::InvalidPoint { field, .. }
-            | crate::render::RenderError::InvalidOption { field, .. } => (*field).to_owned(),
-            crate::render::RenderError::PointsRow { line, .. } => format!("line {line}"),
-        };
-        ApiError::invalid(field, err.to_string())
-    }
-}
-
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         if let ApiError::Internal { message } = &self {

@@ -3,6 +3,7 @@
 //! exactly the routes the router serves.
 
 pub mod health;
+pub mod irradiance;
 pub mod metrics;
 pub mod openapi;
 pub mod scenes;
