@@ -7,17 +7,29 @@
 //! ## Layout
 //! Modules are listed here as they land; the math never knows about HTTP.
 //! - `sphere`: local shading frames and hemisphere sample sets (local frame, z = normal).
-//! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance.
-//! - `scene`: JSON scene loading, shapes, materials, emitters, environment
-//!   maps, camera, BVH ray tracing (`intersect`, `occluded`).
+//! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance;
+//!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
+//!   `bmc::estimator` (MC, QMC, BMC behind one interface), `bmc::hyperparameters`
+//!   (marginal-likelihood fit of ℓ, σ², σ_n²).
+//! - `scene`: JSON and Mitsuba 3 XML (`scene::mitsuba`) scene loading, shapes,
+//!   materials, emitters, environment maps, camera, BVH ray tracing
+//!   (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
 //!   `L_i(x, ω)` and irradiance `E(x, n)` at points.
+//! - `study`: synthetic environments with known irradiance and the estimator
+//!   convergence study (MC vs QMC vs BMC).
+//! - `cache`: Bayesian irradiance cache — BMC records with variance and
+//!   gradients, concurrent spatial index, interpolation, reproducible placement.
+//! - `cli`: the binary's subcommands (`quadrature`, `study`) as library functions.
 //! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).
 //! - `loadtest`: closed-loop load generator for the service (`loadtest` subcommand).
 
 pub mod bmc;
+pub mod cache;
+pub mod cli;
 pub mod loadtest;
 pub mod render;
 pub mod scene;
 pub mod service;
 pub mod sphere;
+pub mod study;

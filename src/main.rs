@@ -1,5 +1,6 @@
 //! Thin command-line front end; all work lives in the library.
 
+use bmc_irradiance::cli;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -21,6 +22,10 @@ enum Command {
     Serve(bmc_irradiance::service::ServeArgs),
     /// Closed-loop load test of a running service on this machine.
     Loadtest(bmc_irradiance::loadtest::LoadTestArgs),
+    /// Print the BMC quadrature (directions, kernel means, weights, variances) of one configuration.
+    Quadrature(cli::quadrature::QuadratureArgs),
+    /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
+    Study(cli::study::StudyArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -32,5 +37,12 @@ fn main() -> anyhow::Result<()> {
         ),
         Command::Serve(args) => bmc_irradiance::service::run_serve(&args),
         Command::Loadtest(args) => bmc_irradiance::loadtest::run_loadtest(&args),
+        Command::Quadrature(args) => print_output(cli::quadrature::run(&args)?),
+        Command::Study(args) => print_output(cli::study::run(&args)?),
     }
+}
+
+fn print_output(output: String) -> anyhow::Result<()> {
+    println!("{output}");
+    Ok(())
 }

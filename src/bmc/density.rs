@@ -100,7 +100,7 @@ impl Density {
     /// clipped azimuthal integral is closed-form ([`clipped_cosine_arc`]), and
     /// for `u ≥ sin θ_r` the whole circle is above the horizon, which gives
     /// `cos θ_r (1 − sin^{m+2} θ_r)` in closed form; only `u < sin θ_r` is
-    /// integrated numerically.
+    /// integrated numerically (over `α = acos u`).
     pub fn integral(&self) -> f64 {
         match *self {
             Density::Uniform | Density::Lambert => 1.0,
@@ -110,14 +110,15 @@ impl Density {
             } => {
                 let (sin_r, cos_r) = mirror_elevation.sin_cos();
                 let unclipped = cos_r * (1.0 - sin_r.powf(m + 2.0));
+                // Over α (not u): sin α stays analytic up to α = 0, which the
+                // clipped range reaches for grazing r.
                 let clipped = adaptive(
-                    &|u: f64| {
-                        let a = u * cos_r;
-                        let b = (1.0 - u * u).max(0.0).sqrt() * sin_r;
-                        u.powf(m) * clipped_cosine_arc(a, b)
+                    &|alpha: f64| {
+                        let (v, u) = alpha.sin_cos();
+                        u.powf(m) * v * clipped_cosine_arc(u * cos_r, v * sin_r)
                     },
-                    0.0,
-                    sin_r,
+                    FRAC_PI_2 - mirror_elevation,
+                    FRAC_PI_2,
                     Tolerance {
                         rel: 1e-13,
                         abs: 0.0,

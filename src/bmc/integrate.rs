@@ -1,5 +1,6 @@
-//! One-dimensional numerical integration: Gauss–Legendre rules and an
-//! globally adaptive bisection driver, the building blocks of the exact kernel means.
+//! One-dimensional numerical integration: Gauss–Legendre rules and a
+//! globally adaptive bisection driver, the building blocks of the exact
+//! kernel means.
 //!
 //! The adaptive scheme values each panel by a 12-point Gauss–Legendre rule on
 //! its two halves, `L + R`, and takes `|L + R − W|` (`W`: the rule on the
@@ -28,20 +29,17 @@ impl GaussLegendre {
         let mut nodes = vec![0.0; n];
         let mut weights = vec![0.0; n];
         for i in 0..n.div_ceil(2) {
-            // Tricomi's initial guess for the i-th largest root.
+            // Standard asymptotic initial guess for the i-th largest root.
             let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-            let mut dp = 1.0;
             for _ in 0..100 {
                 let (p, d) = legendre_with_derivative(n, x);
-                dp = d;
                 let dx = p / d;
                 x -= dx;
                 if dx.abs() < 1e-16 {
                     break;
                 }
             }
-            let (_, d) = legendre_with_derivative(n, x);
-            dp = if d.is_finite() { d } else { dp };
+            let (_, dp) = legendre_with_derivative(n, x);
             let w = 2.0 / ((1.0 - x * x) * dp * dp);
             nodes[i] = -x;
             nodes[n - 1 - i] = x;
@@ -95,16 +93,6 @@ pub(crate) struct Tolerance {
 }
 
 impl Tolerance {
-    /// Tolerance for an integral nested inside an outer one over an interval
-    /// of length `outer_length`: inner absolute errors integrate to at most
-    /// `outer_length ×` their size.
-    pub fn nested(self, outer_length: f64) -> Tolerance {
-        Tolerance {
-            rel: self.rel,
-            abs: self.abs / outer_length.max(1e-300),
-        }
-    }
-
     /// Tolerance for an integral that is multiplied by `factor` afterwards.
     pub fn scaled(self, factor: f64) -> Tolerance {
         Tolerance {

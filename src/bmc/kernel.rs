@@ -9,6 +9,13 @@ use serde::{Deserialize, Serialize};
 
 use super::error::BmcError;
 
+/// Smallest accepted lengthscale: far below the spacing of the densest
+/// sample set (~0.03 at N = 8192), and keeps `1/ℓ²` well inside `f64` range.
+pub const MIN_LENGTHSCALE: f64 = 1e-2;
+/// Largest accepted lengthscale: beyond it every kernel matrix is the
+/// all-`σ²` matrix to machine precision (chords are at most 2).
+pub const MAX_LENGTHSCALE: f64 = 1e3;
+
 /// Shape of the covariance as a function of `d/ℓ`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -25,7 +32,8 @@ pub enum KernelKind {
 /// A stationary kernel of the chordal distance with its hyperparameters.
 ///
 /// Invariant (checked by [`Kernel::new`] and [`Kernel::validate`]):
-/// `lengthscale > 0`, `variance > 0`, `noise ≥ 0`, all finite.
+/// `MIN_LENGTHSCALE ≤ lengthscale ≤ MAX_LENGTHSCALE`, `variance > 0`,
+/// `noise ≥ 0`, all finite.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Kernel {
     /// Which covariance shape.
@@ -67,10 +75,13 @@ impl Kernel {
 
     /// Check the invariant (fields are public, so constructed values may break it).
     pub fn validate(&self) -> Result<(), BmcError> {
-        if !(self.lengthscale.is_finite() && self.lengthscale > 0.0) {
+        if !(MIN_LENGTHSCALE..=MAX_LENGTHSCALE).contains(&self.lengthscale) {
             return Err(BmcError::invalid(
                 "lengthscale",
-                format!("must be finite and > 0, got {}", self.lengthscale),
+                format!(
+                    "must be in [{MIN_LENGTHSCALE}, {MAX_LENGTHSCALE}], got {}",
+                    self.lengthscale
+                ),
             ));
         }
         if !(self.variance.is_finite() && self.variance > 0.0) {
@@ -173,6 +184,8 @@ mod tests {
         let se = KernelKind::SquaredExponential;
         for (l, v, n, field) in [
             (0.0, 1.0, 0.0, "lengthscale"),
+            (1e-3, 1.0, 0.0, "lengthscale"),
+            (1e4, 1.0, 0.0, "lengthscale"),
             (-1.0, 1.0, 0.0, "lengthscale"),
             (f64::NAN, 1.0, 0.0, "lengthscale"),
             (f64::INFINITY, 1.0, 0.0, "lengthscale"),

@@ -76,9 +76,11 @@ impl Quadrature {
     /// `Î = m̂ P + zᵀQ⁻¹(Y − m̂1)`, `m̂ = uᵀY/s`, so `w = Q⁻¹z + u R/s` (and
     /// `Σ w = P`), and `V = V₀ − zᵀQ⁻¹z + R²/s`, the extra term being the
     /// uncertainty of `m̂` (Rasmussen & Williams, *Gaussian Processes for
-    /// Machine Learning*, 2006, §2.7 eq. 2.42 with basis `h = 1`, whose
-    /// "test" basis value is `∫ 1 p = P` and cross-covariance `z`; O'Hagan
-    /// 1991, "Bayes–Hermite quadrature", §3).
+    /// Machine Learning*, 2006, §2.7, eqs. 2.41–2.42, with a vague prior on
+    /// the coefficient and basis `h = 1`, whose "test" value is `∫ 1 p = P`
+    /// and whose cross-covariance is `z`; O'Hagan 1991, "Bayes–Hermite
+    /// quadrature"). The test `variances_equal_the_error_variance_of_their_weights`
+    /// checks it against `wᵀQw − 2wᵀz + V₀`.
     pub fn new(
         set: &SampleSet,
         kernel: &Kernel,
@@ -186,6 +188,12 @@ mod tests {
         (f, q)
     }
 
+    /// A grazing, clipped glossy lobe.
+    const PHONG: Density = Density::Phong {
+        exponent: 12.0,
+        mirror_elevation: 1.1,
+    };
+
     fn kernels() -> [Kernel; 3] {
         [
             Kernel::new(KernelKind::SquaredExponential, 0.4, 1.0, 0.0).unwrap(),
@@ -198,21 +206,24 @@ mod tests {
     #[test]
     fn weights_integrate_kernel_sections_exactly() {
         let s = set(SampleSetKind::Uniform, 24, 4);
-        for k in kernels() {
-            for d in [Density::Lambert, Density::Uniform] {
-                let (f, q) = rule(&s, &k, &d, PriorMean::Zero);
-                let diag = k.noise + f.jitter;
-                let zmax = q.kernel_means.iter().fold(0.0f64, |a, b| a.max(*b));
-                for (j, wj) in s.directions.iter().enumerate() {
-                    let kw: f64 = s
-                        .directions
-                        .iter()
-                        .zip(&q.weights)
-                        .map(|(wi, w)| w * k.eval(*wi, *wj))
-                        .sum();
-                    let expected = q.kernel_means[j] - diag * q.weights[j];
-                    assert!((kw - expected).abs() < 1e-9 * zmax, "{k:?} {d:?} j={j}");
-                }
+        let mut cases: Vec<(Kernel, Density)> = kernels()
+            .into_iter()
+            .flat_map(|k| [(k, Density::Lambert), (k, Density::Uniform)])
+            .collect();
+        cases.push((kernels()[0], PHONG));
+        for (k, d) in cases {
+            let (f, q) = rule(&s, &k, &d, PriorMean::Zero);
+            let diag = k.noise + f.jitter;
+            let zmax = q.kernel_means.iter().fold(0.0f64, |a, b| a.max(*b));
+            for (j, wj) in s.directions.iter().enumerate() {
+                let kw: f64 = s
+                    .directions
+                    .iter()
+                    .zip(&q.weights)
+                    .map(|(wi, w)| w * k.eval(*wi, *wj))
+                    .sum();
+                let expected = q.kernel_means[j] - diag * q.weights[j];
+                assert!((kw - expected).abs() < 1e-9 * zmax, "{k:?} {d:?} j={j}");
             }
         }
     }
@@ -239,6 +250,19 @@ mod tests {
                 }
             }
         }
+        let k = kernels()[0];
+        let mut last = f64::INFINITY;
+        for n in [4, 16] {
+            let (_, q) = rule(
+                &set(SampleSetKind::Uniform, n, 11),
+                &k,
+                &PHONG,
+                PriorMean::Zero,
+            );
+            assert!(q.posterior_variance >= 0.0 && q.posterior_variance < last);
+            assert!(q.posterior_variance <= q.prior_variance);
+            last = q.posterior_variance;
+        }
     }
 
     fn q0(k: &Kernel, d: &Density) -> f64 {
@@ -255,6 +279,11 @@ mod tests {
                 let (_, q) = rule(&s, &k, &d, PriorMean::Gls);
                 let sum: f64 = q.weights.iter().sum();
                 assert!((sum - d.integral()).abs() < 1e-12, "{k:?} {d:?}");
+            }
+            if k.kind != KernelKind::Matern32 {
+                let (_, q) = rule(&s, &k, &PHONG, PriorMean::Gls);
+                let sum: f64 = q.weights.iter().sum();
+                assert!((sum - PHONG.integral()).abs() < 1e-12, "{k:?} Phong");
             }
             let (_, q) = rule(&s, &k, &Density::Lambert, PriorMean::Gls);
             let radiance = 3.7;
@@ -291,6 +320,42 @@ mod tests {
         assert!((PI * q.estimate(&y) / exact - 1.0).abs() < 1e-6);
     }
 
+    /// Both variances are the exact error variance of their linear
+    /// estimator: for any weights, `Var(Σ w_i Y_i − I) = wᵀQw − 2wᵀz + V₀`
+    /// under `f ~ GP(0, k)`; with the GLS weights, the error does not depend on
+    /// the unknown constant at all (the weights sum to `∫p`), so the
+    /// universal-kriging formula must agree with this identity exactly.
+    #[test]
+    fn variances_equal_the_error_variance_of_their_weights() {
+        let s = set(SampleSetKind::Cosine, 20, 8);
+        for k in kernels() {
+            for d in [Density::Lambert, PHONG] {
+                for mean in [PriorMean::Zero, PriorMean::Gls] {
+                    if k.kind == KernelKind::Matern32 && d == PHONG {
+                        continue; // slowest combination; covered by calibration
+                    }
+                    let (f, q) = rule(&s, &k, &d, mean);
+                    let n = s.len();
+                    let w = &q.weights;
+                    let mut wqw = 0.0;
+                    for i in 0..n {
+                        for j in 0..n {
+                            wqw += w[i] * w[j] * k.eval(s.directions[i], s.directions[j]);
+                        }
+                        wqw += w[i] * w[i] * (k.noise + f.jitter);
+                    }
+                    let wz: f64 = w.iter().zip(&q.kernel_means).map(|(a, b)| a * b).sum();
+                    let direct = wqw - 2.0 * wz + q.prior_variance;
+                    assert!(
+                        (direct - q.raw_posterior_variance).abs() < 1e-9 * q.prior_variance,
+                        "{k:?} {d:?} {mean:?}: {direct} vs {}",
+                        q.raw_posterior_variance
+                    );
+                }
+            }
+        }
+    }
+
     fn standard_normal(rng: &mut Pcg64) -> f64 {
         // Box–Muller; 1 − U keeps the logarithm finite.
         let u1: f64 = 1.0 - rng.random::<f64>();
@@ -311,6 +376,10 @@ mod tests {
             ),
             (
                 Kernel::new(KernelKind::Matern32, 0.4, 2.0, 0.01).unwrap(),
+                PHONG,
+            ),
+            (
+                Kernel::new(KernelKind::Matern52, 0.3, 1.0, 0.0).unwrap(),
                 Density::Uniform,
             ),
         ] {

@@ -21,6 +21,22 @@ use super::{Camera, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
 const MAX_SCENE_BYTES: u64 = 1 << 30;
 
 pub(super) fn load(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError> {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("xml"))
+    {
+        let options = super::mitsuba::MitsubaOptions::default();
+        return super::mitsuba::load(path, scenes_root, &options).map(|(scene, _)| scene);
+    }
+    let text = read_scene_file(path)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut scene = from_json_str(&text, &path.display().to_string(), base, scenes_root)?;
+    name_from_file(&mut scene, path);
+    Ok(scene)
+}
+
+/// Reads a scene file as text, refusing files above [`MAX_SCENE_BYTES`].
+pub(super) fn read_scene_file(path: &Path) -> Result<String, SceneError> {
     let io = |source| SceneError::Io {
         file: path.to_path_buf(),
         source,
@@ -31,16 +47,17 @@ pub(super) fn load(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError>
             "{size} bytes exceeds the {MAX_SCENE_BYTES}-byte limit"
         ))));
     }
-    let text = std::fs::read_to_string(path).map_err(io)?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let mut scene = from_json_str(&text, &path.display().to_string(), base, scenes_root)?;
+    std::fs::read_to_string(path).map_err(io)
+}
+
+/// Names an unnamed scene after its file's stem.
+pub(super) fn name_from_file(scene: &mut Scene, path: &Path) {
     if scene.name.is_empty() {
         scene.name = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
     }
-    Ok(scene)
 }
 
 /// Parses and validates; `file` is used in syntax error messages.
@@ -75,13 +92,13 @@ pub(super) fn from_json_str(
 
 /// Resolves referenced file names: relative to the scene file, never outside
 /// the scenes directory (checked lexically and again after following links).
-struct Files {
+pub(super) struct Files {
     base: PathBuf,
     root: PathBuf,
 }
 
 impl Files {
-    fn new(base_dir: &Path, scenes_root: &Path) -> Result<Self, SceneError> {
+    pub(super) fn new(base_dir: &Path, scenes_root: &Path) -> Result<Self, SceneError> {
         let canon = |p: &Path| {
             p.canonicalize().map_err(|e| {
                 SceneError::file("scenes_root", p, format!("cannot resolve directory: {e}"))
@@ -93,7 +110,7 @@ impl Files {
         })
     }
 
-    fn resolve(&self, name: &str, field: &str) -> Result<PathBuf, SceneError> {
+    pub(super) fn resolve(&self, name: &str, field: &str) -> Result<PathBuf, SceneError> {
         let escape = || SceneError::PathEscape {
             field: field.to_string(),
             path: name.to_string(),
@@ -135,7 +152,7 @@ fn reject_fields(field: &str, kind: &str, present: &[(&str, bool)]) -> Result<()
     }
 }
 
-fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
+pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
     let mut materials = Vec::new();
     let mut material_ids = Vec::new();
     let mut by_id = HashMap::new();

@@ -14,6 +14,7 @@ pub mod generate;
 mod loader;
 pub mod material;
 pub mod mesh;
+pub mod mitsuba;
 pub mod ray;
 mod shape;
 pub mod transform;
@@ -25,6 +26,7 @@ pub use emitter::Emitter;
 pub use environment::{Environment, EnvironmentMap};
 pub use error::SceneError;
 pub use material::Material;
+pub use mitsuba::{MitsubaOptions, Warning};
 pub use ray::Ray;
 
 use bvh::Bvh;
@@ -83,7 +85,9 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Loads a JSON scene file. Referenced files must lie inside `scenes_root`.
+    /// Loads a scene file: Mitsuba 3 XML if the extension is `.xml` (strict:
+    /// unsupported features are errors), JSON otherwise. Referenced files
+    /// must lie inside `scenes_root`.
     pub fn load(
         path: &std::path::Path,
         scenes_root: &std::path::Path,
@@ -99,6 +103,28 @@ impl Scene {
         scenes_root: &std::path::Path,
     ) -> Result<Scene, SceneError> {
         loader::from_json_str(text, "<string>", base_dir, scenes_root)
+    }
+
+    /// Parses a Mitsuba 3 XML scene from text (see `docs/scene-format.md`,
+    /// "Mitsuba 3 XML"); relative file names resolve against `base_dir` and
+    /// must lie inside `scenes_root`. Returns the approximations made.
+    pub fn from_mitsuba_xml_str(
+        text: &str,
+        base_dir: &std::path::Path,
+        scenes_root: &std::path::Path,
+        options: &MitsubaOptions,
+    ) -> Result<(Scene, Vec<Warning>), SceneError> {
+        mitsuba::from_str(text, "<string>", base_dir, scenes_root, options)
+    }
+
+    /// Loads a Mitsuba 3 XML scene file with `options`; see
+    /// [`Scene::from_mitsuba_xml_str`].
+    pub fn load_mitsuba_xml(
+        path: &std::path::Path,
+        scenes_root: &std::path::Path,
+        options: &MitsubaOptions,
+    ) -> Result<(Scene, Vec<Warning>), SceneError> {
+        mitsuba::load(path, scenes_root, options)
     }
 
     /// Closest hit with `0 < t < ray.t_max`.

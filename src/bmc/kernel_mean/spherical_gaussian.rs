@@ -5,7 +5,8 @@
 //! The density is replaced by one SG on the whole sphere: the clamped cosine
 //! by `a_c e^{λ_c(ω·n − 1)}`, the Phong lobe `max(0, ω·r)^m` by
 //! `a_m e^{λ_m(ω·r − 1)}`, the uniform hemisphere by `a_u e^{λ_u(ω·n − 1)}`,
-//! each fitted here by least squares on the sphere, and products of SGs are
+//! each fitted here by least squares on the sphere (then rescaled to the exact
+//! mass `∫_H p`), and products of SGs are
 //! SGs. The SE kernel is itself an SG (`λ = 1/ℓ²`, amplitude `σ²`), so every
 //! kernel mean is the integral of a product of two SGs over S²: closed form.
 //! `V₀` is then a 1-D integral over `ω·μ_p`, evaluated by quadrature. The
@@ -120,8 +121,17 @@ pub(crate) fn cosine_fit() -> (f64, f64) {
     *FIT.get_or_init(|| fit_zonal(&|mu| mu, &[]))
 }
 
-/// One SG approximating the density on the whole sphere.
+/// One SG approximating the density on the whole sphere, its amplitude
+/// rescaled so that `∫_{S²} p_SG = ∫_H p` exactly: the least-squares fit alone
+/// misses the mass by 2–15 %, which would bias every long-lengthscale kernel
+/// mean by as much (kernel means tend to `σ² ∫p` as `ℓ → ∞`).
 pub(crate) fn density_sg(density: &Density) -> SphericalGaussian {
+    let mut p = fitted_density_sg(density);
+    p.amplitude *= density.integral() / p.integral();
+    p
+}
+
+fn fitted_density_sg(density: &Density) -> SphericalGaussian {
     let about = |axis: DVec3, (sharpness, amplitude): (f64, f64)| SphericalGaussian {
         axis,
         sharpness,

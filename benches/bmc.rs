@@ -1,0 +1,91 @@
+//! BMC quadrature costs (issue 2): cold weight computation (sample set,
+//! factorisation, exact kernel means, solves), a cached lookup, and one
+//! estimate (the dot product `wᵀY`). SE kernel, Lambert density, GLS mean.
+
+use std::hint::black_box;
+
+use bmc_irradiance::bmc::cache::QuadratureCache;
+use bmc_irradiance::bmc::estimator::{BayesianEstimator, BmcVariance, HemisphereEstimator};
+use bmc_irradiance::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+use bmc_irradiance::sphere::{SampleSetKind, SampleSetSpec};
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use rand::SeedableRng;
+
+fn spec(count: usize) -> SampleSetSpec {
+    SampleSetSpec {
+        kind: SampleSetKind::Fibonacci,
+        count,
+        seed: 0,
+    }
+}
+
+fn kernel() -> Kernel {
+    Kernel::new(KernelKind::SquaredExponential, 0.5, 1.0, 1e-8).expect("valid kernel")
+}
+
+fn weights(c: &mut Criterion) {
+    let mut group = c.benchmark_group("bmc_weights_cold");
+    group.sample_size(10);
+    for n in [64, 256, 1024, 2048] {
+        group.bench_with_input(BenchmarkId::from_parameter(n), &n, |b, &n| {
+            b.iter(|| {
+                // A fresh cache per iteration: nothing is reused.
+                let cache = QuadratureCache::new(1 << 30);
+                cache
+                    .quadrature(
+                        black_box(spec(n)),
+                        &kernel(),
+                        &Density::Lambert,
+                        PriorMean::Gls,
+                        KernelMeanMethod::Exact,
+                    )
+                    .expect("weights")
+            })
+        });
+    }
+    group.finish();
+}
+
+fn cached_lookup(c: &mut Criterion) {
+    let cache = QuadratureCache::new(1 << 30);
+    let lookup = || {
+        cache.quadrature(
+            black_box(spec(64)),
+            &kernel(),
+            &Density::Lambert,
+            PriorMean::Gls,
+            KernelMeanMethod::Exact,
+        )
+    };
+    lookup().expect("weights");
+    c.bench_function("bmc_weights_cached_lookup_64", |b| {
+        b.iter(|| lookup().expect("cached weights"))
+    });
+}
+
+fn estimate(c: &mut Criterion) {
+    let cache = QuadratureCache::new(1 << 30);
+    let (quadrature, _) = cache
+        .quadrature(
+            spec(64),
+            &kernel(),
+            &Density::Lambert,
+            PriorMean::Gls,
+            KernelMeanMethod::Exact,
+        )
+        .expect("weights");
+    let estimator = BayesianEstimator::new(quadrature, BmcVariance::Posterior);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
+    let directions = estimator.directions(&mut rng).into_owned();
+    let values: Vec<f64> = directions.iter().map(|d| 1.0 + d.x * d.z).collect();
+    c.bench_function("bmc_estimate_64", |b| {
+        b.iter(|| {
+            estimator
+                .estimate(black_box(&directions), black_box(&values))
+                .expect("estimate")
+        })
+    });
+}
+
+criterion_group!(benches, weights, cached_lookup, estimate);
+criterion_main!(benches);

@@ -1,0 +1,248 @@
+//! Computing records by BMC at surface points, and the two-pass reproducible
+//! scheme: a placement pass over the points in a fixed order that decides
+//! where records go, then a shading pass that only reads the cache.
+//!
+//! # Reproducibility
+//! Point `i` of a request draws every random number (its rotation about the
+//! normal, then its paths) from [`point_rng`]`(seed, i)`. The placement pass
+//! takes the points in batches of `batch_size` in the given order: every
+//! decision in a batch is made against the cache state at the batch start,
+//! only the records are computed in parallel, and they are inserted in point
+//! order. So which records exist, their values and their radii (including
+//! the neighbour clamp and FIFO eviction, both functions of the insertion
+//! order) do not depend on the thread count. Lookups visit records in an
+//! order fixed by the insertion order too, so interpolated values are
+//! bit-identical. [`place_and_shade`] runs both passes on a private cache,
+//! which makes the result independent of anything other requests did; a
+//! caller may afterwards copy its records into the shared cache. The
+//! batch size trades parallelism against duplicate records for nearby points
+//! of one batch.
+//!
+//! # Light leaks
+//! With `occlusion_check`, a record is only used if a shadow ray between the
+//! point and the record, both lifted off their surfaces by `10⁻³ R_k` along
+//! their normals, is unobstructed; this stops records from being used
+//! through thin walls (a point and a record on opposite sides) at the cost of
+//! one ray per candidate record.
+
+use std::f64::consts::TAU;
+
+use rand::{Rng, RngExt};
+use rayon::prelude::*;
+
+use super::error::CacheError;
+use super::irradiance_cache::{Accuracy, CacheConfig, Interpolated, IrradianceCache};
+use super::record::{PixelFootprint, RadiusLimits, Record};
+use super::record_rule::RecordRule;
+use crate::render::seed::point_rng;
+use crate::render::{PathLimits, QueryPoint, TraceStats, Transport};
+use crate::sphere::Frame;
+
+/// Relative lift of the occlusion-test ray ends off their surfaces.
+const OCCLUSION_LIFT: f64 = 1e-3;
+
+/// A point where irradiance is wanted, with the optional pixel footprint
+/// that bounds a record's radius there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlacementPoint {
+    pub point: QueryPoint,
+    pub footprint: Option<PixelFootprint>,
+}
+
+/// How records are placed and used.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlacementOptions {
+    /// Which paths the records' rays sum: [`crate::render::PathLengths::Indirect`]
+    /// when direct light is added separately by light sampling, `All` otherwise.
+    pub paths: PathLimits,
+    /// Ward's accuracy for deciding coverage and for shading.
+    pub accuracy: Accuracy,
+    /// Variance-driven placement: also create a record where the cache does
+    /// give a value but its relative standard error of luminance,
+    /// `sqrt(Σ_c y_c² V_c)/Y(E)` (Rec. 709 weights `y_c`, channels taken as
+    /// independent), exceeds this.
+    pub relative_error_target: Option<f64>,
+    /// Shadow-ray test between point and record (module docs).
+    pub occlusion_check: bool,
+    /// Seed of every random stream of the request.
+    pub seed: u64,
+    /// Points decided per batch (≥ 1).
+    pub batch_size: usize,
+}
+
+/// What a placement pass did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct PlacementReport {
+    pub records_created: u64,
+    /// Of those, created because of the variance target.
+    pub records_for_variance: u64,
+    /// Rays traced for records.
+    pub rays: u64,
+}
+
+/// BMC record at `point`: the rule's directions turned about the normal by a
+/// random angle from `rng`, one radiance sample each, `E = π Σ w_i L_i`
+/// (see [`RecordRule::estimate`]) and the harmonic-mean radius within
+/// `limits` (tightened by the point's footprint).
+pub fn compute_record<R: Rng + ?Sized>(
+    transport: &Transport,
+    rule: &RecordRule,
+    target: &PlacementPoint,
+    limits: RadiusLimits,
+    paths: PathLimits,
+    rng: &mut R,
+    stats: &mut TraceStats,
+) -> Result<Record, CacheError> {
+    let point = &target.point;
+    let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
+    let samples = transport.hemisphere_samples(point, &frame, rule.directions(), paths, rng, stats);
+    let estimate = rule.estimate(&samples)?;
+    let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
+    let limits = match &target.footprint {
+        Some(fp) => limits.with_footprint(fp),
+        None => limits,
+    };
+    Ok(Record::from_estimate(
+        point, &frame, &estimate, &distances, limits,
+    ))
+}
+
+/// Cache lookup with the options' accuracy and optional occlusion test.
+pub fn lookup(
+    cache: &IrradianceCache,
+    transport: &Transport,
+    point: &QueryPoint,
+    options: &PlacementOptions,
+) -> Option<Interpolated> {
+    if !options.occlusion_check {
+        return cache.lookup(point, options.accuracy);
+    }
+    let scene = transport.scene();
+    let (x, n) = (point.position(), point.normal());
+    cache.lookup_filtered(point, options.accuracy, |r| {
+        let lift = OCCLUSION_LIFT * r.radius;
+        let from = x + n * lift;
+        let ray = scene.spawn_ray_to(from, n, r.position + r.normal * lift, None);
+        !scene.occluded(&ray)
+    })
+}
+
+/// Whether the variance target asks for another record here.
+fn too_uncertain(found: &Interpolated, target: f64) -> bool {
+    const Y: [f64; 3] = [0.2126, 0.7152, 0.0722];
+    let e = found.irradiance.to_array();
+    let v = found.variance.to_array();
+    let lum: f64 = (0..3).map(|c| Y[c] * e[c]).sum();
+    let var: f64 = (0..3).map(|c| Y[c] * Y[c] * v[c]).sum();
+    lum > 0.0 && var.sqrt() > target * lum
+}
+
+fn validate(options: &PlacementOptions) -> Result<(), CacheError> {
+    if options.batch_size == 0 {
+        return Err(CacheError::invalid("batch_size", "must be at least 1"));
+    }
+    if let Some(t) = options.relative_error_target
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(CacheError::invalid(
+            "relative_error_target",
+            format!("must be finite and > 0, got {t}"),
+        ));
+    }
+    if options.paths.max_depth == 0
+        || options.paths.max_depth > crate::render::irradiance::MAX_DEPTH
+    {
+        return Err(CacheError::invalid(
+            "max_depth",
+            format!(
+                "must be in 1..={}, got {}",
+                crate::render::irradiance::MAX_DEPTH,
+                options.paths.max_depth
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Placement pass (module docs): records where the cache has no value (or,
+/// with a target, too uncertain a value) at each point, in point order.
+pub fn place_records(
+    cache: &IrradianceCache,
+    transport: &Transport,
+    rule: &RecordRule,
+    points: &[PlacementPoint],
+    options: &PlacementOptions,
+) -> Result<PlacementReport, CacheError> {
+    validate(options)?;
+    let limits = cache.radius_limits();
+    let mut report = PlacementReport::default();
+    for (b, batch) in points.chunks(options.batch_size).enumerate() {
+        let first = b * options.batch_size;
+        // (point index, created for variance)
+        let wanted: Vec<(usize, bool)> = batch
+            .par_iter()
+            .enumerate()
+            .filter_map(|(i, p)| match lookup(cache, transport, &p.point, options) {
+                None => Some((first + i, false)),
+                Some(found) => options
+                    .relative_error_target
+                    .filter(|t| too_uncertain(&found, *t))
+                    .map(|_| (first + i, true)),
+            })
+            .collect();
+        let computed: Vec<Result<(Record, u64), CacheError>> = wanted
+            .par_iter()
+            .map(|&(i, _)| {
+                let mut rng = point_rng(options.seed, i as u64);
+                let mut stats = TraceStats::default();
+                let record = compute_record(
+                    transport,
+                    rule,
+                    &points[i],
+                    limits,
+                    options.paths,
+                    &mut rng,
+                    &mut stats,
+                )?;
+                Ok((record, stats.rays))
+            })
+            .collect();
+        for (result, &(_, for_variance)) in computed.into_iter().zip(&wanted) {
+            let (record, rays) = result?;
+            cache.insert(record)?;
+            report.records_created += 1;
+            report.records_for_variance += u64::from(for_variance);
+            report.rays += rays;
+        }
+    }
+    Ok(report)
+}
+
+/// Shading pass: read-only lookups, in parallel, results in point order.
+pub fn shade(
+    cache: &IrradianceCache,
+    transport: &Transport,
+    points: &[QueryPoint],
+    options: &PlacementOptions,
+) -> Vec<Option<Interpolated>> {
+    points
+        .par_iter()
+        .map(|p| lookup(cache, transport, p, options))
+        .collect()
+}
+
+/// Both passes on a private cache built from `config`: bit-identical for the
+/// same inputs whatever the thread count or earlier requests. Returns the
+/// interpolated values and the private cache (to publish its records).
+pub fn place_and_shade(
+    transport: &Transport,
+    rule: &RecordRule,
+    config: CacheConfig,
+    points: &[PlacementPoint],
+    options: &PlacementOptions,
+) -> Result<(Vec<Option<Interpolated>>, IrradianceCache, PlacementReport), CacheError> {
+    let cache = IrradianceCache::new(config)?;
+    let report = place_records(&cache, transport, rule, points, options)?;
+    let query: Vec<QueryPoint> = points.iter().map(|p| p.point).collect();
+    Ok((shade(&cache, transport, &query, options), cache, report))
+}

@@ -1,0 +1,346 @@
+//! Irradiance-cache records (Ward et al. 1988; bmc-math.md §9): what one BMC
+//! evaluation at a surface point contributes to its neighbourhood.
+
+use glam::DVec3;
+
+use super::error::{CacheError, positive};
+use super::record_rule::RecordEstimate;
+use crate::render::{QueryPoint, Rgb};
+use crate::sphere::Frame;
+
+/// Bounds of the validity radius, world units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadiusLimits {
+    pub min: f64,
+    pub max: f64,
+}
+
+impl RadiusLimits {
+    /// Validated limits, `0 < min ≤ max < ∞`.
+    pub fn new(min: f64, max: f64) -> Result<Self, CacheError> {
+        positive("min_radius", min)?;
+        positive("max_radius", max)?;
+        if min > max {
+            return Err(CacheError::invalid(
+                "min_radius",
+                format!("must not exceed max_radius {max}, got {min}"),
+            ));
+        }
+        Ok(Self { min, max })
+    }
+
+    /// Tightened by a pixel footprint (the world size of one pixel at the
+    /// point, from the caller's camera): radii between `min_pixels` and
+    /// `max_pixels` footprints, never outside these limits (Tabellion &
+    /// Lamorlette 2004 bound radii in screen space likewise).
+    pub fn with_footprint(self, footprint: &PixelFootprint) -> Self {
+        let min = (footprint.size * footprint.min_pixels).clamp(self.min, self.max);
+        let max = (footprint.size * footprint.max_pixels).clamp(min, self.max);
+        Self { min, max }
+    }
+
+    pub fn clamp(&self, radius: f64) -> f64 {
+        radius.clamp(self.min, self.max)
+    }
+}
+
+/// Radius bounds in pixels of a given world-space pixel size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelFootprint {
+    /// World-space size of one pixel at the point.
+    pub size: f64,
+    pub min_pixels: f64,
+    pub max_pixels: f64,
+}
+
+impl PixelFootprint {
+    pub fn new(size: f64, min_pixels: f64, max_pixels: f64) -> Result<Self, CacheError> {
+        positive("footprint", size)?;
+        positive("min_pixels", min_pixels)?;
+        positive("max_pixels", max_pixels)?;
+        if min_pixels > max_pixels {
+            return Err(CacheError::invalid(
+                "min_pixels",
+                format!("must not exceed max_pixels {max_pixels}, got {min_pixels}"),
+            ));
+        }
+        Ok(Self {
+            size,
+            min_pixels,
+            max_pixels,
+        })
+    }
+}
+
+/// Harmonic mean of the ray lengths, `N / Σ 1/r_i` (Ward et al. 1988), with
+/// escaped rays (`r = ∞`) contributing `1/r = 0`; `None` when no ray hit.
+/// Nearby geometry dominates, which is what limits how far `E` stays smooth.
+pub fn harmonic_mean_distance(distances: &[f64]) -> Option<f64> {
+    let inverse: f64 = distances
+        .iter()
+        .filter(|d| d.is_finite() && **d > 0.0)
+        .map(|d| 1.0 / d)
+        .sum();
+    (inverse > 0.0).then(|| distances.len() as f64 / inverse)
+}
+
+/// One cached irradiance value with its uncertainty and validity region.
+///
+/// Invariants: `normal` is unit length, `radius > 0`, every value finite.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Record {
+    /// World-space position `x_k`.
+    pub position: DVec3,
+    /// Unit world-space normal `n_k`.
+    pub normal: DVec3,
+    /// `E_k`, W/m².
+    pub irradiance: Rgb,
+    /// Posterior variance of `E_k`, (W/m²)² ([`RecordEstimate::variance`]).
+    pub variance: Rgb,
+    /// Validity radius `R_k`, world units.
+    pub radius: f64,
+    /// Per channel (r, g, b): world vector `g` with `E(n) ≈ E_k + g·(n_k × n)`
+    /// (W/m² per radian; `n_k × n` is the rotation taking `n_k` to `n`).
+    pub rotation_gradient: [DVec3; 3],
+    /// Per channel: tangent world vector with `E(x) ≈ E_k + g·(x − x_k)` (W/m³).
+    pub translation_gradient: [DVec3; 3],
+}
+
+impl Record {
+    /// Record at `point` from a BMC estimate made in `frame` (the frame the
+    /// rays were cast in: the point's normal, possibly turned about it).
+    ///
+    /// Radius: the harmonic mean distance of the rays clamped to `limits`
+    /// (`limits.max` if no ray hit anything). Translation gradients are then
+    /// clamped so that `|g_c| R ≤ E_c`: extrapolating to the edge of the
+    /// validity sphere never changes a channel by more than its own value, the
+    /// gradient limit of Křivánek et al. 2006 ("Making radiance and irradiance
+    /// caching practical", §3.1), which keeps noisy gradients from producing
+    /// negative or blotchy irradiance.
+    pub fn from_estimate(
+        point: &QueryPoint,
+        frame: &Frame,
+        estimate: &RecordEstimate,
+        distances: &[f64],
+        limits: RadiusLimits,
+    ) -> Record {
+        let radius = limits.clamp(harmonic_mean_distance(distances).unwrap_or(limits.max));
+        let world = |g: &[Rgb; 2]| -> [DVec3; 3] {
+            let (x, y) = (g[0].to_array(), g[1].to_array());
+            [0, 1, 2].map(|c| frame.s * x[c] + frame.t * y[c])
+        };
+        let mut translation_gradient = world(&estimate.translation);
+        let e = estimate.irradiance.to_array();
+        for (g, e) in translation_gradient.iter_mut().zip(e) {
+            let reach = g.length() * radius;
+            if reach > e.max(0.0) {
+                *g *= e.max(0.0) / reach;
+            }
+        }
+        Record {
+            position: point.position(),
+            normal: point.normal(),
+            irradiance: estimate.irradiance,
+            variance: estimate.variance,
+            radius,
+            rotation_gradient: world(&estimate.rotation),
+            translation_gradient,
+        }
+    }
+
+    /// Check the invariants (fields are public).
+    pub fn validate(&self) -> Result<(), CacheError> {
+        let finite3 = |v: &[DVec3; 3]| v.iter().all(|g| g.is_finite());
+        let finite_rgb = |c: Rgb| c.to_array().iter().all(|v| v.is_finite());
+        if !self.position.is_finite() {
+            return Err(CacheError::invalid("position", "must be finite"));
+        }
+        if !self.normal.is_finite() || (self.normal.length() - 1.0).abs() > 1e-6 {
+            return Err(CacheError::invalid(
+                "normal",
+                "must be a finite unit vector",
+            ));
+        }
+        positive("radius", self.radius)?;
+        if !finite_rgb(self.irradiance) || !finite_rgb(self.variance) {
+            return Err(CacheError::invalid("irradiance", "must be finite"));
+        }
+        if !finite3(&self.rotation_gradient) || !finite3(&self.translation_gradient) {
+            return Err(CacheError::invalid("gradient", "must be finite"));
+        }
+        Ok(())
+    }
+
+    /// Ward's weight `w_k(x) = 1/(|x − x_k|/R_k + sqrt(1 − n·n_k))`
+    /// (bmc-math.md §9); infinite at the record itself.
+    pub fn weight(&self, x: DVec3, n: DVec3) -> f64 {
+        let denominator =
+            (x - self.position).length() / self.radius + (1.0 - n.dot(self.normal)).max(0.0).sqrt();
+        1.0 / denominator
+    }
+
+    /// Ward's "in front" distance `d_k = (x − x_k)·(n + n_k)/2` (Ward et al.
+    /// 1988): negative when `x` lies behind the record's tangent plane (the
+    /// record sits in front of `x`), whose hemisphere then sees geometry `x`
+    /// cannot.
+    pub fn front_distance(&self, x: DVec3, n: DVec3) -> f64 {
+        (x - self.position).dot(0.5 * (n + self.normal))
+    }
+
+    /// `E_k` extrapolated to `(x, n)` with both gradients, clamped at 0 per
+    /// channel. Only the tangent part of `x − x_k` enters, as the gradient
+    /// is tangent.
+    pub fn extrapolate(&self, x: DVec3, n: DVec3) -> Rgb {
+        let turn = self.normal.cross(n);
+        let shift = x - self.position;
+        let e = self.irradiance.to_array();
+        Rgb::from_array([0, 1, 2].map(|c| {
+            (e[c] + self.rotation_gradient[c].dot(turn) + self.translation_gradient[c].dot(shift))
+                .max(0.0)
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record() -> Record {
+        Record {
+            position: DVec3::new(1.0, 0.0, 0.0),
+            normal: DVec3::Z,
+            irradiance: Rgb::new(1.0, 2.0, 3.0),
+            variance: Rgb::splat(0.01),
+            radius: 0.5,
+            rotation_gradient: [DVec3::new(0.5, 0.0, 0.0), DVec3::ZERO, DVec3::ZERO],
+            translation_gradient: [DVec3::ZERO, DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO],
+        }
+    }
+
+    #[test]
+    fn harmonic_mean_ignores_escaped_rays_in_the_sum() {
+        let d = harmonic_mean_distance(&[1.0, 2.0, f64::INFINITY, 4.0]).unwrap();
+        assert!((d - 4.0 / 1.75).abs() < 1e-12);
+        assert_eq!(harmonic_mean_distance(&[f64::INFINITY]), None);
+    }
+
+    #[test]
+    fn limits_and_footprint_clamp_radii() {
+        let l = RadiusLimits::new(0.01, 1.0).unwrap();
+        assert_eq!(l.clamp(5.0), 1.0);
+        assert_eq!(l.clamp(0.0), 0.01);
+        let fp = PixelFootprint::new(0.004, 5.0, 50.0).unwrap();
+        let t = l.with_footprint(&fp);
+        assert!((t.min - 0.02).abs() < 1e-15 && (t.max - 0.2).abs() < 1e-15);
+        assert_eq!(
+            RadiusLimits::new(2.0, 1.0).unwrap_err().field(),
+            Some("min_radius")
+        );
+        assert_eq!(
+            RadiusLimits::new(f64::NAN, 1.0).unwrap_err().field(),
+            Some("min_radius")
+        );
+        assert_eq!(
+            PixelFootprint::new(-1.0, 1.0, 2.0).unwrap_err().field(),
+            Some("footprint")
+        );
+    }
+
+    #[test]
+    fn weight_and_extrapolation() {
+        let r = record();
+        assert!(r.weight(r.position, r.normal).is_infinite());
+        assert!((r.weight(r.position + DVec3::X * 0.25, DVec3::Z) - 2.0).abs() < 1e-12);
+        assert_eq!(r.extrapolate(r.position, r.normal), r.irradiance);
+        // Tilt the normal towards +y by a small angle: n_k × n ≈ (−ε, 0, 0).
+        let eps: f64 = 1e-3;
+        let n = DVec3::new(0.0, eps.sin(), eps.cos());
+        let e = r.extrapolate(r.position, n);
+        assert!((e.r - (1.0 - 0.5 * eps)).abs() < 1e-9);
+        let e = r.extrapolate(r.position + DVec3::new(0.0, 0.1, 0.0), DVec3::Z);
+        assert!((e.g - 2.1).abs() < 1e-12);
+        // Behind the tangent plane → negative front distance.
+        assert!(r.front_distance(r.position - DVec3::Z * 0.1, DVec3::Z) < 0.0);
+        assert!(r.validate().is_ok());
+        let mut bad = r;
+        bad.radius = 0.0;
+        assert_eq!(bad.validate().unwrap_err().field(), Some("radius"));
+    }
+
+    /// A record of the linear field `L = a + b·ω` (world) extrapolated to a
+    /// tilted normal tracks `E(n) = aπ + (2π/3) b·n` (bmc-math.md §8) far
+    /// better than the record's own value does (to first order).
+    #[test]
+    fn rotation_gradient_tracks_a_tilted_normal() {
+        use crate::bmc::{Kernel, KernelKind, PriorMean};
+        use crate::cache::record_rule::{RecordRule, RecordRuleSpec};
+        use crate::render::RadianceSample;
+        use crate::sphere::{SampleSetKind, SampleSetSpec};
+        let rule = RecordRule::new(RecordRuleSpec {
+            samples: SampleSetSpec {
+                kind: SampleSetKind::Fibonacci,
+                count: 64,
+                seed: 0,
+            },
+            kernel: Kernel::new(KernelKind::SquaredExponential, 1.0, 1.0, 1e-8).unwrap(),
+            prior_mean: PriorMean::Gls,
+        })
+        .unwrap();
+        let (a, b) = (1.0, DVec3::new(0.4, 0.2, -0.3));
+        let truth =
+            |n: DVec3| a * std::f64::consts::PI + 2.0 * std::f64::consts::PI / 3.0 * b.dot(n);
+        let normal = DVec3::new(0.2, 0.3, 1.0).normalize();
+        let frame = Frame::from_normal(normal).rotated_about_normal(0.7);
+        let samples: Vec<RadianceSample> = rule
+            .directions()
+            .iter()
+            .map(|d| RadianceSample {
+                radiance: Rgb::splat(a + b.dot(frame.to_world(*d))),
+                distance: f64::INFINITY,
+            })
+            .collect();
+        let estimate = rule.estimate(&samples).unwrap();
+        let p = QueryPoint::new(DVec3::ZERO, normal).unwrap();
+        let r = Record::from_estimate(
+            &p,
+            &frame,
+            &estimate,
+            &[],
+            RadiusLimits::new(0.1, 1.0).unwrap(),
+        );
+        assert!((r.irradiance.r - truth(normal)).abs() < 1e-6);
+        let errors = |s: f64| {
+            let tilted = (normal + s * DVec3::new(0.15, -0.1, 0.0)).normalize();
+            let with = (r.extrapolate(DVec3::ZERO, tilted).r - truth(tilted)).abs();
+            (with, (r.irradiance.r - truth(tilted)).abs())
+        };
+        let (with, without) = errors(1.0);
+        assert!(with < 0.1 * without, "{with} vs {without}");
+        // The remaining error is second order in the tilt.
+        let (half, _) = errors(0.5);
+        assert!(half < 0.3 * with, "{half} vs {with}");
+    }
+
+    #[test]
+    fn translation_gradient_is_clamped_to_the_radius() {
+        let estimate = RecordEstimate {
+            irradiance: Rgb::splat(1.0),
+            variance: Rgb::BLACK,
+            rotation: [Rgb::BLACK; 2],
+            translation: [Rgb::splat(10.0), Rgb::BLACK],
+        };
+        let p = QueryPoint::new(DVec3::ZERO, DVec3::Z).unwrap();
+        let frame = Frame::from_normal(DVec3::Z);
+        let r = Record::from_estimate(
+            &p,
+            &frame,
+            &estimate,
+            &[1.0, 1.0],
+            RadiusLimits::new(0.1, 0.5).unwrap(),
+        );
+        assert_eq!(r.radius, 0.5);
+        for g in r.translation_gradient {
+            assert!((g.length() * r.radius - 1.0).abs() < 1e-12);
+        }
+    }
+}

@@ -1,0 +1,453 @@
+//! The BMC rule that turns one record's rays into irradiance, its posterior
+//! variance and its rotation and translation gradients.
+//!
+//! Built once per (sample set, kernel, prior mean) and shared by every record:
+//! the weights `w`, the Cholesky factor of `Q`, the kernel-mean derivatives
+//! `dz_i/dμ_i` and the kernel derivatives `∂k/∂(ω_i·ω_j)` depend only on the
+//! local-frame directions, never on the observed radiance (bmc-math.md §3).
+//!
+//! # Gradients: derivatives of the GP posterior mean
+//! We differentiate the BMC estimate itself instead of using Ward & Heckbert
+//! (1992) / Křivánek et al. (2005) gradients, which assume stratified
+//! samples. Move the samples by a tangent field `ω_i → normalize(ω_i + ε δ_i)`
+//! (relative to the density `p = cos θ/π`) while keeping the values `Y_i`.
+//! With `α̃ = Q⁻¹(Y − m̂1)` (`m̂ = 0` for the zero prior mean, the GLS mean
+//! otherwise) the first-order change of `Î = Σ w_i Y_i` is
+//!
+//! `dÎ/dε = Σ_i (dz_i/dμ_i) δ_i·ẑ α̃_i − Σ_{i≠j} w_i α̃_j ∂k/∂c (ω_i·ω_j) (δ_i·ω_j + ω_i·δ_j)`
+//!
+//! (derivative of `zᵀQ⁻¹Y`: `dzᵀQ⁻¹Y − zᵀQ⁻¹ dQ Q⁻¹Y`, Rasmussen & Williams
+//! 2006 §A.3.1 for `d(Q⁻¹)`; for the GLS mean the `dm̂` terms combine into the
+//! same form with the full weights `w` and `α̃`; `z_i` depends on `ω_i` only
+//! through `μ_i = cos θ_i` for the Lambert density, bmc-math.md §4).
+//! - **Rotation** of the normal by `ε` about the local axis `a ∈ {x, y}`
+//!   equals rotating the samples by `−ε` relative to the density:
+//!   `δ_i = −a × ω_i`. The rotation is rigid, so `dQ = 0` and only the
+//!   kernel-mean term remains (Brouillat et al. 2009 keep `Q` fixed likewise).
+//! - **Translation** by `ε` along the tangent `e ∈ {x, y}`: each ray saw a
+//!   surface point `y_i = x + r_i ω_i`; from `x + ε e` it lies in direction
+//!   `normalize(r_i ω_i − ε e)`, so `δ_i = −(e − (e·ω_i) ω_i)/r_i` (`0` for
+//!   rays that escaped). Values are kept: the visible surfaces are taken as
+//!   diffuse and visibility as unchanged, the same assumptions as Ward &
+//!   Heckbert's translational gradient.
+//!
+//! Unit tests check both against finite differences of recomputed BMC
+//! estimates and the rotation gradient against the closed form for a
+//! linear radiance field.
+
+use std::f64::consts::PI;
+
+use glam::DVec3;
+
+use super::error::CacheError;
+use crate::bmc::{
+    Density, Factorisation, Kernel, KernelKind, KernelMeanMethod, PriorMean, Quadrature,
+    kernel_means,
+};
+use crate::render::{RadianceSample, Rgb};
+use crate::sphere::{SampleSet, SampleSetSpec};
+
+/// What a [`RecordRule`] is built from.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RecordRuleSpec {
+    /// Local-frame directions of every record's rays.
+    pub samples: SampleSetSpec,
+    /// GP prior over the incident radiance (its `σ²` cancels out of the
+    /// records' variances, see [`RecordRule::estimate`]).
+    pub kernel: Kernel,
+    pub prior_mean: PriorMean,
+}
+
+/// BMC irradiance of one record with its variance and gradients, in the
+/// record's local frame (z = normal). Units: W/m², gradients W/m² per radian
+/// (rotation) and per world unit (translation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecordEstimate {
+    /// `E = π Σ w_i L_i` (the Lambert rule integrates `L cos θ/π`, bmc-math.md §1).
+    pub irradiance: Rgb,
+    /// Posterior variance of `E`: `π² V σ̂²` per channel, with `V` the
+    /// posterior variance of the rule and `σ̂² = ỸᵀQ₁⁻¹Ỹ/N` the maximum
+    /// likelihood amplitude of the channel (bmc-math.md §3, §7).
+    pub variance: Rgb,
+    /// `∂E/∂ε` for rotations of the normal about the local x and y axes.
+    pub rotation: [Rgb; 2],
+    /// `∂E/∂ε` for translations along the local x and y axes.
+    pub translation: [Rgb; 2],
+}
+
+/// Precomputed BMC rule for records (module docs).
+#[derive(Clone, Debug)]
+pub struct RecordRule {
+    spec: RecordRuleSpec,
+    set: SampleSet,
+    factorisation: Factorisation,
+    quadrature: Quadrature,
+    /// `Q⁻¹1` and `1ᵀQ⁻¹1`, for the GLS mean `m̂ = (1ᵀQ⁻¹Y)/(1ᵀQ⁻¹1)`.
+    ones_solved: Vec<f64>,
+    ones_sum: f64,
+    /// `dz_i/dμ_i`, `μ_i = cos θ_i`.
+    dz_dmu: Vec<f64>,
+    /// `∂k/∂c` at `c = ω_i·ω_j`, row-major `N×N`, zero on the diagonal.
+    dk_dc: Vec<f64>,
+}
+
+impl RecordRule {
+    /// Factor `Q`, compute the weights and the derivative tables.
+    pub fn new(spec: RecordRuleSpec) -> Result<RecordRule, CacheError> {
+        let set = SampleSet::generate(spec.samples)?;
+        let factorisation = Factorisation::new(&set, &spec.kernel)?;
+        let quadrature = Quadrature::new(
+            &set,
+            &spec.kernel,
+            &factorisation,
+            &Density::Lambert,
+            spec.prior_mean,
+            KernelMeanMethod::Exact,
+        )?;
+        let n = set.len();
+        let ones_solved = factorisation.solve(&vec![1.0; n]);
+        let ones_sum = ones_solved.iter().sum();
+        let dz_dmu = kernel_mean_slopes(&set.directions, &spec.kernel)?;
+        let mut dk_dc = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                if i != j {
+                    let d = (set.directions[i] - set.directions[j]).length();
+                    dk_dc[i * n + j] = kernel_slope(&spec.kernel, d);
+                }
+            }
+        }
+        Ok(RecordRule {
+            spec,
+            set,
+            factorisation,
+            quadrature,
+            ones_solved,
+            ones_sum,
+            dz_dmu,
+            dk_dc,
+        })
+    }
+
+    pub fn spec(&self) -> &RecordRuleSpec {
+        &self.spec
+    }
+
+    /// Local-frame ray directions, in the order `estimate` expects samples.
+    pub fn directions(&self) -> &[DVec3] {
+        &self.set.directions
+    }
+
+    /// The Lambert BMC quadrature (weights, posterior variance of `∫L p`).
+    pub fn quadrature(&self) -> &Quadrature {
+        &self.quadrature
+    }
+
+    /// Irradiance, variance and gradients from one radiance sample per
+    /// direction (in [`Self::directions`] order); the sample distances feed
+    /// the translation gradient.
+    ///
+    /// The posterior variance `V` is computed for the kernel's `σ²`, and
+    /// `ỸᵀQ⁻¹Ỹ/N` scales as `1/σ²`, so their product — the variance of
+    /// `∫L p` with the amplitude fitted to this record's data — does not
+    /// depend on the `σ²` chosen; times `π²` for `E = π ∫ L p`.
+    pub fn estimate(&self, samples: &[RadianceSample]) -> Result<RecordEstimate, CacheError> {
+        let n = self.set.len();
+        if samples.len() != n {
+            return Err(CacheError::invalid(
+                "samples",
+                format!("expected {n} radiance samples, got {}", samples.len()),
+            ));
+        }
+        if let Some(bad) = samples.iter().find(|s| !finite_rgb(s.radiance)) {
+            return Err(CacheError::invalid(
+                "radiance",
+                format!("must be finite, got {:?}", bad.radiance),
+            ));
+        }
+        let dirs = &self.set.directions;
+        // α̃ per channel.
+        let mut alpha = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        let mut irradiance = [0.0; 3];
+        let mut variance = [0.0; 3];
+        for c in 0..3 {
+            let y: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
+            let mean = match self.spec.prior_mean {
+                PriorMean::Zero => 0.0,
+                PriorMean::Gls => dot(&self.ones_solved, &y) / self.ones_sum,
+            };
+            let centred: Vec<f64> = y.iter().map(|v| v - mean).collect();
+            alpha[c] = self.factorisation.solve(&centred);
+            irradiance[c] = PI * self.quadrature.estimate(&y);
+            let amplitude = (dot(&centred, &alpha[c]) / n as f64).max(0.0);
+            variance[c] = PI * PI * self.quadrature.posterior_variance * amplitude;
+        }
+        let rotation = [DVec3::X, DVec3::Y].map(|axis| {
+            let delta: Vec<DVec3> = dirs.iter().map(|d| -axis.cross(*d)).collect();
+            // Rigid rotation: dQ = 0, only the kernel-mean term.
+            self.derivative(&delta, &alpha, false)
+        });
+        let inverse_distance: Vec<f64> = samples
+            .iter()
+            .map(|s| {
+                if s.distance.is_finite() && s.distance > 0.0 {
+                    1.0 / s.distance
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let translation = [DVec3::X, DVec3::Y].map(|e| {
+            let delta: Vec<DVec3> = dirs
+                .iter()
+                .zip(&inverse_distance)
+                .map(|(d, inv)| -(e - e.dot(*d) * *d) * *inv)
+                .collect();
+            self.derivative(&delta, &alpha, true)
+        });
+        Ok(RecordEstimate {
+            irradiance: Rgb::from_array(irradiance),
+            variance: Rgb::from_array(variance),
+            rotation,
+            translation,
+        })
+    }
+
+    /// `π dÎ/dε` for the tangent field `delta` (module docs); the `dQ` term
+    /// only when `moves_samples_apart`.
+    fn derivative(&self, delta: &[DVec3], alpha: &[Vec<f64>; 3], moves_samples_apart: bool) -> Rgb {
+        let n = self.set.len();
+        let dirs = &self.set.directions;
+        let w = &self.quadrature.weights;
+        let mut out = [0.0; 3];
+        for i in 0..n {
+            let dz = self.dz_dmu[i] * delta[i].z;
+            for c in 0..3 {
+                out[c] += dz * alpha[c][i];
+            }
+        }
+        if moves_samples_apart {
+            for i in 0..n {
+                let row = &self.dk_dc[i * n..(i + 1) * n];
+                let mut acc = [0.0; 3];
+                for j in 0..n {
+                    if i == j {
+                        continue;
+                    }
+                    let dq = row[j] * (delta[i].dot(dirs[j]) + dirs[i].dot(delta[j]));
+                    for c in 0..3 {
+                        acc[c] += dq * alpha[c][j];
+                    }
+                }
+                for c in 0..3 {
+                    out[c] -= w[i] * acc[c];
+                }
+            }
+        }
+        Rgb::from_array(out.map(|v| PI * v))
+    }
+}
+
+fn finite_rgb(c: Rgb) -> bool {
+    c.r.is_finite() && c.g.is_finite() && c.b.is_finite()
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// `∂k/∂c` with `c = ω·ω'` for chordal distance `d = sqrt(2 − 2c) > 0`
+/// (`∂d/∂c = −1/d`, differentiating the forms in `bmc::kernel`):
+/// SE `k/ℓ²`; Matérn 3/2 `3σ² e^{−s}/ℓ²` (`s = √3 d/ℓ`);
+/// Matérn 5/2 `5σ²(1 + s) e^{−s}/(3ℓ²)` (`s = √5 d/ℓ`).
+fn kernel_slope(kernel: &Kernel, d: f64) -> f64 {
+    let l2 = kernel.lengthscale * kernel.lengthscale;
+    match kernel.kind {
+        KernelKind::SquaredExponential => kernel.eval_chord(d) / l2,
+        KernelKind::Matern32 => {
+            let s = 3f64.sqrt() * d / kernel.lengthscale;
+            3.0 * kernel.variance * (-s).exp() / l2
+        }
+        KernelKind::Matern52 => {
+            let s = 5f64.sqrt() * d / kernel.lengthscale;
+            5.0 * kernel.variance * (1.0 + s) * (-s).exp() / (3.0 * l2)
+        }
+    }
+}
+
+/// `dz/dμ` at each direction's `μ = cos θ` by central differences of the
+/// exact Lambert kernel means (relative accuracy ~1e-12, so a step of 1e-5
+/// leaves ~1e-7 relative error); one-sided at `μ = 1`.
+fn kernel_mean_slopes(directions: &[DVec3], kernel: &Kernel) -> Result<Vec<f64>, CacheError> {
+    const STEP: f64 = 1e-5;
+    let at = |mu: f64| DVec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+    let mut probes = Vec::with_capacity(2 * directions.len());
+    let mut steps = Vec::with_capacity(directions.len());
+    for d in directions {
+        let mu = d.z.clamp(-1.0, 1.0);
+        let h = STEP.min(0.5 * (1.0 - mu));
+        let (hi, lo) = if h > 1e-9 {
+            (mu + h, mu - h)
+        } else {
+            (mu, mu - STEP)
+        };
+        probes.push(at(hi));
+        probes.push(at(lo));
+        steps.push(hi - lo);
+    }
+    let z = kernel_means(&probes, kernel, &Density::Lambert, KernelMeanMethod::Exact)?;
+    Ok(steps
+        .iter()
+        .enumerate()
+        .map(|(i, h)| (z[2 * i] - z[2 * i + 1]) / h)
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sphere::SampleSetKind;
+
+    fn rule(kind: KernelKind, lengthscale: f64, count: usize) -> RecordRule {
+        RecordRule::new(RecordRuleSpec {
+            samples: SampleSetSpec {
+                kind: SampleSetKind::Fibonacci,
+                count,
+                seed: 0,
+            },
+            kernel: Kernel::new(kind, lengthscale, 1.0, 1e-8).unwrap(),
+            prior_mean: PriorMean::Gls,
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn kernel_slope_matches_finite_differences() {
+        for kind in [
+            KernelKind::SquaredExponential,
+            KernelKind::Matern32,
+            KernelKind::Matern52,
+        ] {
+            let k = Kernel::new(kind, 0.7, 1.3, 0.0).unwrap();
+            for c in [-0.5, 0.1, 0.6, 0.95] {
+                let h = 1e-6;
+                let chord = |c: f64| (2.0 - 2.0 * c).sqrt();
+                let fd = (k.eval_chord(chord(c + h)) - k.eval_chord(chord(c - h))) / (2.0 * h);
+                let analytic = kernel_slope(&k, chord(c));
+                assert!(
+                    (fd - analytic).abs() < 1e-6 * analytic.abs().max(1.0),
+                    "{kind:?} {c}"
+                );
+            }
+        }
+    }
+
+    /// `∫_H (a + b·ω) cos θ dω = aπ + (2π/3) b·n` (bmc-math.md §8), so turning
+    /// the normal about local x changes `E` at rate `−(2π/3) b_y`, about y at `(2π/3) b_x`.
+    #[test]
+    fn rotation_gradient_of_a_linear_field_is_exact() {
+        let r = rule(KernelKind::SquaredExponential, 1.0, 64);
+        let (a, b) = (0.8, DVec3::new(0.3, -0.5, 0.6));
+        let samples: Vec<RadianceSample> = r
+            .directions()
+            .iter()
+            .map(|d| RadianceSample {
+                radiance: Rgb::new(a + b.dot(*d), a, 0.0),
+                distance: f64::INFINITY,
+            })
+            .collect();
+        let e = r.estimate(&samples).unwrap();
+        let k = 2.0 * PI / 3.0;
+        assert!(
+            (e.rotation[0].r - (-k * b.y)).abs() < 1e-4,
+            "{:?}",
+            e.rotation
+        );
+        assert!((e.rotation[1].r - k * b.x).abs() < 1e-4, "{:?}", e.rotation);
+        // A constant field has no gradient, and escaped rays no translation gradient.
+        assert!(e.rotation[0].g.abs() < 1e-9 && e.rotation[1].g.abs() < 1e-9);
+        assert_eq!(e.translation[0].r, 0.0);
+        assert!((e.irradiance.g - PI * a).abs() < 1e-9);
+    }
+
+    /// BMC estimate `π wᵀY` recomputed from scratch for moved directions.
+    fn recomputed(r: &RecordRule, dirs: Vec<DVec3>, values: &[f64]) -> f64 {
+        let set = SampleSet {
+            spec: r.spec.samples,
+            directions: dirs,
+        };
+        let f = Factorisation::new(&set, &r.spec.kernel).unwrap();
+        let q = Quadrature::new(
+            &set,
+            &r.spec.kernel,
+            &f,
+            &Density::Lambert,
+            r.spec.prior_mean,
+            KernelMeanMethod::Exact,
+        )
+        .unwrap();
+        PI * q.estimate(values)
+    }
+
+    /// Gradients against central differences of recomputed estimates: a
+    /// diffuse emitting plane at height 1 with spatially varying radiance.
+    #[test]
+    fn gradients_match_recomputed_estimates() {
+        for kind in [KernelKind::SquaredExponential, KernelKind::Matern52] {
+            let r = rule(kind, 0.6, 48);
+            let radiance = |y: DVec3| 1.0 + 0.5 * (1.3 * y.x).sin() + 0.3 * (0.8 * y.y).cos();
+            let hits: Vec<DVec3> = r.directions().iter().map(|d| *d / d.z).collect();
+            let values: Vec<f64> = hits.iter().map(|y| radiance(*y)).collect();
+            let samples: Vec<RadianceSample> = hits
+                .iter()
+                .zip(&values)
+                .map(|(y, v)| RadianceSample {
+                    radiance: Rgb::splat(*v),
+                    distance: y.length(),
+                })
+                .collect();
+            let e = r.estimate(&samples).unwrap();
+            let eps = 1e-5;
+            for (axis, e_axis) in [(DVec3::X, 0), (DVec3::Y, 1)] {
+                let moved = |s: f64| -> Vec<DVec3> {
+                    hits.iter().map(|y| (*y - s * axis).normalize()).collect()
+                };
+                let fd = (recomputed(&r, moved(eps), &values)
+                    - recomputed(&r, moved(-eps), &values))
+                    / (2.0 * eps);
+                let g = e.translation[e_axis].r;
+                assert!(
+                    (g - fd).abs() < 1e-4 * fd.abs().max(1.0),
+                    "{kind:?} t{e_axis}: {g} vs {fd}"
+                );
+                // Rotating the normal by +ε = rotating the samples by −ε.
+                let turned = |s: f64| -> Vec<DVec3> {
+                    let q = glam::DQuat::from_axis_angle(axis, -s);
+                    r.directions().iter().map(|d| q * *d).collect()
+                };
+                let fd = (recomputed(&r, turned(eps), &values)
+                    - recomputed(&r, turned(-eps), &values))
+                    / (2.0 * eps);
+                let g = e.rotation[e_axis].r;
+                assert!(
+                    (g - fd).abs() < 1e-4 * fd.abs().max(1.0),
+                    "{kind:?} r{e_axis}: {g} vs {fd}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn wrong_sample_count_and_nan_are_typed_errors() {
+        let r = rule(KernelKind::SquaredExponential, 0.5, 8);
+        assert_eq!(r.estimate(&[]).unwrap_err().field(), Some("samples"));
+        let bad = vec![
+            RadianceSample {
+                radiance: Rgb::splat(f64::NAN),
+                distance: 1.0,
+            };
+            8
+        ];
+        assert_eq!(r.estimate(&bad).unwrap_err().field(), Some("radiance"));
+    }
+}

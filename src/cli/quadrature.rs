@@ -1,0 +1,261 @@
+//! `bmc-irradiance quadrature`: print the BMC weights of one configuration.
+
+use std::fmt::Write as _;
+
+use clap::{Args, ValueEnum};
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::bmc::cache::QuadratureCache;
+use crate::bmc::{BmcError, Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+use crate::sphere::{SampleSetKind, SampleSetSpec};
+
+/// Sample set names accepted on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SetArg {
+    /// Spherical Fibonacci, uniform area.
+    Fibonacci,
+    /// Spherical Fibonacci, cosine-distributed.
+    #[value(alias = "fibonacci_cosine")]
+    FibonacciCosine,
+    /// Uniform random.
+    Uniform,
+    /// Cosine-weighted random.
+    Cosine,
+    /// Jittered equal-area strata.
+    Stratified,
+}
+
+impl From<SetArg> for SampleSetKind {
+    fn from(arg: SetArg) -> Self {
+        match arg {
+            SetArg::Fibonacci => Self::Fibonacci,
+            SetArg::FibonacciCosine => Self::FibonacciCosine,
+            SetArg::Uniform => Self::Uniform,
+            SetArg::Cosine => Self::Cosine,
+            SetArg::Stratified => Self::Stratified,
+        }
+    }
+}
+
+/// Kernel names accepted on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum KernelArg {
+    /// Squared exponential (spherical Gaussian).
+    #[value(alias = "squared_exponential", alias = "squared-exponential")]
+    Se,
+    /// Matérn ν = 3/2.
+    Matern32,
+    /// Matérn ν = 5/2.
+    Matern52,
+}
+
+impl From<KernelArg> for KernelKind {
+    fn from(arg: KernelArg) -> Self {
+        match arg {
+            KernelArg::Se => Self::SquaredExponential,
+            KernelArg::Matern32 => Self::Matern32,
+            KernelArg::Matern52 => Self::Matern52,
+        }
+    }
+}
+
+/// Density names accepted on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DensityArg {
+    /// `1/(2π)`.
+    Uniform,
+    /// `cos θ/π`.
+    Lambert,
+    /// Normalised Phong lobe times cosine (needs `--exponent`).
+    Phong,
+}
+
+/// Prior mean names accepted on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PriorMeanArg {
+    /// Zero mean.
+    Zero,
+    /// Constant mean by generalised least squares.
+    Gls,
+}
+
+/// Kernel-mean method names accepted on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum KernelMeanArg {
+    /// Accurate deterministic quadrature.
+    Exact,
+    /// Spherical-Gaussian closed form (SE kernel only, approximate).
+    #[value(alias = "spherical_gaussian", alias = "spherical-gaussian")]
+    Sg,
+}
+
+/// Arguments of `bmc-irradiance quadrature`.
+#[derive(Clone, Debug, Args)]
+pub struct QuadratureArgs {
+    /// Sample set.
+    #[arg(long, value_enum, default_value = "fibonacci")]
+    pub set: SetArg,
+    /// Number of sample directions N.
+    #[arg(long, default_value_t = 64)]
+    pub samples: usize,
+    /// Seed of random sample sets (ignored by Fibonacci sets).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Kernel.
+    #[arg(long, value_enum, default_value = "se")]
+    pub kernel: KernelArg,
+    /// Kernel lengthscale ℓ (chordal distance).
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    pub lengthscale: f64,
+    /// Kernel variance σ².
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub variance: f64,
+    /// Observation noise (or jitter) σ_n² added to the diagonal.
+    #[arg(long, default_value_t = 1e-8, allow_negative_numbers = true)]
+    pub noise: f64,
+    /// Density p.
+    #[arg(long, value_enum, default_value = "lambert")]
+    pub density: DensityArg,
+    /// Phong exponent m (with `--density phong`).
+    #[arg(long, allow_negative_numbers = true)]
+    pub exponent: Option<f64>,
+    /// Polar angle of the Phong mirror direction from the normal (rad).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub mirror_elevation: f64,
+    /// Prior mean of the GP.
+    #[arg(long, value_enum, default_value = "zero")]
+    pub prior_mean: PriorMeanArg,
+    /// How kernel means are computed.
+    #[arg(long, value_enum, default_value = "exact")]
+    pub kernel_mean: KernelMeanArg,
+    /// Print JSON instead of a summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What `quadrature --json` prints; field names are a public contract.
+#[derive(Clone, Debug, Serialize)]
+pub struct QuadratureReport {
+    /// Sample directions in the local frame (z = normal), `[x, y, z]`.
+    pub directions: Vec<[f64; 3]>,
+    /// `z_i = ∫ k(ω_i, ω) p(ω) dω`.
+    pub kernel_means: Vec<f64>,
+    /// `w` with `Î = Σ w_i Y_i`.
+    pub weights: Vec<f64>,
+    /// `V₀ = ∫∫ k p p`.
+    pub prior_variance: f64,
+    /// Posterior variance of the integral.
+    pub posterior_variance: f64,
+    /// Diagonal jitter the factorisation used (absolute).
+    pub jitter: f64,
+    /// Condition estimate of `Q`.
+    pub condition_estimate: f64,
+    /// Whether the weights came from the cache.
+    pub cached: bool,
+    /// `∫_H p`.
+    pub density_integral: f64,
+}
+
+impl QuadratureArgs {
+    /// The density the arguments describe.
+    pub fn density(&self) -> Result<Density, BmcError> {
+        let density = match self.density {
+            DensityArg::Uniform => Density::Uniform,
+            DensityArg::Lambert => Density::Lambert,
+            DensityArg::Phong => Density::Phong {
+                exponent: self.exponent.ok_or_else(|| BmcError::InvalidParameter {
+                    field: "exponent",
+                    message: "required with --density phong".into(),
+                })?,
+                mirror_elevation: self.mirror_elevation,
+            },
+        };
+        density.validate()?;
+        Ok(density)
+    }
+}
+
+/// Computes the report for `args` through `cache`.
+pub fn quadrature_report(
+    args: &QuadratureArgs,
+    cache: &QuadratureCache,
+) -> Result<QuadratureReport, BmcError> {
+    let spec = SampleSetSpec {
+        kind: args.set.into(),
+        count: args.samples,
+        seed: args.seed,
+    };
+    let kernel = Kernel::new(
+        args.kernel.into(),
+        args.lengthscale,
+        args.variance,
+        args.noise,
+    )?;
+    let prior_mean = match args.prior_mean {
+        PriorMeanArg::Zero => PriorMean::Zero,
+        PriorMeanArg::Gls => PriorMean::Gls,
+    };
+    let method = match args.kernel_mean {
+        KernelMeanArg::Exact => KernelMeanMethod::Exact,
+        KernelMeanArg::Sg => KernelMeanMethod::SphericalGaussian,
+    };
+    let (cached, hit) = cache.quadrature(spec, &kernel, &args.density()?, prior_mean, method)?;
+    let q = &cached.quadrature;
+    Ok(QuadratureReport {
+        directions: cached
+            .directions()
+            .iter()
+            .map(|d: &DVec3| d.to_array())
+            .collect(),
+        kernel_means: q.kernel_means.clone(),
+        weights: q.weights.clone(),
+        prior_variance: q.prior_variance,
+        posterior_variance: q.posterior_variance,
+        jitter: q.jitter,
+        condition_estimate: q.condition_estimate,
+        cached: hit,
+        density_integral: q.density_integral,
+    })
+}
+
+impl QuadratureReport {
+    /// A few human-readable lines.
+    pub fn summary(&self) -> String {
+        let n = self.weights.len();
+        let sum: f64 = self.weights.iter().sum();
+        let (min, max) = self
+            .weights
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &w| {
+                (lo.min(w), hi.max(w))
+            });
+        let mut out = String::new();
+        let _ = writeln!(out, "samples            {n}");
+        let _ = writeln!(
+            out,
+            "weights            sum {sum:.12}, min {min:.6e}, max {max:.6e}"
+        );
+        let _ = writeln!(out, "density integral   {:.12}", self.density_integral);
+        let _ = writeln!(out, "prior variance     {:.6e}", self.prior_variance);
+        let _ = writeln!(out, "posterior variance {:.6e}", self.posterior_variance);
+        let _ = writeln!(
+            out,
+            "jitter             {:.3e} (condition estimate {:.3e})",
+            self.jitter, self.condition_estimate
+        );
+        let _ = write!(out, "cached             {}", self.cached);
+        out
+    }
+}
+
+/// Runs the subcommand: the text to print on stdout.
+pub fn run(args: &QuadratureArgs) -> anyhow::Result<String> {
+    let cache = QuadratureCache::new(64 << 20);
+    let report = quadrature_report(args, &cache)?;
+    Ok(if args.json {
+        serde_json::to_string_pretty(&report)?
+    } else {
+        report.summary()
+    })
+}

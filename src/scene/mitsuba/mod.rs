@@ -1,0 +1,404 @@
+//! Mitsuba 3 scene XML → the project's scene document
+//! ([`SceneDoc`](super::format::SceneDoc)), which then goes through the same
+//! validation and construction as JSON scenes, so an XML scene and its JSON
+//! twin give identical [`Scene`]s. `docs/scene-format.md` ("Mitsuba 3 XML")
+//! lists the supported subset and the mappings.
+//!
+//! Every error names the element (`<shape type="cube" id="box">`), the
+//! attribute or property and the line; with [`MitsubaOptions::lenient`]
+//! unsupported features are approximated and reported as [`Warning`]s.
+
+mod bsdf;
+mod emitter;
+mod parse;
+mod props;
+mod sensor;
+mod shape;
+mod texture;
+mod transform;
+
+#[cfg(test)]
+mod tests;
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+use super::Scene;
+use super::error::SceneError;
+use super::format::{CameraDoc, EnvironmentDoc, MaterialDoc, SceneDoc, ShapeDoc};
+use super::loader::{self, Files};
+
+use parse::Element;
+pub use parse::MAX_DEPTH;
+
+/// How to treat what the project's scene model cannot represent.
+#[derive(Clone, Debug)]
+pub struct MitsubaOptions {
+    /// false (default): anything unsupported is an error. true: it is
+    /// approximated as documented and listed in the returned warnings.
+    pub lenient: bool,
+    /// Values for `$name` parameters; they override the file's `<default>`s
+    /// (like keyword arguments to Mitsuba's `load_file`).
+    pub parameters: BTreeMap<String, String>,
+    /// Radius, in scene units, of the small spherical emitter that stands in
+    /// for a `point` light (the scene model has no point lights).
+    pub point_light_radius: f64,
+}
+
+impl Default for MitsubaOptions {
+    fn default() -> Self {
+        Self {
+            lenient: false,
+            parameters: BTreeMap::new(),
+            point_light_radius: 1e-3,
+        }
+    }
+}
+
+/// Something approximated while reading the XML.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Warning {
+    /// 1-based line of the element concerned.
+    pub line: u32,
+    /// The element, e.g. `<bsdf type="dielectric" id="glass">`.
+    pub element: String,
+    pub message: String,
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "line {}: {}: {}", self.line, self.element, self.message)
+    }
+}
+
+/// A located problem in the XML; becomes [`SceneError::Syntax`].
+#[derive(Debug)]
+pub(crate) struct XmlError {
+    pub line: u32,
+    pub column: u32,
+    /// Element label plus attribute or property name.
+    pub field: String,
+    pub message: String,
+    /// A typed error of a referenced file (missing, broken, outside the
+    /// scenes directory) that keeps its kind.
+    pub source: Option<Box<SceneError>>,
+}
+
+impl XmlError {
+    fn into_scene_error(self, file: &str) -> SceneError {
+        if let Some(source) = self.source {
+            let origin = Origin {
+                line: self.line,
+                column: self.column,
+                label: self.field,
+            };
+            let field = source.field().unwrap_or_default().to_string();
+            return locate(*source, file, &[(field, origin)]);
+        }
+        SceneError::Syntax {
+            file: file.to_string(),
+            line: self.line as usize,
+            column: self.column as usize,
+            field: self.field,
+            message: self.message,
+        }
+    }
+}
+
+/// Where a part of the generated document came from, so that errors found
+/// by the shared loader (e.g. `shapes[2].to_world[1].scale[0]`) point back
+/// to the XML line.
+#[derive(Clone)]
+struct Origin {
+    line: u32,
+    column: u32,
+    label: String,
+}
+
+impl Origin {
+    fn of(e: &Element) -> Self {
+        Origin {
+            line: e.line,
+            column: e.column,
+            label: e.label(),
+        }
+    }
+}
+
+/// Conversion state: the document being built and the XML facts needed to
+/// build it.
+pub(crate) struct Ctx<'a> {
+    ids: HashMap<String, &'a Element>,
+    lenient: bool,
+    point_light_radius: f64,
+    files: &'a Files,
+    warnings: Vec<Warning>,
+    materials: Vec<MaterialDoc>,
+    /// Element (by position) → the material id it became.
+    material_of: HashMap<(u32, u32), String>,
+    shapes: Vec<ShapeDoc>,
+    environment: Option<EnvironmentDoc>,
+    camera: Option<CameraDoc>,
+    /// Document field path → XML element, most specific last.
+    origins: Vec<(String, Origin)>,
+    /// Elements whose references are being followed (cycle detection).
+    resolving: Vec<(u32, u32)>,
+}
+
+impl<'a> Ctx<'a> {
+    /// An unsupported feature: an error, or with `lenient` a warning saying
+    /// what is done instead (`fallback`).
+    fn unsupported(
+        &mut self,
+        el: &Element,
+        attribute: &str,
+        what: &str,
+        fallback: &str,
+    ) -> Result<(), XmlError> {
+        if self.lenient {
+            self.warn(el, format!("{what}; {fallback}"));
+            Ok(())
+        } else {
+            Err(el.error(
+                attribute,
+                format!("{what} (pass lenient to approximate: {fallback})"),
+            ))
+        }
+    }
+
+    fn warn(&mut self, el: &Element, message: impl Into<String>) {
+        self.warnings.push(Warning {
+            line: el.line,
+            element: el.label(),
+            message: message.into(),
+        });
+    }
+
+    fn origin(&mut self, field: impl Into<String>, el: &Element) {
+        self.origins.push((field.into(), Origin::of(el)));
+    }
+
+    /// Follows `<ref id="..."/>` to the element it names (other elements are
+    /// returned as they are). Errors on unknown ids.
+    fn deref(&self, el: &'a Element) -> Result<&'a Element, XmlError> {
+        if el.tag != "ref" {
+            return Ok(el);
+        }
+        let id = el
+            .attr("id")
+            .ok_or_else(|| el.error("id", "<ref> needs an `id`"))?;
+        self.ids
+            .get(id)
+            .copied()
+            .ok_or_else(|| el.error("id", format!("no element has id {id:?}")))
+    }
+
+    /// Marks `el` as being expanded; a second entry before [`Ctx::leave`] is
+    /// a reference cycle.
+    fn enter(&mut self, el: &Element) -> Result<(), XmlError> {
+        if self.resolving.contains(&el.key()) {
+            return Err(el.error("", "reference cycle: this element refers back to itself"));
+        }
+        // Chains of references recurse like nesting does.
+        if self.resolving.len() >= MAX_DEPTH {
+            return Err(el.error(
+                "",
+                format!("references and nesting chained deeper than {MAX_DEPTH} levels"),
+            ));
+        }
+        self.resolving.push(el.key());
+        Ok(())
+    }
+
+    fn leave(&mut self) {
+        self.resolving.pop();
+    }
+
+    /// Resolves file name `name` given by property `prop` of `el` inside the
+    /// scenes directory.
+    fn resolve(&self, el: &Element, prop: &str, name: &str) -> Result<PathBuf, XmlError> {
+        self.files.resolve(name, prop).map_err(|e| XmlError {
+            source: Some(Box::new(e)),
+            ..el.error(prop, "")
+        })
+    }
+}
+
+/// Parses Mitsuba XML `text` (named `file` in messages) and builds the scene.
+/// Relative file names resolve against `base_dir` and must stay inside
+/// `scenes_root`.
+pub(crate) fn from_str(
+    text: &str,
+    file: &str,
+    base_dir: &Path,
+    scenes_root: &Path,
+    options: &MitsubaOptions,
+) -> Result<(Scene, Vec<Warning>), SceneError> {
+    let files = Files::new(base_dir, scenes_root)?;
+    let scene_el = parse::parse(text, &options.parameters).map_err(|e| e.into_scene_error(file))?;
+    let ids = parse::index_ids(&scene_el).map_err(|e| e.into_scene_error(file))?;
+    let mut ctx = Ctx {
+        ids,
+        lenient: options.lenient,
+        point_light_radius: options.point_light_radius,
+        files: &files,
+        warnings: Vec::new(),
+        materials: Vec::new(),
+        material_of: HashMap::new(),
+        shapes: Vec::new(),
+        environment: None,
+        camera: None,
+        origins: Vec::new(),
+        resolving: Vec::new(),
+    };
+    let doc = convert_scene(&mut ctx, &scene_el).map_err(|e| e.into_scene_error(file))?;
+    let Ctx {
+        origins, warnings, ..
+    } = ctx;
+    let scene = loader::build(doc, &files).map_err(|e| locate(e, file, &origins))?;
+    Ok((scene, warnings))
+}
+
+/// Reads and converts a `.xml` scene file; the scene is named after the file.
+pub(crate) fn load(
+    path: &Path,
+    scenes_root: &Path,
+    options: &MitsubaOptions,
+) -> Result<(Scene, Vec<Warning>), SceneError> {
+    let text = loader::read_scene_file(path)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let (mut scene, warnings) = from_str(
+        &text,
+        &path.display().to_string(),
+        base,
+        scenes_root,
+        options,
+    )?;
+    loader::name_from_file(&mut scene, path);
+    Ok((scene, warnings))
+}
+
+/// Supported `<scene version>`: Mitsuba 2 and 3 share the plugin names and
+/// conventions used here.
+fn check_version(ctx: &mut Ctx, scene: &Element) -> Result<(), XmlError> {
+    let version = scene
+        .attr("version")
+        .ok_or_else(|| scene.error("version", "missing `version` (e.g. \"3.0.0\")"))?;
+    let major = version
+        .split('.')
+        .next()
+        .and_then(|m| m.parse::<u32>().ok());
+    match major {
+        Some(2 | 3) => Ok(()),
+        _ => ctx.unsupported(
+            scene,
+            "version",
+            &format!("version {version:?} is not a Mitsuba 2 or 3 scene"),
+            "reading it with Mitsuba 3 conventions",
+        ),
+    }
+}
+
+fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, XmlError> {
+    check_version(ctx, scene)?;
+    for el in &scene.children {
+        match el.tag.as_str() {
+            // Already applied while parsing; rendering settings do not
+            // change the scene.
+            "default" | "integrator" => {}
+            "bsdf" => {
+                bsdf::material(ctx, el)?;
+            }
+            // Declarations used through <ref>; read where referenced.
+            "texture" | "spectrum" | "rgb" | "float" => {}
+            "shape" => shape::add(ctx, el, &transform::Ops::default())?,
+            "emitter" => emitter::add(ctx, el)?,
+            "sensor" => {
+                if ctx.camera.is_some() {
+                    ctx.unsupported(el, "", "more than one <sensor>", "using the first")?;
+                } else {
+                    ctx.camera = Some(sensor::camera(ctx, el)?);
+                }
+            }
+            _ => ctx.unsupported(
+                el,
+                "",
+                &format!("<{}> is not supported at the top level of a scene", el.tag),
+                "ignoring it",
+            )?,
+        }
+    }
+    let camera = match ctx.camera.take() {
+        Some(c) => c,
+        None => {
+            ctx.unsupported(
+                scene,
+                "",
+                "the scene has no <sensor>",
+                "using Mitsuba's default perspective camera",
+            )?;
+            sensor::default_camera()
+        }
+    };
+    Ok(SceneDoc {
+        name: None,
+        description: None,
+        materials: std::mem::take(&mut ctx.materials),
+        shapes: std::mem::take(&mut ctx.shapes),
+        environment: ctx.environment.take(),
+        camera,
+    })
+}
+
+/// Maps an error of the shared loader (which names document fields) back to
+/// the XML element the field came from.
+fn locate(e: SceneError, file: &str, origins: &[(String, Origin)]) -> SceneError {
+    let find = |field: &str| {
+        origins
+            .iter()
+            .filter(|(prefix, _)| {
+                field.strip_prefix(prefix.as_str()).is_some_and(|rest| {
+                    rest.is_empty() || rest.starts_with('.') || rest.starts_with('[')
+                })
+            })
+            .max_by_key(|(prefix, _)| prefix.len())
+            .map(|(_, o)| o)
+    };
+    match e {
+        SceneError::Invalid { field, message } => match find(&field) {
+            Some(o) => SceneError::Syntax {
+                file: file.to_string(),
+                line: o.line as usize,
+                column: o.column as usize,
+                field: format!("{} ({field})", o.label),
+                message,
+            },
+            None => SceneError::Invalid { field, message },
+        },
+        SceneError::PathEscape { field, path, root } => SceneError::PathEscape {
+            field: relabel(&field, file, find(&field)),
+            path,
+            root,
+        },
+        SceneError::File {
+            field,
+            file: f,
+            message,
+        } => SceneError::File {
+            field: relabel(&field, file, find(&field)),
+            file: f,
+            message,
+        },
+        other => other,
+    }
+}
+
+fn relabel(field: &str, file: &str, origin: Option<&Origin>) -> String {
+    match origin {
+        Some(o) if o.label.ends_with(&format!(".{field}")) => {
+            format!("{file}:{}: {}", o.line, o.label)
+        }
+        Some(o) => format!("{file}:{}: {} ({field})", o.line, o.label),
+        None => field.to_string(),
+    }
+}

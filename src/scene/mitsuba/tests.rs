@@ -1,0 +1,692 @@
+//! Mitsuba XML: the bundled Cornell box against its JSON twin, every
+//! supported element, every error path, and a property test that random and
+//! mutated input never panics.
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use proptest::prelude::*;
+
+use crate::scene::{Emitter, Environment, Material, Scene, SceneError};
+
+use super::{MitsubaOptions, Warning};
+
+fn scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+/// A scratch directory for files a test writes, removed on drop.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(tag: &str) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("bmc-mitsuba-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        Scratch(dir)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn options(lenient: bool) -> MitsubaOptions {
+    MitsubaOptions {
+        lenient,
+        ..Default::default()
+    }
+}
+
+fn load_in(text: &str, dir: &Path, lenient: bool) -> Result<(Scene, Vec<Warning>), SceneError> {
+    Scene::from_mitsuba_xml_str(text, dir, dir, &options(lenient))
+}
+
+fn load(text: &str) -> Result<(Scene, Vec<Warning>), SceneError> {
+    load_in(text, &scenes_dir(), false)
+}
+
+/// A scene with a camera and a white BSDF `w` around `body`.
+fn wrap(body: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+  <bsdf type="diffuse" id="w"><rgb name="reflectance" value="0.5"/></bsdf>
+{body}
+</scene>"#
+    )
+}
+
+fn load_err(text: &str) -> SceneError {
+    match load(text) {
+        Ok(_) => panic!("expected an error for {text}"),
+        Err(e) => e,
+    }
+}
+
+fn ok(body: &str) -> Scene {
+    load(&wrap(body)).unwrap_or_else(|e| panic!("{e}")).0
+}
+
+fn err(body: &str) -> String {
+    load_err(&wrap(body)).to_string()
+}
+
+/// Line (1-based) of the first line of `text` containing `needle`.
+fn line_of(text: &str, needle: &str) -> usize {
+    text.lines().position(|l| l.contains(needle)).unwrap() + 1
+}
+
+fn syntax_line(e: &SceneError) -> usize {
+    match e {
+        SceneError::Syntax { line, .. } => *line,
+        other => panic!("expected a located error, got {other}"),
+    }
+}
+
+#[test]
+fn cornell_box_xml_equals_json() {
+    let dir = scenes_dir();
+    let json = Scene::load(&dir.join("cornell-box.json"), &dir).unwrap();
+    let xml = Scene::load(&dir.join("cornell-box.xml"), &dir).unwrap();
+    let (_, warnings) = Scene::load_mitsuba_xml(
+        &dir.join("cornell-box.xml"),
+        &dir,
+        &MitsubaOptions::default(),
+    )
+    .unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(xml.name, json.name);
+    assert_eq!(xml.materials, json.materials);
+    assert_eq!(xml.material_ids, json.material_ids);
+    assert_eq!(xml.emitters, json.emitters);
+    assert!(xml.environment.is_none() && json.environment.is_none());
+    // Debug prints every f64 exactly (shortest round-trip form).
+    assert_eq!(format!("{:?}", xml.camera), format!("{:?}", json.camera));
+    assert_eq!(
+        format!("{:?}", xml.triangles),
+        format!("{:?}", json.triangles)
+    );
+    assert_eq!(format!("{:?}", xml.shapes), format!("{:?}", json.shapes));
+    assert_eq!(xml.triangle_count(), 36);
+}
+
+#[test]
+fn cornell_box_traces_identically() {
+    let dir = scenes_dir();
+    let json = Scene::load(&dir.join("cornell-box.json"), &dir).unwrap();
+    let xml = Scene::load(&dir.join("cornell-box.xml"), &dir).unwrap();
+    for py in 0..16 {
+        for px in 0..16 {
+            let ray = json
+                .camera
+                .generate_ray(px as f64 * 16.0 + 0.5, py as f64 * 16.0 + 0.5);
+            assert_eq!(xml.intersect(&ray), json.intersect(&ray));
+        }
+    }
+}
+
+#[test]
+fn transform_operations_apply_in_document_order() {
+    let scene = ok(r#"<shape type="cube"><ref id="w"/>
+      <transform name="to_world">
+        <scale value="0.5"/>
+        <rotate z="1" angle="90"/>
+        <translate x="1" y="2" z="3"/>
+      </transform></shape>"#);
+    let (lo, hi) = scene.bounds();
+    let close = |a: DVec3, b: DVec3| (a - b).abs().max_element() < 1e-12;
+    assert!(close(lo, DVec3::new(0.5, 1.5, 2.5)), "{lo}");
+    assert!(close(hi, DVec3::new(1.5, 2.5, 3.5)), "{hi}");
+    // The same through `value` syntax, a 3×3 matrix and per-axis scale.
+    let alt = ok(r#"<shape type="cube"><ref id="w"/>
+      <transform name="to_world">
+        <scale x="0.5" y="0.5" z="0.5"/>
+        <matrix value="0 -1 0  1 0 0  0 0 1"/>
+        <translate value="1 2 3"/>
+      </transform></shape>"#);
+    let (lo2, hi2) = alt.bounds();
+    assert!(close(lo, lo2) && close(hi, hi2));
+}
+
+#[test]
+fn lookat_camera_matches_json_look_at() {
+    let xml = ok("");
+    let json = Scene::from_json_str(
+        r#"{"materials": [{"id": "w", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+            "shapes": [], "camera": {"fov": 40, "width": 8, "height": 8,
+            "to_world": {"look_at": {"origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}}}}"#,
+        &scenes_dir(),
+        &scenes_dir(),
+    )
+    .unwrap();
+    assert_eq!(format!("{:?}", xml.camera), format!("{:?}", json.camera));
+}
+
+#[test]
+fn analytic_shapes_and_flip_normals() {
+    let scene = ok(r#"
+      <shape type="sphere"><point name="center" x="0" y="0" z="-3"/><float name="radius" value="2"/><ref id="w"/></shape>
+      <shape type="disk"><boolean name="flip_normals" value="true"/><ref id="w"/>
+        <transform name="to_world"><translate z="1"/></transform></shape>
+      <shape type="rectangle"><ref id="w"/></shape>"#);
+    assert_eq!(scene.shape_count(), 3);
+    assert!((scene.shape_area(0) - 16.0 * std::f64::consts::PI).abs() < 1e-9);
+    let down = crate::scene::Ray {
+        origin: DVec3::new(0.0, 0.0, 4.0),
+        dir: DVec3::NEG_Z,
+        t_max: f64::INFINITY,
+    };
+    let hit = scene.intersect(&down).unwrap();
+    assert_eq!(hit.shape, 1);
+    assert!((hit.t - 3.0).abs() < 1e-9);
+    // The disk's front turned to -z: its flip flag is recorded.
+    assert!(scene.shapes[1].flip);
+}
+
+#[test]
+fn shapes_without_bsdf_get_mitsubas_default_diffuse() {
+    let scene = ok(r#"<shape type="rectangle"/>"#);
+    let m = scene.shape_material(0);
+    assert_eq!(
+        scene.materials[m],
+        Material::Diffuse {
+            reflectance: [0.5; 3]
+        }
+    );
+    assert_eq!(scene.material_ids[m], "default-diffuse@mitsuba");
+}
+
+#[test]
+fn bsdf_mappings() {
+    let scene = ok(r#"
+      <bsdf type="twosided" id="two"><bsdf type="diffuse"><float name="reflectance" value="0.25"/></bsdf></bsdf>
+      <bsdf type="plastic" id="plastic">
+        <rgb name="diffuse_reflectance" value="0.6 0.4 0.2"/><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/>
+      </bsdf>
+      <bsdf type="roughplastic" id="rough"><float name="alpha" value="0.1"/><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf>
+      <bsdf type="conductor" id="mirror"/>
+      <bsdf type="roughconductor" id="metal">
+        <float name="alpha" value="0.5"/><rgb name="eta" value="0.2 0.2 0.2"/><rgb name="k" value="3 3 3"/>
+      </bsdf>"#);
+    let by_id = |id: &str| {
+        let i = scene.material_ids.iter().position(|m| m == id).unwrap();
+        scene.materials[i].clone()
+    };
+    assert_eq!(
+        by_id("two"),
+        Material::Diffuse {
+            reflectance: [0.25; 3]
+        }
+    );
+    let Material::Glossy {
+        diffuse,
+        specular,
+        exponent,
+    } = by_id("plastic")
+    else {
+        panic!("plastic must be glossy");
+    };
+    assert!((specular[0] - 0.04).abs() < 1e-12);
+    assert!((diffuse[0] - 0.6 * 0.96).abs() < 1e-12);
+    assert_eq!(exponent, crate::scene::material::MAX_PHONG_EXPONENT);
+    let Material::Glossy { exponent, .. } = by_id("rough") else {
+        panic!()
+    };
+    assert!((exponent - 198.0).abs() < 1e-9);
+    assert!(matches!(
+        by_id("mirror"),
+        Material::Glossy {
+            specular: [1.0, 1.0, 1.0],
+            ..
+        }
+    ));
+    let Material::Glossy {
+        diffuse,
+        specular,
+        exponent,
+    } = by_id("metal")
+    else {
+        panic!()
+    };
+    let f0 = (0.64 + 9.0) / (1.44 + 9.0);
+    assert_eq!(diffuse, [0.0; 3]);
+    assert!((specular[1] - f0).abs() < 1e-12);
+    assert!((exponent - 6.0).abs() < 1e-12);
+}
+
+#[test]
+fn emitters_area_constant_envmap_and_point() {
+    let scene = ok(r#"
+      <shape type="rectangle"><ref id="w"/><emitter type="area"><rgb name="radiance" value="1 2 3"/></emitter></shape>
+      <emitter type="constant"><rgb name="radiance" value="0.1"/></emitter>"#);
+    assert_eq!(
+        scene.emitters,
+        vec![Emitter::Area {
+            shape: 0,
+            radiance: [1.0, 2.0, 3.0]
+        }]
+    );
+    assert!(matches!(
+        scene.environment,
+        Some(Environment::Constant {
+            radiance: [0.1, 0.1, 0.1]
+        })
+    ));
+
+    let scene = ok(
+        r#"<emitter type="envmap"><string name="filename" value="sky.exr"/><float name="scale" value="2"/>
+        <transform name="to_world"><rotate y="1" angle="90"/></transform></emitter>"#,
+    );
+    let Some(Environment::Map(map)) = &scene.environment else {
+        panic!("envmap expected")
+    };
+    let direct = Scene::from_json_str(
+        r#"{"shapes": [], "camera": {"fov": 40, "width": 8, "height": 8, "origin": [0,0,5], "target": [0,0,0], "up": [0,1,0]},
+            "environment": {"type": "envmap", "filename": "sky.exr", "scale": 2,
+            "to_world": {"rotate": {"axis": [0, 1, 0], "angle": 90}}}}"#,
+        &scenes_dir(),
+        &scenes_dir(),
+    )
+    .unwrap();
+    let Some(Environment::Map(expected)) = &direct.environment else {
+        panic!()
+    };
+    assert_eq!(format!("{map:?}"), format!("{expected:?}"));
+
+    let (scene, warnings) = load(&wrap(
+        r#"<emitter type="point"><point name="position" value="0 1 0"/><rgb name="intensity" value="2"/></emitter>"#,
+    ))
+    .unwrap();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    let r = MitsubaOptions::default().point_light_radius;
+    let Emitter::Area { shape, radiance } = scene.emitters[0];
+    // Intensity = radiance × projected area of the sphere.
+    assert!((radiance[0] * std::f64::consts::PI * r * r - 2.0).abs() < 1e-9);
+    let (lo, hi) = scene.bounds();
+    assert!(((lo + hi) * 0.5 - DVec3::Y).length() < 1e-12);
+    assert_eq!(
+        scene.materials[scene.shape_material(shape)],
+        Material::Diffuse {
+            reflectance: [0.0; 3]
+        }
+    );
+}
+
+#[test]
+fn sensor_fov_axes_and_focal_length() {
+    let cam = |sensor: &str| {
+        let text = format!(
+            r#"<scene version="3.0.0"><sensor type="perspective">{sensor}
+                 <film type="hdrfilm"><integer name="width" value="30"/><integer name="height" value="20"/></film>
+               </sensor></scene>"#
+        );
+        load(&text).unwrap_or_else(|e| panic!("{e}")).0.camera
+    };
+    // Looking along +z: the image centre ray goes straight ahead.
+    let c = cam(r#"<float name="fov" value="60"/><string name="fov_axis" value="y"/>"#);
+    assert_eq!(c.resolution(), (30, 20));
+    let top = c.generate_ray(15.0, 0.0).dir;
+    assert!((top.y.atan2(top.z).to_degrees() - 30.0).abs() < 1e-9);
+    let d = cam(r#"<float name="fov" value="60"/><string name="fov_axis" value="diagonal"/>"#);
+    let corner = d.generate_ray(0.0, 0.0).dir;
+    assert!((corner.angle_between(DVec3::Z).to_degrees() - 30.0).abs() < 1e-9);
+    let f = cam(r#"<string name="focal_length" value="50mm"/>"#);
+    let corner = f.generate_ray(0.0, 0.0).dir;
+    let half_diagonal = (43.266615305567875f64 / 100.0).atan().to_degrees();
+    assert!((corner.angle_between(DVec3::Z).to_degrees() - half_diagonal).abs() < 1e-9);
+}
+
+#[test]
+fn parameters_override_defaults() {
+    let text = r#"<scene version="3.0.0"><default name="res" value="8"/>
+      <sensor type="perspective"><float name="fov" value="40"/>
+        <film type="hdrfilm"><integer name="width" value="$res"/><integer name="height" value="$res"/></film></sensor></scene>"#;
+    assert_eq!(load(text).unwrap().0.camera.resolution(), (8, 8));
+    let mut opts = MitsubaOptions::default();
+    opts.parameters.insert("res".into(), "16".into());
+    let scene = Scene::from_mitsuba_xml_str(text, &scenes_dir(), &scenes_dir(), &opts)
+        .unwrap()
+        .0;
+    assert_eq!(scene.camera.resolution(), (16, 16));
+}
+
+fn write_ply_ascii(path: &Path) {
+    std::fs::write(
+        path,
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+         element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+         0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n",
+    )
+    .unwrap();
+}
+
+fn write_ply_binary(path: &Path) {
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\n\
+        property double y\nproperty double z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+        element face 1\nproperty list uchar uint vertex_indices\nend_header\n"
+        .to_vec();
+    for p in [[0.0f64, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]] {
+        for x in p {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+        for n in [0.0f32, 0.0, 1.0] {
+            bytes.extend_from_slice(&n.to_le_bytes());
+        }
+    }
+    bytes.push(3);
+    for i in [0u32, 1, 2] {
+        bytes.extend_from_slice(&i.to_le_bytes());
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+#[test]
+fn meshes_from_obj_and_ply() {
+    let dir = Scratch::new("meshes");
+    write_ply_ascii(&dir.0.join("quad.ply"));
+    write_ply_binary(&dir.0.join("sub/tri.ply"));
+    std::fs::write(
+        dir.0.join("tri.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let text = wrap(
+        r#"<shape type="ply"><string name="filename" value="quad.ply"/><ref id="w"/></shape>
+           <shape type="ply"><string name="filename" value="sub/tri.ply"/><ref id="w"/></shape>
+           <shape type="obj"><string name="filename" value="tri.obj"/><ref id="w"/></shape>
+           <shape type="obj"><string name="filename" value="tri.obj"/><boolean name="face_normals" value="true"/><ref id="w"/></shape>"#,
+    );
+    let (scene, _) = load_in(&text, &dir.0, false).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.triangle_count(), 2 + 1 + 1 + 1);
+    assert!((scene.shape_area(0) - 1.0).abs() < 1e-12);
+    assert!((scene.shape_area(1) - 2.0).abs() < 1e-12);
+    assert!((scene.shape_area(2) - 0.5).abs() < 1e-12);
+    // The binary PLY's vertex normals are kept.
+    assert_eq!(scene.vertex_normals.len(), 1);
+}
+
+#[test]
+fn instances_of_a_shapegroup() {
+    let scene = ok(r#"
+      <shape type="shapegroup" id="g">
+        <shape type="rectangle"><ref id="w"/><transform name="to_world"><scale value="0.5"/></transform></shape>
+      </shape>
+      <shape type="instance"><ref id="g"/><transform name="to_world"><translate x="3"/></transform></shape>
+      <shape type="instance"><ref id="g"/><transform name="to_world"><translate x="-3"/></transform></shape>"#);
+    assert_eq!(scene.shape_count(), 2);
+    let (lo, hi) = scene.bounds();
+    assert!((lo.x + 3.5).abs() < 1e-12 && (hi.x - 3.5).abs() < 1e-12);
+}
+
+#[test]
+fn textures_are_errors_or_lenient_means() {
+    let body = r#"<bsdf type="diffuse" id="t"><texture type="checkerboard" name="reflectance">
+        <rgb name="color0" value="0.8"/><rgb name="color1" value="0.2"/></texture></bsdf>"#;
+    let e = err(body);
+    assert!(e.contains("checkerboard") && e.contains("lenient"), "{e}");
+    let (scene, warnings) = load_in(&wrap(body), &scenes_dir(), true).unwrap();
+    assert!(
+        warnings.iter().any(|w| w.message.contains("checkerboard")),
+        "{warnings:?}"
+    );
+    assert!(scene.materials.contains(&Material::Diffuse {
+        reflectance: [0.5; 3]
+    }));
+
+    // sRGB 255 and 0 are linear 1 and 0; sRGB 188 is linear ≈ 0.5029.
+    let dir = Scratch::new("bitmap");
+    image::RgbImage::from_raw(2, 1, vec![255, 255, 188, 0, 0, 188])
+        .unwrap()
+        .save(dir.0.join("tex.png"))
+        .unwrap();
+    let bitmap = r#"<bsdf type="diffuse" id="t"><texture type="bitmap" name="reflectance">
+        <string name="filename" value="tex.png"/></texture></bsdf>"#;
+    let e = load_in(&wrap(bitmap), &dir.0, false).err().unwrap();
+    assert!(e.to_string().contains("bitmap"), "{e}");
+    let (scene, warnings) = load_in(&wrap(bitmap), &dir.0, true).unwrap();
+    assert_eq!(warnings.len(), 1);
+    let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
+    let Material::Diffuse { reflectance } = scene.materials[i] else {
+        panic!()
+    };
+    assert!((reflectance[0] - 0.5).abs() < 1e-6, "{reflectance:?}");
+    assert!((reflectance[2] - 0.502886).abs() < 1e-5, "{reflectance:?}");
+}
+
+#[test]
+fn unknown_plugin_names_plugin_and_line() {
+    let text = wrap(r#"<bsdf type="dielectric" id="glass"/>"#);
+    let e = load_err(&text);
+    assert_eq!(syntax_line(&e), line_of(&text, "dielectric"));
+    assert!(e.to_string().contains("\"dielectric\""), "{e}");
+    let (_, warnings) = load_in(&text, &scenes_dir(), true).unwrap();
+    assert!(warnings[0].message.contains("dielectric"));
+
+    let e = err(r#"<shape type="cylinder"/>"#);
+    assert!(e.contains("cylinder"), "{e}");
+    let e = err(r#"<emitter type="spot"/>"#);
+    assert!(e.contains("spot"), "{e}");
+    let e = err(r#"<bsdf type="diffuse"><float name="roughness" value="1"/></bsdf>"#);
+    assert!(e.contains("roughness"), "{e}");
+    let e = err(r#"<shape type="rectangle"><emitter type="envmap"/></shape>"#);
+    assert!(e.contains("only `area`"), "{e}");
+}
+
+#[test]
+fn bad_transforms_are_located() {
+    let text = wrap(
+        "<shape type=\"cube\"><ref id=\"w\"/><transform name=\"to_world\">\n<shear value=\"1\"/>\n</transform></shape>",
+    );
+    let e = load_err(&text);
+    assert_eq!(syntax_line(&e), line_of(&text, "shear"));
+    assert!(e.to_string().contains("not a transform operation"), "{e}");
+    assert!(err(r#"<shape type="cube"><transform name="to_world"><matrix value="1 2 3"/></transform></shape>"#)
+        .contains("16"));
+    assert!(err(r#"<shape type="cube"><transform name="to_world"><rotate angle="30"/></transform></shape>"#)
+        .contains("zero length"));
+    assert!(err(r#"<shape type="cube"><transform name="to_world"><scale value="0"/></transform></shape>"#)
+        .contains("singular"));
+    assert!(err(r#"<shape type="cube"><transform name="to_world"><translate x="nan"/></transform></shape>"#)
+        .contains("finite"));
+}
+
+#[test]
+fn huge_numbers_are_rejected_at_their_line() {
+    let text = wrap(
+        "<shape type=\"cube\"><ref id=\"w\"/><transform name=\"to_world\">\n<translate x=\"1\"/>\n<scale value=\"1e300\"/>\n</transform></shape>",
+    );
+    let e = load_err(&text);
+    assert_eq!(syntax_line(&e), line_of(&text, "1e300"));
+    assert!(
+        e.to_string().contains("1e300") || e.to_string().contains("magnitude"),
+        "{e}"
+    );
+    let e = err(
+        r#"<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1e300"/></emitter></shape>"#,
+    );
+    assert!(e.contains("radiance"), "{e}");
+    let e = err(
+        r#"<shape type="cube"><transform name="to_world"><scale value="1e999"/></transform></shape>"#,
+    );
+    assert!(e.contains("finite"), "{e}");
+}
+
+#[test]
+fn missing_and_escaping_files() {
+    let e = err(r#"<shape type="obj"><string name="filename" value="nope.obj"/></shape>"#);
+    assert!(e.contains("nope.obj"), "{e}");
+    let e = load_err(&wrap(
+        r#"<shape type="ply"><string name="filename" value="nope.ply"/></shape>"#,
+    ));
+    assert!(matches!(e, SceneError::File { .. }), "{e}");
+    assert!(
+        e.to_string().contains(":8: <shape type=\"ply\">.filename:"),
+        "{e}"
+    );
+    for body in [
+        r#"<shape type="ply"><string name="filename" value="../Cargo.toml"/></shape>"#,
+        r#"<shape type="obj"><string name="filename" value="../../etc/passwd"/></shape>"#,
+        r#"<emitter type="envmap"><string name="filename" value="../sky.exr"/></emitter>"#,
+    ] {
+        let e = load_err(&wrap(body));
+        assert!(matches!(e, SceneError::PathEscape { .. }), "{body}: {e}");
+    }
+    let e = load_err(&wrap(
+        r#"<emitter type="envmap"><string name="filename" value="mesh.json"/></emitter>"#,
+    ));
+    assert!(matches!(e, SceneError::File { .. }), "{e}");
+}
+
+#[test]
+fn reference_errors() {
+    let e = err(r#"<bsdf type="twosided" id="a"><ref id="b"/></bsdf>
+           <bsdf type="twosided" id="b"><ref id="a"/></bsdf>"#);
+    assert!(e.contains("cycle"), "{e}");
+    let e = err(
+        r#"<texture type="checkerboard" id="t"><ref name="color0" id="t"/></texture>
+           <bsdf type="diffuse"><ref name="reflectance" id="t"/></bsdf>"#,
+    );
+    assert!(e.contains("cycle"), "{e}");
+    // A long chain of references is capped like deep nesting.
+    let chain: String = (0..1000)
+        .map(|i| {
+            format!(
+                r#"<bsdf type="twosided" id="c{i}"><ref id="c{}"/></bsdf>"#,
+                i + 1
+            )
+        })
+        .chain(std::iter::once(
+            r#"<bsdf type="diffuse" id="c1000"/>"#.to_string(),
+        ))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .collect();
+    let e = err(&chain);
+    assert!(e.contains("deeper than"), "{e}");
+    let e = err(r#"<shape type="rectangle"><ref id="missing"/></shape>"#);
+    assert!(e.contains("missing"), "{e}");
+    let e = err(r#"<bsdf type="diffuse" id="w"/>"#);
+    assert!(e.contains("duplicate id"), "{e}");
+    let e = err(r#"<shape type="instance"><ref id="w"/></shape>"#);
+    assert!(e.contains("exactly one"), "{e}");
+}
+
+#[test]
+fn parse_level_errors_carry_lines() {
+    let e = load_err("<scene version=\"3.0.0\">\n<shape type=\"cube\">\n</scene>");
+    assert_eq!(syntax_line(&e), 3);
+    let e = load_err("<scene version=\"3.0.0\">\n<integer name=\"x\" value=\"$spp\"/></scene>");
+    assert_eq!(syntax_line(&e), 2);
+    assert!(e.to_string().contains("$spp"));
+    let deep = format!(
+        "<scene version=\"3.0.0\">{}{}</scene>",
+        "<shape type=\"shapegroup\">".repeat(200),
+        "</shape>".repeat(200)
+    );
+    assert!(load_err(&deep).to_string().contains("nested deeper"));
+    let e = load_err(r#"<scene version="0.6.0"/>"#);
+    assert!(e.to_string().contains("0.6.0"));
+    let e = load_err(r#"<scene/>"#);
+    assert!(e.to_string().contains("version"));
+    let e = load_err(r#"<scene version="3.0.0"/>"#);
+    assert!(e.to_string().contains("no <sensor>"), "{e}");
+    assert!(load_in(r#"<scene version="3.0.0"/>"#, &scenes_dir(), true).is_ok());
+}
+
+/// Fragments of the supported vocabulary for random scenes.
+const FRAGMENTS: &[&str] = &[
+    r#"<shape type="cube"><ref id="w"/></shape>"#,
+    r#"<shape type="sphere"><float name="radius" value="0.5"/></shape>"#,
+    r#"<shape type="disk"><transform name="to_world"><rotate x="1" angle="45"/></transform></shape>"#,
+    r#"<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"#,
+    r#"<bsdf type="roughplastic"><float name="alpha" value="0.3"/></bsdf>"#,
+    r#"<bsdf type="twosided"><ref id="w"/></bsdf>"#,
+    r#"<emitter type="constant"/>"#,
+    r#"<emitter type="point"/>"#,
+    r#"<shape type="ply"><string name="filename" value="x.ply"/></shape>"#,
+    r#"<transform name="to_world"><scale value="2"/></transform>"#,
+    r#"<ref id="w"/>"#,
+    r#"<default name="k" value="1"/>"#,
+    r#"<float name="v" value="$k"/>"#,
+    "<shape type=\"cube\">",
+    "</shape>",
+    "<bsdf type=\"twosided\">",
+    "</bsdf>",
+];
+
+fn check_no_panic(text: &str, lenient: bool) {
+    let dir = scenes_dir();
+    if let Err(e) = load_in(text, &dir, lenient) {
+        assert!(!e.to_string().is_empty());
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        check_no_panic(&String::from_utf8_lossy(&bytes), false);
+    }
+
+    #[test]
+    fn random_fragment_scenes_never_panic(
+        picks in proptest::collection::vec(0..FRAGMENTS.len(), 0..24),
+        lenient in any::<bool>(),
+    ) {
+        let body: String = picks.iter().map(|&i| FRAGMENTS[i]).collect();
+        check_no_panic(&wrap(&body), lenient);
+    }
+
+    #[test]
+    fn random_ply_payloads_never_panic(
+        binary in any::<bool>(),
+        payload in proptest::collection::vec(any::<u8>(), 0..256),
+    ) {
+        let dir = Scratch::new("ply-fuzz");
+        let format = if binary { "binary_little_endian" } else { "ascii" };
+        let mut bytes = format!(
+            "ply\nformat {format} 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        bytes.extend(payload);
+        std::fs::write(dir.0.join("f.ply"), bytes).unwrap();
+        let text = wrap(r#"<shape type="ply"><string name="filename" value="f.ply"/></shape>"#);
+        if let Err(e) = load_in(&text, &dir.0, false) {
+            prop_assert!(!e.to_string().is_empty());
+        }
+    }
+
+    #[test]
+    fn mutated_cornell_box_never_panics(
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), 0..4u8, any::<char>()), 1..8),
+        lenient in any::<bool>(),
+    ) {
+        let original = std::fs::read_to_string(scenes_dir().join("cornell-box.xml")).unwrap();
+        let mut chars: Vec<char> = original.chars().collect();
+        for (at, op, c) in edits {
+            let i = at.index(chars.len().max(1)).min(chars.len());
+            match op {
+                0 if i < chars.len() => { chars.remove(i); }
+                1 => chars.insert(i, c),
+                2 if i < chars.len() => chars[i] = c,
+                // Duplicate a slice: repeats elements and attributes.
+                _ => {
+                    let end = (i + 64).min(chars.len());
+                    let copy: Vec<char> = chars[i..end].to_vec();
+                    chars.splice(i..i, copy);
+                }
+            }
+        }
+        check_no_panic(&chars.into_iter().collect::<String>(), lenient);
+    }
+}
