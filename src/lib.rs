@@ -22,12 +22,16 @@
 //!   gradients, concurrent spatial index, interpolation, reproducible placement.
 //! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
 //! - `cli`: the binary's subcommands (`quadrature`, `study`, `render`, `compare`) as library functions.
+//! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).
+//! - `loadtest`: closed-loop load generator for the service (`loadtest` subcommand).
 
 pub mod bmc;
 pub mod cache;
 pub mod cli;
 pub mod image;
+pub mod loadtest;
 pub mod render;
 pub mod scene;
+pub mod service;
 pub mod sphere;
 pub mod study;

@@ -18,6 +18,10 @@ struct Cli {
 enum Command {
     /// Irradiance (W/m²) at the points of a CSV file, as CSV on stdout.
     Irradiance(bmc_irradiance::render::irradiance_command::IrradianceArgs),
+    /// Run the HTTP service until SIGINT/SIGTERM.
+    Serve(bmc_irradiance::service::ServeArgs),
+    /// Closed-loop load test of a running service on this machine.
+    Loadtest(bmc_irradiance::loadtest::LoadTestArgs),
     /// Print the BMC quadrature (directions, kernel means, weights, variances) of one configuration.
     Quadrature(cli::quadrature::QuadratureArgs),
     /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
@@ -35,6 +39,8 @@ fn main() -> anyhow::Result<()> {
             &args,
             &mut std::io::stdout().lock(),
         ),
+        Command::Serve(args) => bmc_irradiance::service::run_serve(&args),
+        Command::Loadtest(args) => bmc_irradiance::loadtest::run_loadtest(&args),
         Command::Quadrature(args) => print_output(cli::quadrature::run(&args)?),
         Command::Study(args) => print_output(cli::study::run(&args)?),
         Command::Render(args) => cli::render::run_render(&args, &mut std::io::stdout().lock()),

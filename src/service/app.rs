@@ -1,0 +1,373 @@
+//! `Application`: the router with its middleware, bound to a listener.
+//!
+//! Middleware, outermost first:
+//! 1. tracing (`tower_http::trace`): one span per request, logged at `debug`
+//!    (`RUST_LOG=tower_http=debug` shows every request; off by default so that
+//!    logging does not dominate under load);
+//! 2. metrics ([`metrics::track`]): count and latency per route template, method, status;
+//! 3. panic catcher: a panicking handler answers 500 with the JSON error body;
+//! 4. request deadline: a request still running after `limits.request_deadline_secs`
+//!    is dropped and answered 504 `deadline_exceeded` (dropping it also cancels its
+//!    CPU job if that has not started, see `pool.rs`). 504 rather than 503 because the
+//!    service did accept the work and the client may retry with a smaller request;
+//! 5. body limit (`DefaultBodyLimit`): bodies over `limits.max_body_bytes` make
+//!    [`ApiJson`](super::extract::ApiJson) answer 413 with the JSON error body.
+//!
+//! Unknown paths answer 404 and known paths with the wrong method 405, both with
+//! the JSON error body.
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context;
+use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::http::{Method, Uri};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::{Extension, Router};
+use tokio::net::TcpListener;
+use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::trace::TraceLayer;
+use utoipa::OpenApi;
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
+
+use super::config::{Config, Limits};
+use super::error::{ApiError, ErrorBody};
+use super::metrics::{self, Metrics};
+use super::pool::CpuPool;
+use super::routes;
+use super::scenes::{self, SceneRegistry};
+use super::state::AppState;
+
+/// How often histogram samples are folded into buckets when nobody scrapes.
+const METRICS_UPKEEP_PERIOD: Duration = Duration::from_secs(5);
+
+/// A service bound to its listener, ready to run.
+pub struct Application {
+    listener: TcpListener,
+    router: Router,
+    state: Arc<AppState>,
+}
+
+impl Application {
+    /// Builds the state and router and binds `config.server.bind` (port 0 picks a free port).
+    pub async fn build(config: Config) -> anyhow::Result<Application> {
+        let pool = CpuPool::new(
+            config.server.worker_threads(),
+            config.limits.max_queued_jobs,
+        )
+        .context("cannot start the CPU pool")?;
+        let metrics = Metrics::install().map_err(anyhow::Error::msg)?;
+        let listener = TcpListener::bind(config.server.bind)
+            .await
+            .with_context(|| format!("cannot bind {}", config.server.bind))?;
+        let dir = config.scenes.dir.clone();
+        let loaded = tokio::task::spawn_blocking(move || scenes::load_dir(&dir))
+            .await
+            .context("scene loading panicked")?;
+        let registry = SceneRegistry::default();
+        for scene in loaded {
+            registry.insert(scene);
+        }
+        tracing::info!(scenes = registry.len(), dir = %config.scenes.dir.display(), "scenes loaded");
+        let state = Arc::new(AppState {
+            config,
+            pool,
+            metrics,
+            scenes: registry,
+        });
+        let router = router(state.clone());
+        Ok(Application {
+            listener,
+            router,
+            state,
+        })
+    }
+
+    /// The address actually bound (useful with port 0).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.listener
+            .local_addr()
+            .expect("a bound TCP listener has a local address")
+    }
+
+    /// The port actually bound.
+    pub fn port(&self) -> u16 {
+        self.local_addr().port()
+    }
+
+    /// The shared state (tests and the CLI inspect it).
+    pub fn state(&self) -> &Arc<AppState> {
+        &self.state
+    }
+
+    /// Serves until `shutdown` resolves, then stops accepting connections and
+    /// waits for in-flight requests to finish.
+    pub async fn run_until_stopped(
+        self,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> std::io::Result<()> {
+        let upkeep = {
+            let metrics = self.state.metrics.clone();
+            tokio::spawn(async move {
+                let mut tick = tokio::time::interval(METRICS_UPKEEP_PERIOD);
+                loop {
+                    tick.tick().await;
+                    metrics.run_upkeep();
+                }
+            })
+        };
+        tracing::info!(addr = %self.local_addr(), "listening");
+        let served = axum::serve(self.listener, self.router)
+            .with_graceful_shutdown(shutdown)
+            .await;
+        upkeep.abort();
+        tracing::info!("stopped");
+        served
+    }
+}
+
+/// The OpenAPI document's header; paths are added by `routes!` registrations.
+#[derive(OpenApi)]
+#[openapi(
+    info(description = "Bayesian Monte Carlo irradiance caching over REST."),
+    components(schemas(ErrorBody)),
+    tags((name = "service", description = "Health, metrics and this document"),
+         (name = "scenes", description = "Scenes and queries on them"))
+)]
+struct ApiDoc;
+
+/// The full router: documented routes, fallbacks and middleware.
+pub fn router(state: Arc<AppState>) -> Router {
+    let (api_routes, doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .routes(routes!(routes::health::health))
+        .routes(routes!(routes::metrics::metrics))
+        .routes(routes!(routes::openapi::openapi))
+        .routes(routes!(
+            routes::scenes::list_scenes,
+            routes::scenes::post_scene
+        ))
+        .routes(routes!(
+            routes::scenes::get_scene,
+            routes::scenes::delete_scene
+        ))
+        .routes(routes!(routes::irradiance::irradiance))
+        .split_for_parts();
+    let limits = state.config.limits.clone();
+    with_middleware(
+        api_routes.layer(Extension(Arc::new(doc))).with_state(state),
+        &limits,
+    )
+}
+
+/// Adds the JSON fallbacks and the middleware stack described in the module docs.
+fn with_middleware(routes: Router, limits: &Limits) -> Router {
+    routes
+        .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
+        .layer(DefaultBodyLimit::max(limits.max_body_bytes))
+        .layer(middleware::from_fn_with_state(
+            limits.request_deadline(),
+            enforce_deadline,
+        ))
+        .layer(CatchPanicLayer::custom(
+            |panic: Box<dyn std::any::Any + Send>| {
+                ApiError::from_panic(panic.as_ref()).into_response()
+            },
+        ))
+        .layer(middleware::from_fn(metrics::track))
+        .layer(TraceLayer::new_for_http())
+}
+
+async fn not_found(uri: Uri) -> ApiError {
+    ApiError::NoRoute {
+        path: uri.path().to_owned(),
+    }
+}
+
+async fn method_not_allowed(method: Method) -> ApiError {
+    ApiError::MethodNotAllowed {
+        method: method.to_string(),
+    }
+}
+
+async fn enforce_deadline(
+    State(deadline): State<Duration>,
+    request: Request,
+    next: Next,
+) -> Response {
+    match tokio::time::timeout(deadline, next.run(request)).await {
+        Ok(response) => response,
+        Err(_) => ApiError::DeadlineExceeded {
+            secs: deadline.as_secs(),
+        }
+        .into_response(),
+    }
+}
+
+/// Resolves on SIGINT (Ctrl-C) or SIGTERM.
+pub async fn shutdown_signal() {
+    let interrupt = async {
+        if let Err(err) = tokio::signal::ctrl_c().await {
+            tracing::error!(%err, "cannot listen for SIGINT");
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut signal) => {
+                signal.recv().await;
+            }
+            Err(err) => {
+                tracing::error!(%err, "cannot listen for SIGTERM");
+                std::future::pending::<()>().await;
+            }
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        () = interrupt => tracing::info!("SIGINT received, shutting down"),
+        () = terminate => tracing::info!("SIGTERM received, shutting down"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The middleware stack on small test-only routes (the product routes are
+    //! exercised end to end in `tests/`).
+    use super::*;
+    use crate::service::extract::ApiJson;
+    use axum::body::{Body, to_bytes};
+    use axum::http::{Request as HttpRequest, StatusCode};
+    use axum::routing::{get, post};
+    use tower::ServiceExt;
+
+    fn limits() -> Limits {
+        let mut limits = Config::default_config().limits;
+        limits.max_body_bytes = 64;
+        limits.request_deadline_secs = 2;
+        limits
+    }
+
+    async fn echo(ApiJson(value): ApiJson<serde_json::Value>) -> axum::Json<serde_json::Value> {
+        axum::Json(value)
+    }
+
+    async fn error_body(response: Response) -> (StatusCode, serde_json::Value) {
+        let status = response.status();
+        let bytes = to_bytes(response.into_body(), usize::MAX).await.unwrap();
+        (status, serde_json::from_slice(&bytes).unwrap())
+    }
+
+    fn post_json(body: impl Into<Body>) -> HttpRequest<Body> {
+        HttpRequest::post("/echo")
+            .header("content-type", "application/json")
+            .body(body.into())
+            .unwrap()
+    }
+
+    #[tokio::test]
+    async fn oversized_body_is_413_with_json_error() {
+        let app = with_middleware(Router::new().route("/echo", post(echo)), &limits());
+        let small = app.clone().oneshot(post_json(r#"{"a": 1}"#)).await.unwrap();
+        assert_eq!(small.status(), StatusCode::OK);
+
+        let big = format!(r#"{{"a": "{}"}}"#, "x".repeat(100));
+        let (status, body) = error_body(app.oneshot(post_json(big)).await.unwrap()).await;
+        assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE);
+        assert_eq!(body["error"]["code"], "payload_too_large");
+    }
+
+    #[tokio::test]
+    async fn malformed_json_and_wrong_content_type_get_json_errors() {
+        let app = with_middleware(Router::new().route("/echo", post(echo)), &limits());
+        let (status, body) =
+            error_body(app.clone().oneshot(post_json("{nope")).await.unwrap()).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST);
+        assert_eq!(body["error"]["code"], "malformed_json");
+        assert!(body["error"]["field"].is_null());
+
+        let form = HttpRequest::post("/echo")
+            .header("content-type", "application/x-www-form-urlencoded")
+            .body(Body::from("a=1"))
+            .unwrap();
+        let (status, body) = error_body(app.oneshot(form).await.unwrap()).await;
+        assert_eq!(status, StatusCode::UNSUPPORTED_MEDIA_TYPE);
+        assert_eq!(body["error"]["code"], "unsupported_media_type");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn request_past_its_deadline_is_504() {
+        let slow = || async {
+            tokio::time::sleep(Duration::from_secs(3600)).await;
+            "done"
+        };
+        let app = with_middleware(Router::new().route("/slow", get(slow)), &limits());
+        let request = HttpRequest::get("/slow").body(Body::empty()).unwrap();
+        let (status, body) = error_body(app.oneshot(request).await.unwrap()).await;
+        assert_eq!(status, StatusCode::GATEWAY_TIMEOUT);
+        assert_eq!(body["error"]["code"], "deadline_exceeded");
+    }
+
+    #[tokio::test]
+    async fn panicking_handler_is_500_with_json_error() {
+        async fn boom() -> &'static str {
+            panic!("handler bug")
+        }
+        let app = with_middleware(Router::new().route("/boom", get(boom)), &limits());
+        let request = HttpRequest::get("/boom").body(Body::empty()).unwrap();
+        let (status, body) = error_body(app.oneshot(request).await.unwrap()).await;
+        assert_eq!(status, StatusCode::INTERNAL_SERVER_ERROR);
+        assert_eq!(body["error"]["code"], "internal");
+    }
+
+    #[tokio::test]
+    async fn graceful_shutdown_lets_an_in_flight_request_finish() {
+        use std::sync::Mutex;
+        use tokio::sync::oneshot;
+
+        // The handler reports that it started, then waits until the test lets it finish.
+        let (started_tx, started_rx) = oneshot::channel::<()>();
+        let (finish_tx, finish_rx) = oneshot::channel::<()>();
+        let hooks = Arc::new(Mutex::new(Some((started_tx, finish_rx))));
+        let slow = move || {
+            let hooks = hooks.clone();
+            async move {
+                let (started, finish) = hooks.lock().unwrap().take().unwrap();
+                started.send(()).unwrap();
+                finish.await.unwrap();
+                "finished"
+            }
+        };
+        let mut config = Config::default_config();
+        config.server.bind = "127.0.0.1:0".parse().unwrap();
+        let mut app = Application::build(config).await.unwrap();
+        app.router = with_middleware(Router::new().route("/slow", get(slow)), &limits());
+        let url = format!("http://{}/slow", app.local_addr());
+
+        let (stop_tx, stop_rx) = oneshot::channel::<()>();
+        let server = tokio::spawn(app.run_until_stopped(async {
+            let _ = stop_rx.await;
+        }));
+        let client = tokio::spawn(async move {
+            let response = reqwest::get(&url).await.unwrap();
+            (response.status(), response.text().await.unwrap())
+        });
+        started_rx.await.unwrap();
+        stop_tx.send(()).unwrap();
+        // The server must still be serving the in-flight request.
+        tokio::task::yield_now().await;
+        assert!(!server.is_finished());
+        finish_tx.send(()).unwrap();
+
+        let (status, text) = client.await.unwrap();
+        assert_eq!(status, reqwest::StatusCode::OK);
+        assert_eq!(text, "finished");
+        server.await.unwrap().unwrap();
+    }
+}

@@ -1,0 +1,376 @@
+//! Service configuration: `config/default.toml`, an optional file, environment
+//! variables and command-line flags, merged in that order.
+//!
+//! The defaults are compiled into the binary (`config/default.toml` is the
+//! single source of every default and documents each key), so `serve` works
+//! from any working directory. Layers, later ones winning:
+//!
+//! 1. `config/default.toml` (embedded);
+//! 2. `--config FILE`: any subset of the same sections and keys;
+//! 3. environment variables `BMC_<SECTION>__<KEY>=value` (case-insensitive,
+//!    double underscore between section and key), e.g. `BMC_LIMITS__MAX_POINTS=4096`.
+//!    The value is parsed as the type of the default it replaces (integer or
+//!    string). Variables starting with `BMC_` without a `__` are not ours and are ignored;
+//!    a `BMC_X__Y` naming an unknown section or key is an error;
+//! 4. `--bind ADDR`.
+//!
+//! Unknown sections or keys in any layer are errors, so a misspelt key is never
+//! silently ignored. [`Config::validate`] then rejects values the service cannot run with.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+use toml::{Table, Value};
+
+/// The embedded default configuration (`config/default.toml`).
+pub const DEFAULT_TOML: &str = include_str!("../../config/default.toml");
+
+/// Prefix of environment variables that override configuration keys.
+pub const ENV_PREFIX: &str = "BMC_";
+
+/// Why a configuration could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("config file {path} is not valid TOML: {source}")]
+    Parse {
+        path: PathBuf,
+        source: toml::de::Error,
+    },
+    #[error("{origin}: unknown config key `{key}`")]
+    UnknownKey { origin: String, key: String },
+    #[error("{origin}: `{key}` expects {expected}, got {value:?}")]
+    BadValue {
+        origin: String,
+        key: String,
+        expected: &'static str,
+        value: String,
+    },
+    #[error("invalid configuration: {0}")]
+    Shape(#[from] toml::de::Error),
+    #[error("invalid configuration: `{field}` {reason}")]
+    Invalid { field: &'static str, reason: String },
+}
+
+/// The whole service configuration; see `config/default.toml` for each key's meaning.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub server: ServerConfig,
+    pub cache: CacheConfig,
+    pub limits: Limits,
+    pub scenes: ScenesConfig,
+}
+
+/// Listener and thread counts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServerConfig {
+    /// Address to listen on (port 0 = any free port).
+    pub bind: SocketAddr,
+    /// Async runtime threads (0 = number of cores).
+    pub runtime_threads: usize,
+    /// CPU pool threads (0 = number of cores).
+    pub worker_threads: usize,
+}
+
+/// Byte budgets of the caches.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CacheConfig {
+    /// Bytes held by the BMC factorisation and weight cache.
+    pub factorisation_bytes: u64,
+    /// Bytes held by the irradiance-cache records of all scenes together.
+    pub irradiance_bytes: u64,
+}
+
+/// Per-request limits that keep one request from monopolising the service.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Largest request body in bytes (413 beyond).
+    pub max_body_bytes: usize,
+    /// Most points in one point query.
+    pub max_points: usize,
+    /// Most hemisphere samples per estimate.
+    pub max_samples: usize,
+    /// Largest tile area in pixels.
+    pub max_tile_area: usize,
+    /// CPU jobs queued or running at once (503 beyond).
+    pub max_queued_jobs: usize,
+    /// Wall-clock deadline of a request in seconds (504 beyond).
+    pub request_deadline_secs: u64,
+}
+
+/// Where scenes come from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenesConfig {
+    /// Directory of scene documents, relative to the working directory.
+    pub dir: PathBuf,
+}
+
+impl Config {
+    /// Merges the layers described in the module docs and validates the result.
+    ///
+    /// `env` is passed in (rather than read here) so tests control it; the binary
+    /// passes `std::env::vars()`.
+    pub fn load(
+        file: Option<&Path>,
+        env: impl IntoIterator<Item = (String, String)>,
+        bind: Option<SocketAddr>,
+    ) -> Result<Config, ConfigError> {
+        let mut table: Table = DEFAULT_TOML
+            .parse()
+            .expect("the embedded config/default.toml is valid TOML (checked by a unit test)");
+        if let Some(path) = file {
+            let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+                path: path.to_owned(),
+                source,
+            })?;
+            let overlay: Table = text.parse().map_err(|source| ConfigError::Parse {
+                path: path.to_owned(),
+                source,
+            })?;
+            merge_file(&mut table, overlay, &path.display().to_string())?;
+        }
+        for (name, value) in env {
+            apply_env(&mut table, &name, &value)?;
+        }
+        let mut config: Config = Value::Table(table).try_into()?;
+        if let Some(bind) = bind {
+            config.server.bind = bind;
+        }
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// The defaults alone (what `serve` runs with when nothing overrides them).
+    pub fn default_config() -> Config {
+        Config::load(None, std::iter::empty(), None)
+            .expect("the embedded config/default.toml is valid (checked by a unit test)")
+    }
+
+    /// Rejects values that cannot work: zero limits or budgets, an empty scenes path.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let positive = [
+            ("limits.max_body_bytes", self.limits.max_body_bytes as u64),
+            ("limits.max_points", self.limits.max_points as u64),
+            ("limits.max_samples", self.limits.max_samples as u64),
+            ("limits.max_tile_area", self.limits.max_tile_area as u64),
+            ("limits.max_queued_jobs", self.limits.max_queued_jobs as u64),
+            (
+                "limits.request_deadline_secs",
+                self.limits.request_deadline_secs,
+            ),
+            ("cache.factorisation_bytes", self.cache.factorisation_bytes),
+            ("cache.irradiance_bytes", self.cache.irradiance_bytes),
+        ];
+        for (field, value) in positive {
+            if value == 0 {
+                return Err(ConfigError::Invalid {
+                    field,
+                    reason: "must be greater than zero".into(),
+                });
+            }
+        }
+        if self.scenes.dir.as_os_str().is_empty() {
+            return Err(ConfigError::Invalid {
+                field: "scenes.dir",
+                reason: "must not be empty".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+impl ServerConfig {
+    /// Runtime threads with 0 resolved to the number of cores.
+    pub fn runtime_threads(&self) -> usize {
+        resolve_threads(self.runtime_threads)
+    }
+
+    /// CPU pool threads with 0 resolved to the number of cores.
+    pub fn worker_threads(&self) -> usize {
+        resolve_threads(self.worker_threads)
+    }
+}
+
+impl Limits {
+    /// The request deadline as a duration.
+    pub fn request_deadline(&self) -> Duration {
+        Duration::from_secs(self.request_deadline_secs)
+    }
+}
+
+fn resolve_threads(configured: usize) -> usize {
+    if configured > 0 {
+        configured
+    } else {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    }
+}
+
+/// Copies every key of `overlay` onto `base`, refusing sections and keys `base` lacks.
+fn merge_file(base: &mut Table, overlay: Table, origin: &str) -> Result<(), ConfigError> {
+    for (section, value) in overlay {
+        let Some(Value::Table(target)) = base.get_mut(&section) else {
+            return Err(ConfigError::UnknownKey {
+                origin: origin.into(),
+                key: section,
+            });
+        };
+        let Value::Table(entries) = value else {
+            return Err(ConfigError::BadValue {
+                origin: origin.into(),
+                key: section,
+                expected: "a table",
+                value: value.to_string(),
+            });
+        };
+        for (key, value) in entries {
+            if !target.contains_key(&key) {
+                return Err(ConfigError::UnknownKey {
+                    origin: origin.into(),
+                    key: format!("{section}.{key}"),
+                });
+            }
+            target.insert(key, value);
+        }
+    }
+    Ok(())
+}
+
+/// Applies one `BMC_<SECTION>__<KEY>` variable; other variables are ignored.
+fn apply_env(base: &mut Table, name: &str, raw: &str) -> Result<(), ConfigError> {
+    let Some((section, key)) = name
+        .get(..ENV_PREFIX.len())
+        .filter(|prefix| prefix.eq_ignore_ascii_case(ENV_PREFIX))
+        .and_then(|_| name[ENV_PREFIX.len()..].split_once("__"))
+    else {
+        return Ok(());
+    };
+    let (section, key) = (section.to_ascii_lowercase(), key.to_ascii_lowercase());
+    let unknown = || ConfigError::UnknownKey {
+        origin: format!("environment variable {name}"),
+        key: format!("{section}.{key}"),
+    };
+    let slot = base
+        .get_mut(&section)
+        .and_then(Value::as_table_mut)
+        .and_then(|table| table.get_mut(&key))
+        .ok_or_else(unknown)?;
+    let bad = |expected| ConfigError::BadValue {
+        origin: format!("environment variable {name}"),
+        key: format!("{section}.{key}"),
+        expected,
+        value: raw.into(),
+    };
+    *slot = match slot {
+        Value::Integer(_) => Value::Integer(raw.trim().parse().map_err(|_| bad("an integer"))?),
+        Value::Boolean(_) => Value::Boolean(raw.trim().parse().map_err(|_| bad("true or false"))?),
+        Value::Float(_) => Value::Float(raw.trim().parse().map_err(|_| bad("a number"))?),
+        _ => Value::String(raw.into()),
+    };
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn env(pairs: &[(&str, &str)]) -> Vec<(String, String)> {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect()
+    }
+
+    #[test]
+    fn defaults_parse_and_validate() {
+        let config = Config::default_config();
+        assert_eq!(config.server.bind, "127.0.0.1:8080".parse().unwrap());
+        assert_eq!(config.scenes.dir, PathBuf::from("scenes"));
+        assert!(config.server.worker_threads() >= 1);
+    }
+
+    #[test]
+    fn file_overrides_some_keys_and_keeps_the_rest() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.toml");
+        std::fs::write(&path, "[limits]\nmax_points = 7\n").unwrap();
+        let config = Config::load(Some(&path), env(&[]), None).unwrap();
+        assert_eq!(config.limits.max_points, 7);
+        assert_eq!(
+            config.limits.max_samples,
+            Config::default_config().limits.max_samples
+        );
+    }
+
+    #[test]
+    fn unknown_key_in_file_is_rejected_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.toml");
+        std::fs::write(&path, "[limits]\nmax_pionts = 7\n").unwrap();
+        let err = Config::load(Some(&path), env(&[]), None).unwrap_err();
+        assert!(err.to_string().contains("limits.max_pionts"), "{err}");
+    }
+
+    #[test]
+    fn environment_overrides_file_and_bind_flag_overrides_all() {
+        let config = Config::load(
+            None,
+            env(&[
+                ("BMC_LIMITS__MAX_POINTS", "12"),
+                ("bmc_server__bind", "127.0.0.1:9999"),
+                ("BMC_SCENES__DIR", "/tmp/s"),
+                ("BMC_UNRELATED", "x"),
+                ("PATH", "/bin"),
+            ]),
+            Some("127.0.0.1:0".parse().unwrap()),
+        )
+        .unwrap();
+        assert_eq!(config.limits.max_points, 12);
+        assert_eq!(config.scenes.dir, PathBuf::from("/tmp/s"));
+        assert_eq!(config.server.bind.port(), 0);
+    }
+
+    #[test]
+    fn bad_environment_values_name_the_variable() {
+        let err = Config::load(None, env(&[("BMC_LIMITS__MAX_POINTS", "many")]), None).unwrap_err();
+        assert!(err.to_string().contains("BMC_LIMITS__MAX_POINTS"), "{err}");
+        let err = Config::load(None, env(&[("BMC_LIMITS__NOPE", "1")]), None).unwrap_err();
+        assert!(err.to_string().contains("limits.nope"), "{err}");
+    }
+
+    #[test]
+    fn zero_limits_are_rejected_with_the_field() {
+        let err =
+            Config::load(None, env(&[("BMC_LIMITS__MAX_QUEUED_JOBS", "0")]), None).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ConfigError::Invalid {
+                    field: "limits.max_queued_jobs",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn wrong_type_in_file_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.toml");
+        std::fs::write(&path, "[server]\nbind = 5\n").unwrap();
+        let err = Config::load(Some(&path), env(&[]), None).unwrap_err();
+        assert!(err.to_string().contains("bind"), "{err}");
+    }
+}

@@ -1,0 +1,178 @@
+//! `ApiJson<T>`: a JSON body extractor whose rejections are [`ApiError`]s naming the field.
+//!
+//! axum's own `Json` answers wrong types with a plain-text 422 that does not say
+//! which field was wrong; here the body is deserialised through
+//! `serde_path_to_error`, so `{"points": [{"normal": "up"}]}` is rejected with
+//! `field: "points[0].normal"`. Syntax errors are 400 `malformed_json`; shape
+//! errors (wrong type, missing or unknown field) are 422 `invalid_field`; a body
+//! over `limits.max_body_bytes` (enforced by axum's `DefaultBodyLimit` layer) is 413.
+//! A request without `content-type` is read as JSON; any other content type than
+//! JSON is 415.
+
+use axum::body::Bytes;
+use axum::extract::{FromRequest, Request};
+use axum::http::{StatusCode, header};
+use serde::de::DeserializeOwned;
+
+use super::error::ApiError;
+
+/// A JSON request body of type `T`; see the module docs for how failures map to errors.
+#[derive(Debug, Clone)]
+pub struct ApiJson<T>(pub T);
+
+impl<T, S> FromRequest<S> for ApiJson<T>
+where
+    T: DeserializeOwned,
+    S: Send + Sync,
+{
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &S) -> Result<Self, ApiError> {
+        if let Some(content_type) = req.headers().get(header::CONTENT_TYPE) {
+            let text = content_type.to_str().unwrap_or("<not UTF-8>");
+            let essence = text.split(';').next().unwrap_or("").trim();
+            let is_json = essence.eq_ignore_ascii_case("application/json")
+                || essence.to_ascii_lowercase().ends_with("+json");
+            if !is_json {
+                return Err(ApiError::UnsupportedMediaType { got: text.into() });
+            }
+        }
+        let bytes = Bytes::from_request(req, state).await.map_err(|rejection| {
+            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+                ApiError::PayloadTooLarge
+            } else {
+                ApiError::MalformedJson {
+                    message: rejection.body_text(),
+                }
+            }
+        })?;
+        parse_json(&bytes).map(ApiJson)
+    }
+}
+
+/// Deserialises `bytes` as a `T`, naming the offending field on failure.
+pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
+    let mut deserializer = serde_json::Deserializer::from_slice(bytes);
+    let value = serde_path_to_error::deserialize(&mut deserializer).map_err(|err| {
+        let path = err.path().to_string();
+        let inner = err.into_inner();
+        classify(inner, path)
+    })?;
+    deserializer
+        .end()
+        .map_err(|err| classify(err, String::new()))?;
+    Ok(value)
+}
+
+fn classify(err: serde_json::Error, path: String) -> ApiError {
+    use serde_json::error::Category;
+    match err.classify() {
+        Category::Syntax | Category::Eof | Category::Io => ApiError::MalformedJson {
+            message: err.to_string(),
+        },
+        Category::Data => {
+            let message = err.to_string();
+            // serde reports a missing field at the struct that lacks it; name the field itself.
+            let missing = message
+                .strip_prefix("missing field `")
+                .and_then(|rest| rest.split('`').next());
+            let path = if path == "." { String::new() } else { path };
+            let field = match (missing, path.is_empty()) {
+                (Some(name), true) => name.to_owned(),
+                (Some(name), false) => format!("{path}.{name}"),
+                (None, _) => path,
+            };
+            ApiError::invalid(field, message)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde::Deserialize;
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)] // fields are only read through Debug in these tests
+    struct Point {
+        position: [f64; 3],
+        normal: [f64; 3],
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Query {
+        points: Vec<Point>,
+        seed: u64,
+    }
+
+    fn field_of(body: &str) -> (StatusCode, Option<String>) {
+        let err = parse_json::<Query>(body.as_bytes()).unwrap_err();
+        (err.status(), err.field().map(str::to_owned))
+    }
+
+    #[test]
+    fn well_formed_body_parses() {
+        let q: Query =
+            parse_json(br#"{"points": [{"position": [0,0,0], "normal": [0,0,1]}], "seed": 3}"#)
+                .unwrap();
+        assert_eq!(q.points.len(), 1);
+        assert_eq!(q.seed, 3);
+    }
+
+    #[test]
+    fn syntax_errors_are_400_without_field() {
+        for body in [
+            r#"{"points": ["#,
+            "not json",
+            r#"{"points": [], "seed": 1} trailing"#,
+            "",
+        ] {
+            let err = parse_json::<Query>(body.as_bytes()).unwrap_err();
+            assert_eq!(err.status(), StatusCode::BAD_REQUEST, "{body}");
+            assert_eq!(err.code(), "malformed_json");
+            assert_eq!(err.field(), None);
+        }
+    }
+
+    #[test]
+    fn wrong_type_names_the_nested_field() {
+        let body = r#"{"points": [{"position": [0,0,0], "normal": [0,0,1]},
+                                  {"position": [0,0,0], "normal": "up"}], "seed": 1}"#;
+        assert_eq!(
+            field_of(body),
+            (
+                StatusCode::UNPROCESSABLE_ENTITY,
+                Some("points[1].normal".into())
+            )
+        );
+        assert_eq!(
+            field_of(r#"{"points": [], "seed": -1}"#),
+            (StatusCode::UNPROCESSABLE_ENTITY, Some("seed".into()))
+        );
+    }
+
+    #[test]
+    fn missing_field_is_named_with_its_parent_path() {
+        assert_eq!(
+            field_of(r#"{"points": []}"#),
+            (StatusCode::UNPROCESSABLE_ENTITY, Some("seed".into()))
+        );
+        assert_eq!(
+            field_of(r#"{"points": [{"position": [0,0,0]}], "seed": 1}"#),
+            (
+                StatusCode::UNPROCESSABLE_ENTITY,
+                Some("points[0].normal".into())
+            )
+        );
+    }
+
+    #[test]
+    fn unknown_field_is_422() {
+        let (status, field) = field_of(r#"{"points": [], "seed": 1, "sede": 2}"#);
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!(field.as_deref(), Some("sede"));
+    }
+}

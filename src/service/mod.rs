@@ -1,0 +1,76 @@
+//! The HTTP service: parses and validates requests, dispatches CPU work to a
+//! bounded pool, serialises results. The library modules it serves know
+//! nothing about HTTP.
+//!
+//! - `config`: `config/default.toml` + file + `BMC_<SECTION>__<KEY>` env + flags;
+//! - `app`: [`Application`] (router, middleware, listener, graceful shutdown);
+//! - `state`: [`AppState`], shared by all requests;
+//! - `error`: [`ApiError`] and the JSON error body;
+//! - `extract`: [`ApiJson`], a JSON extractor whose errors name the field;
+//! - `pool`: [`CpuPool`], bounded rayon pool (503 + `Retry-After` when full);
+//! - `metrics`: Prometheus names, recorder and per-route middleware;
+//! - `scenes`: the scene registry ([`SceneRegistry`]) and startup loading;
+//! - `routes`: one file per resource.
+
+pub mod app;
+pub mod config;
+pub mod error;
+pub mod extract;
+pub mod metrics;
+pub mod pool;
+pub mod routes;
+pub mod scenes;
+pub mod state;
+
+pub use app::{Application, shutdown_signal};
+pub use config::Config;
+pub use error::ApiError;
+pub use extract::ApiJson;
+pub use pool::CpuPool;
+pub use scenes::{LoadedScene, SceneRegistry};
+pub use state::AppState;
+
+/// Arguments of `bmc-irradiance serve`.
+#[derive(Debug, clap::Args)]
+pub struct ServeArgs {
+    /// TOML file merged over the defaults (config/default.toml); may set any subset of keys.
+    /// Environment variables BMC_<SECTION>__<KEY> override both.
+    #[arg(long)]
+    pub config: Option<std::path::PathBuf>,
+    /// Listen address, overriding `server.bind`.
+    #[arg(long)]
+    pub bind: Option<std::net::SocketAddr>,
+}
+
+/// `serve`: loads the configuration layers, initialises logging and runs the service.
+pub fn run_serve(args: &ServeArgs) -> anyhow::Result<()> {
+    init_tracing();
+    let config = Config::load(args.config.as_deref(), std::env::vars(), args.bind)?;
+    serve(config)
+}
+
+/// Logs to stderr, filtered by `RUST_LOG` (default: `info`).
+pub fn init_tracing() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    // Ignore a second initialisation (tests, embedding) instead of failing.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+/// Runs the service with `config` until SIGINT or SIGTERM, on a runtime of
+/// `server.runtime_threads` threads (the CPU pool has its own threads).
+pub fn serve(config: Config) -> anyhow::Result<()> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(config.server.runtime_threads())
+        .thread_name("bmc-io")
+        .enable_all()
+        .build()?;
+    runtime.block_on(async {
+        let app = Application::build(config).await?;
+        app.run_until_stopped(shutdown_signal()).await?;
+        Ok(())
+    })
+}

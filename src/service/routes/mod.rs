@@ -1,0 +1,9 @@
+//! One file per resource. Every handler carries a `#[utoipa::path]` annotation
+//! and is registered through `utoipa_axum::routes!`, so `/openapi.json` lists
+//! exactly the routes the router serves.
+
+pub mod health;
+pub mod irradiance;
+pub mod metrics;
+pub mod openapi;
+pub mod scenes;

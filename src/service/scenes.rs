@@ -1,0 +1,248 @@
+//! The scene registry: scenes loaded from the scenes directory at startup or
+//! posted later, each with its light-transport state built once.
+//!
+//! A scene's id is its file stem (`scenes/cornell-box.json` → `cornell-box`)
+//! or, for a posted document, its `name`. Ids are restricted to
+//! `[A-Za-z0-9_-]{1,64}` because they appear in URL paths. A broken scene file
+//! is logged and skipped at startup, never fatal: one bad file must not keep the
+//! other scenes from being served.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, RwLock};
+
+use rayon::prelude::*;
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use crate::render::Transport;
+use crate::scene::{Scene, SceneError};
+
+/// Longest accepted scene id.
+pub const MAX_ID_LEN: usize = 64;
+
+/// Where a loaded scene came from.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SceneSource {
+    /// A `*.json` file of the scenes directory, loaded at startup.
+    File,
+    /// A document posted to `POST /v1/scenes`.
+    Uploaded,
+}
+
+/// A scene ready to answer queries.
+pub struct LoadedScene {
+    /// Registry key, used in URLs.
+    pub id: String,
+    pub source: SceneSource,
+    /// The scene with its light-selection tables and BSDFs, built once.
+    pub transport: Transport,
+}
+
+/// What `GET /v1/scenes[/{id}]` tells about a scene.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct SceneSummary {
+    pub id: String,
+    /// The document's display name.
+    pub name: String,
+    pub source: SceneSource,
+    /// Entries of the document's `shapes`.
+    pub shapes: usize,
+    /// Triangles (spheres and disks are analytic and not counted).
+    pub triangles: usize,
+    /// Area emitters.
+    pub emitters: usize,
+    pub materials: Vec<String>,
+    /// Whether an environment (constant or map) lights the scene.
+    pub environment: bool,
+    /// Camera image size `[width, height]` in pixels (the tile space).
+    pub resolution: [u32; 2],
+    /// Axis-aligned bounds of the geometry, world units.
+    pub bounds_min: [f64; 3],
+    pub bounds_max: [f64; 3],
+}
+
+impl LoadedScene {
+    pub fn new(id: String, source: SceneSource, scene: Scene) -> LoadedScene {
+        LoadedScene {
+            id,
+            source,
+            transport: Transport::new(Arc::new(scene)),
+        }
+    }
+
+    pub fn summary(&self) -> SceneSummary {
+        let scene = self.transport.scene();
+        let (min, max) = scene.bounds();
+        let (width, height) = scene.camera.resolution();
+        SceneSummary {
+            id: self.id.clone(),
+            name: scene.name.clone(),
+            source: self.source.clone(),
+            shapes: scene.shape_count(),
+            triangles: scene.triangle_count(),
+            emitters: scene.emitters.len(),
+            materials: scene.material_ids.clone(),
+            environment: scene.environment.is_some(),
+            resolution: [width, height],
+            bounds_min: min.to_array(),
+            bounds_max: max.to_array(),
+        }
+    }
+}
+
+/// Scenes by id; readers share, writers (post/delete) are brief.
+#[derive(Default)]
+pub struct SceneRegistry {
+    scenes: RwLock<HashMap<String, Arc<LoadedScene>>>,
+}
+
+impl SceneRegistry {
+    pub fn get(&self, id: &str) -> Option<Arc<LoadedScene>> {
+        self.read().get(id).cloned()
+    }
+
+    /// Adds or replaces a scene; returns true if it replaced one.
+    pub fn insert(&self, scene: LoadedScene) -> bool {
+        let mut scenes = self.scenes.write().unwrap_or_else(|p| p.into_inner());
+        scenes.insert(scene.id.clone(), Arc::new(scene)).is_some()
+    }
+
+    /// Removes a scene; in-flight requests holding it finish with their `Arc`.
+    pub fn remove(&self, id: &str) -> Option<Arc<LoadedScene>> {
+        let mut scenes = self.scenes.write().unwrap_or_else(|p| p.into_inner());
+        scenes.remove(id)
+    }
+
+    pub fn len(&self) -> usize {
+        self.read().len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Summaries of every scene, sorted by id.
+    pub fn summaries(&self) -> Vec<SceneSummary> {
+        let mut all: Vec<_> = self.read().values().map(|s| s.summary()).collect();
+        all.sort_by(|a, b| a.id.cmp(&b.id));
+        all
+    }
+
+    /// A poisoned lock only means a writer panicked mid-insert of a whole
+    /// `Arc`, which leaves the map consistent, so keep serving.
+    fn read(&self) -> std::sync::RwLockReadGuard<'_, HashMap<String, Arc<LoadedScene>>> {
+        self.scenes.read().unwrap_or_else(|p| p.into_inner())
+    }
+}
+
+/// Checks that `id` can be used as a scene id (see module docs).
+pub fn validate_id(id: &str) -> Result<(), String> {
+    let ok_chars = id
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    if id.is_empty() || id.len() > MAX_ID_LEN || !ok_chars {
+        Err(format!(
+            "scene id must be 1..={MAX_ID_LEN} characters of A-Z, a-z, 0-9, '-', '_', got {id:?}"
+        ))
+    } else {
+        Ok(())
+    }
+}
+
+/// Loads every `*.json` of `dir` in parallel; files that fail are logged and
+/// skipped. A missing directory gives no scenes (and a warning).
+pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(err) => {
+            tracing::warn!(dir = %dir.display(), %err, "cannot read the scenes directory; no scenes loaded");
+            return Vec::new();
+        }
+    };
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(Result::ok)
+        .map(|entry| entry.path())
+        .filter(|path| path.extension().is_some_and(|ext| ext == "json"))
+        .collect();
+    files.sort();
+    files
+        .par_iter()
+        .filter_map(|path| {
+            let id = path.file_stem()?.to_string_lossy().into_owned();
+            if let Err(reason) = validate_id(&id) {
+                tracing::warn!(file = %path.display(), %reason, "scene skipped");
+                return None;
+            }
+            match Scene::load(path, dir) {
+                Ok(scene) => {
+                    tracing::info!(%id, file = %path.display(), "scene loaded");
+                    Some(LoadedScene::new(id, SceneSource::File, scene))
+                }
+                Err(err) => {
+                    log_broken(path, &err);
+                    None
+                }
+            }
+        })
+        .collect()
+}
+
+fn log_broken(path: &Path, err: &SceneError) {
+    tracing::error!(file = %path.display(), error = %err, "scene skipped: cannot load");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TINY: &str = r#"{
+        "materials": [{"id": "white", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+        "shapes": [{"type": "rectangle", "material": "white"}],
+        "environment": {"type": "constant", "radiance": [1, 1, 1]},
+        "camera": {"type": "perspective", "fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0],
+                   "up": [0, 1, 0], "width": 8, "height": 8}
+    }"#;
+
+    #[test]
+    fn ids_are_url_safe() {
+        for good in ["cornell-box", "a", "scene_2"] {
+            assert!(validate_id(good).is_ok(), "{good}");
+        }
+        let long = "x".repeat(MAX_ID_LEN + 1);
+        for bad in ["", "a/b", "..", "sp ace", long.as_str()] {
+            assert!(validate_id(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn broken_files_are_skipped_and_good_ones_loaded() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("good.json"), TINY).unwrap();
+        std::fs::write(dir.path().join("broken.json"), "{ not json").unwrap();
+        std::fs::write(dir.path().join("bad id!.json"), TINY).unwrap();
+        std::fs::write(dir.path().join("notes.txt"), "ignored").unwrap();
+        let loaded = load_dir(dir.path());
+        let ids: Vec<_> = loaded.iter().map(|s| s.id.as_str()).collect();
+        assert_eq!(ids, ["good"]);
+
+        let registry = SceneRegistry::default();
+        for scene in loaded {
+            assert!(!registry.insert(scene));
+        }
+        assert_eq!(registry.len(), 1);
+        let summary = &registry.summaries()[0];
+        assert_eq!(summary.resolution, [8, 8]);
+        assert_eq!(summary.materials, ["white"]);
+        assert!(summary.environment);
+        assert!(registry.remove("good").is_some());
+        assert!(registry.is_empty());
+    }
+
+    #[test]
+    fn missing_directory_loads_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(load_dir(&dir.path().join("absent")).is_empty());
+    }
+}

@@ -1,0 +1,20 @@
+//! `AppState`: everything a handler may touch, built once at startup and shared
+//! by `Arc` between all requests. Nothing here is global except the metrics
+//! recorder (see `metrics.rs` for why).
+
+use super::config::Config;
+use super::metrics::Metrics;
+use super::pool::CpuPool;
+use super::scenes::SceneRegistry;
+
+/// Shared, read-mostly state of one running service.
+pub struct AppState {
+    /// The validated configuration; handlers read the request limits from it.
+    pub config: Config,
+    /// Where CPU-heavy work runs; bounded so overload turns into 503s, not memory growth.
+    pub pool: CpuPool,
+    /// Renders `/metrics`; domain counters are recorded through the `metrics` facade.
+    pub metrics: Metrics,
+    /// Loaded scenes by id; each keeps its light-transport state so requests never rebuild it.
+    pub scenes: SceneRegistry,
+}

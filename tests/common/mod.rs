@@ -1,0 +1,118 @@
+//! Spawns the real service on 127.0.0.1:0 for black-box tests.
+
+#![allow(dead_code)] // each test binary uses a different subset of these helpers
+
+use bmc_irradiance::service::{Application, Config};
+use tempfile::TempDir;
+use tokio::sync::oneshot;
+
+/// A running service; it stops when this value is dropped.
+pub struct TestApp {
+    /// `http://127.0.0.1:<port>`.
+    pub base: String,
+    pub client: reqwest::Client,
+    /// The scenes directory, deleted on drop.
+    pub scenes_dir: TempDir,
+    stop: Option<oneshot::Sender<()>>,
+}
+
+impl TestApp {
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+
+    pub async fn get(&self, path: &str) -> reqwest::Response {
+        self.client.get(self.url(path)).send().await.unwrap()
+    }
+
+    pub async fn post_json(&self, path: &str, body: &serde_json::Value) -> reqwest::Response {
+        self.client
+            .post(self.url(path))
+            .json(body)
+            .send()
+            .await
+            .unwrap()
+    }
+}
+
+impl Drop for TestApp {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+    }
+}
+
+/// A configuration for tests: ephemeral port, an empty temporary scenes
+/// directory, two CPU threads; `adjust` may change anything else.
+pub fn test_config(scenes_dir: &TempDir, adjust: impl FnOnce(&mut Config)) -> Config {
+    let mut config = Config::default_config();
+    config.server.bind = "127.0.0.1:0".parse().unwrap();
+    config.server.worker_threads = 2;
+    config.scenes.dir = scenes_dir.path().to_owned();
+    adjust(&mut config);
+    config.validate().unwrap();
+    config
+}
+
+/// Starts the service with the test configuration.
+pub async fn spawn_app() -> TestApp {
+    spawn_app_with(|_| {}).await
+}
+
+/// Starts the service with the test configuration changed by `adjust`.
+pub async fn spawn_app_with(adjust: impl FnOnce(&mut Config)) -> TestApp {
+    spawn_app_with_scenes(&[], adjust).await
+}
+
+/// A small valid scene: a diffuse unit rectangle under a constant white sky.
+pub const TINY_SCENE: &str = r#"{
+    "materials": [{"id": "white", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+    "shapes": [{"type": "rectangle", "material": "white"}],
+    "environment": {"type": "constant", "radiance": [1, 1, 1]},
+    "camera": {"type": "perspective", "fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0],
+               "up": [0, 1, 0], "width": 8, "height": 8}
+}"#;
+
+/// Starts the service after writing `files` (name, contents) into its scenes directory.
+pub async fn spawn_app_with_scenes(
+    files: &[(&str, &str)],
+    adjust: impl FnOnce(&mut Config),
+) -> TestApp {
+    let scenes_dir = tempfile::tempdir().unwrap();
+    for (name, contents) in files {
+        std::fs::write(scenes_dir.path().join(name), contents).unwrap();
+    }
+    let config = test_config(&scenes_dir, adjust);
+    let app = Application::build(config).await.unwrap();
+    let base = format!("http://{}", app.local_addr());
+    let (stop, stopped) = oneshot::channel::<()>();
+    tokio::spawn(app.run_until_stopped(async {
+        let _ = stopped.await;
+    }));
+    TestApp {
+        base,
+        client: reqwest::Client::new(),
+        scenes_dir,
+        stop: Some(stop),
+    }
+}
+
+/// Asserts the JSON error body shape and returns `(code, field)`.
+pub async fn error_of(response: reqwest::Response) -> (String, Option<String>) {
+    let content_type = response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    assert!(
+        content_type.starts_with("application/json"),
+        "{content_type}"
+    );
+    let body: serde_json::Value = response.json().await.unwrap();
+    let error = &body["error"];
+    assert!(error["message"].is_string(), "{body}");
+    (
+        error["code"].as_str().unwrap().to_owned(),
+        error["field"].as_str().map(str::to_owned),
+    )
+}

@@ -1,0 +1,197 @@
+//! `POST /v1/scenes/{id}/irradiance` end to end, and a table of bad requests.
+
+mod common;
+
+use common::{TINY_SCENE, error_of, spawn_app_with_scenes};
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+fn request(normal: [f64; 3], samples: u32) -> Value {
+    json!({
+        "points": [{"position": [0.0, 0.0, 5.0], "normal": normal}],
+        "estimator": {"method": "mc", "samples": samples, "decomposition": "hemisphere"},
+        "max_depth": 1,
+        "seed": 7,
+    })
+}
+
+#[tokio::test]
+async fn open_sky_gives_pi_times_radiance_and_counts_rays() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    // Above the only shape, facing up: the whole hemisphere sees radiance 1, so E = π.
+    let response = app
+        .post_json("/v1/scenes/tiny/irradiance", &request([0.0, 0.0, 2.0], 16))
+        .await;
+    assert_eq!(response.status(), StatusCode::OK);
+    let body: Value = response.json().await.unwrap();
+    for channel in body["irradiance"][0].as_array().unwrap() {
+        assert!(
+            (channel.as_f64().unwrap() - std::f64::consts::PI).abs() < 1e-9,
+            "{body}"
+        );
+    }
+    assert!(body["rays"].as_u64().unwrap() >= 16);
+    assert_eq!(body["std_dev"].as_array().unwrap().len(), 1);
+
+    let metrics = app.get("/metrics").await.text().await.unwrap();
+    assert!(
+        metrics.lines().any(|l| l.starts_with("rays_traced_total")),
+        "{metrics}"
+    );
+}
+
+#[tokio::test]
+async fn same_request_same_numbers() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    let mut body = request([0.3, 0.1, 1.0], 32);
+    body["points"] = json!([
+        {"position": [0.2, -0.1, 0.0], "normal": [0.0, 0.0, 1.0]},
+        {"position": [0.0, 0.0, 1.0], "normal": [0.3, 0.2, 1.0]}
+    ]);
+    body["max_depth"] = json!(4);
+    body["estimator"]["decomposition"] = json!("split");
+    let first: Value = app
+        .post_json("/v1/scenes/tiny/irradiance", &body)
+        .await
+        .json()
+        .await
+        .unwrap();
+    let second: Value = app
+        .post_json("/v1/scenes/tiny/irradiance", &body)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(first, second);
+}
+
+#[tokio::test]
+async fn bad_requests_get_their_status_code_and_field() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |config| {
+        config.limits.max_points = 4;
+        config.limits.max_samples = 64;
+        config.limits.max_body_bytes = 2048;
+    })
+    .await;
+    let with = |edit: &dyn Fn(&mut Value)| {
+        let mut body = request([0.0, 0.0, 1.0], 8);
+        edit(&mut body);
+        body
+    };
+    let cases: Vec<(&str, Value, StatusCode, &str, Option<&str>)> = vec![
+        (
+            "zero normal",
+            request([0.0, 0.0, 0.0], 8),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("points[0].normal"),
+        ),
+        (
+            "too many samples",
+            request([0.0, 0.0, 1.0], 65),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "limit_exceeded",
+            Some("estimator.samples"),
+        ),
+        (
+            "zero samples",
+            request([0.0, 0.0, 1.0], 0),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("estimator.samples"),
+        ),
+        (
+            "unknown method",
+            with(&|b| b["estimator"]["method"] = json!("magic")),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("estimator.method"),
+        ),
+        (
+            "max_depth 0",
+            with(&|b| b["max_depth"] = json!(0)),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("max_depth"),
+        ),
+        (
+            "no points",
+            with(&|b| b["points"] = json!([])),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("points"),
+        ),
+        (
+            "too many points",
+            with(&|b| {
+                b["points"] = json!(vec![json!({"position": [0, 0, 1], "normal": [0, 0, 1]}); 5])
+            }),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "limit_exceeded",
+            Some("points"),
+        ),
+        (
+            "position as string",
+            with(&|b| b["points"][0]["position"] = json!("here")),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("points[0].position"),
+        ),
+        (
+            "missing estimator",
+            with(&|b| {
+                b.as_object_mut().unwrap().remove("estimator");
+            }),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("estimator"),
+        ),
+        (
+            "unknown field",
+            with(&|b| b["sede"] = json!(1)),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("sede"),
+        ),
+        (
+            "negative seed",
+            with(&|b| b["seed"] = json!(-1)),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("seed"),
+        ),
+        (
+            "body over the limit",
+            with(&|b| b["padding"] = json!("x".repeat(4096))),
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "payload_too_large",
+            None,
+        ),
+    ];
+    for (name, body, status, code, field) in cases {
+        let response = app.post_json("/v1/scenes/tiny/irradiance", &body).await;
+        assert_eq!(response.status(), status, "{name}");
+        assert_eq!(
+            error_of(response).await,
+            (code.to_owned(), field.map(str::to_owned)),
+            "{name}"
+        );
+    }
+
+    let malformed = app
+        .client
+        .post(app.url("/v1/scenes/tiny/irradiance"))
+        .header("content-type", "application/json")
+        .body("{\"points\": [")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(malformed.status(), StatusCode::BAD_REQUEST);
+    assert_eq!(error_of(malformed).await, ("malformed_json".into(), None));
+
+    let unknown = app
+        .post_json("/v1/scenes/nope/irradiance", &request([0.0, 0.0, 1.0], 8))
+        .await;
+    assert_eq!(unknown.status(), StatusCode::NOT_FOUND);
+    assert_eq!(error_of(unknown).await, ("not_found".into(), None));
+}

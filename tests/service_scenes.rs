@@ -1,0 +1,102 @@
+//! `/v1/scenes` end to end: startup loading, listing, posting, deleting.
+
+mod common;
+
+use common::{TINY_SCENE, error_of, spawn_app_with_scenes};
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+fn tiny_named(name: &str) -> Value {
+    let mut doc: Value = serde_json::from_str(TINY_SCENE).unwrap();
+    doc["name"] = json!(name);
+    doc
+}
+
+#[tokio::test]
+async fn startup_loads_good_scenes_and_skips_broken_ones() {
+    let app = spawn_app_with_scenes(
+        &[("tiny.json", TINY_SCENE), ("broken.json", "{\"shapes\": [")],
+        |_| {},
+    )
+    .await;
+    let health: Value = app.get("/health").await.json().await.unwrap();
+    assert_eq!(health["scenes"], 1);
+
+    let list: Value = app.get("/v1/scenes").await.json().await.unwrap();
+    let ids: Vec<_> = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["id"].clone())
+        .collect();
+    assert_eq!(ids, [json!("tiny")]);
+
+    let response = app.get("/v1/scenes/tiny").await;
+    assert_eq!(response.status(), StatusCode::OK);
+    let summary: Value = response.json().await.unwrap();
+    assert_eq!(summary["resolution"], json!([8, 8]));
+    assert_eq!(summary["source"], "file");
+    assert_eq!(summary["shapes"], 1);
+}
+
+#[tokio::test]
+async fn posted_scene_can_be_read_replaced_and_deleted() {
+    let app = spawn_app_with_scenes(&[], |_| {}).await;
+    let response = app.post_json("/v1/scenes", &tiny_named("posted")).await;
+    assert_eq!(response.status(), StatusCode::CREATED);
+    let summary: Value = response.json().await.unwrap();
+    assert_eq!(summary["id"], "posted");
+    assert_eq!(summary["source"], "uploaded");
+
+    let again = app.post_json("/v1/scenes", &tiny_named("posted")).await;
+    assert_eq!(again.status(), StatusCode::OK);
+    assert_eq!(app.get("/v1/scenes/posted").await.status(), StatusCode::OK);
+
+    let deleted = app
+        .client
+        .delete(app.url("/v1/scenes/posted"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(deleted.status(), StatusCode::NO_CONTENT);
+    let gone = app.get("/v1/scenes/posted").await;
+    assert_eq!(gone.status(), StatusCode::NOT_FOUND);
+    assert_eq!(error_of(gone).await.0, "not_found");
+    let again = app
+        .client
+        .delete(app.url("/v1/scenes/posted"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(again.status(), StatusCode::NOT_FOUND);
+}
+
+#[tokio::test]
+async fn bad_scene_documents_are_422_naming_the_field() {
+    let app = spawn_app_with_scenes(&[], |_| {}).await;
+    let unnamed: Value = serde_json::from_str(TINY_SCENE).unwrap();
+    let mut bad_material = tiny_named("bad");
+    bad_material["shapes"][0]["material"] = json!("nonexistent");
+    let mut escaping = tiny_named("escape");
+    escaping["shapes"] =
+        json!([{"type": "obj", "filename": "../outside.obj", "material": "white"}]);
+    let cases = [
+        (unnamed, "name"),
+        (tiny_named("has space"), "name"),
+        (bad_material, "shapes[0].material"),
+        (escaping, "shapes[0].filename"),
+    ];
+    for (doc, field) in cases {
+        let response = app.post_json("/v1/scenes", &doc).await;
+        assert_eq!(
+            response.status(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "{field}"
+        );
+        let (code, got) = error_of(response).await;
+        assert_eq!(code, "invalid_field");
+        assert_eq!(got.as_deref(), Some(field));
+    }
+    let health: Value = app.get("/health").await.json().await.unwrap();
+    assert_eq!(health["scenes"], 0);
+}
