@@ -3,7 +3,7 @@
 //! every density, prior mean and shading point.
 //!
 //! The linear algebra is faer's dense LLᵀ, chosen by measurement against
-//! nalgebra (docs/BENCHMARKS.md, "Linear algebra": 7–18× faster for
+//! nalgebra (docs/BENCHMARKS.md, "Linear algebra": 4–18× faster for
 //! N ≥ 256). It stays behind this type so callers never see the backend.
 //!
 //! faer runs sequentially (`Par::Seq`) inside one factorisation: the service
