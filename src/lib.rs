@@ -5,7 +5,8 @@
 //! factorisations (see `shared/docs/bmc-math.md`).
 //!
 //! ## Layout
-//! Modules are listed here as they land; the math never knows about HTTP.
+//! The math (`sphere`, `bmc`, `study`) knows nothing of scenes or HTTP; the
+//! service is a thin layer over the library.
 //! - `sphere`: local shading frames and hemisphere sample sets (local frame, z = normal).
 //! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance;
 //!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
