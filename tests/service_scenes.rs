@@ -100,3 +100,61 @@ async fn bad_scene_documents_are_422_naming_the_field() {
     let health: Value = app.get("/health").await.json().await.unwrap();
     assert_eq!(health["scenes"], 0);
 }
+
+const CORNELL_XML: &str = include_str!("../scenes/cornell-box.xml");
+
+#[tokio::test]
+async fn mitsuba_xml_scenes_load_at_startup_and_by_post() {
+    let app = spawn_app_with_scenes(
+        &[
+            ("box.json", TINY_SCENE),
+            ("box.xml", CORNELL_XML),
+            ("only.xml", CORNELL_XML),
+        ],
+        |_| {},
+    )
+    .await;
+    // An XML file beside a JSON file of the same stem gets `<stem>-xml`.
+    for id in ["box", "box-xml", "only"] {
+        let response = app.get(&format!("/v1/scenes/{id}")).await;
+        assert_eq!(response.status(), StatusCode::OK, "{id}");
+    }
+    let xml_summary: Value = app.get("/v1/scenes/box-xml").await.json().await.unwrap();
+    assert_eq!(xml_summary["resolution"], json!([256, 256]));
+
+    let post_xml = |query: &'static str, content_type: &'static str| {
+        app.client
+            .post(app.url(&format!("/v1/scenes{query}")))
+            .header("content-type", content_type)
+            .body(CORNELL_XML)
+            .send()
+    };
+    let created = post_xml("?id=posted-xml", "application/xml").await.unwrap();
+    assert_eq!(created.status(), StatusCode::CREATED);
+    let summary: Value = created.json().await.unwrap();
+    assert_eq!(summary["id"], "posted-xml");
+    assert_eq!(summary["source"], "uploaded");
+
+    let no_id = post_xml("", "text/xml").await.unwrap();
+    assert_eq!(no_id.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    assert_eq!(error_of(no_id).await.1.as_deref(), Some("id"));
+
+    let bad_id = post_xml("?id=a%20b", "application/xml").await.unwrap();
+    assert_eq!(bad_id.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    assert_eq!(error_of(bad_id).await.1.as_deref(), Some("id"));
+
+    let plain = post_xml("?id=x", "text/plain").await.unwrap();
+    assert_eq!(plain.status(), StatusCode::UNSUPPORTED_MEDIA_TYPE);
+
+    let broken = app
+        .client
+        .post(app.url("/v1/scenes?id=broken"))
+        .header("content-type", "application/xml")
+        .body("<scene version=\"3.0.0\"><shape type=\"teapot\"/></scene>")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(broken.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    // Nothing already loaded is lost.
+    assert_eq!(app.get("/v1/scenes/only").await.status(), StatusCode::OK);
+}

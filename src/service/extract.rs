@@ -28,26 +28,61 @@ where
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &S) -> Result<Self, ApiError> {
-        if let Some(content_type) = req.headers().get(header::CONTENT_TYPE) {
-            let text = content_type.to_str().unwrap_or("<not UTF-8>");
-            let essence = text.split(';').next().unwrap_or("").trim();
-            let is_json = essence.eq_ignore_ascii_case("application/json")
-                || essence.to_ascii_lowercase().ends_with("+json");
-            if !is_json {
-                return Err(ApiError::UnsupportedMediaType { got: text.into() });
+        match body_media_type(&req) {
+            MediaType::Json => parse_json(&body_bytes(req, state).await?).map(ApiJson),
+            MediaType::Xml | MediaType::Other => Err(ApiError::UnsupportedMediaType {
+                got: content_type_text(&req),
+            }),
+        }
+    }
+}
+
+/// What a request body's `content-type` declares; a missing header counts as JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MediaType {
+    /// `application/json` or any `+json` type (or no header at all).
+    Json,
+    /// `application/xml`, `text/xml` or any `+xml` type.
+    Xml,
+    /// Anything else.
+    Other,
+}
+
+/// Classifies the request's `content-type` (parameters such as `charset` ignored).
+pub fn body_media_type(req: &Request) -> MediaType {
+    if req.headers().get(header::CONTENT_TYPE).is_none() {
+        return MediaType::Json;
+    }
+    let text = content_type_text(req).to_ascii_lowercase();
+    let essence = text.split(';').next().unwrap_or("").trim();
+    if essence == "application/json" || essence.ends_with("+json") {
+        MediaType::Json
+    } else if essence == "application/xml" || essence == "text/xml" || essence.ends_with("+xml") {
+        MediaType::Xml
+    } else {
+        MediaType::Other
+    }
+}
+
+/// The raw `content-type` header, for error messages.
+pub fn content_type_text(req: &Request) -> String {
+    req.headers()
+        .get(header::CONTENT_TYPE)
+        .map(|value| value.to_str().unwrap_or("<not UTF-8>").to_owned())
+        .unwrap_or_default()
+}
+
+/// Reads the whole body; a body over the configured limit is a 413.
+pub async fn body_bytes<S: Send + Sync>(req: Request, state: &S) -> Result<Bytes, ApiError> {
+    Bytes::from_request(req, state).await.map_err(|rejection| {
+        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::PayloadTooLarge
+        } else {
+            ApiError::MalformedJson {
+                message: rejection.body_text(),
             }
         }
-        let bytes = Bytes::from_request(req, state).await.map_err(|rejection| {
-            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                ApiError::PayloadTooLarge
-            } else {
-                ApiError::MalformedJson {
-                    message: rejection.body_text(),
-                }
-            }
-        })?;
-        parse_json(&bytes).map(ApiJson)
-    }
+    })
 }
 
 /// Deserialises `bytes` as a `T`, naming the offending field on failure.

@@ -1,8 +1,9 @@
 //! The scene registry: scenes loaded from the scenes directory at startup or
 //! posted later, each with its light-transport state built once.
 //!
-//! A scene's id is its file stem (`scenes/cornell-box.json` → `cornell-box`)
-//! or, for a posted document, its `name`. Ids are restricted to
+//! A scene's id is its file stem (`scenes/cornell-box.json` → `cornell-box`;
+//! see [`load_dir`] for XML twins) or, for a posted scene, its JSON `name` or
+//! the `id` query parameter given with XML. Ids are restricted to
 //! `[A-Za-z0-9_-]{1,64}` because they appear in URL paths. A broken scene file
 //! is logged and skipped at startup, never fatal: one bad file must not keep the
 //! other scenes from being served.
@@ -25,7 +26,7 @@ pub const MAX_ID_LEN: usize = 64;
 #[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SceneSource {
-    /// A `*.json` file of the scenes directory, loaded at startup.
+    /// A `*.json` or Mitsuba `*.xml` file of the scenes directory, loaded at startup.
     File,
     /// A document posted to `POST /v1/scenes`.
     Uploaded,
@@ -151,8 +152,11 @@ pub fn validate_id(id: &str) -> Result<(), String> {
     }
 }
 
-/// Loads every `*.json` of `dir` in parallel; files that fail are logged and
-/// skipped. A missing directory gives no scenes (and a warning).
+/// Loads every `*.json` and Mitsuba `*.xml` scene of `dir` in parallel; files
+/// that fail are logged and skipped. A missing directory gives no scenes (and a
+/// warning). A scene's id is its file stem, except an XML file whose stem a JSON
+/// file also has: it gets `<stem>-xml` (`cornell-box.xml` → `cornell-box-xml`),
+/// so both stay reachable.
 pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
     let entries = match std::fs::read_dir(dir) {
         Ok(entries) => entries,
@@ -164,13 +168,23 @@ pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
     let mut files: Vec<PathBuf> = entries
         .filter_map(Result::ok)
         .map(|entry| entry.path())
-        .filter(|path| path.extension().is_some_and(|ext| ext == "json"))
+        .filter(|path| {
+            path.extension()
+                .is_some_and(|ext| ext == "json" || ext == "xml")
+        })
         .collect();
     files.sort();
+    let has_json_twin = |path: &Path| files.contains(&path.with_extension("json"));
     files
         .par_iter()
         .filter_map(|path| {
-            let id = path.file_stem()?.to_string_lossy().into_owned();
+            let stem = path.file_stem()?.to_string_lossy().into_owned();
+            let is_xml = path.extension().is_some_and(|ext| ext == "xml");
+            let id = if is_xml && has_json_twin(path) {
+                format!("{stem}-xml")
+            } else {
+                stem
+            };
             if let Err(reason) = validate_id(&id) {
                 tracing::warn!(file = %path.display(), %reason, "scene skipped");
                 return None;

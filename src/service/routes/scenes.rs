@@ -3,12 +3,15 @@
 use std::sync::Arc;
 
 use axum::Json;
-use axum::extract::{Path, State};
+use axum::extract::rejection::QueryRejection;
+use axum::extract::{Path, Query, Request, State};
 use axum::http::StatusCode;
 
-use crate::scene::Scene;
+use crate::scene::{MitsubaOptions, Scene};
 use crate::service::error::{ApiError, ErrorBody};
-use crate::service::extract::ApiJson;
+use crate::service::extract::{
+    MediaType, body_bytes, body_media_type, content_type_text, parse_json,
+};
 use crate::service::scenes::{LoadedScene, SceneSource, SceneSummary, validate_id};
 use crate::service::state::AppState;
 
@@ -31,18 +34,88 @@ pub async fn get_scene(
     Ok(Json(scene_or_404(&state, &id)?.summary()))
 }
 
-/// Adds a scene from a scene document (`docs/scene-format.md`) whose `name`
-/// becomes its id; a scene with that id is replaced. Files the document
-/// references must already be in the scenes directory.
-#[utoipa::path(post, path = "/v1/scenes", tag = "scenes",
-    request_body(content = Object, description = "A scene document with a `name`"),
+/// Query parameters of `POST /v1/scenes`, used by Mitsuba XML bodies only
+/// (a JSON document carries its id as `name`).
+#[derive(Debug, Default, serde::Deserialize, utoipa::IntoParams)]
+#[serde(deny_unknown_fields)]
+pub struct PostSceneQuery {
+    /// Id of a scene posted as Mitsuba XML (required for XML).
+    pub id: Option<String>,
+    /// Approximate unsupported Mitsuba features instead of rejecting them.
+    #[serde(default)]
+    pub lenient: bool,
+}
+
+/// Adds a scene and replaces one with the same id. The body is either a scene
+/// document (`application/json`, `docs/scene-format.md`) whose `name` becomes
+/// its id, or a Mitsuba 3 scene (`application/xml`) whose id is the `id` query
+/// parameter. Files the scene references must already be in the scenes directory.
+#[utoipa::path(post, path = "/v1/scenes", tag = "scenes", params(PostSceneQuery),
+    request_body(content = Object, description = "A scene document with a `name` (JSON), or Mitsuba 3 XML",
+                 content_type = "application/json"),
     responses((status = 201, description = "Scene added", body = SceneSummary),
                (status = 200, description = "Scene replaced", body = SceneSummary),
-               (status = 422, description = "Invalid scene document", body = ErrorBody)))]
+               (status = 415, description = "Neither JSON nor XML", body = ErrorBody),
+               (status = 422, description = "Invalid scene", body = ErrorBody)))]
 pub async fn post_scene(
     State(state): State<Arc<AppState>>,
-    ApiJson(document): ApiJson<serde_json::Value>,
+    query: Result<Query<PostSceneQuery>, QueryRejection>,
+    request: Request,
 ) -> Result<(StatusCode, Json<SceneSummary>), ApiError> {
+    let Query(query) =
+        query.map_err(|rejection| ApiError::invalid("query", rejection.body_text()))?;
+    let root = state.config.scenes.dir.clone();
+    let (id, scene) = match body_media_type(&request) {
+        MediaType::Json => {
+            let document: serde_json::Value = parse_json(&body_bytes(request, &()).await?)?;
+            let id = document_id(&document)?;
+            let text = document.to_string();
+            let scene = state
+                .pool
+                .run(move || Scene::from_json_str(&text, &root, &root))
+                .await??;
+            (id, scene)
+        }
+        MediaType::Xml => {
+            let id = query.id.ok_or_else(|| {
+                ApiError::invalid("id", "an XML scene needs an `id` query parameter")
+            })?;
+            validate_id(&id).map_err(|reason| ApiError::invalid("id", reason))?;
+            let bytes = body_bytes(request, &()).await?;
+            let text = String::from_utf8(bytes.to_vec())
+                .map_err(|_| ApiError::invalid("body", "the XML is not UTF-8"))?;
+            let options = MitsubaOptions {
+                lenient: query.lenient,
+                ..MitsubaOptions::default()
+            };
+            let (scene, warnings) = state
+                .pool
+                .run(move || Scene::from_mitsuba_xml_str(&text, &root, &root, &options))
+                .await??;
+            for warning in &warnings {
+                tracing::warn!(%id, %warning, "scene approximated");
+            }
+            (id, scene)
+        }
+        MediaType::Other => {
+            return Err(ApiError::UnsupportedMediaType {
+                got: content_type_text(&request),
+            });
+        }
+    };
+    let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene);
+    let summary = loaded.summary();
+    let status = if state.scenes.insert(loaded) {
+        StatusCode::OK
+    } else {
+        StatusCode::CREATED
+    };
+    tracing::info!(id = %summary.id, "scene posted");
+    Ok((status, Json(summary)))
+}
+
+/// The id of a posted JSON scene document: its `name`.
+fn document_id(document: &serde_json::Value) -> Result<String, ApiError> {
     let id = match document.get("name") {
         Some(serde_json::Value::String(name)) => name.clone(),
         Some(_) => return Err(ApiError::invalid("name", "must be a string")),
@@ -54,21 +127,7 @@ pub async fn post_scene(
         }
     };
     validate_id(&id).map_err(|reason| ApiError::invalid("name", reason))?;
-    let root = state.config.scenes.dir.clone();
-    let text = document.to_string();
-    let scene = state
-        .pool
-        .run(move || Scene::from_json_str(&text, &root, &root))
-        .await??;
-    let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene);
-    let summary = loaded.summary();
-    let status = if state.scenes.insert(loaded) {
-        StatusCode::OK
-    } else {
-        StatusCode::CREATED
-    };
-    tracing::info!(id = %summary.id, "scene posted");
-    Ok((status, Json(summary)))
+    Ok(id)
 }
 
 /// Removes a scene; requests already using it finish normally.
