@@ -17,7 +17,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Irradiance (W/m²) at the points of a CSV file, as CSV on stdout.
-    Irradiance(bmc_irradiance::render::irradiance_command::IrradianceArgs),
+    Irradiance(cli::irradiance::IrradianceArgs),
     /// Run the HTTP service until SIGINT/SIGTERM.
     Serve(bmc_irradiance::service::ServeArgs),
     /// Closed-loop load test of a running service on this machine.
@@ -35,10 +35,9 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Command::Irradiance(args) => bmc_irradiance::render::irradiance_command::run_irradiance(
-            &args,
-            &mut std::io::stdout().lock(),
-        ),
+        Command::Irradiance(args) => {
+            cli::irradiance::run_irradiance(&args, &mut std::io::stdout().lock())
+        }
         Command::Serve(args) => bmc_irradiance::service::run_serve(&args),
         Command::Loadtest(args) => bmc_irradiance::loadtest::run_loadtest(&args),
         Command::Quadrature(args) => print_output(cli::quadrature::run(&args)?),

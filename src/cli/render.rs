@@ -9,6 +9,7 @@ use std::time::Instant;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use super::in_thread_pool;
 use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
@@ -111,14 +112,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
             progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
         })
     };
-    let rendered = match args.threads {
-        Some(threads) => rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .context("building the thread pool")?
-            .install(render)?,
-        None => render()?,
-    };
+    let rendered = in_thread_pool(args.threads, render)??;
     let seconds = start.elapsed().as_secs_f64();
     progress.finish_and_clear();
 

@@ -17,7 +17,6 @@ pub mod environment_sampling;
 pub mod error;
 pub mod film;
 pub mod irradiance;
-pub mod irradiance_command;
 pub mod lights;
 pub mod path;
 pub mod points_csv;

@@ -8,9 +8,10 @@ use std::sync::Arc;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::irradiance::{IrradianceMethod, IrradianceOptions};
-use super::points_csv::{parse_points, write_irradiance};
-use super::transport::Transport;
+use super::in_thread_pool;
+use crate::render::irradiance::{IrradianceMethod, IrradianceOptions};
+use crate::render::points_csv::{parse_points, write_irradiance};
+use crate::render::transport::Transport;
 use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance irradiance`.
@@ -110,14 +111,7 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
             .context("progress bar template")?,
     );
     let estimate = || transport.irradiance_at_points(&points, &options, &|| progress.inc(1));
-    let estimates = match args.threads {
-        Some(threads) => rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .context("building the thread pool")?
-            .install(estimate)?,
-        None => estimate()?,
-    };
+    let estimates = in_thread_pool(args.threads, estimate)??;
     progress.finish_and_clear();
     write_irradiance(out, &points, &estimates, args.std_error).context("writing results")?;
     Ok(())
