@@ -155,6 +155,7 @@ pub fn router(state: Arc<AppState>) -> Router {
             routes::scenes::delete_scene
         ))
         .routes(routes!(routes::irradiance::irradiance))
+        .routes(routes!(routes::tiles::tile))
         .split_for_parts();
     let limits = state.config.limits.clone();
     with_middleware(

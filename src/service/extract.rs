@@ -102,6 +102,13 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
 fn classify(err: serde_json::Error, path: String) -> ApiError {
     use serde_json::error::Category;
     match err.classify() {
+        // Well-formed JSON whose number does not fit the field's type (1e300
+        // for an f32, 1e400 anywhere): a bad value of a known field, not bad syntax.
+        Category::Syntax
+            if !path.is_empty() && err.to_string().starts_with("number out of range") =>
+        {
+            ApiError::invalid(path, err.to_string())
+        }
         Category::Syntax | Category::Eof | Category::Io => ApiError::MalformedJson {
             message: err.to_string(),
         },
@@ -186,6 +193,14 @@ mod tests {
         assert_eq!(
             field_of(r#"{"points": [], "seed": -1}"#),
             (StatusCode::UNPROCESSABLE_ENTITY, Some("seed".into()))
+        );
+        // Syntactically fine but beyond f64: the field is at fault, not the syntax.
+        assert_eq!(
+            field_of(r#"{"points": [{"position": [0,1e400,0], "normal": [0,0,1]}], "seed": 1}"#),
+            (
+                StatusCode::UNPROCESSABLE_ENTITY,
+                Some("points[0].position[1]".into())
+            )
         );
     }
 

@@ -7,3 +7,4 @@ pub mod irradiance;
 pub mod metrics;
 pub mod openapi;
 pub mod scenes;
+pub mod tiles;
