@@ -1,10 +1,10 @@
-//! `POST /v1/scenes/{id}/tiles` end to end: the three encodings agree, tiles
-//! assemble into the whole image, and bad tiles name their field.
+//! `POST /v1/scenes/{id}/tiles` end to end: the three encodings agree and
+//! tiles assemble into the whole image (bad tiles: `service_bad_inputs.rs`).
 
 mod common;
 
 use bmc_irradiance::image::exr_io::decode_exr;
-use common::{TINY_SCENE, error_of, spawn_app_with_scenes};
+use common::{TINY_SCENE, spawn_app_with_scenes};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -92,115 +92,4 @@ async fn encodings_agree_and_tiles_assemble_into_the_image() {
         metrics.contains("/v1/scenes/{id}/tiles"),
         "per-route metrics: {metrics}"
     );
-}
-
-#[tokio::test]
-async fn bad_tiles_name_their_field() {
-    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |config| {
-        config.limits.max_tile_area = 16;
-        config.limits.max_samples = 8;
-    })
-    .await;
-    let with = |edit: &dyn Fn(&mut Value)| {
-        let mut body = tile(0, 0, 4, 4, "json");
-        edit(&mut body);
-        body
-    };
-    let cases: Vec<(&str, Value, StatusCode, &str, &str)> = vec![
-        (
-            "x outside",
-            with(&|b| b["x"] = json!(8)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "x",
-        ),
-        (
-            "past the bottom",
-            with(&|b| b["y"] = json!(6)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "height",
-        ),
-        (
-            "zero width",
-            with(&|b| b["width"] = json!(0)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "width",
-        ),
-        (
-            "area over the limit",
-            with(&|b| b["width"] = json!(5)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "limit_exceeded",
-            "width",
-        ),
-        (
-            "spp over the limit",
-            with(&|b| b["samples_per_pixel"] = json!(9)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "limit_exceeded",
-            "samples_per_pixel",
-        ),
-        (
-            "zero spp",
-            with(&|b| b["samples_per_pixel"] = json!(0)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "samples_per_pixel",
-        ),
-        (
-            "unknown format",
-            with(&|b| b["format"] = json!("tiff")),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "format",
-        ),
-        (
-            "unknown method",
-            with(&|b| b["estimator"] = json!({"method": "magic"})),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "estimator.method",
-        ),
-        (
-            "negative x",
-            with(&|b| b["x"] = json!(-1)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "x",
-        ),
-        (
-            "max_depth 0",
-            with(&|b| b["max_depth"] = json!(0)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "max_depth",
-        ),
-        (
-            "exposure overflow",
-            with(&|b| b["exposure"] = json!(1e300)),
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid_field",
-            "exposure",
-        ),
-    ];
-    for (name, body, status, code, field) in cases {
-        let response = app.post_json("/v1/scenes/tiny/tiles", &body).await;
-        assert_eq!(response.status(), status, "{name}");
-        assert_eq!(
-            error_of(response).await,
-            (code.to_owned(), Some(field.to_owned())),
-            "{name}"
-        );
-    }
-    let unknown = app
-        .post_json("/v1/scenes/nope/tiles", &tile(0, 0, 1, 1, "png"))
-        .await;
-    assert_eq!(unknown.status(), StatusCode::NOT_FOUND);
-    // The scene survived every bad request.
-    let fine = app
-        .post_json("/v1/scenes/tiny/tiles", &tile(0, 0, 4, 4, "json"))
-        .await;
-    assert_eq!(fine.status(), StatusCode::OK);
 }

@@ -12,7 +12,7 @@
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 use axum::http::{StatusCode, header};
-use serde::de::DeserializeOwned;
+use serde::de::{DeserializeOwned, IgnoredAny};
 
 use super::error::ApiError;
 
@@ -89,6 +89,12 @@ pub async fn body_bytes<S: Send + Sync>(req: Request, state: &S) -> Result<Bytes
 pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
     let mut deserializer = serde_json::Deserializer::from_slice(bytes);
     let value = serde_path_to_error::deserialize(&mut deserializer).map_err(|err| {
+        // Every request body is an object; other well-formed JSON (an array, a
+        // number) would otherwise be reported against a made-up path like `[0]`.
+        let first = bytes.iter().find(|b| !b.is_ascii_whitespace());
+        if first != Some(&b'{') && serde_json::from_slice::<IgnoredAny>(bytes).is_ok() {
+            return ApiError::invalid("", "the request body must be a JSON object");
+        }
         let path = err.path().to_string();
         let inner = err.into_inner();
         classify(inner, path)
@@ -217,6 +223,17 @@ mod tests {
                 Some("points[0].normal".into())
             )
         );
+    }
+
+    #[test]
+    fn json_that_is_not_an_object_is_422_without_field() {
+        for body in ["[1, 2, 3]", "42", " \"points\"", "null"] {
+            assert_eq!(
+                field_of(body),
+                (StatusCode::UNPROCESSABLE_ENTITY, None),
+                "{body}"
+            );
+        }
     }
 
     #[test]
