@@ -3,6 +3,7 @@
 //! recorder (see `metrics.rs` for why).
 
 use super::config::Config;
+use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
 use super::scenes::SceneRegistry;
@@ -17,4 +18,6 @@ pub struct AppState {
     pub metrics: Metrics,
     /// Loaded scenes by id; each keeps its light-transport state so requests never rebuild it.
     pub scenes: SceneRegistry,
+    /// Irradiance-cache records per (scene version, estimator configuration).
+    pub irradiance_caches: IrradianceCaches,
 }
