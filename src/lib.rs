@@ -11,7 +11,8 @@
 //! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance;
 //!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
 //!   `bmc::estimator` (MC, QMC, BMC behind one interface), `bmc::hyperparameters`
-//!   (marginal-likelihood fit of ℓ, σ², σ_n²).
+//!   (marginal-likelihood fit of ℓ, σ², σ_n²), `bmc::report` (a quadrature's
+//!   spec, stable id and the report the CLI and the service return).
 //! - `scene`: JSON and Mitsuba 3 XML (`scene::mitsuba`) scene loading, shapes,
 //!   materials, emitters, environment maps, camera, BVH ray tracing
 //!   (`intersect`, `occluded`).

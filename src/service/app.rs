@@ -41,6 +41,7 @@ use super::pool::CpuPool;
 use super::routes;
 use super::scenes::{self, SceneRegistry};
 use super::state::AppState;
+use crate::bmc::cache::QuadratureCache;
 
 /// How often histogram samples are folded into buckets when nobody scrapes.
 const METRICS_UPKEEP_PERIOD: Duration = Duration::from_secs(5);
@@ -73,7 +74,9 @@ impl Application {
             registry.insert(scene);
         }
         tracing::info!(scenes = registry.len(), dir = %config.scenes.dir.display(), "scenes loaded");
+        let quadratures = QuadratureCache::new(config.cache.factorisation_bytes);
         let state = Arc::new(AppState {
+            quadratures,
             config,
             pool,
             metrics,
@@ -136,7 +139,8 @@ impl Application {
     info(description = "Bayesian Monte Carlo irradiance caching over REST."),
     components(schemas(ErrorBody)),
     tags((name = "service", description = "Health, metrics and this document"),
-         (name = "scenes", description = "Scenes and queries on them"))
+         (name = "scenes", description = "Scenes and queries on them"),
+         (name = "quadratures", description = "BMC quadrature weights"))
 )]
 struct ApiDoc;
 
@@ -155,6 +159,7 @@ pub fn router(state: Arc<AppState>) -> Router {
             routes::scenes::delete_scene
         ))
         .routes(routes!(routes::irradiance::irradiance))
+        .routes(routes!(routes::quadratures::post_quadrature))
         .split_for_parts();
     let limits = state.config.limits.clone();
     with_middleware(

@@ -2,6 +2,8 @@
 //! by `Arc` between all requests. Nothing here is global except the metrics
 //! recorder (see `metrics.rs` for why).
 
+use crate::bmc::cache::QuadratureCache;
+
 use super::config::Config;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
@@ -17,4 +19,7 @@ pub struct AppState {
     pub metrics: Metrics,
     /// Loaded scenes by id; each keeps its light-transport state so requests never rebuild it.
     pub scenes: SceneRegistry,
+    /// BMC factorisations and weights, `cache.factorisation_bytes` big, shared by
+    /// `/v1/quadratures` and every BMC point request (see `routes::quadratures`).
+    pub quadratures: QuadratureCache,
 }

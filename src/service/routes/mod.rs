@@ -6,4 +6,5 @@ pub mod health;
 pub mod irradiance;
 pub mod metrics;
 pub mod openapi;
+pub mod quadratures;
 pub mod scenes;
