@@ -16,6 +16,7 @@ pub mod distribution;
 pub mod environment_sampling;
 pub mod error;
 pub mod film;
+pub mod hemisphere_estimate;
 pub mod irradiance;
 pub mod lights;
 pub mod path;
