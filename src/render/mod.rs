@@ -18,6 +18,7 @@ pub mod error;
 pub mod film;
 pub mod hemisphere_estimate;
 pub mod irradiance;
+pub mod lengthscale;
 pub mod lights;
 pub mod path;
 pub mod points_csv;

@@ -17,6 +17,7 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use crate::render::Transport;
+use crate::render::lengthscale::{FittedKernel, FittedKernels};
 use crate::scene::{Scene, SceneError};
 
 /// Longest accepted scene id.
@@ -39,6 +40,9 @@ pub struct LoadedScene {
     pub source: SceneSource,
     /// The scene with its light-selection tables and BSDFs, built once.
     pub transport: Transport,
+    /// Lengthscales fitted for `"lengthscale": "auto"`, per estimator
+    /// configuration; they live and die with this loaded scene.
+    pub kernels: FittedKernels,
 }
 
 /// What `GET /v1/scenes[/{id}]` tells about a scene.
@@ -62,6 +66,11 @@ pub struct SceneSummary {
     /// Axis-aligned bounds of the geometry, world units.
     pub bounds_min: [f64; 3],
     pub bounds_max: [f64; 3],
+    /// Kernels fitted so far for `"lengthscale": "auto"` (`render::lengthscale`):
+    /// `kernel`, `sample_set`, `decomposition`, `lengthscale`, `noise_ratio`,
+    /// `log_marginal_likelihood`, `at_bound`, `fit_samples`, `points`.
+    #[schema(value_type = Vec<Object>)]
+    pub fitted_kernels: Vec<FittedKernel>,
 }
 
 impl LoadedScene {
@@ -70,6 +79,7 @@ impl LoadedScene {
             id,
             source,
             transport: Transport::new(Arc::new(scene)),
+            kernels: FittedKernels::default(),
         }
     }
 
@@ -89,6 +99,7 @@ impl LoadedScene {
             resolution: [width, height],
             bounds_min: min.to_array(),
             bounds_max: max.to_array(),
+            fitted_kernels: self.kernels.list(),
         }
     }
 }
