@@ -17,7 +17,9 @@
 //!   materials, emitters, environment maps, camera, BVH ray tracing
 //!   (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
-//!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image.
+//!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image;
+//!   `render::hemisphere_estimate` (irradiance at points with any MC/QMC/BMC
+//!   estimator), `render::lengthscale` (the scene-fitted `"auto"` lengthscale).
 //! - `study`: synthetic environments with known irradiance and the estimator
 //!   convergence study (MC vs QMC vs BMC).
 //! - `cache`: Bayesian irradiance cache — BMC records with variance and

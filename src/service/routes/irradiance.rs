@@ -259,15 +259,19 @@ pub async fn irradiance(
 enum Plan {
     Mc,
     Qmc(SampleMeanEstimator),
-    Bmc {
-        sample_set: SampleSetSpec,
-        kind: KernelKind,
-        /// `None`: `"auto"`.
-        lengthscale: Option<f64>,
-        variance: f64,
-        noise: Option<f64>,
-        decomposition: IrradianceMethod,
-    },
+    Bmc(BmcPlan),
+}
+
+/// A `bmc` estimator before its kernel is resolved.
+#[derive(Clone, Copy)]
+struct BmcPlan {
+    sample_set: SampleSetSpec,
+    kind: KernelKind,
+    /// `None`: `"auto"`.
+    lengthscale: Option<f64>,
+    variance: f64,
+    noise: Option<f64>,
+    decomposition: IrradianceMethod,
 }
 
 /// Checks the estimator options against the method (module docs).
@@ -323,7 +327,7 @@ fn plan(estimator: &EstimatorDoc, decomposition: IrradianceMethod) -> Result<Pla
                 kernel.noise.unwrap_or(DEFAULT_NOISE),
             )
             .map_err(|e| bmc_error("estimator.kernel", e))?;
-            Ok(Plan::Bmc {
+            Ok(Plan::Bmc(BmcPlan {
                 sample_set: SampleSetSpec {
                     kind: set.kind,
                     count: samples,
@@ -334,7 +338,7 @@ fn plan(estimator: &EstimatorDoc, decomposition: IrradianceMethod) -> Result<Pla
                 variance: kernel.variance,
                 noise: kernel.noise,
                 decomposition,
-            })
+            }))
         }
     }
 }
@@ -349,55 +353,69 @@ impl Plan {
         options: &IrradianceOptions,
     ) -> Result<(Vec<IrradianceEstimate>, Option<Kernel>), ApiError> {
         let transport = &scene.transport;
-        let estimates = match self {
-            Plan::Mc => transport.irradiance_at_points(points, options, &|| {}),
-            Plan::Qmc(qmc) => transport.irradiance_with_estimator(points, &qmc, options),
-            Plan::Bmc {
-                sample_set,
-                kind,
-                lengthscale,
-                variance,
-                noise,
-                decomposition,
-            } => {
-                let (lengthscale, fitted_noise) = match lengthscale {
-                    Some(value) => (value, DEFAULT_NOISE),
-                    None => {
-                        let config = FitConfig {
-                            kernel: kind,
-                            sample_set,
-                            decomposition,
-                        };
-                        let fit =
-                            scene
-                                .kernels
-                                .get_or_fit(transport, config)
-                                .map_err(|message| ApiError::Internal {
-                                    message: format!("lengthscale fit failed: {message}"),
-                                })?;
-                        (fit.lengthscale, fit.noise_ratio * variance)
-                    }
-                };
-                let kernel =
-                    Kernel::new(kind, lengthscale, variance, noise.unwrap_or(fitted_noise))
-                        .map_err(|e| bmc_error("estimator.kernel", e))?;
-                let spec = QuadratureSpec {
-                    sample_set,
-                    kernel,
-                    density: Density::Lambert,
-                    prior_mean: PriorMean::Gls,
-                    kernel_mean: KernelMeanMethod::Exact,
-                };
-                let (quadrature, _) = cached_quadrature(state, &spec)
-                    .map_err(|e| bmc_error("estimator.kernel", e))?;
-                let bmc = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
-                let estimates = transport
-                    .irradiance_with_estimator(points, &bmc, options)
-                    .map_err(|err| field_error("", err))?;
-                return Ok((estimates, Some(kernel)));
+        let (estimates, kernel) = match self {
+            Plan::Mc => (
+                transport.irradiance_at_points(points, options, &|| {}),
+                None,
+            ),
+            Plan::Qmc(qmc) => (
+                transport.irradiance_with_estimator(points, &qmc, options),
+                None,
+            ),
+            Plan::Bmc(bmc) => {
+                let (estimator, kernel) = bmc.estimator(state, scene)?;
+                (
+                    transport.irradiance_with_estimator(points, &estimator, options),
+                    Some(kernel),
+                )
             }
         };
-        Ok((estimates.map_err(|err| field_error("", err))?, None))
+        Ok((estimates.map_err(|err| field_error("", err))?, kernel))
+    }
+}
+
+impl BmcPlan {
+    /// The kernel (fitting `"auto"` on first use for this scene and
+    /// configuration) and the estimator over its cached weights.
+    fn estimator(
+        self,
+        state: &AppState,
+        scene: &LoadedScene,
+    ) -> Result<(BayesianEstimator, Kernel), ApiError> {
+        let (lengthscale, default_noise) = match self.lengthscale {
+            Some(value) => (value, DEFAULT_NOISE),
+            None => {
+                let config = FitConfig {
+                    kernel: self.kind,
+                    sample_set: self.sample_set,
+                    decomposition: self.decomposition,
+                };
+                let fit =
+                    scene
+                        .kernels
+                        .get_or_fit(&scene.transport, config)
+                        .map_err(|message| ApiError::Internal {
+                            message: format!("lengthscale fit failed: {message}"),
+                        })?;
+                (fit.lengthscale, fit.noise_ratio * self.variance)
+            }
+        };
+        let noise = self.noise.unwrap_or(default_noise);
+        let kernel = Kernel::new(self.kind, lengthscale, self.variance, noise)
+            .map_err(|e| bmc_error("estimator.kernel", e))?;
+        let spec = QuadratureSpec {
+            sample_set: self.sample_set,
+            kernel,
+            density: Density::Lambert,
+            prior_mean: PriorMean::Gls,
+            kernel_mean: KernelMeanMethod::Exact,
+        };
+        let (quadrature, _) =
+            cached_quadrature(state, &spec).map_err(|e| bmc_error("estimator.kernel", e))?;
+        Ok((
+            BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit),
+            kernel,
+        ))
     }
 }
 
