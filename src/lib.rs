@@ -11,12 +11,15 @@
 //! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance;
 //!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
 //!   `bmc::estimator` (MC, QMC, BMC behind one interface), `bmc::hyperparameters`
-//!   (marginal-likelihood fit of ℓ, σ², σ_n²).
+//!   (marginal-likelihood fit of ℓ, σ², σ_n²), `bmc::report` (a quadrature's
+//!   spec, stable id and the report the CLI and the service return).
 //! - `scene`: JSON and Mitsuba 3 XML (`scene::mitsuba`) scene loading, shapes,
 //!   materials, emitters, environment maps, camera, BVH ray tracing
 //!   (`intersect`, `occluded`).
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
-//!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image.
+//!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image;
+//!   `render::hemisphere_estimate` (irradiance at points with any MC/QMC/BMC
+//!   estimator), `render::lengthscale` (the scene-fitted `"auto"` lengthscale).
 //! - `study`: synthetic environments with known irradiance and the estimator
 //!   convergence study (MC vs QMC vs BMC).
 //! - `cache`: Bayesian irradiance cache — BMC records with variance and

@@ -11,6 +11,7 @@ pub mod hyperparameters;
 pub mod kernel;
 pub mod kernel_mean;
 pub mod quadrature;
+pub mod report;
 
 mod bessel;
 mod integrate;

@@ -2,13 +2,11 @@
 
 use std::fmt::Write as _;
 
-use clap::{Args, ValueEnum};
-use glam::DVec3;
-use serde::Serialize;
-
 use crate::bmc::cache::QuadratureCache;
+use crate::bmc::report::{QuadratureReport, QuadratureSpec, quadrature_report};
 use crate::bmc::{BmcError, Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use crate::sphere::{SampleSetKind, SampleSetSpec};
+use clap::{Args, ValueEnum};
 
 /// Sample set names accepted on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -134,29 +132,6 @@ pub struct QuadratureArgs {
     pub json: bool,
 }
 
-/// What `quadrature --json` prints; field names are a public contract.
-#[derive(Clone, Debug, Serialize)]
-pub struct QuadratureReport {
-    /// Sample directions in the local frame (z = normal), `[x, y, z]`.
-    pub directions: Vec<[f64; 3]>,
-    /// `z_i = ∫ k(ω_i, ω) p(ω) dω`.
-    pub kernel_means: Vec<f64>,
-    /// `w` with `Î = Σ w_i Y_i`.
-    pub weights: Vec<f64>,
-    /// `V₀ = ∫∫ k p p`.
-    pub prior_variance: f64,
-    /// Posterior variance of the integral.
-    pub posterior_variance: f64,
-    /// Diagonal jitter the factorisation used (absolute).
-    pub jitter: f64,
-    /// Condition estimate of `Q`.
-    pub condition_estimate: f64,
-    /// Whether the weights came from the cache.
-    pub cached: bool,
-    /// `∫_H p`.
-    pub density_integral: f64,
-}
-
 impl QuadratureArgs {
     /// The density the arguments describe.
     pub fn density(&self) -> Result<Density, BmcError> {
@@ -174,88 +149,69 @@ impl QuadratureArgs {
         density.validate()?;
         Ok(density)
     }
-}
 
-/// Computes the report for `args` through `cache`.
-pub fn quadrature_report(
-    args: &QuadratureArgs,
-    cache: &QuadratureCache,
-) -> Result<QuadratureReport, BmcError> {
-    let spec = SampleSetSpec {
-        kind: args.set.into(),
-        count: args.samples,
-        seed: args.seed,
-    };
-    let kernel = Kernel::new(
-        args.kernel.into(),
-        args.lengthscale,
-        args.variance,
-        args.noise,
-    )?;
-    let prior_mean = match args.prior_mean {
-        PriorMeanArg::Zero => PriorMean::Zero,
-        PriorMeanArg::Gls => PriorMean::Gls,
-    };
-    let method = match args.kernel_mean {
-        KernelMeanArg::Exact => KernelMeanMethod::Exact,
-        KernelMeanArg::Sg => KernelMeanMethod::SphericalGaussian,
-    };
-    let (cached, hit) = cache.quadrature(spec, &kernel, &args.density()?, prior_mean, method)?;
-    let q = &cached.quadrature;
-    Ok(QuadratureReport {
-        directions: cached
-            .directions()
-            .iter()
-            .map(|d: &DVec3| d.to_array())
-            .collect(),
-        kernel_means: q.kernel_means.clone(),
-        weights: q.weights.clone(),
-        prior_variance: q.prior_variance,
-        posterior_variance: q.posterior_variance,
-        jitter: q.jitter,
-        condition_estimate: q.condition_estimate,
-        cached: hit,
-        density_integral: q.density_integral,
-    })
-}
-
-impl QuadratureReport {
-    /// A few human-readable lines.
-    pub fn summary(&self) -> String {
-        let n = self.weights.len();
-        let sum: f64 = self.weights.iter().sum();
-        let (min, max) = self
-            .weights
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &w| {
-                (lo.min(w), hi.max(w))
-            });
-        let mut out = String::new();
-        let _ = writeln!(out, "samples            {n}");
-        let _ = writeln!(
-            out,
-            "weights            sum {sum:.12}, min {min:.6e}, max {max:.6e}"
-        );
-        let _ = writeln!(out, "density integral   {:.12}", self.density_integral);
-        let _ = writeln!(out, "prior variance     {:.6e}", self.prior_variance);
-        let _ = writeln!(out, "posterior variance {:.6e}", self.posterior_variance);
-        let _ = writeln!(
-            out,
-            "jitter             {:.3e} (condition estimate {:.3e})",
-            self.jitter, self.condition_estimate
-        );
-        let _ = write!(out, "cached             {}", self.cached);
-        out
+    /// The configuration the arguments describe.
+    pub fn spec(&self) -> Result<QuadratureSpec, BmcError> {
+        Ok(QuadratureSpec {
+            sample_set: SampleSetSpec {
+                kind: self.set.into(),
+                count: self.samples,
+                seed: self.seed,
+            },
+            kernel: Kernel::new(
+                self.kernel.into(),
+                self.lengthscale,
+                self.variance,
+                self.noise,
+            )?,
+            density: self.density()?,
+            prior_mean: match self.prior_mean {
+                PriorMeanArg::Zero => PriorMean::Zero,
+                PriorMeanArg::Gls => PriorMean::Gls,
+            },
+            kernel_mean: match self.kernel_mean {
+                KernelMeanArg::Exact => KernelMeanMethod::Exact,
+                KernelMeanArg::Sg => KernelMeanMethod::SphericalGaussian,
+            },
+        })
     }
+}
+
+/// A few human-readable lines about a report.
+pub fn summary(report: &QuadratureReport) -> String {
+    let n = report.weights.len();
+    let sum: f64 = report.weights.iter().sum();
+    let (min, max) = report
+        .weights
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &w| {
+            (lo.min(w), hi.max(w))
+        });
+    let mut out = String::new();
+    let _ = writeln!(out, "samples            {n}");
+    let _ = writeln!(
+        out,
+        "weights            sum {sum:.12}, min {min:.6e}, max {max:.6e}"
+    );
+    let _ = writeln!(out, "density integral   {:.12}", report.density_integral);
+    let _ = writeln!(out, "prior variance     {:.6e}", report.prior_variance);
+    let _ = writeln!(out, "posterior variance {:.6e}", report.posterior_variance);
+    let _ = writeln!(
+        out,
+        "jitter             {:.3e} (condition estimate {:.3e})",
+        report.jitter, report.condition_estimate
+    );
+    let _ = write!(out, "cached             {}", report.cached);
+    out
 }
 
 /// Runs the subcommand: the text to print on stdout.
 pub fn run(args: &QuadratureArgs) -> anyhow::Result<String> {
     let cache = QuadratureCache::new(64 << 20);
-    let report = quadrature_report(args, &cache)?;
+    let report = quadrature_report(&args.spec()?, &cache)?;
     Ok(if args.json {
         serde_json::to_string_pretty(&report)?
     } else {
-        report.summary()
+        summary(&report)
     })
 }

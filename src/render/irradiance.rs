@@ -41,7 +41,8 @@ use std::f64::consts::PI;
 pub const MAX_DEPTH: u32 = 1024;
 
 /// How the irradiance integral is split between estimators (module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum IrradianceMethod {
     Hemisphere,
     Split,

@@ -42,6 +42,7 @@ use super::pool::CpuPool;
 use super::routes;
 use super::scenes::{self, SceneRegistry};
 use super::state::AppState;
+use crate::bmc::cache::QuadratureCache;
 
 /// How often histogram samples are folded into buckets when nobody scrapes.
 const METRICS_UPKEEP_PERIOD: Duration = Duration::from_secs(5);
@@ -77,7 +78,9 @@ impl Application {
         let irradiance_caches = IrradianceCaches::new(
             usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX),
         );
+        let quadratures = QuadratureCache::new(config.cache.factorisation_bytes);
         let state = Arc::new(AppState {
+            quadratures,
             config,
             pool,
             metrics,
@@ -141,7 +144,8 @@ impl Application {
     info(description = "Bayesian Monte Carlo irradiance caching over REST."),
     components(schemas(ErrorBody)),
     tags((name = "service", description = "Health, metrics and this document"),
-         (name = "scenes", description = "Scenes and queries on them"))
+         (name = "scenes", description = "Scenes and queries on them"),
+         (name = "quadratures", description = "BMC quadrature weights"))
 )]
 struct ApiDoc;
 
@@ -165,6 +169,7 @@ pub fn router(state: Arc<AppState>) -> Router {
             routes::cache::get_cache,
             routes::cache::delete_cache
         ))
+        .routes(routes!(routes::quadratures::post_quadrature))
         .split_for_parts();
     let limits = state.config.limits.clone();
     with_middleware(

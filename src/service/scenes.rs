@@ -18,6 +18,7 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use crate::render::Transport;
+use crate::render::lengthscale::{FittedKernel, FittedKernels};
 use crate::scene::{Scene, SceneError};
 
 /// Longest accepted scene id.
@@ -46,6 +47,9 @@ pub struct LoadedScene {
     /// Unique per load (a scene posted again gets a new one), so caches
     /// keyed by it never mix versions of a scene.
     pub generation: u64,
+    /// Lengthscales fitted for `"lengthscale": "auto"`, per estimator
+    /// configuration; they live and die with this loaded scene.
+    pub kernels: FittedKernels,
 }
 
 /// What `GET /v1/scenes[/{id}]` tells about a scene.
@@ -69,6 +73,11 @@ pub struct SceneSummary {
     /// Axis-aligned bounds of the geometry, world units.
     pub bounds_min: [f64; 3],
     pub bounds_max: [f64; 3],
+    /// Kernels fitted so far for `"lengthscale": "auto"` (`render::lengthscale`):
+    /// `kernel`, `sample_set`, `decomposition`, `lengthscale`, `noise_ratio`,
+    /// `log_marginal_likelihood`, `at_bound`, `fit_samples`, `points`.
+    #[schema(value_type = Vec<Object>)]
+    pub fitted_kernels: Vec<FittedKernel>,
 }
 
 impl LoadedScene {
@@ -78,6 +87,7 @@ impl LoadedScene {
             source,
             transport: Transport::new(Arc::new(scene)),
             generation: NEXT_GENERATION.fetch_add(1, Ordering::Relaxed),
+            kernels: FittedKernels::default(),
         }
     }
 
@@ -97,6 +107,7 @@ impl LoadedScene {
             resolution: [width, height],
             bounds_min: min.to_array(),
             bounds_max: max.to_array(),
+            fitted_kernels: self.kernels.list(),
         }
     }
 }

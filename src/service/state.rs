@@ -2,6 +2,8 @@
 //! by `Arc` between all requests. Nothing here is global except the metrics
 //! recorder (see `metrics.rs` for why).
 
+use crate::bmc::cache::QuadratureCache;
+
 use super::config::Config;
 use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
@@ -20,4 +22,7 @@ pub struct AppState {
     pub scenes: SceneRegistry,
     /// Irradiance-cache records per (scene version, estimator configuration).
     pub irradiance_caches: IrradianceCaches,
+    /// BMC factorisations and weights, `cache.factorisation_bytes` big, shared by
+    /// `/v1/quadratures` and every BMC point request (see `routes::quadratures`).
+    pub quadratures: QuadratureCache,
 }

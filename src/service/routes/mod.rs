@@ -7,5 +7,6 @@ pub mod health;
 pub mod irradiance;
 pub mod metrics;
 pub mod openapi;
+pub mod quadratures;
 pub mod scenes;
 pub mod tiles;

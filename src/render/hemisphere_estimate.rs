@@ -1,0 +1,230 @@
+//! Irradiance at points with any [`HemisphereEstimator`] (MC, QMC or BMC;
+//! bmc-math.md §3, §6) over the incident radiance of a scene.
+//!
+//! Per point `i` (all random numbers from [`point_rng`]`(seed, i)`, so the
+//! result does not depend on the thread count):
+//! 1. a random rotation of the shading frame about the normal: it turns the
+//!    structured error of a fixed sample set into noise and leaves the BMC
+//!    weights exact, because `Q` and the Lambert kernel means are invariant
+//!    under it (bmc-math.md §5);
+//! 2. the estimator's directions (fixed for QMC/BMC, fresh draws for MC) are
+//!    traced with [`Transport::hemisphere_samples`];
+//! 3. each RGB channel is combined by the estimator, which integrates against
+//!    the Lambert density `cos θ/π`, so `E = π I` ([`irradiance_from_lambert`]).
+//!
+//! [`IrradianceMethod::Split`] adds light-sampled direct light
+//! ([`Transport::direct_irradiance`], `options.samples` light samples) to the
+//! hemisphere estimate of path lengths `2..=max_depth`; the two parts use
+//! disjoint random numbers, so their variances add. The reported standard
+//! deviation is the square root of the estimator's variance: for BMC the
+//! GP posterior variance with the amplitude fitted per point and channel
+//! (the caller chooses, see [`crate::bmc::estimator::BmcVariance`]), for
+//! MC/QMC the sample variance of the mean.
+
+use std::f64::consts::TAU;
+
+use rand::RngExt;
+use rayon::prelude::*;
+
+use super::error::RenderError;
+use super::irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
+use super::path::{PathLengths, PathLimits, TraceStats};
+use super::query::QueryPoint;
+use super::rgb::Rgb;
+use super::seed::point_rng;
+use super::transport::Transport;
+use crate::bmc::estimator::{HemisphereEstimator, irradiance_from_lambert};
+use crate::sphere::Frame;
+
+impl Transport {
+    /// Irradiance at every point with `estimator` for the hemisphere part
+    /// (module docs), in parallel on the current rayon pool.
+    ///
+    /// `estimator` must integrate against the Lambert density `cos θ/π`.
+    /// `options.samples` is the number of light samples of the direct part in
+    /// split mode; the hemisphere sample count is the estimator's.
+    pub fn irradiance_with_estimator(
+        &self,
+        points: &[QueryPoint],
+        estimator: &dyn HemisphereEstimator,
+        options: &IrradianceOptions,
+    ) -> Result<Vec<IrradianceEstimate>, RenderError> {
+        options.validate()?;
+        points
+            .par_iter()
+            .enumerate()
+            .map(|(i, point)| self.estimate_point(point, i as u64, estimator, options))
+            .collect()
+    }
+
+    fn estimate_point(
+        &self,
+        point: &QueryPoint,
+        index: u64,
+        estimator: &dyn HemisphereEstimator,
+        options: &IrradianceOptions,
+    ) -> Result<IrradianceEstimate, RenderError> {
+        let mut rng = point_rng(options.seed, index);
+        let mut stats = TraceStats::default();
+        let depth = options.effective_max_depth();
+        let frame =
+            Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
+        let lengths = match options.method {
+            IrradianceMethod::Hemisphere => Some(PathLengths::All),
+            IrradianceMethod::Split => (depth > 1).then_some(PathLengths::Indirect),
+        };
+        let (mut irradiance, mut variance) = (Rgb::BLACK, Rgb::BLACK);
+        if let Some(lengths) = lengths {
+            let directions = estimator.directions(&mut rng);
+            let limits = PathLimits {
+                max_depth: depth,
+                lengths,
+            };
+            let samples =
+                self.hemisphere_samples(point, &frame, &directions, limits, &mut rng, &mut stats);
+            let mut value = [0.0; 3];
+            let mut var = [0.0; 3];
+            for c in 0..3 {
+                let channel: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
+                let e = estimator.estimate(&directions, &channel).map_err(|err| {
+                    RenderError::InvalidOption {
+                        field: "estimator",
+                        reason: err.to_string(),
+                    }
+                })?;
+                let e = irradiance_from_lambert(e);
+                value[c] = e.value;
+                var[c] = e.variance;
+            }
+            irradiance = Rgb::from_array(value);
+            variance = Rgb::from_array(var);
+        }
+        if options.method == IrradianceMethod::Split {
+            let direct = self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
+            irradiance += direct.mean;
+            variance += direct.variance_of_mean;
+        }
+        Ok(IrradianceEstimate {
+            irradiance,
+            std_error: variance.map(f64::sqrt),
+            rays: stats.rays,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bmc::cache::QuadratureCache;
+    use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
+    use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+    use crate::render::tile::tests::cornell;
+    use crate::sphere::{SampleSetKind, SampleSetSpec};
+    use glam::DVec3;
+
+    /// BMC on cosine Fibonacci points; the noise ratio 1e-3 regularises the
+    /// weights of the smooth SE kernel (with 1e-8 they oscillate).
+    fn bmc(count: usize, lengthscale: f64) -> BayesianEstimator {
+        let noise = 1e-3;
+        let kernel = Kernel::new(KernelKind::SquaredExponential, lengthscale, 1.0, noise).unwrap();
+        let spec = SampleSetSpec {
+            kind: SampleSetKind::FibonacciCosine,
+            count,
+            seed: 0,
+        };
+        let (q, _) = QuadratureCache::new(1 << 24)
+            .quadrature(
+                spec,
+                &kernel,
+                &Density::Lambert,
+                PriorMean::Gls,
+                KernelMeanMethod::Exact,
+            )
+            .unwrap();
+        BayesianEstimator::new(q, BmcVariance::AmplitudeFit)
+    }
+
+    fn options(light_samples: u32, seed: u64) -> IrradianceOptions {
+        IrradianceOptions {
+            samples: light_samples,
+            max_depth: 3,
+            direct_only: false,
+            method: IrradianceMethod::Split,
+            seed,
+        }
+    }
+
+    /// A point on the Cornell box's back wall, facing into the box.
+    fn wall_point() -> QueryPoint {
+        QueryPoint::new(DVec3::new(0.2, 0.4, -0.999), DVec3::Z).unwrap()
+    }
+
+    #[test]
+    fn bmc_agrees_with_the_mc_reference_and_beats_mc_at_equal_samples() {
+        let transport = cornell(8);
+        let point = [wall_point()];
+        // The reference comes from the independent MC path of `irradiance.rs`.
+        let reference = transport
+            .irradiance_at_points(&point, &options(65536, 99), &|| {})
+            .unwrap()[0];
+        let bmc = bmc(64, 0.5);
+        let mc =
+            SampleMeanEstimator::monte_carlo(Density::Lambert, SamplingPdf::Cosine, 64).unwrap();
+        // Many light samples make the direct part nearly exact for both, so
+        // the comparison is about the hemisphere estimators at N = 64.
+        let (mut bmc_sq, mut mc_sq, mut within) = (0.0, 0.0, 0);
+        let runs = 32;
+        for seed in 0..runs {
+            let b = transport
+                .irradiance_with_estimator(&point, &bmc, &options(4096, seed))
+                .unwrap()[0];
+            let m = transport
+                .irradiance_with_estimator(&point, &mc, &options(4096, seed))
+                .unwrap()[0];
+            let (e_b, e_m, e_r) = (
+                b.irradiance.luminance(),
+                m.irradiance.luminance(),
+                reference.irradiance.luminance(),
+            );
+            bmc_sq += (e_b - e_r).powi(2);
+            mc_sq += (e_m - e_r).powi(2);
+            let sigma =
+                (b.std_error.luminance().powi(2) + reference.std_error.luminance().powi(2)).sqrt();
+            within += usize::from((e_b - e_r).abs() <= 3.0 * sigma);
+        }
+        assert!(
+            within >= 27,
+            "{within}/{runs} BMC estimates within 3σ of the reference"
+        );
+        // Measured RMS errors: BMC 0.029, MC 0.046 (QMC 0.033). With one
+        // path-traced sample per direction the path noise bounds what any rule
+        // can gain; at other points (e.g. on the floor near the open front)
+        // the three are within a few per cent of each other.
+        assert!(
+            bmc_sq < mc_sq,
+            "BMC {bmc_sq} vs MC {mc_sq} (sums of squared errors)"
+        );
+    }
+
+    #[test]
+    fn results_do_not_depend_on_the_thread_count() {
+        let transport = cornell(8);
+        let points: Vec<_> = (0..12)
+            .map(|i| {
+                QueryPoint::new(DVec3::new(-0.999, -0.5 + 0.08 * i as f64, 0.1), DVec3::X).unwrap()
+            })
+            .collect();
+        let estimator = bmc(16, 0.6);
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    transport.irradiance_with_estimator(&points, &estimator, &options(4, 5))
+                })
+                .unwrap()
+        };
+        assert_eq!(run(1), run(3));
+    }
+}

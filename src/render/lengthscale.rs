@@ -1,0 +1,274 @@
+//! The kernel lengthscale of a scene's incident radiance, fitted by
+//! marginal likelihood (bmc-math.md §7) — what `"lengthscale": "auto"` means.
+//!
+//! Training data: [`FIT_POINTS`] points spread over the scene's non-emitting
+//! surfaces by area (shape by area, then uniform on the shape), each with a
+//! random rotation about its normal; at each, the incident radiance along the
+//! estimator's sample directions, traced with a short [`FIT_MAX_DEPTH`] and
+//! the same path lengths as the estimator's hemisphere part (indirect only in
+//! split mode), reduced to luminance. The pooled likelihood is maximised over
+//! `ℓ` and the noise ratio `η = σ_n²/σ²` by [`hyperparameters::fit`]; the
+//! noise ratio matters as much as `ℓ`, because with a tiny jitter the smooth
+//! SE kernel gives oscillating weights on path-traced (noisy, discontinuous)
+//! radiance. Sets larger than [`FIT_MAX_SAMPLES`] are fitted on a set of the
+//! same kind with that many directions: `ℓ` describes the radiance field, not
+//! the sample count, and it keeps the fit cheap (each likelihood evaluation
+//! factorises an `N × N` matrix).
+//!
+//! Everything is seeded by [`FIT_SEED`], so a scene and configuration always
+//! give the same fit. [`FittedKernels`] caches fits per configuration, each
+//! computed at most once even under concurrent first requests.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
+
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use serde::Serialize;
+
+use super::irradiance::IrradianceMethod;
+use super::path::{PathLengths, PathLimits, TraceStats};
+use super::query::QueryPoint;
+use super::seed::point_rng;
+use super::transport::Transport;
+use crate::bmc::KernelKind;
+use crate::bmc::hyperparameters::{self, FitError, FitOptions};
+use crate::sphere::{Frame, SampleSet, SampleSetSpec};
+
+/// Training points per fit.
+pub const FIT_POINTS: usize = 32;
+/// Path length bound of the training rays: the first bounces shape the
+/// radiance field's smoothness; deeper ones only add a smooth ambient term.
+pub const FIT_MAX_DEPTH: u32 = 3;
+/// Largest sample set fitted directly (module docs).
+pub const FIT_MAX_SAMPLES: usize = 64;
+/// Seed of the training points and their paths.
+pub const FIT_SEED: u64 = 0x05EE_DF17;
+/// Search range of `ℓ` (chordal distance) and of `η = σ_n²/σ²`.
+pub const LENGTHSCALE_BOUNDS: (f64, f64) = (0.05, 5.0);
+pub const NOISE_RATIO_BOUNDS: (f64, f64) = (1e-5, 1e-1);
+/// Used when every training vector is constant (`ℓ` is then not identified
+/// and any value integrates constants exactly under the GLS mean).
+pub const FALLBACK_LENGTHSCALE: f64 = 1.0;
+pub const FALLBACK_NOISE_RATIO: f64 = 1e-3;
+
+/// One estimator configuration whose lengthscale is fitted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct FitConfig {
+    pub kernel: KernelKind,
+    pub sample_set: SampleSetSpec,
+    pub decomposition: IrradianceMethod,
+}
+
+/// A fitted lengthscale with what the likelihood said about it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct FittedKernel {
+    #[serde(flatten)]
+    pub config: FitConfig,
+    /// `ℓ` (chordal distance).
+    pub lengthscale: f64,
+    /// `η = σ_n²/σ²`; the estimator uses `σ² = 1`, `σ_n² = η` (the weights
+    /// depend on the ratio only).
+    pub noise_ratio: f64,
+    /// Pooled log marginal likelihood at the optimum; `None` when the
+    /// training radiance was constant and the fallback values are used.
+    pub log_marginal_likelihood: Option<f64>,
+    /// `ℓ` ended at a search bound (or was not identified at all).
+    pub at_bound: bool,
+    /// Directions per training point actually fitted.
+    pub fit_samples: usize,
+    /// Training points.
+    pub points: usize,
+}
+
+/// Fits the lengthscale for `config` on `transport`'s scene (module docs).
+pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<FittedKernel, FitError> {
+    let set = SampleSet::generate(SampleSetSpec {
+        count: config.sample_set.count.min(FIT_MAX_SAMPLES),
+        ..config.sample_set
+    })?;
+    let points = training_points(transport, FIT_POINTS);
+    if points.is_empty() {
+        return Err(FitError::TooFewVectors {
+            needed: hyperparameters::MIN_VECTORS,
+            got: 0,
+        });
+    }
+    let limits = PathLimits {
+        max_depth: FIT_MAX_DEPTH,
+        lengths: match config.decomposition {
+            IrradianceMethod::Split => PathLengths::Indirect,
+            IrradianceMethod::Hemisphere => PathLengths::All,
+        },
+    };
+    let observations: Vec<Vec<f64>> = points
+        .iter()
+        .enumerate()
+        .map(|(i, point)| {
+            let mut rng = point_rng(FIT_SEED, i as u64);
+            let frame = Frame::from_normal(point.normal())
+                .rotated_about_normal(std::f64::consts::TAU * rng.random::<f64>());
+            let mut stats = TraceStats::default();
+            transport
+                .hemisphere_samples(point, &frame, &set.directions, limits, &mut rng, &mut stats)
+                .iter()
+                .map(|s| s.radiance.luminance())
+                .collect()
+        })
+        .collect();
+    let options = FitOptions {
+        lengthscale_bounds: LENGTHSCALE_BOUNDS,
+        noise_ratio_bounds: NOISE_RATIO_BOUNDS,
+        grid_points: 13,
+    };
+    let fitted = |lengthscale, noise_ratio, log_marginal_likelihood, at_bound| FittedKernel {
+        config,
+        lengthscale,
+        noise_ratio,
+        log_marginal_likelihood,
+        at_bound,
+        fit_samples: set.len(),
+        points: points.len(),
+    };
+    match hyperparameters::fit(&set, config.kernel, &observations, &options) {
+        Ok(fit) => Ok(fitted(
+            fit.lengthscale,
+            fit.noise / fit.variance,
+            Some(fit.log_likelihood),
+            fit.lengthscale_at_bound,
+        )),
+        Err(FitError::ConstantData) => Ok(fitted(
+            FALLBACK_LENGTHSCALE,
+            FALLBACK_NOISE_RATIO,
+            None,
+            true,
+        )),
+        Err(err) => Err(err),
+    }
+}
+
+/// Up to `count` points on non-emitting surfaces, shape chosen by area, then
+/// uniform on it; deterministic in [`FIT_SEED`].
+fn training_points(transport: &Transport, count: usize) -> Vec<QueryPoint> {
+    let scene = transport.scene();
+    let shapes: Vec<usize> = (0..scene.shape_count())
+        .filter(|&s| scene.shape_emitter(s).is_none() && scene.shape_area(s) > 0.0)
+        .collect();
+    let total: f64 = shapes.iter().map(|&s| scene.shape_area(s)).sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return Vec::new();
+    }
+    let mut rng = Pcg64::seed_from_u64(FIT_SEED);
+    (0..count)
+        .filter_map(|_| {
+            let mut target = rng.random::<f64>() * total;
+            let shape = *shapes
+                .iter()
+                .find(|&&s| {
+                    target -= scene.shape_area(s);
+                    target < 0.0
+                })
+                .unwrap_or(shapes.last()?);
+            let (position, normal, _) =
+                scene.sample_shape_area(shape, [rng.random(), rng.random()]);
+            QueryPoint::new(position, normal).ok()
+        })
+        .collect()
+}
+
+/// Fitted kernels of one scene by configuration; each fit runs at most once
+/// (concurrent first requests wait for the one computing it). Errors are kept
+/// too: the fit is deterministic, so retrying would fail the same way.
+#[derive(Default)]
+pub struct FittedKernels {
+    fits: Mutex<HashMap<FitConfig, Arc<FitSlot>>>,
+}
+
+/// One configuration's fit, set once by whoever asks first.
+type FitSlot = OnceLock<Result<FittedKernel, String>>;
+
+impl FittedKernels {
+    /// The fit for `config`, computing it on first use.
+    pub fn get_or_fit(
+        &self,
+        transport: &Transport,
+        config: FitConfig,
+    ) -> Result<FittedKernel, String> {
+        let slot = {
+            let mut fits = self.fits.lock().unwrap_or_else(|p| p.into_inner());
+            fits.entry(config).or_default().clone()
+        };
+        slot.get_or_init(|| fit_lengthscale(transport, config).map_err(|e| e.to_string()))
+            .clone()
+    }
+
+    /// Every successful fit so far, in a stable order.
+    pub fn list(&self) -> Vec<FittedKernel> {
+        let fits = self.fits.lock().unwrap_or_else(|p| p.into_inner());
+        let mut out: Vec<FittedKernel> = fits
+            .values()
+            .filter_map(|slot| slot.get()?.as_ref().ok().copied())
+            .collect();
+        out.sort_by_key(|f| format!("{:?}", f.config));
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::tile::tests::cornell;
+    use crate::sphere::SampleSetKind;
+
+    fn config(decomposition: IrradianceMethod) -> FitConfig {
+        FitConfig {
+            kernel: KernelKind::SquaredExponential,
+            sample_set: SampleSetSpec {
+                kind: SampleSetKind::FibonacciCosine,
+                count: 32,
+                seed: 0,
+            },
+            decomposition,
+        }
+    }
+
+    /// Split mode (the default): the indirect radiance is smooth enough for
+    /// the likelihood to pick an interior lengthscale. In hemisphere mode the
+    /// light source's edges make it prefer the shortest `ℓ` allowed.
+    #[test]
+    fn cornell_box_fit_is_deterministic_and_inside_the_bounds() {
+        let transport = cornell(8);
+        let split = fit_lengthscale(&transport, config(IrradianceMethod::Split)).unwrap();
+        eprintln!("{split:?}");
+        assert_eq!(
+            split,
+            fit_lengthscale(&transport, config(IrradianceMethod::Split)).unwrap()
+        );
+        assert!(!split.at_bound, "{split:?}");
+        assert!(split.log_marginal_likelihood.is_some());
+        let (lo, hi) = LENGTHSCALE_BOUNDS;
+        assert!(
+            lo < split.lengthscale && split.lengthscale < hi,
+            "{split:?}"
+        );
+        assert_eq!(split.points, FIT_POINTS);
+        let hemisphere = fit_lengthscale(&transport, config(IrradianceMethod::Hemisphere)).unwrap();
+        eprintln!("{hemisphere:?}");
+        assert!(hemisphere.lengthscale < split.lengthscale, "{hemisphere:?}");
+    }
+
+    #[test]
+    fn fits_are_cached_per_configuration() {
+        let transport = cornell(8);
+        let kernels = FittedKernels::default();
+        assert!(kernels.list().is_empty());
+        let first = kernels
+            .get_or_fit(&transport, config(IrradianceMethod::Split))
+            .unwrap();
+        let again = kernels
+            .get_or_fit(&transport, config(IrradianceMethod::Split))
+            .unwrap();
+        assert_eq!(first, again);
+        assert_eq!(kernels.list(), [first]);
+    }
+}

@@ -1,0 +1,232 @@
+//! `POST /v1/scenes/{id}/irradiance` with the `mc`, `qmc` and `bmc`
+//! estimators on the bundled Cornell box, the `"auto"` lengthscale and its
+//! report in `GET /v1/scenes/{id}`.
+
+mod common;
+
+use common::{TestApp, error_of, spawn_app_with_scenes};
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+const CORNELL: &str = include_str!("../scenes/cornell-box.json");
+
+async fn cornell_app() -> TestApp {
+    spawn_app_with_scenes(&[("cornell-box.json", CORNELL)], |_| {}).await
+}
+
+fn request(estimator: Value) -> Value {
+    json!({
+        "points": [
+            {"position": [0.2, 0.4, -0.999], "normal": [0, 0, 1]},
+            {"position": [-0.999, 0.1, 0.2], "normal": [1, 0, 0]}
+        ],
+        "estimator": estimator,
+        "max_depth": 3,
+        "seed": 11,
+    })
+}
+
+async fn irradiance(app: &TestApp, estimator: Value) -> Value {
+    let response = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &request(estimator))
+        .await;
+    assert_eq!(response.status(), StatusCode::OK);
+    response.json().await.unwrap()
+}
+
+fn luminance(body: &Value, point: usize, field: &str) -> f64 {
+    let c: Vec<f64> = body[field][point]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+#[tokio::test]
+async fn the_three_estimators_agree_within_their_uncertainty() {
+    let app = cornell_app().await;
+    let reference = irradiance(&app, json!({"method": "mc", "samples": 4096})).await;
+    for estimator in [
+        json!({"method": "mc", "samples": 64}),
+        json!({"method": "qmc", "samples": 64}),
+        json!({"method": "qmc", "samples": 64, "sample_set": {"kind": "fibonacci"}}),
+        json!({"method": "bmc", "samples": 64, "kernel": {"lengthscale": 0.5}}),
+        json!({"method": "bmc", "samples": 64,
+               "sample_set": {"kind": "stratified", "seed": 3},
+               "kernel": {"kind": "matern52", "lengthscale": 0.4, "noise": 0.01}}),
+    ] {
+        let body = irradiance(&app, estimator.clone()).await;
+        assert!(body["rays"].as_u64().unwrap() >= 2 * 64, "{body}");
+        for point in 0..2 {
+            let (e, r) = (
+                luminance(&body, point, "irradiance"),
+                luminance(&reference, point, "irradiance"),
+            );
+            let sigma =
+                luminance(&body, point, "std_dev").hypot(luminance(&reference, point, "std_dev"));
+            assert!(e > 0.0 && sigma > 0.0, "{estimator} {body}");
+            // Both standard deviations are rough for N = 64; 5σ is a
+            // generous but still failing-when-wrong bound.
+            assert!(
+                (e - r).abs() < 5.0 * sigma,
+                "{estimator}: {e} vs {r} ± {sigma}"
+            );
+        }
+        let is_bmc = estimator["method"] == "bmc";
+        assert_eq!(body["lengthscale"].is_number(), is_bmc, "{body}");
+    }
+    // Hemisphere mode: the small bright light is sampled only by chance at
+    // N = 64 (split mode exists for that), so only check it runs.
+    let hemisphere = irradiance(
+        &app,
+        json!({"method": "bmc", "samples": 64, "decomposition": "hemisphere"}),
+    )
+    .await;
+    assert!(luminance(&hemisphere, 0, "irradiance").is_finite());
+}
+
+#[tokio::test]
+async fn point_requests_fill_the_factorisation_cache() {
+    let app = cornell_app().await;
+    let estimator = json!({"method": "bmc", "samples": 24,
+                           "kernel": {"lengthscale": 0.45, "noise": 0.002}});
+    let first = irradiance(&app, estimator.clone()).await;
+    assert_eq!(first["lengthscale"], json!(0.45));
+    // The same weights through /v1/quadratures: already cached by the point request.
+    let quadrature: Value = app
+        .post_json(
+            "/v1/quadratures",
+            &json!({
+                "sample_set": {"kind": "fibonacci_cosine", "count": 24},
+                "kernel": {"kind": "squared_exponential", "lengthscale": 0.45, "variance": 1.0, "noise": 0.002},
+                "density": {"kind": "lambert"},
+                "prior_mean": "gls"
+            }),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(quadrature["cached"], json!(true), "{quadrature}");
+    // Same request, same numbers (the cache changes nothing but the cost).
+    assert_eq!(irradiance(&app, estimator).await, first);
+}
+
+#[tokio::test]
+async fn auto_lengthscale_is_fitted_once_reported_and_dropped_with_the_scene() {
+    let app = cornell_app().await;
+    let summary: Value = app
+        .get("/v1/scenes/cornell-box")
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(summary["fitted_kernels"], json!([]));
+
+    let first = irradiance(&app, json!({"method": "bmc", "samples": 32})).await;
+    let lengthscale = first["lengthscale"].as_f64().unwrap();
+    assert!((0.05..5.0).contains(&lengthscale), "{first}");
+    let explicit = irradiance(
+        &app,
+        json!({"method": "bmc", "samples": 32, "kernel": {"lengthscale": "auto"}}),
+    )
+    .await;
+    assert_eq!(explicit, first);
+
+    let summary: Value = app
+        .get("/v1/scenes/cornell-box")
+        .await
+        .json()
+        .await
+        .unwrap();
+    let fits = summary["fitted_kernels"].as_array().unwrap();
+    assert_eq!(fits.len(), 1, "{summary}");
+    let fit = &fits[0];
+    assert_eq!(fit["lengthscale"].as_f64().unwrap(), lengthscale);
+    assert_eq!(fit["kernel"], "squared_exponential");
+    assert_eq!(fit["decomposition"], "split");
+    assert_eq!(fit["sample_set"]["count"], 32);
+    assert_eq!(fit["sample_set"]["kind"], "fibonacci_cosine");
+    assert!(fit["log_marginal_likelihood"].is_number());
+    assert_eq!(fit["at_bound"], false);
+
+    // Posting the scene again replaces it: the new one starts without fits.
+    let replaced = app
+        .post_json(
+            "/v1/scenes",
+            &serde_json::from_str::<Value>(CORNELL).unwrap(),
+        )
+        .await;
+    assert_eq!(replaced.status(), StatusCode::OK);
+    let summary: Value = app
+        .get("/v1/scenes/cornell-box")
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(summary["fitted_kernels"], json!([]));
+}
+
+#[tokio::test]
+async fn bad_estimator_options_name_their_field() {
+    let app = cornell_app().await;
+    let cases = [
+        (
+            json!({"method": "qmc", "samples": 16, "sample_set": {"kind": "uniform"}}),
+            "estimator.sample_set.kind",
+        ),
+        (
+            json!({"method": "mc", "samples": 16, "kernel": {"lengthscale": 0.5}}),
+            "estimator.kernel",
+        ),
+        (
+            json!({"method": "mc", "samples": 16, "sample_set": {"kind": "fibonacci"}}),
+            "estimator.sample_set",
+        ),
+        (
+            json!({"method": "bmc", "samples": 16, "kernel": {"lengthscale": "fast"}}),
+            "estimator.kernel.lengthscale",
+        ),
+        (
+            json!({"method": "bmc", "samples": 16, "kernel": {"lengthscale": -1.0}}),
+            "estimator.kernel.lengthscale",
+        ),
+        (
+            json!({"method": "bmc", "samples": 16, "kernel": {"noise": -1.0}}),
+            "estimator.kernel.noise",
+        ),
+        (
+            json!({"method": "bmc", "samples": 16, "kernel": {"variance": 0.0}}),
+            "estimator.kernel.variance",
+        ),
+        (
+            json!({"method": "bmc", "samples": 16, "kernel": {"kind": "rbf"}}),
+            "estimator.kernel.kind",
+        ),
+        (
+            json!({"method": "bmc", "samples": 16, "sample_set": {"kind": "sobol"}}),
+            "estimator.sample_set.kind",
+        ),
+    ];
+    for (estimator, field) in cases {
+        let response = app
+            .post_json(
+                "/v1/scenes/cornell-box/irradiance",
+                &request(estimator.clone()),
+            )
+            .await;
+        assert_eq!(
+            response.status(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "{estimator}"
+        );
+        let (code, got) = error_of(response).await;
+        assert_eq!(
+            (code.as_str(), got.as_deref()),
+            ("invalid_field", Some(field)),
+            "{estimator}"
+        );
+    }
+}
