@@ -3,13 +3,18 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::in_thread_pool;
+use crate::bmc::cache::QuadratureCache;
+use crate::cache::{
+    CacheConfig, CacheShadingOptions, CachedShading, CachedTileReport, IrradianceCache,
+    default_rule_spec,
+};
 use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
@@ -52,16 +57,82 @@ pub struct RenderArgs {
     /// Worker threads (default: all cores). The image does not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Tile side in pixels. The image does not depend on it.
+    /// Tile side in pixels. The image does not depend on it with `--method
+    /// path` (nor with `--method cache --reproducible`).
     #[arg(long, default_value_t = 64)]
     pub tile: u32,
+    /// Irradiance cache settings (`--method cache`).
+    #[command(flatten)]
+    pub cache: CacheArgs,
 }
+
+/// Options of `--method cache`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CacheArgs {
+    /// Ward's accuracy a in (0, 1]; smaller places more records.
+    #[arg(long, default_value_t = 0.5)]
+    pub accuracy: f64,
+    /// Directions per record and per glossy BMC estimate (spherical Fibonacci).
+    #[arg(long, default_value_t = 64)]
+    pub samples: usize,
+    /// SE kernel lengthscale of the records' and glossy BMC rule.
+    #[arg(long, default_value_t = 0.5)]
+    pub lengthscale: f64,
+    /// Light samples per camera ray (direct light).
+    #[arg(long, default_value_t = 16)]
+    pub light_samples: u32,
+    /// Mirror-angle nodes of the glossy BMC rule.
+    #[arg(long, default_value_t = 16)]
+    pub glossy_bins: usize,
+    /// Also place records where the posterior relative error exceeds this.
+    #[arg(long)]
+    pub relative_error_target: Option<f64>,
+    /// Test a shadow ray between point and record against light leaks.
+    #[arg(long)]
+    pub occlusion_check: bool,
+    /// Each tile on a private cache (bit-identical whatever the thread count).
+    #[arg(long)]
+    pub reproducible: bool,
+    /// Render the image this many times on the same cache (2 times the warm
+    /// cache); the first pass's image is written.
+    #[arg(long, default_value_t = 1)]
+    pub passes: u32,
+}
+
+impl CacheArgs {
+    /// Rules and options for shading through the cache.
+    pub fn shading(&self) -> anyhow::Result<CachedShading> {
+        let mut spec = default_rule_spec();
+        spec.samples.count = self.samples;
+        spec.kernel.lengthscale = self.lengthscale;
+        let options = CacheShadingOptions {
+            accuracy: self.accuracy,
+            relative_error_target: self.relative_error_target,
+            occlusion_check: self.occlusion_check,
+            reproducible: self.reproducible,
+            light_samples: self.light_samples,
+            ..CacheShadingOptions::default()
+        };
+        let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));
+        Ok(CachedShading::new(
+            spec,
+            self.glossy_bins,
+            quadratures,
+            options,
+        )?)
+    }
+}
+
+/// Byte bound of the CLI's glossy quadrature cache.
+const QUADRATURE_BYTES: u64 = 256 << 20;
 
 /// Shading methods exposed on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum MethodArg {
     /// Path tracing (the reference).
     Path,
+    /// Through the irradiance cache (see `cache::tiles`).
+    Cache,
 }
 
 impl RenderArgs {
@@ -72,6 +143,7 @@ impl RenderArgs {
             seed: self.seed,
             method: match self.method {
                 MethodArg::Path => ShadingMethod::PathTracing,
+                MethodArg::Cache => ShadingMethod::IrradianceCache,
             },
         }
     }
@@ -107,12 +179,63 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
             .context("progress bar template")?,
     );
     let start = Instant::now();
-    let render = || {
-        transport.render_image(&settings, args.tile, &|tile| {
-            progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
-        })
+    let rendered = match args.method {
+        MethodArg::Path => {
+            let render = || {
+                transport.render_image(&settings, args.tile, &|tile| {
+                    progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
+                })
+            };
+            in_thread_pool(args.threads, render)??
+        }
+        MethodArg::Cache => {
+            let shading = args.cache.shading()?;
+            let cache = IrradianceCache::new(CacheConfig::default())?;
+            let mut first = None;
+            for pass in 1..=args.cache.passes.max(1) {
+                progress.reset();
+                let pass_start = Instant::now();
+                let report = Mutex::new(CachedTileReport::default());
+                let render = || {
+                    transport.render_image_by(&settings, args.tile, &|request| {
+                        let (tile, r) = transport.render_tile_cached(request, &cache, &shading)?;
+                        let mut total = report.lock().unwrap_or_else(|e| e.into_inner());
+                        total.placement_points += r.placement_points;
+                        total.placement.records_created += r.placement.records_created;
+                        total.placement.rays += r.placement.rays;
+                        total.shading += r.shading;
+                        total.records_published += r.records_published;
+                        progress
+                            .inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
+                        Ok(tile)
+                    })
+                };
+                let rendered = in_thread_pool(args.threads, render)??;
+                let seconds = pass_start.elapsed().as_secs_f64();
+                let r = report.into_inner().unwrap_or_else(|e| e.into_inner());
+                let stats = cache.stats();
+                progress.suspend(|| {
+                    writeln!(
+                        out,
+                        "pass {pass}: {seconds:.2} s, {} rays; {} records created ({} placement rays), \
+                         {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
+                         {} glossy BMC, {} glossy path-traced",
+                        rendered.rays,
+                        r.placement.records_created,
+                        r.placement.rays,
+                        stats.records,
+                        r.shading.cache_hits,
+                        r.shading.relaxed_hits,
+                        r.shading.fallbacks,
+                        r.shading.glossy_bmc,
+                        r.shading.glossy_path_traced,
+                    )
+                })?;
+                first.get_or_insert(rendered);
+            }
+            first.context("no pass rendered")?
+        }
     };
-    let rendered = in_thread_pool(args.threads, render)??;
     let seconds = start.elapsed().as_secs_f64();
     progress.finish_and_clear();
 
