@@ -551,3 +551,145 @@ pub fn indirect_paths(max_depth: u32) -> PathLimits {
         lengths: PathLengths::Indirect,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::tile::tests::cornell;
+    use crate::scene::Ray;
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64;
+
+    fn small_spec() -> RecordRuleSpec {
+        let mut spec = default_rule_spec();
+        spec.samples.count = 16;
+        spec
+    }
+
+    /// `Î` of the smooth field `1 + 0.5 x + 0.3 z` (local frame).
+    fn integral(directions: &[DVec3], weights: &[f64]) -> f64 {
+        directions
+            .iter()
+            .zip(weights)
+            .map(|(d, w)| w * (1.0 + 0.5 * d.x + 0.3 * d.z))
+            .sum()
+    }
+
+    /// Interpolated weights are the node rules at the nodes and converge to
+    /// the exact rule at second order in the node spacing between them.
+    #[test]
+    fn interpolated_glossy_weights_match_the_exact_rule() {
+        let quadratures = Arc::new(QuadratureCache::new(1 << 24));
+        let spec = small_spec();
+        let (m, theta) = (20.0, 0.6);
+        let exact = |theta_r: f64| {
+            let density = Density::Phong {
+                exponent: m,
+                mirror_elevation: theta_r,
+            };
+            let (q, _) = quadratures
+                .quadrature(
+                    spec.samples,
+                    &spec.kernel,
+                    &density,
+                    spec.prior_mean,
+                    KernelMeanMethod::Exact,
+                )
+                .unwrap();
+            integral(q.directions(), &q.quadrature.weights)
+        };
+        let coarse = GlossyRule::new(spec, 5, quadratures.clone()).unwrap();
+        let fine = GlossyRule::new(spec, 9, quadratures.clone()).unwrap();
+        let node = 2.0 * FRAC_PI_2 / 8.0;
+        let at_node = fine.weights(m, node).unwrap();
+        assert!((integral(&at_node.directions, &at_node.weights) - exact(node)).abs() < 1e-12);
+        let truth = exact(theta);
+        let err = |rule: &GlossyRule| {
+            let w = rule.weights(m, theta).unwrap();
+            (integral(&w.directions, &w.weights) - truth).abs() / truth
+        };
+        let (e_coarse, e_fine) = (err(&coarse), err(&fine));
+        assert!(e_fine < 0.4 * e_coarse, "{e_fine} vs {e_coarse}");
+        assert!(e_fine < 0.05, "{e_fine}");
+        assert_eq!(
+            GlossyRule::new(spec, 1, quadratures).err().unwrap().field(),
+            Some("glossy_bins")
+        );
+    }
+
+    #[test]
+    fn radiance_queries_insert_records_on_a_miss_and_reuse_them() {
+        let transport = cornell(8);
+        let shading = CachedShading::new(
+            small_spec(),
+            4,
+            Arc::new(QuadratureCache::new(1 << 24)),
+            CacheShadingOptions::default(),
+        )
+        .unwrap();
+        let cache = IrradianceCache::new(Default::default()).unwrap();
+        // The floor's centre seen from above.
+        let ray = Ray {
+            origin: DVec3::new(0.0, 0.5, 0.3),
+            dir: DVec3::new(0.0, -1.0, 0.0),
+            t_max: f64::INFINITY,
+        };
+        let hit = transport.scene().intersect(&ray).unwrap();
+        let mut rng = Pcg64::seed_from_u64(3);
+        let mut stats = ShadingStats::default();
+        let mut shade = |depth: u32, stats: &mut ShadingStats| {
+            transport
+                .outgoing_radiance(
+                    &hit,
+                    -ray.dir,
+                    &cache,
+                    &shading,
+                    depth,
+                    OnMiss::Insert,
+                    None,
+                    &mut rng,
+                    stats,
+                )
+                .unwrap()
+        };
+        let full = shade(8, &mut stats);
+        assert_eq!((stats.cache_misses, stats.records_created), (1, 1));
+        assert_eq!(cache.stats().records, 1);
+        let again = shade(8, &mut stats);
+        assert_eq!((stats.cache_hits, stats.records_created), (1, 1));
+        let direct = shade(1, &mut ShadingStats::default());
+        // Indirect light adds to direct light; nothing is emitted here.
+        assert!(full.g > direct.g && again.g > direct.g && direct.g > 0.0);
+        assert_eq!(shade(0, &mut ShadingStats::default()), Rgb::BLACK);
+    }
+
+    #[test]
+    fn bad_options_name_the_field() {
+        let bad = |o: CacheShadingOptions| o.validate().unwrap_err().field().map(String::from);
+        let d = CacheShadingOptions::default();
+        assert_eq!(
+            bad(CacheShadingOptions { accuracy: 0.0, ..d }).as_deref(),
+            Some("accuracy")
+        );
+        assert_eq!(
+            bad(CacheShadingOptions {
+                light_samples: 0,
+                ..d
+            })
+            .as_deref(),
+            Some("light_samples")
+        );
+        assert_eq!(
+            bad(CacheShadingOptions {
+                min_pixels: f64::NAN,
+                ..d
+            })
+            .as_deref(),
+            Some("min_pixels")
+        );
+        let parsed: CacheShadingOptions =
+            serde_json::from_str(r#"{"accuracy": 0.3, "reproducible": true}"#).unwrap();
+        assert_eq!((parsed.accuracy, parsed.reproducible), (0.3, true));
+        assert!(serde_json::from_str::<CacheShadingOptions>(r#"{"acuracy": 1}"#).is_err());
+    }
+}

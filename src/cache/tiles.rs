@@ -220,3 +220,205 @@ fn publish(
     }
     Ok(published)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    use crate::bmc::cache::QuadratureCache;
+    use crate::cache::{CacheConfig, CacheShadingOptions, default_rule_spec};
+    use crate::image::relative_rmse;
+    use crate::render::ShadingMethod;
+    use crate::render::tile::tests::{cornell, request};
+
+    /// A small, fast configuration: 16 directions per record.
+    fn shading(options: CacheShadingOptions) -> CachedShading {
+        let mut spec = default_rule_spec();
+        spec.samples.count = 16;
+        CachedShading::new(spec, 4, Arc::new(QuadratureCache::new(1 << 24)), options).unwrap()
+    }
+
+    fn options(reproducible: bool) -> CacheShadingOptions {
+        CacheShadingOptions {
+            reproducible,
+            light_samples: 2,
+            ..CacheShadingOptions::default()
+        }
+    }
+
+    fn cache() -> IrradianceCache {
+        IrradianceCache::new(CacheConfig::default()).unwrap()
+    }
+
+    fn cached_request(x: u32, y: u32, side: u32) -> TileRequest {
+        TileRequest {
+            method: ShadingMethod::IrradianceCache,
+            max_depth: 5,
+            ..request(x, y, side, side)
+        }
+    }
+
+    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+
+    #[test]
+    fn reproducible_tiles_ignore_threads_and_prior_cache_content() {
+        let transport = cornell(16);
+        let (quiet, busy) = (cache(), cache());
+        let r = cached_request(0, 0, 16);
+        // Fill `busy` with other records first: another seed, shared mode.
+        let other = TileRequest { seed: 99, ..r };
+        transport
+            .render_tile_cached(&other, &busy, &shading(options(false)))
+            .unwrap();
+        let before = busy.stats().records;
+        assert!(before > 0);
+        let s = shading(options(true));
+        let (a, ra) = in_pool(1, || transport.render_tile_cached(&r, &quiet, &s)).unwrap();
+        let (b, rb) = in_pool(2, || transport.render_tile_cached(&r, &busy, &s)).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(ra.placement, rb.placement);
+        assert!(ra.placement.records_created > 0);
+        // Publishing skips records already covered: in the empty cache only
+        // by records published before them (same-batch neighbours).
+        assert!(ra.records_published > 0);
+        assert!(ra.records_published <= ra.placement.records_created);
+        assert_eq!(quiet.stats().records, ra.records_published);
+        assert_eq!(busy.stats().records, before + rb.records_published);
+        assert!(rb.records_published < ra.records_published);
+        // And the method is not a no-op: light arrives, the seed matters.
+        assert!(a.image.rgb().iter().any(|p| p[0] > 0.0));
+        let (c, _) = transport
+            .render_tile_cached(&TileRequest { seed: 8, ..r }, &cache(), &s)
+            .unwrap();
+        assert_ne!(c.image, a.image);
+    }
+
+    #[test]
+    fn a_second_request_reuses_the_shared_cache() {
+        let transport = cornell(16);
+        let shared = cache();
+        let s = shading(options(false));
+        let r = cached_request(0, 0, 16);
+        let (first, r1) = transport.render_tile_cached(&r, &shared, &s).unwrap();
+        let (second, r2) = transport.render_tile_cached(&r, &shared, &s).unwrap();
+        assert!(r1.placement.records_created > 0);
+        assert_eq!(r2.placement.records_created, 0);
+        assert_eq!(shared.stats().records, r1.placement.records_created);
+        // Same records, same pixel streams: the same image for fewer rays.
+        assert_eq!(first.image, second.image);
+        assert!(
+            2 * second.rays < first.rays,
+            "{} vs {}",
+            second.rays,
+            first.rays
+        );
+    }
+
+    /// 8 clients render tiles concurrently into one cache: every record
+    /// a request created is stored once (no evictions at this budget).
+    #[test]
+    fn concurrent_tile_requests_keep_the_cache_consistent() {
+        let transport = cornell(32);
+        let shared = cache();
+        let s = shading(options(false));
+        let created: Vec<u64> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..8u32)
+                .map(|i| {
+                    let (transport, shared, s) = (&transport, &shared, &s);
+                    scope.spawn(move || {
+                        let r = cached_request((i % 4) * 8, (i / 4) * 16, 8);
+                        let (_, report) = transport.render_tile_cached(&r, shared, s).unwrap();
+                        report.placement.records_created
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        let stats = shared.stats();
+        let total: u64 = created.iter().sum();
+        assert!(total > 0);
+        assert_eq!(stats.inserts, total);
+        assert_eq!(stats.records, total);
+        assert_eq!(stats.evictions, 0);
+        assert_eq!(stats.hits + stats.misses, stats.lookups);
+        let records = shared.records();
+        assert_eq!(records.len() as u64, total);
+        let a = crate::cache::Accuracy::new(0.5).unwrap();
+        for r in &records {
+            let p = QueryPoint::new(r.position, r.normal).unwrap();
+            assert!(shared.lookup(&p, a).is_some());
+        }
+    }
+
+    /// The cached image agrees with path tracing on the diffuse pixels
+    /// (emitter pixels masked) within the two images' noise plus a small
+    /// interpolation bias; a missing π or albedo would be off by ≥ 30 %.
+    #[test]
+    fn cached_tiles_agree_with_path_tracing() {
+        let transport = cornell(16);
+        let s = shading(CacheShadingOptions {
+            light_samples: 16,
+            ..options(true)
+        });
+        let r = TileRequest {
+            samples_per_pixel: 4,
+            ..cached_request(0, 0, 16)
+        };
+        let (cached, _) = transport.render_tile_cached(&r, &cache(), &s).unwrap();
+        let traced = transport
+            .render_tile(&TileRequest {
+                samples_per_pixel: 256,
+                method: ShadingMethod::PathTracing,
+                ..r
+            })
+            .unwrap();
+        let mask: Vec<bool> = traced
+            .image
+            .rgb()
+            .iter()
+            .map(|p| p.iter().all(|&c| c < 1.0))
+            .collect();
+        let e = relative_rmse(&cached.image, &traced.image, Some(&mask)).unwrap();
+        let noise_traced = relative_rmse(&traced.image, &traced.image, Some(&mask))
+            .unwrap()
+            .expected_from_variance
+            .unwrap();
+        let noise_cached = e.expected_from_variance.unwrap();
+        let expected = (noise_traced.powi(2) + noise_cached.powi(2)).sqrt();
+        assert!(
+            e.overall < 1.5 * expected + 0.05,
+            "{} vs noise {expected}",
+            e.overall
+        );
+        // Means over the diffuse pixels.
+        let mean = |img: &crate::image::Image| -> f64 {
+            img.rgb()
+                .iter()
+                .zip(&mask)
+                .filter(|(_, m)| **m)
+                .map(|(p, _)| p.iter().map(|&c| f64::from(c)).sum::<f64>())
+                .sum()
+        };
+        let ratio = mean(&cached.image) / mean(&traced.image);
+        assert!((ratio - 1.0).abs() < 0.05, "{ratio}");
+    }
+
+    #[test]
+    fn coarse_pixels_come_first() {
+        let order = coarse_to_fine(&request(0, 0, 20, 20));
+        assert_eq!(order.len(), 400);
+        assert_eq!(&order[..4], &[(0, 0), (16, 0), (0, 16), (16, 16)]);
+        assert_eq!(order[4], (8, 0));
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), 400);
+    }
+}
