@@ -99,6 +99,8 @@ pub struct CacheShadingOptions {
     pub max_pixels: f64,
     /// Placement points decided per batch (see `placement`).
     pub batch_size: usize,
+    /// Paths averaged per record direction (see [`PlacementOptions`]).
+    pub paths_per_direction: u32,
 }
 
 impl Default for CacheShadingOptions {
@@ -112,6 +114,7 @@ impl Default for CacheShadingOptions {
             min_pixels: 3.0,
             max_pixels: 200.0,
             batch_size: 16,
+            paths_per_direction: 1,
         }
     }
 }
@@ -130,6 +133,15 @@ impl CacheShadingOptions {
         if self.batch_size == 0 {
             return Err(CacheError::invalid("batch_size", "must be at least 1"));
         }
+        if self.paths_per_direction == 0 || self.paths_per_direction > MAX_LIGHT_SAMPLES {
+            return Err(CacheError::invalid(
+                "paths_per_direction",
+                format!(
+                    "must be in 1..={MAX_LIGHT_SAMPLES}, got {}",
+                    self.paths_per_direction
+                ),
+            ));
+        }
         PixelFootprint::new(1.0, self.min_pixels, self.max_pixels)?;
         Accuracy::new(self.accuracy)
     }
@@ -143,6 +155,7 @@ impl CacheShadingOptions {
             occlusion_check: self.occlusion_check,
             seed,
             batch_size: self.batch_size,
+            paths_per_direction: self.paths_per_direction,
         })
     }
 }
@@ -393,9 +406,10 @@ impl Transport {
         Ok(radiance)
     }
 
-    /// `∫ f_r L_direct cos θ dω` by `n` light samples whose area/direction
-    /// numbers are jittered on a `⌈√n⌉²` grid (stratification keeps
-    /// penumbrae smooth); unbiased for any `n`.
+    /// `∫ f_r L_direct cos θ dω` by `n` light samples; the first `s²`
+    /// (`s = ⌊√n⌋`) have their area/direction numbers jittered on an `s × s`
+    /// grid (stratification keeps penumbrae smooth), the rest are uniform, so
+    /// every sample is uniform on its own and the mean is unbiased.
     #[allow(clippy::too_many_arguments)]
     fn direct_radiance<R: Rng + ?Sized>(
         &self,
@@ -408,15 +422,16 @@ impl Transport {
         stats: &mut TraceStats,
     ) -> Rgb {
         let scene = self.scene();
-        let side = (f64::from(n).sqrt().ceil() as u32).max(1);
+        let side = f64::from(n).sqrt().floor() as u32;
         let mut sum = Rgb::BLACK;
         for k in 0..n {
-            let cell = k % (side * side);
-            let (cx, cy) = (cell % side, cell / side);
-            let u = [
-                (f64::from(cx) + rng.random::<f64>()) / f64::from(side),
-                (f64::from(cy) + rng.random::<f64>()) / f64::from(side),
-            ];
+            let (jx, jy): (f64, f64) = (rng.random(), rng.random());
+            let u = if k < side * side {
+                let (cx, cy) = (f64::from(k % side), f64::from(k / side));
+                [(cx + jx) / f64::from(side), (cy + jy) / f64::from(side)]
+            } else {
+                [jx, jy]
+            };
             let Some(light) = self.lights().sample(scene, hit.position, rng.random(), u) else {
                 continue;
             };
@@ -468,6 +483,7 @@ impl Transport {
                     &target,
                     cache.radius_limits(),
                     placement.paths,
+                    placement.paths_per_direction,
                     rng,
                     trace,
                 )
