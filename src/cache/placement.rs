@@ -89,6 +89,7 @@ pub struct PlacementReport {
 /// samples each, `E = π Σ w_i L_i`
 /// (see [`RecordRule::estimate`]) and the harmonic-mean radius within
 /// `limits` (tightened by the point's footprint).
+#[allow(clippy::too_many_arguments)]
 pub fn compute_record<R: Rng + ?Sized>(
     transport: &Transport,
     rule: &RecordRule,
@@ -113,7 +114,7 @@ pub fn compute_record<R: Rng + ?Sized>(
         }
         let scale = 1.0 / f64::from(paths_per_direction);
         for s in &mut samples {
-            s.radiance = s.radiance * scale;
+            s.radiance *= scale;
         }
     }
     let estimate = rule.estimate(&samples)?;
