@@ -23,7 +23,9 @@
 //! - `study`: synthetic environments with known irradiance and the estimator
 //!   convergence study (MC vs QMC vs BMC).
 //! - `cache`: Bayesian irradiance cache — BMC records with variance and
-//!   gradients, concurrent spatial index, interpolation, reproducible placement.
+//!   gradients, concurrent spatial index, interpolation, reproducible placement;
+//!   `cache::shading` (outgoing radiance through the cache, BMC Phong glossy)
+//!   and `cache::tiles` (`Transport::render_tile_cached`).
 //! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
 //! - `cli`: the binary's subcommands (`quadrature`, `study`, `render`, `compare`) as library functions.
 //! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).

@@ -57,6 +57,7 @@ fn options(seed: u64) -> PlacementOptions {
         accuracy: Accuracy::new(0.5).unwrap(),
         relative_error_target: None,
         occlusion_check: false,
+        paths_per_direction: 1,
         seed,
         batch_size: 16,
     }
@@ -203,7 +204,7 @@ fn bmc_record_agrees_with_monte_carlo_indirect_irradiance() {
             let mut rng = point_rng(11, i);
             let mut stats = TraceStats::default();
             compute_record(
-                &transport, &rule, &target, limits, paths, &mut rng, &mut stats,
+                &transport, &rule, &target, limits, paths, 1, &mut rng, &mut stats,
             )
             .unwrap()
         })

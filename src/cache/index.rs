@@ -143,17 +143,19 @@ impl SpatialIndex {
             if self.occupancy[level].load(Ordering::Relaxed) == 0 {
                 continue;
             }
-            let centre = self.key(level, x);
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
+            // A record found must lie within `scale · R ≤ scale · h` of `x`,
+            // so only the cells overlapping that cube can hold it: 1 or 2
+            // per axis for `scale ≤ 1/2`, at most 3.
+            let h = self.finest * f64::powi(2.0, level as i32);
+            let reach = DVec3::splat(scale.clamp(0.0, 1.0) * h);
+            let lo = self.key(level, x - reach);
+            let hi = self.key(level, x + reach);
+            for cx in lo.cell[0]..=hi.cell[0] {
+                for cy in lo.cell[1]..=hi.cell[1] {
+                    for cz in lo.cell[2]..=hi.cell[2] {
                         let key = CellKey {
-                            level: centre.level,
-                            cell: [
-                                centre.cell[0].saturating_add(dx),
-                                centre.cell[1].saturating_add(dy),
-                                centre.cell[2].saturating_add(dz),
-                            ],
+                            level: lo.level,
+                            cell: [cx, cy, cz],
                         };
                         let shard = self.read(self.shard(&key));
                         let Some(cell) = shard.get(&key) else {

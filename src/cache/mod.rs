@@ -12,6 +12,9 @@
 //!   neighbour clamp, byte budget with FIFO eviction, stats.
 //! - `placement`: records at points, the reproducible placement + shading
 //!   passes, variance-driven placement and the occlusion check.
+//! - `shading`: outgoing radiance at a surface point through the cache
+//!   (NEE direct light, cached diffuse indirect, BMC Phong glossy).
+//! - `tiles`: camera tiles shaded through a shared or private cache.
 //!
 //! No HTTP here; the service keeps one [`IrradianceCache`] per (scene
 //! version, estimator configuration).
@@ -22,6 +25,8 @@ pub mod irradiance_cache;
 pub mod placement;
 pub mod record;
 pub mod record_rule;
+pub mod shading;
+pub mod tiles;
 
 pub use error::CacheError;
 pub use irradiance_cache::{
@@ -33,3 +38,7 @@ pub use placement::{
 };
 pub use record::{PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
 pub use record_rule::{RecordEstimate, RecordRule, RecordRuleSpec};
+pub use shading::{
+    CacheShadingOptions, CachedShading, GlossyRule, OnMiss, ShadingStats, default_rule_spec,
+};
+pub use tiles::CachedTileReport;

@@ -68,6 +68,10 @@ pub struct PlacementOptions {
     pub seed: u64,
     /// Points decided per batch (≥ 1).
     pub batch_size: usize,
+    /// Independent paths averaged per record direction (≥ 1): lowers the
+    /// Monte Carlo noise of each value `L_i` without growing the `O(N²)`
+    /// cost of the BMC estimate and its gradients.
+    pub paths_per_direction: u32,
 }
 
 /// What a placement pass did.
@@ -81,21 +85,38 @@ pub struct PlacementReport {
 }
 
 /// BMC record at `point`: the rule's directions turned about the normal by a
-/// random angle from `rng`, one radiance sample each, `E = π Σ w_i L_i`
+/// random angle from `rng`, the mean of `paths_per_direction` radiance
+/// samples each, `E = π Σ w_i L_i`
 /// (see [`RecordRule::estimate`]) and the harmonic-mean radius within
 /// `limits` (tightened by the point's footprint).
+#[allow(clippy::too_many_arguments)]
 pub fn compute_record<R: Rng + ?Sized>(
     transport: &Transport,
     rule: &RecordRule,
     target: &PlacementPoint,
     limits: RadiusLimits,
     paths: PathLimits,
+    paths_per_direction: u32,
     rng: &mut R,
     stats: &mut TraceStats,
 ) -> Result<Record, CacheError> {
     let point = &target.point;
     let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
-    let samples = transport.hemisphere_samples(point, &frame, rule.directions(), paths, rng, stats);
+    let mut samples =
+        transport.hemisphere_samples(point, &frame, rule.directions(), paths, rng, stats);
+    if paths_per_direction > 1 {
+        for _ in 1..paths_per_direction {
+            let more =
+                transport.hemisphere_samples(point, &frame, rule.directions(), paths, rng, stats);
+            for (s, m) in samples.iter_mut().zip(more) {
+                s.radiance += m.radiance;
+            }
+        }
+        let scale = 1.0 / f64::from(paths_per_direction);
+        for s in &mut samples {
+            s.radiance *= scale;
+        }
+    }
     let estimate = rule.estimate(&samples)?;
     let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
     let limits = match &target.footprint {
@@ -140,6 +161,12 @@ fn too_uncertain(found: &Interpolated, target: f64) -> bool {
 fn validate(options: &PlacementOptions) -> Result<(), CacheError> {
     if options.batch_size == 0 {
         return Err(CacheError::invalid("batch_size", "must be at least 1"));
+    }
+    if options.paths_per_direction == 0 {
+        return Err(CacheError::invalid(
+            "paths_per_direction",
+            "must be at least 1",
+        ));
     }
     if let Some(t) = options.relative_error_target
         && !(t.is_finite() && t > 0.0)
@@ -201,6 +228,7 @@ pub fn place_records(
                     &points[i],
                     limits,
                     options.paths,
+                    options.paths_per_direction,
                     &mut rng,
                     &mut stats,
                 )?;

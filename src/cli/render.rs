@@ -3,13 +3,18 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::in_thread_pool;
+use crate::bmc::cache::QuadratureCache;
+use crate::cache::{
+    CacheConfig, CacheShadingOptions, CachedShading, CachedTileReport, IrradianceCache,
+    default_rule_spec,
+};
 use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
@@ -52,16 +57,86 @@ pub struct RenderArgs {
     /// Worker threads (default: all cores). The image does not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Tile side in pixels. The image does not depend on it.
+    /// Tile side in pixels. The image does not depend on it with `--method
+    /// path` (nor with `--method cache --reproducible`).
     #[arg(long, default_value_t = 64)]
     pub tile: u32,
+    /// Irradiance cache settings (`--method cache`).
+    #[command(flatten)]
+    pub cache: CacheArgs,
 }
+
+/// Options of `--method cache`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CacheArgs {
+    /// Ward's accuracy a in (0, 1]; smaller places more records.
+    #[arg(long, default_value_t = 0.5)]
+    pub accuracy: f64,
+    /// Directions per record and per glossy BMC estimate (spherical Fibonacci).
+    #[arg(long, default_value_t = 64)]
+    pub samples: usize,
+    /// SE kernel lengthscale of the records' and glossy BMC rule.
+    #[arg(long, default_value_t = 0.5)]
+    pub lengthscale: f64,
+    /// Paths averaged per record direction.
+    #[arg(long, default_value_t = 1)]
+    pub paths_per_direction: u32,
+    /// Light samples per camera ray (direct light).
+    #[arg(long, default_value_t = 16)]
+    pub light_samples: u32,
+    /// Mirror-angle nodes of the glossy BMC rule.
+    #[arg(long, default_value_t = 16)]
+    pub glossy_bins: usize,
+    /// Also place records where the posterior relative error exceeds this.
+    #[arg(long)]
+    pub relative_error_target: Option<f64>,
+    /// Test a shadow ray between point and record against light leaks.
+    #[arg(long)]
+    pub occlusion_check: bool,
+    /// Each tile on a private cache (bit-identical whatever the thread count).
+    #[arg(long)]
+    pub reproducible: bool,
+    /// Render the image this many times on the same cache (2 times the warm
+    /// cache); the first pass's image is written.
+    #[arg(long, default_value_t = 1)]
+    pub passes: u32,
+}
+
+impl CacheArgs {
+    /// Rules and options for shading through the cache.
+    pub fn shading(&self) -> anyhow::Result<CachedShading> {
+        let mut spec = default_rule_spec();
+        spec.samples.count = self.samples;
+        spec.kernel.lengthscale = self.lengthscale;
+        let options = CacheShadingOptions {
+            accuracy: self.accuracy,
+            relative_error_target: self.relative_error_target,
+            occlusion_check: self.occlusion_check,
+            reproducible: self.reproducible,
+            light_samples: self.light_samples,
+            paths_per_direction: self.paths_per_direction,
+            ..CacheShadingOptions::default()
+        };
+        let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));
+        Ok(CachedShading::new(
+            spec,
+            self.glossy_bins,
+            quadratures,
+            options,
+        )?)
+    }
+}
+
+/// Byte bound of the CLI's glossy quadrature cache.
+const QUADRATURE_BYTES: u64 = 256 << 20;
 
 /// Shading methods exposed on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum MethodArg {
     /// Path tracing (the reference).
     Path,
+    /// Through the irradiance cache (see `cache::tiles`).
+    Cache,
 }
 
 impl RenderArgs {
@@ -72,6 +147,7 @@ impl RenderArgs {
             seed: self.seed,
             method: match self.method {
                 MethodArg::Path => ShadingMethod::PathTracing,
+                MethodArg::Cache => ShadingMethod::IrradianceCache,
             },
         }
     }
@@ -107,12 +183,63 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
             .context("progress bar template")?,
     );
     let start = Instant::now();
-    let render = || {
-        transport.render_image(&settings, args.tile, &|tile| {
-            progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
-        })
+    let rendered = match args.method {
+        MethodArg::Path => {
+            let render = || {
+                transport.render_image(&settings, args.tile, &|tile| {
+                    progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
+                })
+            };
+            in_thread_pool(args.threads, render)??
+        }
+        MethodArg::Cache => {
+            let shading = args.cache.shading()?;
+            let cache = IrradianceCache::new(CacheConfig::default())?;
+            let mut first = None;
+            for pass in 1..=args.cache.passes.max(1) {
+                progress.reset();
+                let pass_start = Instant::now();
+                let report = Mutex::new(CachedTileReport::default());
+                let render = || {
+                    transport.render_image_by(&settings, args.tile, &|request| {
+                        let (tile, r) = transport.render_tile_cached(request, &cache, &shading)?;
+                        let mut total = report.lock().unwrap_or_else(|e| e.into_inner());
+                        total.placement_points += r.placement_points;
+                        total.placement.records_created += r.placement.records_created;
+                        total.placement.rays += r.placement.rays;
+                        total.shading += r.shading;
+                        total.records_published += r.records_published;
+                        progress
+                            .inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
+                        Ok(tile)
+                    })
+                };
+                let rendered = in_thread_pool(args.threads, render)??;
+                let seconds = pass_start.elapsed().as_secs_f64();
+                let r = report.into_inner().unwrap_or_else(|e| e.into_inner());
+                let stats = cache.stats();
+                progress.suspend(|| {
+                    writeln!(
+                        out,
+                        "pass {pass}: {seconds:.2} s, {} rays; {} records created ({} placement rays), \
+                         {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
+                         {} glossy BMC, {} glossy path-traced",
+                        rendered.rays,
+                        r.placement.records_created,
+                        r.placement.rays,
+                        stats.records,
+                        r.shading.cache_hits,
+                        r.shading.relaxed_hits,
+                        r.shading.fallbacks,
+                        r.shading.glossy_bmc,
+                        r.shading.glossy_path_traced,
+                    )
+                })?;
+                first.get_or_insert(rendered);
+            }
+            first.context("no pass rendered")?
+        }
     };
-    let rendered = in_thread_pool(args.threads, render)??;
     let seconds = start.elapsed().as_secs_f64();
     progress.finish_and_clear();
 
@@ -147,6 +274,36 @@ pub struct CompareArgs {
     /// (e.g. emitters seen directly), to measure the lit surfaces only.
     #[arg(long)]
     pub exclude_above: Option<f32>,
+    /// With `--exclude-above`, also leave out pixels within this many pixels
+    /// (8-neighbourhood steps) of an excluded one: pixels partly covering
+    /// an emitter, whose anti-aliasing noise would otherwise dominate.
+    #[arg(long, default_value_t = 0)]
+    pub exclude_margin: u32,
+}
+
+/// `keep` (row-major, `width` wide) without the pixels within `margin`
+/// 8-neighbourhood steps of a pixel it leaves out.
+fn shrink(keep: &[bool], width: usize, margin: usize) -> Vec<bool> {
+    if margin == 0 || width == 0 {
+        return keep.to_vec();
+    }
+    let height = keep.len() / width;
+    let m = margin as isize;
+    (0..keep.len())
+        .map(|i| {
+            let (x, y) = ((i % width) as isize, (i / width) as isize);
+            (-m..=m).all(|dy| {
+                (-m..=m).all(|dx| {
+                    let (nx, ny) = (x + dx, y + dy);
+                    nx < 0
+                        || ny < 0
+                        || nx >= width as isize
+                        || ny >= height as isize
+                        || keep[ny as usize * width + nx as usize]
+                })
+            })
+        })
+        .collect()
 }
 
 /// Runs `compare`: relative RMSE (overall and per channel) on `out`.
@@ -154,11 +311,16 @@ pub fn run_compare(args: &CompareArgs, out: &mut dyn Write) -> anyhow::Result<()
     let image = read_exr(&args.image)?;
     let reference = read_exr(&args.reference)?;
     let mask: Option<Vec<bool>> = args.exclude_above.map(|limit| {
-        reference
+        let keep: Vec<bool> = reference
             .rgb()
             .iter()
             .map(|p| p.iter().all(|&c| c <= limit))
-            .collect()
+            .collect();
+        shrink(
+            &keep,
+            reference.width() as usize,
+            args.exclude_margin as usize,
+        )
     });
     let e = relative_rmse(&image, &reference, mask.as_deref())?;
     writeln!(
@@ -243,9 +405,63 @@ mod tests {
         assert!(String::from_utf8_lossy(&compared).starts_with("relative RMSE 0.00000"));
     }
 
+    /// `--method cache` through the same path: EXR and PNG written, and a
+    /// second pass on the warm cache creates no records.
+    #[test]
+    fn render_through_the_cache_end_to_end() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let text = std::fs::read_to_string(root.join("cornell-box.json")).expect("bundled");
+        let mut doc: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+        doc["camera"]["width"] = 8.into();
+        doc["camera"]["height"] = 8.into();
+        let dir = std::env::temp_dir().join(format!("bmc-render-cache-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let scene = dir.join("cornell8.json");
+        std::fs::write(&scene, doc.to_string()).expect("scene written");
+        let (exr, png) = (dir.join("c.exr"), dir.join("c.png"));
+        let line = format!(
+            "render --scene {} --out {} --png {} --method cache --spp 1 --light-samples 2 \
+             --samples 16 --max-depth 4 --passes 2 --threads 1 --tile 4",
+            scene.display(),
+            exr.display(),
+            png.display()
+        );
+        let Ok(Sub::Render(args)) = parse(&line) else {
+            panic!("render arguments rejected")
+        };
+        let mut summary = Vec::new();
+        let rendered = run_render(&args, &mut summary);
+        let image = read_exr(&exr);
+        let png_size = image::image_dimensions(&png);
+        let _ = std::fs::remove_dir_all(&dir);
+        rendered.expect("renders");
+        let summary = String::from_utf8_lossy(&summary);
+        assert!(summary.contains("pass 1: "), "{summary}");
+        assert!(summary.contains("pass 2: ") && summary.contains(" 0 records created"));
+        let image = image.expect("EXR readable");
+        assert_eq!((image.width(), image.height()), (8, 8));
+        assert!(image.rgb().iter().any(|p| p[1] > 0.0));
+        assert_eq!(png_size.expect("PNG readable"), (8, 8));
+    }
+
+    #[test]
+    fn margins_grow_the_excluded_region() {
+        let mut keep = vec![true; 25];
+        keep[12] = false;
+        let out = shrink(&keep, 5, 1);
+        assert_eq!(out.iter().filter(|k| !**k).count(), 9);
+        assert!(out[0] && !out[6] && !out[18] && out[4]);
+        assert_eq!(shrink(&keep, 5, 0), keep);
+    }
+
     #[test]
     fn bad_arguments_are_rejected() {
-        assert!(parse("render --scene s.json --out o.exr --method cache").is_err());
+        assert!(parse("render --scene s.json --out o.exr --method bogus").is_err());
+        assert!(parse("render --scene s.json --out o.exr --method cache --accuracy 2").is_ok());
+        let Ok(Sub::Render(args)) = parse("render --scene s.json --out o.exr --accuracy 2") else {
+            panic!("parses")
+        };
+        assert!(args.cache.shading().is_err());
         assert!(parse("render --scene s.json").is_err());
         let Ok(Sub::Render(args)) = parse("render --scene /nonexistent.json --out o.exr --spp 0")
         else {

@@ -54,6 +54,21 @@ impl Transport {
         tile_side: u32,
         on_tile: &dyn Fn(&RenderedTile),
     ) -> Result<RenderedImage, RenderError> {
+        self.render_image_by(settings, tile_side, &|request| {
+            let tile = self.render_tile(request)?;
+            on_tile(&tile);
+            Ok(tile)
+        })
+    }
+
+    /// [`Self::render_image`] with each tile rendered by `render` (e.g.
+    /// through an irradiance cache), in row-major tile order.
+    pub fn render_image_by(
+        &self,
+        settings: &ImageSettings,
+        tile_side: u32,
+        render: &dyn Fn(&TileRequest) -> Result<RenderedTile, RenderError>,
+    ) -> Result<RenderedImage, RenderError> {
         let (width, height) = self.scene().camera.resolution();
         if tile_side == 0 || tile_side > MAX_TILE_SIDE {
             return Err(RenderError::InvalidOption {
@@ -70,7 +85,7 @@ impl Transport {
             for x in (0..width).step_by(tile_side as usize) {
                 let request =
                     settings.tile(x, y, tile_side.min(width - x), tile_side.min(height - y));
-                let tile = self.render_tile(&request)?;
+                let tile = render(&request)?;
                 image
                     .insert(&tile.image, x, y)
                     .map_err(|e| RenderError::InvalidOption {
@@ -78,7 +93,6 @@ impl Transport {
                         reason: e.to_string(),
                     })?;
                 rays += tile.rays;
-                on_tile(&tile);
             }
         }
         Ok(RenderedImage { image, rays })

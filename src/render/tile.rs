@@ -40,6 +40,10 @@ pub enum ShadingMethod {
     /// directly included: the unbiased reference.
     #[default]
     PathTracing,
+    /// Direct light by light sampling, diffuse indirect light from an
+    /// irradiance cache, glossy reflection by BMC with the Phong density:
+    /// needs a cache, see `Transport::render_tile_cached` (`crate::cache::tiles`).
+    IrradianceCache,
 }
 
 /// A rectangle of the camera image and the work to spend on it.
@@ -178,6 +182,10 @@ impl Transport {
                 };
                 render_tile_with(camera, &shader, request)
             }
+            ShadingMethod::IrradianceCache => Err(RenderError::InvalidOption {
+                field: "method",
+                reason: "irradiance_cache shading needs a cache: use render_tile_cached".into(),
+            }),
         }
     }
 }

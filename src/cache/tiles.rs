@@ -1,0 +1,424 @@
+//! Tiles of the camera image shaded through the irradiance cache
+//! ([`crate::render::ShadingMethod::IrradianceCache`]).
+//!
+//! Two passes (see `placement`):
+//! 1. **Placement** at the first hits of the rays through the tile's pixel
+//!    centres (no random numbers), coarse to fine: pixels whose coordinates
+//!    are multiples of 16 first, then 8, 4, 2, 1, so a batch's points are
+//!    spread over the tile and rarely duplicate each other's records. Each
+//!    point carries its pixel footprint: the distance to the camera times the
+//!    angle between neighbouring pixel-centre rays (the footprint
+//!    perpendicular to the ray), which bounds the record's radius between
+//!    `min_pixels` and `max_pixels` of it.
+//! 2. **Shading** by the shared pixel loop ([`render_tile_with`]): each
+//!    jittered camera ray's first hit is shaded by
+//!    [`Transport::outgoing_radiance`] with [`OnMiss::PathTrace`], so the pass
+//!    only reads the cache.
+//!
+//! With `reproducible`, both passes use a private cache (same configuration
+//! as the shared one), so the tile is bit-identical whatever the thread
+//! count or the shared cache's content; the private records that the shared
+//! cache does not already cover are then published to it. Otherwise records
+//! are placed in and read from the shared cache: a second request for the
+//! same tile finds them and traces only camera, shadow and fallback rays.
+
+use std::sync::Mutex;
+
+use rand::Rng;
+use rand_pcg::Pcg64;
+use rayon::prelude::*;
+
+use super::irradiance_cache::IrradianceCache;
+use super::placement::{PlacementPoint, PlacementReport, place_records};
+use super::record::PixelFootprint;
+use super::shading::{CachedShading, OnMiss, ShadingStats, cache_to_render, indirect_paths};
+use crate::render::lights::environment_radiance;
+use crate::render::tile::{
+    CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
+};
+use crate::render::{QueryPoint, RenderError, Rgb, TraceStats, Transport};
+use crate::scene::Ray;
+
+/// What a cached tile request did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct CachedTileReport {
+    /// Pixel-centre hits considered for records.
+    pub placement_points: u64,
+    /// Records placed (in the private cache when reproducible).
+    pub placement: PlacementReport,
+    /// The shading pass's counters (camera rays included in `rays`).
+    pub shading: ShadingStats,
+    /// Records copied from the private cache into the shared one.
+    pub records_published: u64,
+}
+
+/// Shades camera rays through a cache (module docs), collecting counters
+/// and the first error (the pixel loop's shader interface cannot fail).
+struct CacheRayShader<'a> {
+    transport: &'a Transport,
+    cache: &'a IrradianceCache,
+    shading: &'a CachedShading,
+    /// Segments counted from the first hit.
+    depth: u32,
+    stats: Mutex<ShadingStats>,
+    error: Mutex<Option<RenderError>>,
+}
+
+impl CameraRayShader for CacheRayShader<'_> {
+    fn radiance(&self, ray: Ray, rng: &mut Pcg64, stats: &mut TraceStats) -> Rgb {
+        let scene = self.transport.scene();
+        stats.rays += 1;
+        let Some(hit) = scene.intersect(&ray) else {
+            return environment_radiance(scene, ray.dir);
+        };
+        let mut local = ShadingStats::default();
+        let result = self.transport.outgoing_radiance(
+            &hit,
+            -ray.dir,
+            self.cache,
+            self.shading,
+            self.depth,
+            OnMiss::PathTrace,
+            None,
+            rng,
+            &mut local,
+        );
+        stats.rays += local.rays;
+        *self.stats.lock().unwrap_or_else(|e| e.into_inner()) += local;
+        result.unwrap_or_else(|e| {
+            self.error
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .get_or_insert(e);
+            Rgb::BLACK
+        })
+    }
+}
+
+/// Pixels of the tile, coarsest level first (module docs), row-major within a level.
+fn coarse_to_fine(request: &TileRequest) -> Vec<(u32, u32)> {
+    let level = |px: u32, py: u32| (px | py | 16).trailing_zeros();
+    let mut pixels: Vec<(u32, u32)> = (request.y..request.y + request.height)
+        .flat_map(|py| (request.x..request.x + request.width).map(move |px| (px, py)))
+        .collect();
+    // Stable: row-major order is kept within a level.
+    pixels.sort_by_key(|&(px, py)| std::cmp::Reverse(level(px, py)));
+    pixels
+}
+
+impl Transport {
+    /// Placement points of a tile (module docs): front-facing first hits
+    /// with a diffuse lobe, in coarse-to-fine order.
+    fn placement_points(
+        &self,
+        request: &TileRequest,
+        shading: &CachedShading,
+    ) -> Result<Vec<PlacementPoint>, RenderError> {
+        let scene = self.scene();
+        let camera = &scene.camera;
+        let options = &shading.options;
+        coarse_to_fine(request)
+            .par_iter()
+            .map(|&(px, py)| {
+                let (cx, cy) = (f64::from(px) + 0.5, f64::from(py) + 0.5);
+                let ray = camera.generate_ray(cx, cy);
+                let Some(hit) = scene.intersect(&ray) else {
+                    return Ok(None);
+                };
+                let diffuse = self
+                    .bsdf(hit.material)
+                    .is_some_and(|b| !b.diffuse.is_black());
+                if !diffuse || hit.shading_normal.dot(ray.dir) >= 0.0 {
+                    return Ok(None);
+                }
+                let next = camera.generate_ray(cx + 1.0, cy);
+                let angle = ray.dir.angle_between(next.dir);
+                let size = (hit.t * angle).max(f64::MIN_POSITIVE);
+                let footprint = PixelFootprint::new(size, options.min_pixels, options.max_pixels)
+                    .map_err(cache_to_render)?;
+                Ok(Some(PlacementPoint {
+                    point: QueryPoint::new(hit.position, hit.shading_normal)?,
+                    footprint: Some(footprint),
+                }))
+            })
+            .filter_map(Result::transpose)
+            .collect()
+    }
+
+    /// Renders one tile through the irradiance cache `cache` (module docs).
+    /// `cache` must belong to this scene, `shading.rule` and the request's
+    /// `max_depth` (the caller keys its caches by them); the request's
+    /// `method` is not consulted.
+    pub fn render_tile_cached(
+        &self,
+        request: &TileRequest,
+        cache: &IrradianceCache,
+        shading: &CachedShading,
+    ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
+        let camera = &self.scene().camera;
+        request.validate(camera.resolution())?;
+        shading.options.validate().map_err(cache_to_render)?;
+        let depth = request.max_depth - 1;
+        let mut report = CachedTileReport::default();
+        let private;
+        let target = if shading.options.reproducible {
+            private = IrradianceCache::new(*cache.config()).map_err(cache_to_render)?;
+            &private
+        } else {
+            cache
+        };
+        if depth >= 2 {
+            let points = self.placement_points(request, shading)?;
+            report.placement_points = points.len() as u64;
+            // The tile's own stream family, so tiles sharing a seed do not
+            // reuse each other's record rotations.
+            let seed = pixel_rng(request.seed, request.x, request.y).next_u64();
+            let options = shading
+                .options
+                .placement(indirect_paths(depth), seed)
+                .map_err(cache_to_render)?;
+            report.placement = place_records(target, self, &shading.rule, &points, &options)
+                .map_err(cache_to_render)?;
+        }
+        let shader = CacheRayShader {
+            transport: self,
+            cache: target,
+            shading,
+            depth,
+            stats: Mutex::new(ShadingStats::default()),
+            error: Mutex::new(None),
+        };
+        let mut tile = render_tile_with(camera, &shader, request)?;
+        if let Some(e) = shader.error.into_inner().unwrap_or_else(|p| p.into_inner()) {
+            return Err(e);
+        }
+        report.shading = shader.stats.into_inner().unwrap_or_else(|p| p.into_inner());
+        report.shading.rays = tile.rays;
+        tile.rays += report.placement.rays;
+        if shading.options.reproducible {
+            report.records_published = publish(&target.records(), cache, shading)?;
+        }
+        Ok((tile, report))
+    }
+}
+
+/// Inserts the records `cache` does not already cover at their own
+/// positions; returns how many.
+fn publish(
+    records: &[super::Record],
+    cache: &IrradianceCache,
+    shading: &CachedShading,
+) -> Result<u64, RenderError> {
+    let accuracy = shading.options.validate().map_err(cache_to_render)?;
+    let mut published = 0;
+    for r in records {
+        let point = QueryPoint::new(r.position, r.normal)?;
+        if cache.lookup(&point, accuracy).is_none() {
+            cache.insert(*r).map_err(cache_to_render)?;
+            published += 1;
+        }
+    }
+    Ok(published)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    use crate::bmc::cache::QuadratureCache;
+    use crate::cache::{CacheConfig, CacheShadingOptions, default_rule_spec};
+    use crate::image::relative_rmse;
+    use crate::render::ShadingMethod;
+    use crate::render::tile::tests::{cornell, request};
+
+    /// A small, fast configuration: 16 directions per record.
+    fn shading(options: CacheShadingOptions) -> CachedShading {
+        let mut spec = default_rule_spec();
+        spec.samples.count = 16;
+        CachedShading::new(spec, 4, Arc::new(QuadratureCache::new(1 << 24)), options).unwrap()
+    }
+
+    fn options(reproducible: bool) -> CacheShadingOptions {
+        CacheShadingOptions {
+            reproducible,
+            light_samples: 2,
+            ..CacheShadingOptions::default()
+        }
+    }
+
+    fn cache() -> IrradianceCache {
+        IrradianceCache::new(CacheConfig::default()).unwrap()
+    }
+
+    fn cached_request(x: u32, y: u32, side: u32) -> TileRequest {
+        TileRequest {
+            method: ShadingMethod::IrradianceCache,
+            max_depth: 5,
+            ..request(x, y, side, side)
+        }
+    }
+
+    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+
+    #[test]
+    fn reproducible_tiles_ignore_threads_and_prior_cache_content() {
+        let transport = cornell(16);
+        let (quiet, busy) = (cache(), cache());
+        let r = cached_request(0, 0, 16);
+        // Fill `busy` with other records first: another seed, shared mode.
+        let other = TileRequest { seed: 99, ..r };
+        transport
+            .render_tile_cached(&other, &busy, &shading(options(false)))
+            .unwrap();
+        let before = busy.stats().records;
+        assert!(before > 0);
+        let s = shading(options(true));
+        let (a, ra) = in_pool(1, || transport.render_tile_cached(&r, &quiet, &s)).unwrap();
+        let (b, rb) = in_pool(2, || transport.render_tile_cached(&r, &busy, &s)).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(ra.placement, rb.placement);
+        assert!(ra.placement.records_created > 0);
+        // Publishing skips records already covered: in the empty cache only
+        // by records published before them (same-batch neighbours).
+        assert!(ra.records_published > 0);
+        assert!(ra.records_published <= ra.placement.records_created);
+        assert_eq!(quiet.stats().records, ra.records_published);
+        assert_eq!(busy.stats().records, before + rb.records_published);
+        assert!(rb.records_published < ra.records_published);
+        // And the method is not a no-op: light arrives, the seed matters.
+        assert!(a.image.rgb().iter().any(|p| p[0] > 0.0));
+        let (c, _) = transport
+            .render_tile_cached(&TileRequest { seed: 8, ..r }, &cache(), &s)
+            .unwrap();
+        assert_ne!(c.image, a.image);
+    }
+
+    #[test]
+    fn a_second_request_reuses_the_shared_cache() {
+        let transport = cornell(16);
+        let shared = cache();
+        let s = shading(options(false));
+        let r = cached_request(0, 0, 16);
+        let (first, r1) = transport.render_tile_cached(&r, &shared, &s).unwrap();
+        let (second, r2) = transport.render_tile_cached(&r, &shared, &s).unwrap();
+        assert!(r1.placement.records_created > 0);
+        assert_eq!(r2.placement.records_created, 0);
+        assert_eq!(shared.stats().records, r1.placement.records_created);
+        // Same records, same pixel streams: the same image for fewer rays.
+        assert_eq!(first.image, second.image);
+        assert!(
+            2 * second.rays < first.rays,
+            "{} vs {}",
+            second.rays,
+            first.rays
+        );
+    }
+
+    /// 8 clients render tiles concurrently into one cache: every record
+    /// a request created is stored once (no evictions at this budget).
+    #[test]
+    fn concurrent_tile_requests_keep_the_cache_consistent() {
+        let transport = cornell(32);
+        let shared = cache();
+        let s = shading(options(false));
+        let created: Vec<u64> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..8u32)
+                .map(|i| {
+                    let (transport, shared, s) = (&transport, &shared, &s);
+                    scope.spawn(move || {
+                        let r = cached_request((i % 4) * 8, (i / 4) * 16, 8);
+                        let (_, report) = transport.render_tile_cached(&r, shared, s).unwrap();
+                        report.placement.records_created
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        let stats = shared.stats();
+        let total: u64 = created.iter().sum();
+        assert!(total > 0);
+        assert_eq!(stats.inserts, total);
+        assert_eq!(stats.records, total);
+        assert_eq!(stats.evictions, 0);
+        assert_eq!(stats.hits + stats.misses, stats.lookups);
+        let records = shared.records();
+        assert_eq!(records.len() as u64, total);
+        let a = crate::cache::Accuracy::new(0.5).unwrap();
+        for r in &records {
+            let p = QueryPoint::new(r.position, r.normal).unwrap();
+            assert!(shared.lookup(&p, a).is_some());
+        }
+    }
+
+    /// The cached image agrees with path tracing on the diffuse pixels
+    /// (emitter pixels masked) within the two images' noise plus a small
+    /// interpolation bias; a missing π or albedo would be off by ≥ 30 %.
+    #[test]
+    fn cached_tiles_agree_with_path_tracing() {
+        let transport = cornell(16);
+        let s = shading(CacheShadingOptions {
+            light_samples: 16,
+            ..options(true)
+        });
+        let r = TileRequest {
+            samples_per_pixel: 4,
+            ..cached_request(0, 0, 16)
+        };
+        let (cached, _) = transport.render_tile_cached(&r, &cache(), &s).unwrap();
+        let traced = transport
+            .render_tile(&TileRequest {
+                samples_per_pixel: 256,
+                method: ShadingMethod::PathTracing,
+                ..r
+            })
+            .unwrap();
+        let mask: Vec<bool> = traced
+            .image
+            .rgb()
+            .iter()
+            .map(|p| p.iter().all(|&c| c < 1.0))
+            .collect();
+        let e = relative_rmse(&cached.image, &traced.image, Some(&mask)).unwrap();
+        let noise_traced = relative_rmse(&traced.image, &traced.image, Some(&mask))
+            .unwrap()
+            .expected_from_variance
+            .unwrap();
+        let noise_cached = e.expected_from_variance.unwrap();
+        let expected = (noise_traced.powi(2) + noise_cached.powi(2)).sqrt();
+        assert!(
+            e.overall < 1.5 * expected + 0.05,
+            "{} vs noise {expected}",
+            e.overall
+        );
+        // Means over the diffuse pixels.
+        let mean = |img: &crate::image::Image| -> f64 {
+            img.rgb()
+                .iter()
+                .zip(&mask)
+                .filter(|(_, m)| **m)
+                .map(|(p, _)| p.iter().map(|&c| f64::from(c)).sum::<f64>())
+                .sum()
+        };
+        let ratio = mean(&cached.image) / mean(&traced.image);
+        assert!((ratio - 1.0).abs() < 0.05, "{ratio}");
+    }
+
+    #[test]
+    fn coarse_pixels_come_first() {
+        let order = coarse_to_fine(&request(0, 0, 20, 20));
+        assert_eq!(order.len(), 400);
+        assert_eq!(&order[..4], &[(0, 0), (16, 0), (0, 16), (16, 16)]);
+        assert_eq!(order[4], (8, 0));
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), 400);
+    }
+}
