@@ -10,7 +10,7 @@ use serde_json::{Value, json};
 
 fn tile(x: u32, y: u32, width: u32, height: u32, format: &str) -> Value {
     json!({"x": x, "y": y, "width": width, "height": height, "format": format,
-           "samples_per_pixel": 4, "max_depth": 4, "seed": 5})
+           "samples_per_pixel": 4, "max_depth": 4, "seed": 5, "estimator": {"method": "path"}})
 }
 
 /// `(width, height, rgb)` of a JSON tile body.
@@ -92,4 +92,168 @@ async fn encodings_agree_and_tiles_assemble_into_the_image() {
         metrics.contains("/v1/scenes/{id}/tiles"),
         "per-route metrics: {metrics}"
     );
+}
+
+/// The bundled Cornell box with a `side`² camera, as a scenes-directory file.
+fn small_cornell(side: u32) -> String {
+    let mut doc: Value = serde_json::from_str(include_str!("../scenes/cornell-box.json")).unwrap();
+    doc["camera"]["width"] = json!(side);
+    doc["camera"]["height"] = json!(side);
+    doc.to_string()
+}
+
+/// A cheap `bmc` tile of the small Cornell box.
+fn bmc_tile(x: u32, y: u32, side: u32, extra: Value) -> Value {
+    let mut estimator =
+        json!({"method": "bmc", "samples": 16, "light_samples": 2, "accuracy": 0.5});
+    for (key, value) in extra.as_object().unwrap() {
+        estimator[key] = value.clone();
+    }
+    json!({"x": x, "y": y, "width": side, "height": side, "format": "json",
+           "max_depth": 3, "seed": 9, "estimator": estimator})
+}
+
+fn header(response: &reqwest::Response, name: &str) -> u64 {
+    response.headers()[name].to_str().unwrap().parse().unwrap()
+}
+
+async fn cache_stats(app: &common::TestApp) -> Value {
+    let report: Value = app.get("/v1/scenes/box/cache").await.json().await.unwrap();
+    report
+}
+
+#[tokio::test]
+async fn bmc_tiles_fill_the_shared_cache_and_reuse_it() {
+    let app = spawn_app_with_scenes(&[("box.json", &small_cornell(16))], |_| {}).await;
+    assert!(
+        cache_stats(&app).await["caches"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+
+    let first = app
+        .post_json("/v1/scenes/box/tiles", &bmc_tile(0, 0, 16, json!({})))
+        .await;
+    assert_eq!(first.status(), StatusCode::OK);
+    let created = header(&first, "x-records-created");
+    let first_rays = header(&first, "x-rays");
+    assert!(created > 0);
+    let pixels: Value = first.json().await.unwrap();
+    assert!(
+        json_pixels(&pixels)
+            .2
+            .iter()
+            .all(|p| p.iter().all(|c| c.is_finite() && *c >= 0.0))
+    );
+
+    let report = cache_stats(&app).await;
+    let caches = report["caches"].as_array().unwrap();
+    assert_eq!(caches.len(), 1, "{report}");
+    assert_eq!(caches[0]["stats"]["records"], created);
+    assert_eq!(caches[0]["configuration"]["max_depth"], 3);
+
+    // The same tile again finds every record it needs.
+    let second = app
+        .post_json("/v1/scenes/box/tiles", &bmc_tile(0, 0, 16, json!({})))
+        .await;
+    assert_eq!(header(&second, "x-records-created"), 0);
+    assert!(header(&second, "x-cache-hits") > 0);
+    assert!(header(&second, "x-rays") < first_rays);
+
+    // A request may keep the shared cache out of it.
+    let alone = app
+        .post_json(
+            "/v1/scenes/box/tiles",
+            &bmc_tile(0, 0, 16, json!({"cache": false})),
+        )
+        .await;
+    assert_eq!(alone.status(), StatusCode::OK);
+    assert!(header(&alone, "x-records-created") > 0);
+    assert_eq!(
+        cache_stats(&app).await["caches"][0]["stats"]["records"],
+        created
+    );
+
+    // DELETE empties it; replacing the scene retires its caches.
+    let cleared: Value = app
+        .client
+        .delete(app.url("/v1/scenes/box/cache"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(cleared["cleared_records"], created);
+    assert_eq!(cleared["caches"][0]["stats"]["records"], 0);
+    app.post_json("/v1/scenes/box/tiles", &bmc_tile(0, 0, 16, json!({})))
+        .await;
+    let mut doc: Value = serde_json::from_str(&small_cornell(16)).unwrap();
+    doc["name"] = json!("box");
+    assert_eq!(
+        app.post_json("/v1/scenes", &doc).await.status(),
+        StatusCode::OK
+    );
+    assert!(
+        cache_stats(&app).await["caches"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+}
+
+#[tokio::test]
+async fn reproducible_bmc_tiles_ignore_what_ran_before() {
+    let app = spawn_app_with_scenes(&[("box.json", &small_cornell(16))], |_| {}).await;
+    let request = bmc_tile(4, 4, 8, json!({"reproducible": true}));
+    let cold = app.post_json("/v1/scenes/box/tiles", &request).await;
+    assert_eq!(cold.status(), StatusCode::OK);
+    let cold = cold.bytes().await.unwrap();
+    // Fill the shared cache with records from other tiles and seeds.
+    for (x, seed) in [(0, 1), (8, 2)] {
+        let mut other = bmc_tile(x, 0, 8, json!({}));
+        other["seed"] = json!(seed);
+        assert_eq!(
+            app.post_json("/v1/scenes/box/tiles", &other).await.status(),
+            StatusCode::OK
+        );
+    }
+    let warm = app
+        .post_json("/v1/scenes/box/tiles", &request)
+        .await
+        .bytes()
+        .await
+        .unwrap();
+    assert_eq!(cold, warm);
+}
+
+#[tokio::test]
+async fn eight_concurrent_clients_leave_a_consistent_cache() {
+    let app = spawn_app_with_scenes(&[("box.json", &small_cornell(16))], |config| {
+        config.server.worker_threads = 2;
+    })
+    .await;
+    let mut clients = tokio::task::JoinSet::new();
+    for i in 0..8u32 {
+        let body = bmc_tile((i % 4) * 4, (i / 4) * 8, 4, json!({}));
+        let (client, url) = (app.client.clone(), app.url("/v1/scenes/box/tiles"));
+        clients.spawn(async move {
+            let response = client.post(url).json(&body).send().await.unwrap();
+            assert_eq!(response.status(), StatusCode::OK);
+            header(&response, "x-records-created")
+        });
+    }
+    let created: u64 = clients.join_all().await.into_iter().sum();
+    let stats = &cache_stats(&app).await["caches"][0]["stats"];
+    assert!(created > 0);
+    assert_eq!(stats["inserts"], created, "{stats}");
+    assert_eq!(stats["evictions"], 0);
+    assert_eq!(stats["records"], created, "no record lost");
+    let (lookups, hits, misses) = (
+        stats["lookups"].as_u64().unwrap(),
+        stats["hits"].as_u64().unwrap(),
+        stats["misses"].as_u64().unwrap(),
+    );
+    assert_eq!(hits + misses, lookups);
 }

@@ -78,7 +78,7 @@ impl Application {
         let irradiance_caches = IrradianceCaches::new(
             usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX),
         );
-        let quadratures = QuadratureCache::new(config.cache.factorisation_bytes);
+        let quadratures = Arc::new(QuadratureCache::new(config.cache.factorisation_bytes));
         let state = Arc::new(AppState {
             quadratures,
             config,

@@ -22,7 +22,9 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::scenes::LoadedScene;
-use crate::cache::{CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
+use crate::cache::{
+    CacheConfig, CacheError, CacheStats, CachedShading, IrradianceCache, RECORD_BYTES,
+};
 
 /// Each cache may use `1/SHARE` of the total budget.
 pub const SHARE: usize = 4;
@@ -46,9 +48,16 @@ pub struct ConfigurationStats {
     pub stats: CacheStats,
 }
 
+/// One cache with the BMC rules its records are computed with (built once
+/// per cache, so no request refactorises them).
+pub struct SceneCache {
+    pub cache: IrradianceCache,
+    pub shading: CachedShading,
+}
+
 /// All irradiance caches of the service.
 pub struct IrradianceCaches {
-    caches: Cache<CacheKey, Arc<IrradianceCache>>,
+    caches: Cache<CacheKey, Arc<SceneCache>>,
     per_cache_bytes: usize,
 }
 
@@ -73,15 +82,17 @@ impl IrradianceCaches {
         self.per_cache_bytes
     }
 
-    /// The cache of `scene` for `configuration`, created from `template`
-    /// (whose byte budget is replaced by [`Self::per_cache_bytes`]) on first
-    /// use. Concurrent first uses create it once.
+    /// The cache of `scene` for `configuration`, created on first use from
+    /// `template` (whose byte budget is replaced by [`Self::per_cache_bytes`])
+    /// and the rules `shading` builds. Concurrent first uses create it once;
+    /// errors are not cached.
     pub fn get_or_create(
         &self,
         scene: &LoadedScene,
         configuration: &serde_json::Value,
         template: CacheConfig,
-    ) -> Result<Arc<IrradianceCache>, CacheError> {
+        shading: impl FnOnce() -> Result<CachedShading, CacheError>,
+    ) -> Result<Arc<SceneCache>, CacheError> {
         let key = CacheKey {
             scene: scene.id.clone(),
             generation: scene.generation,
@@ -92,8 +103,13 @@ impl IrradianceCaches {
             ..template
         };
         self.caches
-            .try_get_with(key, || IrradianceCache::new(config).map(Arc::new))
-            .map_err(|err| (*err).clone())
+            .try_get_with(key, || -> Result<_, CacheError> {
+                Ok(Arc::new(SceneCache {
+                    cache: IrradianceCache::new(config)?,
+                    shading: shading()?,
+                }))
+            })
+            .map_err(|err: Arc<CacheError>| (*err).clone())
     }
 
     /// Stats of every cache of this version of `scene`, sorted by configuration.
@@ -102,7 +118,7 @@ impl IrradianceCaches {
             .caches
             .iter()
             .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
-            .map(|(key, cache)| (key.configuration.clone(), cache.stats()))
+            .map(|(key, entry)| (key.configuration.clone(), entry.cache.stats()))
             .collect();
         all.sort_by(|a, b| a.0.cmp(&b.0));
         all.into_iter()
@@ -119,9 +135,9 @@ impl IrradianceCaches {
         self.caches
             .iter()
             .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
-            .map(|(_, cache)| {
-                let records = cache.stats().records;
-                cache.clear();
+            .map(|(_, entry)| {
+                let records = entry.cache.stats().records;
+                entry.cache.clear();
                 records
             })
             .sum()
@@ -141,8 +157,19 @@ impl IrradianceCaches {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bmc::cache::QuadratureCache;
+    use crate::cache::{CacheShadingOptions, RecordRuleSpec, default_rule_spec};
     use crate::scene::Scene;
     use crate::service::scenes::SceneSource;
+    use crate::sphere::SampleSetKind;
+
+    fn rules() -> Result<CachedShading, CacheError> {
+        let mut spec: RecordRuleSpec = default_rule_spec();
+        spec.samples.kind = SampleSetKind::Fibonacci;
+        spec.samples.count = 8;
+        let quadratures = Arc::new(QuadratureCache::new(1 << 20));
+        CachedShading::new(spec, 2, quadratures, CacheShadingOptions::default())
+    }
 
     fn scene(id: &str) -> LoadedScene {
         let text = r#"{
@@ -163,23 +190,24 @@ mod tests {
         assert_ne!(a.generation, a_again.generation);
         let config = serde_json::json!({"samples": 64});
         let first = caches
-            .get_or_create(&a, &config, CacheConfig::default())
+            .get_or_create(&a, &config, CacheConfig::default(), rules)
             .expect("valid");
         let same = caches
-            .get_or_create(&a, &config, CacheConfig::default())
+            .get_or_create(&a, &config, CacheConfig::default(), rules)
             .expect("valid");
         assert!(Arc::ptr_eq(&first, &same));
-        assert_eq!(first.config().byte_budget, caches.per_cache_bytes());
+        assert_eq!(first.cache.config().byte_budget, caches.per_cache_bytes());
         let other = caches
             .get_or_create(
                 &a,
                 &serde_json::json!({"samples": 16}),
                 CacheConfig::default(),
+                rules,
             )
             .expect("valid");
         assert!(!Arc::ptr_eq(&first, &other));
         let reloaded = caches
-            .get_or_create(&a_again, &config, CacheConfig::default())
+            .get_or_create(&a_again, &config, CacheConfig::default(), rules)
             .expect("valid");
         assert!(!Arc::ptr_eq(&first, &reloaded));
         caches.caches.run_pending_tasks();
@@ -205,10 +233,10 @@ mod tests {
             ..CacheConfig::default()
         };
         let config = serde_json::json!({});
-        assert!(caches.get_or_create(&a, &config, bad).is_err());
+        assert!(caches.get_or_create(&a, &config, bad, rules).is_err());
         assert!(
             caches
-                .get_or_create(&a, &config, CacheConfig::default())
+                .get_or_create(&a, &config, CacheConfig::default(), rules)
                 .is_ok()
         );
     }

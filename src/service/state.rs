@@ -2,6 +2,8 @@
 //! by `Arc` between all requests. Nothing here is global except the metrics
 //! recorder (see `metrics.rs` for why).
 
+use std::sync::Arc;
+
 use crate::bmc::cache::QuadratureCache;
 
 use super::config::Config;
@@ -24,5 +26,5 @@ pub struct AppState {
     pub irradiance_caches: IrradianceCaches,
     /// BMC factorisations and weights, `cache.factorisation_bytes` big, shared by
     /// `/v1/quadratures` and every BMC point request (see `routes::quadratures`).
-    pub quadratures: QuadratureCache,
+    pub quadratures: Arc<QuadratureCache>,
 }

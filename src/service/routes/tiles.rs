@@ -15,28 +15,70 @@ use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use utoipa::ToSchema;
 
+use crate::cache::{
+    CacheConfig, CacheError, CacheShadingOptions, CachedShading, CachedTileReport, IrradianceCache,
+    RecordRuleSpec, default_rule_spec,
+};
 use crate::image::{ImageEncoding, ToneMap};
-use crate::render::{RenderError, ShadingMethod, TileRequest};
+use crate::render::{RenderError, RenderedTile, ShadingMethod, TileRequest, Transport};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::ApiJson;
+use crate::service::irradiance_caches::SceneCache;
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::routes::scenes::scene_or_404;
+use crate::service::scenes::LoadedScene;
 use crate::service::state::AppState;
 
 /// How each camera ray is shaded.
 #[derive(Debug, Clone, Copy, Default, Deserialize, ToSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum TileMethod {
-    /// Unidirectional path tracing with next-event estimation and MIS.
+    /// The Bayesian irradiance cache (`cache::tiles`): emission + light
+    /// sampling for direct light + `(k_d/π)·E` interpolated from BMC records
+    /// for diffuse indirect light + BMC with the Phong density for glossy
+    /// reflection.
     #[default]
+    Bmc,
+    /// Unidirectional path tracing with next-event estimation and MIS (the
+    /// unbiased reference).
     Path,
 }
 
+/// Number of θ_r nodes of the glossy BMC rule (`cache::shading::GlossyRule`).
+const GLOSSY_BINS: usize = 16;
+
+/// The tile estimator; every field but `method` applies to `bmc` only, and
+/// every one is optional.
 #[derive(Debug, Default, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TileEstimatorDoc {
     #[serde(default)]
     pub method: TileMethod,
+    /// Directions per record (spherical Fibonacci), 1..=`limits.max_samples`; default 64.
+    pub samples: Option<u32>,
+    /// SE kernel lengthscale of the records' GP prior (chordal units); default 0.5.
+    pub lengthscale: Option<f64>,
+    /// Noise variance σ_n² relative to σ² = 1; default 1e-8.
+    pub noise: Option<f64>,
+    /// Paths traced per record direction and averaged; default 1.
+    pub paths_per_direction: Option<u32>,
+    /// Ward's accuracy a ∈ (0, 1]; smaller places more records. Default 0.5.
+    pub accuracy: Option<f64>,
+    /// Also place a record where the interpolated relative standard error
+    /// exceeds this (variance-driven placement); default off.
+    pub relative_error_target: Option<f64>,
+    /// Shadow ray between a point and each record it uses (no light leaks
+    /// through thin walls); default false.
+    pub occlusion_check: Option<bool>,
+    /// Light samples per shading point for direct light; default 16.
+    pub light_samples: Option<u32>,
+    /// Bit-identical output whatever the thread count and whatever ran
+    /// before: records are placed in a private cache for this tile, then
+    /// published to the shared one. Default false.
+    pub reproducible: Option<bool>,
+    /// Use the scene's shared cache (default true); `false` computes every
+    /// record for this request alone and keeps none.
+    pub cache: Option<bool>,
 }
 
 #[derive(Debug, Deserialize, ToSchema)]
@@ -120,7 +162,10 @@ pub async fn tile(
     if !doc.exposure.is_finite() {
         return Err(ApiError::invalid("exposure", "must be a finite number"));
     }
-    let TileMethod::Path = doc.estimator.method;
+    let method = match doc.estimator.method {
+        TileMethod::Path => ShadingMethod::PathTracing,
+        TileMethod::Bmc => ShadingMethod::IrradianceCache,
+    };
     let request = TileRequest {
         x: doc.x,
         y: doc.y,
@@ -129,27 +174,28 @@ pub async fn tile(
         samples_per_pixel: doc.samples_per_pixel,
         max_depth: doc.max_depth,
         seed: doc.seed,
-        method: ShadingMethod::PathTracing,
+        method,
     };
     // Checked here too, so a bad rectangle never takes a CPU slot.
     request
         .validate(scene.transport.scene().camera.resolution())
         .map_err(render_error)?;
+    let cached = match method {
+        ShadingMethod::IrradianceCache => Some(cached_setup(&state, &scene, &doc)?),
+        ShadingMethod::PathTracing => None,
+    };
     let format = doc.format;
-    let (tile, body) = state
+    let (tile, report, body) = state
         .pool
         .run(move || {
-            let tile = scene
-                .transport
-                .render_tile(&request)
-                .map_err(render_error)?;
+            let (tile, report) = render(&scene.transport, &request, cached)?;
             let body = tile
                 .image
                 .encode(format, tone_map)
                 .map_err(|e| ApiError::Internal {
                     message: format!("cannot encode the tile: {e}"),
                 })?;
-            Ok::<_, ApiError>((tile, body))
+            Ok::<_, ApiError>((tile, report, body))
         })
         .await??;
     ::metrics::counter!(RAYS_TRACED).increment(tile.rays);
@@ -169,10 +215,117 @@ pub async fn tile(
                 number(u64::from(tile.y)),
             ),
             (HeaderName::from_static("x-rays"), number(tile.rays)),
+            (
+                HeaderName::from_static("x-records-created"),
+                number(report.map_or(0, |r| r.placement.records_created)),
+            ),
+            (
+                HeaderName::from_static("x-cache-hits"),
+                number(report.map_or(0, |r| r.shading.cache_hits)),
+            ),
         ],
         body,
     )
         .into_response())
+}
+
+/// The shared cache and per-request options of a `bmc` tile, or the
+/// estimator field at fault.
+struct CachedSetup {
+    entry: Arc<SceneCache>,
+    shading: CachedShading,
+    /// `Some` when the request disabled the shared cache: its private cache.
+    private: Option<IrradianceCache>,
+}
+
+fn cached_setup(
+    state: &AppState,
+    scene: &LoadedScene,
+    doc: &TileRequestDoc,
+) -> Result<CachedSetup, ApiError> {
+    let e = &doc.estimator;
+    let samples = e.samples.unwrap_or(64);
+    ApiError::check_limit(
+        "estimator.samples",
+        samples as usize,
+        state.config.limits.max_samples,
+    )?;
+    let mut spec: RecordRuleSpec = default_rule_spec();
+    spec.samples.count = samples as usize;
+    if let Some(lengthscale) = e.lengthscale {
+        spec.kernel.lengthscale = lengthscale;
+    }
+    if let Some(noise) = e.noise {
+        spec.kernel.noise = noise;
+    }
+    let defaults = CacheShadingOptions::default();
+    let options = CacheShadingOptions {
+        accuracy: e.accuracy.unwrap_or(defaults.accuracy),
+        relative_error_target: e.relative_error_target,
+        occlusion_check: e.occlusion_check.unwrap_or(defaults.occlusion_check),
+        reproducible: e.reproducible.unwrap_or(defaults.reproducible),
+        light_samples: e.light_samples.unwrap_or(defaults.light_samples),
+        paths_per_direction: e
+            .paths_per_direction
+            .unwrap_or(defaults.paths_per_direction),
+        ..defaults
+    };
+    // What the records' values depend on: their rule and the path depth.
+    let configuration = serde_json::json!({
+        "rule": spec,
+        "paths_per_direction": options.paths_per_direction,
+        "max_depth": doc.max_depth,
+        "glossy_bins": GLOSSY_BINS,
+    });
+    let quadratures = state.quadratures.clone();
+    let entry = state
+        .irradiance_caches
+        .get_or_create(scene, &configuration, CacheConfig::default(), || {
+            CachedShading::new(spec, GLOSSY_BINS, quadratures, options)
+        })
+        .map_err(estimator_error)?;
+    let shading = entry
+        .shading
+        .with_options(options)
+        .map_err(estimator_error)?;
+    let private = if e.cache.unwrap_or(true) {
+        None
+    } else {
+        Some(IrradianceCache::new(*entry.cache.config()).map_err(estimator_error)?)
+    };
+    Ok(CachedSetup {
+        entry,
+        shading,
+        private,
+    })
+}
+
+/// Renders on the CPU pool: path tracing, or through the irradiance cache.
+fn render(
+    transport: &Transport,
+    request: &TileRequest,
+    cached: Option<CachedSetup>,
+) -> Result<(RenderedTile, Option<CachedTileReport>), ApiError> {
+    match cached {
+        None => Ok((transport.render_tile(request).map_err(render_error)?, None)),
+        Some(setup) => {
+            let cache = setup.private.as_ref().unwrap_or(&setup.entry.cache);
+            let (tile, report) = transport
+                .render_tile_cached(request, cache, &setup.shading)
+                .map_err(render_error)?;
+            Ok((tile, Some(report)))
+        }
+    }
+}
+
+/// A cache or rule error as a 422 naming the estimator field.
+fn estimator_error(err: CacheError) -> ApiError {
+    let field = match err.field() {
+        Some("kernel.lengthscale" | "lengthscale") => "estimator.lengthscale".to_owned(),
+        Some(field) => format!("estimator.{field}"),
+        None => "estimator".to_owned(),
+    };
+    ApiError::invalid(field, err.to_string())
 }
 
 /// A tile validation error as a 422 naming the request field.
