@@ -36,6 +36,7 @@ use utoipa_axum::routes;
 
 use super::config::{Config, Limits};
 use super::error::{ApiError, ErrorBody};
+use super::irradiance_caches::IrradianceCaches;
 use super::metrics::{self, Metrics};
 use super::pool::CpuPool;
 use super::routes;
@@ -74,6 +75,9 @@ impl Application {
             registry.insert(scene);
         }
         tracing::info!(scenes = registry.len(), dir = %config.scenes.dir.display(), "scenes loaded");
+        let irradiance_caches = IrradianceCaches::new(
+            usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX),
+        );
         let quadratures = QuadratureCache::new(config.cache.factorisation_bytes);
         let state = Arc::new(AppState {
             quadratures,
@@ -81,6 +85,7 @@ impl Application {
             pool,
             metrics,
             scenes: registry,
+            irradiance_caches,
         });
         let router = router(state.clone());
         Ok(Application {
@@ -159,6 +164,11 @@ pub fn router(state: Arc<AppState>) -> Router {
             routes::scenes::delete_scene
         ))
         .routes(routes!(routes::irradiance::irradiance))
+        .routes(routes!(routes::tiles::tile))
+        .routes(routes!(
+            routes::cache::get_cache,
+            routes::cache::delete_cache
+        ))
         .routes(routes!(routes::quadratures::post_quadrature))
         .split_for_parts();
     let limits = state.config.limits.clone();

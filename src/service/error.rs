@@ -143,7 +143,10 @@ impl ApiError {
     /// The request field at fault, if any.
     pub fn field(&self) -> Option<&str> {
         match self {
-            ApiError::InvalidField { field, .. } | ApiError::LimitExceeded { field, .. } => {
+            // An empty path means the body as a whole.
+            ApiError::InvalidField { field, .. } | ApiError::LimitExceeded { field, .. }
+                if !field.is_empty() =>
+            {
                 Some(field)
             }
             _ => None,

@@ -12,7 +12,7 @@
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 use axum::http::{StatusCode, header};
-use serde::de::DeserializeOwned;
+use serde::de::{DeserializeOwned, IgnoredAny};
 
 use super::error::ApiError;
 
@@ -89,6 +89,12 @@ pub async fn body_bytes<S: Send + Sync>(req: Request, state: &S) -> Result<Bytes
 pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
     let mut deserializer = serde_json::Deserializer::from_slice(bytes);
     let value = serde_path_to_error::deserialize(&mut deserializer).map_err(|err| {
+        // Every request body is an object; other well-formed JSON (an array, a
+        // number) would otherwise be reported against a made-up path like `[0]`.
+        let first = bytes.iter().find(|b| !b.is_ascii_whitespace());
+        if first != Some(&b'{') && serde_json::from_slice::<IgnoredAny>(bytes).is_ok() {
+            return ApiError::invalid("", "the request body must be a JSON object");
+        }
         let path = err.path().to_string();
         let inner = err.into_inner();
         classify(inner, path)
@@ -102,6 +108,13 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
 fn classify(err: serde_json::Error, path: String) -> ApiError {
     use serde_json::error::Category;
     match err.classify() {
+        // Well-formed JSON whose number does not fit the field's type (1e300
+        // for an f32, 1e400 anywhere): a bad value of a known field, not bad syntax.
+        Category::Syntax
+            if !path.is_empty() && err.to_string().starts_with("number out of range") =>
+        {
+            ApiError::invalid(path, err.to_string())
+        }
         Category::Syntax | Category::Eof | Category::Io => ApiError::MalformedJson {
             message: err.to_string(),
         },
@@ -187,6 +200,14 @@ mod tests {
             field_of(r#"{"points": [], "seed": -1}"#),
             (StatusCode::UNPROCESSABLE_ENTITY, Some("seed".into()))
         );
+        // Syntactically fine but beyond f64: the field is at fault, not the syntax.
+        assert_eq!(
+            field_of(r#"{"points": [{"position": [0,1e400,0], "normal": [0,0,1]}], "seed": 1}"#),
+            (
+                StatusCode::UNPROCESSABLE_ENTITY,
+                Some("points[0].position[1]".into())
+            )
+        );
     }
 
     #[test]
@@ -202,6 +223,17 @@ mod tests {
                 Some("points[0].normal".into())
             )
         );
+    }
+
+    #[test]
+    fn json_that_is_not_an_object_is_422_without_field() {
+        for body in ["[1, 2, 3]", "42", " \"points\"", "null"] {
+            assert_eq!(
+                field_of(body),
+                (StatusCode::UNPROCESSABLE_ENTITY, None),
+                "{body}"
+            );
+        }
     }
 
     #[test]

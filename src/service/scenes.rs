@@ -10,6 +10,7 @@
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, RwLock};
 
 use rayon::prelude::*;
@@ -33,6 +34,9 @@ pub enum SceneSource {
     Uploaded,
 }
 
+/// Source of [`LoadedScene::generation`].
+static NEXT_GENERATION: AtomicU64 = AtomicU64::new(0);
+
 /// A scene ready to answer queries.
 pub struct LoadedScene {
     /// Registry key, used in URLs.
@@ -40,6 +44,9 @@ pub struct LoadedScene {
     pub source: SceneSource,
     /// The scene with its light-selection tables and BSDFs, built once.
     pub transport: Transport,
+    /// Unique per load (a scene posted again gets a new one), so caches
+    /// keyed by it never mix versions of a scene.
+    pub generation: u64,
     /// Lengthscales fitted for `"lengthscale": "auto"`, per estimator
     /// configuration; they live and die with this loaded scene.
     pub kernels: FittedKernels,
@@ -79,6 +86,7 @@ impl LoadedScene {
             id,
             source,
             transport: Transport::new(Arc::new(scene)),
+            generation: NEXT_GENERATION.fetch_add(1, Ordering::Relaxed),
             kernels: FittedKernels::default(),
         }
     }

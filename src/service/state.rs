@@ -5,6 +5,7 @@
 use crate::bmc::cache::QuadratureCache;
 
 use super::config::Config;
+use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
 use super::scenes::SceneRegistry;
@@ -19,6 +20,8 @@ pub struct AppState {
     pub metrics: Metrics,
     /// Loaded scenes by id; each keeps its light-transport state so requests never rebuild it.
     pub scenes: SceneRegistry,
+    /// Irradiance-cache records per (scene version, estimator configuration).
+    pub irradiance_caches: IrradianceCaches,
     /// BMC factorisations and weights, `cache.factorisation_bytes` big, shared by
     /// `/v1/quadratures` and every BMC point request (see `routes::quadratures`).
     pub quadratures: QuadratureCache,

@@ -2,9 +2,11 @@
 //! and is registered through `utoipa_axum::routes!`, so `/openapi.json` lists
 //! exactly the routes the router serves.
 
+pub mod cache;
 pub mod health;
 pub mod irradiance;
 pub mod metrics;
 pub mod openapi;
 pub mod quadratures;
 pub mod scenes;
+pub mod tiles;

@@ -105,7 +105,13 @@ pub async fn post_scene(
     };
     let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene);
     let summary = loaded.summary();
-    let status = if state.scenes.insert(loaded) {
+    let generation = loaded.generation;
+    let replaced = state.scenes.insert(loaded);
+    // The previous version's records are useless now; free them.
+    state
+        .irradiance_caches
+        .retire(&summary.id, Some(generation));
+    let status = if replaced {
         StatusCode::OK
     } else {
         StatusCode::CREATED
@@ -143,6 +149,7 @@ pub async fn delete_scene(
         what: "scene",
         id: id.clone(),
     })?;
+    state.irradiance_caches.retire(&id, None);
     tracing::info!(%id, "scene deleted");
     Ok(StatusCode::NO_CONTENT)
 }

@@ -1,0 +1,215 @@
+//! The irradiance caches of all scenes: one [`IrradianceCache`] per (scene
+//! version, estimator configuration), shared by every request that renders
+//! that scene with that configuration.
+//!
+//! # Versions
+//! Each [`LoadedScene`] carries a generation number, new for every load, and
+//! the cache key includes it; so a scene posted again under the same id never
+//! sees records of its previous version. The routes that replace or delete a
+//! scene also drop the old version's caches at once to free their memory.
+//!
+//! # Memory
+//! `cache.irradiance_bytes` bounds all caches together: each cache may hold
+//! [`SHARE`]⁻¹ of it (its own FIFO eviction keeps it there, see
+//! `cache::irradiance_cache`), and the set of caches is a moka cache weighed
+//! by those budgets, so creating a cache beyond the total evicts the least
+//! valuable one (moka's TinyLFU) as a whole.
+
+use std::sync::Arc;
+
+use moka::sync::Cache;
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use super::scenes::LoadedScene;
+use crate::cache::{CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
+
+/// Each cache may use `1/SHARE` of the total budget.
+pub const SHARE: usize = 4;
+
+/// Identity of one cache.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+struct CacheKey {
+    scene: String,
+    generation: u64,
+    /// Canonical text of the estimator configuration the records depend on.
+    configuration: String,
+}
+
+/// One cache as `GET /v1/scenes/{id}/cache` reports it.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct ConfigurationStats {
+    /// The estimator configuration the records were computed with (JSON).
+    #[schema(value_type = Object)]
+    pub configuration: serde_json::Value,
+    #[schema(value_type = Object)]
+    pub stats: CacheStats,
+}
+
+/// All irradiance caches of the service.
+pub struct IrradianceCaches {
+    caches: Cache<CacheKey, Arc<IrradianceCache>>,
+    per_cache_bytes: usize,
+}
+
+impl IrradianceCaches {
+    /// Caches sharing `total_bytes` (module docs).
+    pub fn new(total_bytes: usize) -> Self {
+        let per_cache_bytes = (total_bytes / SHARE).max(RECORD_BYTES);
+        let kib = |bytes: usize| u32::try_from(bytes.div_ceil(1024)).unwrap_or(u32::MAX);
+        let weight = kib(per_cache_bytes);
+        Self {
+            caches: Cache::builder()
+                .max_capacity(total_bytes.div_ceil(1024) as u64)
+                .weigher(move |_, _| weight)
+                .support_invalidation_closures()
+                .build(),
+            per_cache_bytes,
+        }
+    }
+
+    /// Byte budget of each cache.
+    pub fn per_cache_bytes(&self) -> usize {
+        self.per_cache_bytes
+    }
+
+    /// The cache of `scene` for `configuration`, created from `template`
+    /// (whose byte budget is replaced by [`Self::per_cache_bytes`]) on first
+    /// use. Concurrent first uses create it once.
+    pub fn get_or_create(
+        &self,
+        scene: &LoadedScene,
+        configuration: &serde_json::Value,
+        template: CacheConfig,
+    ) -> Result<Arc<IrradianceCache>, CacheError> {
+        let key = CacheKey {
+            scene: scene.id.clone(),
+            generation: scene.generation,
+            configuration: configuration.to_string(),
+        };
+        let config = CacheConfig {
+            byte_budget: self.per_cache_bytes,
+            ..template
+        };
+        self.caches
+            .try_get_with(key, || IrradianceCache::new(config).map(Arc::new))
+            .map_err(|err| (*err).clone())
+    }
+
+    /// Stats of every cache of this version of `scene`, sorted by configuration.
+    pub fn stats(&self, scene: &LoadedScene) -> Vec<ConfigurationStats> {
+        let mut all: Vec<(String, CacheStats)> = self
+            .caches
+            .iter()
+            .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
+            .map(|(key, cache)| (key.configuration.clone(), cache.stats()))
+            .collect();
+        all.sort_by(|a, b| a.0.cmp(&b.0));
+        all.into_iter()
+            .map(|(configuration, stats)| ConfigurationStats {
+                configuration: serde_json::from_str(&configuration)
+                    .unwrap_or(serde_json::Value::String(configuration)),
+                stats,
+            })
+            .collect()
+    }
+
+    /// Empties every cache of this version of `scene`; returns the records dropped.
+    pub fn clear(&self, scene: &LoadedScene) -> u64 {
+        self.caches
+            .iter()
+            .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
+            .map(|(_, cache)| {
+                let records = cache.stats().records;
+                cache.clear();
+                records
+            })
+            .sum()
+    }
+
+    /// Drops the caches of every version of scene `id` older than
+    /// `keep_generation` (all of them for `None`, when the scene is deleted).
+    pub fn retire(&self, id: &str, keep_generation: Option<u64>) {
+        let id = id.to_owned();
+        // Only fails if invalidation closures were not enabled, which `new` does.
+        let _ = self.caches.invalidate_entries_if(move |key, _| {
+            key.scene == id && keep_generation.is_none_or(|g| key.generation < g)
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+    use crate::service::scenes::SceneSource;
+
+    fn scene(id: &str) -> LoadedScene {
+        let text = r#"{
+            "materials": [{"id": "w", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+            "shapes": [{"type": "rectangle", "material": "w"}],
+            "camera": {"fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0], "up": [0, 1, 0],
+                       "width": 4, "height": 4}
+        }"#;
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let scene = Scene::from_json_str(text, root, root).expect("loads");
+        LoadedScene::new(id.into(), SceneSource::Uploaded, scene)
+    }
+
+    #[test]
+    fn caches_are_per_version_and_configuration() {
+        let caches = IrradianceCaches::new(1 << 20);
+        let (a, a_again) = (scene("a"), scene("a"));
+        assert_ne!(a.generation, a_again.generation);
+        let config = serde_json::json!({"samples": 64});
+        let first = caches
+            .get_or_create(&a, &config, CacheConfig::default())
+            .expect("valid");
+        let same = caches
+            .get_or_create(&a, &config, CacheConfig::default())
+            .expect("valid");
+        assert!(Arc::ptr_eq(&first, &same));
+        assert_eq!(first.config().byte_budget, caches.per_cache_bytes());
+        let other = caches
+            .get_or_create(
+                &a,
+                &serde_json::json!({"samples": 16}),
+                CacheConfig::default(),
+            )
+            .expect("valid");
+        assert!(!Arc::ptr_eq(&first, &other));
+        let reloaded = caches
+            .get_or_create(&a_again, &config, CacheConfig::default())
+            .expect("valid");
+        assert!(!Arc::ptr_eq(&first, &reloaded));
+        caches.caches.run_pending_tasks();
+        assert_eq!(caches.stats(&a).len(), 2);
+        assert_eq!(caches.stats(&a_again).len(), 1);
+        assert_eq!(caches.stats(&a)[0].configuration["samples"], 16);
+
+        caches.retire("a", Some(a_again.generation));
+        caches.caches.run_pending_tasks();
+        assert!(caches.stats(&a).is_empty());
+        assert_eq!(caches.stats(&a_again).len(), 1);
+        caches.retire("a", None);
+        caches.caches.run_pending_tasks();
+        assert!(caches.stats(&a_again).is_empty());
+    }
+
+    #[test]
+    fn bad_settings_are_not_cached() {
+        let caches = IrradianceCaches::new(1 << 20);
+        let a = scene("a");
+        let bad = CacheConfig {
+            min_radius: -1.0,
+            ..CacheConfig::default()
+        };
+        let config = serde_json::json!({});
+        assert!(caches.get_or_create(&a, &config, bad).is_err());
+        assert!(
+            caches
+                .get_or_create(&a, &config, CacheConfig::default())
+                .is_ok()
+        );
+    }
+}
