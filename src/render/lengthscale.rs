@@ -250,16 +250,16 @@ mod tests {
         assert!(hemisphere.lengthscale < split.lengthscale, "{hemisphere:?}");
     }
 
-    /// A lone rectangle under a constant sky: in split mode its points see
+    /// A lone disk under a constant sky: in split mode its points see
     /// no indirect light at all, so nothing can be fitted.
     #[test]
     fn constant_radiance_falls_back_to_the_defaults() {
         let doc = r#"{
-            "materials": [{"id": "white", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
-            "shapes": [{"type": "rectangle", "material": "white"}],
-            "environment": {"type": "constant", "radiance": [1, 1, 1]},
-            "camera": {"type": "perspective", "fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0],
-                       "up": [0, 1, 0], "width": 8, "height": 8}
+            "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.8, 0.8, 0.8]}],
+            "shapes": [{"type": "disk", "material": "grey"}],
+            "environment": {"type": "constant", "radiance": [2, 2, 2]},
+            "camera": {"type": "perspective", "fov": 30, "origin": [0, 0, 4],
+                       "target": [0, 0, 0], "up": [0, 1, 0], "width": 4, "height": 4}
         }"#;
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
         let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
