@@ -11,6 +11,8 @@
 //! estimator, `irradiance_with_estimator` on a rayon pool of `threads`
 //! threads — while the service side adds JSON encoding, HTTP on loopback,
 //! validation, the CPU-pool hand-off and JSON decoding in the client.
+//! It also times the first request with `"lengthscale": "auto"` (which fits
+//! the lengthscale for the scene) against a repeated one.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -127,6 +129,20 @@ fn main() -> anyhow::Result<()> {
     // Warm-up: factorisation, caches, connections.
     in_process()?;
     via_service()?;
+    // The cost of `"lengthscale": "auto"`: the first request fits, the next reuses.
+    let mut auto_body = body.clone();
+    auto_body["estimator"]["kernel"] = json!({"lengthscale": "auto"});
+    let auto_request = || -> anyhow::Result<(Duration, f64)> {
+        runtime.block_on(async {
+            let start = Instant::now();
+            let response = client.post(&url).json(&auto_body).send().await?;
+            let value: serde_json::Value = response.json().await?;
+            let lengthscale = value["lengthscale"].as_f64().unwrap_or(f64::NAN);
+            Ok((start.elapsed(), lengthscale))
+        })
+    };
+    let (first_auto, lengthscale) = auto_request()?;
+    let (second_auto, _) = auto_request()?;
     let (mut local, mut remote) = (Vec::new(), Vec::new());
     for _ in 0..rounds {
         local.push(in_process()?);
@@ -145,6 +161,11 @@ fn main() -> anyhow::Result<()> {
         "ratio       mean {:.3}  median {:.3}",
         remote_mean / local_mean,
         remote_median / local_median
+    );
+    println!(
+        "\"auto\" lengthscale {lengthscale:.4}: first request (fit + weights) {:.1} ms, repeated {:.1} ms",
+        first_auto.as_secs_f64() * 1e3,
+        second_auto.as_secs_f64() * 1e3
     );
     Ok(())
 }

@@ -77,6 +77,7 @@ async fn openapi_lists_every_route() {
         ("/v1/scenes/{id}", "get"),
         ("/v1/scenes/{id}", "delete"),
         ("/v1/scenes/{id}/irradiance", "post"),
+        ("/v1/quadratures", "post"),
     ] {
         assert!(paths[path].get(method).is_some(), "{path} {method} missing");
     }

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{error_of, spawn_app, spawn_app_with};
+use common::{TestApp, error_of, spawn_app, spawn_app_with};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -14,19 +14,27 @@ fn request(count: u32, lengthscale: f64) -> Value {
     })
 }
 
+async fn quadrature(app: &TestApp, body: &Value) -> Value {
+    let response = app.post_json("/v1/quadratures", body).await;
+    assert_eq!(response.status(), StatusCode::OK);
+    response.json().await.unwrap()
+}
+
+fn weight_sum(body: &Value) -> f64 {
+    body["weights"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_f64().unwrap())
+        .sum()
+}
+
 #[tokio::test]
 async fn first_request_computes_and_the_second_is_served_from_the_cache() {
     let app = spawn_app().await;
-    let first = app.post_json("/v1/quadratures", &request(32, 0.5)).await;
-    assert_eq!(first.status(), StatusCode::OK);
-    let first: Value = first.json().await.unwrap();
+    let first = quadrature(&app, &request(32, 0.5)).await;
     assert_eq!(first["cached"], json!(false));
-    let second: Value = app
-        .post_json("/v1/quadratures", &request(32, 0.5))
-        .await
-        .json()
-        .await
-        .unwrap();
+    let second = quadrature(&app, &request(32, 0.5)).await;
     assert_eq!(second["cached"], json!(true));
     assert_eq!(first["weights"], second["weights"]);
     assert_eq!(first["id"], second["id"]);
@@ -34,12 +42,7 @@ async fn first_request_computes_and_the_second_is_served_from_the_cache() {
         assert_eq!(first[field].as_array().unwrap().len(), 32, "{field}");
     }
     // Lambert weights of the zero-mean rule integrate constants nearly exactly.
-    let sum: f64 = first["weights"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_f64().unwrap())
-        .sum();
+    let sum = weight_sum(&first);
     assert!((sum - 1.0).abs() < 0.05, "{sum}");
     let (prior, posterior) = (
         first["prior_variance"].as_f64().unwrap(),
@@ -48,35 +51,21 @@ async fn first_request_computes_and_the_second_is_served_from_the_cache() {
     assert!(0.0 <= posterior && posterior < prior, "{first}");
 
     // A different lengthscale is another configuration with another id.
-    let other: Value = app
-        .post_json("/v1/quadratures", &request(32, 0.6))
-        .await
-        .json()
-        .await
-        .unwrap();
+    let other = quadrature(&app, &request(32, 0.6)).await;
     assert_eq!(other["cached"], json!(false));
     assert_ne!(other["id"], first["id"]);
-    let gls: Value = app
-        .post_json(
-            "/v1/quadratures",
-            &json!({
-                "sample_set": {"kind": "uniform", "count": 16, "seed": 3},
-                "kernel": {"kind": "matern52", "lengthscale": 0.8},
-                "density": {"kind": "phong", "exponent": 8.0, "mirror_elevation": 0.4},
-                "prior_mean": "gls"
-            }),
-        )
-        .await
-        .json()
-        .await
-        .unwrap();
-    let sum: f64 = gls["weights"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_f64().unwrap())
-        .sum();
-    assert!((sum - gls["density_integral"].as_f64().unwrap()).abs() < 1e-9);
+    // GLS weights integrate constants exactly: they sum to ∫p.
+    let gls = quadrature(
+        &app,
+        &json!({
+            "sample_set": {"kind": "uniform", "count": 16, "seed": 3},
+            "kernel": {"kind": "matern52", "lengthscale": 0.8},
+            "density": {"kind": "phong", "exponent": 8.0, "mirror_elevation": 0.4},
+            "prior_mean": "gls"
+        }),
+    )
+    .await;
+    assert!((weight_sum(&gls) - gls["density_integral"].as_f64().unwrap()).abs() < 1e-9);
 }
 
 #[tokio::test]

@@ -47,8 +47,9 @@ pub const FIT_SEED: u64 = 0x05EE_DF17;
 /// Search range of `ℓ` (chordal distance) and of `η = σ_n²/σ²`.
 pub const LENGTHSCALE_BOUNDS: (f64, f64) = (0.05, 5.0);
 pub const NOISE_RATIO_BOUNDS: (f64, f64) = (1e-5, 1e-1);
-/// Used when every training vector is constant (`ℓ` is then not identified
-/// and any value integrates constants exactly under the GLS mean).
+/// Used when every training vector is constant, or the scene has no
+/// non-emitting surface to train on (`ℓ` is then not identified, and any
+/// value integrates constants exactly under the GLS mean).
 pub const FALLBACK_LENGTHSCALE: f64 = 1.0;
 pub const FALLBACK_NOISE_RATIO: f64 = 1e-3;
 
@@ -70,8 +71,8 @@ pub struct FittedKernel {
     /// `η = σ_n²/σ²`; the estimator uses `σ² = 1`, `σ_n² = η` (the weights
     /// depend on the ratio only).
     pub noise_ratio: f64,
-    /// Pooled log marginal likelihood at the optimum; `None` when the
-    /// training radiance was constant and the fallback values are used.
+    /// Pooled log marginal likelihood at the optimum; `None` when there was
+    /// nothing to fit and the fallback values are used.
     pub log_marginal_likelihood: Option<f64>,
     /// `ℓ` ended at a search bound (or was not identified at all).
     pub at_bound: bool,
@@ -88,12 +89,6 @@ pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<Fitte
         ..config.sample_set
     })?;
     let points = training_points(transport, FIT_POINTS);
-    if points.is_empty() {
-        return Err(FitError::TooFewVectors {
-            needed: hyperparameters::MIN_VECTORS,
-            got: 0,
-        });
-    }
     let limits = PathLimits {
         max_depth: FIT_MAX_DEPTH,
         lengths: match config.decomposition {
@@ -239,7 +234,6 @@ mod tests {
     fn cornell_box_fit_is_deterministic_and_inside_the_bounds() {
         let transport = cornell(8);
         let split = fit_lengthscale(&transport, config(IrradianceMethod::Split)).unwrap();
-        eprintln!("{split:?}");
         assert_eq!(
             split,
             fit_lengthscale(&transport, config(IrradianceMethod::Split)).unwrap()
@@ -253,8 +247,28 @@ mod tests {
         );
         assert_eq!(split.points, FIT_POINTS);
         let hemisphere = fit_lengthscale(&transport, config(IrradianceMethod::Hemisphere)).unwrap();
-        eprintln!("{hemisphere:?}");
         assert!(hemisphere.lengthscale < split.lengthscale, "{hemisphere:?}");
+    }
+
+    /// A lone disk under a constant sky: in split mode its points see
+    /// no indirect light at all, so nothing can be fitted.
+    #[test]
+    fn constant_radiance_falls_back_to_the_defaults() {
+        let doc = r#"{
+            "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.8, 0.8, 0.8]}],
+            "shapes": [{"type": "disk", "material": "grey"}],
+            "environment": {"type": "constant", "radiance": [2, 2, 2]},
+            "camera": {"type": "perspective", "fov": 30, "origin": [0, 0, 4],
+                       "target": [0, 0, 0], "up": [0, 1, 0], "width": 4, "height": 4}
+        }"#;
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
+        let transport = Transport::new(Arc::new(scene));
+        let fit = fit_lengthscale(&transport, config(IrradianceMethod::Split)).unwrap();
+        assert_eq!(fit.lengthscale, FALLBACK_LENGTHSCALE);
+        assert_eq!(fit.noise_ratio, FALLBACK_NOISE_RATIO);
+        assert_eq!(fit.log_marginal_likelihood, None);
+        assert!(fit.at_bound);
     }
 
     #[test]

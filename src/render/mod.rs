@@ -8,6 +8,7 @@
 //!
 //! Entry points: [`Transport`] (built once per scene) with
 //! `incident_radiance`, `hemisphere_samples`, `direct_irradiance`,
+//! `irradiance_with_estimator` (any MC/QMC/BMC estimator),
 //! `irradiance` and `irradiance_at_points`; `render_tile` and
 //! `render_image` for the camera's image (`tile`, `film`).
 
