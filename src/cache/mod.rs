@@ -15,6 +15,8 @@
 //! - `shading`: outgoing radiance at a surface point through the cache
 //!   (NEE direct light, cached diffuse indirect, BMC Phong glossy).
 //! - `tiles`: camera tiles shaded through a shared or private cache.
+//! - `radiance`: outgoing radiance at surface points (the point-query form
+//!   of the tile shading), by path tracing or through a cache.
 //!
 //! No HTTP here; the service keeps one [`IrradianceCache`] per (scene
 //! version, estimator configuration).
@@ -23,6 +25,7 @@ pub mod error;
 pub mod index;
 pub mod irradiance_cache;
 pub mod placement;
+pub mod radiance;
 pub mod record;
 pub mod record_rule;
 pub mod shading;
@@ -35,6 +38,9 @@ pub use irradiance_cache::{
 pub use placement::{
     PlacementOptions, PlacementPoint, PlacementReport, compute_record, place_and_shade,
     place_records, shade,
+};
+pub use radiance::{
+    RadianceEstimate, RadianceQuery, RadianceShading, radiance_at_points, surface_at,
 };
 pub use record::{PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
 pub use record_rule::{RecordEstimate, RecordRule, RecordRuleSpec};

@@ -1,0 +1,285 @@
+//! Outgoing radiance at surface points towards given directions ("what does
+//! a viewer at `x + t·ω` see at `x`"), by path tracing or through the
+//! irradiance cache — the point-query form of the tile shading.
+//!
+//! A query names a point on a surface, its normal and the unit direction
+//! `ω` towards the viewer (world frame). The surface is found by a short
+//! ray from `x + δω` back to `x` (then, failing that, from `x + δn`), with
+//! `δ` = [`PROBE_RELATIVE`] × the scene's bounding-box diagonal, so the
+//! query's position need only be accurate to well within that.
+//!
+//! Each estimate averages `repeats` independent evaluations drawn from
+//! `point_rng(seed, i)`; its standard error is their sample standard
+//! deviation / √repeats (light-sampling and path noise), plus, through the
+//! cache, the posterior variance of the interpolated records scaled by
+//! `(k_d/π)²` (the records' own error, which repeats cannot reveal because
+//! every repeat reads the same records).
+
+use std::f64::consts::PI;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::irradiance_cache::IrradianceCache;
+use super::shading::{CachedShading, OnMiss, ShadingStats, cache_to_render};
+use crate::render::seed::point_rng;
+use crate::render::{
+    MeanEstimate, PathLengths, PathLimits, QueryPoint, RenderError, Rgb, TraceStats, Transport,
+};
+use crate::scene::{Ray, SurfaceHit};
+
+/// Probe distance relative to the scene's bounding-box diagonal.
+pub const PROBE_RELATIVE: f64 = 1e-4;
+
+/// A radiance query: a surface point and the direction towards the viewer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadianceQuery {
+    pub point: QueryPoint,
+    /// Unit direction from the point towards the viewer, world frame.
+    pub direction: DVec3,
+}
+
+impl RadianceQuery {
+    /// Validates and normalises the direction (finite, non-zero).
+    pub fn new(point: QueryPoint, direction: DVec3) -> Result<Self, RenderError> {
+        let length = direction.length();
+        if !direction.is_finite() || length == 0.0 || !length.is_finite() {
+            return Err(RenderError::InvalidPoint {
+                field: "direction",
+                reason: format!("must be finite and non-zero, got {direction}"),
+            });
+        }
+        Ok(Self {
+            point,
+            direction: direction / length,
+        })
+    }
+}
+
+/// Outgoing radiance with its standard error, W/(m²·sr).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadianceEstimate {
+    pub radiance: Rgb,
+    pub std_error: Rgb,
+    /// Rays traced for this query.
+    pub rays: u64,
+}
+
+/// How the radiance is computed.
+#[derive(Clone, Copy)]
+pub enum RadianceShading<'a> {
+    /// Path tracing from the viewer's side (the unbiased reference).
+    PathTracing,
+    /// As the cached tile shader: emission, light sampling, records for
+    /// diffuse indirect light (created where missing), BMC for glossy lobes.
+    Cached {
+        cache: &'a IrradianceCache,
+        shading: &'a CachedShading,
+    },
+}
+
+/// The surface hit a query names, or `None` if no surface lies within the
+/// probe distance of its position (module docs).
+pub fn surface_at(transport: &Transport, query: &RadianceQuery) -> Option<SurfaceHit> {
+    let scene = transport.scene();
+    let (min, max) = scene.bounds();
+    let delta = PROBE_RELATIVE * (max - min).length().max(1e-9);
+    let x = query.point.position();
+    [query.direction, query.point.normal()]
+        .into_iter()
+        .find_map(|towards| {
+            scene.intersect(&Ray {
+                origin: x + delta * towards,
+                dir: -towards,
+                t_max: 2.0 * delta,
+            })
+        })
+}
+
+/// Radiance leaving each `hits[i]` towards `queries[i].direction`, in
+/// parallel on the current rayon pool. `max_depth` counts path segments as a
+/// camera ray does (1 = emission only); records in a cache must have been
+/// made for the same `max_depth`.
+pub fn radiance_at_points(
+    transport: &Transport,
+    queries: &[RadianceQuery],
+    hits: &[SurfaceHit],
+    shading: RadianceShading,
+    max_depth: u32,
+    repeats: u32,
+    seed: u64,
+) -> Result<Vec<RadianceEstimate>, RenderError> {
+    if repeats == 0 {
+        return Err(RenderError::InvalidOption {
+            field: "repeats",
+            reason: "must be at least 1".into(),
+        });
+    }
+    queries
+        .par_iter()
+        .zip(hits)
+        .enumerate()
+        .map(|(i, (query, hit))| {
+            let mut rng = point_rng(seed, i as u64);
+            let mut trace = TraceStats::default();
+            let mut stats = ShadingStats::default();
+            let values = (0..repeats)
+                .map(|_| match shading {
+                    RadianceShading::PathTracing => {
+                        let probe = surface_ray(transport, query, hit);
+                        let limits = PathLimits {
+                            max_depth,
+                            lengths: PathLengths::All,
+                        };
+                        Ok(transport
+                            .incident_radiance(probe, limits, &mut rng, &mut trace)
+                            .radiance)
+                    }
+                    RadianceShading::Cached { cache, shading } => transport.outgoing_radiance(
+                        hit,
+                        query.direction,
+                        cache,
+                        shading,
+                        max_depth - 1,
+                        OnMiss::Insert,
+                        None,
+                        &mut rng,
+                        &mut stats,
+                    ),
+                })
+                .collect::<Result<Vec<Rgb>, RenderError>>()?;
+            let mean = MeanEstimate::of(values);
+            let mut variance = mean.variance_of_mean;
+            if let RadianceShading::Cached { cache, shading } = shading {
+                variance += record_variance(transport, hit, cache, shading)?;
+            }
+            Ok(RadianceEstimate {
+                radiance: mean.mean,
+                std_error: variance.map(f64::sqrt),
+                rays: trace.rays + stats.rays,
+            })
+        })
+        .collect()
+}
+
+/// The ray from just off the surface on the viewer's side back to the hit:
+/// the camera ray of this query.
+fn surface_ray(transport: &Transport, query: &RadianceQuery, hit: &SurfaceHit) -> Ray {
+    let scene = transport.scene();
+    let (min, max) = scene.bounds();
+    let delta = PROBE_RELATIVE * (max - min).length().max(1e-9);
+    Ray {
+        origin: hit.position + delta * query.direction,
+        dir: -query.direction,
+        t_max: 2.0 * delta,
+    }
+}
+
+/// `(k_d/π)² V` of the records interpolated at the hit (zero where the
+/// material has no diffuse part or no record covers the point).
+fn record_variance(
+    transport: &Transport,
+    hit: &SurfaceHit,
+    cache: &IrradianceCache,
+    shading: &CachedShading,
+) -> Result<Rgb, RenderError> {
+    let Some(bsdf) = transport.bsdf(hit.material) else {
+        return Ok(Rgb::BLACK);
+    };
+    if bsdf.diffuse.is_black() {
+        return Ok(Rgb::BLACK);
+    }
+    let accuracy = shading.options.validate().map_err(cache_to_render)?;
+    let point = QueryPoint::new(hit.position, hit.shading_normal)?;
+    Ok(cache.lookup(&point, accuracy).map_or(Rgb::BLACK, |i| {
+        i.variance * (bsdf.diffuse / PI) * (bsdf.diffuse / PI)
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bmc::cache::QuadratureCache;
+    use crate::cache::{CacheShadingOptions, default_rule_spec};
+    use crate::render::tile::tests::cornell;
+    use std::sync::Arc;
+
+    fn floor_query() -> RadianceQuery {
+        // The Cornell floor (y = -1) seen from above and slightly in front.
+        let point = QueryPoint::new(DVec3::new(0.1, -1.0, 0.2), DVec3::Y).unwrap();
+        RadianceQuery::new(point, DVec3::new(0.0, 1.0, 0.5)).unwrap()
+    }
+
+    #[test]
+    fn cached_radiance_agrees_with_path_tracing_within_noise() {
+        let transport = cornell(8);
+        let query = floor_query();
+        let hit = surface_at(&transport, &query).expect("on the floor");
+        let path = radiance_at_points(
+            &transport,
+            &[query],
+            &[hit],
+            RadianceShading::PathTracing,
+            8,
+            4096,
+            1,
+        )
+        .unwrap()[0];
+        let mut spec = default_rule_spec();
+        spec.samples.count = 128;
+        let options = CacheShadingOptions {
+            light_samples: 64,
+            paths_per_direction: 4,
+            ..CacheShadingOptions::default()
+        };
+        let shading =
+            CachedShading::new(spec, 4, Arc::new(QuadratureCache::new(1 << 24)), options).unwrap();
+        let cache = IrradianceCache::new(Default::default()).unwrap();
+        let cached = RadianceShading::Cached {
+            cache: &cache,
+            shading: &shading,
+        };
+        let bmc = radiance_at_points(&transport, &[query], &[hit], cached, 8, 4, 1).unwrap()[0];
+        assert_eq!(cache.stats().records, 1);
+        for (p, b, sp, sb) in [
+            (
+                path.radiance.r,
+                bmc.radiance.r,
+                path.std_error.r,
+                bmc.std_error.r,
+            ),
+            (
+                path.radiance.g,
+                bmc.radiance.g,
+                path.std_error.g,
+                bmc.std_error.g,
+            ),
+        ] {
+            assert!(b > 0.0 && sb > 0.0);
+            // Records are not free of bias from interpolation, but at their own
+            // position they estimate the same integral; 4σ of the combined error
+            // plus 3 % for the record's unmodelled path noise.
+            let tolerance = 4.0 * (sp * sp + sb * sb).sqrt() + 0.03 * p;
+            assert!((p - b).abs() < tolerance, "path {p} ± {sp}, bmc {b} ± {sb}");
+        }
+    }
+
+    #[test]
+    fn points_off_every_surface_are_not_found() {
+        let transport = cornell(8);
+        let floating = RadianceQuery::new(
+            QueryPoint::new(DVec3::new(0.0, 0.0, 0.0), DVec3::Y).unwrap(),
+            DVec3::Z,
+        )
+        .unwrap();
+        assert!(surface_at(&transport, &floating).is_none());
+        assert!(surface_at(&transport, &floor_query()).is_some());
+        assert!(matches!(
+            RadianceQuery::new(floor_query().point, DVec3::ZERO),
+            Err(RenderError::InvalidPoint {
+                field: "direction",
+                ..
+            })
+        ));
+    }
+}
