@@ -239,6 +239,30 @@ fn cases() -> Vec<Case> {
             code: "invalid_field",
             field: None,
         },
+        // Radiance.
+        unprocessable(
+            "radiance: point off every surface",
+            Method::POST,
+            "/v1/scenes/tiny/radiance",
+            json!({"points": [{"position": [0, 0, 2], "normal": [0, 0, 1], "direction": [0, 0, 1]}],
+                             "estimator": {"method": "path"}}),
+            "points[0].position",
+        ),
+        unprocessable(
+            "radiance: zero-length direction",
+            Method::POST,
+            "/v1/scenes/tiny/radiance",
+            json!({"points": [{"position": [0, 0, 0], "normal": [0, 0, 1], "direction": [0, 0, 0]}]}),
+            "points[0].direction",
+        ),
+        unprocessable(
+            "radiance: zero repeats",
+            Method::POST,
+            "/v1/scenes/tiny/radiance",
+            json!({"points": [{"position": [0, 0, 0], "normal": [0, 0, 1], "direction": [0, 0, 1]}],
+                             "repeats": 0}),
+            "repeats",
+        ),
         // Tiles.
         unprocessable(
             "tile: outside the image",

@@ -165,6 +165,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         ))
         .routes(routes!(routes::irradiance::irradiance))
         .routes(routes!(routes::tiles::tile))
+        .routes(routes!(routes::radiance::radiance))
         .routes(routes!(
             routes::cache::get_cache,
             routes::cache::delete_cache

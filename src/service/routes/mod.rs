@@ -8,5 +8,6 @@ pub mod irradiance;
 pub mod metrics;
 pub mod openapi;
 pub mod quadratures;
+pub mod radiance;
 pub mod scenes;
 pub mod tiles;

@@ -181,7 +181,9 @@ pub async fn tile(
         .validate(scene.transport.scene().camera.resolution())
         .map_err(render_error)?;
     let cached = match method {
-        ShadingMethod::IrradianceCache => Some(cached_setup(&state, &scene, &doc)?),
+        ShadingMethod::IrradianceCache => {
+            Some(cached_setup(&state, &scene, &doc.estimator, doc.max_depth)?)
+        }
         ShadingMethod::PathTracing => None,
     };
     let format = doc.format;
@@ -231,19 +233,29 @@ pub async fn tile(
 
 /// The shared cache and per-request options of a `bmc` tile, or the
 /// estimator field at fault.
-struct CachedSetup {
+pub(crate) struct CachedSetup {
     entry: Arc<SceneCache>,
-    shading: CachedShading,
+    pub shading: CachedShading,
     /// `Some` when the request disabled the shared cache: its private cache.
     private: Option<IrradianceCache>,
 }
 
-fn cached_setup(
+impl CachedSetup {
+    /// The cache the request reads and extends.
+    pub fn cache(&self) -> &IrradianceCache {
+        self.private.as_ref().unwrap_or(&self.entry.cache)
+    }
+}
+
+/// The cache and rules for estimator `e` on `scene` with paths of up to
+/// `max_depth` segments counted from the camera (tiles) or viewer (radiance
+/// queries), so both share records.
+pub(crate) fn cached_setup(
     state: &AppState,
     scene: &LoadedScene,
-    doc: &TileRequestDoc,
+    e: &TileEstimatorDoc,
+    max_depth: u32,
 ) -> Result<CachedSetup, ApiError> {
-    let e = &doc.estimator;
     let samples = e.samples.unwrap_or(64);
     ApiError::check_limit(
         "estimator.samples",
@@ -274,7 +286,7 @@ fn cached_setup(
     let configuration = serde_json::json!({
         "rule": spec,
         "paths_per_direction": options.paths_per_direction,
-        "max_depth": doc.max_depth,
+        "max_depth": max_depth,
         "glossy_bins": GLOSSY_BINS,
     });
     let quadratures = state.quadratures.clone();
@@ -309,9 +321,8 @@ fn render(
     match cached {
         None => Ok((transport.render_tile(request).map_err(render_error)?, None)),
         Some(setup) => {
-            let cache = setup.private.as_ref().unwrap_or(&setup.entry.cache);
             let (tile, report) = transport
-                .render_tile_cached(request, cache, &setup.shading)
+                .render_tile_cached(request, setup.cache(), &setup.shading)
                 .map_err(render_error)?;
             Ok((tile, Some(report)))
         }
@@ -319,7 +330,7 @@ fn render(
 }
 
 /// A cache or rule error as a 422 naming the estimator field.
-fn estimator_error(err: CacheError) -> ApiError {
+pub(crate) fn estimator_error(err: CacheError) -> ApiError {
     let field = match err.field() {
         Some("kernel.lengthscale" | "lengthscale") => "estimator.lengthscale".to_owned(),
         Some(field) => format!("estimator.{field}"),

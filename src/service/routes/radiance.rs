@@ -1,0 +1,176 @@
+//! `POST /v1/scenes/{id}/radiance`: outgoing radiance in W/(m²·sr) (RGB) at
+//! surface points towards a viewer direction per point — what a camera ray
+//! arriving at the point from that direction would return. Shaded as tiles
+//! are (`estimator.method`: `bmc` through the scene's irradiance cache,
+//! sharing records with tiles of the same `max_depth`; `path` by path
+//! tracing); see `cache::radiance`.
+
+use std::sync::Arc;
+
+use axum::Json;
+use axum::extract::{Path, State};
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::cache::{RadianceQuery, RadianceShading, radiance_at_points, surface_at};
+use crate::render::{QueryPoint, RenderError, Rgb};
+use crate::service::error::{ApiError, ErrorBody};
+use crate::service::extract::ApiJson;
+use crate::service::metrics::RAYS_TRACED;
+use crate::service::routes::scenes::scene_or_404;
+use crate::service::routes::tiles::{TileEstimatorDoc, TileMethod, cached_setup};
+use crate::service::state::AppState;
+
+/// A surface point, its normal and the direction towards the viewer.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RadiancePointDoc {
+    /// On a surface (within 1e-4 of the scene's diagonal).
+    pub position: [f64; 3],
+    /// Finite and non-zero; need not be unit length.
+    pub normal: [f64; 3],
+    /// From the point towards the viewer, world frame; finite and non-zero.
+    pub direction: [f64; 3],
+}
+
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RadianceRequest {
+    /// 1..=`limits.max_points` points.
+    pub points: Vec<RadiancePointDoc>,
+    /// As for tiles: `{"method": "bmc" | "path", …}`; default `bmc`.
+    #[serde(default)]
+    pub estimator: TileEstimatorDoc,
+    /// Independent evaluations averaged per point (their spread gives
+    /// `std_dev`), 1..=`limits.max_samples`; default 16.
+    #[serde(default = "default_repeats")]
+    pub repeats: u32,
+    /// Longest path in segments, the viewer's segment included; default 16.
+    #[serde(default = "default_max_depth")]
+    pub max_depth: u32,
+    /// Seed of every random stream; default 1.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+}
+
+fn default_repeats() -> u32 {
+    16
+}
+
+fn default_max_depth() -> u32 {
+    16
+}
+
+fn default_seed() -> u64 {
+    1
+}
+
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct RadianceResponse {
+    /// Outgoing radiance per point, `[r, g, b]` in W/(m²·sr).
+    pub radiance: Vec<[f64; 3]>,
+    /// Standard error per point: the repeats' spread plus, through the
+    /// cache, the records' posterior variance.
+    pub std_dev: Vec<[f64; 3]>,
+    /// Rays traced for the whole request.
+    pub rays: u64,
+}
+
+/// Outgoing radiance at each point of the request.
+#[utoipa::path(post, path = "/v1/scenes/{id}/radiance", tag = "scenes",
+    params(("id" = String, Path, description = "Scene id")),
+    request_body = RadianceRequest,
+    responses((status = 200, body = RadianceResponse),
+               (status = 404, description = "Unknown scene", body = ErrorBody),
+               (status = 422, description = "Invalid request", body = ErrorBody),
+               (status = 503, description = "CPU queue full; see Retry-After", body = ErrorBody)))]
+pub async fn radiance(
+    State(state): State<Arc<AppState>>,
+    Path(id): Path<String>,
+    ApiJson(request): ApiJson<RadianceRequest>,
+) -> Result<Json<RadianceResponse>, ApiError> {
+    let scene = scene_or_404(&state, &id)?;
+    let limits = &state.config.limits;
+    if request.points.is_empty() {
+        return Err(ApiError::invalid("points", "must hold at least one point"));
+    }
+    ApiError::check_limit("points", request.points.len(), limits.max_points)?;
+    ApiError::check_limit("repeats", request.repeats as usize, limits.max_samples)?;
+    if request.repeats == 0 {
+        return Err(ApiError::invalid("repeats", "must be at least 1"));
+    }
+    if request.max_depth == 0 || request.max_depth > crate::render::irradiance::MAX_DEPTH {
+        return Err(ApiError::invalid(
+            "max_depth",
+            format!(
+                "must be in 1..={} (1 = emission only)",
+                crate::render::irradiance::MAX_DEPTH
+            ),
+        ));
+    }
+    let queries = request
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            QueryPoint::new(DVec3::from(p.position), DVec3::from(p.normal))
+                .and_then(|point| RadianceQuery::new(point, DVec3::from(p.direction)))
+                .map_err(|err| point_error(i, err))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let cached = match request.estimator.method {
+        TileMethod::Bmc => Some(cached_setup(
+            &state,
+            &scene,
+            &request.estimator,
+            request.max_depth,
+        )?),
+        TileMethod::Path => None,
+    };
+    let (max_depth, repeats, seed) = (request.max_depth, request.repeats, request.seed);
+    let estimates = state
+        .pool
+        .run(move || {
+            let transport = &scene.transport;
+            let hits = queries
+                .iter()
+                .enumerate()
+                .map(|(i, q)| {
+                    surface_at(transport, q).ok_or_else(|| {
+                        ApiError::invalid(
+                            format!("points[{i}].position"),
+                            "no surface at this position (probed along the direction and the normal)",
+                        )
+                    })
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            let shading = match &cached {
+                Some(setup) => RadianceShading::Cached {
+                    cache: setup.cache(),
+                    shading: &setup.shading,
+                },
+                None => RadianceShading::PathTracing,
+            };
+            radiance_at_points(transport, &queries, &hits, shading, max_depth, repeats, seed)
+                .map_err(|err| ApiError::invalid("estimator", err.to_string()))
+        })
+        .await??;
+    let rays = estimates.iter().map(|e| e.rays).sum();
+    ::metrics::counter!(RAYS_TRACED).increment(rays);
+    let rgb = |c: Rgb| [c.r, c.g, c.b];
+    Ok(Json(RadianceResponse {
+        radiance: estimates.iter().map(|e| rgb(e.radiance)).collect(),
+        std_dev: estimates.iter().map(|e| rgb(e.std_error)).collect(),
+        rays,
+    }))
+}
+
+/// A bad point as a 422 naming `points[i].<field>`.
+fn point_error(i: usize, err: RenderError) -> ApiError {
+    let field = match &err {
+        RenderError::InvalidPoint { field, .. } => format!("points[{i}].{field}"),
+        _ => format!("points[{i}]"),
+    };
+    ApiError::invalid(field, err.to_string())
+}
