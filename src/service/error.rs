@@ -97,6 +97,15 @@ impl ApiError {
         }
     }
 
+    /// Checks a count that must be in `1..=limit`: 422 `invalid_field` for
+    /// zero, `limit_exceeded` above the limit.
+    pub fn check_count(field: &str, value: usize, limit: usize) -> Result<(), ApiError> {
+        if value == 0 {
+            return Err(ApiError::invalid(field, "must be at least 1"));
+        }
+        ApiError::check_limit(field, value, limit)
+    }
+
     /// A 500 for a panic caught in a handler or a CPU job; the payload's text is kept.
     pub fn from_panic(panic: &(dyn std::any::Any + Send)) -> Self {
         let text = panic

@@ -205,10 +205,7 @@ pub async fn irradiance(
 ) -> Result<Json<IrradianceResponse>, ApiError> {
     let scene = scene_or_404(&state, &id)?;
     let limits = &state.config.limits;
-    if request.points.is_empty() {
-        return Err(ApiError::invalid("points", "must hold at least one point"));
-    }
-    ApiError::check_limit("points", request.points.len(), limits.max_points)?;
+    ApiError::check_count("points", request.points.len(), limits.max_points)?;
     ApiError::check_limit(
         "estimator.samples",
         request.estimator.samples as usize,

@@ -92,14 +92,8 @@ pub async fn radiance(
 ) -> Result<Json<RadianceResponse>, ApiError> {
     let scene = scene_or_404(&state, &id)?;
     let limits = &state.config.limits;
-    if request.points.is_empty() {
-        return Err(ApiError::invalid("points", "must hold at least one point"));
-    }
-    ApiError::check_limit("points", request.points.len(), limits.max_points)?;
-    ApiError::check_limit("repeats", request.repeats as usize, limits.max_samples)?;
-    if request.repeats == 0 {
-        return Err(ApiError::invalid("repeats", "must be at least 1"));
-    }
+    ApiError::check_count("points", request.points.len(), limits.max_points)?;
+    ApiError::check_count("repeats", request.repeats as usize, limits.max_samples)?;
     if request.max_depth == 0 || request.max_depth > crate::render::irradiance::MAX_DEPTH {
         return Err(ApiError::invalid(
             "max_depth",
