@@ -327,6 +327,15 @@ fn cases() -> Vec<Case> {
         ),
         // Routing.
         Case {
+            name: "scene id that is not UTF-8",
+            method: Method::GET,
+            path: "/v1/scenes/%FF%FE",
+            body: Body::None,
+            status: S::UNPROCESSABLE_ENTITY,
+            code: "invalid_field",
+            field: Some("id"),
+        },
+        Case {
             name: "unknown route",
             method: Method::GET,
             path: "/v2/everything",

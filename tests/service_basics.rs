@@ -78,6 +78,10 @@ async fn openapi_lists_every_route() {
         ("/v1/scenes/{id}", "delete"),
         ("/v1/scenes/{id}/irradiance", "post"),
         ("/v1/quadratures", "post"),
+        ("/v1/scenes/{id}/radiance", "post"),
+        ("/v1/scenes/{id}/tiles", "post"),
+        ("/v1/scenes/{id}/cache", "get"),
+        ("/v1/scenes/{id}/cache", "delete"),
     ] {
         assert!(paths[path].get(method).is_some(), "{path} {method} missing");
     }

@@ -10,7 +10,8 @@
 //! JSON is 415.
 
 use axum::body::Bytes;
-use axum::extract::{FromRequest, Request};
+use axum::extract::{FromRequest, FromRequestParts, Path, Request};
+use axum::http::request::Parts;
 use axum::http::{StatusCode, header};
 use serde::de::{DeserializeOwned, IgnoredAny};
 
@@ -19,6 +20,22 @@ use super::error::ApiError;
 /// A JSON request body of type `T`; see the module docs for how failures map to errors.
 #[derive(Debug, Clone)]
 pub struct ApiJson<T>(pub T);
+
+/// The `{id}` segment of a scene route. Unlike axum's `Path`, whose
+/// rejections are plain text, a segment that is not valid percent-encoded
+/// UTF-8 gets the JSON error body (422 naming `id`).
+pub struct SceneId(pub String);
+
+impl<S: Send + Sync> FromRequestParts<S> for SceneId {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
+        Path::<String>::from_request_parts(parts, state)
+            .await
+            .map(|Path(id)| SceneId(id))
+            .map_err(|rejection| ApiError::invalid("id", rejection.body_text()))
+    }
+}
 
 impl<T, S> FromRequest<S> for ApiJson<T>
 where

@@ -4,11 +4,12 @@
 use std::sync::Arc;
 
 use axum::Json;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use serde::Serialize;
 use utoipa::ToSchema;
 
 use crate::service::error::{ApiError, ErrorBody};
+use crate::service::extract::SceneId;
 use crate::service::irradiance_caches::ConfigurationStats;
 use crate::service::routes::scenes::scene_or_404;
 use crate::service::state::AppState;
@@ -48,7 +49,7 @@ fn report(
                (status = 404, description = "Unknown scene", body = ErrorBody)))]
 pub async fn get_cache(
     State(state): State<Arc<AppState>>,
-    Path(id): Path<String>,
+    SceneId(id): SceneId,
 ) -> Result<Json<SceneCacheReport>, ApiError> {
     Ok(Json(report(&state, &id, None)?))
 }
@@ -61,7 +62,7 @@ pub async fn get_cache(
                (status = 404, description = "Unknown scene", body = ErrorBody)))]
 pub async fn delete_cache(
     State(state): State<Arc<AppState>>,
-    Path(id): Path<String>,
+    SceneId(id): SceneId,
 ) -> Result<Json<SceneCacheReport>, ApiError> {
     let scene = scene_or_404(&state, &id)?;
     let cleared = state.irradiance_caches.clear(&scene);

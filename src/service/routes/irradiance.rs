@@ -20,7 +20,7 @@
 use std::sync::Arc;
 
 use axum::Json;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -33,7 +33,7 @@ use crate::render::{
     IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb,
 };
 use crate::service::error::{ApiError, ErrorBody};
-use crate::service::extract::ApiJson;
+use crate::service::extract::{ApiJson, SceneId};
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::routes::quadratures::{bmc_error, cached_quadrature, default_variance};
 use crate::service::routes::scenes::scene_or_404;
@@ -200,7 +200,7 @@ pub struct IrradianceResponse {
                (status = 503, description = "CPU queue full; see Retry-After", body = ErrorBody)))]
 pub async fn irradiance(
     State(state): State<Arc<AppState>>,
-    Path(id): Path<String>,
+    SceneId(id): SceneId,
     ApiJson(request): ApiJson<IrradianceRequest>,
 ) -> Result<Json<IrradianceResponse>, ApiError> {
     let scene = scene_or_404(&state, &id)?;

@@ -8,7 +8,7 @@
 use std::sync::Arc;
 
 use axum::Json;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -16,7 +16,7 @@ use utoipa::ToSchema;
 use crate::cache::{RadianceQuery, RadianceShading, radiance_at_points, surface_at};
 use crate::render::{QueryPoint, RenderError, Rgb};
 use crate::service::error::{ApiError, ErrorBody};
-use crate::service::extract::ApiJson;
+use crate::service::extract::{ApiJson, SceneId};
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::routes::scenes::scene_or_404;
 use crate::service::routes::tiles::{TileEstimatorDoc, TileMethod, cached_setup};
@@ -87,7 +87,7 @@ pub struct RadianceResponse {
                (status = 503, description = "CPU queue full; see Retry-After", body = ErrorBody)))]
 pub async fn radiance(
     State(state): State<Arc<AppState>>,
-    Path(id): Path<String>,
+    SceneId(id): SceneId,
     ApiJson(request): ApiJson<RadianceRequest>,
 ) -> Result<Json<RadianceResponse>, ApiError> {
     let scene = scene_or_404(&state, &id)?;

@@ -4,13 +4,13 @@ use std::sync::Arc;
 
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
-use axum::extract::{Path, Query, Request, State};
+use axum::extract::{Query, Request, State};
 use axum::http::StatusCode;
 
 use crate::scene::{MitsubaOptions, Scene};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{
-    MediaType, body_bytes, body_media_type, content_type_text, parse_json,
+    MediaType, SceneId, body_bytes, body_media_type, content_type_text, parse_json,
 };
 use crate::service::scenes::{LoadedScene, SceneSource, SceneSummary, validate_id};
 use crate::service::state::AppState;
@@ -29,7 +29,7 @@ pub async fn list_scenes(State(state): State<Arc<AppState>>) -> Json<Vec<SceneSu
                (status = 404, description = "Unknown scene", body = ErrorBody)))]
 pub async fn get_scene(
     State(state): State<Arc<AppState>>,
-    Path(id): Path<String>,
+    SceneId(id): SceneId,
 ) -> Result<Json<SceneSummary>, ApiError> {
     Ok(Json(scene_or_404(&state, &id)?.summary()))
 }
@@ -143,7 +143,7 @@ fn document_id(document: &serde_json::Value) -> Result<String, ApiError> {
                (status = 404, description = "Unknown scene", body = ErrorBody)))]
 pub async fn delete_scene(
     State(state): State<Arc<AppState>>,
-    Path(id): Path<String>,
+    SceneId(id): SceneId,
 ) -> Result<StatusCode, ApiError> {
     state.scenes.remove(&id).ok_or_else(|| ApiError::NotFound {
         what: "scene",

@@ -9,7 +9,7 @@
 
 use std::sync::Arc;
 
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::http::{HeaderName, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
@@ -22,7 +22,7 @@ use crate::cache::{
 use crate::image::{ImageEncoding, ToneMap};
 use crate::render::{RenderError, RenderedTile, ShadingMethod, TileRequest, Transport};
 use crate::service::error::{ApiError, ErrorBody};
-use crate::service::extract::ApiJson;
+use crate::service::extract::{ApiJson, SceneId};
 use crate::service::irradiance_caches::SceneCache;
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::routes::scenes::scene_or_404;
@@ -140,7 +140,7 @@ fn default_seed() -> u64 {
                (status = 503, description = "CPU queue full; see Retry-After", body = ErrorBody)))]
 pub async fn tile(
     State(state): State<Arc<AppState>>,
-    Path(id): Path<String>,
+    SceneId(id): SceneId,
     ApiJson(doc): ApiJson<TileRequestDoc>,
 ) -> Result<Response, ApiError> {
     let scene = scene_or_404(&state, &id)?;
