@@ -113,19 +113,21 @@ pub async fn radiance(
                 .map_err(|err| point_error(i, err))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let cached = match request.estimator.method {
-        TileMethod::Bmc => Some(cached_setup(
-            &state,
-            &scene,
-            &request.estimator,
-            request.max_depth,
-        )?),
-        TileMethod::Path => None,
-    };
     let (max_depth, repeats, seed) = (request.max_depth, request.repeats, request.seed);
+    let shared = state.clone();
     let estimates = state
         .pool
         .run(move || {
+            // On the pool: a new configuration factorises its record rule.
+            let cached = match request.estimator.method {
+                TileMethod::Bmc => Some(cached_setup(
+                    &shared,
+                    &scene,
+                    &request.estimator,
+                    max_depth,
+                )?),
+                TileMethod::Path => None,
+            };
             let transport = &scene.transport;
             let hits = queries
                 .iter()

@@ -180,16 +180,21 @@ pub async fn tile(
     request
         .validate(scene.transport.scene().camera.resolution())
         .map_err(render_error)?;
-    let cached = match method {
-        ShadingMethod::IrradianceCache => {
-            Some(cached_setup(&state, &scene, &doc.estimator, doc.max_depth)?)
-        }
-        ShadingMethod::PathTracing => None,
-    };
     let format = doc.format;
+    let shared = state.clone();
     let (tile, report, body) = state
         .pool
         .run(move || {
+            // On the pool: a new configuration factorises its record rule.
+            let cached = match method {
+                ShadingMethod::IrradianceCache => Some(cached_setup(
+                    &shared,
+                    &scene,
+                    &doc.estimator,
+                    doc.max_depth,
+                )?),
+                ShadingMethod::PathTracing => None,
+            };
             let (tile, report) = render(&scene.transport, &request, cached)?;
             let body = tile
                 .image
