@@ -103,8 +103,9 @@ pub struct TileRequestDoc {
     /// Longest path in segments; default 16.
     #[serde(default = "default_max_depth")]
     pub max_depth: u32,
-    /// Seed of every random stream; pixel values depend only on it and the
-    /// pixel position, not on the tiling. Default 1.
+    /// Seed of every random stream; default 1. With `path`, a pixel's value
+    /// depends only on the seed and its position (not on the tiling); with
+    /// `bmc` and `reproducible`, the same request gives the same bytes.
     #[serde(default = "default_seed")]
     pub seed: u64,
     /// PNG only: exposure in stops (values scaled by 2^exposure); default 0.
