@@ -25,7 +25,8 @@
 //! - `cache`: Bayesian irradiance cache — BMC records with variance and
 //!   gradients, concurrent spatial index, interpolation, reproducible placement;
 //!   `cache::shading` (outgoing radiance through the cache, BMC Phong glossy)
-//!   and `cache::tiles` (`Transport::render_tile_cached`).
+//!   `cache::tiles` (`Transport::render_tile_cached`) and `cache::radiance`
+//!   (outgoing radiance at surface points).
 //! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
 //! - `cli`: the binary's subcommands (`quadrature`, `study`, `render`, `compare`) as library functions.
 //! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).
