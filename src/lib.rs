@@ -24,7 +24,7 @@
 //!   convergence study (MC vs QMC vs BMC).
 //! - `cache`: Bayesian irradiance cache — BMC records with variance and
 //!   gradients, concurrent spatial index, interpolation, reproducible placement;
-//!   `cache::shading` (outgoing radiance through the cache, BMC Phong glossy)
+//!   `cache::shading` (outgoing radiance through the cache, BMC Phong glossy),
 //!   `cache::tiles` (`Transport::render_tile_cached`) and `cache::radiance`
 //!   (outgoing radiance at surface points).
 //! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
