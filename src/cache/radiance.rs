@@ -81,19 +81,21 @@ pub enum RadianceShading<'a> {
 /// The surface hit a query names, or `None` if no surface lies within the
 /// probe distance of its position (module docs).
 pub fn surface_at(transport: &Transport, query: &RadianceQuery) -> Option<SurfaceHit> {
-    let scene = transport.scene();
-    let (min, max) = scene.bounds();
-    let delta = PROBE_RELATIVE * (max - min).length().max(1e-9);
     let x = query.point.position();
     [query.direction, query.point.normal()]
         .into_iter()
-        .find_map(|towards| {
-            scene.intersect(&Ray {
-                origin: x + delta * towards,
-                dir: -towards,
-                t_max: 2.0 * delta,
-            })
-        })
+        .find_map(|towards| transport.scene().intersect(&probe(transport, x, towards)))
+}
+
+/// The short ray from `x + δ·towards` back to `x` (module docs).
+fn probe(transport: &Transport, x: DVec3, towards: DVec3) -> Ray {
+    let (min, max) = transport.scene().bounds();
+    let delta = PROBE_RELATIVE * (max - min).length().max(1e-9);
+    Ray {
+        origin: x + delta * towards,
+        dir: -towards,
+        t_max: 2.0 * delta,
+    }
 }
 
 /// Radiance leaving each `hits[i]` towards `queries[i].direction`, in
@@ -123,16 +125,17 @@ pub fn radiance_at_points(
             let mut rng = point_rng(seed, i as u64);
             let mut trace = TraceStats::default();
             let mut stats = ShadingStats::default();
+            // The camera ray of this query, for path tracing.
+            let camera_ray = probe(transport, hit.position, query.direction);
             let values = (0..repeats)
                 .map(|_| match shading {
                     RadianceShading::PathTracing => {
-                        let probe = surface_ray(transport, query, hit);
                         let limits = PathLimits {
                             max_depth,
                             lengths: PathLengths::All,
                         };
                         Ok(transport
-                            .incident_radiance(probe, limits, &mut rng, &mut trace)
+                            .incident_radiance(camera_ray, limits, &mut rng, &mut trace)
                             .radiance)
                     }
                     RadianceShading::Cached { cache, shading } => transport.outgoing_radiance(
@@ -160,19 +163,6 @@ pub fn radiance_at_points(
             })
         })
         .collect()
-}
-
-/// The ray from just off the surface on the viewer's side back to the hit:
-/// the camera ray of this query.
-fn surface_ray(transport: &Transport, query: &RadianceQuery, hit: &SurfaceHit) -> Ray {
-    let scene = transport.scene();
-    let (min, max) = scene.bounds();
-    let delta = PROBE_RELATIVE * (max - min).length().max(1e-9);
-    Ray {
-        origin: hit.position + delta * query.direction,
-        dir: -query.direction,
-        t_max: 2.0 * delta,
-    }
 }
 
 /// `(k_d/π)² V` of the records interpolated at the hit (zero where the

@@ -112,12 +112,20 @@ impl IrradianceCaches {
             .map_err(|err: Arc<CacheError>| (*err).clone())
     }
 
+    /// The caches of this version of `scene`.
+    fn of_scene(
+        &self,
+        scene: &LoadedScene,
+    ) -> impl Iterator<Item = (Arc<CacheKey>, Arc<SceneCache>)> {
+        self.caches
+            .iter()
+            .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
+    }
+
     /// Stats of every cache of this version of `scene`, sorted by configuration.
     pub fn stats(&self, scene: &LoadedScene) -> Vec<ConfigurationStats> {
         let mut all: Vec<(String, CacheStats)> = self
-            .caches
-            .iter()
-            .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
+            .of_scene(scene)
             .map(|(key, entry)| (key.configuration.clone(), entry.cache.stats()))
             .collect();
         all.sort_by(|a, b| a.0.cmp(&b.0));
@@ -132,9 +140,7 @@ impl IrradianceCaches {
 
     /// Empties every cache of this version of `scene`; returns the records dropped.
     pub fn clear(&self, scene: &LoadedScene) -> u64 {
-        self.caches
-            .iter()
-            .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
+        self.of_scene(scene)
             .map(|(_, entry)| {
                 let records = entry.cache.stats().records;
                 entry.cache.clear();
