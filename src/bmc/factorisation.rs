@@ -6,15 +6,18 @@
 //! nalgebra (docs/BENCHMARKS.md, "Linear algebra": 4–18× faster for
 //! N ≥ 256). It stays behind this type so callers never see the backend.
 //!
-//! faer runs sequentially (`Par::Seq`) inside one factorisation: the service
-//! already parallelises across requests with rayon, and nested parallelism
-//! would oversubscribe the cores. The explicit `Par` argument of faer's
-//! low-level routines keeps this independent of faer's global setting.
+//! Everything inside one factorisation is sequential: faer with `Par::Seq`
+//! and a plain loop for the kernel matrix. The service already parallelises
+//! across requests and points with rayon, and, more importantly, factorisations
+//! run inside single-flight cache initialisers (`bmc::cache`, the record
+//! rules, the lengthscale fit) on rayon workers while identical requests wait
+//! for them: a rayon join in there would let the worker steal one of those
+//! waiting requests and deadlock on its own key. The explicit `Par` argument of
+//! faer's low-level routines keeps this independent of faer's global setting.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt;
 use faer::{Conj, Mat, MatMut, Par};
-use rayon::prelude::*;
 
 use super::error::BmcError;
 use super::kernel::{Kernel, KernelKey};
@@ -72,11 +75,11 @@ impl Factorisation {
         let dirs = &set.directions;
         // Column-major fill; K is symmetric, so rows and columns coincide.
         let mut data = vec![0.0; n * n];
-        data.par_chunks_mut(n).enumerate().for_each(|(j, col)| {
+        for (j, col) in data.chunks_mut(n).enumerate() {
             for (i, value) in col.iter_mut().enumerate() {
                 *value = kernel.eval(dirs[i], dirs[j]);
             }
-        });
+        }
         let mean_diag = kernel.variance + kernel.noise;
         let mut jitter = 0.0;
         loop {

@@ -25,7 +25,6 @@
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI, TAU};
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::bmc::bessel::i0_scaled;
 use crate::bmc::density::{Density, clipped_cosine_arc, phong_normalisation, positive_half_arc};
@@ -57,11 +56,13 @@ fn tolerance(kernel: &Kernel, density: &Density, rel: f64) -> Tolerance {
 }
 
 /// Exact `z(ω) = ∫_H k(ω, ω') p(ω') dω'` for unit directions `ω` (local
-/// frame; they may lie anywhere on the sphere), in parallel.
+/// frame; they may lie anywhere on the sphere). Sequential, like the
+/// factorisation and for the same reason (see `bmc::factorisation`): this runs
+/// inside single-flight cache initialisers on rayon workers.
 pub(crate) fn kernel_means(directions: &[DVec3], kernel: &Kernel, density: &Density) -> Vec<f64> {
     let tol = tolerance(kernel, density, REL_TOL);
     directions
-        .par_iter()
+        .iter()
         .map(|&w| kernel_mean_with(w, kernel, density, tol))
         .collect()
 }
