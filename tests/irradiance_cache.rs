@@ -8,8 +8,9 @@ use std::sync::Arc;
 
 use bmc_irradiance::bmc::{Kernel, KernelKind, PriorMean};
 use bmc_irradiance::cache::{
-    Accuracy, CacheConfig, Interpolated, IrradianceCache, PlacementOptions, PlacementPoint, Record,
-    RecordRule, RecordRuleSpec, compute_record, place_and_shade, place_records, placement,
+    Accuracy, CacheConfig, Gather, Interpolated, IrradianceCache, PlacementOptions, PlacementPoint,
+    Record, RecordRule, RecordRuleSpec, ShadingStats, compute_record, place_and_shade,
+    place_records, placement,
 };
 use bmc_irradiance::render::irradiance::MeanEstimate;
 use bmc_irradiance::render::seed::point_rng;
@@ -111,7 +112,15 @@ fn two_pass_placement_is_bit_identical_across_thread_counts_and_history() {
     // An unrelated request on a shared cache first, then the same request.
     let shared = IrradianceCache::new(config()).unwrap();
     with_threads(2, || {
-        place_records(&shared, &transport, &rule, &back_wall(5), &options(99)).unwrap()
+        place_records(
+            &shared,
+            &transport,
+            &rule,
+            &back_wall(5),
+            &options(99),
+            Gather::Paths,
+        )
+        .unwrap()
     });
     let (two, cache_two, _) = with_threads(2, run);
     assert_eq!(bits(&one), bits(&two));
@@ -202,9 +211,17 @@ fn bmc_record_agrees_with_monte_carlo_indirect_irradiance() {
     let records: Vec<Record> = (0..8)
         .map(|i| {
             let mut rng = point_rng(11, i);
-            let mut stats = TraceStats::default();
+            let mut stats = ShadingStats::default();
             compute_record(
-                &transport, &rule, &target, limits, paths, 1, &mut rng, &mut stats,
+                &transport,
+                &rule,
+                &target,
+                limits,
+                paths,
+                1,
+                Gather::Paths,
+                &mut rng,
+                &mut stats,
             )
             .unwrap()
         })

@@ -146,6 +146,23 @@ impl Factorisation {
         x
     }
 
+    /// `Q⁻¹ B` in place for `B` stored column-major as `columns` columns of
+    /// length `N` (one pass over the factor for all columns).
+    ///
+    /// # Panics
+    /// If `b.len() != columns · N` (a programming error).
+    pub fn solve_columns_in_place(&self, b: &mut [f64], columns: usize) {
+        let n = self.len();
+        assert_eq!(b.len(), n * columns, "right-hand side length");
+        llt::solve::solve_in_place_with_conj(
+            self.l.as_ref(),
+            Conj::No,
+            MatMut::from_column_major_slice_mut(b, n, columns),
+            Par::Seq,
+            MemStack::new(&mut []),
+        );
+    }
+
     /// `Q⁻¹ b`, or a typed error when the length is wrong.
     pub fn try_solve(&self, b: &[f64]) -> Result<Vec<f64>, BmcError> {
         if b.len() != self.len() {

@@ -4,6 +4,7 @@
 use thiserror::Error;
 
 use crate::bmc::BmcError;
+use crate::render::RenderError;
 
 /// Failure of a cache operation; never a panic on bad input.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -14,6 +15,9 @@ pub enum CacheError {
     /// Building the BMC rule for records failed.
     #[error(transparent)]
     Bmc(#[from] BmcError),
+    /// Shading a record's rays through the cache failed.
+    #[error(transparent)]
+    Render(#[from] RenderError),
 }
 
 impl CacheError {
@@ -29,6 +33,7 @@ impl CacheError {
         match self {
             CacheError::Invalid { field, .. } => Some(field),
             CacheError::Bmc(e) => e.field(),
+            CacheError::Render(e) => e.field(),
         }
     }
 }

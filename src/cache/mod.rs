@@ -45,6 +45,6 @@ pub use radiance::{
 pub use record::{PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
 pub use record_rule::{RecordEstimate, RecordRule, RecordRuleSpec};
 pub use shading::{
-    CacheShadingOptions, CachedShading, GlossyRule, OnMiss, ShadingStats, default_rule_spec,
+    CacheShadingOptions, CachedShading, Gather, GlossyRule, OnMiss, ShadingStats, default_rule_spec,
 };
 pub use tiles::CachedTileReport;

@@ -34,8 +34,9 @@ use super::error::CacheError;
 use super::irradiance_cache::{Accuracy, CacheConfig, Interpolated, IrradianceCache};
 use super::record::{PixelFootprint, RadiusLimits, Record};
 use super::record_rule::RecordRule;
+use super::shading::{Gather, ShadingStats};
 use crate::render::seed::point_rng;
-use crate::render::{PathLimits, QueryPoint, TraceStats, Transport};
+use crate::render::{PathLimits, QueryPoint, Transport};
 use crate::sphere::Frame;
 
 /// Relative lift of the occlusion-test ray ends off their surfaces.
@@ -77,7 +78,10 @@ pub struct PlacementOptions {
 /// What a placement pass did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct PlacementReport {
+    /// Records inserted, those created at other records' bounces included.
     pub records_created: u64,
+    /// Of those, created at the bounces of other records' rays ([`Gather`]).
+    pub ambient_records: u64,
     /// Of those, created because of the variance target.
     pub records_for_variance: u64,
     /// Rays traced for records.
@@ -86,9 +90,10 @@ pub struct PlacementReport {
 
 /// BMC record at `point`: the rule's directions turned about the normal by a
 /// random angle from `rng`, the mean of `paths_per_direction` radiance
-/// samples each, `E = π Σ w_i L_i`
+/// samples each (gathered as `gather` says), `E = π Σ w_i L_i`
 /// (see [`RecordRule::estimate`]) and the harmonic-mean radius within
-/// `limits` (tightened by the point's footprint).
+/// `limits` (tightened by the point's footprint). `stats` counts the rays
+/// and any records created at the rays' bounces.
 #[allow(clippy::too_many_arguments)]
 pub fn compute_record<R: Rng + ?Sized>(
     transport: &Transport,
@@ -97,17 +102,17 @@ pub fn compute_record<R: Rng + ?Sized>(
     limits: RadiusLimits,
     paths: PathLimits,
     paths_per_direction: u32,
+    gather: Gather,
     rng: &mut R,
-    stats: &mut TraceStats,
+    stats: &mut ShadingStats,
 ) -> Result<Record, CacheError> {
     let point = &target.point;
     let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
-    let mut samples =
-        transport.hemisphere_samples(point, &frame, rule.directions(), paths, rng, stats);
+    let dirs = rule.directions();
+    let mut samples = transport.gather_samples(point, &frame, dirs, paths, gather, rng, stats)?;
     if paths_per_direction > 1 {
         for _ in 1..paths_per_direction {
-            let more =
-                transport.hemisphere_samples(point, &frame, rule.directions(), paths, rng, stats);
+            let more = transport.gather_samples(point, &frame, dirs, paths, gather, rng, stats)?;
             for (s, m) in samples.iter_mut().zip(more) {
                 s.radiance += m.radiance;
             }
@@ -192,13 +197,16 @@ fn validate(options: &PlacementOptions) -> Result<(), CacheError> {
 }
 
 /// Placement pass (module docs): records where the cache has no value (or,
-/// with a target, too uncertain a value) at each point, in point order.
+/// with a target, too uncertain a value) at each point, in point order,
+/// their rays gathered as `gather` says. Only a read-only `gather` (paths, or
+/// the cache without nested insertion) keeps the pass deterministic.
 pub fn place_records(
     cache: &IrradianceCache,
     transport: &Transport,
     rule: &RecordRule,
     points: &[PlacementPoint],
     options: &PlacementOptions,
+    gather: Gather,
 ) -> Result<PlacementReport, CacheError> {
     validate(options)?;
     let limits = cache.radius_limits();
@@ -217,11 +225,11 @@ pub fn place_records(
                     .map(|_| (first + i, true)),
             })
             .collect();
-        let computed: Vec<Result<(Record, u64), CacheError>> = wanted
+        let computed: Vec<Result<(Record, ShadingStats), CacheError>> = wanted
             .par_iter()
             .map(|&(i, _)| {
                 let mut rng = point_rng(options.seed, i as u64);
-                let mut stats = TraceStats::default();
+                let mut stats = ShadingStats::default();
                 let record = compute_record(
                     transport,
                     rule,
@@ -229,18 +237,20 @@ pub fn place_records(
                     limits,
                     options.paths,
                     options.paths_per_direction,
+                    gather,
                     &mut rng,
                     &mut stats,
                 )?;
-                Ok((record, stats.rays))
+                Ok((record, stats))
             })
             .collect();
         for (result, &(_, for_variance)) in computed.into_iter().zip(&wanted) {
-            let (record, rays) = result?;
+            let (record, stats) = result?;
             cache.insert(record)?;
-            report.records_created += 1;
+            report.records_created += 1 + stats.records_created;
+            report.ambient_records += stats.ambient_records;
             report.records_for_variance += u64::from(for_variance);
-            report.rays += rays;
+            report.rays += stats.rays;
         }
     }
     Ok(report)
@@ -259,7 +269,8 @@ pub fn shade(
         .collect()
 }
 
-/// Both passes on a private cache built from `config`: bit-identical for the
+/// Both passes on a private cache built from `config`, records gathering by
+/// paths: bit-identical for the
 /// same inputs whatever the thread count or earlier requests. Returns the
 /// interpolated values and the private cache (to publish its records).
 pub fn place_and_shade(
@@ -270,7 +281,7 @@ pub fn place_and_shade(
     options: &PlacementOptions,
 ) -> Result<(Vec<Option<Interpolated>>, IrradianceCache, PlacementReport), CacheError> {
     let cache = IrradianceCache::new(config)?;
-    let report = place_records(&cache, transport, rule, points, options)?;
+    let report = place_records(&cache, transport, rule, points, options, Gather::Paths)?;
     let query: Vec<QueryPoint> = points.iter().map(|p| p.point).collect();
     Ok((shade(&cache, transport, &query, options), cache, report))
 }

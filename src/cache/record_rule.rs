@@ -87,8 +87,15 @@ pub struct RecordRule {
     ones_sum: f64,
     /// `dz_i/dμ_i`, `μ_i = cos θ_i`.
     dz_dmu: Vec<f64>,
-    /// `∂k/∂c` at `c = ω_i·ω_j`, row-major `N×N`, zero on the diagonal.
+    /// `A_ij = ∂k/∂c` at `c = ω_i·ω_j`, row-major `N×N`, zero on the
+    /// diagonal (symmetric).
     dk_dc: Vec<f64>,
+    /// `B_ij = A_ij (ω_i·ω_j)` (symmetric).
+    dk_dc_cos: Vec<f64>,
+    /// `A (w ∘ u_e)` for `u_e,i = e·ω_i`, `e` = local x and y.
+    a_w_u: [Vec<f64>; 2],
+    /// `B w`.
+    b_w: Vec<f64>,
 }
 
 impl RecordRule {
@@ -108,15 +115,23 @@ impl RecordRule {
         let ones_solved = factorisation.solve(&vec![1.0; n]);
         let ones_sum = ones_solved.iter().sum();
         let dz_dmu = kernel_mean_slopes(&set.directions, &spec.kernel)?;
-        let mut dk_dc = vec![0.0; n * n];
+        let dirs = &set.directions;
+        let (mut dk_dc, mut dk_dc_cos) = (vec![0.0; n * n], vec![0.0; n * n]);
         for i in 0..n {
             for j in 0..n {
                 if i != j {
-                    let d = (set.directions[i] - set.directions[j]).length();
-                    dk_dc[i * n + j] = kernel_slope(&spec.kernel, d);
+                    let a = kernel_slope(&spec.kernel, (dirs[i] - dirs[j]).length());
+                    dk_dc[i * n + j] = a;
+                    dk_dc_cos[i * n + j] = a * dirs[i].dot(dirs[j]);
                 }
             }
         }
+        let w = &quadrature.weights;
+        let a_w_u = [0, 1].map(|e| {
+            let v: Vec<f64> = dirs.iter().zip(w).map(|(d, w)| w * d[e]).collect();
+            mat_vec(&dk_dc, &v)
+        });
+        let b_w = mat_vec(&dk_dc_cos, w);
         Ok(RecordRule {
             spec,
             set,
@@ -126,6 +141,9 @@ impl RecordRule {
             ones_sum,
             dz_dmu,
             dk_dc,
+            dk_dc_cos,
+            a_w_u,
+            b_w,
         })
     }
 
@@ -166,26 +184,33 @@ impl RecordRule {
             ));
         }
         let dirs = &self.set.directions;
-        // α̃ per channel.
-        let mut alpha = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        // α̃ = Q⁻¹(Y − m̂1) per channel, the three columns solved together.
+        let mut alpha = vec![0.0; 3 * n];
         let mut irradiance = [0.0; 3];
-        let mut variance = [0.0; 3];
         for c in 0..3 {
             let y: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
             let mean = match self.spec.prior_mean {
                 PriorMean::Zero => 0.0,
                 PriorMean::Gls => dot(&self.ones_solved, &y) / self.ones_sum,
             };
-            let centred: Vec<f64> = y.iter().map(|v| v - mean).collect();
-            alpha[c] = self.factorisation.solve(&centred);
+            for (a, v) in alpha[c * n..(c + 1) * n].iter_mut().zip(&y) {
+                *a = v - mean;
+            }
             irradiance[c] = PI * self.quadrature.estimate(&y);
-            let amplitude = (dot(&centred, &alpha[c]) / n as f64).max(0.0);
-            variance[c] = PI * PI * self.quadrature.posterior_variance * amplitude;
         }
-        let rotation = [DVec3::X, DVec3::Y].map(|axis| {
-            let delta: Vec<DVec3> = dirs.iter().map(|d| -axis.cross(*d)).collect();
-            // Rigid rotation: dQ = 0, only the kernel-mean term.
-            self.derivative(&delta, &alpha, false)
+        let centred = alpha.clone();
+        self.factorisation.solve_columns_in_place(&mut alpha, 3);
+        let alpha: [&[f64]; 3] = [0, 1, 2].map(|c| &alpha[c * n..(c + 1) * n]);
+        let variance = [0, 1, 2].map(|c| {
+            let amplitude = (dot(&centred[c * n..(c + 1) * n], alpha[c]) / n as f64).max(0.0);
+            PI * PI * self.quadrature.posterior_variance * amplitude
+        });
+        // Rotation about local x and y: δ_i = −a × ω_i is rigid, so dQ = 0
+        // and only the kernel-mean term remains; (−a × ω)·ẑ is −ω_y about x
+        // and ω_x about y.
+        let rotation = [0, 1].map(|axis| {
+            let delta_z = |d: &DVec3| if axis == 0 { -d.y } else { d.x };
+            self.kernel_mean_term(dirs.iter().map(delta_z), &alpha)
         });
         let inverse_distance: Vec<f64> = samples
             .iter()
@@ -197,14 +222,7 @@ impl RecordRule {
                 }
             })
             .collect();
-        let translation = [DVec3::X, DVec3::Y].map(|e| {
-            let delta: Vec<DVec3> = dirs
-                .iter()
-                .zip(&inverse_distance)
-                .map(|(d, inv)| -(e - e.dot(*d) * *d) * *inv)
-                .collect();
-            self.derivative(&delta, &alpha, true)
-        });
+        let translation = self.translation_gradients(&inverse_distance, &alpha);
         Ok(RecordEstimate {
             irradiance: Rgb::from_array(irradiance),
             variance: Rgb::from_array(variance),
@@ -213,47 +231,80 @@ impl RecordRule {
         })
     }
 
-    /// `π dÎ/dε` for the tangent field `delta` (module docs); the `dQ` term
-    /// only when `moves_samples_apart`.
-    fn derivative(&self, delta: &[DVec3], alpha: &[Vec<f64>; 3], moves_samples_apart: bool) -> Rgb {
-        let n = self.set.len();
-        let dirs = &self.set.directions;
-        let w = &self.quadrature.weights;
+    /// `π Σ_i (dz_i/dμ_i) δ_i·ẑ α̃_i`: the kernel-mean part of `π dÎ/dε`
+    /// (module docs) for the tangent field's `δ_i·ẑ`.
+    fn kernel_mean_term(&self, delta_z: impl Iterator<Item = f64>, alpha: &[&[f64]; 3]) -> Rgb {
         let mut out = [0.0; 3];
-        for i in 0..n {
-            let dz = self.dz_dmu[i] * delta[i].z;
+        for (i, dz) in delta_z.enumerate() {
+            let dz = self.dz_dmu[i] * dz;
             for c in 0..3 {
                 out[c] += dz * alpha[c][i];
             }
         }
-        if moves_samples_apart {
-            for i in 0..n {
-                let row = &self.dk_dc[i * n..(i + 1) * n];
-                let mut acc = [0.0; 3];
-                for j in 0..n {
-                    if i == j {
-                        continue;
-                    }
-                    let dq = row[j] * (delta[i].dot(dirs[j]) + dirs[i].dot(delta[j]));
-                    for c in 0..3 {
-                        acc[c] += dq * alpha[c][j];
-                    }
-                }
-                for c in 0..3 {
-                    out[c] -= w[i] * acc[c];
-                }
-            }
-        }
         Rgb::from_array(out.map(|v| PI * v))
     }
+
+    /// `π dÎ/dε` for translations along local x and y (module docs), with
+    /// `s_i = 1/r_i`. With `u_i = e·ω_i`, `δ_i = −s_i (e − u_i ω_i)` and
+    /// `C_ij = ω_i·ω_j`, the `dQ` term
+    /// `Σ_ij w_i A_ij (δ_i·ω_j + ω_i·δ_j) α̃_j` expands into
+    /// `−(A(w∘s))·(α̃∘u) + (B(w∘s∘u))·α̃ − (A(w∘u))·(α̃∘s) + (Bw)·(α̃∘s∘u)`
+    /// (`A`, `B = A∘C` symmetric), so a record costs three `N×N`
+    /// matrix-vector products, not a double loop per channel and axis.
+    fn translation_gradients(&self, s: &[f64], alpha: &[&[f64]; 3]) -> [Rgb; 2] {
+        let dirs = &self.set.directions;
+        let w = &self.quadrature.weights;
+        let w_s: Vec<f64> = w.iter().zip(s).map(|(w, s)| w * s).collect();
+        let a_w_s = mat_vec(&self.dk_dc, &w_s);
+        [0, 1].map(|e| {
+            let u: Vec<f64> = dirs.iter().map(|d| d[e]).collect();
+            let w_s_u: Vec<f64> = w_s.iter().zip(&u).map(|(x, u)| x * u).collect();
+            let b_w_s_u = mat_vec(&self.dk_dc_cos, &w_s_u);
+            // δ_i·ẑ = s_i u_i ω_i,z (e has no z component).
+            let delta_z = dirs.iter().zip(s).map(|(d, s)| s * d[e] * d.z);
+            let mean_term = self.kernel_mean_term(delta_z, alpha).to_array();
+            let mut out = [0.0; 3];
+            for c in 0..3 {
+                let a = alpha[c];
+                let mut sum = 0.0;
+                for i in 0..dirs.len() {
+                    sum += -a_w_s[i] * a[i] * u[i] + b_w_s_u[i] * a[i]
+                        - self.a_w_u[e][i] * a[i] * s[i]
+                        + self.b_w[i] * a[i] * s[i] * u[i];
+                }
+                out[c] = mean_term[c] - PI * sum;
+            }
+            Rgb::from_array(out)
+        })
+    }
+}
+
+/// `M v` for a row-major square `M`.
+fn mat_vec(m: &[f64], v: &[f64]) -> Vec<f64> {
+    m.chunks_exact(v.len()).map(|row| dot(row, v)).collect()
 }
 
 fn finite_rgb(c: Rgb) -> bool {
     c.r.is_finite() && c.g.is_finite() && c.b.is_finite()
 }
 
+/// `a·b` with four partial sums, which the compiler can keep in vector
+/// registers (a single running sum forces sequential additions).
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut acc = [0.0; 4];
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    acc.iter().sum::<f64>() + tail
 }
 
 /// `∂k/∂c` with `c = ω·ω'` for chordal distance `d = sqrt(2 − 2c) > 0`

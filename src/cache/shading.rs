@@ -12,6 +12,24 @@
 //!   `p = (m+2)/(2π) cos^m α cos θ` is a BMC estimate ([`GlossyRule`]); so
 //!   each path length is counted by exactly one term.
 //!
+//! # Ambient bounces: records gather through the cache
+//! A record's `N` rays need the radiance leaving the surfaces they hit. A
+//! path per ray ([`Gather::Paths`]) freezes that path's noise into the
+//! record. With `ambient_bounces ≥ 1` (Radiance's `-ab`; Ward et al. 1988)
+//! a record instead shades each hit `y` as a camera hit is shaded:
+//! `L(y → x) = L_direct(y) + (k_d/π) E_ind(y) + k_s I_glossy(y)`, direct
+//! light by one light sample (the `N` rays average those), `E_ind(y)` looked
+//! up in the same cache at the relaxed accuracy `min(1, 2a)` and, where no
+//! record covers `y`, a record created there one level deeper (levels
+//! `≥ ambient_bounces` trace paths), and glossy lobes by one lobe-sampled
+//! path. The cache's records count indirect paths of every length, so a
+//! bounce through them replaces the truncation at `max_depth` by the
+//! cache's own fixed point; records therefore gather this way only when
+//! `max_depth ≥` [`AMBIENT_MIN_DEPTH`], where the truncated tail is
+//! negligible, and trace exact paths otherwise. In a reproducible
+//! placement pass the bounces only read the private cache (a miss falls
+//! back to one path), so every record of a batch sees the same cache.
+//!
 //! # Glossy quadratures: θ_r tabulated, weights interpolated
 //! The Phong density depends on the mirror direction's polar angle `θ_r`
 //! once the sample set is turned about the normal to put the mirror
@@ -43,9 +61,10 @@ use super::record::PixelFootprint;
 use super::record_rule::{RecordRule, RecordRuleSpec};
 use crate::bmc::cache::QuadratureCache;
 use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
-use crate::render::lights::emitted_radiance;
+use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::{
-    Bsdf, PathLengths, PathLimits, QueryPoint, RenderError, Rgb, TraceStats, Transport, warp,
+    Bsdf, PathLengths, PathLimits, QueryPoint, RadianceSample, RenderError, Rgb, TraceStats,
+    Transport, warp,
 };
 use crate::scene::SurfaceHit;
 use crate::sphere::{Frame, SampleSetKind, SampleSetSpec};
@@ -54,6 +73,8 @@ use crate::sphere::{Frame, SampleSetKind, SampleSetSpec};
 pub const MAX_BMC_EXPONENT: f64 = 1000.0;
 /// Largest accepted number of light samples per shading.
 pub const MAX_LIGHT_SAMPLES: u32 = 1 << 16;
+/// Largest accepted number of record levels gathering through the cache.
+pub const MAX_AMBIENT_BOUNCES: u32 = 8;
 /// Largest accepted number of `θ_r` nodes of the glossy rule.
 pub const MAX_GLOSSY_BINS: usize = 1024;
 
@@ -101,6 +122,9 @@ pub struct CacheShadingOptions {
     pub batch_size: usize,
     /// Paths averaged per record direction (see [`PlacementOptions`]).
     pub paths_per_direction: u32,
+    /// Levels of records whose rays gather through the cache ([`Gather`],
+    /// Radiance's `-ab`): 0 = every record traces its rays' paths.
+    pub ambient_bounces: u32,
 }
 
 impl Default for CacheShadingOptions {
@@ -115,6 +139,7 @@ impl Default for CacheShadingOptions {
             max_pixels: 200.0,
             batch_size: 16,
             paths_per_direction: 1,
+            ambient_bounces: 2,
         }
     }
 }
@@ -139,6 +164,15 @@ impl CacheShadingOptions {
                 format!(
                     "must be in 1..={MAX_LIGHT_SAMPLES}, got {}",
                     self.paths_per_direction
+                ),
+            ));
+        }
+        if self.ambient_bounces > MAX_AMBIENT_BOUNCES {
+            return Err(CacheError::invalid(
+                "ambient_bounces",
+                format!(
+                    "must be in 0..={MAX_AMBIENT_BOUNCES}, got {}",
+                    self.ambient_bounces
                 ),
             ));
         }
@@ -297,8 +331,10 @@ pub struct ShadingStats {
     pub relaxed_hits: u64,
     /// Diffuse points no record covered.
     pub cache_misses: u64,
-    /// Records created on a miss ([`OnMiss::Insert`]).
+    /// Records created on a miss ([`OnMiss::Insert`]), nested ones included.
     pub records_created: u64,
+    /// Of those, created at the bounce of another record's rays ([`Gather::Cache`]).
+    pub ambient_records: u64,
     /// Misses estimated by a path-traced sample ([`OnMiss::PathTrace`]).
     pub fallbacks: u64,
     /// Glossy lobes integrated by BMC.
@@ -314,6 +350,7 @@ impl std::ops::AddAssign for ShadingStats {
         self.relaxed_hits += o.relaxed_hits;
         self.cache_misses += o.cache_misses;
         self.records_created += o.records_created;
+        self.ambient_records += o.ambient_records;
         self.fallbacks += o.fallbacks;
         self.glossy_bmc += o.glossy_bmc;
         self.glossy_path_traced += o.glossy_path_traced;
@@ -328,7 +365,83 @@ pub(crate) fn cache_to_render(e: CacheError) -> RenderError {
             field: "quadrature",
             reason: b.to_string(),
         },
+        CacheError::Render(r) => r,
     }
+}
+
+/// Records whose rays gather from the cache are only used when paths may be
+/// at least this long: a bounce through the cache counts paths of every
+/// length (module docs), which matches a truncation at `max_depth` only
+/// when the truncated tail (`≈ albedo^max_depth`) is negligible.
+pub const AMBIENT_MIN_DEPTH: u32 = 16;
+/// Lookups at a record's bounce use accuracy `min(1, factor · a)`: their
+/// error is attenuated by the albedo and averaged over the record's
+/// hemisphere, so coarser records serve there (as Radiance relaxes its
+/// ambient accuracy at deeper bounces).
+const AMBIENT_ACCURACY_FACTOR: f64 = 2.0;
+
+/// Where a record's rays get their incident radiance.
+#[derive(Clone, Copy)]
+pub enum Gather<'a> {
+    /// One path-traced estimate per ray ([`Transport::hemisphere_samples`]).
+    Paths,
+    /// An ambient bounce through the cache (module docs): at each ray's
+    /// hit, direct light by one light sample plus `(k_d/π) E_ind` from
+    /// `cache`, with `on_miss` where no record covers the hit.
+    Cache {
+        cache: &'a IrradianceCache,
+        shading: &'a CachedShading,
+        /// Level of the record being computed (0 = placed for a shading point).
+        level: u32,
+        on_miss: OnMiss,
+    },
+}
+
+impl<'a> Gather<'a> {
+    /// How a record at `level` gathers: through `cache` while `level <
+    /// ambient_bounces` and `paths` reach [`AMBIENT_MIN_DEPTH`], by paths
+    /// otherwise. With `insert_nested` a miss at a bounce creates a record
+    /// one level deeper; without it the cache is only read (a fallback path
+    /// serves the miss), which keeps a placement batch deterministic.
+    pub fn for_record(
+        cache: &'a IrradianceCache,
+        shading: &'a CachedShading,
+        paths: PathLimits,
+        level: u32,
+        insert_nested: bool,
+    ) -> Self {
+        if level >= shading.options.ambient_bounces || paths.max_depth < AMBIENT_MIN_DEPTH {
+            return Gather::Paths;
+        }
+        Gather::Cache {
+            cache,
+            shading,
+            level,
+            on_miss: if insert_nested {
+                OnMiss::Insert
+            } else {
+                OnMiss::PathTrace
+            },
+        }
+    }
+}
+
+/// How one reflection at a surface point is shaded.
+#[derive(Clone, Copy)]
+struct Reflection<'a> {
+    cache: &'a IrradianceCache,
+    shading: &'a CachedShading,
+    /// Accuracy, occlusion test and path limits of lookups and records.
+    placement: &'a PlacementOptions,
+    light_samples: u32,
+    /// Level of a record created here (0 at a camera or viewer hit).
+    level: u32,
+    on_miss: OnMiss,
+    footprint: Option<PixelFootprint>,
+    /// Add indirect light (path lengths ≥ 2 from the point).
+    indirect: bool,
+    /// Glossy lobes by BMC; otherwise by one lobe-sampled path.
+    glossy_bmc: bool,
 }
 
 impl Transport {
@@ -356,35 +469,56 @@ impl Transport {
         let placement = options
             .placement(indirect_paths(max_depth), 0)
             .map_err(cache_to_render)?;
-        let scene = self.scene();
-        let mut radiance = emitted_radiance(scene, hit, -wo);
+        let radiance = emitted_radiance(self.scene(), hit, -wo);
         if max_depth == 0 {
             return Ok(radiance);
         }
+        let reflection = Reflection {
+            cache,
+            shading,
+            placement: &placement,
+            light_samples: options.light_samples,
+            level: 0,
+            on_miss,
+            footprint,
+            indirect: max_depth >= 2,
+            glossy_bmc: true,
+        };
+        Ok(radiance + self.reflected_radiance(hit, wo, &reflection, rng, stats)?)
+    }
+
+    /// Radiance reflected at `hit` towards `wo` (no emission): direct light,
+    /// and with `r.indirect` the diffuse and glossy indirect terms.
+    fn reflected_radiance<R: Rng + ?Sized>(
+        &self,
+        hit: &SurfaceHit,
+        wo: DVec3,
+        r: &Reflection,
+        rng: &mut R,
+        stats: &mut ShadingStats,
+    ) -> Result<Rgb, RenderError> {
         let Some(bsdf) = self.bsdf(hit.material) else {
-            return Ok(radiance);
+            return Ok(Rgb::BLACK);
         };
         let frame = Frame::from_normal(hit.shading_normal);
         let wo_local = frame.to_local(wo);
         if wo_local.z <= 0.0 || bsdf.is_black() {
-            return Ok(radiance);
+            return Ok(Rgb::BLACK);
         }
         let mut trace = TraceStats::default();
-        radiance += self.direct_radiance(
+        let mut radiance = self.direct_radiance(
             hit,
             &frame,
             bsdf,
             wo_local,
-            options.light_samples,
+            r.light_samples,
             rng,
             &mut trace,
         );
-        if max_depth >= 2 {
+        if r.indirect {
             let point = QueryPoint::new(hit.position, hit.shading_normal)?;
             if !bsdf.diffuse.is_black() {
-                let e = self.indirect_irradiance(
-                    &point, cache, shading, &placement, on_miss, footprint, rng, &mut trace, stats,
-                )?;
+                let e = self.indirect_irradiance(&point, r, rng, &mut trace, stats)?;
                 radiance += bsdf.diffuse * e * (1.0 / PI);
             }
             if !bsdf.specular.is_black() {
@@ -393,8 +527,9 @@ impl Transport {
                     &frame,
                     bsdf,
                     wo_local,
-                    shading,
-                    placement.paths,
+                    r.shading,
+                    r.placement.paths,
+                    r.glossy_bmc,
                     rng,
                     &mut trace,
                     stats,
@@ -404,6 +539,85 @@ impl Transport {
         }
         stats.rays += trace.rays;
         Ok(radiance)
+    }
+
+    /// Incident radiance along each local direction of a record at `point`
+    /// (see [`Gather`]); rays and nested records are counted in `stats`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn gather_samples<R: Rng + ?Sized>(
+        &self,
+        point: &QueryPoint,
+        frame: &Frame,
+        local_dirs: &[DVec3],
+        paths: PathLimits,
+        gather: Gather,
+        rng: &mut R,
+        stats: &mut ShadingStats,
+    ) -> Result<Vec<RadianceSample>, RenderError> {
+        let Gather::Cache {
+            cache,
+            shading,
+            level,
+            on_miss,
+        } = gather
+        else {
+            let mut trace = TraceStats::default();
+            let samples = self.hemisphere_samples(point, frame, local_dirs, paths, rng, &mut trace);
+            stats.rays += trace.rays;
+            return Ok(samples);
+        };
+        let relaxed = PlacementOptions {
+            accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * shading.options.accuracy).min(1.0))
+                .map_err(cache_to_render)?,
+            paths,
+            ..shading
+                .options
+                .placement(paths, 0)
+                .map_err(cache_to_render)?
+        };
+        let bounce = Reflection {
+            cache,
+            shading,
+            placement: &relaxed,
+            light_samples: std::env::var("BOUNCE_LS")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(1),
+            level: level + 1,
+            on_miss,
+            footprint: None,
+            indirect: true,
+            glossy_bmc: false,
+        };
+        let all = paths.lengths == PathLengths::All;
+        let scene = self.scene();
+        local_dirs
+            .iter()
+            .map(|local| {
+                let mut sample = RadianceSample {
+                    radiance: Rgb::BLACK,
+                    distance: f64::INFINITY,
+                };
+                if local.z.is_nan() || local.z <= 0.0 || !local.is_finite() {
+                    return Ok(sample);
+                }
+                let dir = frame.to_world(local.normalize());
+                let ray = scene.spawn_ray(point.position(), point.normal(), dir);
+                stats.rays += 1;
+                let Some(hit) = scene.intersect(&ray) else {
+                    if all {
+                        sample.radiance = environment_radiance(scene, dir);
+                    }
+                    return Ok(sample);
+                };
+                sample.distance = hit.t;
+                if all {
+                    sample.radiance = emitted_radiance(scene, &hit, dir);
+                }
+                sample.radiance += self.reflected_radiance(&hit, -dir, &bounce, rng, stats)?;
+                Ok(sample)
+            })
+            .collect()
     }
 
     /// `∫ f_r L_direct cos θ dω` by `n` light samples; the first `s²`
@@ -453,43 +667,44 @@ impl Transport {
     }
 
     /// Indirect irradiance at `point` from the cache (module docs, [`OnMiss`]).
-    #[allow(clippy::too_many_arguments)]
     fn indirect_irradiance<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
-        cache: &IrradianceCache,
-        shading: &CachedShading,
-        placement: &PlacementOptions,
-        on_miss: OnMiss,
-        footprint: Option<PixelFootprint>,
+        r: &Reflection,
         rng: &mut R,
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
     ) -> Result<Rgb, RenderError> {
+        let (cache, placement) = (r.cache, r.placement);
         if let Some(found) = lookup(cache, self, point, placement) {
             stats.cache_hits += 1;
             return Ok(found.irradiance);
         }
-        match on_miss {
+        match r.on_miss {
             OnMiss::Insert => {
                 stats.cache_misses += 1;
                 let target = PlacementPoint {
                     point: *point,
-                    footprint,
+                    footprint: r.footprint,
                 };
+                let gather = Gather::for_record(cache, r.shading, placement.paths, r.level, true);
                 let record = compute_record(
                     self,
-                    &shading.rule,
+                    &r.shading.rule,
                     &target,
                     cache.radius_limits(),
                     placement.paths,
                     placement.paths_per_direction,
+                    gather,
                     rng,
-                    trace,
+                    stats,
                 )
-                .and_then(|r| cache.insert(r))
+                .and_then(|record| cache.insert(record))
                 .map_err(cache_to_render)?;
                 stats.records_created += 1;
+                if r.level > 0 {
+                    stats.ambient_records += 1;
+                }
                 Ok(record.irradiance)
             }
             OnMiss::PathTrace => {
@@ -516,7 +731,7 @@ impl Transport {
 
     /// `∫ L_ind p dω` for the Phong density of `bsdf` at `wo_local`: BMC
     /// with the interpolated glossy rule, or one lobe-sampled path above
-    /// [`MAX_BMC_EXPONENT`].
+    /// [`MAX_BMC_EXPONENT`] or without `bmc`.
     #[allow(clippy::too_many_arguments)]
     fn glossy_indirect<R: Rng + ?Sized>(
         &self,
@@ -526,13 +741,14 @@ impl Transport {
         wo_local: DVec3,
         shading: &CachedShading,
         paths: PathLimits,
+        bmc: bool,
         rng: &mut R,
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
     ) -> Result<Rgb, RenderError> {
         let mirror = DVec3::new(-wo_local.x, -wo_local.y, wo_local.z);
         let m = bsdf.exponent;
-        if m > MAX_BMC_EXPONENT {
+        if !bmc || m > MAX_BMC_EXPONENT {
             stats.glossy_path_traced += 1;
             let lobe = Frame::from_normal(mirror);
             let wi = lobe.to_world(warp::power_cosine([rng.random(), rng.random()], m));
@@ -728,8 +944,8 @@ mod tests {
             .map(|_| {
                 transport
                     .glossy_indirect(
-                        &point, &frame, &bsdf, wo_local, &shading, paths, &mut rng, &mut trace,
-                        &mut stats,
+                        &point, &frame, &bsdf, wo_local, &shading, paths, true, &mut rng,
+                        &mut trace, &mut stats,
                     )
                     .unwrap()
             })

@@ -31,7 +31,9 @@ use rayon::prelude::*;
 use super::irradiance_cache::IrradianceCache;
 use super::placement::{PlacementPoint, PlacementReport, place_records};
 use super::record::PixelFootprint;
-use super::shading::{CachedShading, OnMiss, ShadingStats, cache_to_render, indirect_paths};
+use super::shading::{
+    CachedShading, Gather, OnMiss, ShadingStats, cache_to_render, indirect_paths,
+};
 use crate::render::lights::environment_radiance;
 use crate::render::tile::{
     CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
@@ -177,8 +179,13 @@ impl Transport {
                 .options
                 .placement(indirect_paths(depth), seed)
                 .map_err(cache_to_render)?;
-            report.placement = place_records(target, self, &shading.rule, &points, &options)
-                .map_err(cache_to_render)?;
+            // A private cache is only read at the bounces, so the batch stays
+            // deterministic (see `placement`).
+            let reproducible = shading.options.reproducible;
+            let gather = Gather::for_record(target, shading, options.paths, 0, !reproducible);
+            report.placement =
+                place_records(target, self, &shading.rule, &points, &options, gather)
+                    .map_err(cache_to_render)?;
         }
         let shader = CacheRayShader {
             transport: self,

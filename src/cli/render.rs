@@ -81,6 +81,10 @@ pub struct CacheArgs {
     /// Paths averaged per record direction.
     #[arg(long, default_value_t = 1)]
     pub paths_per_direction: u32,
+    /// Levels of records whose rays gather through the cache (ambient
+    /// bounces; 0 = records trace full paths).
+    #[arg(long, default_value_t = 2)]
+    pub ambient_bounces: u32,
     /// Light samples per camera ray (direct light).
     #[arg(long, default_value_t = 16)]
     pub light_samples: u32,
@@ -115,6 +119,7 @@ impl CacheArgs {
             reproducible: self.reproducible,
             light_samples: self.light_samples,
             paths_per_direction: self.paths_per_direction,
+            ambient_bounces: self.ambient_bounces,
             ..CacheShadingOptions::default()
         };
         let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));
@@ -206,6 +211,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                         let mut total = report.lock().unwrap_or_else(|e| e.into_inner());
                         total.placement_points += r.placement_points;
                         total.placement.records_created += r.placement.records_created;
+                        total.placement.ambient_records += r.placement.ambient_records;
                         total.placement.rays += r.placement.rays;
                         total.shading += r.shading;
                         total.records_published += r.records_published;
@@ -221,11 +227,13 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                 progress.suspend(|| {
                     writeln!(
                         out,
-                        "pass {pass}: {seconds:.2} s, {} rays; {} records created ({} placement rays), \
+                        "pass {pass}: {seconds:.2} s, {} rays; {} records created ({} at ambient \
+                         bounces; {} placement rays), \
                          {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
                          {} glossy BMC, {} glossy path-traced",
                         rendered.rays,
                         r.placement.records_created,
+                        r.placement.ambient_records,
                         r.placement.rays,
                         stats.records,
                         r.shading.cache_hits,
@@ -325,8 +333,8 @@ pub fn run_compare(args: &CompareArgs, out: &mut dyn Write) -> anyhow::Result<()
     let e = relative_rmse(&image, &reference, mask.as_deref())?;
     writeln!(
         out,
-        "relative RMSE {:.5} (R {:.5}, G {:.5}, B {:.5}) over {} pixels",
-        e.overall, e.per_channel[0], e.per_channel[1], e.per_channel[2], e.pixels
+        "relative RMSE {:.5} (R {:.5}, G {:.5}, B {:.5}) over {} pixels; mean ratio {:.5}",
+        e.overall, e.per_channel[0], e.per_channel[1], e.per_channel[2], e.pixels, e.mean_ratio
     )?;
     if let Some(expected) = e.expected_from_variance {
         writeln!(

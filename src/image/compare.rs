@@ -18,6 +18,9 @@ pub struct RelativeRmse {
     pub per_channel: [f64; 3],
     /// Pixels compared (those the mask selects).
     pub pixels: usize,
+    /// `Σ a / Σ b` over the compared pixels and channels: a bias shows as a
+    /// ratio away from 1 by more than the noise.
+    pub mean_ratio: f64,
     /// The overall figure expected from the image's own noise alone,
     /// `sqrt(mean(variance)) / mean(b)` from its variance channel (`None`
     /// without one). If the reference is noisy too, the expected overall
@@ -54,6 +57,7 @@ pub fn relative_rmse(
         ));
     }
     let (mut squared, mut sum, mut pixels) = ([0.0f64; 3], [0.0f64; 3], 0usize);
+    let mut image_sum = 0.0;
     let mut variance = 0.0;
     for (i, (a, b)) in image.rgb().iter().zip(reference.rgb()).enumerate() {
         if mask.is_some_and(|m| !m[i]) {
@@ -65,6 +69,7 @@ pub fn relative_rmse(
             let d = f64::from(a[c]) - f64::from(b[c]);
             squared[c] += d * d;
             sum[c] += f64::from(b[c]);
+            image_sum += f64::from(a[c]);
         }
     }
     let total: f64 = sum.iter().sum();
@@ -85,6 +90,7 @@ pub fn relative_rmse(
         overall,
         per_channel,
         pixels,
+        mean_ratio: image_sum / total,
         expected_from_variance,
     })
 }
@@ -107,6 +113,8 @@ mod tests {
         assert!((e.per_channel[0] - (0.25f64 / 2.0).sqrt() / 2.0).abs() < 1e-12);
         assert_eq!(e.per_channel[1], 0.0);
         assert_eq!(e.pixels, 2);
+        // Both sum to 12.
+        assert!((e.mean_ratio - 1.0).abs() < 1e-12);
         assert_eq!(e.expected_from_variance, None);
         let noisy = Image::from_parts(2, 1, a.rgb().to_vec(), Some(vec![0.25, 0.75])).expect("ok");
         let expected = relative_rmse(&noisy, &reference, None)

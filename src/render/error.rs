@@ -3,7 +3,7 @@
 
 use thiserror::Error;
 
-#[derive(Debug, Error, PartialEq)]
+#[derive(Debug, Clone, Error, PartialEq)]
 pub enum RenderError {
     /// A query point or normal that cannot be used (NaN, infinite, zero length).
     #[error("invalid query point: {field} {reason}")]
@@ -14,4 +14,16 @@ pub enum RenderError {
     /// A row of a points CSV file that is not `x,y,z,nx,ny,nz` (1-based line).
     #[error("points file line {line}: {reason}")]
     PointsRow { line: usize, reason: String },
+}
+
+impl RenderError {
+    /// Name of the offending field (`None` for a points-file row).
+    pub fn field(&self) -> Option<&'static str> {
+        match self {
+            RenderError::InvalidPoint { field, .. } | RenderError::InvalidOption { field, .. } => {
+                Some(field)
+            }
+            RenderError::PointsRow { .. } => None,
+        }
+    }
 }

@@ -62,6 +62,10 @@ pub struct TileEstimatorDoc {
     pub noise: Option<f64>,
     /// Paths traced per record direction and averaged; default 1.
     pub paths_per_direction: Option<u32>,
+    /// Levels of records whose rays gather through the cache (Radiance-style
+    /// ambient bounces: direct light plus cached indirect irradiance at each
+    /// ray's hit), 0..=8; 0 = records trace full paths. Default 2.
+    pub ambient_bounces: Option<u32>,
     /// Ward's accuracy a ∈ (0, 1]; smaller places more records. Default 0.5.
     pub accuracy: Option<f64>,
     /// Also place a record where the interpolated relative standard error
@@ -286,12 +290,14 @@ pub(crate) fn cached_setup(
         paths_per_direction: e
             .paths_per_direction
             .unwrap_or(defaults.paths_per_direction),
+        ambient_bounces: e.ambient_bounces.unwrap_or(defaults.ambient_bounces),
         ..defaults
     };
     // What the records' values depend on: their rule and the path depth.
     let configuration = serde_json::json!({
         "rule": spec,
         "paths_per_direction": options.paths_per_direction,
+        "ambient_bounces": options.ambient_bounces,
         "max_depth": max_depth,
         "glossy_bins": GLOSSY_BINS,
     });
