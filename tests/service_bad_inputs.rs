@@ -319,6 +319,13 @@ fn cases() -> Vec<Case> {
             "exposure",
         ),
         unprocessable(
+            "tile: too many ambient bounces",
+            Method::POST,
+            tiles,
+            tile(|t| t["estimator"] = json!({"method": "bmc", "ambient_bounces": 99})),
+            "estimator.ambient_bounces",
+        ),
+        unprocessable(
             "tile: unknown estimator",
             Method::POST,
             tiles,

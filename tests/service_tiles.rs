@@ -230,13 +230,25 @@ async fn reproducible_bmc_tiles_ignore_what_ran_before() {
 
 #[tokio::test]
 async fn eight_concurrent_clients_leave_a_consistent_cache() {
+    eight_concurrent_clients(json!({}), 3).await;
+}
+
+/// Records gathering through the shared cache create nested records while
+/// other requests read and extend it; they are counted all the same.
+#[tokio::test]
+async fn eight_concurrent_clients_with_ambient_bounces_leave_a_consistent_cache() {
+    eight_concurrent_clients(json!({"ambient_bounces": 2}), 16).await;
+}
+
+async fn eight_concurrent_clients(extra: Value, max_depth: u32) {
     let app = spawn_app_with_scenes(&[("box.json", &small_cornell(16))], |config| {
         config.server.worker_threads = 2;
     })
     .await;
     let mut clients = tokio::task::JoinSet::new();
     for i in 0..8u32 {
-        let body = bmc_tile((i % 4) * 4, (i / 4) * 8, 4, json!({}));
+        let mut body = bmc_tile((i % 4) * 4, (i / 4) * 8, 4, extra.clone());
+        body["max_depth"] = json!(max_depth);
         let (client, url) = (app.client.clone(), app.url("/v1/scenes/box/tiles"));
         clients.spawn(async move {
             let response = client.post(url).json(&body).send().await.unwrap();

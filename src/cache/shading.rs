@@ -139,7 +139,7 @@ impl Default for CacheShadingOptions {
             max_pixels: 200.0,
             batch_size: 16,
             paths_per_direction: 1,
-            ambient_bounces: 2,
+            ambient_bounces: 0,
         }
     }
 }
@@ -434,6 +434,8 @@ struct Reflection<'a> {
     /// Accuracy, occlusion test and path limits of lookups and records.
     placement: &'a PlacementOptions,
     light_samples: u32,
+    /// The first light sample's point on the unit square, if given (else random).
+    light_u: Option<[f64; 2]>,
     /// Level of a record created here (0 at a camera or viewer hit).
     level: u32,
     on_miss: OnMiss,
@@ -478,6 +480,7 @@ impl Transport {
             shading,
             placement: &placement,
             light_samples: options.light_samples,
+            light_u: None,
             level: 0,
             on_miss,
             footprint,
@@ -512,6 +515,7 @@ impl Transport {
             bsdf,
             wo_local,
             r.light_samples,
+            r.light_u,
             rng,
             &mut trace,
         );
@@ -579,10 +583,8 @@ impl Transport {
             cache,
             shading,
             placement: &relaxed,
-            light_samples: std::env::var("BOUNCE_LS")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(1),
+            light_samples: 1,
+            light_u: None,
             level: level + 1,
             on_miss,
             footprint: None,
@@ -591,9 +593,15 @@ impl Transport {
         };
         let all = paths.lengths == PathLengths::All;
         let scene = self.scene();
+        // The bounces' light samples: the 2D golden-ratio (R2) sequence under
+        // one random shift per record (Cranley–Patterson rotation), so each
+        // is uniform on its own and together they cover the light evenly.
+        const R2: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2];
+        let shift: [f64; 2] = [rng.random(), rng.random()];
         local_dirs
             .iter()
-            .map(|local| {
+            .enumerate()
+            .map(|(k, local)| {
                 let mut sample = RadianceSample {
                     radiance: Rgb::BLACK,
                     distance: f64::INFINITY,
@@ -614,6 +622,11 @@ impl Transport {
                 if all {
                     sample.radiance = emitted_radiance(scene, &hit, dir);
                 }
+                let u = [0, 1].map(|c| (shift[c] + k as f64 * R2[c]).fract());
+                let bounce = Reflection {
+                    light_u: Some(u),
+                    ..bounce
+                };
                 sample.radiance += self.reflected_radiance(&hit, -dir, &bounce, rng, stats)?;
                 Ok(sample)
             })
@@ -623,7 +636,9 @@ impl Transport {
     /// `∫ f_r L_direct cos θ dω` by `n` light samples; the first `s²`
     /// (`s = ⌊√n⌋`) have their area/direction numbers jittered on an `s × s`
     /// grid (stratification keeps penumbrae smooth), the rest are uniform, so
-    /// every sample is uniform on its own and the mean is unbiased.
+    /// every sample is uniform on its own and the mean is unbiased. `first`
+    /// replaces the first sample's numbers (a record's bounces spread theirs
+    /// over the square, see `gather_samples`).
     #[allow(clippy::too_many_arguments)]
     fn direct_radiance<R: Rng + ?Sized>(
         &self,
@@ -632,6 +647,7 @@ impl Transport {
         bsdf: &Bsdf,
         wo_local: DVec3,
         n: u32,
+        first: Option<[f64; 2]>,
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Rgb {
@@ -640,7 +656,9 @@ impl Transport {
         let mut sum = Rgb::BLACK;
         for k in 0..n {
             let (jx, jy): (f64, f64) = (rng.random(), rng.random());
-            let u = if k < side * side {
+            let u = if let (0, Some(u)) = (k, first) {
+                u
+            } else if k < side * side {
                 let (cx, cy) = (f64::from(k % side), f64::from(k / side));
                 [(cx + jx) / f64::from(side), (cy + jy) / f64::from(side)]
             } else {
@@ -847,6 +865,80 @@ mod tests {
             GlossyRule::new(spec, 1, quadratures).err().unwrap().field(),
             Some("glossy_bins")
         );
+    }
+
+    /// A record gathered through the cache (ambient bounces, nested records
+    /// created on demand) agrees with records gathered by paths, and every
+    /// nested record is counted and stored.
+    #[test]
+    fn records_gathered_through_the_cache_agree_with_path_traced_records() {
+        let transport = cornell(8);
+        let shading = CachedShading::new(
+            small_spec(),
+            4,
+            Arc::new(QuadratureCache::new(1 << 24)),
+            CacheShadingOptions {
+                ambient_bounces: 2,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let cache = IrradianceCache::new(Default::default()).unwrap();
+        let paths = indirect_paths(32);
+        // The back wall above the boxes.
+        let target = PlacementPoint {
+            point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
+            footprint: None,
+        };
+        let mut rng = Pcg64::seed_from_u64(21);
+        let mut record = |gather: Gather, stats: &mut ShadingStats| {
+            compute_record(
+                &transport,
+                &shading.rule,
+                &target,
+                cache.radius_limits(),
+                paths,
+                1,
+                gather,
+                &mut rng,
+                stats,
+            )
+            .unwrap()
+            .irradiance
+        };
+        let mut stats = ShadingStats::default();
+        let gathered = Gather::for_record(&cache, &shading, paths, 0, true);
+        assert!(matches!(gathered, Gather::Cache { level: 0, .. }));
+        let cached = crate::render::MeanEstimate::of((0..24).map(|_| record(gathered, &mut stats)));
+        assert!(
+            stats.records_created > 0 && stats.ambient_records > 0,
+            "{stats:?}"
+        );
+        assert_eq!(cache.stats().records, stats.records_created);
+        let traced = crate::render::MeanEstimate::of(
+            (0..24).map(|_| record(Gather::Paths, &mut ShadingStats::default())),
+        );
+        let (c, t) = (cached.mean.to_array(), traced.mean.to_array());
+        let (vc, vt) = (
+            cached.variance_of_mean.to_array(),
+            traced.variance_of_mean.to_array(),
+        );
+        for k in 0..3 {
+            let se = (vc[k] + vt[k]).sqrt();
+            assert!(
+                (c[k] - t[k]).abs() < 4.0 * se + 0.03 * t[k],
+                "channel {k}: cache {c:?} vs paths {t:?}"
+            );
+        }
+        // Short paths, or no ambient bounces, gather by paths.
+        assert!(matches!(
+            Gather::for_record(&cache, &shading, indirect_paths(4), 0, true),
+            Gather::Paths
+        ));
+        assert!(matches!(
+            Gather::for_record(&cache, &shading, paths, 2, true),
+            Gather::Paths
+        ));
     }
 
     #[test]

@@ -83,7 +83,7 @@ pub struct CacheArgs {
     pub paths_per_direction: u32,
     /// Levels of records whose rays gather through the cache (ambient
     /// bounces; 0 = records trace full paths).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 0)]
     pub ambient_bounces: u32,
     /// Light samples per camera ray (direct light).
     #[arg(long, default_value_t = 16)]
@@ -287,6 +287,11 @@ pub struct CompareArgs {
     /// an emitter, whose anti-aliasing noise would otherwise dominate.
     #[arg(long, default_value_t = 0)]
     pub exclude_margin: u32,
+    /// Also write a PNG of `|image − reference|` per channel relative to the
+    /// reference's mean over the compared pixels, white at 10 % (left-out
+    /// pixels black): where the error lives.
+    #[arg(long)]
+    pub diff: Option<PathBuf>,
 }
 
 /// `keep` (row-major, `width` wide) without the pixels within `margin`
@@ -331,6 +336,23 @@ pub fn run_compare(args: &CompareArgs, out: &mut dyn Write) -> anyhow::Result<()
         )
     });
     let e = relative_rmse(&image, &reference, mask.as_deref())?;
+    if let Some(path) = &args.diff {
+        let mean = e.reference_mean as f32;
+        let rgb = (image.rgb().iter().zip(reference.rgb()).enumerate())
+            .map(|(i, (a, b))| {
+                let keep = mask.as_ref().is_none_or(|m| m[i]);
+                [0, 1, 2].map(|c| {
+                    if keep {
+                        (a[c] - b[c]).abs() / (0.1 * mean)
+                    } else {
+                        0.0
+                    }
+                })
+            })
+            .collect();
+        let diff = crate::image::Image::from_parts(image.width(), image.height(), rgb, None)?;
+        write_png(&diff, ToneMap::default(), path)?;
+    }
     writeln!(
         out,
         "relative RMSE {:.5} (R {:.5}, G {:.5}, B {:.5}) over {} pixels; mean ratio {:.5}",

@@ -18,6 +18,8 @@ pub struct RelativeRmse {
     pub per_channel: [f64; 3],
     /// Pixels compared (those the mask selects).
     pub pixels: usize,
+    /// The reference's mean over those pixels and the three channels.
+    pub reference_mean: f64,
     /// `Σ a / Σ b` over the compared pixels and channels: a bias shows as a
     /// ratio away from 1 by more than the noise.
     pub mean_ratio: f64,
@@ -90,6 +92,7 @@ pub fn relative_rmse(
         overall,
         per_channel,
         pixels,
+        reference_mean: mean,
         mean_ratio: image_sum / total,
         expected_from_variance,
     })

@@ -64,7 +64,7 @@ pub struct TileEstimatorDoc {
     pub paths_per_direction: Option<u32>,
     /// Levels of records whose rays gather through the cache (Radiance-style
     /// ambient bounces: direct light plus cached indirect irradiance at each
-    /// ray's hit), 0..=8; 0 = records trace full paths. Default 2.
+    /// ray's hit), 0..=8; 0 = records trace full paths. Default 0.
     pub ambient_bounces: Option<u32>,
     /// Ward's accuracy a ∈ (0, 1]; smaller places more records. Default 0.5.
     pub accuracy: Option<f64>,
