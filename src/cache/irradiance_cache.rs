@@ -13,11 +13,11 @@
 //! cells as records).
 //!
 //! # Concurrency
-//! Lookups touch only the index's shard read locks and atomic counters.
-//! Insertions, evictions and `clear` serialise on one mutex (the FIFO and
-//! the record/byte counters), inside which they take one shard write lock at
-//! a time; so `records = inserts − evictions − cleared` holds whenever the
-//! stats are read.
+//! Lookups take no lock: they read the index's published shard snapshots
+//! and bump atomic counters. Insertions, evictions and `clear` serialise on
+//! one mutex (the FIFO and the record/byte counters), inside which the index
+//! publishes one changed shard at a time; so
+//! `records = inserts − evictions − cleared` holds whenever the stats are read.
 
 use std::collections::VecDeque;
 use std::sync::Mutex;

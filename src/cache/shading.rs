@@ -434,8 +434,6 @@ struct Reflection<'a> {
     /// Accuracy, occlusion test and path limits of lookups and records.
     placement: &'a PlacementOptions,
     light_samples: u32,
-    /// The first light sample's point on the unit square, if given (else random).
-    light_u: Option<[f64; 2]>,
     /// Level of a record created here (0 at a camera or viewer hit).
     level: u32,
     on_miss: OnMiss,
@@ -480,7 +478,6 @@ impl Transport {
             shading,
             placement: &placement,
             light_samples: options.light_samples,
-            light_u: None,
             level: 0,
             on_miss,
             footprint,
@@ -515,7 +512,6 @@ impl Transport {
             bsdf,
             wo_local,
             r.light_samples,
-            r.light_u,
             rng,
             &mut trace,
         );
@@ -573,7 +569,6 @@ impl Transport {
         let relaxed = PlacementOptions {
             accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * shading.options.accuracy).min(1.0))
                 .map_err(cache_to_render)?,
-            paths,
             ..shading
                 .options
                 .placement(paths, 0)
@@ -584,7 +579,6 @@ impl Transport {
             shading,
             placement: &relaxed,
             light_samples: 1,
-            light_u: None,
             level: level + 1,
             on_miss,
             footprint: None,
@@ -593,15 +587,9 @@ impl Transport {
         };
         let all = paths.lengths == PathLengths::All;
         let scene = self.scene();
-        // The bounces' light samples: the 2D golden-ratio (R2) sequence under
-        // one random shift per record (Cranley–Patterson rotation), so each
-        // is uniform on its own and together they cover the light evenly.
-        const R2: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2];
-        let shift: [f64; 2] = [rng.random(), rng.random()];
         local_dirs
             .iter()
-            .enumerate()
-            .map(|(k, local)| {
+            .map(|local| {
                 let mut sample = RadianceSample {
                     radiance: Rgb::BLACK,
                     distance: f64::INFINITY,
@@ -622,11 +610,6 @@ impl Transport {
                 if all {
                     sample.radiance = emitted_radiance(scene, &hit, dir);
                 }
-                let u = [0, 1].map(|c| (shift[c] + k as f64 * R2[c]).fract());
-                let bounce = Reflection {
-                    light_u: Some(u),
-                    ..bounce
-                };
                 sample.radiance += self.reflected_radiance(&hit, -dir, &bounce, rng, stats)?;
                 Ok(sample)
             })
@@ -636,9 +619,7 @@ impl Transport {
     /// `∫ f_r L_direct cos θ dω` by `n` light samples; the first `s²`
     /// (`s = ⌊√n⌋`) have their area/direction numbers jittered on an `s × s`
     /// grid (stratification keeps penumbrae smooth), the rest are uniform, so
-    /// every sample is uniform on its own and the mean is unbiased. `first`
-    /// replaces the first sample's numbers (a record's bounces spread theirs
-    /// over the square, see `gather_samples`).
+    /// every sample is uniform on its own and the mean is unbiased.
     #[allow(clippy::too_many_arguments)]
     fn direct_radiance<R: Rng + ?Sized>(
         &self,
@@ -647,7 +628,6 @@ impl Transport {
         bsdf: &Bsdf,
         wo_local: DVec3,
         n: u32,
-        first: Option<[f64; 2]>,
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Rgb {
@@ -656,9 +636,7 @@ impl Transport {
         let mut sum = Rgb::BLACK;
         for k in 0..n {
             let (jx, jy): (f64, f64) = (rng.random(), rng.random());
-            let u = if let (0, Some(u)) = (k, first) {
-                u
-            } else if k < side * side {
+            let u = if k < side * side {
                 let (cx, cy) = (f64::from(k % side), f64::from(k / side));
                 [(cx + jx) / f64::from(side), (cy + jy) / f64::from(side)]
             } else {
