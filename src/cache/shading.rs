@@ -788,6 +788,12 @@ mod tests {
     use rand::SeedableRng;
     use rand_pcg::Pcg64;
 
+    /// Rules for `spec` with 4 glossy nodes and a private quadrature cache.
+    fn test_shading(spec: RecordRuleSpec, options: CacheShadingOptions) -> CachedShading {
+        let quadratures = Arc::new(QuadratureCache::new(1 << 24));
+        CachedShading::new(spec, 4, quadratures, options).unwrap()
+    }
+
     fn small_spec() -> RecordRuleSpec {
         let mut spec = default_rule_spec();
         spec.samples.count = 16;
@@ -851,16 +857,13 @@ mod tests {
     #[test]
     fn records_gathered_through_the_cache_agree_with_path_traced_records() {
         let transport = cornell(8);
-        let shading = CachedShading::new(
+        let shading = test_shading(
             small_spec(),
-            4,
-            Arc::new(QuadratureCache::new(1 << 24)),
             CacheShadingOptions {
                 ambient_bounces: 2,
                 ..Default::default()
             },
-        )
-        .unwrap();
+        );
         let cache = IrradianceCache::new(Default::default()).unwrap();
         let paths = indirect_paths(32);
         // The back wall above the boxes.
@@ -922,13 +925,7 @@ mod tests {
     #[test]
     fn radiance_queries_insert_records_on_a_miss_and_reuse_them() {
         let transport = cornell(8);
-        let shading = CachedShading::new(
-            small_spec(),
-            4,
-            Arc::new(QuadratureCache::new(1 << 24)),
-            CacheShadingOptions::default(),
-        )
-        .unwrap();
+        let shading = test_shading(small_spec(), CacheShadingOptions::default());
         let cache = IrradianceCache::new(Default::default()).unwrap();
         // The floor's centre seen from above.
         let ray = Ray {
@@ -1001,13 +998,7 @@ mod tests {
         let wo_local = frame.to_local(DVec3::new(1.0, 1.0, 0.0).normalize());
         let point = QueryPoint::new(hit.position, hit.shading_normal).unwrap();
         let paths = indirect_paths(4);
-        let shading = CachedShading::new(
-            default_rule_spec(),
-            4,
-            Arc::new(QuadratureCache::new(1 << 24)),
-            CacheShadingOptions::default(),
-        )
-        .unwrap();
+        let shading = test_shading(default_rule_spec(), CacheShadingOptions::default());
         let mut rng = Pcg64::seed_from_u64(5);
         let (mut trace, mut stats) = (TraceStats::default(), ShadingStats::default());
         let bmc: Rgb = (0..16)
