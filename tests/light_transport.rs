@@ -422,3 +422,120 @@ fn results_do_not_depend_on_the_thread_count() {
     let reseeded = estimate(&t, &points, IrradianceOptions { seed: 8, ..o });
     assert_ne!(reseeded, one);
 }
+
+/// Paths that share their first segment (`incident_radiance_averaged`, used
+/// by irradiance-cache records) estimate the same radiance as independent
+/// paths, with fewer rays: in the closed emitting box (every path carries
+/// `L_e Σ_{k<D} ρ^k` there in expectation), and under a light over a floor,
+/// where the one-bounce term dominates and the stratified light samples at
+/// the shared hit lower the spread.
+#[test]
+fn paths_sharing_a_first_segment_are_unbiased_and_cheaper() {
+    fn mean_and_error(values: &[f64]) -> (f64, f64) {
+        let n = values.len() as f64;
+        let m = values.iter().sum::<f64>() / n;
+        let v = values.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+        (m, (v / n).sqrt())
+    }
+    let le = Rgb::new(1.0, 0.5, 0.25);
+    let rho = Rgb::new(0.5, 0.25, 0.75);
+    let shapes = box_walls(6, |_| "wall", |_| Some(le.to_array()));
+    let materials = r#"[{"id": "wall", "type": "diffuse", "reflectance": [0.5, 0.25, 0.75]}]"#;
+    let t = load(&scene_json(materials, &shapes, None), Path::new("."));
+    let dir = DVec3::new(0.3, 0.2, 0.9).normalize();
+    let from = t
+        .scene()
+        .spawn_ray(DVec3::new(0.1, 0.2, -1.0), DVec3::Z, dir);
+    for depth in [1, 2, 3, 6] {
+        let expected =
+            le * (Rgb::WHITE - rho.map(|r| r.powi(depth as i32))) * rho.map(|r| 1.0 / (1.0 - r));
+        let limits = PathLimits {
+            max_depth: depth,
+            lengths: PathLengths::All,
+        };
+        let mut rng = point_rng(3, u64::from(depth));
+        let (mut shared, mut single) = (TraceStats::default(), TraceStats::default());
+        let values: Vec<Rgb> = (0..2000)
+            .map(|_| {
+                (0..4).for_each(|_| {
+                    t.incident_radiance(from, limits, &mut rng, &mut single);
+                });
+                t.incident_radiance_averaged(from, limits, 4, &mut rng, &mut shared)
+                    .radiance
+            })
+            .collect();
+        for c in 0..3 {
+            let channel: Vec<f64> = values.iter().map(|v| v.to_array()[c]).collect();
+            let (m, e) = mean_and_error(&channel);
+            let want = expected.to_array()[c];
+            assert!(
+                (m - want).abs() <= 4.0 * e + 1e-9 * want,
+                "depth {depth} channel {c}: {m} ± {e} vs {want}"
+            );
+        }
+        if depth == 1 {
+            assert_eq!(shared.rays * 4, single.rays, "only the first segment");
+        } else {
+            assert!(
+                shared.rays < single.rays,
+                "depth {depth}: {} rays shared vs {} single",
+                shared.rays,
+                single.rays
+            );
+        }
+    }
+
+    let light = rectangle(
+        DVec3::new(0.0, 0.0, 1.0),
+        -DVec3::Z,
+        DVec3::X,
+        (0.3, 0.3),
+        "grey",
+        Some([5.0, 5.0, 5.0]),
+    );
+    let floor = rectangle(DVec3::ZERO, DVec3::Z, DVec3::X, (2.0, 2.0), "grey", None);
+    let materials = r#"[{"id": "grey", "type": "diffuse", "reflectance": [0.6, 0.6, 0.6]}]"#;
+    let t = load(
+        &scene_json(materials, &[light, floor], None),
+        Path::new("."),
+    );
+    let limits = PathLimits {
+        max_depth: 8,
+        lengths: PathLengths::Indirect,
+    };
+    let dir = DVec3::new(0.2, -0.1, -1.0).normalize();
+    let ray = t
+        .scene()
+        .spawn_ray(DVec3::new(0.2, 0.1, 0.5), DVec3::Z, dir);
+    let mut rng = point_rng(5, 0);
+    let mut stats = TraceStats::default();
+    let shared: Vec<f64> = (0..4000)
+        .map(|_| {
+            t.incident_radiance_averaged(ray, limits, 8, &mut rng, &mut stats)
+                .radiance
+                .g
+        })
+        .collect();
+    let single: Vec<f64> = (0..4000)
+        .map(|_| {
+            (0..8)
+                .map(|_| {
+                    t.incident_radiance(ray, limits, &mut rng, &mut stats)
+                        .radiance
+                        .g
+                })
+                .sum::<f64>()
+                / 8.0
+        })
+        .collect();
+    let ((ms, es), (mi, ei)) = (mean_and_error(&shared), mean_and_error(&single));
+    assert!(ms > 0.0 && mi > 0.0);
+    assert!(
+        (ms - mi).abs() < 4.0 * (es * es + ei * ei).sqrt(),
+        "shared {ms} ± {es} vs single {mi} ± {ei}"
+    );
+    assert!(
+        es < ei,
+        "stratified light samples at the shared hit: {es} should be below {ei}"
+    );
+}

@@ -108,20 +108,16 @@ pub fn compute_record<R: Rng + ?Sized>(
 ) -> Result<Record, CacheError> {
     let point = &target.point;
     let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
-    let dirs = rule.directions();
-    let mut samples = transport.gather_samples(point, &frame, dirs, paths, gather, rng, stats)?;
-    if paths_per_direction > 1 {
-        for _ in 1..paths_per_direction {
-            let more = transport.gather_samples(point, &frame, dirs, paths, gather, rng, stats)?;
-            for (s, m) in samples.iter_mut().zip(more) {
-                s.radiance += m.radiance;
-            }
-        }
-        let scale = 1.0 / f64::from(paths_per_direction);
-        for s in &mut samples {
-            s.radiance *= scale;
-        }
-    }
+    let samples = transport.gather_samples(
+        point,
+        &frame,
+        rule.directions(),
+        paths,
+        paths_per_direction,
+        gather,
+        rng,
+        stats,
+    )?;
     let estimate = rule.estimate(&samples)?;
     let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
     let limits = match &target.footprint {

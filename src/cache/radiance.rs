@@ -145,6 +145,8 @@ pub fn radiance_at_points(
                         shading,
                         max_depth - 1,
                         OnMiss::Insert,
+                        // Independent repeats, so their spread is the
+                        // standard error (no pattern shared between them).
                         None,
                         &mut rng,
                         &mut stats,

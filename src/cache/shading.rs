@@ -62,9 +62,10 @@ use super::record_rule::{RecordRule, RecordRuleSpec};
 use crate::bmc::cache::QuadratureCache;
 use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use crate::render::lights::{emitted_radiance, environment_radiance};
+use crate::render::strata::{GridStrata, SharedStrata};
 use crate::render::{
-    Bsdf, PathLengths, PathLimits, QueryPoint, RadianceSample, RenderError, Rgb, TraceStats,
-    Transport, warp,
+    Bsdf, PathLengths, PathLimits, PixelSample, QueryPoint, RadianceSample, RenderError, Rgb,
+    TraceStats, Transport, warp,
 };
 use crate::scene::SurfaceHit;
 use crate::sphere::{Frame, SampleSetKind, SampleSetSpec};
@@ -437,7 +438,9 @@ struct Reflection<'a> {
     /// Level of a record created here (0 at a camera or viewer hit).
     level: u32,
     on_miss: OnMiss,
-    footprint: Option<PixelFootprint>,
+    /// The camera ray (or repeat) this shading is one of: its light samples
+    /// then take their share of one pattern over all of them.
+    sample: Option<PixelSample>,
     /// Add indirect light (path lengths ≥ 2 from the point).
     indirect: bool,
     /// Glossy lobes by BMC; otherwise by one lobe-sampled path.
@@ -451,7 +454,11 @@ impl Transport {
     /// point (0 = its emission only, 1 = plus direct light, ≥ 2 adds indirect
     /// light of lengths `2..=max_depth`);
     /// the records in `cache` must have been made for the same depth.
-    /// `footprint` bounds the radius of a record created here.
+    /// With `sample`, this is ray `index` of `count` estimating one value
+    /// (a pixel's camera rays, a query's repeats) and its light samples are
+    /// numbers `index·n ..< (index + 1)·n` of one [`SharedStrata`] pattern
+    /// of `count·n` samples seeded by `sample.pattern`; otherwise they are
+    /// stratified among themselves only.
     #[allow(clippy::too_many_arguments)]
     pub fn outgoing_radiance<R: Rng + ?Sized>(
         &self,
@@ -461,7 +468,7 @@ impl Transport {
         shading: &CachedShading,
         max_depth: u32,
         on_miss: OnMiss,
-        footprint: Option<PixelFootprint>,
+        sample: Option<PixelSample>,
         rng: &mut R,
         stats: &mut ShadingStats,
     ) -> Result<Rgb, RenderError> {
@@ -480,7 +487,7 @@ impl Transport {
             light_samples: options.light_samples,
             level: 0,
             on_miss,
-            footprint,
+            sample,
             indirect: max_depth >= 2,
             glossy_bmc: true,
         };
@@ -512,6 +519,7 @@ impl Transport {
             bsdf,
             wo_local,
             r.light_samples,
+            r.sample,
             rng,
             &mut trace,
         );
@@ -542,7 +550,9 @@ impl Transport {
     }
 
     /// Incident radiance along each local direction of a record at `point`
-    /// (see [`Gather`]); rays and nested records are counted in `stats`.
+    /// (see [`Gather`]), each the mean of `per_direction ≥ 1` estimates (by
+    /// paths, those share their first segment); rays and nested records are
+    /// counted in `stats`.
     #[allow(clippy::too_many_arguments)]
     pub fn gather_samples<R: Rng + ?Sized>(
         &self,
@@ -550,6 +560,7 @@ impl Transport {
         frame: &Frame,
         local_dirs: &[DVec3],
         paths: PathLimits,
+        per_direction: u32,
         gather: Gather,
         rng: &mut R,
         stats: &mut ShadingStats,
@@ -562,10 +573,52 @@ impl Transport {
         } = gather
         else {
             let mut trace = TraceStats::default();
-            let samples = self.hemisphere_samples(point, frame, local_dirs, paths, rng, &mut trace);
+            let samples = self.hemisphere_samples_averaged(
+                point,
+                frame,
+                local_dirs,
+                paths,
+                per_direction,
+                rng,
+                &mut trace,
+            );
             stats.rays += trace.rays;
             return Ok(samples);
         };
+        let per_direction = per_direction.max(1);
+        let mut samples = self.gather_through_cache(
+            point, frame, local_dirs, paths, cache, shading, level, on_miss, rng, stats,
+        )?;
+        for _ in 1..per_direction {
+            let more = self.gather_through_cache(
+                point, frame, local_dirs, paths, cache, shading, level, on_miss, rng, stats,
+            )?;
+            for (s, m) in samples.iter_mut().zip(more) {
+                s.radiance += m.radiance;
+            }
+        }
+        let scale = 1.0 / f64::from(per_direction);
+        for s in &mut samples {
+            s.radiance *= scale;
+        }
+        Ok(samples)
+    }
+
+    /// One estimate per direction by an ambient bounce ([`Gather::Cache`]).
+    #[allow(clippy::too_many_arguments)]
+    fn gather_through_cache<R: Rng + ?Sized>(
+        &self,
+        point: &QueryPoint,
+        frame: &Frame,
+        local_dirs: &[DVec3],
+        paths: PathLimits,
+        cache: &IrradianceCache,
+        shading: &CachedShading,
+        level: u32,
+        on_miss: OnMiss,
+        rng: &mut R,
+        stats: &mut ShadingStats,
+    ) -> Result<Vec<RadianceSample>, RenderError> {
         let relaxed = PlacementOptions {
             accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * shading.options.accuracy).min(1.0))
                 .map_err(cache_to_render)?,
@@ -581,7 +634,7 @@ impl Transport {
             light_samples: 1,
             level: level + 1,
             on_miss,
-            footprint: None,
+            sample: None,
             indirect: true,
             glossy_bmc: false,
         };
@@ -616,10 +669,11 @@ impl Transport {
             .collect()
     }
 
-    /// `∫ f_r L_direct cos θ dω` by `n` light samples; the first `s²`
-    /// (`s = ⌊√n⌋`) have their area/direction numbers jittered on an `s × s`
-    /// grid (stratification keeps penumbrae smooth), the rest are uniform, so
-    /// every sample is uniform on its own and the mean is unbiased.
+    /// `∫ f_r L_direct cos θ dω` by `n` light samples whose area/direction
+    /// numbers are stratified: on the shared pattern of `sample` (see
+    /// [`Transport::outgoing_radiance`]), else on a near-square grid of `n`
+    /// cells. Either way every sample is uniform on its own, so the mean is
+    /// unbiased; stratification keeps penumbrae smooth.
     #[allow(clippy::too_many_arguments)]
     fn direct_radiance<R: Rng + ?Sized>(
         &self,
@@ -628,19 +682,25 @@ impl Transport {
         bsdf: &Bsdf,
         wo_local: DVec3,
         n: u32,
+        sample: Option<PixelSample>,
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Rgb {
         let scene = self.scene();
-        let side = f64::from(n).sqrt().floor() as u32;
+        let shared = sample.map(|p| {
+            let count = u64::from(p.count) * u64::from(n);
+            (
+                SharedStrata::new(count, p.pattern),
+                u64::from(p.index) * u64::from(n),
+            )
+        });
+        let own = GridStrata::new(n);
         let mut sum = Rgb::BLACK;
         for k in 0..n {
-            let (jx, jy): (f64, f64) = (rng.random(), rng.random());
-            let u = if k < side * side {
-                let (cx, cy) = (f64::from(k % side), f64::from(k / side));
-                [(cx + jx) / f64::from(side), (cy + jy) / f64::from(side)]
-            } else {
-                [jx, jy]
+            let jitter = [rng.random(), rng.random()];
+            let u = match &shared {
+                Some((strata, first)) => strata.sample(first + u64::from(k), jitter),
+                None => own.sample(k, jitter),
             };
             let Some(light) = self.lights().sample(scene, hit.position, rng.random(), u) else {
                 continue;
@@ -681,7 +741,7 @@ impl Transport {
                 stats.cache_misses += 1;
                 let target = PlacementPoint {
                     point: *point,
-                    footprint: r.footprint,
+                    footprint: None,
                 };
                 let gather = Gather::for_record(cache, r.shading, placement.paths, r.level, true);
                 let record = compute_record(

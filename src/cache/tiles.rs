@@ -38,7 +38,7 @@ use crate::render::lights::environment_radiance;
 use crate::render::tile::{
     CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
 };
-use crate::render::{QueryPoint, RenderError, Rgb, TraceStats, Transport};
+use crate::render::{PixelSample, QueryPoint, RenderError, Rgb, TraceStats, Transport};
 use crate::scene::Ray;
 
 /// What a cached tile request did.
@@ -67,7 +67,13 @@ struct CacheRayShader<'a> {
 }
 
 impl CameraRayShader for CacheRayShader<'_> {
-    fn radiance(&self, ray: Ray, rng: &mut Pcg64, stats: &mut TraceStats) -> Rgb {
+    fn radiance(
+        &self,
+        ray: Ray,
+        sample: PixelSample,
+        rng: &mut Pcg64,
+        stats: &mut TraceStats,
+    ) -> Rgb {
         let scene = self.transport.scene();
         stats.rays += 1;
         let Some(hit) = scene.intersect(&ray) else {
@@ -81,7 +87,7 @@ impl CameraRayShader for CacheRayShader<'_> {
             self.shading,
             self.depth,
             OnMiss::PathTrace,
-            None,
+            Some(sample),
             rng,
             &mut local,
         );

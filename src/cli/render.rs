@@ -88,6 +88,12 @@ pub struct CacheArgs {
     /// Light samples per camera ray (direct light).
     #[arg(long, default_value_t = 16)]
     pub light_samples: u32,
+    /// Smallest record radius, in pixel footprints at the record.
+    #[arg(long, default_value_t = CacheShadingOptions::default().min_pixels)]
+    pub min_pixels: f64,
+    /// Largest record radius, in pixel footprints at the record.
+    #[arg(long, default_value_t = CacheShadingOptions::default().max_pixels)]
+    pub max_pixels: f64,
     /// Mirror-angle nodes of the glossy BMC rule.
     #[arg(long, default_value_t = 16)]
     pub glossy_bins: usize,
@@ -120,6 +126,8 @@ impl CacheArgs {
             light_samples: self.light_samples,
             paths_per_direction: self.paths_per_direction,
             ambient_bounces: self.ambient_bounces,
+            min_pixels: self.min_pixels,
+            max_pixels: self.max_pixels,
             ..CacheShadingOptions::default()
         };
         let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));

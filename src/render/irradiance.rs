@@ -177,6 +177,23 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Vec<RadianceSample> {
+        self.hemisphere_samples_averaged(point, frame, local_dirs, limits, 1, rng, stats)
+    }
+
+    /// [`Self::hemisphere_samples`] with each direction's radiance the mean
+    /// of `paths` paths sharing their first segment
+    /// ([`Self::incident_radiance_averaged`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn hemisphere_samples_averaged<R: Rng + ?Sized>(
+        &self,
+        point: &QueryPoint,
+        frame: &Frame,
+        local_dirs: &[DVec3],
+        limits: PathLimits,
+        paths: u32,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> Vec<RadianceSample> {
         local_dirs
             .iter()
             .map(|local| {
@@ -190,7 +207,7 @@ impl Transport {
                 let ray = self
                     .scene()
                     .spawn_ray(point.position(), point.normal(), dir);
-                self.incident_radiance(ray, limits, rng, stats)
+                self.incident_radiance_averaged(ray, limits, paths, rng, stats)
             })
             .collect()
     }

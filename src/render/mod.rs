@@ -27,6 +27,7 @@ pub mod polygon;
 pub mod query;
 pub mod rgb;
 pub mod seed;
+pub mod strata;
 pub mod tile;
 pub mod transport;
 pub mod warp;
@@ -38,5 +39,5 @@ pub use irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions, Me
 pub use path::{PathLengths, PathLimits, RadianceSample, TraceStats};
 pub use query::QueryPoint;
 pub use rgb::Rgb;
-pub use tile::{CameraRayShader, RenderedTile, ShadingMethod, TileRequest};
+pub use tile::{CameraRayShader, PixelSample, RenderedTile, ShadingMethod, TileRequest};
 pub use transport::Transport;

@@ -20,8 +20,9 @@ use rand::{Rng, RngExt};
 
 use super::lights::{emitted_radiance, environment_radiance};
 use super::rgb::Rgb;
+use super::strata::GridStrata;
 use super::transport::Transport;
-use crate::scene::Ray;
+use crate::scene::{Ray, SurfaceHit};
 use crate::sphere::Frame;
 
 /// Russian roulette starts once a path has this many segments: the first
@@ -78,41 +79,76 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> RadianceSample {
+        self.incident_radiance_averaged(ray, limits, 1, rng, stats)
+    }
+
+    /// The mean of `paths ≥ 1` path estimates of [`Self::incident_radiance`]
+    /// that share their first segment: the ray is traced once and `paths`
+    /// independent continuations leave its hit. Every continuation is an
+    /// unbiased path sample, so the mean is unbiased; it saves `paths − 1`
+    /// closest-hit rays, and the continuations' light samples at the first
+    /// hit are stratified over the light's unit square (stratum `j` of a
+    /// near-square `s_x × s_y = paths` grid), which lowers the variance of
+    /// the one-bounce term that dominates indirect light.
+    pub fn incident_radiance_averaged<R: Rng + ?Sized>(
+        &self,
+        ray: Ray,
+        limits: PathLimits,
+        paths: u32,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> RadianceSample {
         let scene = self.scene();
-        let PathLimits { max_depth, lengths } = limits;
+        let mut sample = RadianceSample {
+            radiance: Rgb::BLACK,
+            distance: f64::INFINITY,
+        };
+        if limits.max_depth == 0 {
+            return sample;
+        }
+        // The first segment's direction came from the caller, so emission
+        // found by it is taken at full weight.
+        let direct = limits.lengths == PathLengths::All;
+        stats.rays += 1;
+        let Some(hit) = scene.intersect(&ray) else {
+            if direct {
+                sample.radiance = environment_radiance(scene, ray.dir);
+            }
+            return sample;
+        };
+        sample.distance = hit.t;
+        if direct {
+            sample.radiance = emitted_radiance(scene, &hit, ray.dir);
+        }
+        let paths = paths.max(1);
+        let strata = GridStrata::new(paths);
+        let mut sum = Rgb::BLACK;
+        for j in 0..paths {
+            sum += self.continue_path(hit, ray.dir, limits.max_depth, &strata, j, rng, stats);
+        }
+        sample.radiance += sum * (1.0 / f64::from(paths));
+        sample
+    }
+
+    /// Radiance of path lengths `2..=max_depth` arriving along `dir` from
+    /// the first hit `hit` (its emission excluded): NEE at every vertex,
+    /// the first one's light sample drawn within cell `stratum` of `strata`.
+    fn continue_path<R: Rng + ?Sized>(
+        &self,
+        hit: SurfaceHit,
+        dir: DVec3,
+        max_depth: u32,
+        strata: &GridStrata,
+        stratum: u32,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> Rgb {
+        let scene = self.scene();
         let mut radiance = Rgb::BLACK;
-        let mut distance = f64::INFINITY;
         let mut beta = Rgb::WHITE;
-        let mut ray = ray;
-        // Previous vertex and the BSDF density that chose the current ray;
-        // `None` on the first segment, whose direction came from the caller.
-        let mut previous: Option<(DVec3, f64)> = None;
-        for depth in 1..=max_depth {
-            let counts = depth > 1 || lengths == PathLengths::All;
-            stats.rays += 1;
-            let Some(hit) = scene.intersect(&ray) else {
-                let le = environment_radiance(scene, ray.dir);
-                if counts && !le.is_black() {
-                    let weight = previous.map_or(1.0, |(_, pdf)| {
-                        power_heuristic(pdf, self.lights().pdf_environment(scene, ray.dir))
-                    });
-                    radiance += beta * le * weight;
-                }
-                break;
-            };
-            if depth == 1 {
-                distance = hit.t;
-            }
-            let le = emitted_radiance(scene, &hit, ray.dir);
-            if counts && !le.is_black() {
-                let weight = previous.map_or(1.0, |(origin, pdf)| {
-                    power_heuristic(pdf, self.lights().pdf_area_hit(scene, origin, &hit))
-                });
-                radiance += beta * le * weight;
-            }
-            if depth == max_depth {
-                break;
-            }
+        let (mut hit, mut dir) = (hit, dir);
+        // `hit` was reached by segment `depth`.
+        for depth in 1..max_depth {
             let Some(bsdf) = self.bsdf(hit.material) else {
                 break;
             };
@@ -120,19 +156,19 @@ impl Transport {
             // normals where present), as in Mitsuba 3; rays still leave
             // from the geometric surface.
             let frame = Frame::from_normal(hit.shading_normal);
-            let wo = frame.to_local(-ray.dir);
+            let wo = frame.to_local(-dir);
             if wo.z <= 0.0 || bsdf.is_black() {
                 // Back faces are black (one-sided BSDFs, as in Mitsuba 3).
                 break;
             }
 
             // Next-event estimation: a path of length depth + 1 ending on a light.
-            if let Some(light) = self.lights().sample(
-                scene,
-                hit.position,
-                rng.random(),
-                [rng.random(), rng.random()],
-            ) {
+            let u_select = rng.random();
+            let mut u = [rng.random(), rng.random()];
+            if depth == 1 {
+                u = strata.sample(stratum, u);
+            }
+            if let Some(light) = self.lights().sample(scene, hit.position, u_select, u) {
                 let wi = frame.to_local(light.wi);
                 let f = bsdf.eval(wo, wi);
                 if !f.is_black() {
@@ -163,10 +199,30 @@ impl Transport {
                     beta *= 1.0 / (1.0 - q);
                 }
             }
-            previous = Some((hit.position, sample.pdf));
-            ray = scene.spawn_ray(hit.position, hit.normal, frame.to_world(sample.wi));
+            let origin = hit.position;
+            let ray = scene.spawn_ray(origin, hit.normal, frame.to_world(sample.wi));
+            dir = ray.dir;
+            // Segment depth + 1: light it finds was also reachable by the
+            // light sample above, so both are weighted by the power heuristic.
+            stats.rays += 1;
+            let Some(next) = scene.intersect(&ray) else {
+                let le = environment_radiance(scene, dir);
+                if !le.is_black() {
+                    let weight =
+                        power_heuristic(sample.pdf, self.lights().pdf_environment(scene, dir));
+                    radiance += beta * le * weight;
+                }
+                break;
+            };
+            let le = emitted_radiance(scene, &next, dir);
+            if !le.is_black() {
+                let weight =
+                    power_heuristic(sample.pdf, self.lights().pdf_area_hit(scene, origin, &next));
+                radiance += beta * le * weight;
+            }
+            hit = next;
         }
-        RadianceSample { radiance, distance }
+        radiance
     }
 }
 

@@ -141,10 +141,29 @@ pub struct RenderedTile {
     pub rays: u64,
 }
 
+/// Which of its pixel's camera rays a ray is: shaders may spread samples
+/// over all rays of the pixel (e.g. light samples on one
+/// [`crate::render::strata::SharedStrata`] pattern).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelSample {
+    /// Index of the ray among the pixel's `count` rays.
+    pub index: u32,
+    pub count: u32,
+    /// Two uniform words drawn once per pixel from its generator, the same
+    /// for all its rays: the seeds of a shared pattern.
+    pub pattern: [u64; 2],
+}
+
 /// Radiance arriving at the camera along a camera ray, W/(m²·sr). The
 /// tile loop calls it `spp` times per pixel with that pixel's generator.
 pub trait CameraRayShader: Sync {
-    fn radiance(&self, ray: Ray, rng: &mut Pcg64, stats: &mut TraceStats) -> Rgb;
+    fn radiance(
+        &self,
+        ray: Ray,
+        sample: PixelSample,
+        rng: &mut Pcg64,
+        stats: &mut TraceStats,
+    ) -> Rgb;
 }
 
 /// [`ShadingMethod::PathTracing`].
@@ -154,7 +173,7 @@ pub struct PathTracer<'a> {
 }
 
 impl CameraRayShader for PathTracer<'_> {
-    fn radiance(&self, ray: Ray, rng: &mut Pcg64, stats: &mut TraceStats) -> Rgb {
+    fn radiance(&self, ray: Ray, _: PixelSample, rng: &mut Pcg64, stats: &mut TraceStats) -> Rgb {
         // The camera ray is the path's first segment, so emitters it hits
         // count at full weight (path.rs) — they are seen directly.
         let limits = PathLimits {
@@ -212,6 +231,7 @@ pub fn render_tile_with(
             let mut rng = pixel_rng(request.seed, px, py);
             let mut stats = TraceStats::default();
             let side = f64::from(request.samples_per_pixel).sqrt().floor() as u32;
+            let pattern = [rng.random(), rng.random()];
             let samples = (0..request.samples_per_pixel).map(|k| {
                 let (mut u, mut v): (f64, f64) = (rng.random(), rng.random());
                 if k < side * side {
@@ -219,7 +239,12 @@ pub fn render_tile_with(
                     v = (f64::from(k / side) + v) / f64::from(side);
                 }
                 let ray = camera.generate_ray(f64::from(px) + u, f64::from(py) + v);
-                shader.radiance(ray, &mut rng, &mut stats)
+                let sample = PixelSample {
+                    index: k,
+                    count: request.samples_per_pixel,
+                    pattern,
+                };
+                shader.radiance(ray, sample, &mut rng, &mut stats)
             });
             (MeanEstimate::of(samples), stats.rays)
         })
