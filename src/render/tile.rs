@@ -10,9 +10,13 @@
 //! the pixel, the rest uniformly: every ray is uniform over the pixel on its
 //! own, so the mean is unbiased, and stratification cuts the noise of
 //! edges inside the pixel (anti-aliasing) from `O(spp^-1/2)` towards
-//! `O(spp^-3/4)` (Mitchell 1996). The image stores the mean and the sample
-//! variance / spp, averaged over RGB (see [`Image`]): the variance of the
-//! mean for independent rays, an upper bound for stratified ones.
+//! `O(spp^-3/4)` (Mitchell 1996). Each ray also learns which of the pixel's
+//! rays it is ([`PixelSample`]), so a shader can stratify other dimensions
+//! over all of them (the irradiance cache's light samples,
+//! [`crate::render::strata::SharedStrata`]). The image stores the mean and
+//! the sample variance / spp, averaged over RGB (see [`Image`]): the
+//! variance of the mean for independent rays, an upper bound for
+//! stratified ones.
 //!
 //! Reproducibility: pixel (px, py) draws every random number from
 //! [`pixel_rng`]`(seed, px, py)`, so a pixel's value does not depend on the
