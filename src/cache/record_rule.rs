@@ -297,10 +297,17 @@ impl RecordRule {
         let w = &self.quadrature.weights;
         let w_s: Vec<f64> = w.iter().zip(s).map(|(w, s)| w * s).collect();
         let a_w_s = mat_vec(&self.dk_dc, &w_s);
+        let u = [0, 1].map(|e| dirs.iter().map(|d| d[e]).collect::<Vec<f64>>());
+        let [w_s_x, w_s_y] = [0, 1].map(|e| {
+            w_s.iter()
+                .zip(&u[e])
+                .map(|(x, u)| x * u)
+                .collect::<Vec<f64>>()
+        });
+        // Both axes in one pass over B (the products are memory-bound).
+        let b_w_s_u = mat_vec2(&self.dk_dc_cos, &w_s_x, &w_s_y);
         [0, 1].map(|e| {
-            let u: Vec<f64> = dirs.iter().map(|d| d[e]).collect();
-            let w_s_u: Vec<f64> = w_s.iter().zip(&u).map(|(x, u)| x * u).collect();
-            let b_w_s_u = mat_vec(&self.dk_dc_cos, &w_s_u);
+            let (u, b_w_s_u) = (&u[e], &b_w_s_u[e]);
             // δ_i·ẑ = s_i u_i ω_i,z (e has no z component).
             let delta_z = dirs.iter().zip(s).map(|(d, s)| s * d[e] * d.z);
             let mean_term = self.kernel_mean_term(delta_z, alpha).to_array();
@@ -355,6 +362,16 @@ fn nearest_neighbours(dirs: &[DVec3]) -> Vec<[usize; NEIGHBOURS]> {
 /// `M v` for a row-major square `M`.
 fn mat_vec(m: &[f64], v: &[f64]) -> Vec<f64> {
     m.chunks_exact(v.len()).map(|row| dot(row, v)).collect()
+}
+
+/// `[M a, M b]` in one pass over `M` (each row is read from memory once).
+fn mat_vec2(m: &[f64], a: &[f64], b: &[f64]) -> [Vec<f64>; 2] {
+    let (mut ma, mut mb) = (Vec::with_capacity(a.len()), Vec::with_capacity(b.len()));
+    for row in m.chunks_exact(a.len()) {
+        ma.push(dot(row, a));
+        mb.push(dot(row, b));
+    }
+    [ma, mb]
 }
 
 fn finite_rgb(c: Rgb) -> bool {
