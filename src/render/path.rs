@@ -124,7 +124,7 @@ impl Transport {
         let strata = GridStrata::new(paths);
         let mut sum = Rgb::BLACK;
         for j in 0..paths {
-            sum += self.continue_path(hit, ray.dir, limits.max_depth, &strata, j, rng, stats);
+            sum += self.continue_path(hit, ray.dir, limits.max_depth, (strata, j), rng, stats);
         }
         sample.radiance += sum * (1.0 / f64::from(paths));
         sample
@@ -138,8 +138,7 @@ impl Transport {
         hit: SurfaceHit,
         dir: DVec3,
         max_depth: u32,
-        strata: &GridStrata,
-        stratum: u32,
+        (strata, stratum): (GridStrata, u32),
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Rgb {

@@ -87,7 +87,10 @@ impl GridStrata {
     /// A grid of `n ≥ 1` cells (0 is taken as 1).
     pub fn new(n: u32) -> Self {
         let n = n.max(1);
-        let sx = (1..=n.isqrt()).rev().find(|d| n % d == 0).unwrap_or(1);
+        let sx = (1..=n.isqrt())
+            .rev()
+            .find(|&d| n.is_multiple_of(d))
+            .unwrap_or(1);
         Self { sx, sy: n / sx }
     }
 
