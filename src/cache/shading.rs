@@ -447,8 +447,8 @@ struct Reflection<'a> {
     /// Level of a record created here (0 at a camera or viewer hit).
     level: u32,
     on_miss: OnMiss,
-    /// The camera ray (or repeat) this shading is one of: its light samples
-    /// then take their share of one pattern over all of them.
+    /// The camera ray of a pixel this shading is: its light samples then
+    /// take their share of one pattern over all the pixel's rays.
     sample: Option<PixelSample>,
     /// Add indirect light (path lengths ≥ 2 from the point).
     indirect: bool,
@@ -464,7 +464,7 @@ impl Transport {
     /// light of lengths `2..=max_depth`);
     /// the records in `cache` must have been made for the same depth.
     /// With `sample`, this is ray `index` of `count` estimating one value
-    /// (a pixel's camera rays, a query's repeats) and its light samples are
+    /// (a pixel's camera rays) and its light samples are
     /// numbers `index·n ..< (index + 1)·n` of one [`SharedStrata`] pattern
     /// of `count·n` samples seeded by `sample.pattern`; otherwise they are
     /// stratified among themselves only.
