@@ -14,6 +14,12 @@
 //! `cache::irradiance_cache`), and the set of caches is a moka cache weighed
 //! by those budgets, so creating a cache beyond the total evicts the least
 //! valuable one (moka's TinyLFU) as a whole.
+//!
+//! The records' BMC rule of each cache is not in that budget: its Cholesky
+//! factor and gradient tables take `24 N²` bytes for `N` directions per
+//! record (400 MB at `limits.max_samples` = 4096, 25 MB at 1024). Since at
+//! most [`SHARE`] caches live at once, the rules add at most `SHARE · 24 N²`
+//! bytes; lower `limits.max_samples` to tighten that.
 
 use std::sync::Arc;
 
