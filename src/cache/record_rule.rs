@@ -36,7 +36,7 @@
 //!   edge moves with the occluder. Ward & Heckbert move each wall between
 //!   neighbouring cells with the nearer hit of the two; likewise each
 //!   sample here moves with the largest `1/r` among itself and its six
-//!   nearest directions ([`RecordRule::boundary_speeds`]). Away from edges
+//!   nearest directions (`RecordRule::boundary_speeds`). Away from edges
 //!   the neighbours' hits lie at about the same distance, so the speeds
 //!   barely change. On the Cornell box this lowered the cached image's error
 //!   against the converged reference from 2.57 % to 2.43 % (docs/BENCHMARKS.md).
