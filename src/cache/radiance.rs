@@ -11,9 +11,10 @@
 //! Each estimate averages `repeats` independent evaluations drawn from
 //! `point_rng(seed, i)`; its standard error is their sample standard
 //! deviation / √repeats (light-sampling and path noise), plus, through the
-//! cache, the posterior variance of the interpolated records scaled by
-//! `(k_d/π)²` (the records' own error, which repeats cannot reveal because
-//! every repeat reads the same records).
+//! cache, the variance of the interpolated records (posterior variance plus
+//! the noise of their paths, [`crate::cache::RecordEstimate::variance`])
+//! scaled by `(k_d/π)²`: the records' own error, which repeats cannot reveal
+//! because every repeat reads the same records.
 
 use std::f64::consts::PI;
 

@@ -297,6 +297,7 @@ mod tests {
             .map(|d| RadianceSample {
                 radiance: Rgb::splat(a + b.dot(frame.to_world(*d))),
                 distance: f64::INFINITY,
+                variance: Rgb::BLACK,
             })
             .collect();
         let estimate = rule.estimate(&samples).unwrap();

@@ -76,9 +76,12 @@ pub struct RecordRuleSpec {
 pub struct RecordEstimate {
     /// `E = π Σ w_i L_i` (the Lambert rule integrates `L cos θ/π`, bmc-math.md §1).
     pub irradiance: Rgb,
-    /// Posterior variance of `E`: `π² V σ̂²` per channel, with `V` the
-    /// posterior variance of the rule and `σ̂² = ỸᵀQ₁⁻¹Ỹ/N` the maximum
-    /// likelihood amplitude of the channel (bmc-math.md §3, §7).
+    /// Variance of `E` per channel: the posterior variance `π² V σ̂²`, with
+    /// `V` the posterior variance of the rule and `σ̂² = ỸᵀQ₁⁻¹Ỹ/N` the
+    /// maximum likelihood amplitude of the channel (bmc-math.md §3, §7) —
+    /// the integration error of the rule — plus the Monte Carlo noise of the
+    /// values, `π² Σ w_i² Var(L_i)` from the samples' own variances (zero
+    /// when each value is a single path, whose spread is unknown).
     pub variance: Rgb,
     /// `∂E/∂ε` for rotations of the normal about the local x and y axes.
     pub rotation: [Rgb; 2],
@@ -226,9 +229,16 @@ impl RecordRule {
         let centred = alpha.clone();
         self.factorisation.solve_columns_in_place(&mut alpha, 3);
         let alpha: [&[f64]; 3] = [0, 1, 2].map(|c| &alpha[c * n..(c + 1) * n]);
+        let w = &self.quadrature.weights;
         let variance = [0, 1, 2].map(|c| {
             let amplitude = (dot(&centred[c * n..(c + 1) * n], alpha[c]) / n as f64).max(0.0);
-            PI * PI * self.quadrature.posterior_variance * amplitude
+            // The values' noise is independent across directions.
+            let noise: f64 = w
+                .iter()
+                .zip(samples)
+                .map(|(w, s)| w * w * s.variance.to_array()[c].max(0.0))
+                .sum();
+            PI * PI * (self.quadrature.posterior_variance * amplitude + noise)
         });
         // Rotation about local x and y: δ_i = −a × ω_i is rigid, so dQ = 0
         // and only the kernel-mean term remains; (−a × ω)·ẑ is −ω_y about x
@@ -495,6 +505,7 @@ mod tests {
             .map(|d| RadianceSample {
                 radiance: Rgb::new(a + b.dot(*d), a, 0.0),
                 distance: f64::INFINITY,
+                variance: Rgb::BLACK,
             })
             .collect();
         let e = r.estimate(&samples).unwrap();
@@ -545,6 +556,7 @@ mod tests {
                 .map(|(y, v)| RadianceSample {
                     radiance: Rgb::splat(*v),
                     distance: y.length(),
+                    variance: Rgb::BLACK,
                 })
                 .collect();
             // The exact derivative moves each sample with its own 1/r.
@@ -598,11 +610,13 @@ mod tests {
                     RadianceSample {
                         radiance: Rgb::BLACK,
                         distance: to_occluder,
+                        variance: Rgb::BLACK,
                     }
                 } else {
                     RadianceSample {
                         radiance: Rgb::WHITE,
                         distance: 3.0 / d.z,
+                        variance: Rgb::BLACK,
                     }
                 }
             })
@@ -624,6 +638,44 @@ mod tests {
         assert!((edges - exact).abs() < 0.2 * exact, "{edges} vs {exact}");
     }
 
+    /// The values' own variances add `π² Σ w_i² Var(L_i)` per channel.
+    #[test]
+    fn sample_variances_add_their_noise_to_the_record_variance() {
+        let r = rule(KernelKind::SquaredExponential, 0.5, 32);
+        let exact: Vec<RadianceSample> = r
+            .directions()
+            .iter()
+            .map(|d| RadianceSample {
+                radiance: Rgb::new(1.0 + d.x, 2.0, 0.5 + d.z),
+                distance: 1.0,
+                variance: Rgb::BLACK,
+            })
+            .collect();
+        let noisy: Vec<RadianceSample> = exact
+            .iter()
+            .enumerate()
+            .map(|(i, s)| RadianceSample {
+                variance: Rgb::new(0.01 * i as f64, 0.0, 0.5),
+                ..*s
+            })
+            .collect();
+        let (a, b) = (r.estimate(&exact).unwrap(), r.estimate(&noisy).unwrap());
+        assert_eq!(a.irradiance, b.irradiance);
+        let w = &r.quadrature().weights;
+        for c in 0..3 {
+            let added: f64 = w
+                .iter()
+                .zip(&noisy)
+                .map(|(w, s)| w * w * s.variance.to_array()[c])
+                .sum();
+            let got = b.variance.to_array()[c] - a.variance.to_array()[c];
+            assert!(
+                (got - PI * PI * added).abs() <= 1e-12 * (1.0 + got.abs()),
+                "channel {c}"
+            );
+        }
+    }
+
     #[test]
     fn wrong_sample_count_and_nan_are_typed_errors() {
         let r = rule(KernelKind::SquaredExponential, 0.5, 8);
@@ -632,6 +684,7 @@ mod tests {
             RadianceSample {
                 radiance: Rgb::splat(f64::NAN),
                 distance: 1.0,
+                variance: Rgb::BLACK,
             };
             8
         ];

@@ -594,21 +594,27 @@ impl Transport {
             stats.rays += trace.rays;
             return Ok(samples);
         };
-        let per_direction = per_direction.max(1);
+        // Welford's running mean and spread per direction (Welford 1962),
+        // in place: the repeats are independent estimates of each value.
         let mut samples = self.gather_through_cache(
             point, frame, local_dirs, paths, cache, shading, level, on_miss, rng, stats,
         )?;
-        for _ in 1..per_direction {
+        let mut m2 = vec![Rgb::BLACK; samples.len()];
+        for k in 2..=per_direction {
             let more = self.gather_through_cache(
                 point, frame, local_dirs, paths, cache, shading, level, on_miss, rng, stats,
             )?;
-            for (s, m) in samples.iter_mut().zip(more) {
-                s.radiance += m.radiance;
+            for ((s, m2), m) in samples.iter_mut().zip(&mut m2).zip(more) {
+                let delta = m.radiance - s.radiance;
+                s.radiance += delta * (1.0 / f64::from(k));
+                *m2 += delta * (m.radiance - s.radiance);
             }
         }
-        let scale = 1.0 / f64::from(per_direction);
-        for s in &mut samples {
-            s.radiance *= scale;
+        if per_direction > 1 {
+            let n = f64::from(per_direction);
+            for (s, m2) in samples.iter_mut().zip(m2) {
+                s.variance = m2 * (1.0 / ((n - 1.0) * n));
+            }
         }
         Ok(samples)
     }
@@ -652,10 +658,7 @@ impl Transport {
         local_dirs
             .iter()
             .map(|local| {
-                let mut sample = RadianceSample {
-                    radiance: Rgb::BLACK,
-                    distance: f64::INFINITY,
-                };
+                let mut sample = RadianceSample::NONE;
                 if local.z.is_nan() || local.z <= 0.0 || !local.is_finite() {
                     return Ok(sample);
                 }

@@ -198,10 +198,7 @@ impl Transport {
             .iter()
             .map(|local| {
                 if local.z.is_nan() || local.z <= 0.0 || !local.is_finite() {
-                    return RadianceSample {
-                        radiance: Rgb::BLACK,
-                        distance: f64::INFINITY,
-                    };
+                    return RadianceSample::NONE;
                 }
                 let dir = frame.to_world(local.normalize());
                 let ray = self

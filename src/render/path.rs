@@ -18,6 +18,7 @@
 use glam::DVec3;
 use rand::{Rng, RngExt};
 
+use super::irradiance::MeanEstimate;
 use super::lights::{emitted_radiance, environment_radiance};
 use super::rgb::Rgb;
 use super::strata::GridStrata;
@@ -62,6 +63,20 @@ pub struct RadianceSample {
     /// Distance to the first surface along the direction (∞ when the ray
     /// escaped); irradiance-cache records derive their validity radius from it.
     pub distance: f64,
+    /// Variance of `radiance` as an estimate, per channel, (W/(m²·sr))²,
+    /// from the spread of the paths it averages
+    /// ([`Transport::incident_radiance_averaged`]); zero for a single path,
+    /// whose spread is unknown.
+    pub variance: Rgb,
+}
+
+impl RadianceSample {
+    /// Nothing arrives (a ray that left no surface or hit nothing).
+    pub const NONE: Self = Self {
+        radiance: Rgb::BLACK,
+        distance: f64::INFINITY,
+        variance: Rgb::BLACK,
+    };
 }
 
 impl Transport {
@@ -89,7 +104,8 @@ impl Transport {
     /// closest-hit rays, and the continuations' light samples at the first
     /// hit are stratified over the light's unit square (stratum `j` of a
     /// near-square `s_x × s_y = paths` grid), which lowers the variance of
-    /// the one-bounce term that dominates indirect light.
+    /// the one-bounce term that dominates indirect light. The sample's
+    /// `variance` is the continuations' sample variance over `paths`.
     pub fn incident_radiance_averaged<R: Rng + ?Sized>(
         &self,
         ray: Ray,
@@ -99,10 +115,7 @@ impl Transport {
         stats: &mut TraceStats,
     ) -> RadianceSample {
         let scene = self.scene();
-        let mut sample = RadianceSample {
-            radiance: Rgb::BLACK,
-            distance: f64::INFINITY,
-        };
+        let mut sample = RadianceSample::NONE;
         if limits.max_depth == 0 {
             return sample;
         }
@@ -122,11 +135,15 @@ impl Transport {
         }
         let paths = paths.max(1);
         let strata = GridStrata::new(paths);
-        let mut sum = Rgb::BLACK;
-        for j in 0..paths {
-            sum += self.continue_path(hit, ray.dir, limits.max_depth, (strata, j), rng, stats);
-        }
-        sample.radiance += sum * (1.0 / f64::from(paths));
+        // Given the shared hit the continuations are independent, so their
+        // spread estimates the variance of their mean (an upper bound, as
+        // their first light samples are stratified).
+        let continuations =
+            MeanEstimate::of((0..paths).map(|j| {
+                self.continue_path(hit, ray.dir, limits.max_depth, (strata, j), rng, stats)
+            }));
+        sample.radiance += continuations.mean;
+        sample.variance = continuations.variance_of_mean;
         sample
     }
 
