@@ -192,40 +192,53 @@ fn occlusion_check_stops_records_leaking_through_a_box() {
     assert!(placement::lookup(&cache, &transport, &beside, &o).is_some());
 }
 
-/// Indirect irradiance (path lengths 2..=6) at a back-wall point: the mean of
-/// 8 BMC records (independent rotations and paths) against 8192-sample
-/// cosine-weighted Monte Carlo, within 4 combined standard errors.
-#[test]
-fn bmc_record_agrees_with_monte_carlo_indirect_irradiance() {
-    let transport = cornell();
-    let rule = rule(128);
-    let paths = PathLimits {
-        max_depth: 6,
-        lengths: PathLengths::Indirect,
-    };
-    let target = PlacementPoint {
+/// Indirect light (path lengths 2..=6) of the back-wall record tests.
+const INDIRECT: PathLimits = PathLimits {
+    max_depth: 6,
+    lengths: PathLengths::Indirect,
+};
+
+fn back_wall_point() -> PlacementPoint {
+    PlacementPoint {
         point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
         footprint: None,
-    };
+    }
+}
+
+/// `count` independent records (rotations and paths from `point_rng(seed, i)`)
+/// at [`back_wall_point`], each direction averaging `per_direction` paths.
+fn back_wall_records(rule: &RecordRule, count: u64, seed: u64, per_direction: u32) -> Vec<Record> {
+    let transport = cornell();
     let limits = config().validate().unwrap();
-    let records: Vec<Record> = (0..8)
+    (0..count)
         .map(|i| {
-            let mut rng = point_rng(11, i);
+            let mut rng = point_rng(seed, i);
             let mut stats = ShadingStats::default();
             compute_record(
                 &transport,
-                &rule,
-                &target,
+                rule,
+                &back_wall_point(),
                 limits,
-                paths,
-                1,
+                INDIRECT,
+                per_direction,
                 Gather::Paths,
                 &mut rng,
                 &mut stats,
             )
             .unwrap()
         })
-        .collect();
+        .collect()
+}
+
+/// Indirect irradiance (path lengths 2..=6) at a back-wall point: the mean of
+/// 8 BMC records (independent rotations and paths) against 8192-sample
+/// cosine-weighted Monte Carlo, within 4 combined standard errors.
+#[test]
+fn bmc_record_agrees_with_monte_carlo_indirect_irradiance() {
+    let transport = cornell();
+    let (paths, target) = (INDIRECT, back_wall_point());
+    let limits = config().validate().unwrap();
+    let records = back_wall_records(&rule(128), 8, 11, 1);
     let bmc = MeanEstimate::of(records.iter().map(|r| r.irradiance));
 
     let mut rng = point_rng(12, 0);
@@ -260,35 +273,7 @@ fn bmc_record_agrees_with_monte_carlo_indirect_irradiance() {
 /// within a small factor of the mean reported variance.
 #[test]
 fn record_variance_covers_the_spread_of_records() {
-    let transport = cornell();
-    let rule = rule(64);
-    let paths = PathLimits {
-        max_depth: 6,
-        lengths: PathLengths::Indirect,
-    };
-    let target = PlacementPoint {
-        point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
-        footprint: None,
-    };
-    let limits = config().validate().unwrap();
-    let records: Vec<Record> = (0..40)
-        .map(|i| {
-            let mut rng = point_rng(21, i);
-            let mut stats = ShadingStats::default();
-            compute_record(
-                &transport,
-                &rule,
-                &target,
-                limits,
-                paths,
-                4,
-                Gather::Paths,
-                &mut rng,
-                &mut stats,
-            )
-            .unwrap()
-        })
-        .collect();
+    let records = back_wall_records(&rule(64), 40, 21, 4);
     let spread = MeanEstimate::of(records.iter().map(|r| r.irradiance));
     let reported = MeanEstimate::of(records.iter().map(|r| r.variance)).mean;
     for c in 0..3 {

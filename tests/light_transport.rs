@@ -7,6 +7,7 @@ use std::f64::consts::{PI, TAU};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use bmc_irradiance::render::irradiance::MeanEstimate;
 use bmc_irradiance::render::polygon::projected_solid_angle;
 use bmc_irradiance::render::seed::point_rng;
 use bmc_irradiance::render::{
@@ -431,12 +432,13 @@ fn results_do_not_depend_on_the_thread_count() {
 /// the shared hit lower the spread.
 #[test]
 fn paths_sharing_a_first_segment_are_unbiased_and_cheaper() {
-    fn mean_and_error(values: &[f64]) -> (f64, f64) {
-        let n = values.len() as f64;
-        let m = values.iter().sum::<f64>() / n;
-        let v = values.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-        (m, (v / n).sqrt())
-    }
+    // Mean and standard error of channel `c`.
+    let channel = |e: &MeanEstimate, c: usize| {
+        (
+            e.mean.to_array()[c],
+            e.variance_of_mean.to_array()[c].sqrt(),
+        )
+    };
     let le = Rgb::new(1.0, 0.5, 0.25);
     let rho = Rgb::new(0.5, 0.25, 0.75);
     let shapes = box_walls(6, |_| "wall", |_| Some(le.to_array()));
@@ -455,18 +457,15 @@ fn paths_sharing_a_first_segment_are_unbiased_and_cheaper() {
         };
         let mut rng = point_rng(3, u64::from(depth));
         let (mut shared, mut single) = (TraceStats::default(), TraceStats::default());
-        let values: Vec<Rgb> = (0..2000)
-            .map(|_| {
-                (0..4).for_each(|_| {
-                    t.incident_radiance(from, limits, &mut rng, &mut single);
-                });
-                t.incident_radiance_averaged(from, limits, 4, &mut rng, &mut shared)
-                    .radiance
-            })
-            .collect();
+        let estimate = MeanEstimate::of((0..2000).map(|_| {
+            (0..4).for_each(|_| {
+                t.incident_radiance(from, limits, &mut rng, &mut single);
+            });
+            t.incident_radiance_averaged(from, limits, 4, &mut rng, &mut shared)
+                .radiance
+        }));
         for c in 0..3 {
-            let channel: Vec<f64> = values.iter().map(|v| v.to_array()[c]).collect();
-            let (m, e) = mean_and_error(&channel);
+            let (m, e) = channel(&estimate, c);
             let want = expected.to_array()[c];
             assert!(
                 (m - want).abs() <= 4.0 * e + 1e-9 * want,
@@ -509,26 +508,18 @@ fn paths_sharing_a_first_segment_are_unbiased_and_cheaper() {
         .spawn_ray(DVec3::new(0.2, 0.1, 0.5), DVec3::Z, dir);
     let mut rng = point_rng(5, 0);
     let mut stats = TraceStats::default();
-    let shared: Vec<f64> = (0..4000)
-        .map(|_| {
-            t.incident_radiance_averaged(ray, limits, 8, &mut rng, &mut stats)
+    let shared = MeanEstimate::of((0..4000).map(|_| {
+        t.incident_radiance_averaged(ray, limits, 8, &mut rng, &mut stats)
+            .radiance
+    }));
+    let single = MeanEstimate::of((0..4000).map(|_| {
+        (0..8).fold(Rgb::BLACK, |sum, _| {
+            sum + t
+                .incident_radiance(ray, limits, &mut rng, &mut stats)
                 .radiance
-                .g
-        })
-        .collect();
-    let single: Vec<f64> = (0..4000)
-        .map(|_| {
-            (0..8)
-                .map(|_| {
-                    t.incident_radiance(ray, limits, &mut rng, &mut stats)
-                        .radiance
-                        .g
-                })
-                .sum::<f64>()
-                / 8.0
-        })
-        .collect();
-    let ((ms, es), (mi, ei)) = (mean_and_error(&shared), mean_and_error(&single));
+        }) * (1.0 / 8.0)
+    }));
+    let ((ms, es), (mi, ei)) = (channel(&shared, 1), channel(&single, 1));
     assert!(ms > 0.0 && mi > 0.0);
     assert!(
         (ms - mi).abs() < 4.0 * (es * es + ei * ei).sqrt(),
