@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Load-test figures for docs/BENCHMARKS.md ("Service under load"): starts the
-# release service on the bundled config and scenes, then runs the loadtest
-# command for every scenario and client count, sampling the server's RSS.
+# release service on the bundled config and scenes, then runs bmc-loadtest
+# for every scenario and client count, sampling the server's RSS.
 #
 #   bash benches/loadtest.sh [DURATION] [PORT]     # default 15s, 8391
 set -euo pipefail
@@ -20,7 +20,7 @@ echo "machine: nproc=$(nproc), $(lscpu | grep 'Model name' | sed 's/ \+/ /g')"
 for scenario in points tiles mixed; do
   for clients in 1 8 64 256; do
     echo "== scenario=$scenario clients=$clients duration=$duration"
-    $bin loadtest --url "http://127.0.0.1:$port" --clients "$clients" --duration "$duration" \
+    target/release/bmc-loadtest --url "http://127.0.0.1:$port" --clients "$clients" --duration "$duration" \
       --scenario "$scenario" --server-pid "$server" 2>&1 | grep -v '^ '
   done
 done

@@ -22,6 +22,7 @@ use bmc_irradiance::bmc::cache::QuadratureCache;
 use bmc_irradiance::bmc::estimator::{BayesianEstimator, BmcVariance};
 use bmc_irradiance::bmc::report::QuadratureSpec;
 use bmc_irradiance::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::{IrradianceMethod, IrradianceOptions, QueryPoint, Transport};
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::service::{Application, Config};
@@ -86,8 +87,9 @@ fn main() -> anyhow::Result<()> {
         let start = Instant::now();
         let (quadrature, _) = spec.quadrature(&cache)?;
         let estimator = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
-        let estimates =
-            pool.install(|| transport.irradiance_with_estimator(&query, &estimator, &options))?;
+        let estimates = pool.install(|| {
+            transport.irradiance_with_estimator(&query, &estimator, &options, &Cancel::never())
+        })?;
         std::hint::black_box(estimates);
         Ok(start.elapsed())
     };

@@ -162,7 +162,7 @@ impl Tally {
     }
 }
 
-/// Arguments of `bmc-irradiance loadtest`.
+/// Arguments of `bmc-loadtest`.
 #[derive(Debug, clap::Args)]
 pub struct LoadTestArgs {
     /// Base URL of the service (loopback only).
@@ -351,21 +351,43 @@ async fn drive(
             // Read the whole body: the latency includes serialising and transferring it.
             Ok(response) => {
                 let status = response.status().as_u16();
-                response.bytes().await.map(|_| status)
+                let retry_after = retry_after(&response);
+                response.bytes().await.map(|_| (status, retry_after))
             }
             Err(err) => Err(err),
         };
         match outcome {
-            Ok(status) => {
+            Ok((status, retry_after)) => {
                 let us = (sent.elapsed().as_micros() as u64).clamp(1, MAX_LATENCY_US);
                 tally.latency_us.saturating_record(us);
                 *tally.statuses.entry(status).or_default() += 1;
+                // Back-pressure: wait as the service asks before the next request.
+                if let Some(wait) = retry_after {
+                    let left = stop_at.saturating_duration_since(Instant::now());
+                    tokio::time::sleep(wait.min(left)).await;
+                }
             }
             Err(_) => tally.transport_errors += 1,
         }
         sequence += 1;
     }
     tally
+}
+
+/// The `Retry-After` of a 503, in whole seconds as the service sends it.
+fn retry_after(response: &reqwest::Response) -> Option<Duration> {
+    if response.status() != reqwest::StatusCode::SERVICE_UNAVAILABLE {
+        return None;
+    }
+    let secs = response
+        .headers()
+        .get(reqwest::header::RETRY_AFTER)?
+        .to_str()
+        .ok()?
+        .trim()
+        .parse()
+        .ok()?;
+    Some(Duration::from_secs(secs))
 }
 
 enum Planned {

@@ -20,8 +20,6 @@ enum Command {
     Irradiance(cli::irradiance::IrradianceArgs),
     /// Run the HTTP service until SIGINT/SIGTERM.
     Serve(bmc_irradiance::service::ServeArgs),
-    /// Closed-loop load test of a running service on this machine.
-    Loadtest(bmc_irradiance::loadtest::LoadTestArgs),
     /// Print the BMC quadrature (directions, kernel means, weights, variances) of one configuration.
     Quadrature(cli::quadrature::QuadratureArgs),
     /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
@@ -39,7 +37,6 @@ fn main() -> anyhow::Result<()> {
             cli::irradiance::run_irradiance(&args, &mut std::io::stdout().lock())
         }
         Command::Serve(args) => bmc_irradiance::service::run_serve(&args),
-        Command::Loadtest(args) => bmc_irradiance::loadtest::run_loadtest(&args),
         Command::Quadrature(args) => print_output(cli::quadrature::run(&args)?),
         Command::Study(args) => print_output(cli::study::run(&args)?),
         Command::Render(args) => cli::render::run_render(&args, &mut std::io::stdout().lock()),

@@ -12,6 +12,7 @@ use bmc_irradiance::cache::{
     Record, RecordRule, RecordRuleSpec, ShadingStats, compute_record, place_and_shade,
     place_records, placement,
 };
+use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::irradiance::MeanEstimate;
 use bmc_irradiance::render::seed::point_rng;
 use bmc_irradiance::render::{
@@ -119,6 +120,7 @@ fn two_pass_placement_is_bit_identical_across_thread_counts_and_history() {
             &back_wall(5),
             &options(99),
             Gather::Paths,
+            &Cancel::never(),
         )
         .unwrap()
     });

@@ -7,6 +7,7 @@ use std::f64::consts::{PI, TAU};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::irradiance::MeanEstimate;
 use bmc_irradiance::render::polygon::projected_solid_angle;
 use bmc_irradiance::render::seed::point_rng;
@@ -88,7 +89,7 @@ fn estimate(
     points: &[QueryPoint],
     options: IrradianceOptions,
 ) -> Vec<IrradianceEstimate> {
-    t.irradiance_at_points(points, &options, &|| {})
+    t.irradiance_at_points(points, &options, &|| {}, &Cancel::never())
         .expect("valid options")
 }
 

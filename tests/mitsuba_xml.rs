@@ -4,6 +4,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
+use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::{IrradianceOptions, QueryPoint, Transport};
 use bmc_irradiance::scene::{MitsubaOptions, Scene};
 use glam::DVec3;
@@ -35,10 +36,10 @@ fn cornell_box_irradiance_is_identical_from_xml_and_json() {
         ..IrradianceOptions::default()
     };
     let json = transport("cornell-box.json")
-        .irradiance_at_points(&points, &options, &|| {})
+        .irradiance_at_points(&points, &options, &|| {}, &Cancel::never())
         .unwrap();
     let xml = transport("cornell-box.xml")
-        .irradiance_at_points(&points, &options, &|| {})
+        .irradiance_at_points(&points, &options, &|| {}, &Cancel::never())
         .unwrap();
     for (j, x) in json.iter().zip(&xml) {
         assert!(j.irradiance.r > 0.0, "{j:?}");

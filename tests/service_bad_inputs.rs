@@ -295,8 +295,80 @@ fn cases() -> Vec<Case> {
             })),
             status: S::UNPROCESSABLE_ENTITY,
             code: "limit_exceeded",
-            field: Some("width"),
+            field: Some("width*height"),
         },
+        // Work that multiplies past the budget although each knob is in range:
+        // one pixel, 4096 record directions × 65,536 paths each.
+        Case {
+            name: "tile: one record's paths over its share of the work budget",
+            method: Method::POST,
+            path: tiles,
+            body: Body::Json(tile(|t| {
+                t["width"] = json!(1);
+                t["height"] = json!(1);
+                t["estimator"] =
+                    json!({"method": "bmc", "samples": 4096, "paths_per_direction": 65536});
+            })),
+            status: S::UNPROCESSABLE_ENTITY,
+            code: "limit_exceeded",
+            field: Some("estimated_paths_per_record"),
+        },
+        Case {
+            name: "radiance: one record's paths over its share of the work budget",
+            method: Method::POST,
+            path: "/v1/scenes/tiny/radiance",
+            body: Body::Json(json!({
+                "points": [{"position": [0, 0, 0], "normal": [0, 0, 1], "direction": [0, 0, 1]}],
+                "estimator": {"method": "bmc", "samples": 4096, "paths_per_direction": 65536},
+            })),
+            status: S::UNPROCESSABLE_ENTITY,
+            code: "limit_exceeded",
+            field: Some("estimated_paths_per_record"),
+        },
+        // Camera paths past the budget: an 8² path-traced tile at 4096 spp,
+        // 2^18 paths, against the test's budget of 2^17.
+        Case {
+            name: "tile: camera paths over the work budget",
+            method: Method::POST,
+            path: tiles,
+            body: Body::Json(tile(|t| {
+                t["width"] = json!(8);
+                t["height"] = json!(8);
+                t["samples_per_pixel"] = json!(4096);
+                t["estimator"] = json!({"method": "path"});
+            })),
+            status: S::UNPROCESSABLE_ENTITY,
+            code: "limit_exceeded",
+            field: Some("estimated_paths"),
+        },
+        // A variance and noise whose sum overflows once spun the factorisation forever.
+        unprocessable(
+            "quadrature: variance and noise that overflow",
+            Method::POST,
+            "/v1/quadratures",
+            json!({"sample_set": {"kind": "fibonacci", "count": 16},
+                   "kernel": {"kind": "squared_exponential", "lengthscale": 0.5,
+                              "variance": 1e308, "noise": 1e308},
+                   "density": {"kind": "lambert"}}),
+            "kernel.variance",
+        ),
+        unprocessable(
+            "irradiance: bmc kernel whose variance and noise overflow",
+            Method::POST,
+            irradiance,
+            json!({"points": [good_point()],
+                   "estimator": {"method": "bmc", "samples": 16,
+                                 "kernel": {"kind": "squared_exponential", "lengthscale": 0.5,
+                                            "variance": 1e308, "noise": 1e308}}}),
+            "estimator.kernel.variance",
+        ),
+        unprocessable(
+            "irradiance: position far outside any scene",
+            Method::POST,
+            irradiance,
+            points(json!({"position": [1e308, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]})),
+            "points[0].position",
+        ),
         unprocessable(
             "tile: unknown format",
             Method::POST,
@@ -368,7 +440,7 @@ fn cases() -> Vec<Case> {
 async fn every_bad_request_gets_its_status_code_and_field() {
     let app = spawn_app_with_scenes(
         &[("tiny.json", TINY_SCENE), ("broken.exr", "not an EXR")],
-        |_| {},
+        |c| c.limits.max_paths_per_request = 1 << 17,
     )
     .await;
     let cases = cases();

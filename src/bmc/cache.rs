@@ -156,6 +156,7 @@ impl QuadratureCache {
         spec: SampleSetSpec,
         kernel: &Kernel,
     ) -> Result<(Arc<CachedFactorisation>, bool), BmcError> {
+        let spec = spec.canonical();
         let key = FactorisationKey {
             set: spec,
             kernel: kernel.cache_key(),
@@ -187,6 +188,7 @@ impl QuadratureCache {
         method: KernelMeanMethod,
     ) -> Result<(Arc<CachedQuadrature>, bool), BmcError> {
         density.validate()?;
+        let spec = spec.canonical();
         let key = QuadratureKey {
             factorisation: FactorisationKey {
                 set: spec,

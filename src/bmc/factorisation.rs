@@ -25,12 +25,15 @@ use crate::sphere::{MAX_SAMPLES, SampleSet, SampleSetSpec};
 
 /// First jitter tried after a failure, relative to the mean diagonal of `K + σ_n² I`.
 const FIRST_RELATIVE_JITTER: f64 = 1e-10;
-/// Largest jitter tried, relative to the mean diagonal; beyond it the prior
-/// is being changed rather than regularised, so we report an error.
-const MAX_RELATIVE_JITTER: f64 = 1e-2;
 /// Largest accepted condition estimate: beyond it the triangular solves lose
 /// more than ~13 of 16 digits, so the jitter is escalated further.
 const MAX_CONDITION: f64 = 1e13;
+/// Factorisations tried at most: no jitter, then `FIRST_RELATIVE_JITTER`
+/// growing ×10 up to `1e-2 × mean diag` (9 steps); beyond that the prior is
+/// being changed rather than regularised, so we report an error. The loop stops on this
+/// count, not on a floating-point comparison, so no value of the kernel can
+/// make it spin (an infinite diagonal once made `inf > inf` the exit test).
+const MAX_ATTEMPTS: usize = 10;
 
 /// `Q = L Lᵀ` with the jitter that made it numerically positive definite.
 #[derive(Clone, Debug)]
@@ -82,7 +85,10 @@ impl Factorisation {
         }
         let mean_diag = kernel.variance + kernel.noise;
         let mut jitter = 0.0;
-        loop {
+        for attempt in 0..MAX_ATTEMPTS {
+            if attempt > 0 {
+                jitter = FIRST_RELATIVE_JITTER * mean_diag * 10f64.powi(attempt as i32 - 1);
+            }
             let diagonal = kernel.noise + jitter;
             let mut l = Mat::from_fn(n, n, |i, j| {
                 data[j * n + i] + if i == j { diagonal } else { 0.0 }
@@ -99,17 +105,8 @@ impl Factorisation {
                     });
                 }
             }
-            jitter = if jitter == 0.0 {
-                FIRST_RELATIVE_JITTER * mean_diag
-            } else {
-                jitter * 10.0
-            };
-            if jitter > MAX_RELATIVE_JITTER * mean_diag * (1.0 + 1e-9) {
-                return Err(BmcError::NotPositiveDefinite {
-                    jitter: jitter / 10.0,
-                });
-            }
         }
+        Err(BmcError::NotPositiveDefinite { jitter })
     }
 
     /// `N`, the number of sample directions.

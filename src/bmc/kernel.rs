@@ -15,6 +15,12 @@ pub const MIN_LENGTHSCALE: f64 = 1e-2;
 /// Largest accepted lengthscale: beyond it every kernel matrix is the
 /// all-`σ²` matrix to machine precision (chords are at most 2).
 pub const MAX_LENGTHSCALE: f64 = 1e3;
+/// Largest accepted prior variance `σ²` and noise `σ_n²` (units of `f`²).
+/// Radiance² never comes near it, and it keeps every sum and product the
+/// factorisation forms (`σ² + σ_n²`, the relative jitter, `Σ z_i w_i σ²`)
+/// finite: at `1e308` the diagonal overflowed to `inf` and the jitter search
+/// never ended.
+pub const MAX_VARIANCE: f64 = 1e100;
 
 /// Shape of the covariance as a function of `d/ℓ`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -32,8 +38,8 @@ pub enum KernelKind {
 /// A stationary kernel of the chordal distance with its hyperparameters.
 ///
 /// Invariant (checked by [`Kernel::new`] and [`Kernel::validate`]):
-/// `MIN_LENGTHSCALE ≤ lengthscale ≤ MAX_LENGTHSCALE`, `variance > 0`,
-/// `noise ≥ 0`, all finite.
+/// `MIN_LENGTHSCALE ≤ lengthscale ≤ MAX_LENGTHSCALE`,
+/// `0 < variance ≤ MAX_VARIANCE`, `0 ≤ noise ≤ MAX_VARIANCE`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Kernel {
     /// Which covariance shape.
@@ -84,16 +90,16 @@ impl Kernel {
                 ),
             ));
         }
-        if !(self.variance.is_finite() && self.variance > 0.0) {
+        if !(self.variance > 0.0 && self.variance <= MAX_VARIANCE) {
             return Err(BmcError::invalid(
                 "variance",
-                format!("must be finite and > 0, got {}", self.variance),
+                format!("must be in (0, {MAX_VARIANCE:e}], got {}", self.variance),
             ));
         }
-        if !(self.noise.is_finite() && self.noise >= 0.0) {
+        if !(self.noise >= 0.0 && self.noise <= MAX_VARIANCE) {
             return Err(BmcError::invalid(
                 "noise",
-                format!("must be finite and >= 0, got {}", self.noise),
+                format!("must be in [0, {MAX_VARIANCE:e}], got {}", self.noise),
             ));
         }
         Ok(())

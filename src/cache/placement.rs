@@ -36,7 +36,7 @@ use super::record::{PixelFootprint, RadiusLimits, Record};
 use super::record_rule::RecordRule;
 use super::shading::{Gather, ShadingStats};
 use crate::render::seed::point_rng;
-use crate::render::{PathLimits, QueryPoint, Transport};
+use crate::render::{Cancel, PathLimits, QueryPoint, Transport};
 use crate::sphere::Frame;
 
 /// Relative lift of the occlusion-test ray ends off their surfaces.
@@ -203,11 +203,13 @@ pub fn place_records(
     points: &[PlacementPoint],
     options: &PlacementOptions,
     gather: Gather,
+    cancel: &Cancel,
 ) -> Result<PlacementReport, CacheError> {
     validate(options)?;
     let limits = cache.radius_limits();
     let mut report = PlacementReport::default();
     for (b, batch) in points.chunks(options.batch_size).enumerate() {
+        cancel.check()?;
         let first = b * options.batch_size;
         // (point index, created for variance)
         let wanted: Vec<(usize, bool)> = batch
@@ -224,6 +226,7 @@ pub fn place_records(
         let computed: Vec<Result<(Record, ShadingStats), CacheError>> = wanted
             .par_iter()
             .map(|&(i, _)| {
+                cancel.check()?;
                 let mut rng = point_rng(options.seed, i as u64);
                 let mut stats = ShadingStats::default();
                 let record = compute_record(
@@ -277,7 +280,15 @@ pub fn place_and_shade(
     options: &PlacementOptions,
 ) -> Result<(Vec<Option<Interpolated>>, IrradianceCache, PlacementReport), CacheError> {
     let cache = IrradianceCache::new(config)?;
-    let report = place_records(&cache, transport, rule, points, options, Gather::Paths)?;
+    let report = place_records(
+        &cache,
+        transport,
+        rule,
+        points,
+        options,
+        Gather::Paths,
+        &Cancel::never(),
+    )?;
     let query: Vec<QueryPoint> = points.iter().map(|p| p.point).collect();
     Ok((shade(&cache, transport, &query, options), cache, report))
 }

@@ -25,7 +25,8 @@ use super::irradiance_cache::IrradianceCache;
 use super::shading::{CachedShading, OnMiss, ShadingStats, cache_to_render};
 use crate::render::seed::point_rng;
 use crate::render::{
-    MeanEstimate, PathLengths, PathLimits, QueryPoint, RenderError, Rgb, TraceStats, Transport,
+    Cancel, MeanEstimate, PathLengths, PathLimits, QueryPoint, RenderError, Rgb, TraceStats,
+    Transport,
 };
 use crate::scene::{Ray, SurfaceHit};
 
@@ -102,7 +103,8 @@ fn probe(transport: &Transport, x: DVec3, towards: DVec3) -> Ray {
 /// Radiance leaving each `hits[i]` towards `queries[i].direction`, in
 /// parallel on the current rayon pool. `max_depth` counts path segments as a
 /// camera ray does (1 = emission only); records in a cache must have been
-/// made for the same `max_depth`.
+/// made for the same `max_depth`. Stops between points once `cancel` is set.
+#[allow(clippy::too_many_arguments)]
 pub fn radiance_at_points(
     transport: &Transport,
     queries: &[RadianceQuery],
@@ -111,6 +113,7 @@ pub fn radiance_at_points(
     max_depth: u32,
     repeats: u32,
     seed: u64,
+    cancel: &Cancel,
 ) -> Result<Vec<RadianceEstimate>, RenderError> {
     if repeats == 0 {
         return Err(RenderError::InvalidOption {
@@ -123,6 +126,7 @@ pub fn radiance_at_points(
         .zip(hits)
         .enumerate()
         .map(|(i, (query, hit))| {
+            cancel.check()?;
             let mut rng = point_rng(seed, i as u64);
             let mut trace = TraceStats::default();
             let mut stats = ShadingStats::default();
@@ -216,6 +220,7 @@ mod tests {
             8,
             4096,
             1,
+            &Cancel::never(),
         )
         .unwrap()[0];
         let mut spec = default_rule_spec();
@@ -232,7 +237,17 @@ mod tests {
             cache: &cache,
             shading: &shading,
         };
-        let bmc = radiance_at_points(&transport, &[query], &[hit], cached, 8, 4, 1).unwrap()[0];
+        let bmc = radiance_at_points(
+            &transport,
+            &[query],
+            &[hit],
+            cached,
+            8,
+            4,
+            1,
+            &Cancel::never(),
+        )
+        .unwrap()[0];
         assert_eq!(cache.stats().records, 1);
         for (p, b, sp, sb) in [
             (

@@ -115,6 +115,23 @@ pub struct RecordRule {
 }
 
 impl RecordRule {
+    /// Bytes held: the Cholesky factor and the derivative tables, `≈ 24 N²`
+    /// for `N` directions (what a cache of records must count beside them).
+    pub fn size_bytes(&self) -> usize {
+        let f64s = self.ones_solved.len()
+            + self.dz_dmu.len()
+            + self.dk_dc.len()
+            + self.dk_dc_cos.len()
+            + self.a_w_u.iter().map(Vec::len).sum::<usize>()
+            + self.b_w.len();
+        std::mem::size_of::<Self>()
+            + self.factorisation.size_bytes()
+            + self.quadrature.size_bytes()
+            + self.set.directions.len() * std::mem::size_of::<glam::DVec3>()
+            + f64s * std::mem::size_of::<f64>()
+            + self.neighbours.len() * std::mem::size_of::<[usize; NEIGHBOURS]>()
+    }
+
     /// Factor `Q`, compute the weights and the derivative tables.
     pub fn new(spec: RecordRuleSpec) -> Result<RecordRule, CacheError> {
         let set = SampleSet::generate(spec.samples)?;

@@ -38,7 +38,7 @@ use crate::render::lights::environment_radiance;
 use crate::render::tile::{
     CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
 };
-use crate::render::{PixelSample, QueryPoint, RenderError, Rgb, TraceStats, Transport};
+use crate::render::{Cancel, PixelSample, QueryPoint, RenderError, Rgb, TraceStats, Transport};
 use crate::scene::Ray;
 
 /// What a cached tile request did.
@@ -156,12 +156,14 @@ impl Transport {
     /// Renders one tile through the irradiance cache `cache` (module docs).
     /// `cache` must belong to this scene, `shading.rule` and the request's
     /// `max_depth` (the caller keys its caches by them); the request's
-    /// `method` is not consulted.
+    /// `method` is not consulted. Stops between records and pixels once
+    /// `cancel` is set.
     pub fn render_tile_cached(
         &self,
         request: &TileRequest,
         cache: &IrradianceCache,
         shading: &CachedShading,
+        cancel: &Cancel,
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
         let camera = &self.scene().camera;
         request.validate(camera.resolution())?;
@@ -189,9 +191,16 @@ impl Transport {
             // deterministic (see `placement`).
             let reproducible = shading.options.reproducible;
             let gather = Gather::for_record(target, shading, options.paths, 0, !reproducible);
-            report.placement =
-                place_records(target, self, &shading.rule, &points, &options, gather)
-                    .map_err(cache_to_render)?;
+            report.placement = place_records(
+                target,
+                self,
+                &shading.rule,
+                &points,
+                &options,
+                gather,
+                cancel,
+            )
+            .map_err(cache_to_render)?;
         }
         let shader = CacheRayShader {
             transport: self,
@@ -201,7 +210,7 @@ impl Transport {
             stats: Mutex::new(ShadingStats::default()),
             error: Mutex::new(None),
         };
-        let mut tile = render_tile_with(camera, &shader, request)?;
+        let mut tile = render_tile_with(camera, &shader, request, cancel)?;
         if let Some(e) = shader.error.into_inner().unwrap_or_else(|p| p.into_inner()) {
             return Err(e);
         }
@@ -288,13 +297,19 @@ mod tests {
         // Fill `busy` with other records first: another seed, shared mode.
         let other = TileRequest { seed: 99, ..r };
         transport
-            .render_tile_cached(&other, &busy, &shading(options(false)))
+            .render_tile_cached(&other, &busy, &shading(options(false)), &Cancel::never())
             .unwrap();
         let before = busy.stats().records;
         assert!(before > 0);
         let s = shading(options(true));
-        let (a, ra) = in_pool(1, || transport.render_tile_cached(&r, &quiet, &s)).unwrap();
-        let (b, rb) = in_pool(2, || transport.render_tile_cached(&r, &busy, &s)).unwrap();
+        let (a, ra) = in_pool(1, || {
+            transport.render_tile_cached(&r, &quiet, &s, &Cancel::never())
+        })
+        .unwrap();
+        let (b, rb) = in_pool(2, || {
+            transport.render_tile_cached(&r, &busy, &s, &Cancel::never())
+        })
+        .unwrap();
         assert_eq!(a, b);
         assert_eq!(ra.placement, rb.placement);
         assert!(ra.placement.records_created > 0);
@@ -308,7 +323,12 @@ mod tests {
         // And the method is not a no-op: light arrives, the seed matters.
         assert!(a.image.rgb().iter().any(|p| p[0] > 0.0));
         let (c, _) = transport
-            .render_tile_cached(&TileRequest { seed: 8, ..r }, &cache(), &s)
+            .render_tile_cached(
+                &TileRequest { seed: 8, ..r },
+                &cache(),
+                &s,
+                &Cancel::never(),
+            )
             .unwrap();
         assert_ne!(c.image, a.image);
     }
@@ -319,8 +339,12 @@ mod tests {
         let shared = cache();
         let s = shading(options(false));
         let r = cached_request(0, 0, 16);
-        let (first, r1) = transport.render_tile_cached(&r, &shared, &s).unwrap();
-        let (second, r2) = transport.render_tile_cached(&r, &shared, &s).unwrap();
+        let (first, r1) = transport
+            .render_tile_cached(&r, &shared, &s, &Cancel::never())
+            .unwrap();
+        let (second, r2) = transport
+            .render_tile_cached(&r, &shared, &s, &Cancel::never())
+            .unwrap();
         assert!(r1.placement.records_created > 0);
         assert_eq!(r2.placement.records_created, 0);
         assert_eq!(shared.stats().records, r1.placement.records_created);
@@ -347,7 +371,9 @@ mod tests {
                     let (transport, shared, s) = (&transport, &shared, &s);
                     scope.spawn(move || {
                         let r = cached_request((i % 4) * 8, (i / 4) * 16, 8);
-                        let (_, report) = transport.render_tile_cached(&r, shared, s).unwrap();
+                        let (_, report) = transport
+                            .render_tile_cached(&r, shared, s, &Cancel::never())
+                            .unwrap();
                         report.placement.records_created
                     })
                 })
@@ -384,13 +410,18 @@ mod tests {
             samples_per_pixel: 4,
             ..cached_request(0, 0, 16)
         };
-        let (cached, _) = transport.render_tile_cached(&r, &cache(), &s).unwrap();
+        let (cached, _) = transport
+            .render_tile_cached(&r, &cache(), &s, &Cancel::never())
+            .unwrap();
         let traced = transport
-            .render_tile(&TileRequest {
-                samples_per_pixel: 256,
-                method: ShadingMethod::PathTracing,
-                ..r
-            })
+            .render_tile(
+                &TileRequest {
+                    samples_per_pixel: 256,
+                    method: ShadingMethod::PathTracing,
+                    ..r
+                },
+                &Cancel::never(),
+            )
             .unwrap();
         let mask: Vec<bool> = traced
             .image

@@ -9,6 +9,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::in_thread_pool;
+use crate::render::Cancel;
 use crate::render::irradiance::{IrradianceMethod, IrradianceOptions};
 use crate::render::points_csv::{parse_points, write_irradiance};
 use crate::render::transport::Transport;
@@ -110,7 +111,8 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
         ProgressStyle::with_template("{bar:40} {pos}/{len} points, {elapsed} elapsed, ETA {eta}")
             .context("progress bar template")?,
     );
-    let estimate = || transport.irradiance_at_points(&points, &options, &|| progress.inc(1));
+    let estimate =
+        || transport.irradiance_at_points(&points, &options, &|| progress.inc(1), &Cancel::never());
     let estimates = in_thread_pool(args.threads, estimate)??;
     progress.finish_and_clear();
     write_irradiance(out, &points, &estimates, args.std_error).context("writing results")?;

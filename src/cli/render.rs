@@ -18,6 +18,7 @@ use crate::cache::{
 use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
+use crate::render::Cancel;
 use crate::render::film::ImageSettings;
 use crate::render::tile::ShadingMethod;
 use crate::render::transport::Transport;
@@ -215,7 +216,12 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                 let report = Mutex::new(CachedTileReport::default());
                 let render = || {
                     transport.render_image_by(&settings, args.tile, &|request| {
-                        let (tile, r) = transport.render_tile_cached(request, &cache, &shading)?;
+                        let (tile, r) = transport.render_tile_cached(
+                            request,
+                            &cache,
+                            &shading,
+                            &Cancel::never(),
+                        )?;
                         let mut total = report.lock().unwrap_or_else(|e| e.into_inner());
                         total.placement_points += r.placement_points;
                         total.placement.records_created += r.placement.records_created;

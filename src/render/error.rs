@@ -14,6 +14,9 @@ pub enum RenderError {
     /// A row of a points CSV file that is not `x,y,z,nx,ny,nz` (1-based line).
     #[error("points file line {line}: {reason}")]
     PointsRow { line: usize, reason: String },
+    /// The caller cancelled the work ([`super::Cancel`]) before it finished.
+    #[error("cancelled before it finished")]
+    Cancelled,
 }
 
 impl RenderError {
@@ -23,7 +26,7 @@ impl RenderError {
             RenderError::InvalidPoint { field, .. } | RenderError::InvalidOption { field, .. } => {
                 Some(field)
             }
-            RenderError::PointsRow { .. } => None,
+            RenderError::PointsRow { .. } | RenderError::Cancelled => None,
         }
     }
 }

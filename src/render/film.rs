@@ -4,6 +4,7 @@
 //! per tile; by the reproducibility rule of `tile`, the image does not
 //! depend on the tile size.
 
+use super::cancel::Cancel;
 use super::error::RenderError;
 use super::tile::{RenderedTile, ShadingMethod, TileRequest};
 use super::transport::Transport;
@@ -55,7 +56,7 @@ impl Transport {
         on_tile: &dyn Fn(&RenderedTile),
     ) -> Result<RenderedImage, RenderError> {
         self.render_image_by(settings, tile_side, &|request| {
-            let tile = self.render_tile(request)?;
+            let tile = self.render_tile(request, &Cancel::never())?;
             on_tile(&tile);
             Ok(tile)
         })
@@ -109,7 +110,7 @@ mod tests {
     fn any_tile_size_gives_the_same_image() {
         let transport = cornell(12);
         let whole = transport
-            .render_tile(&request(0, 0, 12, 12))
+            .render_tile(&request(0, 0, 12, 12), &Cancel::never())
             .expect("renders");
         let r = request(0, 0, 1, 1);
         let settings = ImageSettings {

@@ -26,6 +26,7 @@ use std::f64::consts::TAU;
 use rand::RngExt;
 use rayon::prelude::*;
 
+use super::cancel::Cancel;
 use super::error::RenderError;
 use super::irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
 use super::path::{PathLengths, PathLimits, TraceStats};
@@ -42,18 +43,23 @@ impl Transport {
     ///
     /// `estimator` must integrate against the Lambert density `cos θ/π`.
     /// `options.samples` is the number of light samples of the direct part in
-    /// split mode; the hemisphere sample count is the estimator's.
+    /// split mode; the hemisphere sample count is the estimator's. Stops
+    /// between points once `cancel` is set.
     pub fn irradiance_with_estimator(
         &self,
         points: &[QueryPoint],
         estimator: &dyn HemisphereEstimator,
         options: &IrradianceOptions,
+        cancel: &Cancel,
     ) -> Result<Vec<IrradianceEstimate>, RenderError> {
         options.validate()?;
         points
             .par_iter()
             .enumerate()
-            .map(|(i, point)| self.estimate_point(point, i as u64, estimator, options))
+            .map(|(i, point)| {
+                cancel.check()?;
+                self.estimate_point(point, i as u64, estimator, options)
+            })
             .collect()
     }
 
@@ -165,7 +171,7 @@ mod tests {
         let point = [wall_point()];
         // The reference comes from the independent MC path of `irradiance.rs`.
         let reference = transport
-            .irradiance_at_points(&point, &options(65536, 99), &|| {})
+            .irradiance_at_points(&point, &options(65536, 99), &|| {}, &Cancel::never())
             .unwrap()[0];
         let bmc = bmc(64, 0.5);
         let mc =
@@ -176,10 +182,10 @@ mod tests {
         let runs = 32;
         for seed in 0..runs {
             let b = transport
-                .irradiance_with_estimator(&point, &bmc, &options(4096, seed))
+                .irradiance_with_estimator(&point, &bmc, &options(4096, seed), &Cancel::never())
                 .unwrap()[0];
             let m = transport
-                .irradiance_with_estimator(&point, &mc, &options(4096, seed))
+                .irradiance_with_estimator(&point, &mc, &options(4096, seed), &Cancel::never())
                 .unwrap()[0];
             let (e_b, e_m, e_r) = (
                 b.irradiance.luminance(),
@@ -221,7 +227,12 @@ mod tests {
                 .build()
                 .unwrap()
                 .install(|| {
-                    transport.irradiance_with_estimator(&points, &estimator, &options(4, 5))
+                    transport.irradiance_with_estimator(
+                        &points,
+                        &estimator,
+                        &options(4, 5),
+                        &Cancel::never(),
+                    )
                 })
                 .unwrap()
         };

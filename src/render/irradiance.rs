@@ -26,6 +26,7 @@ use glam::DVec3;
 use rand::{Rng, RngExt};
 use rayon::prelude::*;
 
+use super::cancel::Cancel;
 use super::error::RenderError;
 use super::path::{PathLengths, PathLimits, RadianceSample, TraceStats};
 use super::query::QueryPoint;
@@ -312,23 +313,26 @@ impl Transport {
     /// Irradiance at every point, in parallel on the current rayon pool.
     /// `on_done` is called once per finished point (e.g. to advance a
     /// progress bar). Point `i` uses the stream `point_rng(seed, i)`.
+    /// Stops between points once `cancel` is set.
     pub fn irradiance_at_points(
         &self,
         points: &[QueryPoint],
         options: &IrradianceOptions,
         on_done: &(dyn Fn() + Sync),
+        cancel: &Cancel,
     ) -> Result<Vec<IrradianceEstimate>, RenderError> {
         options.validate()?;
-        Ok(points
+        points
             .par_iter()
             .enumerate()
             .map(|(i, point)| {
+                cancel.check()?;
                 let mut rng = point_rng(options.seed, i as u64);
                 let estimate = self.irradiance(point, options, &mut rng);
                 on_done();
-                estimate
+                Ok(estimate)
             })
-            .collect())
+            .collect()
     }
 }
 

@@ -19,9 +19,6 @@
 //! give the same fit. [`FittedKernels`] caches fits per configuration, each
 //! computed at most once even under concurrent first requests.
 
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex, OnceLock};
-
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::Serialize;
@@ -171,16 +168,27 @@ fn training_points(transport: &Transport, count: usize) -> Vec<QueryPoint> {
         .collect()
 }
 
+/// Most fitted configurations kept per scene: every request may name a new
+/// configuration (kernel, sample set, count, decomposition), so without a
+/// bound the fits grew with the number of requests.
+pub const MAX_FITS: u64 = 64;
+
 /// Fitted kernels of one scene by configuration; each fit runs at most once
-/// (concurrent first requests wait for the one computing it). Errors are kept
-/// too: the fit is deterministic, so retrying would fail the same way.
-#[derive(Default)]
+/// while kept (concurrent first requests wait for the one computing it).
+/// Errors are kept too: the fit is deterministic, so retrying would fail the
+/// same way. At most [`MAX_FITS`] are kept; beyond, the least used go first
+/// (and are fitted again, identically, if asked for again).
 pub struct FittedKernels {
-    fits: Mutex<HashMap<FitConfig, Arc<FitSlot>>>,
+    fits: moka::sync::Cache<FitConfig, Result<FittedKernel, String>>,
 }
 
-/// One configuration's fit, set once by whoever asks first.
-type FitSlot = OnceLock<Result<FittedKernel, String>>;
+impl Default for FittedKernels {
+    fn default() -> Self {
+        Self {
+            fits: moka::sync::Cache::new(MAX_FITS),
+        }
+    }
+}
 
 impl FittedKernels {
     /// The fit for `config`, computing it on first use.
@@ -189,21 +197,18 @@ impl FittedKernels {
         transport: &Transport,
         config: FitConfig,
     ) -> Result<FittedKernel, String> {
-        let slot = {
-            let mut fits = self.fits.lock().unwrap_or_else(|p| p.into_inner());
-            fits.entry(config).or_default().clone()
+        let config = FitConfig {
+            sample_set: config.sample_set.canonical(),
+            ..config
         };
-        slot.get_or_init(|| fit_lengthscale(transport, config).map_err(|e| e.to_string()))
-            .clone()
+        self.fits.get_with(config, || {
+            fit_lengthscale(transport, config).map_err(|e| e.to_string())
+        })
     }
 
-    /// Every successful fit so far, in a stable order.
+    /// Every successful fit kept, in a stable order.
     pub fn list(&self) -> Vec<FittedKernel> {
-        let fits = self.fits.lock().unwrap_or_else(|p| p.into_inner());
-        let mut out: Vec<FittedKernel> = fits
-            .values()
-            .filter_map(|slot| slot.get()?.as_ref().ok().copied())
-            .collect();
+        let mut out: Vec<FittedKernel> = self.fits.iter().filter_map(|(_, fit)| fit.ok()).collect();
         out.sort_by_key(|f| format!("{:?}", f.config));
         out
     }
@@ -214,6 +219,7 @@ mod tests {
     use super::*;
     use crate::render::tile::tests::cornell;
     use crate::sphere::SampleSetKind;
+    use std::sync::Arc;
 
     fn config(decomposition: IrradianceMethod) -> FitConfig {
         FitConfig {

@@ -13,6 +13,7 @@
 //! `render_image` for the camera's image (`tile`, `film`).
 
 pub mod bsdf;
+pub mod cancel;
 pub mod distribution;
 pub mod environment_sampling;
 pub mod error;
@@ -33,6 +34,7 @@ pub mod transport;
 pub mod warp;
 
 pub use bsdf::{Bsdf, BsdfSample};
+pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
 pub use irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions, MeanEstimate};

@@ -15,13 +15,21 @@ pub struct QueryPoint {
     normal: DVec3,
 }
 
+/// Largest accepted coordinate of a query position, in world units. Far
+/// beyond any scene, and small enough that rays from there keep the
+/// precision to hit one: at 1e308 the intersection arithmetic overflowed
+/// and every point read zero instead of being refused.
+pub const MAX_COORDINATE: f64 = 1e9;
+
 impl QueryPoint {
     /// Validates and normalises `normal`. Errors name the bad field.
     pub fn new(position: DVec3, normal: DVec3) -> Result<Self, RenderError> {
-        if !position.is_finite() {
+        if !position.is_finite() || position.abs().max_element() > MAX_COORDINATE {
             return Err(RenderError::InvalidPoint {
                 field: "position",
-                reason: format!("must be finite, got {position}"),
+                reason: format!(
+                    "must be finite with coordinates within ±{MAX_COORDINATE:e}, got {position}"
+                ),
             });
         }
         if !normal.is_finite() {

@@ -26,6 +26,7 @@ use rand::RngExt;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
+use super::cancel::Cancel;
 use super::error::RenderError;
 use super::irradiance::{MAX_DEPTH, MeanEstimate};
 use super::path::{PathLengths, PathLimits, TraceStats};
@@ -199,8 +200,12 @@ pub fn pixel_rng(seed: u64, px: u32, py: u32) -> Pcg64 {
 
 impl Transport {
     /// Renders one tile of the scene camera's image, in parallel over its
-    /// pixels on the current rayon pool.
-    pub fn render_tile(&self, request: &TileRequest) -> Result<RenderedTile, RenderError> {
+    /// pixels on the current rayon pool; stops between pixels once `cancel` is set.
+    pub fn render_tile(
+        &self,
+        request: &TileRequest,
+        cancel: &Cancel,
+    ) -> Result<RenderedTile, RenderError> {
         let camera = &self.scene().camera;
         match request.method {
             ShadingMethod::PathTracing => {
@@ -208,7 +213,7 @@ impl Transport {
                     transport: self,
                     max_depth: request.max_depth,
                 };
-                render_tile_with(camera, &shader, request)
+                render_tile_with(camera, &shader, request, cancel)
             }
             ShadingMethod::IrradianceCache => Err(RenderError::InvalidOption {
                 field: "method",
@@ -219,17 +224,21 @@ impl Transport {
 }
 
 /// The camera/pixel loop shared by every [`CameraRayShader`]; validates
-/// `request` against `camera`.
+/// `request` against `camera` and checks `cancel` before each pixel.
 pub fn render_tile_with(
     camera: &Camera,
     shader: &impl CameraRayShader,
     request: &TileRequest,
+    cancel: &Cancel,
 ) -> Result<RenderedTile, RenderError> {
     request.validate(camera.resolution())?;
     let width = request.width as usize;
-    let pixels: Vec<(MeanEstimate, u64)> = (0..width * request.height as usize)
+    let pixels: Option<Vec<(MeanEstimate, u64)>> = (0..width * request.height as usize)
         .into_par_iter()
         .map(|i| {
+            if cancel.is_cancelled() {
+                return None;
+            }
             let px = request.x + (i % width) as u32;
             let py = request.y + (i / width) as u32;
             let mut rng = pixel_rng(request.seed, px, py);
@@ -250,9 +259,10 @@ pub fn render_tile_with(
                 };
                 shader.radiance(ray, sample, &mut rng, &mut stats)
             });
-            (MeanEstimate::of(samples), stats.rays)
+            Some((MeanEstimate::of(samples), stats.rays))
         })
         .collect();
+    let pixels = pixels.ok_or(RenderError::Cancelled)?;
     let rays = pixels.iter().map(|(_, r)| r).sum();
     let rgb = pixels
         .iter()
@@ -323,19 +333,27 @@ pub(crate) mod tests {
     #[test]
     fn tiles_and_thread_counts_give_bit_identical_pixels() {
         let transport = cornell(32);
-        let whole = in_pool(1, || transport.render_tile(&request(0, 0, 32, 32))).expect("renders");
+        let whole = in_pool(1, || {
+            transport.render_tile(&request(0, 0, 32, 32), &Cancel::never())
+        })
+        .expect("renders");
         let mut assembled = Image::black(32, 32).expect("valid");
         let mut rays = 0;
         for (x, y) in [(0, 0), (16, 0), (0, 16), (16, 16)] {
-            let tile =
-                in_pool(2, || transport.render_tile(&request(x, y, 16, 16))).expect("renders");
+            let tile = in_pool(2, || {
+                transport.render_tile(&request(x, y, 16, 16), &Cancel::never())
+            })
+            .expect("renders");
             assert_eq!((tile.x, tile.y), (x, y));
             assembled.insert(&tile.image, x, y).expect("fits");
             rays += tile.rays;
         }
         assert_eq!(assembled, whole.image);
         assert_eq!(rays, whole.rays);
-        let again = in_pool(2, || transport.render_tile(&request(0, 0, 32, 32))).expect("renders");
+        let again = in_pool(2, || {
+            transport.render_tile(&request(0, 0, 32, 32), &Cancel::never())
+        })
+        .expect("renders");
         assert_eq!(again, whole);
         // The image is not trivially uniform: the seed matters and light arrives.
         let other_seed = TileRequest {
@@ -343,7 +361,10 @@ pub(crate) mod tests {
             ..request(0, 0, 32, 32)
         };
         assert_ne!(
-            transport.render_tile(&other_seed).expect("renders").image,
+            transport
+                .render_tile(&other_seed, &Cancel::never())
+                .expect("renders")
+                .image,
             whole.image
         );
         assert!(whole.image.rgb().iter().any(|p| p[0] > 0.0));
@@ -353,7 +374,7 @@ pub(crate) mod tests {
     #[test]
     fn bad_requests_name_the_field() {
         let transport = cornell(32);
-        let field = |r: TileRequest| match transport.render_tile(&r) {
+        let field = |r: TileRequest| match transport.render_tile(&r, &Cancel::never()) {
             Err(RenderError::InvalidOption { field, .. }) => field,
             other => panic!("{r:?} gave {other:?}"),
         };
@@ -405,10 +426,13 @@ pub(crate) mod tests {
         let scene = Scene::from_json_str(text, root, root).expect("loads");
         let transport = Transport::new(Arc::new(scene));
         let tile = transport
-            .render_tile(&TileRequest {
-                samples_per_pixel: 8,
-                ..request(0, 0, 6, 4)
-            })
+            .render_tile(
+                &TileRequest {
+                    samples_per_pixel: 8,
+                    ..request(0, 0, 6, 4)
+                },
+                &Cancel::never(),
+            )
             .expect("renders");
         for (p, v) in tile
             .image

@@ -10,8 +10,17 @@
 //!    is dropped and answered 504 `deadline_exceeded` (dropping it also cancels its
 //!    CPU job if that has not started, see `pool.rs`). 504 rather than 503 because the
 //!    service did accept the work and the client may retry with a smaller request;
-//! 5. body limit (`DefaultBodyLimit`): bodies over `limits.max_body_bytes` make
+//! 5. request head size: a target over [`MAX_URI_BYTES`] answers 414 and headers
+//!    over [`MAX_HEAD_BYTES`] 431, with the JSON error body (hyper itself cuts
+//!    heads off at [`super::server::HYPER_MAX_HEAD_BYTES`] with a bare 431);
+//! 6. authorisation: with `server.auth_token` set, the routes that change state
+//!    (`POST /v1/scenes`, every `DELETE`) need `Authorization: Bearer <token>`,
+//!    else 401;
+//! 7. body limit (`DefaultBodyLimit`): bodies over `limits.max_body_bytes` make
 //!    [`ApiJson`](super::extract::ApiJson) answer 413 with the JSON error body.
+//!
+//! Connections (timeouts, the connection cap, the shutdown window) are
+//! handled below all of this, in [`super::server`].
 //!
 //! Unknown paths answer 404 and known paths with the wrong method 405, both with
 //! the JSON error body.
@@ -41,11 +50,16 @@ use super::metrics::{self, Metrics};
 use super::pool::CpuPool;
 use super::routes;
 use super::scenes::{self, SceneRegistry};
+use super::server;
 use super::state::AppState;
 use crate::bmc::cache::QuadratureCache;
 
 /// How often histogram samples are folded into buckets when nobody scrapes.
 const METRICS_UPKEEP_PERIOD: Duration = Duration::from_secs(5);
+/// Longest accepted request target (path and query), in bytes.
+pub const MAX_URI_BYTES: usize = 8 * 1024;
+/// Largest accepted request headers (names and values), in bytes.
+pub const MAX_HEAD_BYTES: usize = 32 * 1024;
 
 /// A service bound to its listener, ready to run.
 pub struct Application {
@@ -60,12 +74,19 @@ impl Application {
         let pool = CpuPool::new(
             config.server.worker_threads(),
             config.limits.max_queued_jobs,
+            config.limits.max_queue_wait_secs,
         )
         .context("cannot start the CPU pool")?;
         let metrics = Metrics::install().map_err(anyhow::Error::msg)?;
         let listener = TcpListener::bind(config.server.bind)
             .await
             .with_context(|| format!("cannot bind {}", config.server.bind))?;
+        if config.server.auth_token.is_empty() && !config.server.bind.ip().is_loopback() {
+            tracing::warn!(
+                bind = %config.server.bind,
+                "no server.auth_token: anyone who reaches this address can replace or delete scenes and clear caches"
+            );
+        }
         let dir = config.scenes.dir.clone();
         let loaded = tokio::task::spawn_blocking(move || scenes::load_dir(&dir))
             .await
@@ -129,9 +150,13 @@ impl Application {
             })
         };
         tracing::info!(addr = %self.local_addr(), "listening");
-        let served = axum::serve(self.listener, self.router)
-            .with_graceful_shutdown(shutdown)
-            .await;
+        let served = server::serve(
+            self.listener,
+            self.router,
+            &self.state.config.server,
+            shutdown,
+        )
+        .await;
         upkeep.abort();
         tracing::info!("stopped");
         served
@@ -153,6 +178,7 @@ struct ApiDoc;
 pub fn router(state: Arc<AppState>) -> Router {
     let (api_routes, doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
         .routes(routes!(routes::health::health))
+        .routes(routes!(routes::health::ready))
         .routes(routes!(routes::metrics::metrics))
         .routes(routes!(routes::openapi::openapi))
         .routes(routes!(
@@ -173,8 +199,12 @@ pub fn router(state: Arc<AppState>) -> Router {
         .routes(routes!(routes::quadratures::post_quadrature))
         .split_for_parts();
     let limits = state.config.limits.clone();
+    let token = Arc::new(state.config.server.auth_token.clone());
     with_middleware(
-        api_routes.layer(Extension(Arc::new(doc))).with_state(state),
+        api_routes
+            .layer(middleware::from_fn_with_state(token, authorise))
+            .layer(Extension(Arc::new(doc)))
+            .with_state(state),
         &limits,
     )
 }
@@ -189,6 +219,7 @@ fn with_middleware(routes: Router, limits: &Limits) -> Router {
             limits.request_deadline(),
             enforce_deadline,
         ))
+        .layer(middleware::from_fn(check_head_size))
         .layer(CatchPanicLayer::custom(
             |panic: Box<dyn std::any::Any + Send>| {
                 ApiError::from_panic(panic.as_ref()).into_response()
@@ -222,6 +253,60 @@ async fn enforce_deadline(
         }
         .into_response(),
     }
+}
+
+/// 414 / 431 with the JSON error body for oversized request heads.
+async fn check_head_size(request: Request, next: Next) -> Response {
+    let target = request
+        .uri()
+        .path_and_query()
+        .map_or(0, |p| p.as_str().len());
+    if target > MAX_URI_BYTES {
+        return ApiError::UriTooLong {
+            len: target,
+            limit: MAX_URI_BYTES,
+        }
+        .into_response();
+    }
+    let head: usize = request
+        .headers()
+        .iter()
+        .map(|(name, value)| name.as_str().len() + value.len())
+        .sum();
+    if head > MAX_HEAD_BYTES {
+        return ApiError::HeadersTooLarge {
+            len: head,
+            limit: MAX_HEAD_BYTES,
+        }
+        .into_response();
+    }
+    next.run(request).await
+}
+
+/// Requires the bearer token on the routes that change state (module docs).
+async fn authorise(State(token): State<Arc<String>>, request: Request, next: Next) -> Response {
+    let mutating = request.method() == Method::DELETE
+        || (request.method() == Method::POST && request.uri().path() == "/v1/scenes");
+    if token.is_empty() || !mutating {
+        return next.run(request).await;
+    }
+    let presented = request
+        .headers()
+        .get(axum::http::header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer "))
+        .unwrap_or("");
+    if constant_time_eq(presented.as_bytes(), token.as_bytes()) {
+        next.run(request).await
+    } else {
+        ApiError::Unauthorized.into_response()
+    }
+}
+
+/// Byte equality whose time does not depend on where the inputs differ, so
+/// response times do not reveal the token a prefix at a time.
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
 /// Resolves on SIGINT (Ctrl-C) or SIGTERM.

@@ -27,6 +27,10 @@ use toml::{Table, Value};
 /// The embedded default configuration (`config/default.toml`).
 pub const DEFAULT_TOML: &str = include_str!("../../config/default.toml");
 
+/// One irradiance-cache record may take at most this fraction (its inverse)
+/// of `limits.max_paths_per_request` (see [`Limits::check_record_work`]).
+pub const RECORD_SHARE: u64 = 64;
+
 /// Prefix of environment variables that override configuration keys.
 pub const ENV_PREFIX: &str = "BMC_";
 
@@ -78,6 +82,16 @@ pub struct ServerConfig {
     pub runtime_threads: usize,
     /// CPU pool threads (0 = number of cores).
     pub worker_threads: usize,
+    /// Seconds a connection may take to send a request head, and may stay
+    /// idle between requests, before it is closed.
+    pub header_read_timeout_secs: u64,
+    /// Open connections at most; further ones are closed at once.
+    pub max_connections: usize,
+    /// Seconds in-flight requests get to finish after SIGTERM/SIGINT.
+    pub shutdown_grace_secs: u64,
+    /// Bearer token that mutating routes require (`Authorization: Bearer
+    /// <token>`); empty = none (the default, meant for loopback binds).
+    pub auth_token: String,
 }
 
 /// Byte budgets of the caches.
@@ -104,8 +118,14 @@ pub struct Limits {
     pub max_tile_area: usize,
     /// CPU jobs queued or running at once (503 beyond).
     pub max_queued_jobs: usize,
+    /// Longest expected wait in the CPU queue, in seconds, at which a job is
+    /// still admitted (503 beyond).
+    pub max_queue_wait_secs: f64,
     /// Wall-clock deadline of a request in seconds (504 beyond).
     pub request_deadline_secs: u64,
+    /// Most paths one request may trace, as estimated before it starts
+    /// (422 naming `estimated_paths` beyond).
+    pub max_paths_per_request: u64,
 }
 
 /// Where scenes come from.
@@ -169,6 +189,15 @@ impl Config {
                 "limits.request_deadline_secs",
                 self.limits.request_deadline_secs,
             ),
+            (
+                "limits.max_paths_per_request",
+                self.limits.max_paths_per_request,
+            ),
+            (
+                "server.header_read_timeout_secs",
+                self.server.header_read_timeout_secs,
+            ),
+            ("server.max_connections", self.server.max_connections as u64),
             ("cache.factorisation_bytes", self.cache.factorisation_bytes),
             ("cache.irradiance_bytes", self.cache.irradiance_bytes),
         ];
@@ -179,6 +208,12 @@ impl Config {
                     reason: "must be greater than zero".into(),
                 });
             }
+        }
+        if self.limits.max_queue_wait_secs.is_nan() || self.limits.max_queue_wait_secs <= 0.0 {
+            return Err(ConfigError::Invalid {
+                field: "limits.max_queue_wait_secs",
+                reason: "must be greater than zero".into(),
+            });
         }
         if self.scenes.dir.as_os_str().is_empty() {
             return Err(ConfigError::Invalid {
@@ -206,6 +241,29 @@ impl Limits {
     /// The request deadline as a duration.
     pub fn request_deadline(&self) -> Duration {
         Duration::from_secs(self.request_deadline_secs)
+    }
+
+    /// Refuses a request whose estimated paths exceed `max_paths_per_request`
+    /// (422 `limit_exceeded` naming `estimated_paths`). Each per-request
+    /// limit alone is modest, but they multiply: a one-pixel tile with 4096
+    /// record directions × 65,536 paths each cost 16 CPU-minutes.
+    pub fn check_work(&self, estimated_paths: u64) -> Result<(), super::error::ApiError> {
+        super::error::ApiError::check_limit(
+            "estimated_paths",
+            estimated_paths,
+            self.max_paths_per_request,
+        )
+    }
+
+    /// Refuses irradiance-cache records of more than 1/[`RECORD_SHARE`] of
+    /// the work budget each (422 naming `estimated_paths_per_record`): a
+    /// record is the unit at which cancelled work stops, so it must be short.
+    pub fn check_record_work(&self, paths_per_record: u64) -> Result<(), super::error::ApiError> {
+        super::error::ApiError::check_limit(
+            "estimated_paths_per_record",
+            paths_per_record,
+            self.max_paths_per_request / RECORD_SHARE,
+        )
     }
 }
 

@@ -8,14 +8,18 @@
 //! | status | code | when |
 //! |---|---|---|
 //! | 400 | `malformed_json` | the body is not JSON (syntax error, truncated) |
+//! | 401 | `unauthorized` | a mutating route without the configured bearer token |
 //! | 404 | `not_found` | unknown route or unknown resource id |
 //! | 405 | `method_not_allowed` | the route exists but not for this method |
 //! | 413 | `payload_too_large` | body over `limits.max_body_bytes` |
+//! | 414 | `uri_too_long` | a request target over 8 KiB |
 //! | 415 | `unsupported_media_type` | a `content-type` other than JSON |
 //! | 422 | `invalid_field` | JSON of the wrong shape or a value out of range |
-//! | 422 | `limit_exceeded` | more points/samples/pixels than the limits allow |
+//! | 422 | `limit_exceeded` | more points/samples/pixels/estimated paths than the limits allow |
+//! | 431 | `headers_too_large` | request headers over 32 KiB |
 //! | 500 | `internal` | a bug (a panic in a handler or a CPU job) |
 //! | 503 | `overloaded` | the CPU queue is full; carries `Retry-After` |
+//! | 503 | `cancelled` | the request's work was cancelled (its client is normally gone) |
 //! | 504 | `deadline_exceeded` | the request ran past `limits.request_deadline_secs` |
 
 use axum::Json;
@@ -34,8 +38,8 @@ pub enum ApiError {
     #[error("`{field}` is {value}, above the limit of {limit}")]
     LimitExceeded {
         field: String,
-        value: usize,
-        limit: usize,
+        value: u64,
+        limit: u64,
     },
     #[error("{what} `{id}` not found")]
     NotFound { what: &'static str, id: String },
@@ -56,6 +60,16 @@ pub enum ApiError {
     DeadlineExceeded { secs: u64 },
     #[error("internal error: {message}")]
     Internal { message: String },
+    #[error("the request's work was cancelled")]
+    Cancelled,
+    #[error(
+        "this route changes the service's state and needs `Authorization: Bearer <token>` with the configured server.auth_token"
+    )]
+    Unauthorized,
+    #[error("the request target is {len} bytes, above the limit of {limit}")]
+    UriTooLong { len: usize, limit: usize },
+    #[error("the request headers are {len} bytes, above the limit of {limit}")]
+    HeadersTooLarge { len: usize, limit: usize },
 }
 
 /// The JSON error body (documented in the OpenAPI schema).
@@ -85,7 +99,7 @@ impl ApiError {
     }
 
     /// Checks a count against its configured limit (422 `limit_exceeded` above it).
-    pub fn check_limit(field: &str, value: usize, limit: usize) -> Result<(), ApiError> {
+    pub fn check_limit(field: &str, value: u64, limit: u64) -> Result<(), ApiError> {
         if value > limit {
             Err(ApiError::LimitExceeded {
                 field: field.into(),
@@ -99,7 +113,7 @@ impl ApiError {
 
     /// Checks a count that must be in `1..=limit`: 422 `invalid_field` for
     /// zero, `limit_exceeded` above the limit.
-    pub fn check_count(field: &str, value: usize, limit: usize) -> Result<(), ApiError> {
+    pub fn check_count(field: &str, value: u64, limit: u64) -> Result<(), ApiError> {
         if value == 0 {
             return Err(ApiError::invalid(field, "must be at least 1"));
         }
@@ -128,7 +142,10 @@ impl ApiError {
             ApiError::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::PayloadTooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            ApiError::Overloaded { .. } => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::Overloaded { .. } | ApiError::Cancelled => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::Unauthorized => StatusCode::UNAUTHORIZED,
+            ApiError::UriTooLong { .. } => StatusCode::URI_TOO_LONG,
+            ApiError::HeadersTooLarge { .. } => StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
             ApiError::DeadlineExceeded { .. } => StatusCode::GATEWAY_TIMEOUT,
             ApiError::Internal { .. } => StatusCode::INTERNAL_SERVER_ERROR,
         }
@@ -146,6 +163,10 @@ impl ApiError {
             ApiError::Overloaded { .. } => "overloaded",
             ApiError::DeadlineExceeded { .. } => "deadline_exceeded",
             ApiError::Internal { .. } => "internal",
+            ApiError::Cancelled => "cancelled",
+            ApiError::Unauthorized => "unauthorized",
+            ApiError::UriTooLong { .. } => "uri_too_long",
+            ApiError::HeadersTooLarge { .. } => "headers_too_large",
         }
     }
 
@@ -192,6 +213,11 @@ impl IntoResponse for ApiError {
             tracing::error!(%message, "internal error");
         }
         let mut response = (self.status(), Json(self.body())).into_response();
+        if let ApiError::Unauthorized = self {
+            response
+                .headers_mut()
+                .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+        }
         if let ApiError::Overloaded {
             retry_after_secs, ..
         } = self

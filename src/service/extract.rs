@@ -109,11 +109,24 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
         // Every request body is an object; other well-formed JSON (an array, a
         // number) would otherwise be reported against a made-up path like `[0]`.
         let first = bytes.iter().find(|b| !b.is_ascii_whitespace());
-        if first != Some(&b'{') && serde_json::from_slice::<IgnoredAny>(bytes).is_ok() {
+        let well_formed = serde_json::from_slice::<IgnoredAny>(bytes).is_ok();
+        if first != Some(&b'{') && well_formed {
             return ApiError::invalid("", "the request body must be a JSON object");
         }
         let path = err.path().to_string();
         let inner = err.into_inner();
+        // serde_json reports an array or object where a string enum is
+        // expected as a syntax error ("expected value"), though the JSON is
+        // fine: it is a value of the wrong shape at `path`.
+        if well_formed
+            && !path.is_empty()
+            && inner.classify() == serde_json::error::Category::Syntax
+        {
+            return ApiError::invalid(
+                path,
+                format!("a value of the wrong type or shape ({inner})"),
+            );
+        }
         classify(inner, path)
     })?;
     deserializer

@@ -9,17 +9,14 @@
 //! scene also drop the old version's caches at once to free their memory.
 //!
 //! # Memory
-//! `cache.irradiance_bytes` bounds all caches together: each cache may hold
-//! [`SHARE`]⁻¹ of it (its own FIFO eviction keeps it there, see
-//! `cache::irradiance_cache`), and the set of caches is a moka cache weighed
-//! by those budgets, so creating a cache beyond the total evicts the least
-//! valuable one (moka's TinyLFU) as a whole.
-//!
-//! The records' BMC rule of each cache is not in that budget: its Cholesky
-//! factor and gradient tables take `24 N²` bytes for `N` directions per
-//! record (400 MB at `limits.max_samples` = 4096, 25 MB at 1024). Since at
-//! most [`SHARE`] caches live at once, the rules add at most `SHARE · 24 N²`
-//! bytes; lower `limits.max_samples` to tighten that.
+//! `cache.irradiance_bytes` bounds all caches together, rules included: each
+//! cache's records may take [`SHARE`]⁻¹ of it (its own FIFO eviction keeps it
+//! there, see `cache::irradiance_cache`), and its records' BMC rule (Cholesky
+//! factor and gradient tables, `≈ 24 N²` bytes for `N` directions per record:
+//! 25 MB at 1024, 400 MB at 4096) is weighed beside them. The set of caches
+//! is a moka cache weighed by the sum, so creating a cache beyond the total
+//! evicts the least valuable one (moka's TinyLFU) as a whole. A configuration
+//! whose rule alone exceeds the total is refused (422) and its rule dropped.
 
 use std::sync::Arc;
 
@@ -52,6 +49,8 @@ pub struct ConfigurationStats {
     pub configuration: serde_json::Value,
     #[schema(value_type = Object)]
     pub stats: CacheStats,
+    /// Bytes of the records' BMC rule (factor and tables), held beside the records.
+    pub rule_bytes: usize,
 }
 
 /// One cache with the BMC rules its records are computed with (built once
@@ -65,6 +64,7 @@ pub struct SceneCache {
 pub struct IrradianceCaches {
     caches: Cache<CacheKey, Arc<SceneCache>>,
     per_cache_bytes: usize,
+    total_bytes: usize,
 }
 
 impl IrradianceCaches {
@@ -72,14 +72,16 @@ impl IrradianceCaches {
     pub fn new(total_bytes: usize) -> Self {
         let per_cache_bytes = (total_bytes / SHARE).max(RECORD_BYTES);
         let kib = |bytes: usize| u32::try_from(bytes.div_ceil(1024)).unwrap_or(u32::MAX);
-        let weight = kib(per_cache_bytes);
         Self {
             caches: Cache::builder()
                 .max_capacity(total_bytes.div_ceil(1024) as u64)
-                .weigher(move |_, _| weight)
+                .weigher(move |_, entry: &Arc<SceneCache>| {
+                    kib(per_cache_bytes + entry.shading.rule.size_bytes())
+                })
                 .support_invalidation_closures()
                 .build(),
             per_cache_bytes,
+            total_bytes,
         }
     }
 
@@ -108,11 +110,22 @@ impl IrradianceCaches {
             byte_budget: self.per_cache_bytes,
             ..template
         };
+        let total = self.total_bytes;
         self.caches
             .try_get_with(key, || -> Result<_, CacheError> {
+                let shading = shading()?;
+                let bytes = shading.rule.size_bytes();
+                if bytes > total {
+                    return Err(CacheError::invalid(
+                        "samples",
+                        format!(
+                            "the records' rule would take {bytes} bytes, more than all of cache.irradiance_bytes ({total}); use fewer directions"
+                        ),
+                    ));
+                }
                 Ok(Arc::new(SceneCache {
                     cache: IrradianceCache::new(config)?,
-                    shading: shading()?,
+                    shading,
                 }))
             })
             .map_err(|err: Arc<CacheError>| (*err).clone())
@@ -130,16 +143,20 @@ impl IrradianceCaches {
 
     /// Stats of every cache of this version of `scene`, sorted by configuration.
     pub fn stats(&self, scene: &LoadedScene) -> Vec<ConfigurationStats> {
-        let mut all: Vec<(String, CacheStats)> = self
+        let mut all: Vec<(String, CacheStats, usize)> = self
             .of_scene(scene)
-            .map(|(key, entry)| (key.configuration.clone(), entry.cache.stats()))
+            .map(|(key, entry)| {
+                let rule_bytes = entry.shading.rule.size_bytes();
+                (key.configuration.clone(), entry.cache.stats(), rule_bytes)
+            })
             .collect();
         all.sort_by(|a, b| a.0.cmp(&b.0));
         all.into_iter()
-            .map(|(configuration, stats)| ConfigurationStats {
+            .map(|(configuration, stats, rule_bytes)| ConfigurationStats {
                 configuration: serde_json::from_str(&configuration)
                     .unwrap_or(serde_json::Value::String(configuration)),
                 stats,
+                rule_bytes,
             })
             .collect()
     }

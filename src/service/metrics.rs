@@ -12,6 +12,7 @@ use std::sync::OnceLock;
 use std::time::Instant;
 
 use axum::extract::{MatchedPath, Request};
+use axum::http::Method;
 use axum::middleware::Next;
 use axum::response::Response;
 use metrics_exporter_prometheus::{Matcher, PrometheusBuilder, PrometheusHandle};
@@ -32,6 +33,8 @@ pub const RAYS_TRACED: &str = "rays_traced_total";
 pub const CPU_JOBS_IN_FLIGHT: &str = "cpu_jobs_in_flight";
 /// Counter: CPU jobs refused with 503 because every slot was taken.
 pub const CPU_JOBS_REJECTED: &str = "cpu_jobs_rejected_total";
+/// Counter: connections closed at accept because `server.max_connections` were open.
+pub const CONNECTIONS_REFUSED: &str = "http_connections_refused_total";
 
 /// Latency buckets in seconds: from cached lookups (sub-millisecond) to tiles (seconds).
 const LATENCY_BUCKETS: [f64; 14] = [
@@ -100,6 +103,28 @@ fn describe() {
         CPU_JOBS_REJECTED,
         "CPU jobs refused with 503 because the queue was full"
     );
+    describe_counter!(
+        CONNECTIONS_REFUSED,
+        "Connections closed at once because server.max_connections were open"
+    );
+}
+
+/// The `method` label: the standard methods by name, every other one as
+/// `other`. Clients choose the method string, so using it verbatim would let
+/// them create label sets, and so memory in the exporter, without bound.
+fn method_label(method: &Method) -> &'static str {
+    match *method {
+        Method::GET => "GET",
+        Method::HEAD => "HEAD",
+        Method::POST => "POST",
+        Method::PUT => "PUT",
+        Method::DELETE => "DELETE",
+        Method::PATCH => "PATCH",
+        Method::OPTIONS => "OPTIONS",
+        Method::CONNECT => "CONNECT",
+        Method::TRACE => "TRACE",
+        _ => "other",
+    }
 }
 
 /// Middleware recording one count and one latency sample per request.
@@ -108,11 +133,11 @@ pub async fn track(request: Request, next: Next) -> Response {
         .extensions()
         .get::<MatchedPath>()
         .map_or_else(|| "unmatched".to_owned(), |p| p.as_str().to_owned());
-    let method = request.method().to_string();
+    let method = method_label(request.method());
     let start = Instant::now();
     let response = next.run(request).await;
     let labels = [
-        ("method", method),
+        ("method", method.to_owned()),
         ("route", route),
         ("status", response.status().as_u16().to_string()),
     ];

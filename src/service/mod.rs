@@ -21,6 +21,7 @@ pub mod metrics;
 pub mod pool;
 pub mod routes;
 pub mod scenes;
+pub mod server;
 pub mod state;
 
 pub use app::{Application, shutdown_signal};

@@ -51,6 +51,20 @@ pub struct SampleSetSpec {
     pub seed: u64,
 }
 
+impl SampleSetSpec {
+    /// The same set with the seed cleared where the kind ignores it, so keys
+    /// of caches built from specs do not split one set into many (2,000
+    /// Fibonacci requests differing only in `seed` once kept 2,000 fits).
+    pub fn canonical(self) -> SampleSetSpec {
+        match self.kind {
+            SampleSetKind::Fibonacci | SampleSetKind::FibonacciCosine => {
+                SampleSetSpec { seed: 0, ..self }
+            }
+            SampleSetKind::Uniform | SampleSetKind::Cosine | SampleSetKind::Stratified => self,
+        }
+    }
+}
+
 /// Unit directions in the local frame, all with `z > 0`.
 #[derive(Clone, Debug)]
 pub struct SampleSet {

@@ -44,11 +44,16 @@ impl Drop for TestApp {
 }
 
 /// A configuration for tests: ephemeral port, an empty temporary scenes
-/// directory, two CPU threads; `adjust` may change anything else.
+/// directory, two CPU threads, no queue-wait admission limit; `adjust` may
+/// change anything else.
 pub fn test_config(scenes_dir: &TempDir, adjust: impl FnOnce(&mut Config)) -> Config {
     let mut config = Config::default_config();
     config.server.bind = "127.0.0.1:0".parse().unwrap();
     config.server.worker_threads = 2;
+    // Debug-build jobs are many times slower than release ones, so the
+    // release default would refuse concurrent test clients; tests of
+    // admission set it themselves.
+    config.limits.max_queue_wait_secs = 3600.0;
     config.scenes.dir = scenes_dir.path().to_owned();
     adjust(&mut config);
     config.validate().unwrap();

@@ -30,7 +30,7 @@ use crate::bmc::report::QuadratureSpec;
 use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use crate::render::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig};
 use crate::render::{
-    IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb,
+    Cancel, IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb,
 };
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
@@ -205,12 +205,18 @@ pub async fn irradiance(
 ) -> Result<Json<IrradianceResponse>, ApiError> {
     let scene = scene_or_404(&state, &id)?;
     let limits = &state.config.limits;
-    ApiError::check_count("points", request.points.len(), limits.max_points)?;
+    ApiError::check_count(
+        "points",
+        request.points.len() as u64,
+        limits.max_points as u64,
+    )?;
     ApiError::check_limit(
         "estimator.samples",
-        request.estimator.samples as usize,
-        limits.max_samples,
+        u64::from(request.estimator.samples),
+        limits.max_samples as u64,
     )?;
+    // One path per point and hemisphere sample (light samples are shadow rays).
+    limits.check_work(request.points.len() as u64 * u64::from(request.estimator.samples))?;
     let points = request
         .points
         .iter()
@@ -238,7 +244,7 @@ pub async fn irradiance(
     let worker = state.clone();
     let (estimates, kernel) = state
         .pool
-        .run(move || plan.run(&worker, &scene, &points, &options))
+        .run(move |cancel| plan.run(&worker, &scene, &points, &options, cancel))
         .await??;
     let rays = estimates.iter().map(|e| e.rays).sum();
     ::metrics::counter!(RAYS_TRACED).increment(rays);
@@ -348,21 +354,22 @@ impl Plan {
         scene: &LoadedScene,
         points: &[QueryPoint],
         options: &IrradianceOptions,
+        cancel: &Cancel,
     ) -> Result<(Vec<IrradianceEstimate>, Option<Kernel>), ApiError> {
         let transport = &scene.transport;
         let (estimates, kernel) = match self {
             Plan::Mc => (
-                transport.irradiance_at_points(points, options, &|| {}),
+                transport.irradiance_at_points(points, options, &|| {}, cancel),
                 None,
             ),
             Plan::Qmc(qmc) => (
-                transport.irradiance_with_estimator(points, &qmc, options),
+                transport.irradiance_with_estimator(points, &qmc, options, cancel),
                 None,
             ),
             Plan::Bmc(bmc) => {
                 let (estimator, kernel) = bmc.estimator(state, scene)?;
                 (
-                    transport.irradiance_with_estimator(points, &estimator, options),
+                    transport.irradiance_with_estimator(points, &estimator, options, cancel),
                     Some(kernel),
                 )
             }
@@ -426,6 +433,7 @@ fn field_error(prefix: &str, err: RenderError) -> ApiError {
         } => "estimator.samples".into(),
         RenderError::InvalidOption { field, .. } => (*field).into(),
         RenderError::PointsRow { .. } => prefix.trim_end_matches('.').into(),
+        RenderError::Cancelled => return ApiError::Cancelled,
     };
     ApiError::invalid(field, err.to_string())
 }

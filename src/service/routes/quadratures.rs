@@ -54,7 +54,7 @@ impl SampleSetDoc {
         if self.count == 0 {
             return Err(ApiError::invalid(count_field, "must be at least 1"));
         }
-        ApiError::check_limit(&count_field, self.count as usize, max_samples)?;
+        ApiError::check_limit(&count_field, self.count as u64, max_samples as u64)?;
         Ok(SampleSetSpec {
             kind: self.kind,
             count: self.count as usize,
@@ -206,7 +206,7 @@ pub async fn post_quadrature(
     let worker = state.clone();
     let report = state
         .pool
-        .run(move || {
+        .run(move |_| {
             let report = quadrature_report(&spec, &worker.quadratures);
             record_lookup(&worker, report.as_ref().map(|r| r.cached));
             report

@@ -19,7 +19,7 @@ use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::routes::scenes::scene_or_404;
-use crate::service::routes::tiles::{TileEstimatorDoc, TileMethod, cached_setup};
+use crate::service::routes::tiles::{CachedSpec, TileEstimatorDoc, TileMethod, cached_setup};
 use crate::service::state::AppState;
 
 /// A surface point, its normal and the direction towards the viewer.
@@ -92,8 +92,16 @@ pub async fn radiance(
 ) -> Result<Json<RadianceResponse>, ApiError> {
     let scene = scene_or_404(&state, &id)?;
     let limits = &state.config.limits;
-    ApiError::check_count("points", request.points.len(), limits.max_points)?;
-    ApiError::check_count("repeats", request.repeats as usize, limits.max_samples)?;
+    ApiError::check_count(
+        "points",
+        request.points.len() as u64,
+        limits.max_points as u64,
+    )?;
+    ApiError::check_count(
+        "repeats",
+        u64::from(request.repeats),
+        limits.max_samples as u64,
+    )?;
     if request.max_depth == 0 || request.max_depth > crate::render::irradiance::MAX_DEPTH {
         return Err(ApiError::invalid(
             "max_depth",
@@ -113,21 +121,24 @@ pub async fn radiance(
                 .map_err(|err| point_error(i, err))
         })
         .collect::<Result<Vec<_>, _>>()?;
+    // The work, bounded before it starts: the repeats' paths, plus for `bmc`
+    // at most one record per point.
+    let cached = match request.estimator.method {
+        TileMethod::Bmc => Some(CachedSpec::resolve(&request.estimator, limits)?),
+        TileMethod::Path => None,
+    };
+    let points = request.points.len() as u64;
+    let record_paths = cached.as_ref().map_or(0, |c| points * c.paths_per_record());
+    limits.check_work((points * u64::from(request.repeats)).saturating_add(record_paths))?;
     let (max_depth, repeats, seed) = (request.max_depth, request.repeats, request.seed);
     let shared = state.clone();
     let estimates = state
         .pool
-        .run(move || {
+        .run(move |cancel| {
             // On the pool: a new configuration factorises its record rule.
-            let cached = match request.estimator.method {
-                TileMethod::Bmc => Some(cached_setup(
-                    &shared,
-                    &scene,
-                    &request.estimator,
-                    max_depth,
-                )?),
-                TileMethod::Path => None,
-            };
+            let cached = cached
+                .map(|spec| cached_setup(&shared, &scene, spec, max_depth))
+                .transpose()?;
             let transport = &scene.transport;
             let hits = queries
                 .iter()
@@ -148,8 +159,13 @@ pub async fn radiance(
                 },
                 None => RadianceShading::PathTracing,
             };
-            radiance_at_points(transport, &queries, &hits, shading, max_depth, repeats, seed)
-                .map_err(|err| ApiError::invalid("estimator", err.to_string()))
+            radiance_at_points(
+                transport, &queries, &hits, shading, max_depth, repeats, seed, cancel,
+            )
+            .map_err(|err| match err {
+                RenderError::Cancelled => ApiError::Cancelled,
+                err => ApiError::invalid("estimator", err.to_string()),
+            })
         })
         .await??;
     let rays = estimates.iter().map(|e| e.rays).sum();

@@ -72,7 +72,7 @@ pub async fn post_scene(
             let text = document.to_string();
             let scene = state
                 .pool
-                .run(move || Scene::from_json_str(&text, &root, &root))
+                .run(move |_| Scene::from_json_str(&text, &root, &root))
                 .await??;
             (id, scene)
         }
@@ -90,7 +90,7 @@ pub async fn post_scene(
             };
             let (scene, warnings) = state
                 .pool
-                .run(move || Scene::from_mitsuba_xml_str(&text, &root, &root, &options))
+                .run(move |_| Scene::from_mitsuba_xml_str(&text, &root, &root, &options))
                 .await??;
             for warning in &warnings {
                 tracing::warn!(%id, %warning, "scene approximated");

@@ -20,7 +20,8 @@ use crate::cache::{
     RecordRuleSpec, default_rule_spec,
 };
 use crate::image::{ImageEncoding, ToneMap};
-use crate::render::{RenderError, RenderedTile, ShadingMethod, TileRequest, Transport};
+use crate::render::{Cancel, RenderError, RenderedTile, ShadingMethod, TileRequest, Transport};
+use crate::service::config::Limits;
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::irradiance_caches::SceneCache;
@@ -151,15 +152,11 @@ pub async fn tile(
     let scene = scene_or_404(&state, &id)?;
     let limits = &state.config.limits;
     let area = u64::from(doc.width) * u64::from(doc.height);
-    ApiError::check_limit(
-        "width",
-        usize::try_from(area).unwrap_or(usize::MAX),
-        limits.max_tile_area,
-    )?;
+    ApiError::check_limit("width*height", area, limits.max_tile_area as u64)?;
     ApiError::check_limit(
         "samples_per_pixel",
-        doc.samples_per_pixel as usize,
-        limits.max_samples,
+        u64::from(doc.samples_per_pixel),
+        limits.max_samples as u64,
     )?;
     let tone_map = ToneMap {
         exposure: doc.exposure,
@@ -185,22 +182,27 @@ pub async fn tile(
     request
         .validate(scene.transport.scene().camera.resolution())
         .map_err(render_error)?;
+    // The work, bounded before it starts: camera paths, plus at most one
+    // record per pixel (placement points are pixel centres) for `bmc`.
+    let cached = match method {
+        ShadingMethod::IrradianceCache => Some(CachedSpec::resolve(&doc.estimator, limits)?),
+        ShadingMethod::PathTracing => None,
+    };
+    let camera_paths = area * u64::from(doc.samples_per_pixel);
+    let record_paths = cached
+        .as_ref()
+        .map_or(0, |c| area.saturating_mul(c.paths_per_record()));
+    limits.check_work(camera_paths.saturating_add(record_paths))?;
     let format = doc.format;
     let shared = state.clone();
     let (tile, report, body) = state
         .pool
-        .run(move || {
+        .run(move |cancel| {
             // On the pool: a new configuration factorises its record rule.
-            let cached = match method {
-                ShadingMethod::IrradianceCache => Some(cached_setup(
-                    &shared,
-                    &scene,
-                    &doc.estimator,
-                    doc.max_depth,
-                )?),
-                ShadingMethod::PathTracing => None,
-            };
-            let (tile, report) = render(&scene.transport, &request, cached)?;
+            let cached = cached
+                .map(|spec| cached_setup(&shared, &scene, spec, doc.max_depth))
+                .transpose()?;
+            let (tile, report) = render(&scene.transport, &request, cached, cancel)?;
             let body = tile
                 .image
                 .encode(format, tone_map)
@@ -257,42 +259,82 @@ impl CachedSetup {
     }
 }
 
+/// A `bmc` estimator document with its defaults filled in and its sample
+/// count checked: cheap, so it runs before the request takes a CPU slot.
+pub(crate) struct CachedSpec {
+    spec: RecordRuleSpec,
+    options: CacheShadingOptions,
+    /// Whether the request reads and extends the scene's shared cache.
+    shared: bool,
+}
+
+impl CachedSpec {
+    /// Fills in the defaults and checks the sample count and each record's
+    /// paths against the limits.
+    pub(crate) fn resolve(e: &TileEstimatorDoc, limits: &Limits) -> Result<CachedSpec, ApiError> {
+        let samples = e.samples.unwrap_or(64);
+        ApiError::check_limit(
+            "estimator.samples",
+            u64::from(samples),
+            limits.max_samples as u64,
+        )?;
+        let mut spec: RecordRuleSpec = default_rule_spec();
+        spec.samples.count = samples as usize;
+        if let Some(lengthscale) = e.lengthscale {
+            spec.kernel.lengthscale = lengthscale;
+        }
+        if let Some(noise) = e.noise {
+            spec.kernel.noise = noise;
+        }
+        let defaults = CacheShadingOptions::default();
+        let options = CacheShadingOptions {
+            accuracy: e.accuracy.unwrap_or(defaults.accuracy),
+            relative_error_target: e.relative_error_target,
+            occlusion_check: e.occlusion_check.unwrap_or(defaults.occlusion_check),
+            reproducible: e.reproducible.unwrap_or(defaults.reproducible),
+            light_samples: e.light_samples.unwrap_or(defaults.light_samples),
+            paths_per_direction: e
+                .paths_per_direction
+                .unwrap_or(defaults.paths_per_direction),
+            ambient_bounces: e.ambient_bounces.unwrap_or(defaults.ambient_bounces),
+            ..defaults
+        };
+        // Validated before the budget, so an out-of-range knob is named as such.
+        options.validate().map_err(estimator_error)?;
+        let resolved = CachedSpec {
+            spec,
+            options,
+            shared: e.cache.unwrap_or(true),
+        };
+        limits.check_record_work(resolved.paths_per_record())?;
+        Ok(resolved)
+    }
+
+    /// Paths one record may trace: its directions times the paths per
+    /// direction, once more per ambient level that re-gathers them. Records
+    /// that ambient levels place at secondary hits are not counted: how many
+    /// there are depends on what the cache already holds.
+    pub(crate) fn paths_per_record(&self) -> u64 {
+        self.spec.samples.count as u64
+            * u64::from(self.options.paths_per_direction)
+            * (1 + u64::from(self.options.ambient_bounces))
+    }
+}
+
 /// The cache and rules for estimator `e` on `scene` with paths of up to
 /// `max_depth` segments counted from the camera (tiles) or viewer (radiance
 /// queries), so both share records.
 pub(crate) fn cached_setup(
     state: &AppState,
     scene: &LoadedScene,
-    e: &TileEstimatorDoc,
+    resolved: CachedSpec,
     max_depth: u32,
 ) -> Result<CachedSetup, ApiError> {
-    let samples = e.samples.unwrap_or(64);
-    ApiError::check_limit(
-        "estimator.samples",
-        samples as usize,
-        state.config.limits.max_samples,
-    )?;
-    let mut spec: RecordRuleSpec = default_rule_spec();
-    spec.samples.count = samples as usize;
-    if let Some(lengthscale) = e.lengthscale {
-        spec.kernel.lengthscale = lengthscale;
-    }
-    if let Some(noise) = e.noise {
-        spec.kernel.noise = noise;
-    }
-    let defaults = CacheShadingOptions::default();
-    let options = CacheShadingOptions {
-        accuracy: e.accuracy.unwrap_or(defaults.accuracy),
-        relative_error_target: e.relative_error_target,
-        occlusion_check: e.occlusion_check.unwrap_or(defaults.occlusion_check),
-        reproducible: e.reproducible.unwrap_or(defaults.reproducible),
-        light_samples: e.light_samples.unwrap_or(defaults.light_samples),
-        paths_per_direction: e
-            .paths_per_direction
-            .unwrap_or(defaults.paths_per_direction),
-        ambient_bounces: e.ambient_bounces.unwrap_or(defaults.ambient_bounces),
-        ..defaults
-    };
+    let CachedSpec {
+        spec,
+        options,
+        shared,
+    } = resolved;
     // What the records' values depend on: their rule and the path depth.
     let configuration = serde_json::json!({
         "rule": spec,
@@ -312,7 +354,7 @@ pub(crate) fn cached_setup(
         .shading
         .with_options(options)
         .map_err(estimator_error)?;
-    let private = if e.cache.unwrap_or(true) {
+    let private = if shared {
         None
     } else {
         Some(IrradianceCache::new(*entry.cache.config()).map_err(estimator_error)?)
@@ -329,12 +371,18 @@ fn render(
     transport: &Transport,
     request: &TileRequest,
     cached: Option<CachedSetup>,
+    cancel: &Cancel,
 ) -> Result<(RenderedTile, Option<CachedTileReport>), ApiError> {
     match cached {
-        None => Ok((transport.render_tile(request).map_err(render_error)?, None)),
+        None => Ok((
+            transport
+                .render_tile(request, cancel)
+                .map_err(render_error)?,
+            None,
+        )),
         Some(setup) => {
             let (tile, report) = transport
-                .render_tile_cached(request, setup.cache(), &setup.shading)
+                .render_tile_cached(request, setup.cache(), &setup.shading, cancel)
                 .map_err(render_error)?;
             Ok((tile, Some(report)))
         }
@@ -359,5 +407,6 @@ fn render_error(err: RenderError) -> ApiError {
         RenderError::PointsRow { .. } => ApiError::Internal {
             message: err.to_string(),
         },
+        RenderError::Cancelled => ApiError::Cancelled,
     }
 }

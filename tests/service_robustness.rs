@@ -1,0 +1,352 @@
+//! What one client must not be able to do to the service: keep workers busy
+//! past its deadline, hold connections open, grow memory through labels or
+//! keys it chooses, wedge the pool unseen, or change state without the token.
+//! Each test ends by showing the service healthy with its scenes.
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use bmc_irradiance::service::{Application, Config};
+use common::{TINY_SCENE, error_of, spawn_app_with_scenes, test_config};
+use reqwest::{Method, StatusCode};
+use serde_json::{Value, json};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+
+const CORNELL: &str = include_str!("../scenes/cornell-box.json");
+
+/// `/health` as JSON, asserting it answers 200.
+async fn health(app: &common::TestApp) -> Value {
+    let response = app.get("/health").await;
+    assert_eq!(response.status(), StatusCode::OK);
+    response.json().await.unwrap()
+}
+
+/// Irradiance at `n` points on the Cornell box's floor with 4096 samples
+/// each: minutes of work on two cores.
+fn slow_irradiance(n: usize) -> Value {
+    let points: Vec<Value> = (0..n)
+        .map(|i| {
+            let x = -0.9 + 1.8 * (i as f64 / n as f64);
+            json!({"position": [x, -0.999, 0.1], "normal": [0, 1, 0]})
+        })
+        .collect();
+    json!({"points": points, "estimator": {"method": "mc", "samples": 4096}, "max_depth": 16})
+}
+
+/// Polls `/health` until no CPU job runs; the time it took.
+async fn until_idle(app: &common::TestApp) -> Duration {
+    let start = Instant::now();
+    loop {
+        let body = health(app).await;
+        if body["cpu"]["running"] == 0 && body["cpu"]["queued"] == 0 {
+            return start.elapsed();
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "still busy: {body}"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+#[tokio::test]
+async fn work_stops_when_its_deadline_passes_or_its_client_leaves() {
+    let app = spawn_app_with_scenes(&[("cornell-box.json", CORNELL)], |c| {
+        c.limits.request_deadline_secs = 2;
+    })
+    .await;
+    let body = slow_irradiance(2000);
+
+    // Deadline: 504, then the workers are free again within a second.
+    let response = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &body)
+        .await;
+    assert_eq!(response.status(), StatusCode::GATEWAY_TIMEOUT);
+    assert_eq!(error_of(response).await.0, "deadline_exceeded");
+    let idle = until_idle(&app).await;
+    assert!(idle < Duration::from_secs(1), "idle after {idle:?}");
+
+    // Disconnect: the client gives up after half a second.
+    let gone = app
+        .client
+        .post(app.url("/v1/scenes/cornell-box/irradiance"))
+        .json(&body)
+        .timeout(Duration::from_millis(500))
+        .send()
+        .await;
+    assert!(gone.unwrap_err().is_timeout());
+    let idle = until_idle(&app).await;
+    assert!(idle < Duration::from_secs(1), "idle after {idle:?}");
+
+    // And it still answers real work.
+    let small = json!({"points": [{"position": [0, -0.999, 0], "normal": [0, 1, 0]}],
+                       "estimator": {"method": "mc", "samples": 16}});
+    let response = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &small)
+        .await;
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(health(&app).await["scenes"], 1);
+}
+
+/// Reads from `stream` until the server closes it; false if it stays open for `wait`.
+async fn closed_within(stream: &mut TcpStream, wait: Duration) -> bool {
+    let mut buf = [0u8; 1024];
+    let read = tokio::time::timeout(wait, async {
+        loop {
+            match stream.read(&mut buf).await {
+                Ok(0) | Err(_) => return,
+                Ok(_) => {}
+            }
+        }
+    });
+    read.await.is_ok()
+}
+
+#[tokio::test]
+async fn silent_and_half_sent_connections_are_closed_and_capped() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |c| {
+        c.server.header_read_timeout_secs = 1;
+        c.server.max_connections = 8;
+    })
+    .await;
+    let addr = app.base.trim_start_matches("http://").to_owned();
+    let mut silent = Vec::new();
+    for _ in 0..20 {
+        silent.push(TcpStream::connect(&addr).await.unwrap());
+    }
+    let mut half = TcpStream::connect(&addr).await.unwrap();
+    half.write_all(b"GET /health HTTP/1.1\r\nHost: x\r\nX-Slow: ")
+        .await
+        .unwrap();
+    // Every one of them is closed: beyond the cap at once, the others
+    // when the header-read timeout passes.
+    for stream in silent.iter_mut().chain(std::iter::once(&mut half)) {
+        assert!(closed_within(stream, Duration::from_secs(5)).await);
+    }
+    // A kept-alive connection that goes quiet after a request is closed too.
+    let mut idle = TcpStream::connect(&addr).await.unwrap();
+    idle.write_all(b"GET /health HTTP/1.1\r\nHost: x\r\n\r\n")
+        .await
+        .unwrap();
+    assert!(closed_within(&mut idle, Duration::from_secs(5)).await);
+
+    assert_eq!(health(&app).await["scenes"], 1);
+    let metrics = app.get("/metrics").await.text().await.unwrap();
+    assert!(
+        metrics.contains("http_connections_refused_total"),
+        "{metrics}"
+    );
+}
+
+#[tokio::test]
+async fn shutdown_ends_within_its_window_despite_a_stalled_connection() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = test_config(&dir, |c: &mut Config| {
+        c.server.header_read_timeout_secs = 3600;
+        c.server.shutdown_grace_secs = 1;
+    });
+    let app = Application::build(config).await.unwrap();
+    let addr = app.local_addr();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(app.run_until_stopped(async {
+        let _ = stopped.await;
+    }));
+    let mut stalled = TcpStream::connect(addr).await.unwrap();
+    stalled
+        .write_all(b"GET /health HTTP/1.1\r\nHost: x\r\nX-Half: ")
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    stop.send(()).unwrap();
+    let ended = tokio::time::timeout(Duration::from_secs(10), server).await;
+    assert!(ended.is_ok(), "shutdown did not end");
+    ended.unwrap().unwrap().unwrap();
+}
+
+#[tokio::test]
+async fn made_up_methods_do_not_grow_the_metrics() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    for i in 0..300 {
+        let method = Method::from_bytes(format!("M{i:04}{}", "X".repeat(1000)).as_bytes()).unwrap();
+        let response = app
+            .client
+            .request(method, app.url("/health"))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(response.status(), StatusCode::METHOD_NOT_ALLOWED);
+    }
+    let metrics = app.get("/metrics").await.text().await.unwrap();
+    assert!(!metrics.contains("M0001"), "a method name became a label");
+    assert!(metrics.contains(r#"method="other""#));
+    assert!(metrics.len() < 64 * 1024, "{} bytes", metrics.len());
+    assert_eq!(health(&app).await["scenes"], 1);
+}
+
+#[tokio::test]
+async fn oversized_request_heads_get_json_errors() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    let long_path = format!("/v1/scenes/{}", "a".repeat(9 * 1024));
+    let response = app.get(&long_path).await;
+    assert_eq!(response.status(), StatusCode::URI_TOO_LONG);
+    assert_eq!(error_of(response).await.0, "uri_too_long");
+
+    let response = app
+        .client
+        .get(app.url("/health"))
+        .header("x-padding", "p".repeat(40 * 1024))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        response.status(),
+        StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE
+    );
+    assert_eq!(error_of(response).await.0, "headers_too_large");
+    assert_eq!(health(&app).await["scenes"], 1);
+}
+
+#[tokio::test]
+async fn mutating_routes_need_the_configured_token() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |c| {
+        c.server.auth_token = "s3cret".into();
+    })
+    .await;
+    let mut doc: Value = serde_json::from_str(TINY_SCENE).unwrap();
+    doc["name"] = json!("other");
+    let attempts = [
+        (Method::POST, "/v1/scenes", Some(&doc)),
+        (Method::DELETE, "/v1/scenes/tiny", None),
+        (Method::DELETE, "/v1/scenes/tiny/cache", None),
+    ];
+    for (method, path, body) in &attempts {
+        for token in [None, Some("Bearer wrong"), Some("s3cret")] {
+            let mut request = app.client.request(method.clone(), app.url(path));
+            if let Some(token) = token {
+                request = request.header("authorization", token);
+            }
+            if let Some(body) = body {
+                request = request.json(body);
+            }
+            let response = request.send().await.unwrap();
+            assert_eq!(
+                response.status(),
+                StatusCode::UNAUTHORIZED,
+                "{method} {path}"
+            );
+            assert_eq!(response.headers()["www-authenticate"], "Bearer");
+            assert_eq!(error_of(response).await.0, "unauthorized");
+        }
+    }
+    // Nothing changed; reads and queries need no token.
+    assert_eq!(health(&app).await["scenes"], 1);
+    let query = json!({"points": [{"position": [0, 0, 0], "normal": [0, 0, 1]}],
+                       "estimator": {"method": "mc", "samples": 4}});
+    let response = app.post_json("/v1/scenes/tiny/irradiance", &query).await;
+    assert_eq!(response.status(), StatusCode::OK);
+    // With the token, they work.
+    let response = app
+        .client
+        .post(app.url("/v1/scenes"))
+        .bearer_auth("s3cret")
+        .json(&doc)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::CREATED);
+    let response = app
+        .client
+        .delete(app.url("/v1/scenes/other"))
+        .bearer_auth("s3cret")
+        .send()
+        .await
+        .unwrap();
+    assert!(response.status().is_success());
+    assert_eq!(health(&app).await["scenes"], 1);
+}
+
+#[tokio::test]
+async fn a_job_stuck_past_its_deadlines_makes_health_fail() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tiny.json"), TINY_SCENE).unwrap();
+    let config = test_config(&dir, |c: &mut Config| c.limits.request_deadline_secs = 1);
+    let app = Application::build(config).await.unwrap();
+    let base = format!("http://{}", app.local_addr());
+    let pool = app.state().pool.clone();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    tokio::spawn(app.run_until_stopped(async {
+        let _ = stopped.await;
+    }));
+    // A job that ignores its cancel flag (as a bug would) for 3 s.
+    let stuck = tokio::spawn(async move {
+        pool.run(|_| std::thread::sleep(Duration::from_secs(3)))
+            .await
+    });
+    let client = reqwest::Client::new();
+    let status = |path: &'static str| {
+        let (client, base) = (client.clone(), base.clone());
+        async move {
+            let response = client.get(format!("{base}{path}")).send().await.unwrap();
+            let code = response.status();
+            let body: Value = response.json().await.unwrap();
+            (code, body)
+        }
+    };
+    let (code, body) = status("/health").await;
+    assert_eq!(
+        (code, body["status"].as_str()),
+        (StatusCode::OK, Some("ok"))
+    );
+    assert_eq!(body["cpu"]["running"], 1);
+    // Two deadlines later the job counts as stuck.
+    tokio::time::sleep(Duration::from_millis(2300)).await;
+    for path in ["/health", "/ready"] {
+        let (code, body) = status(path).await;
+        assert_eq!(code, StatusCode::SERVICE_UNAVAILABLE, "{path}");
+        assert_eq!(body["status"], "wedged", "{path}");
+        assert!(body["cpu"]["oldest_job_secs"].as_f64().unwrap() > 2.0);
+    }
+    stuck.await.unwrap().unwrap();
+    let (code, body) = status("/health").await;
+    assert_eq!(
+        (code, body["status"].as_str()),
+        (StatusCode::OK, Some("ok"))
+    );
+    let _ = stop.send(());
+}
+
+#[tokio::test]
+async fn fits_for_seeds_a_fibonacci_set_ignores_are_kept_once() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    for seed in 1..=3 {
+        let body = json!({
+            "points": [{"position": [0, 0, 0], "normal": [0, 0, 1]}],
+            "estimator": {"method": "bmc", "samples": 16,
+                          "sample_set": {"kind": "fibonacci_cosine", "seed": seed},
+                          "kernel": {"kind": "squared_exponential", "lengthscale": "auto"}},
+        });
+        let response = app.post_json("/v1/scenes/tiny/irradiance", &body).await;
+        assert_eq!(response.status(), StatusCode::OK);
+    }
+    let scene: Value = app.get("/v1/scenes/tiny").await.json().await.unwrap();
+    assert_eq!(
+        scene["fitted_kernels"].as_array().unwrap().len(),
+        1,
+        "{scene}"
+    );
+}
+
+#[tokio::test]
+async fn cache_stats_count_the_bytes_of_the_records_rule() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    let tile = json!({"x": 0, "y": 0, "width": 8, "height": 8, "format": "json",
+                      "estimator": {"method": "bmc", "samples": 64}});
+    let response = app.post_json("/v1/scenes/tiny/tiles", &tile).await;
+    assert_eq!(response.status(), StatusCode::OK);
+    let stats: Value = app.get("/v1/scenes/tiny/cache").await.json().await.unwrap();
+    let rule_bytes = stats["caches"][0]["rule_bytes"].as_u64().unwrap_or(0);
+    // The factor alone is 64² doubles.
+    assert!(rule_bytes >= 64 * 64 * 8, "{stats}");
+}
