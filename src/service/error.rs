@@ -17,6 +17,7 @@
 //! | 500 | `internal` | a bug (a panic in a handler or a CPU job) |
 //! | 503 | `overloaded` | the CPU queue is full; carries `Retry-After` |
 //! | 504 | `deadline_exceeded` | the request ran past `limits.request_deadline_secs` |
+//! | 507 | `insufficient_storage` | a posted scene would exceed a `scenes.max_*` budget |
 
 use axum::Json;
 use axum::http::{HeaderValue, StatusCode, header};
@@ -56,6 +57,15 @@ pub enum ApiError {
     DeadlineExceeded { secs: u64 },
     #[error("internal error: {message}")]
     Internal { message: String },
+    /// A posted scene would take loaded scenes over a service-wide budget;
+    /// `field` names the config key (`scenes.max_triangles`).
+    #[error("{message}")]
+    InsufficientStorage { field: String, message: String },
+    /// `POST /v1/scenes` with a body that is neither JSON nor XML (415).
+    #[error(
+        "content-type must be application/json (a scene document) or application/xml (Mitsuba 3), got {got}"
+    )]
+    UnsupportedSceneMediaType { got: String },
 }
 
 /// The JSON error body (documented in the OpenAPI schema).
@@ -131,6 +141,8 @@ impl ApiError {
             ApiError::Overloaded { .. } => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::DeadlineExceeded { .. } => StatusCode::GATEWAY_TIMEOUT,
             ApiError::Internal { .. } => StatusCode::INTERNAL_SERVER_ERROR,
+            ApiError::InsufficientStorage { .. } => StatusCode::INSUFFICIENT_STORAGE,
+            ApiError::UnsupportedSceneMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
         }
     }
 
@@ -146,6 +158,8 @@ impl ApiError {
             ApiError::Overloaded { .. } => "overloaded",
             ApiError::DeadlineExceeded { .. } => "deadline_exceeded",
             ApiError::Internal { .. } => "internal",
+            ApiError::InsufficientStorage { .. } => "insufficient_storage",
+            ApiError::UnsupportedSceneMediaType { .. } => "unsupported_media_type",
         }
     }
 
@@ -158,6 +172,7 @@ impl ApiError {
             {
                 Some(field)
             }
+            ApiError::InsufficientStorage { field, .. } => Some(field),
             _ => None,
         }
     }

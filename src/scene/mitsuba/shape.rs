@@ -14,7 +14,7 @@ use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind};
 use crate::scene::mesh::{self, MeshData};
 use crate::scene::{MAX_SHAPES, MAX_TRIANGLES, SceneError};
 
-use super::parse::Element;
+use super::parse::{Element, quote};
 use super::props::Props;
 use super::texture::color;
 use super::transform::Ops;
@@ -64,7 +64,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             return ctx.unsupported(
                 el,
                 "type",
-                &format!("shape type {other:?} is not supported"),
+                &format!("shape type {} is not supported", quote(other)),
                 "leaving the shape out",
             );
         }
@@ -227,16 +227,8 @@ fn index_list(p: &Property) -> Option<Vec<i64>> {
 /// present), `face` `vertex_indices` (or `vertex_index`) polygons fanned
 /// into triangles.
 fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
-    let size = file
-        .metadata()
-        .map_err(|e| format!("cannot stat: {e}"))?
-        .len();
-    if size > MAX_PLY_BYTES {
-        return Err(format!(
-            "{size} bytes exceeds the {MAX_PLY_BYTES}-byte limit"
-        ));
-    }
+    let file = crate::scene::read::open_capped(path, MAX_PLY_BYTES)
+        .map_err(|e| format!("cannot open: {e}"))?;
     let parser = Parser::<DefaultElement>::new();
     let mut reader = Reader::new(BufReader::new(file));
     let invalid = |e: ply_rs_bw::parser::ParseError| format!("invalid PLY: {e}");
