@@ -12,7 +12,7 @@ use ply_rs_bw::ply::{DefaultElement, Property};
 
 use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind};
 use crate::scene::mesh::{self, MeshData};
-use crate::scene::{MAX_SHAPES, MAX_TRIANGLES, SceneError};
+use crate::scene::{MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, SceneError, TRIANGLE_BYTES};
 
 use super::parse::{Element, quote};
 use super::props::Props;
@@ -137,14 +137,17 @@ fn source_error(el: &Element, e: SceneError) -> XmlError {
     }
 }
 
-/// Triangles still allowed in the scene (inline meshes counted so far).
+/// Triangles still allowed in the scene (inline meshes counted so far):
+/// within [`MAX_TRIANGLES`] and [`MAX_SCENE_MEMORY_BYTES`], so that a file
+/// read here is refused before its triangles are copied into the document.
 fn triangle_budget(ctx: &Ctx) -> usize {
     let used: usize = ctx
         .shapes
         .iter()
         .filter_map(|s| s.indices.as_ref().map(Vec::len))
         .sum();
-    MAX_TRIANGLES.saturating_sub(used)
+    let by_memory = usize::try_from(MAX_SCENE_MEMORY_BYTES / TRIANGLE_BYTES).unwrap_or(usize::MAX);
+    MAX_TRIANGLES.min(by_memory).saturating_sub(used)
 }
 
 fn set_triangles(doc: &mut ShapeDoc, data: MeshData, keep_normals: bool) {
