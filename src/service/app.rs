@@ -40,7 +40,7 @@ use super::irradiance_caches::IrradianceCaches;
 use super::metrics::{self, Metrics};
 use super::pool::CpuPool;
 use super::routes;
-use super::scenes::{self, SceneBudget, SceneRegistry};
+use super::scenes::{self, SceneRegistry};
 use super::state::AppState;
 use crate::bmc::cache::QuadratureCache;
 
@@ -70,7 +70,7 @@ impl Application {
         let loaded = tokio::task::spawn_blocking(move || scenes::load_dir(&dir))
             .await
             .context("scene loading panicked")?;
-        let registry = SceneRegistry::new(SceneBudget::from_config(&config.scenes));
+        let registry = SceneRegistry::new(&config.scenes);
         for scene in loaded {
             let id = scene.id.clone();
             if let Err(over) = registry.insert(scene) {

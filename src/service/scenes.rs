@@ -122,25 +122,7 @@ impl LoadedScene {
     }
 }
 
-/// Service-wide budgets of loaded scenes (the `scenes.max_*` config keys).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SceneBudget {
-    pub max_scenes: usize,
-    pub max_triangles: usize,
-    pub max_bytes: u64,
-}
-
-impl SceneBudget {
-    pub fn from_config(config: &ScenesConfig) -> Self {
-        SceneBudget {
-            max_scenes: config.max_scenes,
-            max_triangles: config.max_triangles,
-            max_bytes: config.max_scene_bytes,
-        }
-    }
-}
-
-/// A scene that would take the loaded scenes over a [`SceneBudget`].
+/// A scene that would take the loaded scenes over a `scenes.max_*` budget.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OverBudget {
     /// The config key of the budget, e.g. `scenes.max_triangles`.
@@ -172,14 +154,16 @@ impl From<OverBudget> for ApiError {
 /// Scenes by id; readers share, writers (post/delete) are brief.
 pub struct SceneRegistry {
     scenes: RwLock<HashMap<String, Arc<LoadedScene>>>,
-    budget: SceneBudget,
+    /// Its `max_scenes`, `max_triangles` and `max_scene_bytes` are the
+    /// budgets of all loaded scenes together.
+    budget: ScenesConfig,
 }
 
 impl SceneRegistry {
-    pub fn new(budget: SceneBudget) -> Self {
+    pub fn new(budget: &ScenesConfig) -> Self {
         SceneRegistry {
             scenes: RwLock::default(),
-            budget,
+            budget: budget.clone(),
         }
     }
 
@@ -204,7 +188,7 @@ impl SceneRegistry {
                 triangles,
                 self.budget.max_triangles as u64,
             ),
-            ("scenes.max_scene_bytes", bytes, self.budget.max_bytes),
+            ("scenes.max_scene_bytes", bytes, self.budget.max_scene_bytes),
         ];
         if let Some(&(field, total, limit)) = checks.iter().find(|(_, total, limit)| total > limit)
         {
@@ -385,9 +369,7 @@ mod tests {
         let ids: Vec<_> = loaded.iter().map(|s| s.id.as_str()).collect();
         assert_eq!(ids, ["good"]);
 
-        let registry = SceneRegistry::new(SceneBudget::from_config(
-            &crate::service::Config::default_config().scenes,
-        ));
+        let registry = SceneRegistry::new(&crate::service::Config::default_config().scenes);
         for scene in loaded {
             assert!(!registry.insert(scene).unwrap());
         }
@@ -398,6 +380,48 @@ mod tests {
         assert!(summary.environment);
         assert!(registry.remove("good").is_some());
         assert!(registry.is_empty());
+    }
+
+    #[test]
+    fn budgets_refuse_scenes_net_of_the_one_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let tiny = |id: &str| {
+            let scene = Scene::from_json_str(TINY, dir.path(), dir.path()).unwrap();
+            LoadedScene::new(id.into(), SceneSource::Uploaded, scene)
+        };
+        let mut budget = crate::service::Config::default_config().scenes;
+        // Two triangles per tiny scene: room for two scenes' triangles.
+        budget.max_triangles = 4;
+        budget.max_scenes = 2;
+        let registry = SceneRegistry::new(&budget);
+        assert_eq!(registry.insert(tiny("a")), Ok(false));
+        assert_eq!(registry.insert(tiny("b")), Ok(false));
+        // Replacing counts without the scene replaced.
+        assert_eq!(registry.insert(tiny("a")), Ok(true));
+        let over = registry.insert(tiny("c")).unwrap_err();
+        assert_eq!(over.field, "scenes.max_scenes");
+        assert_eq!((over.total, over.limit), (3, 2));
+        budget.max_scenes = 10;
+        let registry = SceneRegistry::new(&budget);
+        registry.insert(tiny("a")).unwrap();
+        registry.insert(tiny("b")).unwrap();
+        let over = registry.insert(tiny("c")).unwrap_err();
+        assert_eq!(over.field, "scenes.max_triangles");
+        assert_eq!((over.total, over.limit), (6, 4));
+        // Bytes: room for exactly the scenes already loaded.
+        let bytes = tiny("x").bytes;
+        budget.max_triangles = 100;
+        budget.max_scene_bytes = 2 * bytes;
+        let registry = SceneRegistry::new(&budget);
+        registry.insert(tiny("a")).unwrap();
+        registry.insert(tiny("b")).unwrap();
+        let over = registry.insert(tiny("c")).unwrap_err();
+        assert_eq!(over.field, "scenes.max_scene_bytes");
+        // Nothing was lost.
+        assert_eq!(registry.len(), 2);
+        let error = ApiError::from(over);
+        assert_eq!(error.status(), axum::http::StatusCode::INSUFFICIENT_STORAGE);
+        assert_eq!(error.field(), Some("scenes.max_scene_bytes"));
     }
 
     #[test]

@@ -611,7 +611,8 @@ fn warnings_are_counted_but_only_the_first_kept() {
     assert!(warnings[0].message.contains("<foo>"), "{}", warnings[0]);
 }
 
-/// Writes a `width × height` PNG of one colour row by row.
+/// Writes a `width × height` PNG whose rows repeat the bytes `pixel`, row by
+/// row (never the whole image in memory).
 fn write_png(
     path: &Path,
     width: u32,
@@ -630,11 +631,14 @@ fn write_png(
     encoder.set_compression(png::Compression::Fast);
     let mut writer = encoder.write_header().unwrap();
     let mut stream = writer.stream_writer().unwrap();
+    // `pixel` repeated over the row's bytes (for depths below 8 it holds
+    // several pixels per byte).
+    let row_bits = width as usize * color.samples() * depth as usize;
     let row: Vec<u8> = pixel
         .iter()
         .copied()
         .cycle()
-        .take(pixel.len() * width as usize)
+        .take(row_bits.div_ceil(8))
         .collect();
     for _ in 0..height {
         std::io::Write::write_all(&mut stream, &row).unwrap();
@@ -659,51 +663,50 @@ fn bitmap_reflectance(dir: &Path, file: &str) -> Result<[f64; 3], SceneError> {
 fn png_means_of_every_pixel_format() {
     use png::{BitDepth, ColorType};
     let dir = Scratch::new("png-formats");
-    let cases: [(&str, ColorType, BitDepth, &[u8], [f64; 3]); 5] = [
-        (
-            "grey.png",
-            ColorType::Grayscale,
-            BitDepth::Eight,
-            &[51],
-            [0.2; 3],
-        ),
-        (
-            "grey16.png",
-            ColorType::Grayscale,
-            BitDepth::Sixteen,
-            &[0x80, 0x00],
-            [32768.0 / 65535.0; 3],
-        ),
-        (
-            "rgba.png",
-            ColorType::Rgba,
-            BitDepth::Eight,
-            &[255, 0, 51, 7],
-            [1.0, 0.0, 0.2],
-        ),
-        (
-            "grey-alpha.png",
-            ColorType::GrayscaleAlpha,
-            BitDepth::Eight,
-            &[102, 0],
-            [0.4; 3],
-        ),
-        // One-bit palette indices 0b0101_0101: black and white alternate.
-        (
-            "palette.png",
-            ColorType::Indexed,
-            BitDepth::One,
-            &[0b0101_0101],
-            [0.5; 3],
-        ),
-    ];
-    for (name, color, depth, pixel, expected) in cases {
+    let check = |name: &str, color, depth, pixel: &[u8], expected: [f64; 3]| {
         write_png(&dir.0.join(name), 8, 3, color, depth, pixel);
         let got = bitmap_reflectance(&dir.0, name).unwrap();
         for c in 0..3 {
             assert!((got[c] - expected[c]).abs() < 1e-9, "{name}: {got:?}");
         }
-    }
+    };
+    check(
+        "grey.png",
+        ColorType::Grayscale,
+        BitDepth::Eight,
+        &[51],
+        [0.2; 3],
+    );
+    let half = 32768.0 / 65535.0;
+    check(
+        "grey16.png",
+        ColorType::Grayscale,
+        BitDepth::Sixteen,
+        &[0x80, 0x00],
+        [half; 3],
+    );
+    check(
+        "rgba.png",
+        ColorType::Rgba,
+        BitDepth::Eight,
+        &[255, 0, 51, 7],
+        [1.0, 0.0, 0.2],
+    );
+    check(
+        "grey-alpha.png",
+        ColorType::GrayscaleAlpha,
+        BitDepth::Eight,
+        &[102, 0],
+        [0.4; 3],
+    );
+    // One-bit palette indices 0b0101_0101: black and white alternate.
+    check(
+        "palette.png",
+        ColorType::Indexed,
+        BitDepth::One,
+        &[0b0101_0101],
+        [0.5; 3],
+    );
 }
 
 #[test]
