@@ -39,7 +39,8 @@ pub const MAX_TRIANGLES: usize = 10_000_000;
 /// Most bytes a scene's geometry may take once built, estimated from its
 /// triangle count before building ([`TRIANGLE_BYTES`] each). 1 GiB (≈ 3.5
 /// million triangles) keeps one scene well inside a few-GiB service, which
-/// also caps all scenes together (`scenes.max_scene_bytes`).
+/// also caps all scenes together (`scenes.max_scene_bytes`). Measured: about
+/// 240 bytes per triangle without vertex normals.
 pub const MAX_SCENE_MEMORY_BYTES: u64 = 1 << 30;
 /// Upper bound of the bytes one triangle retains in a built scene: the
 /// world-space triangle, its intersection form, its BVH-order index, its

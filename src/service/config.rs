@@ -386,6 +386,22 @@ mod tests {
     }
 
     #[test]
+    fn scene_budgets_are_set_by_environment_and_must_be_positive() {
+        let config =
+            Config::load(None, env(&[("BMC_SCENES__MAX_TRIANGLES", "1234")]), None).unwrap();
+        assert_eq!(config.scenes.max_triangles, 1234);
+        for key in ["MAX_SCENES", "MAX_TRIANGLES", "MAX_SCENE_BYTES"] {
+            let name = format!("BMC_SCENES__{key}");
+            let err = Config::load(None, env(&[(&name, "0")]), None).unwrap_err();
+            let expected = format!("scenes.{}", key.to_lowercase());
+            assert!(
+                matches!(&err, ConfigError::Invalid { field, .. } if *field == expected),
+                "{err}"
+            );
+        }
+    }
+
+    #[test]
     fn wrong_type_in_file_is_an_error() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.toml");
