@@ -22,6 +22,7 @@ mod tests;
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use super::Scene;
 use super::error::SceneError;
@@ -182,6 +183,9 @@ pub(crate) struct Ctx<'a> {
     origins: Vec<(String, Origin)>,
     /// Elements whose references are being followed (cycle detection).
     resolving: Vec<(u32, u32)>,
+    /// Mesh files read so far, by canonical path and format: each is read
+    /// once however many shapes name it.
+    mesh_files: HashMap<(PathBuf, shape::MeshFormat), Arc<super::mesh::MeshData>>,
 }
 
 impl<'a> Ctx<'a> {
@@ -289,6 +293,7 @@ pub(crate) fn from_str(
         camera: None,
         origins: Vec::new(),
         resolving: Vec::new(),
+        mesh_files: HashMap::new(),
     };
     let doc = convert_scene(&mut ctx, &scene_el).map_err(|e| e.into_scene_error(file))?;
     let Ctx {

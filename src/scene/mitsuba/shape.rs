@@ -6,6 +6,7 @@
 
 use std::io::BufReader;
 use std::path::Path;
+use std::sync::Arc;
 
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, Property};
@@ -96,9 +97,11 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             props.ignore(&["flip_tex_coords"]);
             if face_normals {
                 let path = ctx.resolve(el, "filename", name)?;
-                let data = mesh::load_obj(&path, "filename", triangle_budget(ctx))
-                    .map_err(|e| source_error(el, e))?;
-                set_triangles(&mut doc, data, false);
+                let data = mesh_file(ctx, &path, MeshFormat::Obj, |budget| {
+                    mesh::load_obj(&path, "filename", budget)
+                })
+                .map_err(|e| source_error(el, e))?;
+                set_triangles(&mut doc, &data, false);
             } else {
                 // Resolved by the shared loader, exactly as a JSON `obj`.
                 doc.kind = ShapeKind::Obj;
@@ -110,9 +113,11 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             let face_normals = props.boolean("face_normals", false)?;
             props.ignore(&["flip_tex_coords"]);
             let path = ctx.resolve(el, "filename", name)?;
-            let data = read_ply(&path, triangle_budget(ctx))
-                .map_err(|m| source_error(el, SceneError::file("filename", &path, m)))?;
-            set_triangles(&mut doc, data, !face_normals);
+            let data = mesh_file(ctx, &path, MeshFormat::Ply, |budget| {
+                read_ply(&path, budget).map_err(|m| SceneError::file("filename", &path, m))
+            })
+            .map_err(|e| source_error(el, e))?;
+            set_triangles(&mut doc, &data, !face_normals);
         }
         _ => {}
     }
@@ -150,11 +155,51 @@ fn triangle_budget(ctx: &Ctx) -> usize {
     MAX_TRIANGLES.min(by_memory).saturating_sub(used)
 }
 
-fn set_triangles(doc: &mut ShapeDoc, data: MeshData, keep_normals: bool) {
+/// How a mesh file is read (one file could be named as both).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) enum MeshFormat {
+    Obj,
+    Ply,
+}
+
+/// The mesh in the canonical `path`, read with `read` (given the triangle
+/// budget) the first time the document names it and shared afterwards;
+/// every use still counts its triangles against the scene's budget.
+pub(crate) fn mesh_file(
+    ctx: &mut Ctx,
+    path: &Path,
+    format: MeshFormat,
+    read: impl FnOnce(usize) -> Result<MeshData, SceneError>,
+) -> Result<Arc<MeshData>, SceneError> {
+    let budget = triangle_budget(ctx);
+    let key = (path.to_path_buf(), format);
+    let data = match ctx.mesh_files.get(&key) {
+        Some(data) => data.clone(),
+        None => {
+            let data = Arc::new(read(budget)?);
+            ctx.mesh_files.insert(key, data.clone());
+            data
+        }
+    };
+    if data.indices.len() > budget {
+        return Err(SceneError::file(
+            "filename",
+            path,
+            format!(
+                "{} more triangles exceed the scene's remaining budget of {budget}",
+                data.indices.len()
+            ),
+        ));
+    }
+    Ok(data)
+}
+
+fn set_triangles(doc: &mut ShapeDoc, data: &MeshData, keep_normals: bool) {
     doc.positions = Some(data.positions.iter().map(|p| p.to_array()).collect());
     doc.indices = Some(data.indices.iter().map(|t| t.map(u64::from)).collect());
     doc.normals = data
         .normals
+        .as_ref()
         .filter(|_| keep_normals)
         .map(|ns| ns.iter().map(|n| n.to_array()).collect());
 }

@@ -873,3 +873,43 @@ proptest! {
         check_no_panic(&chars.into_iter().collect::<String>(), lenient);
     }
 }
+
+#[test]
+fn a_mesh_file_is_read_once_per_document() {
+    use std::collections::HashMap;
+
+    use super::shape::{MeshFormat, mesh_file};
+    let dir = scenes_dir();
+    let files = crate::scene::loader::Files::new(&dir, &dir).unwrap();
+    let mut ctx = super::Ctx {
+        ids: HashMap::new(),
+        lenient: false,
+        point_light_radius: 1e-3,
+        files: &files,
+        warnings: Warnings::default(),
+        materials: Vec::new(),
+        material_of: HashMap::new(),
+        shapes: Vec::new(),
+        environment: None,
+        camera: None,
+        origins: Vec::new(),
+        resolving: Vec::new(),
+        mesh_files: HashMap::new(),
+    };
+    let path = dir.join("meshes/blob.obj");
+    let mut reads = 0;
+    for _ in 0..3 {
+        mesh_file(&mut ctx, &path, MeshFormat::Obj, |_| {
+            reads += 1;
+            Ok(crate::scene::mesh::rectangle())
+        })
+        .unwrap();
+    }
+    // Read as another format, it is another parse.
+    mesh_file(&mut ctx, &path, MeshFormat::Ply, |_| {
+        reads += 1;
+        Ok(crate::scene::mesh::cube())
+    })
+    .unwrap();
+    assert_eq!(reads, 2);
+}
