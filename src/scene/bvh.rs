@@ -126,7 +126,15 @@ pub struct Bvh {
     nodes: Vec<Node>,
 }
 
+/// Bytes of one BVH node.
+pub const NODE_BYTES: usize = std::mem::size_of::<Node>();
+
 impl Bvh {
+    /// Bytes the tree holds on the heap.
+    pub fn heap_bytes(&self) -> u64 {
+        (self.nodes.capacity() * NODE_BYTES) as u64
+    }
+
     /// Builds a tree over `bounds`. Returns the tree and the build order:
     /// leaf ranges index positions in `order`, and `order[i]` is the index in
     /// `bounds` of the primitive at position `i`. Callers store their

@@ -25,6 +25,10 @@ pub const MAX_ENVMAP_SIDE: usize = 16384;
 /// Largest accepted number of texels (keeps memory under ~1.6 GB).
 pub const MAX_ENVMAP_TEXELS: usize = 1 << 27;
 
+/// Largest accepted EXR file, bytes: the largest accepted map
+/// ([`MAX_ENVMAP_TEXELS`]) stored uncompressed as f32 RGB.
+pub const MAX_EXR_BYTES: u64 = (MAX_ENVMAP_TEXELS as u64) * 12 + (1 << 20);
+
 /// Distant illumination; `Scene::environment` is `None` for black.
 #[derive(Clone, Debug)]
 pub enum Environment {
@@ -81,6 +85,11 @@ impl EnvironmentMap {
 
     pub fn width(&self) -> usize {
         self.width
+    }
+
+    /// Bytes the texels hold on the heap.
+    pub fn heap_bytes(&self) -> u64 {
+        (self.texels.capacity() * std::mem::size_of::<[f32; 3]>()) as u64
     }
 
     pub fn height(&self) -> usize {
@@ -145,7 +154,12 @@ impl EnvironmentMap {
 pub fn read_exr(path: &Path, field: &str) -> Result<(usize, usize, Vec<[f32; 3]>), SceneError> {
     use exr::prelude::*;
     let err = |message: String| SceneError::file(field, path, message);
-    let meta = exr::meta::MetaData::read_from_file(path, false)
+    let open = || {
+        super::read::open_capped(path, MAX_EXR_BYTES)
+            .map(std::io::BufReader::new)
+            .map_err(|e| err(format!("cannot open: {e}")))
+    };
+    let meta = exr::meta::MetaData::read_from_buffered(open()?, false)
         .map_err(|e| err(format!("not a readable EXR file: {e}")))?;
     let size = meta
         .headers
@@ -175,7 +189,7 @@ pub fn read_exr(path: &Path, field: &str) -> Result<(usize, usize, Vec<[f32; 3]>
         )
         .first_valid_layer()
         .all_attributes()
-        .from_file(path)
+        .from_buffered(open()?)
         .map_err(|e| err(format!("cannot decode EXR: {e}")))?;
     let layer = image.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());

@@ -4,6 +4,7 @@
 
 use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
 
 use glam::{DAffine3, DMat3, DVec3};
 
@@ -15,7 +16,7 @@ use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKi
 use super::material::Material;
 use super::mesh::{self, MeshData};
 use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel};
-use super::{Camera, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
+use super::{Camera, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
 
 /// Largest accepted scene file (inline triangle lists can be big).
 const MAX_SCENE_BYTES: u64 = 1 << 30;
@@ -35,19 +36,12 @@ pub(super) fn load(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError>
     Ok(scene)
 }
 
-/// Reads a scene file as text, refusing files above [`MAX_SCENE_BYTES`].
+/// Reads a scene file as text: a regular file of at most [`MAX_SCENE_BYTES`].
 pub(super) fn read_scene_file(path: &Path) -> Result<String, SceneError> {
-    let io = |source| SceneError::Io {
+    super::read::read_to_string(path, MAX_SCENE_BYTES).map_err(|source| SceneError::Io {
         file: path.to_path_buf(),
         source,
-    };
-    let size = std::fs::metadata(path).map_err(io)?.len();
-    if size > MAX_SCENE_BYTES {
-        return Err(io(std::io::Error::other(format!(
-            "{size} bytes exceeds the {MAX_SCENE_BYTES}-byte limit"
-        ))));
-    }
-    std::fs::read_to_string(path).map_err(io)
+    })
 }
 
 /// Names an unnamed scene after its file's stem.
@@ -177,7 +171,30 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
             ),
         ));
     }
-    let mut builder = GeometryBuilder::default();
+    // Every mesh file is read once, however many shapes use it, and the
+    // scene's size is known before any triangle is built.
+    let mut meshes = MeshFiles::default();
+    let mut triangles = 0usize;
+    for (i, s) in doc.shapes.iter().enumerate() {
+        let field = format!("shapes[{i}]");
+        triangles += match (s.kind, &s.filename, &s.indices) {
+            (ShapeKind::Rectangle, ..) => 2,
+            (ShapeKind::Cube, ..) => 12,
+            (ShapeKind::Obj, Some(name), _) => {
+                let name_field = format!("{field}.filename");
+                let path = files.resolve(name, &name_field)?;
+                let budget = MAX_TRIANGLES - triangles.min(MAX_TRIANGLES);
+                meshes.load(&path, &name_field, budget)?.indices.len()
+            }
+            (ShapeKind::Triangles, _, Some(indices)) => indices.len(),
+            _ => 0,
+        };
+        check_size(triangles, &field)?;
+    }
+    let mut builder = GeometryBuilder {
+        triangles: Vec::with_capacity(triangles),
+        ..GeometryBuilder::default()
+    };
     let mut emitters = Vec::new();
     for (i, s) in doc.shapes.iter().enumerate() {
         let field = format!("shapes[{i}]");
@@ -198,7 +215,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
             }
             None => None,
         };
-        builder.add_shape(s, &field, material, emitter, files)?;
+        builder.add_shape(s, &field, material, emitter, files, &meshes)?;
     }
 
     let environment = doc
@@ -219,6 +236,61 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
     })
 }
 
+/// Refuses a scene whose first shapes, up to `field`, already hold more
+/// than [`MAX_TRIANGLES`] triangles or [`MAX_SCENE_MEMORY_BYTES`] of
+/// geometry (estimated with [`super::TRIANGLE_BYTES`]).
+fn check_size(triangles: usize, field: &str) -> Result<(), SceneError> {
+    if triangles > MAX_TRIANGLES {
+        return Err(SceneError::invalid(
+            "shapes",
+            format!(
+                "the shapes up to {field} hold {triangles} triangles, above the limit of {MAX_TRIANGLES} (MAX_TRIANGLES)"
+            ),
+        ));
+    }
+    let bytes = super::triangle_bytes(triangles);
+    if bytes > MAX_SCENE_MEMORY_BYTES {
+        return Err(SceneError::invalid(
+            "shapes",
+            format!(
+                "the shapes up to {field} would take about {bytes} bytes, above the limit of {MAX_SCENE_MEMORY_BYTES} (MAX_SCENE_MEMORY_BYTES)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Mesh files of one scene load, parsed once each and shared by every shape
+/// that names them (keyed by canonical path, so `a.obj` and `./a.obj` are
+/// one file).
+#[derive(Default)]
+pub(super) struct MeshFiles {
+    meshes: HashMap<PathBuf, Arc<MeshData>>,
+}
+
+impl MeshFiles {
+    /// The mesh of the canonical `path`, read now if not yet read. A mesh
+    /// with more than `max_triangles` triangles is refused.
+    pub(super) fn load(
+        &mut self,
+        path: &Path,
+        field: &str,
+        max_triangles: usize,
+    ) -> Result<Arc<MeshData>, SceneError> {
+        if let Some(mesh) = self.meshes.get(path) {
+            return Ok(mesh.clone());
+        }
+        let mesh = Arc::new(mesh::load_obj(path, field, max_triangles)?);
+        self.meshes.insert(path.to_path_buf(), mesh.clone());
+        Ok(mesh)
+    }
+
+    /// A mesh already read by [`MeshFiles::load`].
+    fn get(&self, path: &Path) -> Option<Arc<MeshData>> {
+        self.meshes.get(path).cloned()
+    }
+}
+
 /// Accumulates shapes and world-space triangles, then builds the BVHs.
 #[derive(Default)]
 struct GeometryBuilder {
@@ -235,6 +307,7 @@ impl GeometryBuilder {
         material: usize,
         emitter: Option<usize>,
         files: &Files,
+        meshes: &MeshFiles,
     ) -> Result<(), SceneError> {
         let to_world = match &s.to_world {
             Some(t) => transform::build(t, &format!("{field}.to_world"))?,
@@ -269,9 +342,9 @@ impl GeometryBuilder {
         let remaining = MAX_TRIANGLES - self.triangles.len();
         let (geometry, area) = match s.kind {
             ShapeKind::Rectangle => {
-                self.add_mesh(mesh::rectangle(), &to_world, s.flip_normals, field)?
+                self.add_mesh(&mesh::rectangle(), &to_world, s.flip_normals, field)?
             }
-            ShapeKind::Cube => self.add_mesh(mesh::cube(), &to_world, s.flip_normals, field)?,
+            ShapeKind::Cube => self.add_mesh(&mesh::cube(), &to_world, s.flip_normals, field)?,
             ShapeKind::Obj => {
                 let name_field = format!("{field}.filename");
                 let name = s
@@ -279,12 +352,16 @@ impl GeometryBuilder {
                     .as_deref()
                     .ok_or_else(|| SceneError::invalid(field, "missing field `filename`"))?;
                 let path = files.resolve(name, &name_field)?;
-                let data = mesh::load_obj(&path, &name_field, remaining)?;
-                self.add_mesh(data, &to_world, s.flip_normals, field)?
+                // Read while sizing the scene (see `build`).
+                let data = match meshes.get(&path) {
+                    Some(data) => data,
+                    None => Arc::new(mesh::load_obj(&path, &name_field, remaining)?),
+                };
+                self.add_mesh(&data, &to_world, s.flip_normals, field)?
             }
             ShapeKind::Triangles => {
                 let data = inline_mesh(s, field, remaining)?;
-                self.add_mesh(data, &to_world, s.flip_normals, field)?
+                self.add_mesh(&data, &to_world, s.flip_normals, field)?
             }
             ShapeKind::Sphere => sphere(s, &to_world, field)?,
             ShapeKind::Disk => {
@@ -321,7 +398,7 @@ impl GeometryBuilder {
     /// disagree with the winding are re-wound to face the vertex normals.
     fn add_mesh(
         &mut self,
-        data: MeshData,
+        data: &MeshData,
         to_world: &DAffine3,
         flip: bool,
         field: &str,

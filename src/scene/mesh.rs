@@ -98,16 +98,8 @@ impl<R: BufRead> BufRead for LineCounter<R> {
 /// Normals are kept only if every vertex has one.
 pub fn load_obj(path: &Path, field: &str, max_triangles: usize) -> Result<MeshData, SceneError> {
     let err = |message: String| SceneError::file(field, path, message);
-    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot open: {e}")))?;
-    let size = file
-        .metadata()
-        .map_err(|e| err(format!("cannot stat: {e}")))?
-        .len();
-    if size > MAX_OBJ_BYTES {
-        return Err(err(format!(
-            "{size} bytes exceeds the {MAX_OBJ_BYTES}-byte limit"
-        )));
-    }
+    let file = super::read::open_capped(path, MAX_OBJ_BYTES)
+        .map_err(|e| err(format!("cannot open: {e}")))?;
     let mut reader = LineCounter {
         inner: BufReader::new(file),
         lines: 0,
@@ -120,6 +112,9 @@ pub fn load_obj(path: &Path, field: &str, max_triangles: usize) -> Result<MeshDa
     };
     let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| Ok(Default::default()))
         .map_err(|e| {
+            if reader.inner.get_ref().exceeded() {
+                return err(format!("larger than the {MAX_OBJ_BYTES}-byte limit"));
+            }
             SceneError::file(
                 field,
                 format!("{}:{}", path.display(), reader.lines.max(1)),

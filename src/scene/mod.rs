@@ -16,6 +16,7 @@ pub mod material;
 pub mod mesh;
 pub mod mitsuba;
 pub mod ray;
+mod read;
 mod shape;
 pub mod transform;
 
@@ -26,14 +27,36 @@ pub use emitter::Emitter;
 pub use environment::{Environment, EnvironmentMap};
 pub use error::SceneError;
 pub use material::Material;
-pub use mitsuba::{MitsubaOptions, Warning};
+pub use mitsuba::{MitsubaOptions, Warning, Warnings};
 pub use ray::Ray;
 
 use bvh::Bvh;
 use shape::{Geometry, Shape, Triangle, TriangleAccel};
 
-/// Largest number of triangles a scene may hold (≈ 1.6 GB of geometry).
+/// Largest number of triangles a scene may hold (also bounded by
+/// [`MAX_SCENE_MEMORY_BYTES`]; see [`TRIANGLE_BYTES`]).
 pub const MAX_TRIANGLES: usize = 10_000_000;
+/// Most bytes a scene's geometry may take once built, estimated from its
+/// triangle count before building ([`TRIANGLE_BYTES`] each). 1 GiB (≈ 3.5
+/// million triangles) keeps one scene well inside a few-GiB service, which
+/// also caps all scenes together (`scenes.max_scene_bytes`). Measured: about
+/// 240 bytes per triangle without vertex normals.
+pub const MAX_SCENE_MEMORY_BYTES: u64 = 1 << 30;
+/// Upper bound of the bytes one triangle retains in a built scene: the
+/// world-space triangle, its intersection form, its BVH-order index, its
+/// entry in its shape's area CDF, vertex normals (if it has them) and at
+/// most two BVH nodes (a binary tree over N leaves has < 2N nodes).
+pub const TRIANGLE_BYTES: u64 = (std::mem::size_of::<Triangle>()
+    + std::mem::size_of::<TriangleAccel>()
+    + std::mem::size_of::<u32>()
+    + std::mem::size_of::<f64>()
+    + std::mem::size_of::<[DVec3; 3]>()
+    + 2 * bvh::NODE_BYTES) as u64;
+
+/// Estimated bytes retained by `triangles` triangles ([`TRIANGLE_BYTES`]).
+pub fn triangle_bytes(triangles: usize) -> u64 {
+    (triangles as u64).saturating_mul(TRIANGLE_BYTES)
+}
 /// Largest number of shapes in one scene file.
 pub const MAX_SHAPES: usize = 100_000;
 
@@ -113,7 +136,7 @@ impl Scene {
         base_dir: &std::path::Path,
         scenes_root: &std::path::Path,
         options: &MitsubaOptions,
-    ) -> Result<(Scene, Vec<Warning>), SceneError> {
+    ) -> Result<(Scene, Warnings), SceneError> {
         mitsuba::from_str(text, "<string>", base_dir, scenes_root, options)
     }
 
@@ -123,7 +146,7 @@ impl Scene {
         path: &std::path::Path,
         scenes_root: &std::path::Path,
         options: &MitsubaOptions,
-    ) -> Result<(Scene, Vec<Warning>), SceneError> {
+    ) -> Result<(Scene, Warnings), SceneError> {
         mitsuba::load(path, scenes_root, options)
     }
 
@@ -286,6 +309,37 @@ impl Scene {
     /// Number of triangles (spheres and disks are analytic and not counted).
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// Bytes the scene holds on the heap (geometry, acceleration structures,
+    /// environment map), counted from its allocations; small per-material and
+    /// per-emitter data are left out.
+    pub fn heap_bytes(&self) -> u64 {
+        fn bytes<T>(v: &Vec<T>) -> u64 {
+            (v.capacity() * std::mem::size_of::<T>()) as u64
+        }
+        let cdfs: u64 = self
+            .shapes
+            .iter()
+            .map(|s| match &s.geometry {
+                Geometry::Mesh { cdf, .. } => bytes(cdf),
+                _ => 0,
+            })
+            .sum();
+        let environment = match &self.environment {
+            Some(Environment::Map(map)) => map.heap_bytes(),
+            _ => 0,
+        };
+        bytes(&self.shapes)
+            + cdfs
+            + bytes(&self.triangles)
+            + bytes(&self.vertex_normals)
+            + bytes(&self.accel)
+            + bytes(&self.accel_index)
+            + bytes(&self.analytic_shapes)
+            + self.triangle_bvh.heap_bytes()
+            + self.analytic_bvh.heap_bytes()
+            + environment
     }
 }
 

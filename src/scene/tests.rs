@@ -562,3 +562,140 @@ fn vertex_normals_set_the_front_and_interpolate() {
     let (_, n, _) = scene.sample_shape_area(0, [0.3, 0.6]);
     assert!((n + DVec3::Z).length() < 1e-12);
 }
+
+#[test]
+fn a_mesh_file_is_read_once_per_scene_and_sized_before_building() {
+    let dir = scenes_dir();
+    let blob = |count: usize| {
+        let shapes: Vec<String> = (0..count)
+            .map(|i| {
+                format!(
+                    r#"{{"type": "obj", "filename": "meshes/blob.obj", "material": "m",
+                        "to_world": [{{"translate": [{i}, 0, 0]}}]}}"#
+                )
+            })
+            .collect();
+        scene_json(&shapes.join(","), "")
+    };
+    // Three instances of one file: three placed copies of its triangles.
+    let scene = from_str(&blob(3), &dir).unwrap();
+    assert_eq!(scene.triangle_count(), 3 * 101_760);
+    let (min, max) = scene.bounds();
+    assert!(max.x - min.x > 2.0, "{min} {max}");
+    // Retained bytes are within the estimate the loader checks against.
+    assert!(scene.heap_bytes() <= triangle_bytes(scene.triangle_count()) + (1 << 20));
+    assert!(scene.heap_bytes() >= scene.triangle_count() as u64 * 150);
+
+    // Enough instances to pass MAX_SCENE_MEMORY_BYTES: refused while sizing,
+    // before any triangle is placed, naming the limit.
+    let too_many = (MAX_SCENE_MEMORY_BYTES / (101_760 * TRIANGLE_BYTES)) as usize + 1;
+    let e = from_str(&blob(too_many), &dir).err().unwrap();
+    assert_eq!(e.field(), Some("shapes"), "{e}");
+    assert!(e.to_string().contains("MAX_SCENE_MEMORY_BYTES"), "{e}");
+}
+
+#[test]
+fn mesh_files_are_shared_by_canonical_path() {
+    let root = scenes_dir().canonicalize().unwrap();
+    let files = loader::Files::new(&root, &root).unwrap();
+    let mut meshes = loader::MeshFiles::default();
+    let a = files.resolve("meshes/blob.obj", "f").unwrap();
+    let b = files.resolve("./meshes/../meshes/blob.obj", "f").unwrap();
+    let first = meshes.load(&a, "f", MAX_TRIANGLES).unwrap();
+    let second = meshes.load(&b, "f", MAX_TRIANGLES).unwrap();
+    assert!(std::sync::Arc::ptr_eq(&first, &second));
+}
+
+#[test]
+fn special_scene_and_mesh_files_are_refused() {
+    let dir = TempDir::new("special");
+    let fifo = |name: &str| {
+        std::process::Command::new("mkfifo")
+            .arg(dir.0.join(name))
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    if !fifo("scene.json") || !fifo("mesh.obj") {
+        eprintln!("mkfifo unavailable: skipped");
+        return;
+    }
+    // Opening either for reading would block until a writer appears.
+    let e = Scene::load(&dir.0.join("scene.json"), &dir.0)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    let shapes = r#"{"type": "obj", "filename": "mesh.obj", "material": "m"}"#;
+    let e = from_str(&scene_json(shapes, ""), &dir.0).err().unwrap();
+    assert_eq!(e.field(), Some("shapes[0].filename"));
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+}
+
+mod fuzz {
+    //! The JSON scene parser on random and mutated documents: never a
+    //! panic, and errors are messages of bounded size.
+
+    use proptest::prelude::*;
+
+    use super::*;
+
+    fn check(text: &str) {
+        if let Err(e) = Scene::from_json_str(text, &scenes_dir(), &scenes_dir()) {
+            let message = e.to_string();
+            assert!(!message.is_empty());
+            assert!(message.len() < 4096, "{} bytes of message", message.len());
+        }
+    }
+
+    /// Shape entries, valid and not, for random documents.
+    const SHAPES: &[&str] = &[
+        r#"{"type": "cube", "material": "m"}"#,
+        r#"{"type": "sphere", "material": "m", "radius": 0.5}"#,
+        r#"{"type": "disk", "material": "m", "to_world": [{"scale": [1, 2, 1]}]}"#,
+        r#"{"type": "rectangle", "material": "m", "emitter": {"type": "area", "radiance": [1, 1, 1]}}"#,
+        r#"{"type": "triangles", "material": "m", "positions": [[0,0,0],[1,0,0],[0,1,0]], "indices": [[0,1,2]]}"#,
+        r#"{"type": "triangles", "material": "m", "positions": [[0,0,0]], "indices": [[0,1,2]]}"#,
+        r#"{"type": "obj", "material": "m", "filename": "missing.obj"}"#,
+        r#"{"type": "obj", "material": "m", "filename": "../../etc/passwd"}"#,
+        r#"{"type": "cube", "material": "nope"}"#,
+        r#"{"type": "cube", "material": "m", "material": "m"}"#,
+        r#"{"type": "sphere", "material": "m", "radius": -1}"#,
+    ];
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+        #[test]
+        fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+            check(&String::from_utf8_lossy(&bytes));
+        }
+
+        #[test]
+        fn random_shape_lists_never_panic(picks in proptest::collection::vec(0..SHAPES.len(), 0..16)) {
+            let shapes: Vec<&str> = picks.iter().map(|&i| SHAPES[i]).collect();
+            check(&scene_json(&shapes.join(","), ""));
+        }
+
+        #[test]
+        fn mutated_cornell_box_never_panics(
+            edits in proptest::collection::vec((any::<prop::sample::Index>(), 0..4u8, any::<char>()), 1..8),
+        ) {
+            let original = std::fs::read_to_string(scenes_dir().join("cornell-box.json")).unwrap();
+            let mut chars: Vec<char> = original.chars().collect();
+            for (at, op, c) in edits {
+                let i = at.index(chars.len().max(1)).min(chars.len());
+                match op {
+                    0 if i < chars.len() => { chars.remove(i); }
+                    1 => chars.insert(i, c),
+                    2 if i < chars.len() => chars[i] = c,
+                    // Duplicate a slice: repeats keys, values and entries.
+                    _ => {
+                        let end = (i + 64).min(chars.len());
+                        let copy: Vec<char> = chars[i..end].to_vec();
+                        chars.splice(i..i, copy);
+                    }
+                }
+            }
+            check(&chars.into_iter().collect::<String>());
+        }
+    }
+}

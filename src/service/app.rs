@@ -91,9 +91,12 @@ impl Application {
         let loaded = tokio::task::spawn_blocking(move || scenes::load_dir(&dir))
             .await
             .context("scene loading panicked")?;
-        let registry = SceneRegistry::default();
+        let registry = SceneRegistry::new(&config.scenes);
         for scene in loaded {
-            registry.insert(scene);
+            let id = scene.id.clone();
+            if let Err(over) = registry.insert(scene) {
+                tracing::error!(%id, %over, "scene skipped: over the scenes budget");
+            }
         }
         tracing::info!(scenes = registry.len(), dir = %config.scenes.dir.display(), "scenes loaded");
         let irradiance_caches = IrradianceCaches::new(

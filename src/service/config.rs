@@ -134,6 +134,13 @@ pub struct Limits {
 pub struct ScenesConfig {
     /// Directory of scene documents, relative to the working directory.
     pub dir: PathBuf,
+    /// Most scenes loaded at once (startup and posted together).
+    pub max_scenes: usize,
+    /// Most triangles over all loaded scenes together.
+    pub max_triangles: usize,
+    /// Most bytes held by all loaded scenes together (geometry, acceleration
+    /// structures and environment maps, as `Scene::heap_bytes` counts them).
+    pub max_scene_bytes: u64,
 }
 
 impl Config {
@@ -220,6 +227,19 @@ impl Config {
                 field: "scenes.dir",
                 reason: "must not be empty".into(),
             });
+        }
+        let scene_budgets = [
+            ("scenes.max_scenes", self.scenes.max_scenes as u64),
+            ("scenes.max_triangles", self.scenes.max_triangles as u64),
+            ("scenes.max_scene_bytes", self.scenes.max_scene_bytes),
+        ];
+        for (field, value) in scene_budgets {
+            if value == 0 {
+                return Err(ConfigError::Invalid {
+                    field,
+                    reason: "must be greater than zero".into(),
+                });
+            }
         }
         Ok(())
     }
@@ -421,6 +441,22 @@ mod tests {
             ),
             "{err}"
         );
+    }
+
+    #[test]
+    fn scene_budgets_are_set_by_environment_and_must_be_positive() {
+        let config =
+            Config::load(None, env(&[("BMC_SCENES__MAX_TRIANGLES", "1234")]), None).unwrap();
+        assert_eq!(config.scenes.max_triangles, 1234);
+        for key in ["MAX_SCENES", "MAX_TRIANGLES", "MAX_SCENE_BYTES"] {
+            let name = format!("BMC_SCENES__{key}");
+            let err = Config::load(None, env(&[(&name, "0")]), None).unwrap_err();
+            let expected = format!("scenes.{}", key.to_lowercase());
+            assert!(
+                matches!(&err, ConfigError::Invalid { field, .. } if *field == expected),
+                "{err}"
+            );
+        }
     }
 
     #[test]

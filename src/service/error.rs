@@ -21,6 +21,7 @@
 //! | 503 | `overloaded` | the CPU queue is full; carries `Retry-After` |
 //! | 503 | `cancelled` | the request's work was cancelled (its client is normally gone) |
 //! | 504 | `deadline_exceeded` | the request ran past `limits.request_deadline_secs` |
+//! | 507 | `insufficient_storage` | a posted scene would exceed a `scenes.max_*` budget |
 
 use axum::Json;
 use axum::http::{HeaderValue, StatusCode, header};
@@ -70,6 +71,15 @@ pub enum ApiError {
     UriTooLong { len: usize, limit: usize },
     #[error("the request headers are {len} bytes, above the limit of {limit}")]
     HeadersTooLarge { len: usize, limit: usize },
+    /// A posted scene would take loaded scenes over a service-wide budget;
+    /// `field` names the config key (`scenes.max_triangles`).
+    #[error("{message}")]
+    InsufficientStorage { field: String, message: String },
+    /// `POST /v1/scenes` with a body that is neither JSON nor XML (415).
+    #[error(
+        "content-type must be application/json (a scene document) or application/xml (Mitsuba 3), got {got}"
+    )]
+    UnsupportedSceneMediaType { got: String },
 }
 
 /// The JSON error body (documented in the OpenAPI schema).
@@ -148,6 +158,8 @@ impl ApiError {
             ApiError::HeadersTooLarge { .. } => StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
             ApiError::DeadlineExceeded { .. } => StatusCode::GATEWAY_TIMEOUT,
             ApiError::Internal { .. } => StatusCode::INTERNAL_SERVER_ERROR,
+            ApiError::InsufficientStorage { .. } => StatusCode::INSUFFICIENT_STORAGE,
+            ApiError::UnsupportedSceneMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
         }
     }
 
@@ -167,6 +179,8 @@ impl ApiError {
             ApiError::Unauthorized => "unauthorized",
             ApiError::UriTooLong { .. } => "uri_too_long",
             ApiError::HeadersTooLarge { .. } => "headers_too_large",
+            ApiError::InsufficientStorage { .. } => "insufficient_storage",
+            ApiError::UnsupportedSceneMediaType { .. } => "unsupported_media_type",
         }
     }
 
@@ -179,6 +193,7 @@ impl ApiError {
             {
                 Some(field)
             }
+            ApiError::InsufficientStorage { field, .. } => Some(field),
             _ => None,
         }
     }

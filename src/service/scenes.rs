@@ -19,7 +19,9 @@ use utoipa::ToSchema;
 
 use crate::render::Transport;
 use crate::render::lengthscale::{FittedKernel, FittedKernels};
-use crate::scene::{Scene, SceneError};
+use crate::scene::{Scene, SceneError, Warnings};
+use crate::service::config::ScenesConfig;
+use crate::service::error::ApiError;
 
 /// Longest accepted scene id.
 pub const MAX_ID_LEN: usize = 64;
@@ -50,6 +52,10 @@ pub struct LoadedScene {
     /// Lengthscales fitted for `"lengthscale": "auto"`, per estimator
     /// configuration; they live and die with this loaded scene.
     pub kernels: FittedKernels,
+    /// Triangles of the scene, counted against `scenes.max_triangles`.
+    pub triangles: usize,
+    /// Heap bytes of the scene, counted against `scenes.max_scene_bytes`.
+    pub bytes: u64,
 }
 
 /// What `GET /v1/scenes[/{id}]` tells about a scene.
@@ -82,12 +88,16 @@ pub struct SceneSummary {
 
 impl LoadedScene {
     pub fn new(id: String, source: SceneSource, scene: Scene) -> LoadedScene {
+        let triangles = scene.triangle_count();
+        let bytes = scene.heap_bytes();
         LoadedScene {
             id,
             source,
             transport: Transport::new(Arc::new(scene)),
             generation: NEXT_GENERATION.fetch_add(1, Ordering::Relaxed),
             kernels: FittedKernels::default(),
+            triangles,
+            bytes,
         }
     }
 
@@ -112,21 +122,83 @@ impl LoadedScene {
     }
 }
 
+/// A scene that would take the loaded scenes over a `scenes.max_*` budget.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OverBudget {
+    /// The config key of the budget, e.g. `scenes.max_triangles`.
+    pub field: &'static str,
+    /// The total the scene would bring the loaded scenes to.
+    pub total: u64,
+    pub limit: u64,
+}
+
+impl std::fmt::Display for OverBudget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "loading this scene would bring the loaded scenes to {} against `{}` = {}; delete scenes first",
+            self.total, self.field, self.limit
+        )
+    }
+}
+
+impl From<OverBudget> for ApiError {
+    fn from(over: OverBudget) -> Self {
+        ApiError::InsufficientStorage {
+            field: over.field.to_owned(),
+            message: over.to_string(),
+        }
+    }
+}
+
 /// Scenes by id; readers share, writers (post/delete) are brief.
-#[derive(Default)]
 pub struct SceneRegistry {
     scenes: RwLock<HashMap<String, Arc<LoadedScene>>>,
+    /// Its `max_scenes`, `max_triangles` and `max_scene_bytes` are the
+    /// budgets of all loaded scenes together.
+    budget: ScenesConfig,
 }
 
 impl SceneRegistry {
+    pub fn new(budget: &ScenesConfig) -> Self {
+        SceneRegistry {
+            scenes: RwLock::default(),
+            budget: budget.clone(),
+        }
+    }
+
     pub fn get(&self, id: &str) -> Option<Arc<LoadedScene>> {
         self.read().get(id).cloned()
     }
 
-    /// Adds or replaces a scene; returns true if it replaced one.
-    pub fn insert(&self, scene: LoadedScene) -> bool {
+    /// Adds or replaces a scene; returns true if it replaced one. A scene
+    /// that would take the loaded scenes over the budget (counting them
+    /// without the scene it replaces) is refused and nothing changes.
+    pub fn insert(&self, scene: LoadedScene) -> Result<bool, OverBudget> {
         let mut scenes = self.scenes.write().unwrap_or_else(|p| p.into_inner());
-        scenes.insert(scene.id.clone(), Arc::new(scene)).is_some()
+        let others = scenes.values().filter(|s| s.id != scene.id);
+        let (count, triangles, bytes) = others
+            .fold((1u64, scene.triangles as u64, scene.bytes), |acc, s| {
+                (acc.0 + 1, acc.1 + s.triangles as u64, acc.2 + s.bytes)
+            });
+        let checks = [
+            ("scenes.max_scenes", count, self.budget.max_scenes as u64),
+            (
+                "scenes.max_triangles",
+                triangles,
+                self.budget.max_triangles as u64,
+            ),
+            ("scenes.max_scene_bytes", bytes, self.budget.max_scene_bytes),
+        ];
+        if let Some(&(field, total, limit)) = checks.iter().find(|(_, total, limit)| total > limit)
+        {
+            return Err(OverBudget {
+                field,
+                total,
+                limit,
+            });
+        }
+        Ok(scenes.insert(scene.id.clone(), Arc::new(scene)).is_some())
     }
 
     /// Removes a scene; in-flight requests holding it finish with their `Arc`.
@@ -191,6 +263,19 @@ pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
             path.extension()
                 .is_some_and(|ext| ext == "json" || ext == "xml")
         })
+        // A FIFO would block the reader (and startup) forever and a device
+        // can read endlessly; loading refuses them too, this says why early.
+        .filter(|path| match std::fs::metadata(path) {
+            Ok(meta) if meta.is_file() => true,
+            Ok(_) => {
+                tracing::warn!(file = %path.display(), "scene skipped: not a regular file");
+                false
+            }
+            Err(err) => {
+                tracing::warn!(file = %path.display(), %err, "scene skipped: cannot stat");
+                false
+            }
+        })
         .collect();
     files.sort();
     let has_json_twin = |path: &Path| files.contains(&path.with_extension("json"));
@@ -220,6 +305,30 @@ pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
             }
         })
         .collect()
+}
+
+/// Warnings logged one by one per scene; the rest are only counted, so a
+/// document with thousands of unsupported elements costs one log line per
+/// [`LOGGED_WARNINGS`], not per element.
+pub const LOGGED_WARNINGS: usize = 5;
+
+/// Logs the approximations made while loading scene `id`: their count and
+/// the first [`LOGGED_WARNINGS`].
+pub fn log_warnings(id: &str, warnings: &Warnings) {
+    if warnings.total() == 0 {
+        return;
+    }
+    for warning in warnings.iter().take(LOGGED_WARNINGS) {
+        tracing::warn!(%id, %warning, "scene approximated");
+    }
+    if warnings.total() > LOGGED_WARNINGS {
+        tracing::warn!(
+            %id,
+            total = warnings.total(),
+            logged = LOGGED_WARNINGS,
+            "scene approximated in more places than logged"
+        );
+    }
 }
 
 fn log_broken(path: &Path, err: &SceneError) {
@@ -260,9 +369,9 @@ mod tests {
         let ids: Vec<_> = loaded.iter().map(|s| s.id.as_str()).collect();
         assert_eq!(ids, ["good"]);
 
-        let registry = SceneRegistry::default();
+        let registry = SceneRegistry::new(&crate::service::Config::default_config().scenes);
         for scene in loaded {
-            assert!(!registry.insert(scene));
+            assert!(!registry.insert(scene).unwrap());
         }
         assert_eq!(registry.len(), 1);
         let summary = &registry.summaries()[0];
@@ -271,6 +380,48 @@ mod tests {
         assert!(summary.environment);
         assert!(registry.remove("good").is_some());
         assert!(registry.is_empty());
+    }
+
+    #[test]
+    fn budgets_refuse_scenes_net_of_the_one_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let tiny = |id: &str| {
+            let scene = Scene::from_json_str(TINY, dir.path(), dir.path()).unwrap();
+            LoadedScene::new(id.into(), SceneSource::Uploaded, scene)
+        };
+        let mut budget = crate::service::Config::default_config().scenes;
+        // Two triangles per tiny scene: room for two scenes' triangles.
+        budget.max_triangles = 4;
+        budget.max_scenes = 2;
+        let registry = SceneRegistry::new(&budget);
+        assert_eq!(registry.insert(tiny("a")), Ok(false));
+        assert_eq!(registry.insert(tiny("b")), Ok(false));
+        // Replacing counts without the scene replaced.
+        assert_eq!(registry.insert(tiny("a")), Ok(true));
+        let over = registry.insert(tiny("c")).unwrap_err();
+        assert_eq!(over.field, "scenes.max_scenes");
+        assert_eq!((over.total, over.limit), (3, 2));
+        budget.max_scenes = 10;
+        let registry = SceneRegistry::new(&budget);
+        registry.insert(tiny("a")).unwrap();
+        registry.insert(tiny("b")).unwrap();
+        let over = registry.insert(tiny("c")).unwrap_err();
+        assert_eq!(over.field, "scenes.max_triangles");
+        assert_eq!((over.total, over.limit), (6, 4));
+        // Bytes: room for exactly the scenes already loaded.
+        let bytes = tiny("x").bytes;
+        budget.max_triangles = 100;
+        budget.max_scene_bytes = 2 * bytes;
+        let registry = SceneRegistry::new(&budget);
+        registry.insert(tiny("a")).unwrap();
+        registry.insert(tiny("b")).unwrap();
+        let over = registry.insert(tiny("c")).unwrap_err();
+        assert_eq!(over.field, "scenes.max_scene_bytes");
+        // Nothing was lost.
+        assert_eq!(registry.len(), 2);
+        let error = ApiError::from(over);
+        assert_eq!(error.status(), axum::http::StatusCode::INSUFFICIENT_STORAGE);
+        assert_eq!(error.field(), Some("scenes.max_scene_bytes"));
     }
 
     #[test]

@@ -88,6 +88,11 @@ pub async fn spawn_app_with_scenes(
     for (name, contents) in files {
         std::fs::write(scenes_dir.path().join(name), contents).unwrap();
     }
+    spawn_app_in(scenes_dir, adjust).await
+}
+
+/// Starts the service on a scenes directory the caller prepared.
+pub async fn spawn_app_in(scenes_dir: TempDir, adjust: impl FnOnce(&mut Config)) -> TestApp {
     let config = test_config(&scenes_dir, adjust);
     let app = Application::build(config).await.unwrap();
     let base = format!("http://{}", app.local_addr());

@@ -22,7 +22,7 @@
 use crate::scene::format::{MaterialDoc, MaterialKind, Rgb};
 use crate::scene::material::MAX_PHONG_EXPONENT;
 
-use super::parse::Element;
+use super::parse::{Element, quote};
 use super::props::Props;
 use super::texture::color;
 use super::{Ctx, XmlError};
@@ -190,7 +190,8 @@ fn describe<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<MaterialDoc, XmlEr
                         el,
                         "material",
                         &format!(
-                            "named conductor {name:?} is not supported (give eta and k as rgb)"
+                            "named conductor {} is not supported (give eta and k as rgb)",
+                            quote(name)
                         ),
                         "treating it as a perfect reflector (F0 = 1)",
                     )?;
@@ -219,7 +220,7 @@ fn describe<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<MaterialDoc, XmlEr
             ctx.unsupported(
                 el,
                 "type",
-                &format!("BSDF type {other:?} is not supported"),
+                &format!("BSDF type {} is not supported", quote(other)),
                 "using Mitsuba's default diffuse (reflectance 0.5)",
             )?;
             ctx.leave();

@@ -6,7 +6,7 @@
 use crate::scene::format::{EmitterDoc, EmitterKind, EnvironmentDoc, EnvironmentKind, ShapeKind};
 use crate::scene::transform;
 
-use super::parse::Element;
+use super::parse::{Element, quote};
 use super::props::Props;
 use super::shape::shape_doc;
 use super::texture::color;
@@ -57,7 +57,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<(), XmlError
             return ctx.unsupported(
                 el,
                 "type",
-                &format!("emitter type {other:?} is not supported"),
+                &format!("emitter type {} is not supported", quote(other)),
                 "leaving the emitter out",
             );
         }

@@ -22,14 +22,15 @@ mod tests;
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use super::Scene;
 use super::error::SceneError;
 use super::format::{CameraDoc, EnvironmentDoc, MaterialDoc, SceneDoc, ShapeDoc};
 use super::loader::{self, Files};
 
-use parse::Element;
 pub use parse::MAX_DEPTH;
+use parse::{Element, quote};
 
 /// How to treat what the project's scene model cannot represent.
 #[derive(Clone, Debug)]
@@ -68,6 +69,45 @@ pub struct Warning {
 impl std::fmt::Display for Warning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "line {}: {}: {}", self.line, self.element, self.message)
+    }
+}
+
+/// Most [`Warning`]s kept per document. A lenient document of a few hundred
+/// kilobytes can hold tens of thousands of unsupported elements; their
+/// messages would cost far more memory (and log volume) than they are worth.
+/// [`Warnings::total`] still counts every one.
+pub const MAX_WARNINGS: usize = 100;
+
+/// The approximations made while reading a document: the first
+/// [`MAX_WARNINGS`] in document order (the slice this dereferences to) and
+/// the exact count of all of them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Warnings {
+    kept: Vec<Warning>,
+    total: usize,
+}
+
+impl Warnings {
+    /// Records `warning`; only the first [`MAX_WARNINGS`] are kept.
+    fn push(&mut self, warning: Warning) {
+        self.total += 1;
+        if self.kept.len() < MAX_WARNINGS {
+            self.kept.push(warning);
+        }
+    }
+
+    /// Number of warnings, including those not kept.
+    pub fn total(&self) -> usize {
+        self.total
+    }
+}
+
+impl std::ops::Deref for Warnings {
+    type Target = [Warning];
+
+    /// The kept warnings (at most [`MAX_WARNINGS`]).
+    fn deref(&self) -> &[Warning] {
+        &self.kept
     }
 }
 
@@ -132,7 +172,7 @@ pub(crate) struct Ctx<'a> {
     lenient: bool,
     point_light_radius: f64,
     files: &'a Files,
-    warnings: Vec<Warning>,
+    warnings: Warnings,
     materials: Vec<MaterialDoc>,
     /// Element (by position) → the material id it became.
     material_of: HashMap<(u32, u32), String>,
@@ -143,6 +183,9 @@ pub(crate) struct Ctx<'a> {
     origins: Vec<(String, Origin)>,
     /// Elements whose references are being followed (cycle detection).
     resolving: Vec<(u32, u32)>,
+    /// Mesh files read so far, by canonical path and format: each is read
+    /// once however many shapes name it.
+    mesh_files: HashMap<(PathBuf, shape::MeshFormat), Arc<super::mesh::MeshData>>,
 }
 
 impl<'a> Ctx<'a> {
@@ -190,7 +233,7 @@ impl<'a> Ctx<'a> {
         self.ids
             .get(id)
             .copied()
-            .ok_or_else(|| el.error("id", format!("no element has id {id:?}")))
+            .ok_or_else(|| el.error("id", format!("no element has id {}", quote(id))))
     }
 
     /// Marks `el` as being expanded; a second entry before [`Ctx::leave`] is
@@ -233,7 +276,7 @@ pub(crate) fn from_str(
     base_dir: &Path,
     scenes_root: &Path,
     options: &MitsubaOptions,
-) -> Result<(Scene, Vec<Warning>), SceneError> {
+) -> Result<(Scene, Warnings), SceneError> {
     let files = Files::new(base_dir, scenes_root)?;
     let scene_el = parse::parse(text, &options.parameters).map_err(|e| e.into_scene_error(file))?;
     let ids = parse::index_ids(&scene_el).map_err(|e| e.into_scene_error(file))?;
@@ -242,7 +285,7 @@ pub(crate) fn from_str(
         lenient: options.lenient,
         point_light_radius: options.point_light_radius,
         files: &files,
-        warnings: Vec::new(),
+        warnings: Warnings::default(),
         materials: Vec::new(),
         material_of: HashMap::new(),
         shapes: Vec::new(),
@@ -250,6 +293,7 @@ pub(crate) fn from_str(
         camera: None,
         origins: Vec::new(),
         resolving: Vec::new(),
+        mesh_files: HashMap::new(),
     };
     let doc = convert_scene(&mut ctx, &scene_el).map_err(|e| e.into_scene_error(file))?;
     let Ctx {
@@ -264,7 +308,7 @@ pub(crate) fn load(
     path: &Path,
     scenes_root: &Path,
     options: &MitsubaOptions,
-) -> Result<(Scene, Vec<Warning>), SceneError> {
+) -> Result<(Scene, Warnings), SceneError> {
     let text = loader::read_scene_file(path)?;
     let base = path.parent().unwrap_or(Path::new("."));
     let (mut scene, warnings) = from_str(
@@ -293,7 +337,7 @@ fn check_version(ctx: &mut Ctx, scene: &Element) -> Result<(), XmlError> {
         _ => ctx.unsupported(
             scene,
             "version",
-            &format!("version {version:?} is not a Mitsuba 2 or 3 scene"),
+            &format!("version {} is not a Mitsuba 2 or 3 scene", quote(version)),
             "reading it with Mitsuba 3 conventions",
         ),
     }

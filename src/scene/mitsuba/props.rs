@@ -2,7 +2,7 @@
 //! objects, `<ref>`s) with every child accounted for: whatever a plugin does
 //! not read is reported as unsupported.
 
-use super::parse::Element;
+use super::parse::{Element, quote};
 use super::{Ctx, XmlError};
 
 /// The children of one plugin element, with a record of which were read.
@@ -22,11 +22,11 @@ pub(crate) fn numbers(el: &Element, attr: &str) -> Result<Vec<f64>, XmlError> {
         .map(|s| {
             let x: f64 = s
                 .parse()
-                .map_err(|_| el.error(attr, format!("{s:?} is not a number")))?;
+                .map_err(|_| el.error(attr, format!("{} is not a number", quote(s))))?;
             if x.is_finite() {
                 Ok(x)
             } else {
-                Err(el.error(attr, format!("{s:?} is not a finite number")))
+                Err(el.error(attr, format!("{} is not a finite number", quote(s))))
             }
         })
         .collect()
@@ -73,7 +73,7 @@ impl<'a> Props<'a> {
         for (i, c) in self.el.children.iter().enumerate() {
             if c.attr("name") == Some(name) {
                 if found.is_some() {
-                    return Err(c.error("name", format!("property {name:?} given twice")));
+                    return Err(c.error("name", format!("property {} given twice", quote(name))));
                 }
                 self.used[i] = true;
                 found = Some(c);
@@ -104,7 +104,7 @@ impl<'a> Props<'a> {
         match self.get(name)? {
             Some(c) if !tags.contains(&c.tag.as_str()) => Err(c.error(
                 "",
-                format!("property {name:?} must be <{}>", tags.join("> or <")),
+                format!("property {} must be <{}>", quote(name), tags.join("> or <")),
             )),
             other => Ok(other),
         }
@@ -132,7 +132,7 @@ impl<'a> Props<'a> {
         let v: i64 = text
             .trim()
             .parse()
-            .map_err(|_| c.error("value", format!("{text:?} is not an integer")))?;
+            .map_err(|_| c.error("value", format!("{} is not an integer", quote(text))))?;
         if !range.contains(&v) {
             return Err(c.error(
                 "value",
@@ -151,7 +151,10 @@ impl<'a> Props<'a> {
             Some("false") => Ok(false),
             other => Err(c.error(
                 "value",
-                format!("{other:?} is not a boolean (true or false)"),
+                format!(
+                    "{} is not a boolean (true or false)",
+                    quote(other.unwrap_or_default())
+                ),
             )),
         }
     }
@@ -195,7 +198,7 @@ impl<'a> Props<'a> {
         for (c, used) in self.el.children.iter().zip(&self.used) {
             if !used {
                 let what = match c.attr("name") {
-                    Some(n) => format!("{plugin} has no supported property {n:?}"),
+                    Some(n) => format!("{plugin} has no supported property {}", quote(n)),
                     None => format!("{plugin} does not support a nested <{}>", c.tag),
                 };
                 ctx.unsupported(c, "name", &what, "ignoring it")?;

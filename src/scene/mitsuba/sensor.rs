@@ -7,7 +7,7 @@
 
 use crate::scene::format::{CameraDoc, CameraKind, FovAxis, TransformDoc};
 
-use super::parse::Element;
+use super::parse::{Element, quote};
 use super::props::Props;
 use super::transform::Ops;
 use super::{Ctx, XmlError};
@@ -74,7 +74,10 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
         other => {
             return Err(el.error(
                 "type",
-                format!("sensor type {other:?} is not supported (perspective)"),
+                format!(
+                    "sensor type {} is not supported (perspective)",
+                    quote(other)
+                ),
             ));
         }
     }
@@ -99,7 +102,7 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
             other => {
                 return Err(el.error(
                     "fov_axis",
-                    format!("{other:?} is not x, y, diagonal, smaller or larger"),
+                    format!("{} is not x, y, diagonal, smaller or larger", quote(other)),
                 ));
             }
         },
@@ -114,7 +117,7 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
                 .ok_or_else(|| {
                     el.error(
                         "focal_length",
-                        format!("{text:?} is not a length like \"50mm\""),
+                        format!("{} is not a length like \"50mm\"", quote(text)),
                     )
                 })?;
             let diagonal = diagonal_fov_of_focal_length(mm);

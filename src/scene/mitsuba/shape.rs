@@ -6,15 +6,16 @@
 
 use std::io::BufReader;
 use std::path::Path;
+use std::sync::Arc;
 
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, Property};
 
 use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind};
 use crate::scene::mesh::{self, MeshData};
-use crate::scene::{MAX_SHAPES, MAX_TRIANGLES, SceneError};
+use crate::scene::{MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, SceneError, TRIANGLE_BYTES};
 
-use super::parse::Element;
+use super::parse::{Element, quote};
 use super::props::Props;
 use super::texture::color;
 use super::transform::Ops;
@@ -64,7 +65,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             return ctx.unsupported(
                 el,
                 "type",
-                &format!("shape type {other:?} is not supported"),
+                &format!("shape type {} is not supported", quote(other)),
                 "leaving the shape out",
             );
         }
@@ -96,9 +97,11 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             props.ignore(&["flip_tex_coords"]);
             if face_normals {
                 let path = ctx.resolve(el, "filename", name)?;
-                let data = mesh::load_obj(&path, "filename", triangle_budget(ctx))
-                    .map_err(|e| source_error(el, e))?;
-                set_triangles(&mut doc, data, false);
+                let data = mesh_file(ctx, &path, MeshFormat::Obj, |budget| {
+                    mesh::load_obj(&path, "filename", budget)
+                })
+                .map_err(|e| source_error(el, e))?;
+                set_triangles(&mut doc, &data, false);
             } else {
                 // Resolved by the shared loader, exactly as a JSON `obj`.
                 doc.kind = ShapeKind::Obj;
@@ -110,9 +113,11 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             let face_normals = props.boolean("face_normals", false)?;
             props.ignore(&["flip_tex_coords"]);
             let path = ctx.resolve(el, "filename", name)?;
-            let data = read_ply(&path, triangle_budget(ctx))
-                .map_err(|m| source_error(el, SceneError::file("filename", &path, m)))?;
-            set_triangles(&mut doc, data, !face_normals);
+            let data = mesh_file(ctx, &path, MeshFormat::Ply, |budget| {
+                read_ply(&path, budget).map_err(|m| SceneError::file("filename", &path, m))
+            })
+            .map_err(|e| source_error(el, e))?;
+            set_triangles(&mut doc, &data, !face_normals);
         }
         _ => {}
     }
@@ -137,21 +142,64 @@ fn source_error(el: &Element, e: SceneError) -> XmlError {
     }
 }
 
-/// Triangles still allowed in the scene (inline meshes counted so far).
+/// Triangles still allowed in the scene (inline meshes counted so far):
+/// within [`MAX_TRIANGLES`] and [`MAX_SCENE_MEMORY_BYTES`], so that a file
+/// read here is refused before its triangles are copied into the document.
 fn triangle_budget(ctx: &Ctx) -> usize {
     let used: usize = ctx
         .shapes
         .iter()
         .filter_map(|s| s.indices.as_ref().map(Vec::len))
         .sum();
-    MAX_TRIANGLES.saturating_sub(used)
+    let by_memory = usize::try_from(MAX_SCENE_MEMORY_BYTES / TRIANGLE_BYTES).unwrap_or(usize::MAX);
+    MAX_TRIANGLES.min(by_memory).saturating_sub(used)
 }
 
-fn set_triangles(doc: &mut ShapeDoc, data: MeshData, keep_normals: bool) {
+/// How a mesh file is read (one file could be named as both).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) enum MeshFormat {
+    Obj,
+    Ply,
+}
+
+/// The mesh in the canonical `path`, read with `read` (given the triangle
+/// budget) the first time the document names it and shared afterwards;
+/// every use still counts its triangles against the scene's budget.
+pub(crate) fn mesh_file(
+    ctx: &mut Ctx,
+    path: &Path,
+    format: MeshFormat,
+    read: impl FnOnce(usize) -> Result<MeshData, SceneError>,
+) -> Result<Arc<MeshData>, SceneError> {
+    let budget = triangle_budget(ctx);
+    let key = (path.to_path_buf(), format);
+    let data = match ctx.mesh_files.get(&key) {
+        Some(data) => data.clone(),
+        None => {
+            let data = Arc::new(read(budget)?);
+            ctx.mesh_files.insert(key, data.clone());
+            data
+        }
+    };
+    if data.indices.len() > budget {
+        return Err(SceneError::file(
+            "filename",
+            path,
+            format!(
+                "{} more triangles exceed the scene's remaining budget of {budget}",
+                data.indices.len()
+            ),
+        ));
+    }
+    Ok(data)
+}
+
+fn set_triangles(doc: &mut ShapeDoc, data: &MeshData, keep_normals: bool) {
     doc.positions = Some(data.positions.iter().map(|p| p.to_array()).collect());
     doc.indices = Some(data.indices.iter().map(|t| t.map(u64::from)).collect());
     doc.normals = data
         .normals
+        .as_ref()
         .filter(|_| keep_normals)
         .map(|ns| ns.iter().map(|n| n.to_array()).collect());
 }
@@ -227,16 +275,8 @@ fn index_list(p: &Property) -> Option<Vec<i64>> {
 /// present), `face` `vertex_indices` (or `vertex_index`) polygons fanned
 /// into triangles.
 fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
-    let size = file
-        .metadata()
-        .map_err(|e| format!("cannot stat: {e}"))?
-        .len();
-    if size > MAX_PLY_BYTES {
-        return Err(format!(
-            "{size} bytes exceeds the {MAX_PLY_BYTES}-byte limit"
-        ));
-    }
+    let file = crate::scene::read::open_capped(path, MAX_PLY_BYTES)
+        .map_err(|e| format!("cannot open: {e}"))?;
     let parser = Parser::<DefaultElement>::new();
     let mut reader = Reader::new(BufReader::new(file));
     let invalid = |e: ply_rs_bw::parser::ParseError| format!("invalid PLY: {e}");

@@ -9,7 +9,7 @@ use proptest::prelude::*;
 
 use crate::scene::{Emitter, Environment, Material, Scene, SceneError};
 
-use super::{MitsubaOptions, Warning};
+use super::{MitsubaOptions, Warnings};
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
@@ -40,11 +40,11 @@ fn options(lenient: bool) -> MitsubaOptions {
     }
 }
 
-fn load_in(text: &str, dir: &Path, lenient: bool) -> Result<(Scene, Vec<Warning>), SceneError> {
+fn load_in(text: &str, dir: &Path, lenient: bool) -> Result<(Scene, Warnings), SceneError> {
     Scene::from_mitsuba_xml_str(text, dir, dir, &options(lenient))
 }
 
-fn load(text: &str) -> Result<(Scene, Vec<Warning>), SceneError> {
+fn load(text: &str) -> Result<(Scene, Warnings), SceneError> {
     load_in(text, &scenes_dir(), false)
 }
 
@@ -601,6 +601,154 @@ fn parse_level_errors_carry_lines() {
     assert!(load_in(r#"<scene version="3.0.0"/>"#, &scenes_dir(), true).is_ok());
 }
 
+#[test]
+fn warnings_are_counted_but_only_the_first_kept() {
+    let count = 50_000;
+    let text = wrap(&"<foo/>".repeat(count));
+    let (_, warnings) = load_in(&text, &scenes_dir(), true).unwrap();
+    assert_eq!(warnings.total(), count);
+    assert_eq!(warnings.len(), super::MAX_WARNINGS);
+    assert!(warnings[0].message.contains("<foo>"), "{}", warnings[0]);
+}
+
+/// Writes a `width × height` PNG whose rows repeat the bytes `pixel`, row by
+/// row (never the whole image in memory).
+fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    pixel: &[u8],
+) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut encoder = png::Encoder::new(file, width, height);
+    encoder.set_color(color);
+    encoder.set_depth(depth);
+    if color == png::ColorType::Indexed {
+        encoder.set_palette(vec![0, 0, 0, 255, 255, 255]);
+    }
+    encoder.set_compression(png::Compression::Fast);
+    let mut writer = encoder.write_header().unwrap();
+    let mut stream = writer.stream_writer().unwrap();
+    // `pixel` repeated over the row's bytes (for depths below 8 it holds
+    // several pixels per byte).
+    let row_bits = width as usize * color.samples() * depth as usize;
+    let row: Vec<u8> = pixel
+        .iter()
+        .copied()
+        .cycle()
+        .take(row_bits.div_ceil(8))
+        .collect();
+    for _ in 0..height {
+        std::io::Write::write_all(&mut stream, &row).unwrap();
+    }
+    stream.finish().unwrap();
+}
+
+fn bitmap_reflectance(dir: &Path, file: &str) -> Result<[f64; 3], SceneError> {
+    let bitmap = format!(
+        r#"<bsdf type="diffuse" id="t"><texture type="bitmap" name="reflectance">
+        <string name="filename" value="{file}"/><boolean name="raw" value="true"/></texture></bsdf>"#
+    );
+    let (scene, _) = load_in(&wrap(&bitmap), dir, true)?;
+    let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
+    let Material::Diffuse { reflectance } = scene.materials[i] else {
+        panic!()
+    };
+    Ok(reflectance)
+}
+
+#[test]
+fn png_means_of_every_pixel_format() {
+    use png::{BitDepth, ColorType};
+    let dir = Scratch::new("png-formats");
+    let check = |name: &str, color, depth, pixel: &[u8], expected: [f64; 3]| {
+        write_png(&dir.0.join(name), 8, 3, color, depth, pixel);
+        let got = bitmap_reflectance(&dir.0, name).unwrap();
+        for c in 0..3 {
+            assert!((got[c] - expected[c]).abs() < 1e-9, "{name}: {got:?}");
+        }
+    };
+    check(
+        "grey.png",
+        ColorType::Grayscale,
+        BitDepth::Eight,
+        &[51],
+        [0.2; 3],
+    );
+    let half = 32768.0 / 65535.0;
+    check(
+        "grey16.png",
+        ColorType::Grayscale,
+        BitDepth::Sixteen,
+        &[0x80, 0x00],
+        [half; 3],
+    );
+    check(
+        "rgba.png",
+        ColorType::Rgba,
+        BitDepth::Eight,
+        &[255, 0, 51, 7],
+        [1.0, 0.0, 0.2],
+    );
+    check(
+        "grey-alpha.png",
+        ColorType::GrayscaleAlpha,
+        BitDepth::Eight,
+        &[102, 0],
+        [0.4; 3],
+    );
+    // One-bit palette indices 0b0101_0101: black and white alternate.
+    check(
+        "palette.png",
+        ColorType::Indexed,
+        BitDepth::One,
+        &[0b0101_0101],
+        [0.5; 3],
+    );
+}
+
+#[test]
+fn huge_png_textures_are_refused_from_their_header() {
+    let dir = Scratch::new("png-huge");
+    // ~260 KB on disk, 256 Mi pixels: refused before any row is decoded.
+    write_png(
+        &dir.0.join("huge.png"),
+        16384,
+        16384,
+        png::ColorType::Grayscale,
+        png::BitDepth::Eight,
+        &[0],
+    );
+    let e = bitmap_reflectance(&dir.0, "huge.png")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("16384×16384"), "{e}");
+    // Wide but within the pixel budget is fine.
+    write_png(
+        &dir.0.join("wide.png"),
+        8192,
+        16,
+        png::ColorType::Grayscale,
+        png::BitDepth::Eight,
+        &[255],
+    );
+    assert_eq!(bitmap_reflectance(&dir.0, "wide.png").unwrap(), [1.0; 3]);
+    // A FIFO is refused without blocking.
+    let fifo = dir.0.join("fifo.png");
+    if std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        let e = bitmap_reflectance(&dir.0, "fifo.png")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a regular file"), "{e}");
+    }
+}
+
 /// Fragments of the supported vocabulary for random scenes.
 const FRAGMENTS: &[&str] = &[
     r#"<shape type="cube"><ref id="w"/></shape>"#,
@@ -616,16 +764,28 @@ const FRAGMENTS: &[&str] = &[
     r#"<ref id="w"/>"#,
     r#"<default name="k" value="1"/>"#,
     r#"<float name="v" value="$k"/>"#,
+    r#"<default name="k" value="$k$k$k$k$k$k$k$k$k$k"/>"#,
+    r#"<float name="v" value="$k$k$k$k$k$k$k$k$k$k$k$k$k$k$k$k"/>"#,
     "<shape type=\"cube\">",
     "</shape>",
     "<bsdf type=\"twosided\">",
     "</bsdf>",
 ];
 
+/// Loads `text`; an error must be a short message (values quoted cut), and
+/// a success holds no more than the kept warnings.
 fn check_no_panic(text: &str, lenient: bool) {
     let dir = scenes_dir();
-    if let Err(e) = load_in(text, &dir, lenient) {
-        assert!(!e.to_string().is_empty());
+    match load_in(text, &dir, lenient) {
+        Err(e) => {
+            let message = e.to_string();
+            assert!(!message.is_empty());
+            assert!(message.len() < 2048, "{} bytes of message", message.len());
+        }
+        Ok((_, warnings)) => {
+            assert!(warnings.len() <= super::MAX_WARNINGS);
+            assert!(warnings.total() >= warnings.len());
+        }
     }
 }
 
@@ -666,6 +826,29 @@ proptest! {
         }
     }
 
+    /// Chains of `<default>`s, each repeating earlier ones, then uses: the
+    /// expansion stays within the caps however they combine.
+    #[test]
+    fn default_chains_stay_within_the_caps(
+        links in proptest::collection::vec(
+            (proptest::collection::vec(0..8usize, 1..16), "[a-z0-9.,]{0,12}"), 1..12),
+        uses in proptest::collection::vec(0..12usize, 0..40),
+        lenient in any::<bool>(),
+    ) {
+        let mut body = String::from(r#"<default name="p0" value="0.5"/>"#);
+        for (k, (refs, literal)) in links.iter().enumerate() {
+            let value: String = refs.iter().map(|&r| format!("$p{}", r.min(k))).collect();
+            body.push_str(&format!(r#"<default name="p{}" value="{literal}{value}"/>"#, k + 1));
+        }
+        for u in uses {
+            body.push_str(&format!(
+                r#"<shape type="sphere"><float name="radius" value="$p{}"/></shape>"#,
+                u.min(links.len())
+            ));
+        }
+        check_no_panic(&wrap(&body), lenient);
+    }
+
     #[test]
     fn mutated_cornell_box_never_panics(
         edits in proptest::collection::vec((any::<prop::sample::Index>(), 0..4u8, any::<char>()), 1..8),
@@ -689,4 +872,44 @@ proptest! {
         }
         check_no_panic(&chars.into_iter().collect::<String>(), lenient);
     }
+}
+
+#[test]
+fn a_mesh_file_is_read_once_per_document() {
+    use std::collections::HashMap;
+
+    use super::shape::{MeshFormat, mesh_file};
+    let dir = scenes_dir();
+    let files = crate::scene::loader::Files::new(&dir, &dir).unwrap();
+    let mut ctx = super::Ctx {
+        ids: HashMap::new(),
+        lenient: false,
+        point_light_radius: 1e-3,
+        files: &files,
+        warnings: Warnings::default(),
+        materials: Vec::new(),
+        material_of: HashMap::new(),
+        shapes: Vec::new(),
+        environment: None,
+        camera: None,
+        origins: Vec::new(),
+        resolving: Vec::new(),
+        mesh_files: HashMap::new(),
+    };
+    let path = dir.join("meshes/blob.obj");
+    let mut reads = 0;
+    for _ in 0..3 {
+        mesh_file(&mut ctx, &path, MeshFormat::Obj, |_| {
+            reads += 1;
+            Ok(crate::scene::mesh::rectangle())
+        })
+        .unwrap();
+    }
+    // Read as another format, it is another parse.
+    mesh_file(&mut ctx, &path, MeshFormat::Ply, |_| {
+        reads += 1;
+        Ok(crate::scene::mesh::cube())
+    })
+    .unwrap();
+    assert_eq!(reads, 2);
 }

@@ -4,14 +4,28 @@
 //! its mean linear colour, a `checkerboard` the mean of its two colours, a
 //! sampled spectrum the mean of its values, anything else mid grey.
 
+use std::io::BufReader;
 use std::path::Path;
 
-use crate::scene::environment;
 use crate::scene::format::Rgb;
+use crate::scene::{environment, read};
 
-use super::parse::Element;
+use super::parse::{Element, quote};
 use super::props::{Props, numbers};
 use super::{Ctx, XmlError};
+
+/// Largest width or height of a PNG bitmap texture, pixels.
+pub const MAX_BITMAP_SIDE: u32 = 16384;
+/// Most pixels of a PNG bitmap texture (4096²). Only the mean colour is kept
+/// and rows are streamed, so memory stays at one row, but decoding time grows
+/// with the pixel count: a 16384² grey PNG compresses to ~260 KB and would
+/// take seconds of CPU (and, decoded whole, 6 GiB).
+pub const MAX_BITMAP_PIXELS: u64 = 4096 * 4096;
+/// Largest PNG file read, bytes (a 4096² RGBA 16-bit image stored
+/// uncompressed is 128 MiB).
+pub const MAX_BITMAP_FILE_BYTES: u64 = 160 << 20;
+/// Bytes the PNG decoder may allocate (row buffers, metadata chunks).
+const MAX_BITMAP_DECODER_BYTES: usize = 16 << 20;
 
 /// Mitsuba's default for unspecified reflectances, used as the lenient
 /// stand-in for textures that have no sensible mean.
@@ -78,7 +92,12 @@ fn spectrum(ctx: &mut Ctx, el: &Element) -> Result<Rgb, XmlError> {
             .split_once(':')
             .and_then(|(_, v)| v.trim().parse::<f64>().ok())
             .filter(|v| v.is_finite())
-            .ok_or_else(|| el.error("value", format!("{pair:?} is not `wavelength:value`")))?;
+            .ok_or_else(|| {
+                el.error(
+                    "value",
+                    format!("{} is not `wavelength:value`", quote(pair)),
+                )
+            })?;
         values.push(v);
     }
     ctx.unsupported(
@@ -125,7 +144,7 @@ fn texture<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlError> {
             ctx.unsupported(
                 el,
                 "type",
-                &format!("texture type {other:?} is not supported"),
+                &format!("texture type {} is not supported", quote(other)),
                 "using mid grey",
             )?;
             return Ok(GREY);
@@ -136,34 +155,94 @@ fn texture<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlError> {
     Ok(out)
 }
 
-/// Mean linear RGB of an image: EXR as stored; 8/16-bit images decoded from
-/// sRGB unless `raw` (Mitsuba's bitmap convention).
+/// Mean linear RGB of an image: EXR as stored; PNG decoded from sRGB
+/// unless `raw` (Mitsuba's bitmap convention).
 fn bitmap_mean(path: &Path, raw: bool) -> Result<Rgb, String> {
     let is_exr = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    let texels: Vec<[f64; 3]> = if is_exr {
-        let (_, _, texels) = environment::read_exr(path, "filename").map_err(|e| e.to_string())?;
-        texels.iter().map(|t| t.map(f64::from)).collect()
-    } else {
-        let image = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let decode = |c: f32| {
-            let c = f64::from(c);
-            if raw { c } else { srgb_to_linear(c) }
-        };
-        image
-            .to_rgb32f()
-            .pixels()
-            .map(|p| p.0.map(decode))
-            .collect()
-    };
+    if !is_exr {
+        return png_mean(path, raw).map_err(|e| format!("{}: {e}", path.display()));
+    }
+    let (_, _, texels) = environment::read_exr(path, "filename").map_err(|e| e.to_string())?;
     if texels.is_empty() {
         return Err(format!("{}: empty image", path.display()));
     }
     let n = texels.len() as f64;
     Ok(std::array::from_fn(|i| {
-        texels.iter().map(|t| t[i]).sum::<f64>() / n
+        texels.iter().map(|t| f64::from(t[i])).sum::<f64>() / n
     }))
+}
+
+/// Mean linear RGB of a PNG, streamed row by row (alpha ignored). Refuses
+/// images over [`MAX_BITMAP_SIDE`] or [`MAX_BITMAP_PIXELS`] before decoding.
+fn png_mean(path: &Path, raw: bool) -> Result<Rgb, String> {
+    let file =
+        read::open_capped(path, MAX_BITMAP_FILE_BYTES).map_err(|e| format!("cannot open: {e}"))?;
+    let limits = png::Limits {
+        bytes: MAX_BITMAP_DECODER_BYTES,
+    };
+    let mut decoder = png::Decoder::new_with_limits(BufReader::new(file), limits);
+    // Palettes and low bit depths become 8-bit grey or RGB (with alpha).
+    decoder.set_transformations(png::Transformations::EXPAND);
+    let mut reader = decoder
+        .read_info()
+        .map_err(|e| format!("not a readable PNG: {e}"))?;
+    let (width, height) = (reader.info().width, reader.info().height);
+    if width > MAX_BITMAP_SIDE
+        || height > MAX_BITMAP_SIDE
+        || u64::from(width) * u64::from(height) > MAX_BITMAP_PIXELS
+    {
+        return Err(format!(
+            "image is {width}×{height}; each side must be at most {MAX_BITMAP_SIDE} and the area at most {MAX_BITMAP_PIXELS} pixels"
+        ));
+    }
+    let (color, depth) = reader.output_color_type();
+    let channels = color.samples();
+    let sample_bytes = if depth == png::BitDepth::Sixteen {
+        2
+    } else {
+        1
+    };
+    let lut: Vec<f64> = (0..256)
+        .map(|v| {
+            let c = f64::from(v) / 255.0;
+            if raw { c } else { srgb_to_linear(c) }
+        })
+        .collect();
+    let decode = |bytes: &[u8]| -> f64 {
+        if sample_bytes == 2 {
+            let c = f64::from(u16::from_be_bytes([bytes[0], bytes[1]])) / 65535.0;
+            if raw { c } else { srgb_to_linear(c) }
+        } else {
+            lut[usize::from(bytes[0])]
+        }
+    };
+    let mut sum = [0.0f64; 3];
+    let mut pixels = 0u64;
+    // Interlaced images come as the rows of each pass; every pixel appears
+    // in exactly one, so sums and counts are still over the whole image.
+    while let Some(row) = reader
+        .next_row()
+        .map_err(|e| format!("cannot decode PNG: {e}"))?
+    {
+        for pixel in row.data().chunks_exact(channels * sample_bytes) {
+            let sample = |c: usize| decode(&pixel[c * sample_bytes..]);
+            let rgb = if channels >= 3 {
+                [sample(0), sample(1), sample(2)]
+            } else {
+                [sample(0); 3]
+            };
+            for (s, c) in sum.iter_mut().zip(rgb) {
+                *s += c;
+            }
+            pixels += 1;
+        }
+    }
+    if pixels == 0 {
+        return Err("empty image".into());
+    }
+    Ok(sum.map(|s| s / pixels as f64))
 }
 
 /// The sRGB electro-optical transfer function (IEC 61966-2-1).

@@ -12,7 +12,7 @@ use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{
     MediaType, SceneId, body_bytes, body_media_type, content_type_text, parse_json,
 };
-use crate::service::scenes::{LoadedScene, SceneSource, SceneSummary, validate_id};
+use crate::service::scenes::{LoadedScene, SceneSource, SceneSummary, log_warnings, validate_id};
 use crate::service::state::AppState;
 
 /// Every loaded scene, sorted by id.
@@ -35,7 +35,7 @@ pub async fn get_scene(
 }
 
 /// Query parameters of `POST /v1/scenes`, used by Mitsuba XML bodies only
-/// (a JSON document carries its id as `name`).
+/// (a JSON document carries its id as `name`; `id` with JSON is refused).
 #[derive(Debug, Default, serde::Deserialize, utoipa::IntoParams)]
 #[serde(deny_unknown_fields)]
 pub struct PostSceneQuery {
@@ -50,13 +50,16 @@ pub struct PostSceneQuery {
 /// document (`application/json`, `docs/scene-format.md`) whose `name` becomes
 /// its id, or a Mitsuba 3 scene (`application/xml`) whose id is the `id` query
 /// parameter. Files the scene references must already be in the scenes directory.
+/// A scene that would take the loaded scenes over a `scenes.max_*` budget is
+/// refused with 507 and nothing loaded changes.
 #[utoipa::path(post, path = "/v1/scenes", tag = "scenes", params(PostSceneQuery),
     request_body(content = Object, description = "A scene document with a `name` (JSON), or Mitsuba 3 XML",
                  content_type = "application/json"),
     responses((status = 201, description = "Scene added", body = SceneSummary),
                (status = 200, description = "Scene replaced", body = SceneSummary),
                (status = 415, description = "Neither JSON nor XML", body = ErrorBody),
-               (status = 422, description = "Invalid scene", body = ErrorBody)))]
+               (status = 422, description = "Invalid scene", body = ErrorBody),
+               (status = 507, description = "Over a scenes budget", body = ErrorBody)))]
 pub async fn post_scene(
     State(state): State<Arc<AppState>>,
     query: Result<Query<PostSceneQuery>, QueryRejection>,
@@ -67,9 +70,20 @@ pub async fn post_scene(
     let root = state.config.scenes.dir.clone();
     let (id, scene) = match body_media_type(&request) {
         MediaType::Json => {
-            let document: serde_json::Value = parse_json(&body_bytes(request, &()).await?)?;
-            let id = document_id(&document)?;
-            let text = document.to_string();
+            if query.id.is_some() {
+                return Err(ApiError::invalid(
+                    "id",
+                    "the `id` query parameter is for XML scenes; a JSON scene's id is its `name`",
+                ));
+            }
+            let bytes = body_bytes(request, &()).await?;
+            // Syntax errors (400) and a duplicate or non-string `name` are
+            // found here; the scene parser then reads the text itself, so
+            // duplicate keys anywhere are refused as on every other route.
+            let PostedName { name } = parse_json(&bytes)?;
+            let id = document_id(name)?;
+            let text = String::from_utf8(bytes.to_vec())
+                .map_err(|_| ApiError::invalid("body", "the JSON is not UTF-8"))?;
             let scene = state
                 .pool
                 .run(move |_| Scene::from_json_str(&text, &root, &root))
@@ -88,17 +102,18 @@ pub async fn post_scene(
                 lenient: query.lenient,
                 ..MitsubaOptions::default()
             };
-            let (scene, warnings) = state
+            let (mut scene, warnings) = state
                 .pool
                 .run(move |_| Scene::from_mitsuba_xml_str(&text, &root, &root, &options))
                 .await??;
-            for warning in &warnings {
-                tracing::warn!(%id, %warning, "scene approximated");
+            log_warnings(&id, &warnings);
+            if scene.name.is_empty() {
+                scene.name = id.clone();
             }
             (id, scene)
         }
         MediaType::Other => {
-            return Err(ApiError::UnsupportedMediaType {
+            return Err(ApiError::UnsupportedSceneMediaType {
                 got: content_type_text(&request),
             });
         }
@@ -106,7 +121,7 @@ pub async fn post_scene(
     let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene);
     let summary = loaded.summary();
     let generation = loaded.generation;
-    let replaced = state.scenes.insert(loaded);
+    let replaced = state.scenes.insert(loaded)?;
     // The previous version's records are useless now; free them.
     state
         .irradiance_caches
@@ -120,10 +135,17 @@ pub async fn post_scene(
     Ok((status, Json(summary)))
 }
 
+/// The `name` of a posted JSON scene document; the other fields are left
+/// to the scene parser.
+#[derive(serde::Deserialize)]
+struct PostedName {
+    name: Option<serde_json::Value>,
+}
+
 /// The id of a posted JSON scene document: its `name`.
-fn document_id(document: &serde_json::Value) -> Result<String, ApiError> {
-    let id = match document.get("name") {
-        Some(serde_json::Value::String(name)) => name.clone(),
+fn document_id(name: Option<serde_json::Value>) -> Result<String, ApiError> {
+    let id = match name {
+        Some(serde_json::Value::String(name)) => name,
         Some(_) => return Err(ApiError::invalid("name", "must be a string")),
         None => {
             return Err(ApiError::invalid(
