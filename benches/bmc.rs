@@ -1,4 +1,4 @@
-//! BMC quadrature costs (issue 2): cold weight computation (sample set,
+//! BMC quadrature costs: cold weight computation (sample set,
 //! factorisation, exact kernel means, solves), a cached lookup, and one
 //! estimate (the dot product `wᵀY`). SE kernel, Lambert density, GLS mean.
 

@@ -1,8 +1,8 @@
-//! Dense Cholesky factor + solve: nalgebra versus faer (issue 2, item 6).
+//! Dense Cholesky factor + solve: nalgebra versus faer.
 //!
 //! The matrix is what BMC actually factors: a squared-exponential kernel
 //! matrix (ℓ = 0.5) on uniform-area spherical Fibonacci points of the upper
-//! hemisphere (bmc-math.md §2, §5) plus a 1e-8 diagonal jitter. One solve with
+//! hemisphere (docs/math.md §2, §5) plus a 1e-8 diagonal jitter. One solve with
 //! one right-hand side follows the factorisation, as for the weights `Q⁻¹z`.
 //! faer runs sequentially (`Par::Seq`) because the service parallelises across
 //! requests, not inside one factorisation; nalgebra is always sequential.

@@ -2,7 +2,7 @@
 //!
 //! Bayesian Monte Carlo (BMC) estimation of irradiance and radiance on the
 //! hemisphere, with precomputed quadrature weights `w = Q⁻¹ z` and cached
-//! factorisations (see `shared/docs/bmc-math.md`).
+//! factorisations (see `docs/math.md`).
 //!
 //! ## Layout
 //! The math (`sphere`, `bmc`, `study`) knows nothing of scenes or HTTP; the

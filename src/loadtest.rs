@@ -7,7 +7,7 @@
 //! the end, so clients never contend on a lock). Only loopback URLs are accepted:
 //! this tool measures our own service, it is not a traffic generator for others.
 //!
-//! Scenarios and their request shapes (issue 4):
+//! Scenarios and their request shapes:
 //! - `health`: `GET /health` (measures the HTTP stack alone);
 //! - `points`: `POST /v1/scenes/{scene}/irradiance` with `points_per_request`
 //!   points on the Cornell box floor (y = -1, normal +y), BMC with `samples` samples;

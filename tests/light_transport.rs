@@ -250,7 +250,7 @@ fn external_direction_sets_plug_into_the_hemisphere_estimate() {
     let t = load(&scene_json(materials, &shapes, None), Path::new("."));
     let p = point(DVec3::new(0.1, 0.2, -1.0), DVec3::Z);
     let frame = Frame::from_normal(p.normal()).rotated_about_normal(0.7);
-    // Cosine-distributed spherical Fibonacci set (bmc-math.md §5) plus a
+    // Cosine-distributed spherical Fibonacci set (docs/math.md §5) plus a
     // direction below the surface and a NaN one, which must carry nothing.
     let n = 64;
     let golden = (1.0 + 5f64.sqrt()) / 2.0;

@@ -1,7 +1,7 @@
 """Shared helpers for the peer-renderer validation scripts (Cornell box).
 
 The scene is Mitsuba 3's built-in ``mi.cornell_box()``; the project keeps a
-frozen copy as ``shared/reference/mitsuba-cornell-box.json`` (row-major 4x4
+frozen copy as ``data/mitsuba-cornell-box.json`` beside this file (row-major 4x4
 float32 ``to_world`` matrices; rectangles span [-1,1]^2 in local xy with
 normal +z, cubes span [-1,1]^3).  Everything here works on that JSON so that
 the other peers (Embree, Radiance) use exactly the same geometry.
@@ -19,19 +19,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def _find_reference() -> str:
-    """$CORNELL_REFERENCE, else shared/reference/mitsuba-cornell-box.json in a
-    parent directory of this file (shared/ sits beside the repository), else
-    the workplace default."""
-    if os.environ.get("CORNELL_REFERENCE"):
-        return os.environ["CORNELL_REFERENCE"]
-    d = HERE
-    for _ in range(6):
-        for cand in (os.path.join(d, "shared", "reference", "mitsuba-cornell-box.json"),
-                     os.path.join(d, "reference", "mitsuba-cornell-box.json")):
-            if os.path.exists(cand):
-                return cand
-        d = os.path.dirname(d)
-    raise FileNotFoundError("set CORNELL_REFERENCE to shared/reference/mitsuba-cornell-box.json")
+    """$CORNELL_REFERENCE, else the frozen copy in data/ beside this file."""
+    return os.environ.get("CORNELL_REFERENCE") or os.path.join(
+        HERE, "data", "mitsuba-cornell-box.json")
 
 
 DEFAULT_REFERENCE = _find_reference()

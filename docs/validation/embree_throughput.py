@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Closest-hit ray throughput of Embree 4 (PyPI ``embreex``) on the Cornell box.
 
-Scene: the Cornell box of shared/reference/mitsuba-cornell-box.json as 36
+Scene: the Cornell box of docs/validation/data/mitsuba-cornell-box.json as 36
 triangles (8 objects: light, floor, ceiling, back, green-wall, red-wall as 2
 triangles each from the transformed [-1,1]^2 rectangle, small-box and
 large-box as 12 triangles each from the transformed [-1,1]^3 cube), built as

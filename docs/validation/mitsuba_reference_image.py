@@ -2,7 +2,7 @@
 """Reference image of Mitsuba 3's Cornell box, rendered by Mitsuba (scalar_rgb).
 
 Scene: mi.cornell_box() (camera, 256x256 film, materials as in
-shared/reference/mitsuba-cornell-box.json) with two changes: the film's
+docs/validation/data/mitsuba-cornell-box.json) with two changes: the film's
 reconstruction filter is ``box`` (a pixel is the plain average of radiance
 over its area) and the integrator is ``path`` with ``max_depth`` (default 64,
 ``rr_depth`` default 5).  The image is rendered as two independent halves

@@ -2,7 +2,7 @@
 """Irradiance at points in the Cornell box with Radiance ``rtrace -I``
 (binaries shipped in the PyPI package ``pyradiance``).
 
-Scene: shared/reference/mitsuba-cornell-box.json converted to Radiance:
+Scene: docs/validation/data/mitsuba-cornell-box.json converted to Radiance:
 rectangles -> 4-vertex polygons, cubes -> 6 polygons, Lambertian materials as
 ``plastic`` with specularity 0 and roughness 0 (pure diffuse, reflectance =
 the RGB reflectance), the light as a ``light`` material with the RGB radiance

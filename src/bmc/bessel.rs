@@ -1,6 +1,6 @@
 //! Exponentially scaled modified Bessel function `I₀(x) e^{−x}`.
 //!
-//! Needed by the 1-D kernel-mean formula (bmc-math.md §4), whose azimuthal
+//! Needed by the 1-D kernel-mean formula (docs/math.md §4), whose azimuthal
 //! integral is `∫₀^{2π} e^{a cos φ} dφ = 2π I₀(a)` with `a` up to `1/ℓ²`
 //! (10⁴ for ℓ = 0.01), where `I₀` itself overflows. No maintained Rust crate
 //! offered the scaled form, so it is evaluated here from two textbook series

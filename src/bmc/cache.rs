@@ -1,7 +1,7 @@
 //! Concurrent, byte-bounded cache of factorisations and quadrature weights.
 //!
 //! Weights `w = Q⁻¹z` depend only on the sample set, the kernel and the
-//! density (bmc-math.md §3), so the service computes them once per
+//! density (docs/math.md §3), so the service computes them once per
 //! configuration and reuses them at every shading point (Brouillat et al.
 //! 2009). Two levels, so a new density for a known (sample set, kernel) never
 //! refactorises `Q`:

@@ -1,5 +1,5 @@
 //! Known densities `p` of the BMC integral `I = ∫_H f(ω) p(ω) dω`
-//! (bmc-math.md §1): the BRDF·cosine factor, which need not integrate to 1.
+//! (docs/math.md §1): the BRDF·cosine factor, which need not integrate to 1.
 //!
 //! All directions are in the local frame (z = surface normal); `p` is zero
 //! below the horizon (`z < 0`).

@@ -1,5 +1,5 @@
 //! Hemisphere integral estimators behind one interface: Monte Carlo,
-//! quasi-Monte Carlo and Bayesian Monte Carlo (bmc-math.md §3, §6).
+//! quasi-Monte Carlo and Bayesian Monte Carlo (docs/math.md §3, §6).
 //!
 //! Each estimates `I = ∫_H f(ω) p(ω) dω` for a known density `p` (a
 //! [`Density`]) from values of the unknown `f` (incident radiance) at
@@ -13,7 +13,7 @@
 //! structured error of a fixed set turned into noise rotates its shading
 //! frame about the normal per point (`Frame::rotated_about_normal`), which
 //! leaves the weights exact for rotation-invariant densities (uniform,
-//! Lambert; bmc-math.md §5).
+//! Lambert; docs/math.md §5).
 
 use std::borrow::Cow;
 use std::f64::consts::{FRAC_1_PI, PI};
@@ -97,7 +97,7 @@ enum Directions {
     Fixed(SampleSet),
 }
 
-/// Equal-weight estimators `Î = (1/N) Σ f(ω_i) p(ω_i)/q(ω_i)` (bmc-math.md §6):
+/// Equal-weight estimators `Î = (1/N) Σ f(ω_i) p(ω_i)/q(ω_i)` (docs/math.md §6):
 /// MC with random directions of density `q`, QMC with spherical Fibonacci
 /// directions distributed (in the limit) like `q`.
 ///
@@ -129,7 +129,7 @@ impl SampleMeanEstimator {
 
     /// Quasi-Monte Carlo on `count` spherical Fibonacci points: uniform-area
     /// points for `SamplingPdf::Uniform`, cosine-distributed ones for
-    /// `SamplingPdf::Cosine` (bmc-math.md §5). With Lambert `p` and cosine
+    /// `SamplingPdf::Cosine` (docs/math.md §5). With Lambert `p` and cosine
     /// points this is `(1/N) Σ f`; with uniform points `(2π/N) Σ f p`.
     pub fn quasi_monte_carlo(
         density: Density,
@@ -239,13 +239,13 @@ fn check_count(expected: usize, got: usize) -> Result<(), EstimatorError> {
 #[serde(rename_all = "snake_case")]
 pub enum BmcVariance {
     /// The posterior variance `V = V₀ − zᵀQ⁻¹z` for the kernel's own `σ²`;
-    /// independent of the data (bmc-math.md §3).
+    /// independent of the data (docs/math.md §3).
     #[default]
     Posterior,
     /// `V · σ̂²/σ²` with the per-estimate amplitude fit
     /// `σ̂²/σ² = rᵀQ⁻¹r / (N − d)`, `r` the data minus the prior mean (GLS
     /// mean: `d = 1`, zero mean: `d = 0`) — the maximum-likelihood amplitude
-    /// of bmc-math.md §7 for one point. Costs one `O(N²)` solve per call;
+    /// of docs/math.md §7 for one point. Costs one `O(N²)` solve per call;
     /// makes the variance scale with the radiance level of each point.
     AmplitudeFit,
 }
@@ -323,7 +323,7 @@ impl HemisphereEstimator for BayesianEstimator {
 }
 
 /// Irradiance `E = π I` from the integral of the Lambert density `cos θ/π`
-/// (bmc-math.md §1), with the variance scaled accordingly.
+/// (docs/math.md §1), with the variance scaled accordingly.
 pub fn irradiance_from_lambert(estimate: Estimate) -> Estimate {
     Estimate {
         value: PI * estimate.value,
@@ -338,7 +338,7 @@ mod tests {
     use crate::bmc::{Kernel, KernelKind, KernelMeanMethod};
     use rand::SeedableRng;
 
-    /// `a + b·ω`, whose Lambert integral is `a + (2/3) b_z` (bmc-math.md §8 / π).
+    /// `a + b·ω`, whose Lambert integral is `a + (2/3) b_z` (docs/math.md §8 / π).
     fn linear(w: DVec3) -> f64 {
         0.8 + DVec3::new(0.3, -0.2, 0.5).dot(w)
     }

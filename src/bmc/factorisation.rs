@@ -1,5 +1,5 @@
 //! Cholesky factorisation of the BMC Gram matrix `Q = K + (σ_n² + jitter) I`
-//! (bmc-math.md §3), computed once per (sample set, kernel) and shared by
+//! (docs/math.md §3), computed once per (sample set, kernel) and shared by
 //! every density, prior mean and shading point.
 //!
 //! The linear algebra is faer's dense LLᵀ, chosen by measurement against
@@ -172,7 +172,7 @@ impl Factorisation {
         Ok(self.solve(b))
     }
 
-    /// `log |Q| = 2 Σ log L_ii` (for the marginal likelihood, bmc-math.md §7).
+    /// `log |Q| = 2 Σ log L_ii` (for the marginal likelihood, docs/math.md §7).
     pub fn log_determinant(&self) -> f64 {
         2.0 * (0..self.len()).map(|i| self.l[(i, i)].ln()).sum::<f64>()
     }

@@ -1,4 +1,4 @@
-//! Kernel hyperparameters by maximum marginal likelihood (bmc-math.md §7).
+//! Kernel hyperparameters by maximum marginal likelihood (docs/math.md §7).
 //!
 //! Many shading points share one sample set, so their observation vectors
 //! `Y_1..Y_M` are pooled: with the unit-variance kernel matrix
@@ -11,7 +11,7 @@
 //! leaving the profile likelihood
 //! `−(MN/2)(log σ̂² + 1 + log 2π) − (M/2) log|K̃ + ηI|` in `ℓ` (and `η`).
 //! `r_m` is `Y_m` minus its generalised-least-squares constant mean
-//! `m̂ = 1ᵀ(K̃+ηI)⁻¹Y / 1ᵀ(K̃+ηI)⁻¹1` (bmc-math.md §3), matching the GLS prior
+//! `m̂ = 1ᵀ(K̃+ηI)⁻¹Y / 1ᵀ(K̃+ηI)⁻¹1` (docs/math.md §3), matching the GLS prior
 //! mean of the quadrature.
 //!
 //! The profile is maximised over `log ℓ` by a coarse grid and golden-section

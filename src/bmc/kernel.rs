@@ -1,5 +1,5 @@
 //! Covariance kernels on the sphere, functions of the chordal distance
-//! `d = |ω − ω'| = sqrt(2 − 2 ω·ω')` (bmc-math.md §2).
+//! `d = |ω − ω'| = sqrt(2 − 2 ω·ω')` (docs/math.md §2).
 //!
 //! A kernel that is positive definite on R³ stays positive definite when
 //! restricted to the sphere, so these are valid GP covariances on S².

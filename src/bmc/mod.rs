@@ -1,4 +1,4 @@
-//! Bayesian Monte Carlo quadrature on the hemisphere (bmc-math.md §2–4, §8):
+//! Bayesian Monte Carlo quadrature on the hemisphere (docs/math.md §2–4, §8):
 //! kernels, densities, exact kernel means, the factorisation of `Q` and the
 //! resulting weights and posterior variance.
 

@@ -1,5 +1,5 @@
 //! BMC quadrature rules: weights `w` with `Î = Σ w_i Y_i` and the posterior
-//! variance of the integral (bmc-math.md §3).
+//! variance of the integral (docs/math.md §3).
 //!
 //! Weights depend on the sample directions, the kernel and the density but
 //! never on the observations, so one [`Quadrature`] serves every shading
@@ -202,7 +202,7 @@ mod tests {
         ]
     }
 
-    /// bmc-math.md §8: `Σ_i w_i k(ω_i, ω_j) = z_j` up to the diagonal term.
+    /// docs/math.md §8: `Σ_i w_i k(ω_i, ω_j) = z_j` up to the diagonal term.
     #[test]
     fn weights_integrate_kernel_sections_exactly() {
         let s = set(SampleSetKind::Uniform, 24, 4);
@@ -228,7 +228,7 @@ mod tests {
         }
     }
 
-    /// bmc-math.md §8: `0 ≤ V ≤ V₀` and `V` shrinks as samples are added
+    /// docs/math.md §8: `0 ≤ V ≤ V₀` and `V` shrinks as samples are added
     /// (random sets with one seed are nested: the first `n` of `2n` agree).
     #[test]
     fn posterior_variance_is_bounded_and_shrinks_with_more_samples() {
@@ -269,7 +269,7 @@ mod tests {
         prior_variance(k, d, KernelMeanMethod::Exact).unwrap()
     }
 
-    /// bmc-math.md §8: with the GLS constant mean, `Σ w_i = ∫p` and constants
+    /// docs/math.md §8: with the GLS constant mean, `Σ w_i = ∫p` and constants
     /// are integrated exactly (furnace test: uniform `L` gives `E = πL`).
     #[test]
     fn gls_weights_sum_to_the_density_integral_and_pass_the_furnace_test() {
@@ -302,7 +302,7 @@ mod tests {
         assert!(last < 1e-3, "{last}");
     }
 
-    /// bmc-math.md §8: `∫_H (a + b·ω) cos θ dω = aπ + (2π/3) b_z`.
+    /// docs/math.md §8: `∫_H (a + b·ω) cos θ dω = aπ + (2π/3) b_z`.
     #[test]
     fn linear_radiance_is_integrated_accurately() {
         let (a, b) = (0.8, DVec3::new(0.3, -0.5, 0.6));
@@ -363,7 +363,7 @@ mod tests {
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     }
 
-    /// bmc-math.md §8 calibration: for `f ~ GP(0, k)`, `(Y, I)` is jointly
+    /// docs/math.md §8 calibration: for `f ~ GP(0, k)`, `(Y, I)` is jointly
     /// Gaussian with `Cov Y = K + σ_n² I`, `Cov(Y, I) = z`, `Var I = V₀`; drawing
     /// them jointly, `(Î − I)/sqrt(V)` must be standard normal.
     #[test]

@@ -11,7 +11,7 @@ use crate::bmc::cache::{CachedQuadrature, QuadratureCache};
 use crate::bmc::{BmcError, Density, Kernel, KernelMeanMethod, PriorMean};
 use crate::sphere::{SampleSetKind, SampleSetSpec};
 
-/// Everything the weights `w = Q⁻¹z` depend on (bmc-math.md §3): sample set,
+/// Everything the weights `w = Q⁻¹z` depend on (docs/math.md §3): sample set,
 /// kernel, density, prior mean and how the kernel means are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct QuadratureSpec {

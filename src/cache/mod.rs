@@ -1,4 +1,4 @@
-//! Bayesian irradiance cache (bmc-math.md §9; Ward et al. 1988 with BMC
+//! Bayesian irradiance cache (docs/math.md §9; Ward et al. 1988 with BMC
 //! records as in Brouillat et al. 2009): records computed once by BMC, with
 //! their posterior variance, serve many shading points and many requests.
 //!

@@ -1,4 +1,4 @@
-//! Irradiance-cache records (Ward et al. 1988; bmc-math.md §9): what one BMC
+//! Irradiance-cache records (Ward et al. 1988; docs/math.md §9): what one BMC
 //! evaluation at a surface point contributes to its neighbourhood.
 
 use glam::DVec3;
@@ -172,7 +172,7 @@ impl Record {
     }
 
     /// Ward's weight `w_k(x) = 1/(|x − x_k|/R_k + sqrt(1 − n·n_k))`
-    /// (bmc-math.md §9); infinite at the record itself.
+    /// (docs/math.md §9); infinite at the record itself.
     pub fn weight(&self, x: DVec3, n: DVec3) -> f64 {
         let denominator =
             (x - self.position).length() / self.radius + (1.0 - n.dot(self.normal)).max(0.0).sqrt();
@@ -268,7 +268,7 @@ mod tests {
     }
 
     /// A record of the linear field `L = a + b·ω` (world) extrapolated to a
-    /// tilted normal tracks `E(n) = aπ + (2π/3) b·n` (bmc-math.md §8) far
+    /// tilted normal tracks `E(n) = aπ + (2π/3) b·n` (docs/math.md §8) far
     /// better than the record's own value does (to first order).
     #[test]
     fn rotation_gradient_tracks_a_tilted_normal() {

@@ -4,7 +4,7 @@
 //! Built once per (sample set, kernel, prior mean) and shared by every record:
 //! the weights `w`, the Cholesky factor of `Q`, the kernel-mean derivatives
 //! `dz_i/dμ_i` and the kernel derivatives `∂k/∂(ω_i·ω_j)` depend only on the
-//! local-frame directions, never on the observed radiance (bmc-math.md §3).
+//! local-frame directions, never on the observed radiance (docs/math.md §3).
 //!
 //! # Gradients: derivatives of the GP posterior mean
 //! We differentiate the BMC estimate itself instead of using Ward & Heckbert
@@ -19,7 +19,7 @@
 //! (derivative of `zᵀQ⁻¹Y`: `dzᵀQ⁻¹Y − zᵀQ⁻¹ dQ Q⁻¹Y`, Rasmussen & Williams
 //! 2006 §A.3.1 for `d(Q⁻¹)`; for the GLS mean the `dm̂` terms combine into the
 //! same form with the full weights `w` and `α̃`; `z_i` depends on `ω_i` only
-//! through `μ_i = cos θ_i` for the Lambert density, bmc-math.md §4).
+//! through `μ_i = cos θ_i` for the Lambert density, docs/math.md §4).
 //! - **Rotation** of the normal by `ε` about the local axis `a ∈ {x, y}`
 //!   equals rotating the samples by `−ε` relative to the density:
 //!   `δ_i = −a × ω_i`. The rotation is rigid, so `dQ = 0` and only the
@@ -74,11 +74,11 @@ pub struct RecordRuleSpec {
 /// (rotation) and per world unit (translation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RecordEstimate {
-    /// `E = π Σ w_i L_i` (the Lambert rule integrates `L cos θ/π`, bmc-math.md §1).
+    /// `E = π Σ w_i L_i` (the Lambert rule integrates `L cos θ/π`, docs/math.md §1).
     pub irradiance: Rgb,
     /// Variance of `E` per channel: the posterior variance `π² V σ̂²`, with
     /// `V` the posterior variance of the rule and `σ̂² = ỸᵀQ₁⁻¹Ỹ/N` the
-    /// maximum likelihood amplitude of the channel (bmc-math.md §3, §7) —
+    /// maximum likelihood amplitude of the channel (docs/math.md §12.1) —
     /// the integration error of the rule — plus the Monte Carlo noise of the
     /// values, `π² Σ w_i² Var(L_i)` from the samples' own variances (zero
     /// when each value is a single path, whose spread is unknown).
@@ -510,7 +510,7 @@ mod tests {
         }
     }
 
-    /// `∫_H (a + b·ω) cos θ dω = aπ + (2π/3) b·n` (bmc-math.md §8), so turning
+    /// `∫_H (a + b·ω) cos θ dω = aπ + (2π/3) b·n` (docs/math.md §8), so turning
     /// the normal about local x changes `E` at rate `−(2π/3) b_y`, about y at `(2π/3) b_x`.
     #[test]
     fn rotation_gradient_of_a_linear_field_is_exact() {

@@ -1,16 +1,16 @@
 //! Outgoing radiance at a surface point through the irradiance cache: the
-//! shading of issue 5 used by tiles and by single radiance queries.
+//! shading used by tiles and by single radiance queries.
 //!
 //! `L_o(x, ω_o) = L_e + L_direct + (k_d/π) E_ind + k_s I_glossy` where
 //! - `L_e` is the surface's own emission;
 //! - `L_direct` is light arriving straight from emitters, estimated by
 //!   stratified light sampling (next-event estimation) through the whole
-//!   BSDF, diffuse and Phong lobes (bmc-math.md §1); in tiles the light
+//!   BSDF, diffuse and Phong lobes (docs/math.md §1); in tiles the light
 //!   samples of all a pixel's camera rays share one stratified pattern, so
 //!   64 rays × 4 samples act as 256 jittered samples of the light rather
 //!   than 64 independent groups of 4;
 //! - `E_ind` is the indirect irradiance (path lengths ≥ 2,
-//!   [`PathLengths::Indirect`]) interpolated from cache records (§9);
+//!   [`PathLengths::Indirect`]) interpolated from cache records (docs/math.md §9);
 //! - `I_glossy = ∫ L_ind p dω` with the Phong density
 //!   `p = (m+2)/(2π) cos^m α cos θ` is a BMC estimate ([`GlossyRule`]); so
 //!   each path length is counted by exactly one term.
@@ -36,7 +36,7 @@
 //! # Glossy quadratures: θ_r tabulated, weights interpolated
 //! The Phong density depends on the mirror direction's polar angle `θ_r`
 //! once the sample set is turned about the normal to put the mirror
-//! direction at azimuth 0 (bmc-math.md §4; `Q` is unchanged by the turn).
+//! direction at azimuth 0 (docs/math.md §4; `Q` is unchanged by the turn).
 //! Kernel means for one `θ_r` cost milliseconds each and `V₀` up to seconds
 //! (docs/BENCHMARKS.md), so they cannot be computed per point. We compute
 //! exact quadratures at `bins` equally spaced nodes `θ_k = k (π/2)/(bins−1)`

@@ -1,5 +1,6 @@
 //! Relative RMSE between an image and a reference, the error measure of
-//! docs/VALIDATION.md and issue 5's acceptance figure.
+//! docs/VALIDATION.md and of the irradiance-cache figures in docs/BENCHMARKS.md
+//! (docs/math.md §17).
 //!
 //! `relative RMSE = sqrt(mean((a − b)²)) / mean(b)`, the means taken over the
 //! selected pixels and, for the overall figure, all three channels together

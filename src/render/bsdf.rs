@@ -1,7 +1,7 @@
 //! Reflection models: Lambert plus an optional normalised modified-Phong lobe.
 //!
 //! `f_r(ω_o, ω_i) = k_d/π + k_s (m+2)/(2π) cos^m α`, with `α` the angle
-//! between `ω_i` and the mirror direction of `ω_o` (bmc-math.md §1;
+//! between `ω_i` and the mirror direction of `ω_o` (docs/math.md §1;
 //! Lafortune & Willems 1994). A purely diffuse material has `k_s = 0`.
 //!
 //! All directions are unit vectors in the **local frame** (z = the geometric

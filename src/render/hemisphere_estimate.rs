@@ -1,12 +1,12 @@
 //! Irradiance at points with any [`HemisphereEstimator`] (MC, QMC or BMC;
-//! bmc-math.md §3, §6) over the incident radiance of a scene.
+//! docs/math.md §3, §6) over the incident radiance of a scene.
 //!
 //! Per point `i` (all random numbers from [`point_rng`]`(seed, i)`, so the
 //! result does not depend on the thread count):
 //! 1. a random rotation of the shading frame about the normal: it turns the
 //!    structured error of a fixed sample set into noise and leaves the BMC
 //!    weights exact, because `Q` and the Lambert kernel means are invariant
-//!    under it (bmc-math.md §5);
+//!    under it (docs/math.md §5);
 //! 2. the estimator's directions (fixed for QMC/BMC, fresh draws for MC) are
 //!    traced with [`Transport::hemisphere_samples`];
 //! 3. each RGB channel is combined by the estimator, which integrates against

@@ -1,4 +1,4 @@
-//! Irradiance at points, `E(x, n) = ∫_H L_i(x, ω) cos θ dω` (bmc-math.md §1),
+//! Irradiance at points, `E(x, n) = ∫_H L_i(x, ω) cos θ dω` (docs/math.md §1),
 //! in W/m² per RGB channel.
 //!
 //! Two decompositions, both unbiased:

@@ -1,5 +1,5 @@
 //! The kernel lengthscale of a scene's incident radiance, fitted by
-//! marginal likelihood (bmc-math.md §7) — what `"lengthscale": "auto"` means.
+//! marginal likelihood (docs/math.md §7) — what `"lengthscale": "auto"` means.
 //!
 //! Training data: [`FIT_POINTS`] points spread over the scene's non-emitting
 //! surfaces by area (shape by area, then uniform on the shape), each with a

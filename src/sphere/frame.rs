@@ -38,7 +38,7 @@ impl Frame {
 
     /// This frame turned by `angle` radians about its normal (counter-clockwise
     /// seen from above). Rotating a sample set about the normal leaves every
-    /// kernel matrix and every Lambert kernel mean unchanged (bmc-math.md §5).
+    /// kernel matrix and every Lambert kernel mean unchanged (docs/math.md §5).
     pub fn rotated_about_normal(&self, angle: f64) -> Self {
         let (sin, cos) = angle.sin_cos();
         Self {

@@ -4,7 +4,7 @@
 //! (and everything computed from it: kernel matrix, weights) can be rebuilt
 //! and cached by its spec. Callers apply a per-shading-point rotation about
 //! the normal with [`crate::sphere::Frame::rotated_about_normal`]; that
-//! leaves `Q` and the Lambert kernel means unchanged (bmc-math.md §5).
+//! leaves `Q` and the Lambert kernel means unchanged (docs/math.md §5).
 
 use std::f64::consts::TAU;
 
@@ -24,7 +24,7 @@ pub const MAX_SAMPLES: usize = 8192;
 #[serde(rename_all = "snake_case")]
 pub enum SampleSetKind {
     /// Spherical Fibonacci, uniform area: `cos θ_i = 1 − (i + ½)/N`,
-    /// `φ_i = 2π frac(i/Φ)` (Marques et al. 2013; bmc-math.md §5). Seed unused.
+    /// `φ_i = 2π frac(i/Φ)` (Marques et al. 2013; docs/math.md §5). Seed unused.
     Fibonacci,
     /// Spherical Fibonacci, cosine-distributed: `cos θ_i = sqrt(1 − (i + ½)/N)`.
     /// Seed unused.

@@ -1,13 +1,12 @@
 //! Synthetic lighting environments with accurately known irradiance.
 //!
-//! They are the ground truth of the estimator convergence study (issue 2,
-//! item 10). Every environment is a radiance field `L(ω)` over the whole
+//! They are the ground truth of the estimator convergence study. Every environment is a radiance field `L(ω)` over the whole
 //! sphere in the **local frame** (z = surface normal, W/(m²·sr)) together with
-//! its irradiance `E = ∫_H L(ω) cos θ dω` (W/m², bmc-math.md §1), computed by
+//! its irradiance `E = ∫_H L(ω) cos θ dω` (W/m², docs/math.md §1), computed by
 //! deterministic high-order quadrature that the tests check against closed
 //! forms. Two families:
 //! - [`SphericalGaussianEnvironment`]: a constant term plus spherical-Gaussian
-//!   lobes (bmc-math.md §4), smooth everywhere; lobes may straddle the horizon.
+//!   lobes (docs/math.md §4), smooth everywhere; lobes may straddle the horizon.
 //! - [`CapEnvironment`]: a constant term plus a uniformly bright spherical cap
 //!   ("disk light"), whose edge and horizon clipping make `L` discontinuous.
 
@@ -50,7 +49,7 @@ impl EnvironmentFamily {
     }
 }
 
-/// One spherical Gaussian `a e^{λ(μ·ω − 1)}` (bmc-math.md §4).
+/// One spherical Gaussian `a e^{λ(μ·ω − 1)}` (docs/math.md §4).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SgLobe {
     /// Unit axis `μ` in the local frame.
@@ -118,7 +117,7 @@ pub struct SphericalGaussianEnvironment {
 
 impl SphericalGaussianEnvironment {
     /// Environment with the given terms; its irradiance is integrated here.
-    /// Irradiance of the constant is `π·constant` exactly (bmc-math.md §8).
+    /// Irradiance of the constant is `π·constant` exactly (docs/math.md §8).
     pub fn new(constant: f64, lobes: Vec<SgLobe>) -> Self {
         let irradiance = PI * constant
             + lobes

@@ -3,7 +3,7 @@
 //! Three reductions, each integrating in coordinates where the integrand's
 //! features (kernel peak, lobe peak, horizon clip) sit on panel boundaries:
 //!
-//! - **SE kernel, Uniform/Lambert density** (bmc-math.md §4): the azimuth is
+//! - **SE kernel, Uniform/Lambert density** (docs/math.md §4): the azimuth is
 //!   integrated in closed form, `∫₀^{2π} e^{a cos φ} dφ = 2π I₀(a)`, leaving
 //!   `z(μ_i) = σ² ∫₀¹ e^{λ(μ_i μ + s_i s − 1)} Ĩ₀(λ s_i s) · 2π p(μ) dμ`
 //!   with `λ = 1/ℓ²`, `μ = cos θ`, `s = sin θ` and `Ĩ₀(x) = I₀(x)e^{−x}`; the

@@ -1,5 +1,5 @@
 //! Kernel means `z(ω) = ∫_H k(ω, ω') p(ω') dω'` and the prior variance
-//! `V₀ = ∫∫ k(ω, ω') p(ω) p(ω') dω dω'` (bmc-math.md §3–4).
+//! `V₀ = ∫∫ k(ω, ω') p(ω) p(ω') dω dω'` (docs/math.md §3–4).
 //!
 //! [`KernelMeanMethod::Exact`] integrates by deterministic adaptive quadrature
 //! (see [`exact`]) to ~1e-12 relative; [`KernelMeanMethod::SphericalGaussian`]
@@ -120,7 +120,7 @@ mod tests {
         )
     }
 
-    /// Issue 2: SE + Lambert (and uniform) by the 1-D Bessel formula within
+    /// SE + Lambert (and uniform) by the 1-D Bessel formula within
     /// 1e-10 relative of brute-force 2-D quadrature for ℓ ∈ [0.1, 3].
     #[test]
     fn bessel_formula_matches_brute_force_2d() {

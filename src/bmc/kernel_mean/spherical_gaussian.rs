@@ -1,6 +1,6 @@
 //! Closed-form kernel means under a spherical-Gaussian (SG) approximation of
 //! the density (Marques et al., "Spherical Fibonacci Point Sets for
-//! Illumination Integrals", CGF 2013, §6; SG algebra in bmc-math.md §4).
+//! Illumination Integrals", CGF 2013, §6; SG algebra in docs/math.md §4).
 //!
 //! The density is replaced by one SG on the whole sphere: the clamped cosine
 //! by `a_c e^{λ_c(ω·n − 1)}`, the Phong lobe `max(0, ω·r)^m` by
@@ -36,7 +36,7 @@ impl SphericalGaussian {
         self.amplitude * (self.sharpness * (self.axis.dot(w) - 1.0)).exp()
     }
 
-    /// `∫_{S²} G = 2π a (1 − e^{−2λ})/λ` (bmc-math.md §4).
+    /// `∫_{S²} G = 2π a (1 − e^{−2λ})/λ` (docs/math.md §4).
     pub fn integral(&self) -> f64 {
         TAU * self.amplitude * sphere_factor(self.sharpness)
     }

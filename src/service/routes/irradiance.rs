@@ -1,7 +1,7 @@
 //! `POST /v1/scenes/{id}/irradiance`: irradiance `E(x, n)` in W/m² (RGB) at points.
 //!
 //! Hemisphere estimators (`estimator.method`), all over the Lambert density
-//! `cos θ/π` (bmc-math.md §1), in split mode (default: light-sampled direct
+//! `cos θ/π` (docs/math.md §1), in split mode (default: light-sampled direct
 //! light plus the hemisphere estimate of the rest) or hemisphere mode:
 //! - `mc`: cosine-weighted random directions (`render::irradiance`);
 //! - `qmc`: spherical Fibonacci points (`fibonacci_cosine` by default, or

@@ -1,4 +1,4 @@
-//! `POST /v1/quadratures`: the BMC weights of one configuration (bmc-math.md §3),
+//! `POST /v1/quadratures`: the BMC weights of one configuration (docs/math.md §3),
 //! from the service's factorisation cache.
 //!
 //! The response has the fields of the CLI's `quadrature --json`
