@@ -2,6 +2,7 @@
 //! Alone in its test binary: the metrics recorder is process-wide, so no other
 //! test may touch the cache counters while this one reads them.
 
+#[path = "it/common/mod.rs"]
 mod common;
 
 use common::spawn_app;

@@ -62,9 +62,29 @@ pub fn init_tracing() {
         .try_init();
 }
 
+/// Large allocations (Gram matrices, factors and tables of megabytes) are
+/// served by `mmap` and given back to the OS when freed. glibc raises its
+/// `mmap` threshold each time such a block is freed, after which blocks of that
+/// size come from the per-thread heaps, which return almost nothing: 1,800
+/// quadratures of N = 256..1024 then held 1.0 GB of RSS while the
+/// factorisation cache held its 256 MiB budget; with the threshold fixed at
+/// 256 KiB, 285 MiB (docs/BENCHMARKS.md, "Memory under quadrature churn").
+fn return_large_blocks_to_the_os() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        const THRESHOLD: libc::c_int = 256 * 1024;
+        // SAFETY: mallopt only changes allocator tuning; it is called before
+        // the runtime and the CPU pool start their threads.
+        if unsafe { libc::mallopt(libc::M_MMAP_THRESHOLD, THRESHOLD) } != 1 {
+            tracing::warn!("could not fix the malloc mmap threshold");
+        }
+    }
+}
+
 /// Runs the service with `config` until SIGINT or SIGTERM, on a runtime of
 /// `server.runtime_threads` threads (the CPU pool has its own threads).
 pub fn serve(config: Config) -> anyhow::Result<()> {
+    return_large_blocks_to_the_os();
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(config.server.runtime_threads())
         .thread_name("bmc-io")

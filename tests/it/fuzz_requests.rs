@@ -8,11 +8,9 @@
 //! It runs briefly in CI (`FUZZ_CASES`, default 160 cases); set
 //! `FUZZ_CASES=5000` for a longer session.
 
-mod common;
-
 use std::time::Duration;
 
-use common::{TINY_SCENE, spawn_app_with_scenes};
+use crate::common::{TINY_SCENE, spawn_app_with_scenes};
 use proptest::prelude::*;
 use proptest::test_runner::{Config as ProptestConfig, TestRunner};
 use serde_json::{Value, json};

@@ -4,12 +4,10 @@
 //! Each is answered quickly with its status and JSON error body, and the
 //! service keeps serving the bundled scenes afterwards.
 
-mod common;
-
 use std::path::Path;
 use std::time::Duration;
 
-use common::{TestApp, spawn_app_in};
+use crate::common::{TestApp, spawn_app_in};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 use tempfile::TempDir;

@@ -1,15 +1,13 @@
 //! The load generator against the real service (health scenario: the domain
 //! routes are exercised by their own tests).
 
-mod common;
-
 use std::time::Duration;
 
 use bmc_irradiance::loadtest::{LoadTestOptions, Scenario, run};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn health_scenario_reports_only_successes_and_server_memory() {
-    let app = common::spawn_app().await;
+    let app = crate::common::spawn_app().await;
     let options = LoadTestOptions {
         url: app.base.clone(),
         clients: 4,

@@ -1,8 +1,6 @@
 //! End-to-end tests of the service infrastructure routes against the real server.
 
-mod common;
-
-use common::{error_of, spawn_app};
+use crate::common::{error_of, spawn_app};
 use reqwest::StatusCode;
 
 #[tokio::test]

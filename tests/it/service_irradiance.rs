@@ -1,8 +1,6 @@
 //! `POST /v1/scenes/{id}/irradiance` end to end, and a table of bad requests.
 
-mod common;
-
-use common::{TINY_SCENE, error_of, spawn_app_with_scenes};
+use crate::common::{TINY_SCENE, error_of, spawn_app_with_scenes};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 

@@ -2,9 +2,7 @@
 //! JSON error body with its code and the field at fault, and afterwards the
 //! service still answers and still holds every scene it had.
 
-mod common;
-
-use common::{TINY_SCENE, error_of, spawn_app_with_scenes};
+use crate::common::{TINY_SCENE, error_of, spawn_app_with_scenes};
 use reqwest::{Method, StatusCode};
 use serde_json::{Value, json};
 

@@ -1,9 +1,7 @@
 //! `POST /v1/scenes/{id}/radiance` end to end: through the irradiance cache
 //! it agrees with path tracing and leaves its records in the scene's cache.
 
-mod common;
-
-use common::spawn_app_with_scenes;
+use crate::common::spawn_app_with_scenes;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -30,7 +28,7 @@ fn rgb(body: &Value, key: &str, i: usize) -> Vec<f64> {
 
 #[tokio::test]
 async fn cached_radiance_agrees_with_path_tracing_and_fills_the_cache() {
-    let cornell = include_str!("../scenes/cornell-box.json");
+    let cornell = include_str!("../../scenes/cornell-box.json");
     let app = spawn_app_with_scenes(&[("box.json", cornell)], |_| {}).await;
     let post = |body: Value| {
         let app = &app;

@@ -2,13 +2,11 @@
 //! estimators on the bundled Cornell box, the `"auto"` lengthscale and its
 //! report in `GET /v1/scenes/{id}`.
 
-mod common;
-
-use common::{TestApp, error_of, spawn_app_with_scenes};
+use crate::common::{TestApp, error_of, spawn_app_with_scenes};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-const CORNELL: &str = include_str!("../scenes/cornell-box.json");
+const CORNELL: &str = include_str!("../../scenes/cornell-box.json");
 
 async fn cornell_app() -> TestApp {
     spawn_app_with_scenes(&[("cornell-box.json", CORNELL)], |_| {}).await

@@ -1,8 +1,6 @@
 //! `POST /v1/quadratures` end to end: cache miss then hit, and bad requests.
 
-mod common;
-
-use common::{TestApp, error_of, spawn_app, spawn_app_with};
+use crate::common::{TestApp, error_of, spawn_app, spawn_app_with};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 

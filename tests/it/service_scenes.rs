@@ -1,8 +1,6 @@
 //! `/v1/scenes` end to end: startup loading, listing, posting, deleting.
 
-mod common;
-
-use common::{TINY_SCENE, error_of, spawn_app_with_scenes};
+use crate::common::{TINY_SCENE, error_of, spawn_app_with_scenes};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -101,7 +99,7 @@ async fn bad_scene_documents_are_422_naming_the_field() {
     assert_eq!(health["scenes"], 0);
 }
 
-const CORNELL_XML: &str = include_str!("../scenes/cornell-box.xml");
+const CORNELL_XML: &str = include_str!("../../scenes/cornell-box.xml");
 
 #[tokio::test]
 async fn mitsuba_xml_scenes_load_at_startup_and_by_post() {

@@ -1,10 +1,8 @@
 //! `POST /v1/scenes/{id}/tiles` end to end: the three encodings agree and
 //! tiles assemble into the whole image (bad tiles: `service_bad_inputs.rs`).
 
-mod common;
-
+use crate::common::{TINY_SCENE, spawn_app_with_scenes};
 use bmc_irradiance::image::exr_io::decode_exr;
-use common::{TINY_SCENE, spawn_app_with_scenes};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -96,7 +94,8 @@ async fn encodings_agree_and_tiles_assemble_into_the_image() {
 
 /// The bundled Cornell box with a `side`² camera, as a scenes-directory file.
 fn small_cornell(side: u32) -> String {
-    let mut doc: Value = serde_json::from_str(include_str!("../scenes/cornell-box.json")).unwrap();
+    let mut doc: Value =
+        serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
     doc["camera"]["width"] = json!(side);
     doc["camera"]["height"] = json!(side);
     doc.to_string()
@@ -117,7 +116,7 @@ fn header(response: &reqwest::Response, name: &str) -> u64 {
     response.headers()[name].to_str().unwrap().parse().unwrap()
 }
 
-async fn cache_stats(app: &common::TestApp) -> Value {
+async fn cache_stats(app: &crate::common::TestApp) -> Value {
     let report: Value = app.get("/v1/scenes/box/cache").await.json().await.unwrap();
     report
 }

@@ -1,0 +1,25 @@
+//! The integration tests, in one binary so that CI links once instead of
+//! once per file. Each module is one area; `common` starts a real server on
+//! an ephemeral port. `tests/service_quadratures_concurrent.rs` stays a
+//! binary of its own, as it reads the process-wide metrics recorder.
+
+mod common;
+
+mod cli_quadrature;
+mod docs_references;
+mod fuzz_requests;
+mod irradiance_cache;
+mod irradiance_cli;
+mod light_transport;
+mod loadtest;
+mod mitsuba_xml;
+mod service_bad_inputs;
+mod service_bad_scenes;
+mod service_basics;
+mod service_estimators;
+mod service_irradiance;
+mod service_quadratures;
+mod service_radiance;
+mod service_robustness;
+mod service_scenes;
+mod service_tiles;
