@@ -88,7 +88,13 @@ fn main() -> anyhow::Result<()> {
         let (quadrature, _) = spec.quadrature(&cache)?;
         let estimator = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
         let estimates = pool.install(|| {
-            transport.irradiance_with_estimator(&query, &estimator, &options, &Cancel::never())
+            transport.irradiance_with_estimator(
+                &query,
+                &estimator,
+                &options,
+                &|| {},
+                &Cancel::never(),
+            )
         })?;
         std::hint::black_box(estimates);
         Ok(start.elapsed())

@@ -1,5 +1,7 @@
 //! The `irradiance` subcommand: irradiance at the points of a CSV file,
-//! written as CSV to the given writer (stdout in the binary).
+//! written as CSV to the given writer (stdout in the binary). The estimator
+//! is the library's [`EstimatorSpec`], as for `POST /v1/scenes/{id}/irradiance`:
+//! the same options and seed give the same numbers through either.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -9,11 +11,16 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::in_thread_pool;
+use super::quadrature::{KernelArg, SetArg};
+use crate::bmc::cache::QuadratureCache;
 use crate::render::Cancel;
+use crate::render::estimators::{EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale};
 use crate::render::irradiance::{IrradianceMethod, IrradianceOptions};
+use crate::render::lengthscale::FittedKernels;
 use crate::render::points_csv::{parse_points, write_irradiance};
 use crate::render::transport::Transport;
 use crate::scene::Scene;
+use crate::service::Config;
 
 /// Command-line arguments of `bmc-irradiance irradiance`.
 #[derive(Clone, Debug, clap::Args)]
@@ -39,8 +46,28 @@ pub struct IrradianceArgs {
     pub direct_only: bool,
     /// `split`: direct light by light sampling + the rest through the
     /// hemisphere; `hemisphere`: everything through the hemisphere.
-    #[arg(long, value_enum, default_value_t = MethodArg::Split)]
-    pub method: MethodArg,
+    #[arg(long, alias = "method", value_enum, default_value_t = IrradianceMethod::Split)]
+    pub decomposition: IrradianceMethod,
+    /// Hemisphere estimator: `mc` (cosine-weighted random directions), `qmc`
+    /// (spherical Fibonacci, equal weights) or `bmc` (Bayesian quadrature).
+    #[arg(long, value_enum, default_value_t = EstimatorMethod::Mc)]
+    pub estimator: EstimatorMethod,
+    /// `qmc` and `bmc`: the sample set (default fibonacci-cosine).
+    #[arg(long, value_enum)]
+    pub sample_set: Option<SetArg>,
+    /// Seed of a random sample set (uniform, cosine, stratified).
+    #[arg(long, default_value_t = 0)]
+    pub set_seed: u64,
+    /// `bmc`: the kernel family (default se).
+    #[arg(long, value_enum)]
+    pub kernel: Option<KernelArg>,
+    /// `bmc`: the kernel lengthscale, a number (chordal units) or `auto`
+    /// (default: fitted by marginal likelihood).
+    #[arg(long)]
+    pub lengthscale: Option<Lengthscale>,
+    /// `bmc`: the kernel noise σ_n² (default: fitted with `auto`, else 1e-3).
+    #[arg(long)]
+    pub noise: Option<f64>,
     /// Reference mode: 65536 samples and depth 64 (overrides both).
     #[arg(long, conflicts_with_all = ["samples", "max_depth"])]
     pub reference: bool,
@@ -55,20 +82,10 @@ pub struct IrradianceArgs {
     pub std_error: bool,
 }
 
-/// Estimator split exposed on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum MethodArg {
-    Split,
-    Hemisphere,
-}
-
 impl IrradianceArgs {
     /// The library options these arguments ask for.
     pub fn options(&self) -> IrradianceOptions {
-        let method = match self.method {
-            MethodArg::Split => IrradianceMethod::Split,
-            MethodArg::Hemisphere => IrradianceMethod::Hemisphere,
-        };
+        let method = self.decomposition;
         let base = if self.reference {
             IrradianceOptions::reference(self.seed)
         } else {
@@ -87,11 +104,31 @@ impl IrradianceArgs {
     }
 }
 
+impl IrradianceArgs {
+    /// The estimator these arguments name.
+    pub fn estimator(&self) -> EstimatorSpec {
+        let bmc_options =
+            self.kernel.is_some() || self.lengthscale.is_some() || self.noise.is_some();
+        EstimatorSpec {
+            method: self.estimator,
+            samples: self.options().samples,
+            sample_set: self.sample_set.map(|kind| (kind.into(), self.set_seed)),
+            kernel: bmc_options.then(|| KernelSpec {
+                kind: self.kernel.map(Into::into),
+                lengthscale: self.lengthscale.unwrap_or_default(),
+                variance: None,
+                noise: self.noise,
+            }),
+        }
+    }
+}
+
 /// Runs the subcommand; progress goes to stderr (hidden when it is not a
 /// terminal), results to `out`.
 pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let options = args.options();
     options.validate()?;
+    let estimator = args.estimator().resolve()?;
     let text = std::fs::read_to_string(&args.points)
         .with_context(|| format!("reading points file {}", args.points.display()))?;
     let points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
@@ -111,9 +148,21 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
         ProgressStyle::with_template("{bar:40} {pos}/{len} points, {elapsed} elapsed, ETA {eta}")
             .context("progress bar template")?,
     );
-    let estimate =
-        || transport.irradiance_at_points(&points, &options, &|| progress.inc(1), &Cancel::never());
-    let estimates = in_thread_pool(args.threads, estimate)??;
+    // Only this run uses the fitted kernel and the weights, so their caches live as long.
+    let kernels = FittedKernels::default();
+    let quadratures = QuadratureCache::new(Config::default_config().cache.factorisation_bytes);
+    let estimate = || {
+        estimator.estimate(
+            &transport,
+            &kernels,
+            &quadratures,
+            &points,
+            &options,
+            &|| progress.inc(1),
+            &Cancel::never(),
+        )
+    };
+    let estimates = in_thread_pool(args.threads, estimate)??.estimates;
     progress.finish_and_clear();
     write_irradiance(out, &points, &estimates, args.std_error).context("writing results")?;
     Ok(())
@@ -159,5 +208,33 @@ mod tests {
     fn reference_mode_conflicts_with_explicit_budgets() {
         assert!(parse("--scene s.json --points p.csv --reference --samples 5").is_err());
         assert!(parse("--scene s.json --points p.csv --method sideways").is_err());
+        assert!(parse("--scene s.json --points p.csv --lengthscale short").is_err());
+    }
+
+    #[test]
+    fn estimator_arguments_map_to_the_library_spec() {
+        let args = parse("--scene s.json --points p.csv --samples 64").expect("valid");
+        assert_eq!(args.estimator().method, EstimatorMethod::Mc);
+        let args = parse(
+            "--scene s.json --points p.csv --samples 64 --estimator bmc --sample-set fibonacci \
+             --kernel matern52 --lengthscale 0.5",
+        )
+        .expect("valid");
+        let spec = args.estimator();
+        assert_eq!(spec.method, EstimatorMethod::Bmc);
+        assert_eq!(spec.samples, 64);
+        assert_eq!(
+            spec.sample_set,
+            Some((crate::sphere::SampleSetKind::Fibonacci, 0))
+        );
+        let kernel = spec.kernel.expect("kernel options given");
+        assert_eq!(kernel.kind, Some(crate::bmc::KernelKind::Matern52));
+        assert_eq!(kernel.lengthscale, Lengthscale::Value(0.5));
+        let args = parse("--scene s.json --points p.csv --estimator bmc --lengthscale auto")
+            .expect("valid");
+        assert_eq!(
+            args.estimator().kernel.unwrap().lengthscale,
+            Lengthscale::Auto
+        );
     }
 }

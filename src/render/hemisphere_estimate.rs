@@ -43,13 +43,15 @@ impl Transport {
     ///
     /// `estimator` must integrate against the Lambert density `cos θ/π`.
     /// `options.samples` is the number of light samples of the direct part in
-    /// split mode; the hemisphere sample count is the estimator's. Stops
-    /// between points once `cancel` is set.
+    /// split mode; the hemisphere sample count is the estimator's. `on_done`
+    /// is called once per finished point; stops between points once `cancel`
+    /// is set.
     pub fn irradiance_with_estimator(
         &self,
         points: &[QueryPoint],
         estimator: &dyn HemisphereEstimator,
         options: &IrradianceOptions,
+        on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Vec<IrradianceEstimate>, RenderError> {
         options.validate()?;
@@ -58,7 +60,9 @@ impl Transport {
             .enumerate()
             .map(|(i, point)| {
                 cancel.check()?;
-                self.estimate_point(point, i as u64, estimator, options)
+                let estimate = self.estimate_point(point, i as u64, estimator, options);
+                on_done();
+                estimate
             })
             .collect()
     }
@@ -182,10 +186,22 @@ mod tests {
         let runs = 32;
         for seed in 0..runs {
             let b = transport
-                .irradiance_with_estimator(&point, &bmc, &options(4096, seed), &Cancel::never())
+                .irradiance_with_estimator(
+                    &point,
+                    &bmc,
+                    &options(4096, seed),
+                    &|| {},
+                    &Cancel::never(),
+                )
                 .unwrap()[0];
             let m = transport
-                .irradiance_with_estimator(&point, &mc, &options(4096, seed), &Cancel::never())
+                .irradiance_with_estimator(
+                    &point,
+                    &mc,
+                    &options(4096, seed),
+                    &|| {},
+                    &Cancel::never(),
+                )
                 .unwrap()[0];
             let (e_b, e_m, e_r) = (
                 b.irradiance.luminance(),
@@ -231,6 +247,7 @@ mod tests {
                         &points,
                         &estimator,
                         &options(4, 5),
+                        &|| {},
                         &Cancel::never(),
                     )
                 })

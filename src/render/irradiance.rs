@@ -41,11 +41,26 @@ use std::f64::consts::PI;
 /// closed scene of albedo 1, so the depth bound is what keeps a request finite.
 pub const MAX_DEPTH: u32 = 1024;
 
-/// How the irradiance integral is split between estimators (module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+/// How the irradiance integral is split between estimators (module docs,
+/// docs/math.md §14).
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum IrradianceMethod {
+    /// Everything through the hemisphere estimator.
     Hemisphere,
+    /// Direct light by light sampling + the rest through the hemisphere estimator.
+    #[default]
     Split,
 }
 

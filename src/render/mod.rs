@@ -17,6 +17,7 @@ pub mod cancel;
 pub mod distribution;
 pub mod environment_sampling;
 pub mod error;
+pub mod estimators;
 pub mod film;
 pub mod hemisphere_estimate;
 pub mod irradiance;

@@ -222,6 +222,40 @@ impl From<crate::scene::SceneError> for ApiError {
     }
 }
 
+/// Estimator errors name the option below `estimator` (422); a failed
+/// lengthscale fit is ours (500).
+impl From<crate::render::estimators::EstimatorError> for ApiError {
+    fn from(err: crate::render::estimators::EstimatorError) -> Self {
+        use crate::render::estimators::EstimatorError;
+        match err {
+            EstimatorError::Invalid { field, message } => {
+                ApiError::invalid(format!("estimator.{field}"), message)
+            }
+            EstimatorError::Fit(message) => ApiError::Internal {
+                message: format!("lengthscale fit failed: {message}"),
+            },
+            EstimatorError::Render(err) => err.into(),
+        }
+    }
+}
+
+/// Render errors name the request field they are about (422); a cancelled
+/// job has no client left to tell.
+impl From<crate::render::RenderError> for ApiError {
+    fn from(err: crate::render::RenderError) -> Self {
+        use crate::render::RenderError;
+        match &err {
+            RenderError::InvalidPoint { field, .. } | RenderError::InvalidOption { field, .. } => {
+                ApiError::invalid(*field, err.to_string())
+            }
+            RenderError::PointsRow { .. } => ApiError::Internal {
+                message: err.to_string(),
+            },
+            RenderError::Cancelled => ApiError::Cancelled,
+        }
+    }
+}
+
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         if let ApiError::Internal { message } = &self {

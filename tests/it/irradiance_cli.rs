@@ -88,3 +88,69 @@ fn bad_rows_and_bad_options_fail_with_a_message() {
     std::fs::remove_file(points).ok();
     std::fs::remove_file(good).ok();
 }
+
+/// The CLI and `POST /v1/scenes/{id}/irradiance` translate into the same
+/// library estimator, so the same options and seed give the same numbers.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cli_and_http_give_the_same_numbers_for_each_estimator() {
+    let cornell = include_str!("../../scenes/cornell-box.json");
+    let app = crate::common::spawn_app_with_scenes(&[("cornell-box.json", cornell)], |_| {}).await;
+    let rows = [
+        [0.0, -0.999, 0.3, 0.0, 1.0, 0.0],
+        [-0.999, 0.2, 0.0, 1.0, 0.0, 0.0],
+        [0.3, 0.999, -0.2, 0.0, -1.0, 0.0],
+    ];
+    let csv: String = rows
+        .iter()
+        .map(|r| r.map(|v| v.to_string()).join(",") + "\n")
+        .collect();
+    let points = write_points("cli-vs-http", &csv);
+    let cases = [
+        (
+            "--estimator bmc --samples 64 --lengthscale 0.5 --seed 3",
+            serde_json::json!({"method": "bmc", "samples": 64,
+                               "kernel": {"lengthscale": 0.5}}),
+        ),
+        (
+            "--estimator bmc --samples 32 --kernel matern52 --sample-set fibonacci \
+             --decomposition hemisphere --seed 3",
+            serde_json::json!({"method": "bmc", "samples": 32, "decomposition": "hemisphere",
+                               "sample_set": {"kind": "fibonacci"},
+                               "kernel": {"kind": "matern52"}}),
+        ),
+        (
+            "--estimator qmc --samples 64 --seed 3",
+            serde_json::json!({"method": "qmc", "samples": 64}),
+        ),
+        (
+            "--estimator mc --samples 64 --seed 3",
+            serde_json::json!({"method": "mc", "samples": 64}),
+        ),
+    ];
+    for (args, estimator) in cases {
+        let cli = tokio::task::spawn_blocking({
+            let points = points.clone();
+            move || run_ok(&points, &format!("{args} --std-error"))
+        })
+        .await
+        .unwrap();
+        let body = serde_json::json!({
+            "points": rows.iter().map(|r| serde_json::json!({
+                "position": [r[0], r[1], r[2]], "normal": [r[3], r[4], r[5]]})).collect::<Vec<_>>(),
+            "estimator": estimator,
+            "seed": 3,
+        });
+        let response = app
+            .post_json("/v1/scenes/cornell-box/irradiance", &body)
+            .await;
+        assert_eq!(response.status(), reqwest::StatusCode::OK, "{args}");
+        let http: serde_json::Value = response.json().await.unwrap();
+        for (i, row) in cli.iter().enumerate() {
+            let value: Vec<f64> = serde_json::from_value(http["irradiance"][i].clone()).unwrap();
+            let std_dev: Vec<f64> = serde_json::from_value(http["std_dev"][i].clone()).unwrap();
+            assert_eq!(row[3..6], value[..], "{args}: point {i}");
+            assert_eq!(row[6..9], std_dev[..], "{args}: point {i}");
+        }
+    }
+    std::fs::remove_file(points).ok();
+}

@@ -178,7 +178,8 @@ pub fn cached_quadrature(
     result
 }
 
-fn record_lookup<E>(state: &AppState, cached: Result<bool, E>) {
+/// Counts one lookup of the quadrature cache in the metrics (module docs).
+pub(crate) fn record_lookup<E>(state: &AppState, cached: Result<bool, E>) {
     if let Ok(true) = cached {
         ::metrics::counter!(FACTORISATION_CACHE_HITS).increment(1);
     } else {

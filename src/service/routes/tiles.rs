@@ -20,7 +20,7 @@ use crate::cache::{
     RecordRuleSpec, default_rule_spec,
 };
 use crate::image::{ImageEncoding, ToneMap};
-use crate::render::{Cancel, RenderError, RenderedTile, ShadingMethod, TileRequest, Transport};
+use crate::render::{Cancel, RenderedTile, ShadingMethod, TileRequest, Transport};
 use crate::service::config::Limits;
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
@@ -179,9 +179,7 @@ pub async fn tile(
         method,
     };
     // Checked here too, so a bad rectangle never takes a CPU slot.
-    request
-        .validate(scene.transport.scene().camera.resolution())
-        .map_err(render_error)?;
+    request.validate(scene.transport.scene().camera.resolution())?;
     // The work, bounded before it starts: camera paths, plus at most one
     // record per pixel (placement points are pixel centres) for `bmc`.
     let cached = match method {
@@ -374,16 +372,10 @@ fn render(
     cancel: &Cancel,
 ) -> Result<(RenderedTile, Option<CachedTileReport>), ApiError> {
     match cached {
-        None => Ok((
-            transport
-                .render_tile(request, cancel)
-                .map_err(render_error)?,
-            None,
-        )),
+        None => Ok((transport.render_tile(request, cancel)?, None)),
         Some(setup) => {
-            let (tile, report) = transport
-                .render_tile_cached(request, setup.cache(), &setup.shading, cancel)
-                .map_err(render_error)?;
+            let (tile, report) =
+                transport.render_tile_cached(request, setup.cache(), &setup.shading, cancel)?;
             Ok((tile, Some(report)))
         }
     }
@@ -397,16 +389,4 @@ pub(crate) fn estimator_error(err: CacheError) -> ApiError {
         None => "estimator".to_owned(),
     };
     ApiError::invalid(field, err.to_string())
-}
-
-/// A tile validation error as a 422 naming the request field.
-fn render_error(err: RenderError) -> ApiError {
-    match &err {
-        RenderError::InvalidOption { field, .. } => ApiError::invalid(*field, err.to_string()),
-        RenderError::InvalidPoint { field, .. } => ApiError::invalid(*field, err.to_string()),
-        RenderError::PointsRow { .. } => ApiError::Internal {
-            message: err.to_string(),
-        },
-        RenderError::Cancelled => ApiError::Cancelled,
-    }
 }

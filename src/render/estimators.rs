@@ -1,0 +1,425 @@
+//! Point estimators of irradiance as a request or the command line names
+//! them: MC, QMC and BMC over the Lambert density `cos θ/π`
+//! (docs/math.md §1.2, §3, §6), in split or hemisphere decomposition (§14).
+//!
+//! [`EstimatorSpec`] is the choice with every default in one place;
+//! [`EstimatorSpec::resolve`] checks it once, before any work, and returns a
+//! [`PointEstimator`] that cannot be invalid; [`PointEstimator::estimate`]
+//! runs it. The HTTP route and the `irradiance` command both only translate
+//! their input into a spec, so the same spec and seed give the same numbers
+//! through either.
+//!
+//! - `mc`: cosine-weighted random directions, fresh per point;
+//! - `qmc`: a spherical Fibonacci set (`fibonacci_cosine`, or `fibonacci` with
+//!   uniform-pdf weights), equal weights, randomly rotated per point (§5.3);
+//! - `bmc`: Bayesian quadrature on a fixed sample set with the constant GLS
+//!   prior mean (§3.3), weights from a [`QuadratureCache`], randomly rotated
+//!   per point. The lengthscale is a number or fitted once per scene and
+//!   configuration by marginal likelihood ([`FittedKernels`], §7.5), with the
+//!   noise ratio unless `noise` is given. The standard error is the posterior
+//!   standard deviation with the amplitude fitted to each point's values
+//!   (`BmcVariance::AmplitudeFit`, §7.3).
+
+use std::sync::Arc;
+
+use super::cancel::Cancel;
+use super::error::RenderError;
+use super::irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
+use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
+use super::query::QueryPoint;
+use super::transport::Transport;
+use crate::bmc::cache::{CachedQuadrature, QuadratureCache};
+use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
+use crate::bmc::report::QuadratureSpec;
+use crate::bmc::{BmcError, Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+use crate::sphere::{SampleSetKind, SampleSetSpec};
+
+/// Sample set of `qmc` and `bmc` when none is named.
+pub const DEFAULT_SAMPLE_SET: SampleSetKind = SampleSetKind::FibonacciCosine;
+/// Kernel family of `bmc` when none is named.
+pub const DEFAULT_KERNEL: KernelKind = KernelKind::SquaredExponential;
+/// Kernel amplitude `σ²` of `bmc` when none is given (the weights depend on
+/// `noise/variance` only).
+pub const DEFAULT_VARIANCE: f64 = 1.0;
+/// Noise `σ_n²` of a numeric-lengthscale kernel when none is given: the
+/// values are path-traced estimates, and a tiny jitter makes SE weights
+/// oscillate (docs/math.md §10.2).
+pub const DEFAULT_NOISE: f64 = 1e-3;
+
+/// Which hemisphere estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum EstimatorMethod {
+    /// Monte Carlo with cosine-weighted directions.
+    Mc,
+    /// Quasi-Monte Carlo on spherical Fibonacci points.
+    Qmc,
+    /// Bayesian Monte Carlo (Bayesian quadrature) with cached weights.
+    Bmc,
+}
+
+/// A kernel lengthscale: a number (chordal units) or `"auto"`, fitted by
+/// marginal likelihood (docs/math.md §7.5).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Deserialize)]
+#[serde(untagged)]
+pub enum Lengthscale {
+    Value(f64),
+    #[default]
+    #[serde(deserialize_with = "auto")]
+    Auto,
+}
+
+/// `"auto"` as a unit variant of an untagged enum.
+fn auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<(), D::Error> {
+    use serde::Deserialize;
+    use serde::de::Error;
+    match String::deserialize(d)?.as_str() {
+        "auto" => Ok(()),
+        other => Err(D::Error::custom(format!(
+            "expected a number or \"auto\", got {other:?}"
+        ))),
+    }
+}
+
+impl std::str::FromStr for Lengthscale {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text {
+            "auto" => Ok(Lengthscale::Auto),
+            _ => text
+                .parse()
+                .map(Lengthscale::Value)
+                .map_err(|_| format!("expected a number or `auto`, got {text:?}")),
+        }
+    }
+}
+
+impl Lengthscale {
+    /// The number, or `None` for `"auto"`.
+    pub fn value(self) -> Option<f64> {
+        match self {
+            Lengthscale::Value(value) => Some(value),
+            Lengthscale::Auto => None,
+        }
+    }
+}
+
+/// The GP kernel of a `bmc` estimator; `None` fields take the defaults above.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct KernelSpec {
+    pub kind: Option<KernelKind>,
+    pub lengthscale: Lengthscale,
+    pub variance: Option<f64>,
+    /// `σ_n²`; `None` = fitted with `"auto"`, else [`DEFAULT_NOISE`].
+    pub noise: Option<f64>,
+}
+
+/// An irradiance point estimator as named by a caller (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatorSpec {
+    pub method: EstimatorMethod,
+    /// Hemisphere samples per point, `1..=MAX_SAMPLES`.
+    pub samples: u32,
+    /// `qmc` and `bmc`: the sample set's kind and seed (random kinds only).
+    pub sample_set: Option<(SampleSetKind, u64)>,
+    /// `bmc` only.
+    pub kernel: Option<KernelSpec>,
+}
+
+/// Why a spec or an estimate failed; `field` is the path of the offending
+/// option below the estimator (`sample_set.kind`, `kernel.variance`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EstimatorError {
+    #[error("{message}")]
+    Invalid { field: String, message: String },
+    /// The marginal-likelihood fit of an `"auto"` lengthscale failed.
+    #[error("lengthscale fit failed: {0}")]
+    Fit(String),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+}
+
+impl EstimatorError {
+    fn invalid(field: impl Into<String>, message: impl Into<String>) -> Self {
+        EstimatorError::Invalid {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// A BMC error about the kernel (or its sample set).
+    fn kernel(err: BmcError) -> Self {
+        let field = match err.field() {
+            Some("samples") => "samples".to_owned(),
+            Some(field) => format!("kernel.{field}"),
+            None => "kernel".to_owned(),
+        };
+        EstimatorError::invalid(field, err.to_string())
+    }
+}
+
+/// A checked estimator, ready to run.
+#[derive(Debug, Clone)]
+pub enum PointEstimator {
+    Mc,
+    Qmc(SampleMeanEstimator),
+    Bmc(BmcSetup),
+}
+
+/// A `bmc` estimator whose kernel may still need its lengthscale fitted.
+#[derive(Debug, Clone, Copy)]
+pub struct BmcSetup {
+    sample_set: SampleSetSpec,
+    kind: KernelKind,
+    /// `None`: `"auto"`.
+    lengthscale: Option<f64>,
+    variance: f64,
+    noise: Option<f64>,
+}
+
+/// What [`PointEstimator::estimate`] returns.
+#[derive(Debug, Clone)]
+pub struct Estimates {
+    pub estimates: Vec<IrradianceEstimate>,
+    /// `bmc`: the kernel used (with a fitted lengthscale for `"auto"`).
+    pub kernel: Option<Kernel>,
+    /// `bmc`: whether the weights came from the quadrature cache.
+    pub quadrature_cached: Option<bool>,
+}
+
+impl EstimatorSpec {
+    /// Checks the options against the method (module docs).
+    pub fn resolve(&self) -> Result<PointEstimator, EstimatorError> {
+        let samples = self.samples as usize;
+        if samples == 0 {
+            return Err(EstimatorError::invalid("samples", "must be at least 1"));
+        }
+        let (set_kind, set_seed) = self.sample_set.unwrap_or((DEFAULT_SAMPLE_SET, 0));
+        if self.method != EstimatorMethod::Bmc && self.kernel.is_some() {
+            return Err(EstimatorError::invalid(
+                "kernel",
+                "only `bmc` takes a kernel",
+            ));
+        }
+        match self.method {
+            EstimatorMethod::Mc if self.sample_set.is_some() => Err(EstimatorError::invalid(
+                "sample_set",
+                "`mc` draws fresh random directions; only `qmc` and `bmc` take a sample set",
+            )),
+            EstimatorMethod::Mc => Ok(PointEstimator::Mc),
+            EstimatorMethod::Qmc => {
+                let pdf = match set_kind {
+                    SampleSetKind::FibonacciCosine => SamplingPdf::Cosine,
+                    SampleSetKind::Fibonacci => SamplingPdf::Uniform,
+                    _ => {
+                        return Err(EstimatorError::invalid(
+                            "sample_set.kind",
+                            "`qmc` takes `fibonacci_cosine` or `fibonacci`",
+                        ));
+                    }
+                };
+                SampleMeanEstimator::quasi_monte_carlo(Density::Lambert, pdf, samples)
+                    .map(PointEstimator::Qmc)
+                    .map_err(|e| EstimatorError::invalid("samples", e.to_string()))
+            }
+            EstimatorMethod::Bmc => {
+                let kernel = self.kernel.unwrap_or_default();
+                let kind = kernel.kind.unwrap_or(DEFAULT_KERNEL);
+                let variance = kernel.variance.unwrap_or(DEFAULT_VARIANCE);
+                // Check the numbers now (a stand-in ℓ for "auto"), so bad
+                // input is refused before any work.
+                Kernel::new(
+                    kind,
+                    kernel.lengthscale.value().unwrap_or(FALLBACK_LENGTHSCALE),
+                    variance,
+                    kernel.noise.unwrap_or(DEFAULT_NOISE),
+                )
+                .map_err(EstimatorError::kernel)?;
+                let sample_set = SampleSetSpec {
+                    kind: set_kind,
+                    count: samples,
+                    seed: set_seed,
+                };
+                Ok(PointEstimator::Bmc(BmcSetup {
+                    sample_set,
+                    kind,
+                    lengthscale: kernel.lengthscale.value(),
+                    variance,
+                    noise: kernel.noise,
+                }))
+            }
+        }
+    }
+}
+
+impl PointEstimator {
+    /// Irradiance at every point on the current rayon pool; `on_done` is
+    /// called once per finished point. `kernels` keeps the scene's fitted
+    /// lengthscales and `quadratures` the BMC weights, so repeated
+    /// configurations neither refit nor refactorise.
+    #[allow(clippy::too_many_arguments)]
+    pub fn estimate(
+        &self,
+        transport: &Transport,
+        kernels: &FittedKernels,
+        quadratures: &QuadratureCache,
+        points: &[QueryPoint],
+        options: &IrradianceOptions,
+        on_done: &(dyn Fn() + Sync),
+        cancel: &Cancel,
+    ) -> Result<Estimates, EstimatorError> {
+        let (estimates, kernel, quadrature_cached) = match self {
+            PointEstimator::Mc => (
+                transport.irradiance_at_points(points, options, on_done, cancel)?,
+                None,
+                None,
+            ),
+            PointEstimator::Qmc(qmc) => (
+                transport.irradiance_with_estimator(points, qmc, options, on_done, cancel)?,
+                None,
+                None,
+            ),
+            PointEstimator::Bmc(bmc) => {
+                let (quadrature, kernel, cached) =
+                    bmc.quadrature(transport, kernels, quadratures, options.method)?;
+                let estimator = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
+                (
+                    transport
+                        .irradiance_with_estimator(points, &estimator, options, on_done, cancel)?,
+                    Some(kernel),
+                    Some(cached),
+                )
+            }
+        };
+        Ok(Estimates {
+            estimates,
+            kernel,
+            quadrature_cached,
+        })
+    }
+}
+
+impl BmcSetup {
+    /// The kernel (fitting `"auto"` on first use for this scene and
+    /// configuration) and its cached weights; the flag says whether the
+    /// weights came from the cache.
+    fn quadrature(
+        &self,
+        transport: &Transport,
+        kernels: &FittedKernels,
+        quadratures: &QuadratureCache,
+        decomposition: IrradianceMethod,
+    ) -> Result<(Arc<CachedQuadrature>, Kernel, bool), EstimatorError> {
+        let (lengthscale, fitted_noise) = match self.lengthscale {
+            Some(value) => (value, DEFAULT_NOISE),
+            None => {
+                let config = FitConfig {
+                    kernel: self.kind,
+                    sample_set: self.sample_set,
+                    decomposition,
+                };
+                let fit = kernels
+                    .get_or_fit(transport, config)
+                    .map_err(EstimatorError::Fit)?;
+                (fit.lengthscale, fit.noise_ratio * self.variance)
+            }
+        };
+        let noise = self.noise.unwrap_or(fitted_noise);
+        let kernel = Kernel::new(self.kind, lengthscale, self.variance, noise)
+            .map_err(EstimatorError::kernel)?;
+        let spec = QuadratureSpec {
+            sample_set: self.sample_set,
+            kernel,
+            density: Density::Lambert,
+            prior_mean: PriorMean::Gls,
+            kernel_mean: KernelMeanMethod::Exact,
+        };
+        let (quadrature, cached) = spec
+            .quadrature(quadratures)
+            .map_err(EstimatorError::kernel)?;
+        Ok((quadrature, kernel, cached))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(method: EstimatorMethod) -> EstimatorSpec {
+        EstimatorSpec {
+            method,
+            samples: 16,
+            sample_set: None,
+            kernel: None,
+        }
+    }
+
+    fn field(result: Result<PointEstimator, EstimatorError>) -> String {
+        match result {
+            Err(EstimatorError::Invalid { field, .. }) => field,
+            other => panic!("expected an invalid field, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn options_are_checked_against_the_method() {
+        assert!(matches!(
+            spec(EstimatorMethod::Mc).resolve(),
+            Ok(PointEstimator::Mc)
+        ));
+        let mc_with_set = EstimatorSpec {
+            sample_set: Some((SampleSetKind::Fibonacci, 0)),
+            ..spec(EstimatorMethod::Mc)
+        };
+        assert_eq!(field(mc_with_set.resolve()), "sample_set");
+        let qmc_random = EstimatorSpec {
+            sample_set: Some((SampleSetKind::Uniform, 3)),
+            ..spec(EstimatorMethod::Qmc)
+        };
+        assert_eq!(field(qmc_random.resolve()), "sample_set.kind");
+        let qmc_kernel = EstimatorSpec {
+            kernel: Some(KernelSpec::default()),
+            ..spec(EstimatorMethod::Qmc)
+        };
+        assert_eq!(field(qmc_kernel.resolve()), "kernel");
+        let zero = EstimatorSpec {
+            samples: 0,
+            ..spec(EstimatorMethod::Bmc)
+        };
+        assert_eq!(field(zero.resolve()), "samples");
+    }
+
+    #[test]
+    fn lengthscales_parse_from_text_and_json() {
+        assert_eq!("auto".parse(), Ok(Lengthscale::Auto));
+        assert_eq!("0.5".parse(), Ok(Lengthscale::Value(0.5)));
+        assert!("short".parse::<Lengthscale>().is_err());
+        let json: Lengthscale = serde_json::from_str("0.25").unwrap();
+        assert_eq!(json, Lengthscale::Value(0.25));
+        let json: Lengthscale = serde_json::from_str("\"auto\"").unwrap();
+        assert_eq!(json, Lengthscale::Auto);
+        assert!(serde_json::from_str::<Lengthscale>("\"long\"").is_err());
+    }
+
+    #[test]
+    fn bmc_kernel_numbers_are_checked_before_any_work() {
+        let overflow = EstimatorSpec {
+            kernel: Some(KernelSpec {
+                variance: Some(1e308),
+                noise: Some(1e308),
+                ..KernelSpec::default()
+            }),
+            ..spec(EstimatorMethod::Bmc)
+        };
+        assert_eq!(field(overflow.resolve()), "kernel.variance");
+        let Ok(PointEstimator::Bmc(setup)) = spec(EstimatorMethod::Bmc).resolve() else {
+            panic!("bmc resolves");
+        };
+        // Defaults: Fibonacci-cosine set, SE kernel, "auto" lengthscale.
+        assert_eq!(setup.sample_set.kind, DEFAULT_SAMPLE_SET);
+        assert_eq!(setup.kind, DEFAULT_KERNEL);
+        assert_eq!(setup.lengthscale, None);
+        assert_eq!(setup.variance, DEFAULT_VARIANCE);
+    }
+}
