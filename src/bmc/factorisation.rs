@@ -87,7 +87,11 @@ impl Factorisation {
         let mut jitter = 0.0;
         for attempt in 0..MAX_ATTEMPTS {
             if attempt > 0 {
-                jitter = FIRST_RELATIVE_JITTER * mean_diag * 10f64.powi(attempt as i32 - 1);
+                jitter = if attempt == 1 {
+                    FIRST_RELATIVE_JITTER * mean_diag
+                } else {
+                    jitter * 10.0
+                };
             }
             let diagonal = kernel.noise + jitter;
             let mut l = Mat::from_fn(n, n, |i, j| {

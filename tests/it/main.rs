@@ -13,6 +13,7 @@ mod irradiance_cli;
 mod light_transport;
 mod loadtest;
 mod mitsuba_xml;
+mod regression;
 mod service_bad_inputs;
 mod service_bad_scenes;
 mod service_basics;

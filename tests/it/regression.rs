@@ -1,0 +1,106 @@
+//! Refactoring must not change numbers: fixed-seed requests whose results
+//! are stored here as hashes of their bits. Path-traced tiles, reproducible
+//! irradiance-cache tiles and point estimates (MC, QMC, BMC) through the
+//! real service. A deliberate change of an estimator updates the hashes in
+//! the same commit, saying why.
+
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+use crate::common::spawn_app_with_scenes;
+
+/// FNV-1a over the bit patterns of every number in `value`, in order.
+fn hash_numbers(value: &Value) -> u64 {
+    fn walk(value: &Value, hash: &mut u64) {
+        match value {
+            Value::Number(n) => {
+                for byte in n.as_f64().unwrap().to_bits().to_le_bytes() {
+                    *hash ^= u64::from(byte);
+                    *hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+                }
+            }
+            Value::Array(items) => items.iter().for_each(|v| walk(v, hash)),
+            Value::Object(map) => map.values().for_each(|v| walk(v, hash)),
+            _ => {}
+        }
+    }
+    let mut hash = 0xcbf2_9ce4_8422_2325;
+    walk(value, &mut hash);
+    hash
+}
+
+fn cornell(side: u32) -> String {
+    let mut doc: Value =
+        serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
+    doc["camera"]["width"] = json!(side);
+    doc["camera"]["height"] = json!(side);
+    doc.to_string()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fixed_seed_results_are_unchanged() {
+    let scene = cornell(32);
+    let app = spawn_app_with_scenes(&[("cornell-box.json", &scene)], |_| {}).await;
+    let points: Vec<Value> = [
+        ([0.0, -0.999, 0.3], [0.0, 1.0, 0.0]),
+        ([-0.999, 0.2, 0.0], [1.0, 0.0, 0.0]),
+        ([0.3, 0.999, -0.2], [0.0, -1.0, 0.0]),
+        ([0.1, 0.0, -0.999], [0.0, 0.0, 1.0]),
+    ]
+    .iter()
+    .map(|(p, n)| json!({"position": p, "normal": n}))
+    .collect();
+    let tile = |estimator: Value| {
+        json!({"x": 4, "y": 6, "width": 20, "height": 16, "format": "json",
+               "samples_per_pixel": 4, "max_depth": 8, "seed": 7, "estimator": estimator})
+    };
+    let irradiance = |estimator: Value| json!({"points": points, "estimator": estimator, "max_depth": 8, "seed": 11});
+    let cases = [
+        ("path tile", "tiles", tile(json!({"method": "path"}))),
+        (
+            "reproducible cached tile",
+            "tiles",
+            tile(
+                json!({"method": "bmc", "samples": 64, "paths_per_direction": 2,
+                        "light_samples": 4, "reproducible": true}),
+            ),
+        ),
+        (
+            "mc points",
+            "irradiance",
+            irradiance(json!({"method": "mc", "samples": 64})),
+        ),
+        (
+            "qmc points",
+            "irradiance",
+            irradiance(json!({"method": "qmc", "samples": 64})),
+        ),
+        (
+            "bmc points",
+            "irradiance",
+            irradiance(json!({"method": "bmc", "samples": 64, "kernel": {"lengthscale": 0.5}})),
+        ),
+    ];
+    let mut got = Vec::new();
+    for (name, route, body) in cases {
+        let response = app
+            .post_json(&format!("/v1/scenes/cornell-box/{route}"), &body)
+            .await;
+        assert_eq!(response.status(), StatusCode::OK, "{name}");
+        let value: Value = response.json().await.unwrap();
+        got.push((name, hash_numbers(&value)));
+    }
+    // Recorded on 2026-12-01 from the release binary of commit b415fdd and
+    // from this test's debug build alike (IEEE arithmetic is not reassociated
+    // at any optimisation level).
+    let expected: [(&str, u64); 5] = [
+        ("path tile", 0x119737b1a51eef13),
+        ("reproducible cached tile", 0xb9ba4e32beeef81c),
+        ("mc points", 0x8bf6feef40897a1c),
+        ("qmc points", 0xaae1bb778304906e),
+        ("bmc points", 0x51df2bee3b6368bd),
+    ];
+    for ((name, hash), (_, want)) in got.iter().zip(expected) {
+        assert_eq!(*hash, want, "{name} changed");
+    }
+}
