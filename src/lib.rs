@@ -36,6 +36,7 @@ pub mod bmc;
 pub mod cache;
 pub mod cli;
 pub mod image;
+pub mod integrator;
 pub mod loadtest;
 pub mod render;
 pub mod scene;

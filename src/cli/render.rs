@@ -11,13 +11,13 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::in_thread_pool;
 use crate::bmc::cache::QuadratureCache;
-use crate::cache::{
-    CacheConfig, CacheShadingOptions, CachedShading, CachedTileReport, IrradianceCache,
-    default_rule_spec,
-};
+use crate::cache::{CacheConfig, IrradianceCache};
 use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
+use crate::integrator::cached::{
+    CacheShadingOptions, CachedShading, CachedTileReport, default_rule_spec,
+};
 use crate::render::Cancel;
 use crate::render::film::ImageSettings;
 use crate::render::tile::ShadingMethod;

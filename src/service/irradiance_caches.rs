@@ -25,9 +25,8 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::scenes::LoadedScene;
-use crate::cache::{
-    CacheConfig, CacheError, CacheStats, CachedShading, IrradianceCache, RECORD_BYTES,
-};
+use crate::cache::{CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
+use crate::integrator::cached::CachedShading;
 
 /// Each cache may use `1/SHARE` of the total budget.
 pub const SHARE: usize = 4;
@@ -187,7 +186,8 @@ impl IrradianceCaches {
 mod tests {
     use super::*;
     use crate::bmc::cache::QuadratureCache;
-    use crate::cache::{CacheShadingOptions, RecordRuleSpec, default_rule_spec};
+    use crate::cache::RecordRuleSpec;
+    use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
     use crate::scene::Scene;
     use crate::service::scenes::SceneSource;
     use crate::sphere::SampleSetKind;

@@ -8,8 +8,10 @@ use std::sync::Arc;
 
 use bmc_irradiance::bmc::{Kernel, KernelKind, PriorMean};
 use bmc_irradiance::cache::{
-    Accuracy, CacheConfig, Gather, Interpolated, IrradianceCache, PlacementOptions, PlacementPoint,
-    Record, RecordRule, RecordRuleSpec, ShadingStats, compute_record, place_and_shade,
+    Accuracy, CacheConfig, Interpolated, IrradianceCache, Record, RecordRule, RecordRuleSpec,
+};
+use bmc_irradiance::integrator::cached::{
+    Gather, PlacementOptions, PlacementPoint, ShadingStats, compute_record, place_and_shade,
     place_records, placement,
 };
 use bmc_irradiance::render::Cancel;

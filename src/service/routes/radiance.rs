@@ -13,7 +13,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::cache::{RadianceQuery, RadianceShading, radiance_at_points, surface_at};
+use crate::integrator::cached::{RadianceQuery, RadianceShading, radiance_at_points, surface_at};
 use crate::render::{QueryPoint, RenderError, Rgb};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};

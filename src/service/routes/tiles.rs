@@ -15,11 +15,11 @@ use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use utoipa::ToSchema;
 
-use crate::cache::{
-    CacheConfig, CacheError, CacheShadingOptions, CachedShading, CachedTileReport, IrradianceCache,
-    RecordRuleSpec, default_rule_spec,
-};
+use crate::cache::{CacheConfig, CacheError, IrradianceCache, RecordRuleSpec};
 use crate::image::{ImageEncoding, ToneMap};
+use crate::integrator::cached::{
+    CacheShadingOptions, CachedShading, CachedTileReport, default_rule_spec,
+};
 use crate::render::{Cancel, RenderedTile, ShadingMethod, TileRequest, Transport};
 use crate::service::config::Limits;
 use crate::service::error::{ApiError, ErrorBody};

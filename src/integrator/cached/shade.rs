@@ -33,37 +33,18 @@
 //! placement pass the bounces only read the private cache (a miss falls
 //! back to one path), so every record of a batch sees the same cache.
 //!
-//! # Glossy quadratures: θ_r tabulated, weights interpolated
-//! The Phong density depends on the mirror direction's polar angle `θ_r`
-//! once the sample set is turned about the normal to put the mirror
-//! direction at azimuth 0 (docs/math.md §4; `Q` is unchanged by the turn).
-//! Kernel means for one `θ_r` cost milliseconds each and `V₀` up to seconds
-//! (docs/BENCHMARKS.md), so they cannot be computed per point. We compute
-//! exact quadratures at `bins` equally spaced nodes `θ_k = k (π/2)/(bins−1)`
-//! (kept in a [`QuadratureCache`]) and interpolate **linearly in `θ_r`
-//! between the two neighbouring nodes**. Weights are linear in the kernel
-//! means (`w = Q⁻¹z` plus the GLS term, also linear in `z`), so this equals
-//! exact BMC with linearly interpolated kernel means: the error is
-//! `O(h² ∂²z/∂θ_r²)` for node spacing `h`, and `Σ w = ∫p` is interpolated
-//! the same way. The test `interpolated_glossy_weights_match_the_exact_rule`
-//! measures it (module tests; figure in docs/BENCHMARKS.md). Exponents above
-//! [`MAX_BMC_EXPONENT`] (near-mirror lobes a hemisphere sample set cannot
-//! resolve) fall back to one Phong-lobe-sampled path per shading.
 
-use std::f64::consts::{FRAC_PI_2, PI};
-use std::sync::Arc;
+use std::f64::consts::PI;
 
 use glam::DVec3;
 use rand::{Rng, RngExt};
-use serde::{Deserialize, Serialize};
 
-use super::error::CacheError;
-use super::irradiance_cache::{Accuracy, IrradianceCache};
+use super::config::{
+    AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, indirect_paths,
+};
 use super::placement::{PlacementOptions, PlacementPoint, compute_record, lookup};
-use super::record::PixelFootprint;
-use super::record_rule::{RecordRule, RecordRuleSpec};
-use crate::bmc::cache::QuadratureCache;
-use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+use super::stats::ShadingStats;
+use crate::cache::{Accuracy, CacheError, IrradianceCache};
 use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::strata::{GridStrata, SharedStrata};
 use crate::render::{
@@ -71,254 +52,7 @@ use crate::render::{
     TraceStats, Transport, warp,
 };
 use crate::scene::SurfaceHit;
-use crate::sphere::{Frame, SampleSetKind, SampleSetSpec};
-
-/// Phong exponents above this are shaded by path tracing instead of BMC.
-pub const MAX_BMC_EXPONENT: f64 = 1000.0;
-/// Largest accepted number of light samples per shading.
-pub const MAX_LIGHT_SAMPLES: u32 = 1 << 16;
-/// Largest accepted number of record levels gathering through the cache.
-pub const MAX_AMBIENT_BOUNCES: u32 = 8;
-/// Largest accepted number of `θ_r` nodes of the glossy rule.
-pub const MAX_GLOSSY_BINS: usize = 1024;
-
-/// The default rule of records and of glossy BMC: 64 spherical Fibonacci
-/// directions, SE kernel `ℓ = 0.5`, jitter `10⁻⁸`, GLS constant mean.
-pub fn default_rule_spec() -> RecordRuleSpec {
-    RecordRuleSpec {
-        samples: SampleSetSpec {
-            kind: SampleSetKind::Fibonacci,
-            count: 64,
-            seed: 0,
-        },
-        kernel: Kernel {
-            kind: KernelKind::SquaredExponential,
-            lengthscale: 0.5,
-            variance: 1.0,
-            noise: 1e-8,
-        },
-        prior_mean: PriorMean::Gls,
-    }
-}
-
-/// Per-request options of shading through the cache (the service's JSON
-/// body; every field optional).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct CacheShadingOptions {
-    /// Ward's accuracy `a ∈ (0, 1]` (smaller: more records).
-    pub accuracy: f64,
-    /// Variance-driven placement target (relative standard error of a
-    /// record's luminance), see [`PlacementOptions::relative_error_target`].
-    pub relative_error_target: Option<f64>,
-    /// Shadow ray between point and record against light leaks.
-    pub occlusion_check: bool,
-    /// Placement and shading on a private cache, then publish (bit-identical
-    /// output whatever the thread count and the shared cache's content);
-    /// otherwise use and extend the shared cache directly.
-    pub reproducible: bool,
-    /// Light samples per shading point for direct light (stratified).
-    pub light_samples: u32,
-    /// Validity radius bounds in pixel footprints (tiles only). The upper
-    /// bound matters most: Ward's harmonic-mean radius grows large on open
-    /// surfaces, where the records' first-order extrapolation then spans
-    /// curved irradiance; 40 rather than 200 footprints cut the Cornell
-    /// box's error from 2.2 % to 1.5 % for 30 % more records
-    /// (docs/BENCHMARKS.md, Tabellion & Lamorlette 2004 bound radii in
-    /// screen space likewise).
-    pub min_pixels: f64,
-    pub max_pixels: f64,
-    /// Placement points decided per batch (see `placement`).
-    pub batch_size: usize,
-    /// Paths averaged per record direction (see [`PlacementOptions`]).
-    pub paths_per_direction: u32,
-    /// Levels of records whose rays gather through the cache ([`Gather`],
-    /// Radiance's `-ab`): 0 = every record traces its rays' paths.
-    pub ambient_bounces: u32,
-}
-
-impl Default for CacheShadingOptions {
-    fn default() -> Self {
-        Self {
-            accuracy: 0.5,
-            relative_error_target: None,
-            occlusion_check: false,
-            reproducible: false,
-            light_samples: 16,
-            min_pixels: 3.0,
-            max_pixels: 40.0,
-            batch_size: 16,
-            paths_per_direction: 1,
-            ambient_bounces: 0,
-        }
-    }
-}
-
-impl CacheShadingOptions {
-    pub fn validate(&self) -> Result<Accuracy, CacheError> {
-        if self.light_samples == 0 || self.light_samples > MAX_LIGHT_SAMPLES {
-            return Err(CacheError::invalid(
-                "light_samples",
-                format!(
-                    "must be in 1..={MAX_LIGHT_SAMPLES}, got {}",
-                    self.light_samples
-                ),
-            ));
-        }
-        if self.batch_size == 0 {
-            return Err(CacheError::invalid("batch_size", "must be at least 1"));
-        }
-        if self.paths_per_direction == 0 || self.paths_per_direction > MAX_LIGHT_SAMPLES {
-            return Err(CacheError::invalid(
-                "paths_per_direction",
-                format!(
-                    "must be in 1..={MAX_LIGHT_SAMPLES}, got {}",
-                    self.paths_per_direction
-                ),
-            ));
-        }
-        if self.ambient_bounces > MAX_AMBIENT_BOUNCES {
-            return Err(CacheError::invalid(
-                "ambient_bounces",
-                format!(
-                    "must be in 0..={MAX_AMBIENT_BOUNCES}, got {}",
-                    self.ambient_bounces
-                ),
-            ));
-        }
-        PixelFootprint::new(1.0, self.min_pixels, self.max_pixels)?;
-        Accuracy::new(self.accuracy)
-    }
-
-    /// Placement options for records summing `paths`, seeded with `seed`.
-    pub fn placement(&self, paths: PathLimits, seed: u64) -> Result<PlacementOptions, CacheError> {
-        Ok(PlacementOptions {
-            paths,
-            accuracy: self.validate()?,
-            relative_error_target: self.relative_error_target,
-            occlusion_check: self.occlusion_check,
-            seed,
-            batch_size: self.batch_size,
-            paths_per_direction: self.paths_per_direction,
-        })
-    }
-}
-
-/// BMC with the Phong density, tabulated over `θ_r` (module docs).
-pub struct GlossyRule {
-    spec: RecordRuleSpec,
-    bins: usize,
-    quadratures: Arc<QuadratureCache>,
-}
-
-/// Interpolated glossy weights for one `(m, θ_r)`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct GlossyWeights {
-    /// Local-frame directions (mirror direction at azimuth 0).
-    pub directions: Arc<[DVec3]>,
-    /// `Î = Σ w_i L_i ≈ ∫ L p`.
-    pub weights: Vec<f64>,
-    /// Interpolated posterior variance of `Î` for the kernel's `σ²`.
-    pub posterior_variance: f64,
-}
-
-impl GlossyRule {
-    /// `bins ≥ 2` nodes over `θ_r ∈ [0, π/2]`; quadratures live in `quadratures`.
-    pub fn new(
-        spec: RecordRuleSpec,
-        bins: usize,
-        quadratures: Arc<QuadratureCache>,
-    ) -> Result<Self, CacheError> {
-        if !(2..=MAX_GLOSSY_BINS).contains(&bins) {
-            return Err(CacheError::invalid(
-                "glossy_bins",
-                format!("must be in 2..={MAX_GLOSSY_BINS}, got {bins}"),
-            ));
-        }
-        spec.kernel.validate()?;
-        Ok(Self {
-            spec,
-            bins,
-            quadratures,
-        })
-    }
-
-    /// Weights for exponent `m` and mirror polar angle `θ_r` (clamped to
-    /// `[0, π/2]`), linear in `θ_r` between the two neighbouring nodes.
-    pub fn weights(&self, exponent: f64, theta_r: f64) -> Result<GlossyWeights, CacheError> {
-        let step = FRAC_PI_2 / (self.bins - 1) as f64;
-        let t = (theta_r.clamp(0.0, FRAC_PI_2) / step).max(0.0);
-        let k = (t.floor() as usize).min(self.bins - 2);
-        let f = (t - k as f64).clamp(0.0, 1.0);
-        let node = |k: usize| {
-            let density = Density::Phong {
-                exponent,
-                mirror_elevation: (k as f64 * step).min(FRAC_PI_2),
-            };
-            self.quadratures
-                .quadrature(
-                    self.spec.samples,
-                    &self.spec.kernel,
-                    &density,
-                    self.spec.prior_mean,
-                    KernelMeanMethod::Exact,
-                )
-                .map(|(q, _)| q)
-        };
-        let (a, b) = (node(k)?, node(k + 1)?);
-        let weights = a
-            .quadrature
-            .weights
-            .iter()
-            .zip(&b.quadrature.weights)
-            .map(|(wa, wb)| (1.0 - f) * wa + f * wb)
-            .collect();
-        let posterior_variance =
-            (1.0 - f) * a.quadrature.posterior_variance + f * b.quadrature.posterior_variance;
-        Ok(GlossyWeights {
-            directions: a.directions().into(),
-            weights,
-            posterior_variance,
-        })
-    }
-}
-
-/// Everything shading through the cache needs besides the cache: the
-/// records' rule (part of the cache's key), the glossy rule and the
-/// request's options. Build the rules once per configuration and share.
-#[derive(Clone)]
-pub struct CachedShading {
-    pub rule: Arc<RecordRule>,
-    pub glossy: Arc<GlossyRule>,
-    pub options: CacheShadingOptions,
-}
-
-impl CachedShading {
-    /// Rules for `spec` (records and glossy BMC share sample set and kernel)
-    /// with `glossy_bins` `θ_r` nodes; validates `options`.
-    pub fn new(
-        spec: RecordRuleSpec,
-        glossy_bins: usize,
-        quadratures: Arc<QuadratureCache>,
-        options: CacheShadingOptions,
-    ) -> Result<Self, CacheError> {
-        options.validate()?;
-        Ok(Self {
-            rule: Arc::new(RecordRule::new(spec)?),
-            glossy: Arc::new(GlossyRule::new(spec, glossy_bins, quadratures)?),
-            options,
-        })
-    }
-
-    /// The same rules with other per-request options.
-    pub fn with_options(&self, options: CacheShadingOptions) -> Result<Self, CacheError> {
-        options.validate()?;
-        Ok(Self {
-            options,
-            ..self.clone()
-        })
-    }
-}
+use crate::sphere::Frame;
 
 /// What to do where no record covers a shading point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -328,43 +62,6 @@ pub enum OnMiss {
     /// Leave the cache alone: retry at accuracy 1, else estimate the
     /// indirect irradiance by one cosine-sampled path (a read-only pass).
     PathTrace,
-}
-
-/// Counters of a shading call or a request.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-pub struct ShadingStats {
-    /// Closest-hit plus shadow rays traced.
-    pub rays: u64,
-    /// Diffuse points served by records.
-    pub cache_hits: u64,
-    /// Of those, only at the relaxed accuracy 1.
-    pub relaxed_hits: u64,
-    /// Diffuse points no record covered.
-    pub cache_misses: u64,
-    /// Records created on a miss ([`OnMiss::Insert`]), nested ones included.
-    pub records_created: u64,
-    /// Of those, created at the bounce of another record's rays ([`Gather::Cache`]).
-    pub ambient_records: u64,
-    /// Misses estimated by a path-traced sample ([`OnMiss::PathTrace`]).
-    pub fallbacks: u64,
-    /// Glossy lobes integrated by BMC.
-    pub glossy_bmc: u64,
-    /// Glossy lobes too sharp for BMC, path traced instead.
-    pub glossy_path_traced: u64,
-}
-
-impl std::ops::AddAssign for ShadingStats {
-    fn add_assign(&mut self, o: Self) {
-        self.rays += o.rays;
-        self.cache_hits += o.cache_hits;
-        self.relaxed_hits += o.relaxed_hits;
-        self.cache_misses += o.cache_misses;
-        self.records_created += o.records_created;
-        self.ambient_records += o.ambient_records;
-        self.fallbacks += o.fallbacks;
-        self.glossy_bmc += o.glossy_bmc;
-        self.glossy_path_traced += o.glossy_path_traced;
-    }
 }
 
 /// A cache error as the render API's typed error, keeping the field name.
@@ -378,17 +75,6 @@ pub(crate) fn cache_to_render(e: CacheError) -> RenderError {
         CacheError::Render(r) => r,
     }
 }
-
-/// Records whose rays gather from the cache are only used when paths may be
-/// at least this long: a bounce through the cache counts paths of every
-/// length (module docs), which matches a truncation at `max_depth` only
-/// when the truncated tail (`≈ albedo^max_depth`) is negligible.
-pub const AMBIENT_MIN_DEPTH: u32 = 16;
-/// Lookups at a record's bounce use accuracy `min(1, factor · a)`: their
-/// error is attenuated by the albedo and averaged over the record's
-/// hemisphere, so coarser records serve there (as Radiance relaxes its
-/// ambient accuracy at deeper bounces).
-const AMBIENT_ACCURACY_FACTOR: f64 = 2.0;
 
 /// Where a record's rays get their incident radiance.
 #[derive(Clone, Copy)]
@@ -843,22 +529,17 @@ impl Transport {
     }
 }
 
-/// Records' path limits for shading with `max_depth ≥ 2` segments from the
-/// point: the indirect lengths `2..=max_depth`.
-pub fn indirect_paths(max_depth: u32) -> PathLimits {
-    PathLimits {
-        max_depth: max_depth.max(1),
-        lengths: PathLengths::Indirect,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bmc::cache::QuadratureCache;
+    use crate::cache::RecordRuleSpec;
+    use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
     use crate::render::tile::tests::cornell;
     use crate::scene::Ray;
     use rand::SeedableRng;
     use rand_pcg::Pcg64;
+    use std::sync::Arc;
 
     /// Rules for `spec` with 4 glossy nodes and a private quadrature cache.
     fn test_shading(spec: RecordRuleSpec, options: CacheShadingOptions) -> CachedShading {
@@ -870,57 +551,6 @@ mod tests {
         let mut spec = default_rule_spec();
         spec.samples.count = 16;
         spec
-    }
-
-    /// `Î` of the smooth field `1 + 0.5 x + 0.3 z` (local frame).
-    fn integral(directions: &[DVec3], weights: &[f64]) -> f64 {
-        directions
-            .iter()
-            .zip(weights)
-            .map(|(d, w)| w * (1.0 + 0.5 * d.x + 0.3 * d.z))
-            .sum()
-    }
-
-    /// Interpolated weights are the node rules at the nodes and converge to
-    /// the exact rule at second order in the node spacing between them.
-    #[test]
-    fn interpolated_glossy_weights_match_the_exact_rule() {
-        let quadratures = Arc::new(QuadratureCache::new(1 << 24));
-        let spec = small_spec();
-        let (m, theta) = (20.0, 0.6);
-        let exact = |theta_r: f64| {
-            let density = Density::Phong {
-                exponent: m,
-                mirror_elevation: theta_r,
-            };
-            let (q, _) = quadratures
-                .quadrature(
-                    spec.samples,
-                    &spec.kernel,
-                    &density,
-                    spec.prior_mean,
-                    KernelMeanMethod::Exact,
-                )
-                .unwrap();
-            integral(q.directions(), &q.quadrature.weights)
-        };
-        let coarse = GlossyRule::new(spec, 5, quadratures.clone()).unwrap();
-        let fine = GlossyRule::new(spec, 9, quadratures.clone()).unwrap();
-        let node = 2.0 * FRAC_PI_2 / 8.0;
-        let at_node = fine.weights(m, node).unwrap();
-        assert!((integral(&at_node.directions, &at_node.weights) - exact(node)).abs() < 1e-12);
-        let truth = exact(theta);
-        let err = |rule: &GlossyRule| {
-            let w = rule.weights(m, theta).unwrap();
-            (integral(&w.directions, &w.weights) - truth).abs() / truth
-        };
-        let (e_coarse, e_fine) = (err(&coarse), err(&fine));
-        assert!(e_fine < 0.4 * e_coarse, "{e_fine} vs {e_coarse}");
-        assert!(e_fine < 0.05, "{e_fine}");
-        assert_eq!(
-            GlossyRule::new(spec, 1, quadratures).err().unwrap().field(),
-            Some("glossy_bins")
-        );
     }
 
     /// A record gathered through the cache (ambient bounces, nested records

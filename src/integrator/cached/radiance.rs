@@ -21,8 +21,10 @@ use std::f64::consts::PI;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::irradiance_cache::IrradianceCache;
-use super::shading::{CachedShading, OnMiss, ShadingStats, cache_to_render};
+use super::config::CachedShading;
+use super::shade::{OnMiss, cache_to_render};
+use super::stats::ShadingStats;
+use crate::cache::IrradianceCache;
 use crate::render::seed::point_rng;
 use crate::render::{
     Cancel, MeanEstimate, PathLengths, PathLimits, QueryPoint, RenderError, Rgb, TraceStats,
@@ -197,7 +199,7 @@ fn record_variance(
 mod tests {
     use super::*;
     use crate::bmc::cache::QuadratureCache;
-    use crate::cache::{CacheShadingOptions, default_rule_spec};
+    use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
     use crate::render::tile::tests::cornell;
     use std::sync::Arc;
 

@@ -30,11 +30,12 @@ use std::f64::consts::TAU;
 use rand::{Rng, RngExt};
 use rayon::prelude::*;
 
-use super::error::CacheError;
-use super::irradiance_cache::{Accuracy, CacheConfig, Interpolated, IrradianceCache};
-use super::record::{PixelFootprint, RadiusLimits, Record};
-use super::record_rule::RecordRule;
-use super::shading::{Gather, ShadingStats};
+use super::shade::Gather;
+use super::stats::ShadingStats;
+use crate::cache::{
+    Accuracy, CacheConfig, CacheError, Interpolated, IrradianceCache, PixelFootprint, RadiusLimits,
+    Record, RecordRule,
+};
 use crate::render::seed::point_rng;
 use crate::render::{Cancel, PathLimits, QueryPoint, Transport};
 use crate::sphere::Frame;

@@ -28,12 +28,11 @@ use rand::Rng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::irradiance_cache::IrradianceCache;
+use super::config::{CachedShading, indirect_paths};
 use super::placement::{PlacementPoint, PlacementReport, place_records};
-use super::record::PixelFootprint;
-use super::shading::{
-    CachedShading, Gather, OnMiss, ShadingStats, cache_to_render, indirect_paths,
-};
+use super::shade::{Gather, OnMiss, cache_to_render};
+use super::stats::ShadingStats;
+use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
 use crate::render::tile::{
     CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
@@ -227,7 +226,7 @@ impl Transport {
 /// Inserts the records `cache` does not already cover at their own
 /// positions; returns how many.
 fn publish(
-    records: &[super::Record],
+    records: &[Record],
     cache: &IrradianceCache,
     shading: &CachedShading,
 ) -> Result<u64, RenderError> {
@@ -249,8 +248,9 @@ mod tests {
     use std::sync::Arc;
 
     use crate::bmc::cache::QuadratureCache;
-    use crate::cache::{CacheConfig, CacheShadingOptions, default_rule_spec};
+    use crate::cache::CacheConfig;
     use crate::image::relative_rmse;
+    use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
     use crate::render::ShadingMethod;
     use crate::render::tile::tests::{cornell, request};
 
