@@ -19,18 +19,24 @@
 //! - `render`: light transport — BSDFs, light sampling, incident radiance
 //!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image;
 //!   `render::hemisphere_estimate` (irradiance at points with any MC/QMC/BMC
-//!   estimator), `render::lengthscale` (the scene-fitted `"auto"` lengthscale).
+//!   estimator), `render::estimators` (the point estimator a request or the CLI
+//!   names, resolved once), `render::lengthscale` (the scene-fitted `"auto"`
+//!   lengthscale).
 //! - `study`: synthetic environments with known irradiance and the estimator
 //!   convergence study (MC vs QMC vs BMC).
-//! - `cache`: Bayesian irradiance cache — BMC records with variance and
-//!   gradients, concurrent spatial index, interpolation, reproducible placement;
-//!   `cache::shading` (outgoing radiance through the cache, BMC Phong glossy),
-//!   `cache::tiles` (`Transport::render_tile_cached`) and `cache::radiance`
-//!   (outgoing radiance at surface points).
+//! - `cache`: the Bayesian irradiance cache's record store — BMC records with
+//!   variance and gradients, concurrent spatial index, interpolation; no scene,
+//!   no rays.
+//! - `integrator::cached`: the irradiance-cache integrator — records computed at
+//!   points and reproducible placement, outgoing radiance through the cache
+//!   (BMC Phong glossy), camera tiles and radiance queries.
 //! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
 //! - `cli`: the binary's subcommands (`quadrature`, `study`, `render`, `compare`) as library functions.
 //! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).
-//! - `loadtest`: closed-loop load generator for the service (`loadtest` subcommand).
+//! - `loadtest`: closed-loop load generator for the service (the `bmc-loadtest` binary).
+//!
+//! How the layers depend on each other, one request traced end to end and the
+//! conventions are in `docs/ARCHITECTURE.md`.
 
 pub mod bmc;
 pub mod cache;

@@ -149,7 +149,7 @@ const QUADRATURE_BYTES: u64 = 256 << 20;
 pub enum MethodArg {
     /// Path tracing (the reference).
     Path,
-    /// Through the irradiance cache (see `cache::tiles`).
+    /// Through the irradiance cache (see `integrator::cached::tiles`).
     Cache,
 }
 

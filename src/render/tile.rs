@@ -52,7 +52,7 @@ pub enum ShadingMethod {
     PathTracing,
     /// Direct light by light sampling, diffuse indirect light from an
     /// irradiance cache, glossy reflection by BMC with the Phong density:
-    /// needs a cache, see `Transport::render_tile_cached` (`crate::cache::tiles`).
+    /// needs a cache, see `Transport::render_tile_cached` (`crate::integrator::cached::tiles`).
     IrradianceCache,
 }
 

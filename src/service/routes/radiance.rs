@@ -3,7 +3,7 @@
 //! arriving at the point from that direction would return. Shaded as tiles
 //! are (`estimator.method`: `bmc` through the scene's irradiance cache,
 //! sharing records with tiles of the same `max_depth`; `path` by path
-//! tracing); see `cache::radiance`.
+//! tracing); see `integrator::cached::radiance`.
 
 use std::sync::Arc;
 

@@ -34,7 +34,7 @@ use crate::service::state::AppState;
 #[derive(Debug, Clone, Copy, Default, Deserialize, ToSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum TileMethod {
-    /// The Bayesian irradiance cache (`cache::tiles`): emission + light
+    /// The Bayesian irradiance cache (`integrator::cached::tiles`): emission + light
     /// sampling for direct light + `(k_d/π)·E` interpolated from BMC records
     /// for diffuse indirect light + BMC with the Phong density for glossy
     /// reflection.
@@ -45,7 +45,7 @@ pub enum TileMethod {
     Path,
 }
 
-/// Number of θ_r nodes of the glossy BMC rule (`cache::shading::GlossyRule`).
+/// Number of θ_r nodes of the glossy BMC rule (`integrator::cached::GlossyRule`).
 const GLOSSY_BINS: usize = 16;
 
 /// The tile estimator; every field but `method` applies to `bmc` only, and
