@@ -14,7 +14,9 @@ use super::in_thread_pool;
 use super::quadrature::{KernelArg, SetArg};
 use crate::bmc::cache::QuadratureCache;
 use crate::render::Cancel;
-use crate::render::estimators::{EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale};
+use crate::render::estimators::{
+    EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
+};
 use crate::render::irradiance::{IrradianceMethod, IrradianceOptions};
 use crate::render::lengthscale::FittedKernels;
 use crate::render::points_csv::{parse_points, write_irradiance};
@@ -152,10 +154,13 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     let kernels = FittedKernels::default();
     let quadratures = QuadratureCache::new(Config::default_config().cache.factorisation_bytes);
     let estimate = || {
+        let caches = EstimatorCaches {
+            kernels: &kernels,
+            quadratures: &quadratures,
+        };
         estimator.estimate(
             &transport,
-            &kernels,
-            &quadratures,
+            caches,
             &points,
             &options,
             &|| progress.inc(1),

@@ -16,7 +16,7 @@ use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
 use crate::integrator::cached::{
-    CacheShadingOptions, CachedShading, CachedTileReport, default_rule_spec,
+    CacheShadingOptions, CachedIntegrator, CachedShading, CachedTileReport, default_rule_spec,
 };
 use crate::render::Cancel;
 use crate::render::film::ImageSettings;
@@ -215,13 +215,13 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                 let pass_start = Instant::now();
                 let report = Mutex::new(CachedTileReport::default());
                 let render = || {
+                    let integrator = CachedIntegrator {
+                        transport: &transport,
+                        cache: &cache,
+                        shading: &shading,
+                    };
                     transport.render_image_by(&settings, args.tile, &|request| {
-                        let (tile, r) = transport.render_tile_cached(
-                            request,
-                            &cache,
-                            &shading,
-                            &Cancel::never(),
-                        )?;
+                        let (tile, r) = integrator.render_tile(request, &Cancel::never())?;
                         let mut total = report.lock().unwrap_or_else(|e| e.into_inner());
                         total.placement_points += r.placement_points;
                         total.placement.records_created += r.placement.records_created;

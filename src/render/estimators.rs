@@ -253,17 +253,21 @@ impl EstimatorSpec {
     }
 }
 
+/// What `bmc` reuses between requests: the scene's fitted lengthscales and
+/// the BMC weights, so repeated configurations neither refit nor refactorise.
+#[derive(Clone, Copy)]
+pub struct EstimatorCaches<'a> {
+    pub kernels: &'a FittedKernels,
+    pub quadratures: &'a QuadratureCache,
+}
+
 impl PointEstimator {
     /// Irradiance at every point on the current rayon pool; `on_done` is
-    /// called once per finished point. `kernels` keeps the scene's fitted
-    /// lengthscales and `quadratures` the BMC weights, so repeated
-    /// configurations neither refit nor refactorise.
-    #[allow(clippy::too_many_arguments)]
+    /// called once per finished point.
     pub fn estimate(
         &self,
         transport: &Transport,
-        kernels: &FittedKernels,
-        quadratures: &QuadratureCache,
+        caches: EstimatorCaches,
         points: &[QueryPoint],
         options: &IrradianceOptions,
         on_done: &(dyn Fn() + Sync),
@@ -282,7 +286,7 @@ impl PointEstimator {
             ),
             PointEstimator::Bmc(bmc) => {
                 let (quadrature, kernel, cached) =
-                    bmc.quadrature(transport, kernels, quadratures, options.method)?;
+                    bmc.quadrature(transport, caches, options.method)?;
                 let estimator = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
                 (
                     transport
@@ -307,8 +311,7 @@ impl BmcSetup {
     fn quadrature(
         &self,
         transport: &Transport,
-        kernels: &FittedKernels,
-        quadratures: &QuadratureCache,
+        caches: EstimatorCaches,
         decomposition: IrradianceMethod,
     ) -> Result<(Arc<CachedQuadrature>, Kernel, bool), EstimatorError> {
         let (lengthscale, fitted_noise) = match self.lengthscale {
@@ -319,7 +322,8 @@ impl BmcSetup {
                     sample_set: self.sample_set,
                     decomposition,
                 };
-                let fit = kernels
+                let fit = caches
+                    .kernels
                     .get_or_fit(transport, config)
                     .map_err(EstimatorError::Fit)?;
                 (fit.lengthscale, fit.noise_ratio * self.variance)
@@ -336,7 +340,7 @@ impl BmcSetup {
             kernel_mean: KernelMeanMethod::Exact,
         };
         let (quadrature, cached) = spec
-            .quadrature(quadratures)
+            .quadrature(caches.quadratures)
             .map_err(EstimatorError::kernel)?;
         Ok((quadrature, kernel, cached))
     }

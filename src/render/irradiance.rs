@@ -28,7 +28,7 @@ use rayon::prelude::*;
 
 use super::cancel::Cancel;
 use super::error::RenderError;
-use super::path::{PathLengths, PathLimits, RadianceSample, TraceStats};
+use super::path::{AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats};
 use super::query::QueryPoint;
 use super::rgb::Rgb;
 use super::seed::point_rng;
@@ -193,20 +193,22 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Vec<RadianceSample> {
-        self.hemisphere_samples_averaged(point, frame, local_dirs, limits, 1, rng, stats)
+        let paths = AveragedPaths {
+            limits,
+            per_direction: 1,
+        };
+        self.hemisphere_samples_averaged(point, frame, local_dirs, paths, rng, stats)
     }
 
     /// [`Self::hemisphere_samples`] with each direction's radiance the mean
-    /// of `paths` paths sharing their first segment
+    /// of `paths.per_direction` paths sharing their first segment
     /// ([`Self::incident_radiance_averaged`]).
-    #[allow(clippy::too_many_arguments)]
     pub fn hemisphere_samples_averaged<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
         frame: &Frame,
         local_dirs: &[DVec3],
-        limits: PathLimits,
-        paths: u32,
+        paths: AveragedPaths,
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Vec<RadianceSample> {
@@ -220,7 +222,7 @@ impl Transport {
                 let ray = self
                     .scene()
                     .spawn_ray(point.position(), point.normal(), dir);
-                self.incident_radiance_averaged(ray, limits, paths, rng, stats)
+                self.incident_radiance_averaged(ray, paths.limits, paths.per_direction, rng, stats)
             })
             .collect()
     }

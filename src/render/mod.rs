@@ -39,7 +39,7 @@ pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
 pub use irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions, MeanEstimate};
-pub use path::{PathLengths, PathLimits, RadianceSample, TraceStats};
+pub use path::{AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats};
 pub use query::QueryPoint;
 pub use rgb::Rgb;
 pub use tile::{CameraRayShader, PixelSample, RenderedTile, ShadingMethod, TileRequest};

@@ -48,6 +48,15 @@ pub struct PathLimits {
     pub lengths: PathLengths,
 }
 
+/// Paths averaged per direction: each direction's radiance is the mean of
+/// `per_direction ≥ 1` paths of `limits`, sharing their first segment
+/// ([`Transport::incident_radiance_averaged`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AveragedPaths {
+    pub limits: PathLimits,
+    pub per_direction: u32,
+}
+
 /// Counters a caller sums over a request.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TraceStats {

@@ -52,7 +52,7 @@ pub enum ShadingMethod {
     PathTracing,
     /// Direct light by light sampling, diffuse indirect light from an
     /// irradiance cache, glossy reflection by BMC with the Phong density:
-    /// needs a cache, see `Transport::render_tile_cached` (`crate::integrator::cached::tiles`).
+    /// needs a cache, see `CachedIntegrator::render_tile` (`crate::integrator::cached::tiles`).
     IrradianceCache,
 }
 
@@ -217,7 +217,8 @@ impl Transport {
             }
             ShadingMethod::IrradianceCache => Err(RenderError::InvalidOption {
                 field: "method",
-                reason: "irradiance_cache shading needs a cache: use render_tile_cached".into(),
+                reason: "irradiance_cache shading needs a cache: use CachedIntegrator::render_tile"
+                    .into(),
             }),
         }
     }

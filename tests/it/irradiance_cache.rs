@@ -11,8 +11,8 @@ use bmc_irradiance::cache::{
     Accuracy, CacheConfig, Interpolated, IrradianceCache, Record, RecordRule, RecordRuleSpec,
 };
 use bmc_irradiance::integrator::cached::{
-    Gather, PlacementOptions, PlacementPoint, ShadingStats, compute_record, place_and_shade,
-    place_records, placement,
+    Gather, PlacementOptions, PlacementPoint, RecordGather, ShadingStats, compute_record,
+    place_and_shade, place_records, placement,
 };
 use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::irradiance::MeanEstimate;
@@ -218,18 +218,13 @@ fn back_wall_records(rule: &RecordRule, count: u64, seed: u64, per_direction: u3
         .map(|i| {
             let mut rng = point_rng(seed, i);
             let mut stats = ShadingStats::default();
-            compute_record(
-                &transport,
-                rule,
-                &back_wall_point(),
-                limits,
-                INDIRECT,
+            let how = RecordGather {
+                paths: INDIRECT,
                 per_direction,
-                Gather::Paths,
-                &mut rng,
-                &mut stats,
-            )
-            .unwrap()
+                gather: Gather::Paths,
+            };
+            let point = back_wall_point();
+            compute_record(&transport, rule, &point, limits, &how, &mut rng, &mut stats).unwrap()
         })
         .collect()
 }

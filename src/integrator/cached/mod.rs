@@ -33,8 +33,9 @@ pub use placement::{
     place_records, shade,
 };
 pub use radiance::{
-    RadianceEstimate, RadianceQuery, RadianceShading, radiance_at_points, surface_at,
+    RadianceEstimate, RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points,
+    surface_at,
 };
-pub use shade::{Gather, OnMiss};
+pub use shade::{Bounce, CachedIntegrator, Gather, OnMiss, RecordGather, ShadePoint};
 pub use stats::ShadingStats;
 pub use tiles::CachedTileReport;

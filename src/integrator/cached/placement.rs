@@ -30,7 +30,7 @@ use std::f64::consts::TAU;
 use rand::{Rng, RngExt};
 use rayon::prelude::*;
 
-use super::shade::Gather;
+use super::shade::{Gather, RecordGather};
 use super::stats::ShadingStats;
 use crate::cache::{
     Accuracy, CacheConfig, CacheError, Interpolated, IrradianceCache, PixelFootprint, RadiusLimits,
@@ -90,35 +90,23 @@ pub struct PlacementReport {
 }
 
 /// BMC record at `point`: the rule's directions turned about the normal by a
-/// random angle from `rng`, the mean of `paths_per_direction` radiance
-/// samples each (gathered as `gather` says), `E = π Σ w_i L_i`
+/// random angle from `rng`, the mean of `how.per_direction` radiance
+/// samples each (gathered as `how.gather` says), `E = π Σ w_i L_i`
 /// (see [`RecordRule::estimate`]) and the harmonic-mean radius within
 /// `limits` (tightened by the point's footprint). `stats` counts the rays
 /// and any records created at the rays' bounces.
-#[allow(clippy::too_many_arguments)]
 pub fn compute_record<R: Rng + ?Sized>(
     transport: &Transport,
     rule: &RecordRule,
     target: &PlacementPoint,
     limits: RadiusLimits,
-    paths: PathLimits,
-    paths_per_direction: u32,
-    gather: Gather,
+    how: &RecordGather,
     rng: &mut R,
     stats: &mut ShadingStats,
 ) -> Result<Record, CacheError> {
     let point = &target.point;
     let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
-    let samples = transport.gather_samples(
-        point,
-        &frame,
-        rule.directions(),
-        paths,
-        paths_per_direction,
-        gather,
-        rng,
-        stats,
-    )?;
+    let samples = how.samples(transport, point, &frame, rule.directions(), rng, stats)?;
     let estimate = rule.estimate(&samples)?;
     let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
     let limits = match &target.footprint {
@@ -208,6 +196,11 @@ pub fn place_records(
 ) -> Result<PlacementReport, CacheError> {
     validate(options)?;
     let limits = cache.radius_limits();
+    let how = RecordGather {
+        paths: options.paths,
+        per_direction: options.paths_per_direction,
+        gather,
+    };
     let mut report = PlacementReport::default();
     for (b, batch) in points.chunks(options.batch_size).enumerate() {
         cancel.check()?;
@@ -231,15 +224,7 @@ pub fn place_records(
                 let mut rng = point_rng(options.seed, i as u64);
                 let mut stats = ShadingStats::default();
                 let record = compute_record(
-                    transport,
-                    rule,
-                    &points[i],
-                    limits,
-                    options.paths,
-                    options.paths_per_direction,
-                    gather,
-                    &mut rng,
-                    &mut stats,
+                    transport, rule, &points[i], limits, &how, &mut rng, &mut stats,
                 )?;
                 Ok((record, stats))
             })

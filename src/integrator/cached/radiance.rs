@@ -22,7 +22,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::config::CachedShading;
-use super::shade::{OnMiss, cache_to_render};
+use super::shade::{CachedIntegrator, OnMiss, ShadePoint, cache_to_render};
 use super::stats::ShadingStats;
 use crate::cache::IrradianceCache;
 use crate::render::seed::point_rng;
@@ -102,21 +102,35 @@ fn probe(transport: &Transport, x: DVec3, towards: DVec3) -> Ray {
     }
 }
 
+/// The work of a radiance query.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RadianceOptions {
+    /// Path segments counted as a camera ray does (1 = emission only);
+    /// records in a cache must have been made for the same `max_depth`.
+    pub max_depth: u32,
+    /// Independent estimates averaged per point (≥ 1); their spread gives
+    /// the standard error.
+    pub repeats: u32,
+    /// Seed of every random stream of the request.
+    pub seed: u64,
+}
+
 /// Radiance leaving each `hits[i]` towards `queries[i].direction`, in
-/// parallel on the current rayon pool. `max_depth` counts path segments as a
-/// camera ray does (1 = emission only); records in a cache must have been
-/// made for the same `max_depth`. Stops between points once `cancel` is set.
-#[allow(clippy::too_many_arguments)]
+/// parallel on the current rayon pool. Stops between points once `cancel`
+/// is set.
 pub fn radiance_at_points(
     transport: &Transport,
     queries: &[RadianceQuery],
     hits: &[SurfaceHit],
     shading: RadianceShading,
-    max_depth: u32,
-    repeats: u32,
-    seed: u64,
+    options: RadianceOptions,
     cancel: &Cancel,
 ) -> Result<Vec<RadianceEstimate>, RenderError> {
+    let RadianceOptions {
+        max_depth,
+        repeats,
+        seed,
+    } = options;
     if repeats == 0 {
         return Err(RenderError::InvalidOption {
             field: "repeats",
@@ -145,19 +159,27 @@ pub fn radiance_at_points(
                             .incident_radiance(camera_ray, limits, &mut rng, &mut trace)
                             .radiance)
                     }
-                    RadianceShading::Cached { cache, shading } => transport.outgoing_radiance(
-                        hit,
-                        query.direction,
-                        cache,
-                        shading,
-                        max_depth - 1,
-                        OnMiss::Insert,
-                        // Independent repeats, so their spread is the
-                        // standard error (no pattern shared between them).
-                        None,
-                        &mut rng,
-                        &mut stats,
-                    ),
+                    RadianceShading::Cached { cache, shading } => {
+                        let integrator = CachedIntegrator {
+                            transport,
+                            cache,
+                            shading,
+                        };
+                        let how = ShadePoint {
+                            max_depth: max_depth - 1,
+                            on_miss: OnMiss::Insert,
+                            // Independent repeats, so their spread is the
+                            // standard error (no pattern shared between them).
+                            sample: None,
+                        };
+                        integrator.outgoing_radiance(
+                            hit,
+                            query.direction,
+                            how,
+                            &mut rng,
+                            &mut stats,
+                        )
+                    }
                 })
                 .collect::<Result<Vec<Rgb>, RenderError>>()?;
             let mean = MeanEstimate::of(values);
@@ -219,9 +241,11 @@ mod tests {
             &[query],
             &[hit],
             RadianceShading::PathTracing,
-            8,
-            4096,
-            1,
+            RadianceOptions {
+                max_depth: 8,
+                repeats: 4096,
+                seed: 1,
+            },
             &Cancel::never(),
         )
         .unwrap()[0];
@@ -244,9 +268,11 @@ mod tests {
             &[query],
             &[hit],
             cached,
-            8,
-            4,
-            1,
+            RadianceOptions {
+                max_depth: 8,
+                repeats: 4,
+                seed: 1,
+            },
             &Cancel::never(),
         )
         .unwrap()[0];

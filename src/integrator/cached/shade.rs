@@ -48,8 +48,8 @@ use crate::cache::{Accuracy, CacheError, IrradianceCache};
 use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::strata::{GridStrata, SharedStrata};
 use crate::render::{
-    Bsdf, PathLengths, PathLimits, PixelSample, QueryPoint, RadianceSample, RenderError, Rgb,
-    TraceStats, Transport, warp,
+    AveragedPaths, Bsdf, PathLengths, PathLimits, PixelSample, QueryPoint, RadianceSample,
+    RenderError, Rgb, TraceStats, Transport, warp,
 };
 use crate::scene::SurfaceHit;
 use crate::sphere::Frame;
@@ -76,65 +76,158 @@ pub(crate) fn cache_to_render(e: CacheError) -> RenderError {
     }
 }
 
+/// Shading through one irradiance cache: the scene's transport, the cache
+/// that is read and extended, and its rules and options. The methods carry
+/// the mutual recursion of shading and records (a shading point may create a
+/// record, whose rays may shade points through the cache again), so none of
+/// them passes this context along.
+#[derive(Clone, Copy)]
+pub struct CachedIntegrator<'a> {
+    pub transport: &'a Transport,
+    pub cache: &'a IrradianceCache,
+    pub shading: &'a CachedShading,
+}
+
+/// How a point seen along a camera ray or a query direction is shaded.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadePoint {
+    /// Path segments counted from the point: 0 = its emission only, 1 = plus
+    /// direct light, ≥ 2 adds indirect light of lengths `2..=max_depth`. The
+    /// cache's records must have been made for the same depth.
+    pub max_depth: u32,
+    pub on_miss: OnMiss,
+    /// The camera ray of a pixel this point is, if it is one: its light
+    /// samples then take their share of one pattern over the pixel's rays.
+    pub sample: Option<PixelSample>,
+}
+
+/// An ambient bounce of a record's rays through the cache (module docs).
+#[derive(Clone, Copy, Debug)]
+pub struct Bounce {
+    /// The paths the record's rays sum.
+    pub paths: PathLimits,
+    /// Level of the record being computed (0 = placed for a shading point).
+    pub level: u32,
+    pub on_miss: OnMiss,
+}
+
 /// Where a record's rays get their incident radiance.
 #[derive(Clone, Copy)]
 pub enum Gather<'a> {
     /// One path-traced estimate per ray ([`Transport::hemisphere_samples`]).
     Paths,
-    /// An ambient bounce through the cache (module docs): at each ray's
-    /// hit, direct light by one light sample plus `(k_d/π) E_ind` from
-    /// `cache`, with `on_miss` where no record covers the hit.
+    /// An ambient bounce through `integrator`'s cache (module docs): at each
+    /// ray's hit, direct light by one light sample plus `(k_d/π) E_ind` from
+    /// the cache, with `bounce.on_miss` where no record covers the hit.
     Cache {
-        cache: &'a IrradianceCache,
-        shading: &'a CachedShading,
-        /// Level of the record being computed (0 = placed for a shading point).
-        level: u32,
-        on_miss: OnMiss,
+        integrator: CachedIntegrator<'a>,
+        bounce: Bounce,
     },
 }
 
 impl<'a> Gather<'a> {
-    /// How a record at `level` gathers: through `cache` while `level <
-    /// ambient_bounces` and `paths` reach [`AMBIENT_MIN_DEPTH`], by paths
-    /// otherwise. With `insert_nested` a miss at a bounce creates a record
-    /// one level deeper; without it the cache is only read (a fallback path
-    /// serves the miss), which keeps a placement batch deterministic.
+    /// How a record at `level` gathers: through the integrator's cache while
+    /// `level < ambient_bounces` and `paths` reach [`AMBIENT_MIN_DEPTH`], by
+    /// paths otherwise. With `insert_nested` a miss at a bounce creates a
+    /// record one level deeper; without it the cache is only read (a
+    /// fallback path serves the miss), which keeps a placement batch
+    /// deterministic.
     pub fn for_record(
-        cache: &'a IrradianceCache,
-        shading: &'a CachedShading,
+        integrator: CachedIntegrator<'a>,
         paths: PathLimits,
         level: u32,
         insert_nested: bool,
     ) -> Self {
-        if level >= shading.options.ambient_bounces || paths.max_depth < AMBIENT_MIN_DEPTH {
+        let options = &integrator.shading.options;
+        if level >= options.ambient_bounces || paths.max_depth < AMBIENT_MIN_DEPTH {
             return Gather::Paths;
         }
+        let on_miss = if insert_nested {
+            OnMiss::Insert
+        } else {
+            OnMiss::PathTrace
+        };
         Gather::Cache {
-            cache,
-            shading,
-            level,
-            on_miss: if insert_nested {
-                OnMiss::Insert
-            } else {
-                OnMiss::PathTrace
+            integrator,
+            bounce: Bounce {
+                paths,
+                level,
+                on_miss,
             },
         }
+    }
+}
+
+/// How a record's rays gather, and how many estimates each direction averages.
+#[derive(Clone, Copy)]
+pub struct RecordGather<'a> {
+    /// The paths the rays sum.
+    pub paths: PathLimits,
+    /// Estimates averaged per direction (≥ 1); by paths, those share their
+    /// first segment.
+    pub per_direction: u32,
+    pub gather: Gather<'a>,
+}
+
+impl RecordGather<'_> {
+    /// Incident radiance along each local direction of a record at `point`
+    /// in `frame`, each the mean of `per_direction` estimates; rays and
+    /// nested records are counted in `stats`.
+    pub fn samples<R: Rng + ?Sized>(
+        &self,
+        transport: &Transport,
+        point: &QueryPoint,
+        frame: &Frame,
+        local_dirs: &[DVec3],
+        rng: &mut R,
+        stats: &mut ShadingStats,
+    ) -> Result<Vec<RadianceSample>, RenderError> {
+        let Gather::Cache { integrator, bounce } = self.gather else {
+            let mut trace = TraceStats::default();
+            let paths = AveragedPaths {
+                limits: self.paths,
+                per_direction: self.per_direction,
+            };
+            let samples = transport
+                .hemisphere_samples_averaged(point, frame, local_dirs, paths, rng, &mut trace);
+            stats.rays += trace.rays;
+            return Ok(samples);
+        };
+        let gather = |rng: &mut R, stats: &mut ShadingStats| {
+            integrator.gather_through_cache(point, frame, local_dirs, bounce, rng, stats)
+        };
+        // Welford's running mean and spread per direction (Welford 1962),
+        // in place: the repeats are independent estimates of each value.
+        let mut samples = gather(rng, stats)?;
+        let mut m2 = vec![Rgb::BLACK; samples.len()];
+        for k in 2..=self.per_direction {
+            let more = gather(rng, stats)?;
+            for ((s, m2), m) in samples.iter_mut().zip(&mut m2).zip(more) {
+                let delta = m.radiance - s.radiance;
+                s.radiance += delta * (1.0 / f64::from(k));
+                *m2 += delta * (m.radiance - s.radiance);
+            }
+        }
+        if self.per_direction > 1 {
+            let n = f64::from(self.per_direction);
+            for (s, m2) in samples.iter_mut().zip(m2) {
+                s.variance = m2 * (1.0 / ((n - 1.0) * n));
+            }
+        }
+        Ok(samples)
     }
 }
 
 /// How one reflection at a surface point is shaded.
 #[derive(Clone, Copy)]
 struct Reflection<'a> {
-    cache: &'a IrradianceCache,
-    shading: &'a CachedShading,
     /// Accuracy, occlusion test and path limits of lookups and records.
     placement: &'a PlacementOptions,
     light_samples: u32,
     /// Level of a record created here (0 at a camera or viewer hit).
     level: u32,
     on_miss: OnMiss,
-    /// The camera ray of a pixel this shading is: its light samples then
-    /// take their share of one pattern over all the pixel's rays.
+    /// The camera ray of a pixel this shading is (see [`ShadePoint::sample`]).
     sample: Option<PixelSample>,
     /// Add indirect light (path lengths ≥ 2 from the point).
     indirect: bool,
@@ -142,48 +235,46 @@ struct Reflection<'a> {
     glossy_bmc: bool,
 }
 
-impl Transport {
+/// A surface point about to reflect light towards `wo`: its hit, shading
+/// frame, BSDF and the outgoing direction in that frame.
+struct Surface<'h> {
+    hit: &'h SurfaceHit,
+    frame: Frame,
+    bsdf: &'h Bsdf,
+    wo_local: DVec3,
+}
+
+impl CachedIntegrator<'_> {
     /// Radiance leaving the surface at `hit` towards the unit world direction
     /// `wo` (pointing away from the surface), W/(m²·sr), shaded as in the
-    /// module docs. `max_depth` bounds the path segments counted from the
-    /// point (0 = its emission only, 1 = plus direct light, ≥ 2 adds indirect
-    /// light of lengths `2..=max_depth`);
-    /// the records in `cache` must have been made for the same depth.
-    /// With `sample`, this is ray `index` of `count` estimating one value
-    /// (a pixel's camera rays) and its light samples are
-    /// numbers `index·n ..< (index + 1)·n` of one [`SharedStrata`] pattern
-    /// of `count·n` samples seeded by `sample.pattern`; otherwise they are
-    /// stratified among themselves only.
-    #[allow(clippy::too_many_arguments)]
+    /// module docs and `how` says. With `how.sample`, this is ray `index` of
+    /// `count` estimating one value (a pixel's camera rays) and its light
+    /// samples are numbers `index·n ..< (index + 1)·n` of one
+    /// [`SharedStrata`] pattern of `count·n` samples seeded by
+    /// `sample.pattern`; otherwise they are stratified among themselves only.
     pub fn outgoing_radiance<R: Rng + ?Sized>(
         &self,
         hit: &SurfaceHit,
         wo: DVec3,
-        cache: &IrradianceCache,
-        shading: &CachedShading,
-        max_depth: u32,
-        on_miss: OnMiss,
-        sample: Option<PixelSample>,
+        how: ShadePoint,
         rng: &mut R,
         stats: &mut ShadingStats,
     ) -> Result<Rgb, RenderError> {
-        let options = &shading.options;
+        let options = &self.shading.options;
         let placement = options
-            .placement(indirect_paths(max_depth), 0)
+            .placement(indirect_paths(how.max_depth), 0)
             .map_err(cache_to_render)?;
-        let radiance = emitted_radiance(self.scene(), hit, -wo);
-        if max_depth == 0 {
+        let radiance = emitted_radiance(self.transport.scene(), hit, -wo);
+        if how.max_depth == 0 {
             return Ok(radiance);
         }
         let reflection = Reflection {
-            cache,
-            shading,
             placement: &placement,
             light_samples: options.light_samples,
             level: 0,
-            on_miss,
-            sample,
-            indirect: max_depth >= 2,
+            on_miss: how.on_miss,
+            sample: how.sample,
+            indirect: how.max_depth >= 2,
             glossy_bmc: true,
         };
         Ok(radiance + self.reflected_radiance(hit, wo, &reflection, rng, stats)?)
@@ -199,7 +290,7 @@ impl Transport {
         rng: &mut R,
         stats: &mut ShadingStats,
     ) -> Result<Rgb, RenderError> {
-        let Some(bsdf) = self.bsdf(hit.material) else {
+        let Some(bsdf) = self.transport.bsdf(hit.material) else {
             return Ok(Rgb::BLACK);
         };
         let frame = Frame::from_normal(hit.shading_normal);
@@ -207,17 +298,15 @@ impl Transport {
         if wo_local.z <= 0.0 || bsdf.is_black() {
             return Ok(Rgb::BLACK);
         }
-        let mut trace = TraceStats::default();
-        let mut radiance = self.direct_radiance(
+        let surface = Surface {
             hit,
-            &frame,
+            frame,
             bsdf,
             wo_local,
-            r.light_samples,
-            r.sample,
-            rng,
-            &mut trace,
-        );
+        };
+        let mut trace = TraceStats::default();
+        let mut radiance =
+            self.direct_radiance(&surface, r.light_samples, r.sample, rng, &mut trace);
         if r.indirect {
             let point = QueryPoint::new(hit.position, hit.shading_normal)?;
             if !bsdf.diffuse.is_black() {
@@ -225,18 +314,7 @@ impl Transport {
                 radiance += bsdf.diffuse * e * (1.0 / PI);
             }
             if !bsdf.specular.is_black() {
-                let i = self.glossy_indirect(
-                    &point,
-                    &frame,
-                    bsdf,
-                    wo_local,
-                    r.shading,
-                    r.placement.paths,
-                    r.glossy_bmc,
-                    rng,
-                    &mut trace,
-                    stats,
-                )?;
+                let i = self.glossy_indirect(&surface, &point, r, rng, &mut trace, stats)?;
                 radiance += bsdf.specular * i;
             }
         }
@@ -244,103 +322,35 @@ impl Transport {
         Ok(radiance)
     }
 
-    /// Incident radiance along each local direction of a record at `point`
-    /// (see [`Gather`]), each the mean of `per_direction ≥ 1` estimates (by
-    /// paths, those share their first segment); rays and nested records are
-    /// counted in `stats`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn gather_samples<R: Rng + ?Sized>(
-        &self,
-        point: &QueryPoint,
-        frame: &Frame,
-        local_dirs: &[DVec3],
-        paths: PathLimits,
-        per_direction: u32,
-        gather: Gather,
-        rng: &mut R,
-        stats: &mut ShadingStats,
-    ) -> Result<Vec<RadianceSample>, RenderError> {
-        let Gather::Cache {
-            cache,
-            shading,
-            level,
-            on_miss,
-        } = gather
-        else {
-            let mut trace = TraceStats::default();
-            let samples = self.hemisphere_samples_averaged(
-                point,
-                frame,
-                local_dirs,
-                paths,
-                per_direction,
-                rng,
-                &mut trace,
-            );
-            stats.rays += trace.rays;
-            return Ok(samples);
-        };
-        // Welford's running mean and spread per direction (Welford 1962),
-        // in place: the repeats are independent estimates of each value.
-        let mut samples = self.gather_through_cache(
-            point, frame, local_dirs, paths, cache, shading, level, on_miss, rng, stats,
-        )?;
-        let mut m2 = vec![Rgb::BLACK; samples.len()];
-        for k in 2..=per_direction {
-            let more = self.gather_through_cache(
-                point, frame, local_dirs, paths, cache, shading, level, on_miss, rng, stats,
-            )?;
-            for ((s, m2), m) in samples.iter_mut().zip(&mut m2).zip(more) {
-                let delta = m.radiance - s.radiance;
-                s.radiance += delta * (1.0 / f64::from(k));
-                *m2 += delta * (m.radiance - s.radiance);
-            }
-        }
-        if per_direction > 1 {
-            let n = f64::from(per_direction);
-            for (s, m2) in samples.iter_mut().zip(m2) {
-                s.variance = m2 * (1.0 / ((n - 1.0) * n));
-            }
-        }
-        Ok(samples)
-    }
-
     /// One estimate per direction by an ambient bounce ([`Gather::Cache`]).
-    #[allow(clippy::too_many_arguments)]
     fn gather_through_cache<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
         frame: &Frame,
         local_dirs: &[DVec3],
-        paths: PathLimits,
-        cache: &IrradianceCache,
-        shading: &CachedShading,
-        level: u32,
-        on_miss: OnMiss,
+        bounce: Bounce,
         rng: &mut R,
         stats: &mut ShadingStats,
     ) -> Result<Vec<RadianceSample>, RenderError> {
+        let options = &self.shading.options;
         let relaxed = PlacementOptions {
-            accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * shading.options.accuracy).min(1.0))
+            accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * options.accuracy).min(1.0))
                 .map_err(cache_to_render)?,
-            ..shading
-                .options
-                .placement(paths, 0)
+            ..options
+                .placement(bounce.paths, 0)
                 .map_err(cache_to_render)?
         };
-        let bounce = Reflection {
-            cache,
-            shading,
+        let reflection = Reflection {
             placement: &relaxed,
             light_samples: 1,
-            level: level + 1,
-            on_miss,
+            level: bounce.level + 1,
+            on_miss: bounce.on_miss,
             sample: None,
             indirect: true,
             glossy_bmc: false,
         };
-        let all = paths.lengths == PathLengths::All;
-        let scene = self.scene();
+        let all = bounce.paths.lengths == PathLengths::All;
+        let scene = self.transport.scene();
         local_dirs
             .iter()
             .map(|local| {
@@ -361,7 +371,7 @@ impl Transport {
                 if all {
                     sample.radiance = emitted_radiance(scene, &hit, dir);
                 }
-                sample.radiance += self.reflected_radiance(&hit, -dir, &bounce, rng, stats)?;
+                sample.radiance += self.reflected_radiance(&hit, -dir, &reflection, rng, stats)?;
                 Ok(sample)
             })
             .collect()
@@ -369,22 +379,19 @@ impl Transport {
 
     /// `∫ f_r L_direct cos θ dω` by `n` light samples whose area/direction
     /// numbers are stratified: on the shared pattern of `sample` (see
-    /// [`Transport::outgoing_radiance`]), else on a near-square grid of `n`
+    /// [`Self::outgoing_radiance`]), else on a near-square grid of `n`
     /// cells. Either way every sample is uniform on its own, so the mean is
     /// unbiased; stratification keeps penumbrae smooth.
-    #[allow(clippy::too_many_arguments)]
     fn direct_radiance<R: Rng + ?Sized>(
         &self,
-        hit: &SurfaceHit,
-        frame: &Frame,
-        bsdf: &Bsdf,
-        wo_local: DVec3,
+        s: &Surface,
         n: u32,
         sample: Option<PixelSample>,
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Rgb {
-        let scene = self.scene();
+        let scene = self.transport.scene();
+        let hit = s.hit;
         let shared = sample.map(|p| {
             let count = u64::from(p.count) * u64::from(n);
             (
@@ -400,11 +407,15 @@ impl Transport {
                 Some((strata, first)) => strata.sample(first + u64::from(k), jitter),
                 None => own.sample(k, jitter),
             };
-            let Some(light) = self.lights().sample(scene, hit.position, rng.random(), u) else {
+            let Some(light) = self
+                .transport
+                .lights()
+                .sample(scene, hit.position, rng.random(), u)
+            else {
                 continue;
             };
-            let wi = frame.to_local(light.wi);
-            let f = bsdf.eval(wo_local, wi);
+            let wi = s.frame.to_local(light.wi);
+            let f = s.bsdf.eval(s.wo_local, wi);
             if f.is_black() || light.radiance.is_black() {
                 continue;
             }
@@ -429,8 +440,8 @@ impl Transport {
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
     ) -> Result<Rgb, RenderError> {
-        let (cache, placement) = (r.cache, r.placement);
-        if let Some(found) = lookup(cache, self, point, placement) {
+        let (cache, placement) = (self.cache, r.placement);
+        if let Some(found) = lookup(cache, self.transport, point, placement) {
             stats.cache_hits += 1;
             return Ok(found.irradiance);
         }
@@ -441,15 +452,17 @@ impl Transport {
                     point: *point,
                     footprint: None,
                 };
-                let gather = Gather::for_record(cache, r.shading, placement.paths, r.level, true);
+                let how = RecordGather {
+                    paths: placement.paths,
+                    per_direction: placement.paths_per_direction,
+                    gather: Gather::for_record(*self, placement.paths, r.level, true),
+                };
                 let record = compute_record(
-                    self,
-                    &r.shading.rule,
+                    self.transport,
+                    &self.shading.rule,
                     &target,
                     cache.radius_limits(),
-                    placement.paths,
-                    placement.paths_per_direction,
-                    gather,
+                    &how,
                     rng,
                     stats,
                 )
@@ -466,7 +479,7 @@ impl Transport {
                     accuracy: Accuracy::new(1.0).map_err(cache_to_render)?,
                     ..*placement
                 };
-                if let Some(found) = lookup(cache, self, point, &relaxed) {
+                if let Some(found) = lookup(cache, self.transport, point, &relaxed) {
                     stats.cache_hits += 1;
                     stats.relaxed_hits += 1;
                     return Ok(found.irradiance);
@@ -476,51 +489,59 @@ impl Transport {
                 // E ≈ π L_i(ω) for one cosine-distributed ω.
                 let frame = Frame::from_normal(point.normal());
                 let dir = warp::cosine_hemisphere([rng.random(), rng.random()]);
-                let sample =
-                    self.hemisphere_samples(point, &frame, &[dir], placement.paths, rng, trace);
+                let sample = self.transport.hemisphere_samples(
+                    point,
+                    &frame,
+                    &[dir],
+                    placement.paths,
+                    rng,
+                    trace,
+                );
                 Ok(sample[0].radiance * PI)
             }
         }
     }
 
-    /// `∫ L_ind p dω` for the Phong density of `bsdf` at `wo_local`: BMC
-    /// with the interpolated glossy rule, or one lobe-sampled path above
-    /// [`MAX_BMC_EXPONENT`] or without `bmc`.
-    #[allow(clippy::too_many_arguments)]
+    /// `∫ L_ind p dω` for the Phong density of the surface's BSDF at its
+    /// `wo_local`: BMC with the interpolated glossy rule, or one lobe-sampled
+    /// path above [`MAX_BMC_EXPONENT`] or without `r.glossy_bmc`.
     fn glossy_indirect<R: Rng + ?Sized>(
         &self,
+        s: &Surface,
         point: &QueryPoint,
-        frame: &Frame,
-        bsdf: &Bsdf,
-        wo_local: DVec3,
-        shading: &CachedShading,
-        paths: PathLimits,
-        bmc: bool,
+        r: &Reflection,
         rng: &mut R,
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
     ) -> Result<Rgb, RenderError> {
-        let mirror = DVec3::new(-wo_local.x, -wo_local.y, wo_local.z);
-        let m = bsdf.exponent;
-        if !bmc || m > MAX_BMC_EXPONENT {
+        let paths = r.placement.paths;
+        let mirror = DVec3::new(-s.wo_local.x, -s.wo_local.y, s.wo_local.z);
+        let m = s.bsdf.exponent;
+        if !r.glossy_bmc || m > MAX_BMC_EXPONENT {
             stats.glossy_path_traced += 1;
             let lobe = Frame::from_normal(mirror);
             let wi = lobe.to_world(warp::power_cosine([rng.random(), rng.random()], m));
             if wi.z <= 0.0 {
                 return Ok(Rgb::BLACK);
             }
-            let l = self.hemisphere_samples(point, frame, &[wi], paths, rng, trace)[0].radiance;
+            let l = self
+                .transport
+                .hemisphere_samples(point, &s.frame, &[wi], paths, rng, trace)[0]
+                .radiance;
             // p / pdf = (m+2)/(2π) cos^m α cos θ / ((m+1)/(2π) cos^m α).
             return Ok(l * ((m + 2.0) / (m + 1.0) * wi.z));
         }
         stats.glossy_bmc += 1;
         let theta_r = mirror.z.clamp(-1.0, 1.0).acos();
-        let turned = frame.rotated_about_normal(mirror.y.atan2(mirror.x));
-        let rule = shading
+        let turned = s.frame.rotated_about_normal(mirror.y.atan2(mirror.x));
+        let rule = self
+            .shading
             .glossy
             .weights(m, theta_r)
             .map_err(cache_to_render)?;
-        let samples = self.hemisphere_samples(point, &turned, &rule.directions, paths, rng, trace);
+        let samples =
+            self.transport
+                .hemisphere_samples(point, &turned, &rule.directions, paths, rng, trace);
         Ok(samples
             .iter()
             .zip(&rule.weights)
@@ -573,16 +594,25 @@ mod tests {
             point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
             footprint: None,
         };
+        let integrator = CachedIntegrator {
+            transport: &transport,
+            cache: &cache,
+            shading: &shading,
+        };
         let mut rng = Pcg64::seed_from_u64(21);
         let mut record = |gather: Gather, stats: &mut ShadingStats| {
+            let how = RecordGather {
+                paths,
+                per_direction: 1,
+                gather,
+            };
+            let limits = cache.radius_limits();
             compute_record(
                 &transport,
                 &shading.rule,
                 &target,
-                cache.radius_limits(),
-                paths,
-                1,
-                gather,
+                limits,
+                &how,
                 &mut rng,
                 stats,
             )
@@ -590,8 +620,14 @@ mod tests {
             .irradiance
         };
         let mut stats = ShadingStats::default();
-        let gathered = Gather::for_record(&cache, &shading, paths, 0, true);
-        assert!(matches!(gathered, Gather::Cache { level: 0, .. }));
+        let gathered = Gather::for_record(integrator, paths, 0, true);
+        assert!(matches!(
+            gathered,
+            Gather::Cache {
+                bounce: Bounce { level: 0, .. },
+                ..
+            }
+        ));
         let cached = crate::render::MeanEstimate::of((0..24).map(|_| record(gathered, &mut stats)));
         assert!(
             stats.records_created > 0 && stats.ambient_records > 0,
@@ -615,11 +651,11 @@ mod tests {
         }
         // Short paths, or no ambient bounces, gather by paths.
         assert!(matches!(
-            Gather::for_record(&cache, &shading, indirect_paths(4), 0, true),
+            Gather::for_record(integrator, indirect_paths(4), 0, true),
             Gather::Paths
         ));
         assert!(matches!(
-            Gather::for_record(&cache, &shading, paths, 2, true),
+            Gather::for_record(integrator, paths, 2, true),
             Gather::Paths
         ));
     }
@@ -638,19 +674,19 @@ mod tests {
         let hit = transport.scene().intersect(&ray).unwrap();
         let mut rng = Pcg64::seed_from_u64(3);
         let mut stats = ShadingStats::default();
-        let mut shade = |depth: u32, stats: &mut ShadingStats| {
-            transport
-                .outgoing_radiance(
-                    &hit,
-                    -ray.dir,
-                    &cache,
-                    &shading,
-                    depth,
-                    OnMiss::Insert,
-                    None,
-                    &mut rng,
-                    stats,
-                )
+        let integrator = CachedIntegrator {
+            transport: &transport,
+            cache: &cache,
+            shading: &shading,
+        };
+        let mut shade = |max_depth: u32, stats: &mut ShadingStats| {
+            let how = ShadePoint {
+                max_depth,
+                on_miss: OnMiss::Insert,
+                sample: None,
+            };
+            integrator
+                .outgoing_radiance(&hit, -ray.dir, how, &mut rng, stats)
                 .unwrap()
         };
         let full = shade(8, &mut stats);
@@ -701,14 +737,40 @@ mod tests {
         let point = QueryPoint::new(hit.position, hit.shading_normal).unwrap();
         let paths = indirect_paths(4);
         let shading = test_shading(default_rule_spec(), CacheShadingOptions::default());
+        let cache = IrradianceCache::new(Default::default()).unwrap();
+        let integrator = CachedIntegrator {
+            transport: &transport,
+            cache: &cache,
+            shading: &shading,
+        };
+        let surface = Surface {
+            hit: &hit,
+            frame,
+            bsdf: &bsdf,
+            wo_local,
+        };
+        let placement = shading.options.placement(paths, 0).unwrap();
+        let reflection = Reflection {
+            placement: &placement,
+            light_samples: 1,
+            level: 0,
+            on_miss: OnMiss::PathTrace,
+            sample: None,
+            indirect: true,
+            glossy_bmc: true,
+        };
         let mut rng = Pcg64::seed_from_u64(5);
         let (mut trace, mut stats) = (TraceStats::default(), ShadingStats::default());
         let bmc: Rgb = (0..16)
             .map(|_| {
-                transport
+                integrator
                     .glossy_indirect(
-                        &point, &frame, &bsdf, wo_local, &shading, paths, true, &mut rng,
-                        &mut trace, &mut stats,
+                        &surface,
+                        &point,
+                        &reflection,
+                        &mut rng,
+                        &mut trace,
+                        &mut stats,
                     )
                     .unwrap()
             })

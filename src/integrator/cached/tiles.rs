@@ -12,7 +12,7 @@
 //!    `min_pixels` and `max_pixels` of it.
 //! 2. **Shading** by the shared pixel loop ([`render_tile_with`]): each
 //!    jittered camera ray's first hit is shaded by
-//!    [`Transport::outgoing_radiance`] with [`OnMiss::PathTrace`], so the pass
+//!    [`CachedIntegrator::outgoing_radiance`] with [`OnMiss::PathTrace`], so the pass
 //!    only reads the cache.
 //!
 //! With `reproducible`, both passes use a private cache (same configuration
@@ -30,14 +30,14 @@ use rayon::prelude::*;
 
 use super::config::{CachedShading, indirect_paths};
 use super::placement::{PlacementPoint, PlacementReport, place_records};
-use super::shade::{Gather, OnMiss, cache_to_render};
+use super::shade::{CachedIntegrator, Gather, OnMiss, ShadePoint, cache_to_render};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
 use crate::render::tile::{
     CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
 };
-use crate::render::{Cancel, PixelSample, QueryPoint, RenderError, Rgb, TraceStats, Transport};
+use crate::render::{Cancel, PixelSample, QueryPoint, RenderError, Rgb, TraceStats};
 use crate::scene::Ray;
 
 /// What a cached tile request did.
@@ -56,9 +56,7 @@ pub struct CachedTileReport {
 /// Shades camera rays through a cache (module docs), collecting counters
 /// and the first error (the pixel loop's shader interface cannot fail).
 struct CacheRayShader<'a> {
-    transport: &'a Transport,
-    cache: &'a IrradianceCache,
-    shading: &'a CachedShading,
+    integrator: CachedIntegrator<'a>,
     /// Segments counted from the first hit.
     depth: u32,
     stats: Mutex<ShadingStats>,
@@ -73,23 +71,20 @@ impl CameraRayShader for CacheRayShader<'_> {
         rng: &mut Pcg64,
         stats: &mut TraceStats,
     ) -> Rgb {
-        let scene = self.transport.scene();
+        let scene = self.integrator.transport.scene();
         stats.rays += 1;
         let Some(hit) = scene.intersect(&ray) else {
             return environment_radiance(scene, ray.dir);
         };
         let mut local = ShadingStats::default();
-        let result = self.transport.outgoing_radiance(
-            &hit,
-            -ray.dir,
-            self.cache,
-            self.shading,
-            self.depth,
-            OnMiss::PathTrace,
-            Some(sample),
-            rng,
-            &mut local,
-        );
+        let how = ShadePoint {
+            max_depth: self.depth,
+            on_miss: OnMiss::PathTrace,
+            sample: Some(sample),
+        };
+        let result = self
+            .integrator
+            .outgoing_radiance(&hit, -ray.dir, how, rng, &mut local);
         stats.rays += local.rays;
         *self.stats.lock().unwrap_or_else(|e| e.into_inner()) += local;
         result.unwrap_or_else(|e| {
@@ -113,17 +108,13 @@ fn coarse_to_fine(request: &TileRequest) -> Vec<(u32, u32)> {
     pixels
 }
 
-impl Transport {
+impl CachedIntegrator<'_> {
     /// Placement points of a tile (module docs): front-facing first hits
     /// with a diffuse lobe, in coarse-to-fine order.
-    fn placement_points(
-        &self,
-        request: &TileRequest,
-        shading: &CachedShading,
-    ) -> Result<Vec<PlacementPoint>, RenderError> {
-        let scene = self.scene();
+    fn placement_points(&self, request: &TileRequest) -> Result<Vec<PlacementPoint>, RenderError> {
+        let scene = self.transport.scene();
         let camera = &scene.camera;
-        let options = &shading.options;
+        let options = &self.shading.options;
         coarse_to_fine(request)
             .par_iter()
             .map(|&(px, py)| {
@@ -133,6 +124,7 @@ impl Transport {
                     return Ok(None);
                 };
                 let diffuse = self
+                    .transport
                     .bsdf(hit.material)
                     .is_some_and(|b| !b.diffuse.is_black());
                 if !diffuse || hit.shading_normal.dot(ray.dir) >= 0.0 {
@@ -152,32 +144,34 @@ impl Transport {
             .collect()
     }
 
-    /// Renders one tile through the irradiance cache `cache` (module docs).
-    /// `cache` must belong to this scene, `shading.rule` and the request's
+    /// Renders one tile through this integrator's cache (module docs). The
+    /// cache must belong to this scene, the shading's rule and the request's
     /// `max_depth` (the caller keys its caches by them); the request's
     /// `method` is not consulted. Stops between records and pixels once
     /// `cancel` is set.
-    pub fn render_tile_cached(
+    pub fn render_tile(
         &self,
         request: &TileRequest,
-        cache: &IrradianceCache,
-        shading: &CachedShading,
         cancel: &Cancel,
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
-        let camera = &self.scene().camera;
+        let (transport, shading) = (self.transport, self.shading);
+        let camera = &transport.scene().camera;
         request.validate(camera.resolution())?;
         shading.options.validate().map_err(cache_to_render)?;
         let depth = request.max_depth - 1;
         let mut report = CachedTileReport::default();
         let private;
         let target = if shading.options.reproducible {
-            private = IrradianceCache::new(*cache.config()).map_err(cache_to_render)?;
-            &private
+            private = IrradianceCache::new(*self.cache.config()).map_err(cache_to_render)?;
+            CachedIntegrator {
+                cache: &private,
+                ..*self
+            }
         } else {
-            cache
+            *self
         };
         if depth >= 2 {
-            let points = self.placement_points(request, shading)?;
+            let points = self.placement_points(request)?;
             report.placement_points = points.len() as u64;
             // The tile's own stream family, so tiles sharing a seed do not
             // reuse each other's record rotations.
@@ -189,10 +183,10 @@ impl Transport {
             // A private cache is only read at the bounces, so the batch stays
             // deterministic (see `placement`).
             let reproducible = shading.options.reproducible;
-            let gather = Gather::for_record(target, shading, options.paths, 0, !reproducible);
+            let gather = Gather::for_record(target, options.paths, 0, !reproducible);
             report.placement = place_records(
-                target,
-                self,
+                target.cache,
+                transport,
                 &shading.rule,
                 &points,
                 &options,
@@ -202,9 +196,7 @@ impl Transport {
             .map_err(cache_to_render)?;
         }
         let shader = CacheRayShader {
-            transport: self,
-            cache: target,
-            shading,
+            integrator: target,
             depth,
             stats: Mutex::new(ShadingStats::default()),
             error: Mutex::new(None),
@@ -217,7 +209,7 @@ impl Transport {
         report.shading.rays = tile.rays;
         tile.rays += report.placement.rays;
         if shading.options.reproducible {
-            report.records_published = publish(&target.records(), cache, shading)?;
+            report.records_published = publish(&target.cache.records(), self.cache, shading)?;
         }
         Ok((tile, report))
     }
@@ -251,8 +243,8 @@ mod tests {
     use crate::cache::CacheConfig;
     use crate::image::relative_rmse;
     use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
-    use crate::render::ShadingMethod;
     use crate::render::tile::tests::{cornell, request};
+    use crate::render::{ShadingMethod, Transport};
 
     /// A small, fast configuration: 16 directions per record.
     fn shading(options: CacheShadingOptions) -> CachedShading {
@@ -281,6 +273,20 @@ mod tests {
         }
     }
 
+    fn render_cached(
+        transport: &Transport,
+        request: &TileRequest,
+        cache: &IrradianceCache,
+        shading: &CachedShading,
+    ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
+        CachedIntegrator {
+            transport,
+            cache,
+            shading,
+        }
+        .render_tile(request, &Cancel::never())
+    }
+
     fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -296,20 +302,12 @@ mod tests {
         let r = cached_request(0, 0, 16);
         // Fill `busy` with other records first: another seed, shared mode.
         let other = TileRequest { seed: 99, ..r };
-        transport
-            .render_tile_cached(&other, &busy, &shading(options(false)), &Cancel::never())
-            .unwrap();
+        render_cached(&transport, &other, &busy, &shading(options(false))).unwrap();
         let before = busy.stats().records;
         assert!(before > 0);
         let s = shading(options(true));
-        let (a, ra) = in_pool(1, || {
-            transport.render_tile_cached(&r, &quiet, &s, &Cancel::never())
-        })
-        .unwrap();
-        let (b, rb) = in_pool(2, || {
-            transport.render_tile_cached(&r, &busy, &s, &Cancel::never())
-        })
-        .unwrap();
+        let (a, ra) = in_pool(1, || render_cached(&transport, &r, &quiet, &s)).unwrap();
+        let (b, rb) = in_pool(2, || render_cached(&transport, &r, &busy, &s)).unwrap();
         assert_eq!(a, b);
         assert_eq!(ra.placement, rb.placement);
         assert!(ra.placement.records_created > 0);
@@ -322,14 +320,8 @@ mod tests {
         assert!(rb.records_published < ra.records_published);
         // And the method is not a no-op: light arrives, the seed matters.
         assert!(a.image.rgb().iter().any(|p| p[0] > 0.0));
-        let (c, _) = transport
-            .render_tile_cached(
-                &TileRequest { seed: 8, ..r },
-                &cache(),
-                &s,
-                &Cancel::never(),
-            )
-            .unwrap();
+        let (c, _) =
+            render_cached(&transport, &TileRequest { seed: 8, ..r }, &cache(), &s).unwrap();
         assert_ne!(c.image, a.image);
     }
 
@@ -339,12 +331,8 @@ mod tests {
         let shared = cache();
         let s = shading(options(false));
         let r = cached_request(0, 0, 16);
-        let (first, r1) = transport
-            .render_tile_cached(&r, &shared, &s, &Cancel::never())
-            .unwrap();
-        let (second, r2) = transport
-            .render_tile_cached(&r, &shared, &s, &Cancel::never())
-            .unwrap();
+        let (first, r1) = render_cached(&transport, &r, &shared, &s).unwrap();
+        let (second, r2) = render_cached(&transport, &r, &shared, &s).unwrap();
         assert!(r1.placement.records_created > 0);
         assert_eq!(r2.placement.records_created, 0);
         assert_eq!(shared.stats().records, r1.placement.records_created);
@@ -371,9 +359,7 @@ mod tests {
                     let (transport, shared, s) = (&transport, &shared, &s);
                     scope.spawn(move || {
                         let r = cached_request((i % 4) * 8, (i / 4) * 16, 8);
-                        let (_, report) = transport
-                            .render_tile_cached(&r, shared, s, &Cancel::never())
-                            .unwrap();
+                        let (_, report) = render_cached(transport, &r, shared, s).unwrap();
                         report.placement.records_created
                     })
                 })
@@ -410,9 +396,7 @@ mod tests {
             samples_per_pixel: 4,
             ..cached_request(0, 0, 16)
         };
-        let (cached, _) = transport
-            .render_tile_cached(&r, &cache(), &s, &Cancel::never())
-            .unwrap();
+        let (cached, _) = render_cached(&transport, &r, &cache(), &s).unwrap();
         let traced = transport
             .render_tile(
                 &TileRequest {

@@ -15,7 +15,9 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::bmc::KernelKind;
-use crate::render::estimators::{EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale};
+use crate::render::estimators::{
+    EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
+};
 use crate::render::{IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
@@ -178,15 +180,12 @@ pub async fn irradiance(
         .pool
         .run(move |cancel| {
             let transport = &scene.transport;
-            let estimates = point_estimator.estimate(
-                transport,
-                &scene.kernels,
-                &worker.quadratures,
-                &points,
-                &options,
-                &|| {},
-                cancel,
-            );
+            let caches = EstimatorCaches {
+                kernels: &scene.kernels,
+                quadratures: &worker.quadratures,
+            };
+            let estimates =
+                point_estimator.estimate(transport, caches, &points, &options, &|| {}, cancel);
             if let Ok(Some(cached)) = estimates.as_ref().map(|e| e.quadrature_cached) {
                 record_lookup(&worker, Ok::<_, ()>(cached));
             }

@@ -13,7 +13,9 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::integrator::cached::{RadianceQuery, RadianceShading, radiance_at_points, surface_at};
+use crate::integrator::cached::{
+    RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points, surface_at,
+};
 use crate::render::{QueryPoint, RenderError, Rgb};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
@@ -159,9 +161,12 @@ pub async fn radiance(
                 },
                 None => RadianceShading::PathTracing,
             };
-            radiance_at_points(
-                transport, &queries, &hits, shading, max_depth, repeats, seed, cancel,
-            )
+            let options = RadianceOptions {
+                max_depth,
+                repeats,
+                seed,
+            };
+            radiance_at_points(transport, &queries, &hits, shading, options, cancel)
             .map_err(|err| match err {
                 RenderError::Cancelled => ApiError::Cancelled,
                 err => ApiError::invalid("estimator", err.to_string()),

@@ -18,7 +18,7 @@ use utoipa::ToSchema;
 use crate::cache::{CacheConfig, CacheError, IrradianceCache, RecordRuleSpec};
 use crate::image::{ImageEncoding, ToneMap};
 use crate::integrator::cached::{
-    CacheShadingOptions, CachedShading, CachedTileReport, default_rule_spec,
+    CacheShadingOptions, CachedIntegrator, CachedShading, CachedTileReport, default_rule_spec,
 };
 use crate::render::{Cancel, RenderedTile, ShadingMethod, TileRequest, Transport};
 use crate::service::config::Limits;
@@ -374,8 +374,12 @@ fn render(
     match cached {
         None => Ok((transport.render_tile(request, cancel)?, None)),
         Some(setup) => {
-            let (tile, report) =
-                transport.render_tile_cached(request, setup.cache(), &setup.shading, cancel)?;
+            let integrator = CachedIntegrator {
+                transport,
+                cache: setup.cache(),
+                shading: &setup.shading,
+            };
+            let (tile, report) = integrator.render_tile(request, cancel)?;
             Ok((tile, Some(report)))
         }
     }
