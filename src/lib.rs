@@ -7,6 +7,7 @@
 //! ## Layout
 //! The math (`sphere`, `bmc`, `study`) knows nothing of scenes or HTTP; the
 //! service is a thin layer over the library.
+//! - `stats`: the running mean and variance of a sample (Welford), for every layer.
 //! - `sphere`: local shading frames and hemisphere sample sets (local frame, z = normal).
 //! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance;
 //!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
@@ -48,4 +49,5 @@ pub mod render;
 pub mod scene;
 pub mod service;
 pub mod sphere;
+pub mod stats;
 pub mod study;

@@ -446,7 +446,7 @@ fn tile_body(tile_size: u32, samples: usize, index: u64) -> Value {
         "width": size,
         "height": size,
         "format": "json",
-        "estimator": {"method": "bmc", "samples": samples},
+        "estimator": {"method": "cache", "samples": samples},
         "samples_per_pixel": 1,
     })
 }

@@ -26,6 +26,7 @@ use rand_pcg::Pcg64;
 use crate::bmc::cache::CachedQuadrature;
 use crate::bmc::{BmcError, Density, PriorMean};
 use crate::sphere::{SampleSet, SampleSetKind, SampleSetSpec};
+use crate::stats::RunningMean;
 
 /// An estimate of `∫_H f p dω` and the estimator's variance for it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -201,26 +202,18 @@ impl HemisphereEstimator for SampleMeanEstimator {
                 0.0
             }
         });
-        Ok(mean_and_variance_of_mean(terms, values.len()))
+        Ok(mean_and_variance_of_mean(terms))
     }
 }
 
-/// `(mean, sample variance / n)` of `n` terms by Welford's update.
-fn mean_and_variance_of_mean(terms: impl Iterator<Item = f64>, n: usize) -> Estimate {
-    let (mut mean, mut m2) = (0.0, 0.0);
-    for (k, t) in terms.enumerate() {
-        let delta = t - mean;
-        mean += delta / (k + 1) as f64;
-        m2 += delta * (t - mean);
-    }
-    let variance = if n > 1 {
-        m2 / ((n - 1) * n) as f64
-    } else {
-        f64::INFINITY
-    };
+/// `(mean, sample variance / n)` of the terms (`crate::stats`); an infinite
+/// variance for a single term, whose spread is unknown.
+fn mean_and_variance_of_mean(terms: impl Iterator<Item = f64>) -> Estimate {
+    let mut running = RunningMean::new();
+    terms.for_each(|t| running.push(t));
     Estimate {
-        value: mean,
-        variance,
+        value: running.mean(),
+        variance: running.variance_of_mean().unwrap_or(f64::INFINITY),
     }
 }
 

@@ -13,7 +13,7 @@
 //!
 //! This is the record store alone: it knows no scene and traces no ray. The
 //! integrator that computes records and shades through them is
-//! [`crate::integrator::cached`]. No HTTP here; the service keeps one
+//! `integrator::cached`, a layer above. No HTTP here; the service keeps one
 //! [`IrradianceCache`] per (scene version, integrator configuration).
 
 pub mod error;

@@ -15,12 +15,12 @@ use crate::cache::{CacheConfig, IrradianceCache};
 use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
+use crate::integrator::Integrator;
 use crate::integrator::cached::{
     CacheShadingOptions, CachedIntegrator, CachedShading, CachedTileReport, default_rule_spec,
 };
 use crate::render::Cancel;
 use crate::render::film::ImageSettings;
-use crate::render::tile::ShadingMethod;
 use crate::render::transport::Transport;
 use crate::scene::Scene;
 
@@ -44,8 +44,8 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
     /// How camera rays are shaded.
-    #[arg(long, value_enum, default_value_t = MethodArg::Path)]
-    pub method: MethodArg,
+    #[arg(long, value_enum, default_value_t = Integrator::Path)]
+    pub method: Integrator,
     /// Camera rays per pixel.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
@@ -144,25 +144,12 @@ impl CacheArgs {
 /// Byte bound of the CLI's glossy quadrature cache.
 const QUADRATURE_BYTES: u64 = 256 << 20;
 
-/// Shading methods exposed on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum MethodArg {
-    /// Path tracing (the reference).
-    Path,
-    /// Through the irradiance cache (see `integrator::cached::tiles`).
-    Cache,
-}
-
 impl RenderArgs {
     pub fn settings(&self) -> ImageSettings {
         ImageSettings {
             samples_per_pixel: self.spp,
             max_depth: self.max_depth,
             seed: self.seed,
-            method: match self.method {
-                MethodArg::Path => ShadingMethod::PathTracing,
-                MethodArg::Cache => ShadingMethod::IrradianceCache,
-            },
         }
     }
 }
@@ -198,7 +185,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
     );
     let start = Instant::now();
     let rendered = match args.method {
-        MethodArg::Path => {
+        Integrator::Path => {
             let render = || {
                 transport.render_image(&settings, args.tile, &|tile| {
                     progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
@@ -206,7 +193,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
             };
             in_thread_pool(args.threads, render)??
         }
-        MethodArg::Cache => {
+        Integrator::Cache => {
             let shading = args.cache.shading()?;
             let cache = IrradianceCache::new(CacheConfig::default())?;
             let mut first = None;

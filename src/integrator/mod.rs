@@ -4,3 +4,32 @@
 //! [`crate::cache`], is [`cached`].
 
 pub mod cached;
+
+/// How the radiance along a camera ray (or towards a query's viewer) is
+/// computed: the integrator a request or the command line names.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Deserialize,
+    serde::Serialize,
+    clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// Unidirectional path tracing with next-event estimation, MIS and
+    /// Russian roulette (`Transport::render_tile`), emitters seen directly
+    /// included: the unbiased reference.
+    Path,
+    /// Direct light by light sampling, diffuse indirect light interpolated
+    /// from irradiance-cache records computed by BMC, glossy reflection by
+    /// BMC with the Phong density ([`cached`]). `"bmc"` is accepted as an
+    /// alias (the name this had before `"bmc"` came to mean one quadrature
+    /// per point, as it does for point queries).
+    #[default]
+    #[serde(alias = "bmc")]
+    Cache,
+}

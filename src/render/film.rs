@@ -6,7 +6,7 @@
 
 use super::cancel::Cancel;
 use super::error::RenderError;
-use super::tile::{RenderedTile, ShadingMethod, TileRequest};
+use super::tile::{RenderedTile, TileRequest};
 use super::transport::Transport;
 use crate::image::Image;
 
@@ -19,7 +19,6 @@ pub struct ImageSettings {
     pub samples_per_pixel: u32,
     pub max_depth: u32,
     pub seed: u64,
-    pub method: ShadingMethod,
 }
 
 impl ImageSettings {
@@ -33,7 +32,6 @@ impl ImageSettings {
             samples_per_pixel: self.samples_per_pixel,
             max_depth: self.max_depth,
             seed: self.seed,
-            method: self.method,
         }
     }
 }
@@ -117,7 +115,6 @@ mod tests {
             samples_per_pixel: r.samples_per_pixel,
             max_depth: r.max_depth,
             seed: r.seed,
-            method: r.method,
         };
         let tiles = Cell::new(0);
         let rendered = transport

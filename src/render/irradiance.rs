@@ -28,6 +28,7 @@ use rayon::prelude::*;
 
 use super::cancel::Cancel;
 use super::error::RenderError;
+use super::mean::MeanEstimate;
 use super::path::{AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats};
 use super::query::QueryPoint;
 use super::rgb::Rgb;
@@ -37,9 +38,7 @@ use super::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;
 
-/// Largest accepted `max_depth`. Russian roulette cannot end paths in a
-/// closed scene of albedo 1, so the depth bound is what keeps a request finite.
-pub const MAX_DEPTH: u32 = 1024;
+pub use super::path::MAX_DEPTH;
 
 /// How the irradiance integral is split between estimators (module docs,
 /// docs/math.md §14).
@@ -140,43 +139,6 @@ pub struct IrradianceEstimate {
     pub std_error: Rgb,
     /// Rays traced for this point (closest-hit and shadow).
     pub rays: u64,
-}
-
-/// Sample mean of a quantity with the variance of that mean.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MeanEstimate {
-    pub mean: Rgb,
-    /// Unbiased sample variance divided by the sample count (0 for one sample).
-    pub variance_of_mean: Rgb,
-}
-
-impl MeanEstimate {
-    /// Welford's one-pass mean and variance (Welford 1962), per channel.
-    pub fn of(values: impl IntoIterator<Item = Rgb>) -> Self {
-        let (mut n, mut mean, mut m2) = (0.0, Rgb::BLACK, Rgb::BLACK);
-        for v in values {
-            n += 1.0;
-            let delta = v - mean;
-            mean += delta / n;
-            m2 += delta * (v - mean);
-        }
-        let variance_of_mean = if n > 1.0 {
-            m2 / ((n - 1.0) * n)
-        } else {
-            Rgb::BLACK
-        };
-        Self {
-            mean,
-            variance_of_mean,
-        }
-    }
-
-    fn scaled(self, s: f64) -> Self {
-        Self {
-            mean: self.mean * s,
-            variance_of_mean: self.variance_of_mean * (s * s),
-        }
-    }
 }
 
 impl Transport {
@@ -356,18 +318,6 @@ impl Transport {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn mean_estimate_matches_the_textbook_formulas() {
-        let values = [1.0, 2.0, 4.0, 7.0].map(|v| Rgb::new(v, 2.0 * v, 0.0));
-        let e = MeanEstimate::of(values);
-        // mean 3.5, sample variance ((2.5² + 1.5² + 0.5² + 3.5²) / 3) = 7, / 4.
-        assert!((e.mean.r - 3.5).abs() < 1e-12);
-        assert!((e.variance_of_mean.r - 1.75).abs() < 1e-12);
-        assert!((e.variance_of_mean.g - 7.0).abs() < 1e-12);
-        assert_eq!(e.variance_of_mean.b, 0.0);
-        assert_eq!(MeanEstimate::of([Rgb::WHITE]).variance_of_mean, Rgb::BLACK);
-    }
 
     #[test]
     fn options_are_validated() {

@@ -18,8 +18,8 @@
 use glam::DVec3;
 use rand::{Rng, RngExt};
 
-use super::irradiance::MeanEstimate;
 use super::lights::{emitted_radiance, environment_radiance};
+use super::mean::MeanEstimate;
 use super::rgb::Rgb;
 use super::strata::GridStrata;
 use super::transport::Transport;
@@ -47,6 +47,10 @@ pub struct PathLimits {
     pub max_depth: u32,
     pub lengths: PathLengths,
 }
+
+/// Largest accepted `max_depth`. Russian roulette cannot end paths in a
+/// closed scene of albedo 1, so the depth bound is what keeps a request finite.
+pub const MAX_DEPTH: u32 = 1024;
 
 /// Paths averaged per direction: each direction's radiance is the mean of
 /// `per_direction ≥ 1` paths of `limits`, sharing their first segment
@@ -94,7 +98,7 @@ impl Transport {
     ///
     /// Spawn the ray with [`crate::scene::Scene::spawn_ray`] so it leaves the query surface
     /// cleanly. `max_depth = 0` returns black; callers bound `max_depth`
-    /// (see [`super::irradiance::MAX_DEPTH`]), since Russian roulette alone
+    /// (see [`MAX_DEPTH`]), since Russian roulette alone
     /// does not end paths in a closed scene of albedo 1.
     pub fn incident_radiance<R: Rng + ?Sized>(
         &self,

@@ -28,7 +28,8 @@ use rayon::prelude::*;
 
 use super::cancel::Cancel;
 use super::error::RenderError;
-use super::irradiance::{MAX_DEPTH, MeanEstimate};
+use super::mean::MeanEstimate;
+use super::path::MAX_DEPTH;
 use super::path::{PathLengths, PathLimits, TraceStats};
 use super::rgb::Rgb;
 use super::seed::point_rng;
@@ -40,21 +41,6 @@ use crate::scene::{Camera, Ray};
 pub const MAX_TILE_PIXELS: u64 = 1 << 22;
 /// Largest accepted samples per pixel.
 pub const MAX_SAMPLES_PER_PIXEL: u32 = 1 << 20;
-
-/// How the radiance along a camera ray is computed.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ShadingMethod {
-    /// Unidirectional path tracing with next-event estimation, MIS and
-    /// Russian roulette ([`Transport::incident_radiance`]), emitters seen
-    /// directly included: the unbiased reference.
-    #[default]
-    PathTracing,
-    /// Direct light by light sampling, diffuse indirect light from an
-    /// irradiance cache, glossy reflection by BMC with the Phong density:
-    /// needs a cache, see `CachedIntegrator::render_tile` (`crate::integrator::cached::tiles`).
-    IrradianceCache,
-}
 
 /// A rectangle of the camera image and the work to spend on it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,7 +57,6 @@ pub struct TileRequest {
     pub max_depth: u32,
     /// Seed of every random stream of the request.
     pub seed: u64,
-    pub method: ShadingMethod,
 }
 
 impl TileRequest {
@@ -171,7 +156,7 @@ pub trait CameraRayShader: Sync {
     ) -> Rgb;
 }
 
-/// [`ShadingMethod::PathTracing`].
+/// path tracing.
 pub struct PathTracer<'a> {
     pub transport: &'a Transport,
     pub max_depth: u32,
@@ -206,21 +191,11 @@ impl Transport {
         request: &TileRequest,
         cancel: &Cancel,
     ) -> Result<RenderedTile, RenderError> {
-        let camera = &self.scene().camera;
-        match request.method {
-            ShadingMethod::PathTracing => {
-                let shader = PathTracer {
-                    transport: self,
-                    max_depth: request.max_depth,
-                };
-                render_tile_with(camera, &shader, request, cancel)
-            }
-            ShadingMethod::IrradianceCache => Err(RenderError::InvalidOption {
-                field: "method",
-                reason: "irradiance_cache shading needs a cache: use CachedIntegrator::render_tile"
-                    .into(),
-            }),
-        }
+        let shader = PathTracer {
+            transport: self,
+            max_depth: request.max_depth,
+        };
+        render_tile_with(&self.scene().camera, &shader, request, cancel)
     }
 }
 
@@ -319,7 +294,6 @@ pub(crate) mod tests {
             samples_per_pixel: 2,
             max_depth: 6,
             seed: 7,
-            method: ShadingMethod::PathTracing,
         }
     }
 

@@ -36,7 +36,7 @@ use super::config::ServerConfig;
 use super::metrics;
 
 /// Hard cap on a request head (request line and headers) that hyper enforces
-/// with a plain 431; heads below it but over [`super::app::MAX_HEAD_BYTES`]
+/// with a plain 431; heads below it but over `app::MAX_HEAD_BYTES`
 /// get the JSON error body from the middleware.
 pub const HYPER_MAX_HEAD_BYTES: usize = 64 * 1024;
 /// Pause after a failed `accept` (e.g. out of descriptors) before the next,

@@ -11,11 +11,11 @@ use bmc_irradiance::cache::{
     Accuracy, CacheConfig, Interpolated, IrradianceCache, Record, RecordRule, RecordRuleSpec,
 };
 use bmc_irradiance::integrator::cached::{
-    Gather, PlacementOptions, PlacementPoint, RecordGather, ShadingStats, compute_record,
-    place_and_shade, place_records, placement,
+    Gather, PlacementOptions, PlacementPoint, RecordGather, ShadingStats, compute_record, lookup,
+    place_and_shade, place_records,
 };
 use bmc_irradiance::render::Cancel;
-use bmc_irradiance::render::irradiance::MeanEstimate;
+use bmc_irradiance::render::MeanEstimate;
 use bmc_irradiance::render::seed::point_rng;
 use bmc_irradiance::render::{
     PathLengths, PathLimits, QueryPoint, Rgb, TraceStats, Transport, warp,
@@ -190,10 +190,10 @@ fn occlusion_check_stops_records_leaking_through_a_box() {
     let beside = QueryPoint::new(DVec3::new(0.335, -1.0, -0.5), DVec3::Y).unwrap();
     let mut o = options(1);
     o.accuracy = Accuracy::new(1.0).unwrap();
-    assert!(placement::lookup(&cache, &transport, &behind_box, &o).is_some());
+    assert!(lookup(&cache, &transport, &behind_box, &o).is_some());
     o.occlusion_check = true;
-    assert!(placement::lookup(&cache, &transport, &behind_box, &o).is_none());
-    assert!(placement::lookup(&cache, &transport, &beside, &o).is_some());
+    assert!(lookup(&cache, &transport, &behind_box, &o).is_none());
+    assert!(lookup(&cache, &transport, &beside, &o).is_some());
 }
 
 /// Indirect light (path lengths 2..=6) of the back-wall record tests.

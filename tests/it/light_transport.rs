@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use bmc_irradiance::render::Cancel;
-use bmc_irradiance::render::irradiance::MeanEstimate;
+use bmc_irradiance::render::MeanEstimate;
 use bmc_irradiance::render::polygon::projected_solid_angle;
 use bmc_irradiance::render::seed::point_rng;
 use bmc_irradiance::render::{

@@ -10,6 +10,7 @@ mod docs_references;
 mod fuzz_requests;
 mod irradiance_cache;
 mod irradiance_cli;
+mod layering;
 mod light_transport;
 mod loadtest;
 mod mitsuba_xml;

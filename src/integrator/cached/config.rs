@@ -6,7 +6,6 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::glossy::GlossyRule;
-use super::placement::PlacementOptions;
 use crate::bmc::cache::QuadratureCache;
 use crate::bmc::{Kernel, KernelKind, PriorMean};
 use crate::cache::{Accuracy, CacheError, PixelFootprint, RecordRule, RecordRuleSpec};
@@ -197,4 +196,29 @@ pub fn indirect_paths(max_depth: u32) -> PathLimits {
         max_depth: max_depth.max(1),
         lengths: PathLengths::Indirect,
     }
+}
+
+/// How records are placed and used.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlacementOptions {
+    /// Which paths the records' rays sum: [`crate::render::PathLengths::Indirect`]
+    /// when direct light is added separately by light sampling, `All` otherwise.
+    pub paths: PathLimits,
+    /// Ward's accuracy for deciding coverage and for shading.
+    pub accuracy: Accuracy,
+    /// Variance-driven placement: also create a record where the cache does
+    /// give a value but its relative standard error of luminance,
+    /// `sqrt(Σ_c y_c² V_c)/Y(E)` (Rec. 709 weights `y_c`, channels taken as
+    /// independent), exceeds this.
+    pub relative_error_target: Option<f64>,
+    /// Shadow-ray test between point and record (module docs).
+    pub occlusion_check: bool,
+    /// Seed of every random stream of the request.
+    pub seed: u64,
+    /// Points decided per batch (≥ 1).
+    pub batch_size: usize,
+    /// Independent paths averaged per record direction (≥ 1): lowers the
+    /// Monte Carlo noise of each value `L_i` without growing the `O(N²)`
+    /// cost of the BMC estimate and its gradients.
+    pub paths_per_direction: u32,
 }

@@ -7,9 +7,11 @@
 //!   validated once;
 //! - `glossy`: BMC with the Phong density, tabulated over `θ_r`;
 //! - `shade`: outgoing radiance at a surface point (NEE direct light, cached
-//!   diffuse indirect, BMC glossy) and records gathering through the cache;
-//! - `placement`: records at points, the reproducible placement and shading
-//!   passes, variance-driven placement and the occlusion check;
+//!   diffuse indirect, BMC glossy), records computed at points and gathering
+//!   through the cache, and cache lookups with the occlusion check: the whole
+//!   shading/record recursion, so no other file takes part in it;
+//! - `placement`: the reproducible placement and shading passes over many
+//!   points, and variance-driven placement;
 //! - `tiles`: camera tiles shaded through a shared or private cache;
 //! - `radiance`: outgoing radiance at surface points, by path tracing or
 //!   through a cache;
@@ -25,17 +27,17 @@ pub mod tiles;
 
 pub use config::{
     AMBIENT_MIN_DEPTH, CacheShadingOptions, CachedShading, MAX_AMBIENT_BOUNCES, MAX_BMC_EXPONENT,
-    MAX_LIGHT_SAMPLES, default_rule_spec, indirect_paths,
+    MAX_LIGHT_SAMPLES, PlacementOptions, default_rule_spec, indirect_paths,
 };
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
-pub use placement::{
-    PlacementOptions, PlacementPoint, PlacementReport, compute_record, place_and_shade,
-    place_records, shade,
-};
+pub use placement::{PlacementReport, place_and_shade, place_records, shade};
 pub use radiance::{
     RadianceEstimate, RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points,
     surface_at,
 };
-pub use shade::{Bounce, CachedIntegrator, Gather, OnMiss, RecordGather, ShadePoint};
+pub use shade::{
+    Bounce, CachedIntegrator, Gather, OnMiss, PlacementPoint, RecordGather, ShadePoint,
+    compute_record, lookup,
+};
 pub use stats::ShadingStats;
 pub use tiles::CachedTileReport;

@@ -25,56 +25,14 @@
 //! through thin walls (a point and a record on opposite sides) at the cost of
 //! one ray per candidate record.
 
-use std::f64::consts::TAU;
-
-use rand::{Rng, RngExt};
 use rayon::prelude::*;
 
-use super::shade::{Gather, RecordGather};
+use super::config::PlacementOptions;
+use super::shade::{Gather, PlacementPoint, RecordGather, compute_record, lookup};
 use super::stats::ShadingStats;
-use crate::cache::{
-    Accuracy, CacheConfig, CacheError, Interpolated, IrradianceCache, PixelFootprint, RadiusLimits,
-    Record, RecordRule,
-};
+use crate::cache::{CacheConfig, CacheError, Interpolated, IrradianceCache, Record, RecordRule};
 use crate::render::seed::point_rng;
-use crate::render::{Cancel, PathLimits, QueryPoint, Transport};
-use crate::sphere::Frame;
-
-/// Relative lift of the occlusion-test ray ends off their surfaces.
-const OCCLUSION_LIFT: f64 = 1e-3;
-
-/// A point where irradiance is wanted, with the optional pixel footprint
-/// that bounds a record's radius there.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlacementPoint {
-    pub point: QueryPoint,
-    pub footprint: Option<PixelFootprint>,
-}
-
-/// How records are placed and used.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlacementOptions {
-    /// Which paths the records' rays sum: [`crate::render::PathLengths::Indirect`]
-    /// when direct light is added separately by light sampling, `All` otherwise.
-    pub paths: PathLimits,
-    /// Ward's accuracy for deciding coverage and for shading.
-    pub accuracy: Accuracy,
-    /// Variance-driven placement: also create a record where the cache does
-    /// give a value but its relative standard error of luminance,
-    /// `sqrt(Σ_c y_c² V_c)/Y(E)` (Rec. 709 weights `y_c`, channels taken as
-    /// independent), exceeds this.
-    pub relative_error_target: Option<f64>,
-    /// Shadow-ray test between point and record (module docs).
-    pub occlusion_check: bool,
-    /// Seed of every random stream of the request.
-    pub seed: u64,
-    /// Points decided per batch (≥ 1).
-    pub batch_size: usize,
-    /// Independent paths averaged per record direction (≥ 1): lowers the
-    /// Monte Carlo noise of each value `L_i` without growing the `O(N²)`
-    /// cost of the BMC estimate and its gradients.
-    pub paths_per_direction: u32,
-}
+use crate::render::{Cancel, QueryPoint, Transport};
 
 /// What a placement pass did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -87,55 +45,6 @@ pub struct PlacementReport {
     pub records_for_variance: u64,
     /// Rays traced for records.
     pub rays: u64,
-}
-
-/// BMC record at `point`: the rule's directions turned about the normal by a
-/// random angle from `rng`, the mean of `how.per_direction` radiance
-/// samples each (gathered as `how.gather` says), `E = π Σ w_i L_i`
-/// (see [`RecordRule::estimate`]) and the harmonic-mean radius within
-/// `limits` (tightened by the point's footprint). `stats` counts the rays
-/// and any records created at the rays' bounces.
-pub fn compute_record<R: Rng + ?Sized>(
-    transport: &Transport,
-    rule: &RecordRule,
-    target: &PlacementPoint,
-    limits: RadiusLimits,
-    how: &RecordGather,
-    rng: &mut R,
-    stats: &mut ShadingStats,
-) -> Result<Record, CacheError> {
-    let point = &target.point;
-    let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
-    let samples = how.samples(transport, point, &frame, rule.directions(), rng, stats)?;
-    let estimate = rule.estimate(&samples)?;
-    let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
-    let limits = match &target.footprint {
-        Some(fp) => limits.with_footprint(fp),
-        None => limits,
-    };
-    Ok(Record::from_estimate(
-        point, &frame, &estimate, &distances, limits,
-    ))
-}
-
-/// Cache lookup with the options' accuracy and optional occlusion test.
-pub fn lookup(
-    cache: &IrradianceCache,
-    transport: &Transport,
-    point: &QueryPoint,
-    options: &PlacementOptions,
-) -> Option<Interpolated> {
-    if !options.occlusion_check {
-        return cache.lookup(point, options.accuracy);
-    }
-    let scene = transport.scene();
-    let (x, n) = (point.position(), point.normal());
-    cache.lookup_filtered(point, options.accuracy, |r| {
-        let lift = OCCLUSION_LIFT * r.radius;
-        let from = x + n * lift;
-        let ray = scene.spawn_ray_to(from, n, r.position + r.normal * lift, None);
-        !scene.occluded(&ray)
-    })
 }
 
 /// Whether the variance target asks for another record here.

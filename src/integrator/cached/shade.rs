@@ -36,15 +36,20 @@
 
 use std::f64::consts::PI;
 
+use std::f64::consts::TAU;
+
 use glam::DVec3;
 use rand::{Rng, RngExt};
 
 use super::config::{
-    AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, indirect_paths,
+    AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, PlacementOptions,
+    indirect_paths,
 };
-use super::placement::{PlacementOptions, PlacementPoint, compute_record, lookup};
 use super::stats::ShadingStats;
-use crate::cache::{Accuracy, CacheError, IrradianceCache};
+use crate::cache::{
+    Accuracy, CacheError, Interpolated, IrradianceCache, PixelFootprint, RadiusLimits, Record,
+    RecordRule,
+};
 use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::strata::{GridStrata, SharedStrata};
 use crate::render::{
@@ -53,6 +58,7 @@ use crate::render::{
 };
 use crate::scene::SurfaceHit;
 use crate::sphere::Frame;
+use crate::stats::RunningMean;
 
 /// What to do where no record covers a shading point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -196,22 +202,27 @@ impl RecordGather<'_> {
         let gather = |rng: &mut R, stats: &mut ShadingStats| {
             integrator.gather_through_cache(point, frame, local_dirs, bounce, rng, stats)
         };
-        // Welford's running mean and spread per direction (Welford 1962),
-        // in place: the repeats are independent estimates of each value.
+        // A running mean and spread per direction: the repeats are
+        // independent estimates of each value, folded in as they come, so
+        // memory stays one sample set whatever `per_direction` is.
         let mut samples = gather(rng, stats)?;
-        let mut m2 = vec![Rgb::BLACK; samples.len()];
-        for k in 2..=self.per_direction {
-            let more = gather(rng, stats)?;
-            for ((s, m2), m) in samples.iter_mut().zip(&mut m2).zip(more) {
-                let delta = m.radiance - s.radiance;
-                s.radiance += delta * (1.0 / f64::from(k));
-                *m2 += delta * (m.radiance - s.radiance);
-            }
-        }
         if self.per_direction > 1 {
-            let n = f64::from(self.per_direction);
-            for (s, m2) in samples.iter_mut().zip(m2) {
-                s.variance = m2 * (1.0 / ((n - 1.0) * n));
+            let mut running: Vec<RunningMean<Rgb>> = samples
+                .iter()
+                .map(|s| {
+                    let mut r = RunningMean::new();
+                    r.push(s.radiance);
+                    r
+                })
+                .collect();
+            for _ in 1..self.per_direction {
+                for (r, m) in running.iter_mut().zip(gather(rng, stats)?) {
+                    r.push(m.radiance);
+                }
+            }
+            for (s, r) in samples.iter_mut().zip(running) {
+                s.radiance = r.mean();
+                s.variance = r.variance_of_mean().unwrap_or(Rgb::BLACK);
             }
         }
         Ok(samples)
@@ -457,17 +468,10 @@ impl CachedIntegrator<'_> {
                     per_direction: placement.paths_per_direction,
                     gather: Gather::for_record(*self, placement.paths, r.level, true),
                 };
-                let record = compute_record(
-                    self.transport,
-                    &self.shading.rule,
-                    &target,
-                    cache.radius_limits(),
-                    &how,
-                    rng,
-                    stats,
-                )
-                .and_then(|record| cache.insert(record))
-                .map_err(cache_to_render)?;
+                let record = self
+                    .record_at(&target, &how, rng, stats)
+                    .and_then(|record| cache.insert(record))
+                    .map_err(cache_to_render)?;
                 stats.records_created += 1;
                 if r.level > 0 {
                     stats.ambient_records += 1;
@@ -548,6 +552,89 @@ impl CachedIntegrator<'_> {
             .map(|(s, w)| s.radiance * *w)
             .sum())
     }
+}
+
+/// Relative lift of the occlusion-test ray ends off their surfaces.
+const OCCLUSION_LIFT: f64 = 1e-3;
+
+/// A point where irradiance is wanted, with the optional pixel footprint
+/// that bounds a record's radius there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlacementPoint {
+    pub point: QueryPoint,
+    pub footprint: Option<PixelFootprint>,
+}
+
+impl CachedIntegrator<'_> {
+    /// Record at the point of `target`, its rays gathered by `how` (see
+    /// [`compute_record`]), with this integrator's rule and cache limits.
+    fn record_at<R: Rng + ?Sized>(
+        &self,
+        target: &PlacementPoint,
+        how: &RecordGather,
+        rng: &mut R,
+        stats: &mut ShadingStats,
+    ) -> Result<Record, CacheError> {
+        let limits = self.cache.radius_limits();
+        compute_record(
+            self.transport,
+            &self.shading.rule,
+            target,
+            limits,
+            how,
+            rng,
+            stats,
+        )
+    }
+}
+
+/// BMC record at `point`: the rule's directions turned about the normal by a
+/// random angle from `rng`, the mean of `how.per_direction` radiance
+/// samples each (gathered as `how.gather` says), `E = π Σ w_i L_i`
+/// (see [`RecordRule::estimate`]) and the harmonic-mean radius within
+/// `limits` (tightened by the point's footprint). `stats` counts the rays
+/// and any records created at the rays' bounces.
+pub fn compute_record<R: Rng + ?Sized>(
+    transport: &Transport,
+    rule: &RecordRule,
+    target: &PlacementPoint,
+    limits: RadiusLimits,
+    how: &RecordGather,
+    rng: &mut R,
+    stats: &mut ShadingStats,
+) -> Result<Record, CacheError> {
+    let point = &target.point;
+    let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
+    let samples = how.samples(transport, point, &frame, rule.directions(), rng, stats)?;
+    let estimate = rule.estimate(&samples)?;
+    let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
+    let limits = match &target.footprint {
+        Some(fp) => limits.with_footprint(fp),
+        None => limits,
+    };
+    Ok(Record::from_estimate(
+        point, &frame, &estimate, &distances, limits,
+    ))
+}
+
+/// Cache lookup with the options' accuracy and optional occlusion test.
+pub fn lookup(
+    cache: &IrradianceCache,
+    transport: &Transport,
+    point: &QueryPoint,
+    options: &PlacementOptions,
+) -> Option<Interpolated> {
+    if !options.occlusion_check {
+        return cache.lookup(point, options.accuracy);
+    }
+    let scene = transport.scene();
+    let (x, n) = (point.position(), point.normal());
+    cache.lookup_filtered(point, options.accuracy, |r| {
+        let lift = OCCLUSION_LIFT * r.radius;
+        let from = x + n * lift;
+        let ray = scene.spawn_ray_to(from, n, r.position + r.normal * lift, None);
+        !scene.occluded(&ray)
+    })
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
 //! Tiles of the camera image shaded through the irradiance cache
-//! ([`crate::render::ShadingMethod::IrradianceCache`]).
+//! ([`crate::integrator::Integrator::Cache`]).
 //!
 //! Two passes (see `placement`):
 //! 1. **Placement** at the first hits of the rays through the tile's pixel
@@ -29,8 +29,8 @@ use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
 use super::config::{CachedShading, indirect_paths};
-use super::placement::{PlacementPoint, PlacementReport, place_records};
-use super::shade::{CachedIntegrator, Gather, OnMiss, ShadePoint, cache_to_render};
+use super::placement::{PlacementReport, place_records};
+use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint, cache_to_render};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
@@ -243,8 +243,8 @@ mod tests {
     use crate::cache::CacheConfig;
     use crate::image::relative_rmse;
     use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
+    use crate::render::Transport;
     use crate::render::tile::tests::{cornell, request};
-    use crate::render::{ShadingMethod, Transport};
 
     /// A small, fast configuration: 16 directions per record.
     fn shading(options: CacheShadingOptions) -> CachedShading {
@@ -267,7 +267,6 @@ mod tests {
 
     fn cached_request(x: u32, y: u32, side: u32) -> TileRequest {
         TileRequest {
-            method: ShadingMethod::IrradianceCache,
             max_depth: 5,
             ..request(x, y, side, side)
         }
@@ -401,7 +400,6 @@ mod tests {
             .render_tile(
                 &TileRequest {
                     samples_per_pixel: 256,
-                    method: ShadingMethod::PathTracing,
                     ..r
                 },
                 &Cancel::never(),

@@ -13,6 +13,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use crate::integrator::Integrator;
 use crate::integrator::cached::{
     RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points, surface_at,
 };
@@ -21,7 +22,7 @@ use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::routes::scenes::scene_or_404;
-use crate::service::routes::tiles::{CachedSpec, TileEstimatorDoc, TileMethod, cached_setup};
+use crate::service::routes::tiles::{CachedSpec, TileEstimatorDoc, cached_setup};
 use crate::service::state::AppState;
 
 /// A surface point, its normal and the direction towards the viewer.
@@ -126,8 +127,8 @@ pub async fn radiance(
     // The work, bounded before it starts: the repeats' paths, plus for `bmc`
     // at most one record per point.
     let cached = match request.estimator.method {
-        TileMethod::Bmc => Some(CachedSpec::resolve(&request.estimator, limits)?),
-        TileMethod::Path => None,
+        Integrator::Cache => Some(CachedSpec::resolve(&request.estimator, limits)?),
+        Integrator::Path => None,
     };
     let points = request.points.len() as u64;
     let record_paths = cached.as_ref().map_or(0, |c| points * c.paths_per_record());

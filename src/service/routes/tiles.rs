@@ -17,10 +17,11 @@ use utoipa::ToSchema;
 
 use crate::cache::{CacheConfig, CacheError, IrradianceCache, RecordRuleSpec};
 use crate::image::{ImageEncoding, ToneMap};
+use crate::integrator::Integrator;
 use crate::integrator::cached::{
     CacheShadingOptions, CachedIntegrator, CachedShading, CachedTileReport, default_rule_spec,
 };
-use crate::render::{Cancel, RenderedTile, ShadingMethod, TileRequest, Transport};
+use crate::render::{Cancel, RenderedTile, TileRequest, Transport};
 use crate::service::config::Limits;
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
@@ -30,31 +31,22 @@ use crate::service::routes::scenes::scene_or_404;
 use crate::service::scenes::LoadedScene;
 use crate::service::state::AppState;
 
-/// How each camera ray is shaded.
-#[derive(Debug, Clone, Copy, Default, Deserialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum TileMethod {
-    /// The Bayesian irradiance cache (`integrator::cached::tiles`): emission + light
-    /// sampling for direct light + `(k_d/π)·E` interpolated from BMC records
-    /// for diffuse indirect light + BMC with the Phong density for glossy
-    /// reflection.
-    #[default]
-    Bmc,
-    /// Unidirectional path tracing with next-event estimation and MIS (the
-    /// unbiased reference).
-    Path,
-}
-
 /// Number of θ_r nodes of the glossy BMC rule (`integrator::cached::GlossyRule`).
 const GLOSSY_BINS: usize = 16;
 
-/// The tile estimator; every field but `method` applies to `bmc` only, and
+/// The tile estimator; every field but `method` applies to `cache` only, and
 /// every one is optional.
 #[derive(Debug, Default, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TileEstimatorDoc {
+    /// `cache` (default; `bmc` is an alias): the Bayesian irradiance cache —
+    /// light sampling for direct light, `(k_d/π)·E` interpolated from BMC
+    /// records for diffuse indirect light, BMC with the Phong density for
+    /// glossy reflection. `path`: path tracing with NEE and MIS, the
+    /// unbiased reference.
     #[serde(default)]
-    pub method: TileMethod,
+    #[schema(value_type = String, example = "cache")]
+    pub method: Integrator,
     /// Directions per record (spherical Fibonacci), 1..=`limits.max_samples`; default 64.
     pub samples: Option<u32>,
     /// SE kernel lengthscale of the records' GP prior (chordal units); default 0.5.
@@ -164,10 +156,6 @@ pub async fn tile(
     if !doc.exposure.is_finite() {
         return Err(ApiError::invalid("exposure", "must be a finite number"));
     }
-    let method = match doc.estimator.method {
-        TileMethod::Path => ShadingMethod::PathTracing,
-        TileMethod::Bmc => ShadingMethod::IrradianceCache,
-    };
     let request = TileRequest {
         x: doc.x,
         y: doc.y,
@@ -176,15 +164,14 @@ pub async fn tile(
         samples_per_pixel: doc.samples_per_pixel,
         max_depth: doc.max_depth,
         seed: doc.seed,
-        method,
     };
     // Checked here too, so a bad rectangle never takes a CPU slot.
     request.validate(scene.transport.scene().camera.resolution())?;
     // The work, bounded before it starts: camera paths, plus at most one
     // record per pixel (placement points are pixel centres) for `bmc`.
-    let cached = match method {
-        ShadingMethod::IrradianceCache => Some(CachedSpec::resolve(&doc.estimator, limits)?),
-        ShadingMethod::PathTracing => None,
+    let cached = match doc.estimator.method {
+        Integrator::Cache => Some(CachedSpec::resolve(&doc.estimator, limits)?),
+        Integrator::Path => None,
     };
     let camera_paths = area * u64::from(doc.samples_per_pixel);
     let record_paths = cached
