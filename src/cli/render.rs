@@ -17,7 +17,8 @@ use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
 use crate::integrator::Integrator;
 use crate::integrator::cached::{
-    CacheShadingOptions, CachedIntegrator, CachedShading, CachedTileReport, default_rule_spec,
+    CacheShadingOptions, CachedIntegrator, CachedShading, CachedSpec, CachedTileReport,
+    DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, default_rule_spec,
 };
 use crate::render::Cancel;
 use crate::render::film::ImageSettings;
@@ -71,23 +72,23 @@ pub struct RenderArgs {
 #[derive(Clone, Debug, clap::Args)]
 pub struct CacheArgs {
     /// Ward's accuracy a in (0, 1]; smaller places more records.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = CacheShadingOptions::default().accuracy)]
     pub accuracy: f64,
     /// Directions per record and per glossy BMC estimate (spherical Fibonacci).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = DEFAULT_RECORD_SAMPLES)]
     pub samples: usize,
     /// SE kernel lengthscale of the records' and glossy BMC rule.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = default_rule_spec().kernel.lengthscale)]
     pub lengthscale: f64,
     /// Paths averaged per record direction.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = CacheShadingOptions::default().paths_per_direction)]
     pub paths_per_direction: u32,
     /// Levels of records whose rays gather through the cache (ambient
     /// bounces; 0 = records trace full paths).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = CacheShadingOptions::default().ambient_bounces)]
     pub ambient_bounces: u32,
     /// Light samples per camera ray (direct light).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = CacheShadingOptions::default().light_samples)]
     pub light_samples: u32,
     /// Smallest record radius, in pixel footprints at the record.
     #[arg(long, default_value_t = CacheShadingOptions::default().min_pixels)]
@@ -96,7 +97,7 @@ pub struct CacheArgs {
     #[arg(long, default_value_t = CacheShadingOptions::default().max_pixels)]
     pub max_pixels: f64,
     /// Mirror-angle nodes of the glossy BMC rule.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = DEFAULT_GLOSSY_BINS)]
     pub glossy_bins: usize,
     /// Also place records where the posterior relative error exceeds this.
     #[arg(long)]
@@ -116,28 +117,23 @@ pub struct CacheArgs {
 impl CacheArgs {
     /// Rules and options for shading through the cache.
     pub fn shading(&self) -> anyhow::Result<CachedShading> {
-        let mut spec = default_rule_spec();
-        spec.samples.count = self.samples;
-        spec.kernel.lengthscale = self.lengthscale;
-        let options = CacheShadingOptions {
-            accuracy: self.accuracy,
+        let spec = CachedSpec {
+            samples: Some(self.samples),
+            lengthscale: Some(self.lengthscale),
+            noise: None,
+            accuracy: Some(self.accuracy),
             relative_error_target: self.relative_error_target,
-            occlusion_check: self.occlusion_check,
-            reproducible: self.reproducible,
-            light_samples: self.light_samples,
-            paths_per_direction: self.paths_per_direction,
-            ambient_bounces: self.ambient_bounces,
-            min_pixels: self.min_pixels,
-            max_pixels: self.max_pixels,
-            ..CacheShadingOptions::default()
+            occlusion_check: Some(self.occlusion_check),
+            light_samples: Some(self.light_samples),
+            paths_per_direction: Some(self.paths_per_direction),
+            ambient_bounces: Some(self.ambient_bounces),
+            reproducible: Some(self.reproducible),
+            min_pixels: Some(self.min_pixels),
+            max_pixels: Some(self.max_pixels),
+            glossy_bins: Some(self.glossy_bins),
         };
         let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));
-        Ok(CachedShading::new(
-            spec,
-            self.glossy_bins,
-            quadratures,
-            options,
-        )?)
+        Ok(spec.resolve()?.shading(quadratures)?)
     }
 }
 

@@ -26,7 +26,7 @@ use utoipa::ToSchema;
 
 use super::scenes::LoadedScene;
 use crate::cache::{CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
-use crate::integrator::cached::CachedShading;
+use crate::integrator::cached::{CachedShading, RecordsKey};
 
 /// Each cache may use `1/SHARE` of the total budget.
 pub const SHARE: usize = 4;
@@ -36,8 +36,8 @@ pub const SHARE: usize = 4;
 struct CacheKey {
     scene: String,
     generation: u64,
-    /// Canonical text of the estimator configuration the records depend on.
-    configuration: String,
+    /// What the records' values depend on.
+    records: RecordsKey,
 }
 
 /// One cache as `GET /v1/scenes/{id}/cache` reports it.
@@ -57,6 +57,8 @@ pub struct ConfigurationStats {
 pub struct SceneCache {
     pub cache: IrradianceCache,
     pub shading: CachedShading,
+    /// The configuration as people read it in `GET /v1/scenes/{id}/cache`.
+    description: serde_json::Value,
 }
 
 /// All irradiance caches of the service.
@@ -89,21 +91,23 @@ impl IrradianceCaches {
         self.per_cache_bytes
     }
 
-    /// The cache of `scene` for `configuration`, created on first use from
-    /// `template` (whose byte budget is replaced by [`Self::per_cache_bytes`])
-    /// and the rules `shading` builds. Concurrent first uses create it once;
+    /// The cache of `scene` for the records `records`, created on first use
+    /// from `template` (whose byte budget is replaced by
+    /// [`Self::per_cache_bytes`]), the rules `shading` builds and the
+    /// description `describe` gives. Concurrent first uses create it once;
     /// errors are not cached.
     pub fn get_or_create(
         &self,
         scene: &LoadedScene,
-        configuration: &serde_json::Value,
+        records: RecordsKey,
+        describe: impl FnOnce() -> serde_json::Value,
         template: CacheConfig,
         shading: impl FnOnce() -> Result<CachedShading, CacheError>,
     ) -> Result<Arc<SceneCache>, CacheError> {
         let key = CacheKey {
             scene: scene.id.clone(),
             generation: scene.generation,
-            configuration: configuration.to_string(),
+            records,
         };
         let config = CacheConfig {
             byte_budget: self.per_cache_bytes,
@@ -125,6 +129,7 @@ impl IrradianceCaches {
                 Ok(Arc::new(SceneCache {
                     cache: IrradianceCache::new(config)?,
                     shading,
+                    description: describe(),
                 }))
             })
             .map_err(|err: Arc<CacheError>| (*err).clone())
@@ -142,22 +147,16 @@ impl IrradianceCaches {
 
     /// Stats of every cache of this version of `scene`, sorted by configuration.
     pub fn stats(&self, scene: &LoadedScene) -> Vec<ConfigurationStats> {
-        let mut all: Vec<(String, CacheStats, usize)> = self
+        let mut all: Vec<ConfigurationStats> = self
             .of_scene(scene)
-            .map(|(key, entry)| {
-                let rule_bytes = entry.shading.rule.size_bytes();
-                (key.configuration.clone(), entry.cache.stats(), rule_bytes)
+            .map(|(_, entry)| ConfigurationStats {
+                configuration: entry.description.clone(),
+                stats: entry.cache.stats(),
+                rule_bytes: entry.shading.rule.size_bytes(),
             })
             .collect();
-        all.sort_by(|a, b| a.0.cmp(&b.0));
-        all.into_iter()
-            .map(|(configuration, stats, rule_bytes)| ConfigurationStats {
-                configuration: serde_json::from_str(&configuration)
-                    .unwrap_or(serde_json::Value::String(configuration)),
-                stats,
-                rule_bytes,
-            })
-            .collect()
+        all.sort_by_key(|c| c.configuration.to_string());
+        all
     }
 
     /// Empties every cache of this version of `scene`; returns the records dropped.
@@ -200,6 +199,18 @@ mod tests {
         CachedShading::new(spec, 2, quadratures, CacheShadingOptions::default())
     }
 
+    /// The records key and description of the default configuration with
+    /// `samples` directions per record.
+    fn records(samples: usize) -> (RecordsKey, serde_json::Value) {
+        let config = crate::integrator::cached::CachedSpec {
+            samples: Some(samples),
+            ..Default::default()
+        }
+        .resolve()
+        .unwrap();
+        (config.records_key(16), config.describe(16))
+    }
+
     fn scene(id: &str) -> LoadedScene {
         let text = r#"{
             "materials": [{"id": "w", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
@@ -217,32 +228,39 @@ mod tests {
         let caches = IrradianceCaches::new(1 << 20);
         let (a, a_again) = (scene("a"), scene("a"));
         assert_ne!(a.generation, a_again.generation);
-        let config = serde_json::json!({"samples": 64});
+        let (key, description) = records(64);
+        let describe = || description.clone();
         let first = caches
-            .get_or_create(&a, &config, CacheConfig::default(), rules)
+            .get_or_create(&a, key, describe, CacheConfig::default(), rules)
             .expect("valid");
         let same = caches
-            .get_or_create(&a, &config, CacheConfig::default(), rules)
+            .get_or_create(&a, key, describe, CacheConfig::default(), rules)
             .expect("valid");
         assert!(Arc::ptr_eq(&first, &same));
         assert_eq!(first.cache.config().byte_budget, caches.per_cache_bytes());
+        let (key16, description16) = records(16);
         let other = caches
-            .get_or_create(
-                &a,
-                &serde_json::json!({"samples": 16}),
-                CacheConfig::default(),
-                rules,
-            )
+            .get_or_create(&a, key16, || description16, CacheConfig::default(), rules)
             .expect("valid");
         assert!(!Arc::ptr_eq(&first, &other));
         let reloaded = caches
-            .get_or_create(&a_again, &config, CacheConfig::default(), rules)
+            .get_or_create(&a_again, key, describe, CacheConfig::default(), rules)
             .expect("valid");
         assert!(!Arc::ptr_eq(&first, &reloaded));
         caches.caches.run_pending_tasks();
         assert_eq!(caches.stats(&a).len(), 2);
         assert_eq!(caches.stats(&a_again).len(), 1);
-        assert_eq!(caches.stats(&a)[0].configuration["samples"], 16);
+        let counts: Vec<u64> = caches
+            .stats(&a)
+            .iter()
+            .map(|c| {
+                c.configuration["rule"]["samples"]["count"]
+                    .as_u64()
+                    .unwrap()
+            })
+            .collect();
+        assert_eq!(counts.len(), 2);
+        assert!(counts.contains(&16) && counts.contains(&64), "{counts:?}");
 
         caches.retire("a", Some(a_again.generation));
         caches.caches.run_pending_tasks();
@@ -261,11 +279,12 @@ mod tests {
             min_radius: -1.0,
             ..CacheConfig::default()
         };
-        let config = serde_json::json!({});
-        assert!(caches.get_or_create(&a, &config, bad, rules).is_err());
+        let (key, description) = records(64);
+        let describe = || description.clone();
+        assert!(caches.get_or_create(&a, key, describe, bad, rules).is_err());
         assert!(
             caches
-                .get_or_create(&a, &config, CacheConfig::default(), rules)
+                .get_or_create(&a, key, describe, CacheConfig::default(), rules)
                 .is_ok()
         );
     }

@@ -17,6 +17,8 @@ use axum::middleware::Next;
 use axum::response::Response;
 use metrics_exporter_prometheus::{Matcher, PrometheusBuilder, PrometheusHandle};
 
+use crate::bmc::cache::QuadratureCache;
+
 /// Counter: requests answered, by `method`, `route`, `status`.
 pub const HTTP_REQUESTS: &str = "http_requests_total";
 /// Histogram: request latency in seconds, by `method`, `route`, `status`.
@@ -107,6 +109,19 @@ fn describe() {
         CONNECTIONS_REFUSED,
         "Connections closed at once because server.max_connections were open"
     );
+}
+
+/// Counts one lookup of the quadrature cache: a hit when `cached` says the
+/// weights came from the cache; otherwise (computed, or failed) a miss, after
+/// which the cache's bytes are refreshed (they only change on inserts).
+pub fn record_quadrature_lookup(quadratures: &QuadratureCache, cached: Option<bool>) {
+    if cached == Some(true) {
+        metrics::counter!(FACTORISATION_CACHE_HITS).increment(1);
+    } else {
+        metrics::counter!(FACTORISATION_CACHE_MISSES).increment(1);
+        let bytes = quadratures.stats().bytes;
+        metrics::gauge!(FACTORISATION_CACHE_BYTES).set(bytes as f64);
+    }
 }
 
 /// The `method` label: the standard methods by name, every other one as

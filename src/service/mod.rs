@@ -16,6 +16,7 @@ pub mod app;
 pub mod config;
 pub mod error;
 pub mod extract;
+pub mod integrator_doc;
 pub mod irradiance_caches;
 pub mod metrics;
 pub mod pool;

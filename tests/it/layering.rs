@@ -156,3 +156,21 @@ fn lower_layers_never_name_upper_ones() {
         }
     }
 }
+
+#[test]
+fn routes_never_import_each_other() {
+    let routes = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/service/routes");
+    let mut files = Vec::new();
+    rust_files(&routes, &mut files);
+    for path in files {
+        if path.ends_with("mod.rs") {
+            continue;
+        }
+        let text = non_test_text(&path);
+        assert!(
+            !text.contains("crate::service::routes::") && !text.contains("super::"),
+            "{} imports another route",
+            path.display()
+        );
+    }
+}

@@ -26,8 +26,9 @@ pub mod stats;
 pub mod tiles;
 
 pub use config::{
-    AMBIENT_MIN_DEPTH, CacheShadingOptions, CachedShading, MAX_AMBIENT_BOUNCES, MAX_BMC_EXPONENT,
-    MAX_LIGHT_SAMPLES, PlacementOptions, default_rule_spec, indirect_paths,
+    AMBIENT_MIN_DEPTH, CacheShadingOptions, CachedConfig, CachedShading, CachedSpec,
+    DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, MAX_AMBIENT_BOUNCES, MAX_BMC_EXPONENT,
+    MAX_LIGHT_SAMPLES, PlacementOptions, RecordsKey, default_rule_spec, indirect_paths,
 };
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
 pub use placement::{PlacementReport, place_and_shade, place_records, shade};

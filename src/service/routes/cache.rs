@@ -11,7 +11,6 @@ use utoipa::ToSchema;
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::SceneId;
 use crate::service::irradiance_caches::ConfigurationStats;
-use crate::service::routes::scenes::scene_or_404;
 use crate::service::state::AppState;
 
 /// The irradiance caches of the current version of a scene.
@@ -32,7 +31,7 @@ fn report(
     id: &str,
     cleared_records: Option<u64>,
 ) -> Result<SceneCacheReport, ApiError> {
-    let scene = scene_or_404(state, id)?;
+    let scene = state.scenes.get_or_404(id)?;
     Ok(SceneCacheReport {
         scene: scene.id.clone(),
         byte_budget_per_cache: state.irradiance_caches.per_cache_bytes(),
@@ -64,7 +63,7 @@ pub async fn delete_cache(
     State(state): State<Arc<AppState>>,
     SceneId(id): SceneId,
 ) -> Result<Json<SceneCacheReport>, ApiError> {
-    let scene = scene_or_404(&state, &id)?;
+    let scene = state.scenes.get_or_404(&id)?;
     let cleared = state.irradiance_caches.clear(&scene);
     Ok(Json(report(&state, &id, Some(cleared))?))
 }

@@ -21,9 +21,7 @@ use crate::render::estimators::{
 use crate::render::{IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
-use crate::service::metrics::RAYS_TRACED;
-use crate::service::routes::quadratures::record_lookup;
-use crate::service::routes::scenes::scene_or_404;
+use crate::service::metrics::{self, RAYS_TRACED};
 use crate::service::state::AppState;
 use crate::sphere::SampleSetKind;
 
@@ -141,7 +139,7 @@ pub async fn irradiance(
     SceneId(id): SceneId,
     ApiJson(request): ApiJson<IrradianceRequest>,
 ) -> Result<Json<IrradianceResponse>, ApiError> {
-    let scene = scene_or_404(&state, &id)?;
+    let scene = state.scenes.get_or_404(&id)?;
     let limits = &state.config.limits;
     ApiError::check_count(
         "points",
@@ -187,7 +185,7 @@ pub async fn irradiance(
             let estimates =
                 point_estimator.estimate(transport, caches, &points, &options, &|| {}, cancel);
             if let Ok(Some(cached)) = estimates.as_ref().map(|e| e.quadrature_cached) {
-                record_lookup(&worker, Ok::<_, ()>(cached));
+                metrics::record_quadrature_lookup(&worker.quadratures, Some(cached));
             }
             estimates
         })

@@ -8,7 +8,7 @@
 //! and `cached`.
 //!
 //! Metrics: every lookup of the cache — here and in BMC point requests, through
-//! [`cached_quadrature`] — counts one `bmc_factorisation_cache_hits_total` (the
+//! [`metrics::record_quadrature_lookup`] — counts one `bmc_factorisation_cache_hits_total` (the
 //! weights, hence the factorisation, were reused) or one
 //! `bmc_factorisation_cache_misses_total` (weights computed; the factorisation
 //! itself may still have come from the cache for a new density), and a miss
@@ -22,14 +22,11 @@ use axum::extract::State;
 use serde::Deserialize;
 use utoipa::ToSchema;
 
-use crate::bmc::cache::CachedQuadrature;
 use crate::bmc::report::{QuadratureReport, QuadratureSpec, quadrature_report};
 use crate::bmc::{BmcError, Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::ApiJson;
-use crate::service::metrics::{
-    FACTORISATION_CACHE_BYTES, FACTORISATION_CACHE_HITS, FACTORISATION_CACHE_MISSES,
-};
+use crate::service::metrics;
 use crate::service::state::AppState;
 use crate::sphere::{SampleSetKind, SampleSetSpec};
 
@@ -167,28 +164,6 @@ pub fn bmc_error(prefix: &str, err: BmcError) -> ApiError {
     ApiError::invalid(field, err.to_string())
 }
 
-/// Quadrature for `spec` from the shared cache, recording the cache metrics
-/// (module docs). Call it on the CPU pool: a miss factorises.
-pub fn cached_quadrature(
-    state: &AppState,
-    spec: &QuadratureSpec,
-) -> Result<(Arc<CachedQuadrature>, bool), BmcError> {
-    let result = spec.quadrature(&state.quadratures);
-    record_lookup(state, result.as_ref().map(|(_, cached)| *cached));
-    result
-}
-
-/// Counts one lookup of the quadrature cache in the metrics (module docs).
-pub(crate) fn record_lookup<E>(state: &AppState, cached: Result<bool, E>) {
-    if let Ok(true) = cached {
-        ::metrics::counter!(FACTORISATION_CACHE_HITS).increment(1);
-    } else {
-        ::metrics::counter!(FACTORISATION_CACHE_MISSES).increment(1);
-        let bytes = state.quadratures.stats().bytes;
-        ::metrics::gauge!(FACTORISATION_CACHE_BYTES).set(bytes as f64);
-    }
-}
-
 /// BMC weights, kernel means and variances of one configuration, computed once
 /// and then served from the cache (`cached: true`). Identical concurrent first
 /// requests compute once.
@@ -209,7 +184,10 @@ pub async fn post_quadrature(
         .pool
         .run(move |_| {
             let report = quadrature_report(&spec, &worker.quadratures);
-            record_lookup(&worker, report.as_ref().map(|r| r.cached));
+            metrics::record_quadrature_lookup(
+                &worker.quadratures,
+                report.as_ref().ok().map(|r| r.cached),
+            );
             report
         })
         .await?

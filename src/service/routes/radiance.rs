@@ -20,9 +20,8 @@ use crate::integrator::cached::{
 use crate::render::{QueryPoint, RenderError, Rgb};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
+use crate::service::integrator_doc::{IntegratorDoc, cached_setup};
 use crate::service::metrics::RAYS_TRACED;
-use crate::service::routes::scenes::scene_or_404;
-use crate::service::routes::tiles::{CachedSpec, TileEstimatorDoc, cached_setup};
 use crate::service::state::AppState;
 
 /// A surface point, its normal and the direction towards the viewer.
@@ -44,7 +43,7 @@ pub struct RadianceRequest {
     pub points: Vec<RadiancePointDoc>,
     /// As for tiles: `{"method": "bmc" | "path", …}`; default `bmc`.
     #[serde(default)]
-    pub estimator: TileEstimatorDoc,
+    pub estimator: IntegratorDoc,
     /// Independent evaluations averaged per point (their spread gives
     /// `std_dev`), 1..=`limits.max_samples`; default 16.
     #[serde(default = "default_repeats")]
@@ -93,7 +92,7 @@ pub async fn radiance(
     SceneId(id): SceneId,
     ApiJson(request): ApiJson<RadianceRequest>,
 ) -> Result<Json<RadianceResponse>, ApiError> {
-    let scene = scene_or_404(&state, &id)?;
+    let scene = state.scenes.get_or_404(&id)?;
     let limits = &state.config.limits;
     ApiError::check_count(
         "points",
@@ -127,11 +126,13 @@ pub async fn radiance(
     // The work, bounded before it starts: the repeats' paths, plus for `bmc`
     // at most one record per point.
     let cached = match request.estimator.method {
-        Integrator::Cache => Some(CachedSpec::resolve(&request.estimator, limits)?),
+        Integrator::Cache => Some(request.estimator.resolve(limits)?),
         Integrator::Path => None,
     };
     let points = request.points.len() as u64;
-    let record_paths = cached.as_ref().map_or(0, |c| points * c.paths_per_record());
+    let record_paths = cached
+        .as_ref()
+        .map_or(0, |c| points * c.config.paths_per_record());
     limits.check_work((points * u64::from(request.repeats)).saturating_add(record_paths))?;
     let (max_depth, repeats, seed) = (request.max_depth, request.repeats, request.seed);
     let shared = state.clone();

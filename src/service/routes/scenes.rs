@@ -31,7 +31,7 @@ pub async fn get_scene(
     State(state): State<Arc<AppState>>,
     SceneId(id): SceneId,
 ) -> Result<Json<SceneSummary>, ApiError> {
-    Ok(Json(scene_or_404(&state, &id)?.summary()))
+    Ok(Json(state.scenes.get_or_404(&id)?.summary()))
 }
 
 /// Query parameters of `POST /v1/scenes`, used by Mitsuba XML bodies only
@@ -174,12 +174,4 @@ pub async fn delete_scene(
     state.irradiance_caches.retire(&id, None);
     tracing::info!(%id, "scene deleted");
     Ok(StatusCode::NO_CONTENT)
-}
-
-/// The scene `id`, or 404.
-pub fn scene_or_404(state: &AppState, id: &str) -> Result<Arc<LoadedScene>, ApiError> {
-    state.scenes.get(id).ok_or_else(|| ApiError::NotFound {
-        what: "scene",
-        id: id.to_owned(),
-    })
 }

@@ -1,0 +1,169 @@
+//! The irradiance-cache integrator as tile and radiance requests name it
+//! (`"estimator": {"method": "cache", …}`): the request document, its
+//! translation into the library's [`CachedSpec`] checked against the service
+//! limits, and the scene's shared cache for the resolved configuration.
+
+use std::sync::Arc;
+
+use serde::Deserialize;
+use utoipa::ToSchema;
+
+use super::config::Limits;
+use super::error::ApiError;
+use super::irradiance_caches::SceneCache;
+use super::scenes::LoadedScene;
+use super::state::AppState;
+use crate::cache::{CacheConfig, CacheError, IrradianceCache};
+use crate::integrator::Integrator;
+use crate::integrator::cached::{CachedConfig, CachedShading, CachedSpec};
+
+/// The integrator of a tile or radiance request; every field but `method`
+/// applies to `cache` only, and every one is optional (defaults in
+/// `integrator::cached::config`).
+#[derive(Debug, Default, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct IntegratorDoc {
+    /// `cache` (default; `bmc` is an alias): the Bayesian irradiance cache —
+    /// light sampling for direct light, `(k_d/π)·E` interpolated from BMC
+    /// records for diffuse indirect light, BMC with the Phong density for
+    /// glossy reflection. `path`: path tracing with NEE and MIS, the
+    /// unbiased reference.
+    #[serde(default)]
+    #[schema(value_type = String, example = "cache")]
+    pub method: Integrator,
+    /// Directions per record (spherical Fibonacci), 1..=`limits.max_samples`; default 64.
+    pub samples: Option<u32>,
+    /// SE kernel lengthscale of the records' GP prior (chordal units); default 0.5.
+    pub lengthscale: Option<f64>,
+    /// Noise variance σ_n² relative to σ² = 1; default 1e-8.
+    pub noise: Option<f64>,
+    /// Paths traced per record direction and averaged; default 1.
+    pub paths_per_direction: Option<u32>,
+    /// Levels of records whose rays gather through the cache (Radiance-style
+    /// ambient bounces: direct light plus cached indirect irradiance at each
+    /// ray's hit), 0..=8; 0 = records trace full paths. Default 0.
+    pub ambient_bounces: Option<u32>,
+    /// Ward's accuracy a ∈ (0, 1]; smaller places more records. Default 0.5.
+    pub accuracy: Option<f64>,
+    /// Also place a record where the interpolated relative standard error
+    /// exceeds this (variance-driven placement); default off.
+    pub relative_error_target: Option<f64>,
+    /// Shadow ray between a point and each record it uses (no light leaks
+    /// through thin walls); default false.
+    pub occlusion_check: Option<bool>,
+    /// Light samples per shading point for direct light; default 16.
+    pub light_samples: Option<u32>,
+    /// Bit-identical output whatever the thread count and whatever ran
+    /// before: records are placed in a private cache for this tile, then
+    /// published to the shared one. Default false.
+    pub reproducible: Option<bool>,
+    /// Use the scene's shared cache (default true); `false` computes every
+    /// record for this request alone and keeps none.
+    pub cache: Option<bool>,
+}
+
+/// A `cache` integrator resolved for one request: cheap, so it runs before
+/// the request takes a CPU slot.
+#[derive(Clone, Copy, Debug)]
+pub struct ResolvedCache {
+    pub config: CachedConfig,
+    /// Whether the request reads and extends the scene's shared cache.
+    pub shared: bool,
+}
+
+impl IntegratorDoc {
+    /// The library spec, resolved, with the sample count and each record's
+    /// paths checked against the limits.
+    pub fn resolve(&self, limits: &Limits) -> Result<ResolvedCache, ApiError> {
+        if let Some(samples) = self.samples {
+            ApiError::check_limit(
+                "estimator.samples",
+                u64::from(samples),
+                limits.max_samples as u64,
+            )?;
+        }
+        let spec = CachedSpec {
+            samples: self.samples.map(|n| n as usize),
+            lengthscale: self.lengthscale,
+            noise: self.noise,
+            accuracy: self.accuracy,
+            relative_error_target: self.relative_error_target,
+            occlusion_check: self.occlusion_check,
+            light_samples: self.light_samples,
+            paths_per_direction: self.paths_per_direction,
+            ambient_bounces: self.ambient_bounces,
+            reproducible: self.reproducible,
+            ..CachedSpec::default()
+        };
+        // Validated before the budget, so an out-of-range knob is named as such.
+        let config = spec.resolve().map_err(estimator_error)?;
+        limits.check_record_work(config.paths_per_record())?;
+        Ok(ResolvedCache {
+            config,
+            shared: self.cache.unwrap_or(true),
+        })
+    }
+}
+
+/// The cache a request reads and extends, and its rules with the request's options.
+pub struct CachedSetup {
+    entry: Arc<SceneCache>,
+    pub shading: CachedShading,
+    /// `Some` when the request disabled the shared cache: its private cache.
+    private: Option<IrradianceCache>,
+}
+
+impl CachedSetup {
+    /// The cache the request reads and extends.
+    pub fn cache(&self) -> &IrradianceCache {
+        self.private.as_ref().unwrap_or(&self.entry.cache)
+    }
+}
+
+/// The cache and rules of `resolved` on `scene` with paths of up to
+/// `max_depth` segments counted from the camera (tiles) or viewer (radiance
+/// queries), so both share records. Call it on the CPU pool: a new
+/// configuration factorises its record rule.
+pub fn cached_setup(
+    state: &AppState,
+    scene: &LoadedScene,
+    resolved: ResolvedCache,
+    max_depth: u32,
+) -> Result<CachedSetup, ApiError> {
+    let config = resolved.config;
+    let quadratures = state.quadratures.clone();
+    let entry = state
+        .irradiance_caches
+        .get_or_create(
+            scene,
+            config.records_key(max_depth),
+            || config.describe(max_depth),
+            CacheConfig::default(),
+            || config.shading(quadratures),
+        )
+        .map_err(estimator_error)?;
+    let shading = entry
+        .shading
+        .with_options(config.options)
+        .map_err(estimator_error)?;
+    let private = if resolved.shared {
+        None
+    } else {
+        Some(IrradianceCache::new(*entry.cache.config()).map_err(estimator_error)?)
+    };
+    Ok(CachedSetup {
+        entry,
+        shading,
+        private,
+    })
+}
+
+/// A cache or rule error as a 422 naming the estimator field.
+pub fn estimator_error(err: CacheError) -> ApiError {
+    let field = match err.field() {
+        Some("kernel.lengthscale" | "lengthscale") => "estimator.lengthscale".to_owned(),
+        Some(field) => format!("estimator.{field}"),
+        None => "estimator".to_owned(),
+    };
+    ApiError::invalid(field, err.to_string())
+}
