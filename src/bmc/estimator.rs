@@ -24,6 +24,7 @@ use rand::RngExt;
 use rand_pcg::Pcg64;
 
 use crate::bmc::cache::CachedQuadrature;
+use crate::bmc::gls::Gls;
 use crate::bmc::{BmcError, Density, PriorMean};
 use crate::sphere::{SampleSet, SampleSetKind, SampleSetSpec};
 use crate::stats::RunningMean;
@@ -249,22 +250,18 @@ pub enum BmcVariance {
 pub struct BayesianEstimator {
     cached: Arc<CachedQuadrature>,
     variance: BmcVariance,
-    /// `Q⁻¹1` and `1ᵀQ⁻¹1`, for the GLS residual of the amplitude fit.
-    ones_solved: Vec<f64>,
-    ones_norm: f64,
+    /// `Q⁻¹1`, for the GLS residual of the amplitude fit.
+    gls: Gls,
 }
 
 impl BayesianEstimator {
     /// Estimator over a cached quadrature (see [`crate::bmc::cache`]).
     pub fn new(cached: Arc<CachedQuadrature>, variance: BmcVariance) -> Self {
-        let n = cached.directions().len();
-        let ones_solved = cached.factorised.factorisation.solve(&vec![1.0; n]);
-        let ones_norm = ones_solved.iter().sum();
+        let gls = Gls::new(&cached.factorised.factorisation);
         Self {
             cached,
             variance,
-            ones_solved,
-            ones_norm,
+            gls,
         }
     }
 
@@ -280,14 +277,10 @@ impl BayesianEstimator {
         let quadratic: f64 = values.iter().zip(&solved).map(|(y, a)| y * a).sum();
         let (residual, dof) = match self.cached.quadrature.prior_mean {
             PriorMean::Zero => (quadratic, n),
-            PriorMean::Gls => {
-                let cross: f64 = values
-                    .iter()
-                    .zip(&self.ones_solved)
-                    .map(|(y, a)| y * a)
-                    .sum();
-                (quadratic - cross * cross / self.ones_norm, n - 1)
-            }
+            // Unbiased: one degree of freedom went into the GLS mean, and
+            // with few values per point (N = 16..64) the ML divisor N would
+            // shrink every error bar by a visible factor.
+            PriorMean::Gls => (self.gls.residual(values, &solved), n - 1),
         };
         if dof == 0 {
             return f64::INFINITY;

@@ -21,6 +21,7 @@
 
 use serde::Serialize;
 
+use super::gls::Gls;
 use crate::bmc::{BmcError, Factorisation, Kernel, KernelKind};
 use crate::sphere::SampleSet;
 
@@ -276,15 +277,13 @@ impl Profile<'_> {
         let kernel = Kernel::new(self.kind, log_l.exp(), 1.0, log_eta.exp())?;
         let factorisation = Factorisation::new(self.set, &kernel)?;
         let n = self.set.directions.len();
-        let ones_solved = factorisation.solve(&vec![1.0; n]);
-        let ones_norm: f64 = ones_solved.iter().sum();
+        let gls = Gls::new(&factorisation);
         let mut quadratic = 0.0;
         for y in self.observations {
-            let solved = factorisation.solve(y);
-            let y_q_y: f64 = y.iter().zip(&solved).map(|(a, b)| a * b).sum();
-            let cross: f64 = y.iter().zip(&ones_solved).map(|(a, b)| a * b).sum();
-            quadratic += (y_q_y - cross * cross / ones_norm).max(0.0);
+            quadratic += gls.residual(y, &factorisation.solve(y));
         }
+        // Maximum likelihood: the profiled amplitude divides by every value
+        // (M points × N directions), as the likelihood it maximises does.
         let total = (self.observations.len() * n) as f64;
         let variance = quadratic / total;
         if variance <= 0.0 || !variance.is_finite() {

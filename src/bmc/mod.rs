@@ -7,6 +7,7 @@ pub mod density;
 pub mod error;
 pub mod estimator;
 pub mod factorisation;
+pub mod gls;
 pub mod hyperparameters;
 pub mod kernel;
 pub mod kernel_mean;

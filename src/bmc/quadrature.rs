@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use super::density::Density;
 use super::error::BmcError;
 use super::factorisation::Factorisation;
+use super::gls::Gls;
 use super::kernel::Kernel;
 use super::kernel_mean::{kernel_means, prior_variance};
 use crate::sphere::SampleSet;
@@ -106,10 +107,10 @@ impl Quadrature {
         let (weights, raw) = match prior_mean {
             PriorMean::Zero => (w0, prior_variance - explained),
             PriorMean::Gls => {
-                let u = factorisation.solve(&vec![1.0; z.len()]);
-                let s: f64 = u.iter().sum();
+                let gls = Gls::new(factorisation);
+                let (u, s) = (gls.ones_solved(), gls.ones_sum());
                 let r = density_integral - w0.iter().sum::<f64>();
-                let weights = w0.iter().zip(&u).map(|(w, u)| w + u * r / s).collect();
+                let weights = w0.iter().zip(u).map(|(w, u)| w + u * r / s).collect();
                 (weights, prior_variance - explained + r * r / s)
             }
         };

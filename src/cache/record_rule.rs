@@ -51,6 +51,7 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use super::error::CacheError;
+use crate::bmc::gls::Gls;
 use crate::bmc::{
     Density, Factorisation, Kernel, KernelKind, KernelMeanMethod, PriorMean, Quadrature,
     kernel_means,
@@ -97,8 +98,7 @@ pub struct RecordRule {
     factorisation: Factorisation,
     quadrature: Quadrature,
     /// `Q⁻¹1` and `1ᵀQ⁻¹1`, for the GLS mean `m̂ = (1ᵀQ⁻¹Y)/(1ᵀQ⁻¹1)`.
-    ones_solved: Vec<f64>,
-    ones_sum: f64,
+    gls: Gls,
     /// `dz_i/dμ_i`, `μ_i = cos θ_i`.
     dz_dmu: Vec<f64>,
     /// `A_ij = ∂k/∂c` at `c = ω_i·ω_j`, row-major `N×N`, zero on the
@@ -118,8 +118,7 @@ impl RecordRule {
     /// Bytes held: the Cholesky factor and the derivative tables, `≈ 24 N²`
     /// for `N` directions (what a cache of records must count beside them).
     pub fn size_bytes(&self) -> usize {
-        let f64s = self.ones_solved.len()
-            + self.dz_dmu.len()
+        let f64s = self.dz_dmu.len()
             + self.dk_dc.len()
             + self.dk_dc_cos.len()
             + self.a_w_u.iter().map(Vec::len).sum::<usize>()
@@ -130,6 +129,7 @@ impl RecordRule {
             + self.set.directions.len() * std::mem::size_of::<glam::DVec3>()
             + f64s * std::mem::size_of::<f64>()
             + self.neighbours.len() * std::mem::size_of::<[usize; NEIGHBOURS]>()
+            + self.gls.size_bytes()
     }
 
     /// Factor `Q`, compute the weights and the derivative tables.
@@ -145,8 +145,7 @@ impl RecordRule {
             KernelMeanMethod::Exact,
         )?;
         let n = set.len();
-        let ones_solved = factorisation.solve(&vec![1.0; n]);
-        let ones_sum = ones_solved.iter().sum();
+        let gls = Gls::new(&factorisation);
         let dz_dmu = kernel_mean_slopes(&set.directions, &spec.kernel)?;
         let dirs = &set.directions;
         let (mut dk_dc, mut dk_dc_cos) = (vec![0.0; n * n], vec![0.0; n * n]);
@@ -172,8 +171,7 @@ impl RecordRule {
             set,
             factorisation,
             quadrature,
-            ones_solved,
-            ones_sum,
+            gls,
             dz_dmu,
             dk_dc,
             dk_dc_cos,
@@ -236,7 +234,8 @@ impl RecordRule {
             let y: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
             let mean = match self.spec.prior_mean {
                 PriorMean::Zero => 0.0,
-                PriorMean::Gls => dot(&self.ones_solved, &y) / self.ones_sum,
+                // The 4-lane dot of this file, as the other products here.
+                PriorMean::Gls => dot(self.gls.ones_solved(), &y) / self.gls.ones_sum(),
             };
             for (a, v) in alpha[c * n..(c + 1) * n].iter_mut().zip(&y) {
                 *a = v - mean;
@@ -248,6 +247,9 @@ impl RecordRule {
         let alpha: [&[f64]; 3] = [0, 1, 2].map(|c| &alpha[c * n..(c + 1) * n]);
         let w = &self.quadrature.weights;
         let variance = [0, 1, 2].map(|c| {
+            // Maximum likelihood (divisor N), as the marginal-likelihood fit
+            // of `bmc::hyperparameters` (docs/math.md §7.3; the per-point
+            // estimates of `bmc::estimator` use N − 1 instead).
             let amplitude = (dot(&centred[c * n..(c + 1) * n], alpha[c]) / n as f64).max(0.0);
             // The values' noise is independent across directions.
             let noise: f64 = w
