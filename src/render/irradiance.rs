@@ -209,15 +209,10 @@ impl Transport {
             if cos <= 0.0 || light.radiance.is_black() {
                 return Rgb::BLACK;
             }
-            let shadow = match light.target {
-                Some((p, pn)) => scene.spawn_ray_to(x, n, p, Some(pn)),
-                None => scene.spawn_ray(x, n, light.wi),
-            };
-            stats.rays += 1;
-            if scene.occluded(&shadow) {
-                Rgb::BLACK
-            } else {
+            if light.visible_from(scene, x, n, stats) {
                 light.radiance * (cos / light.pdf)
+            } else {
+                Rgb::BLACK
             }
         });
         MeanEstimate::of(values.collect::<Vec<_>>())

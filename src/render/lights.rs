@@ -21,6 +21,7 @@ use glam::DVec3;
 use super::distribution::Distribution1D;
 use super::environment_sampling::EnvironmentSampler;
 use super::rgb::Rgb;
+use super::trace_stats::TraceStats;
 use crate::scene::{Emitter, Scene, SurfaceHit};
 
 /// Probability of choosing the environment when both kinds of light exist.
@@ -38,6 +39,21 @@ pub struct LightSample {
     /// Point on an area light and its normal, for the shadow ray; `None` for
     /// the environment (the shadow ray is then unbounded).
     pub target: Option<(DVec3, DVec3)>,
+}
+
+impl LightSample {
+    /// Whether nothing blocks this light from the surface point `x` with
+    /// geometric normal `n` (the shadow ray starts offset along it): one
+    /// shadow ray, counted in `stats`. The one place next-event estimation
+    /// traces its shadow rays.
+    pub fn visible_from(&self, scene: &Scene, x: DVec3, n: DVec3, stats: &mut TraceStats) -> bool {
+        let shadow = match self.target {
+            Some((p, pn)) => scene.spawn_ray_to(x, n, p, Some(pn)),
+            None => scene.spawn_ray(x, n, self.wi),
+        };
+        stats.rays += 1;
+        !scene.occluded(&shadow)
+    }
 }
 
 /// Precomputed light-selection tables for one scene.

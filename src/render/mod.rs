@@ -32,6 +32,7 @@ pub mod rgb;
 pub mod seed;
 pub mod strata;
 pub mod tile;
+pub mod trace_stats;
 pub mod transport;
 pub mod warp;
 

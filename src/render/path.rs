@@ -22,6 +22,7 @@ use super::lights::{emitted_radiance, environment_radiance};
 use super::mean::MeanEstimate;
 use super::rgb::Rgb;
 use super::strata::GridStrata;
+pub use super::trace_stats::TraceStats;
 use super::transport::Transport;
 use crate::scene::{Ray, SurfaceHit};
 use crate::sphere::Frame;
@@ -59,13 +60,6 @@ pub const MAX_DEPTH: u32 = 1024;
 pub struct AveragedPaths {
     pub limits: PathLimits,
     pub per_direction: u32,
-}
-
-/// Counters a caller sums over a request.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct TraceStats {
-    /// Closest-hit plus shadow rays traced.
-    pub rays: u64,
 }
 
 /// Radiance arriving along one direction.
@@ -200,16 +194,9 @@ impl Transport {
             if let Some(light) = self.lights().sample(scene, hit.position, u_select, u) {
                 let wi = frame.to_local(light.wi);
                 let f = bsdf.eval(wo, wi);
-                if !f.is_black() {
-                    let shadow = match light.target {
-                        Some((p, n)) => scene.spawn_ray_to(hit.position, hit.normal, p, Some(n)),
-                        None => scene.spawn_ray(hit.position, hit.normal, light.wi),
-                    };
-                    stats.rays += 1;
-                    if !scene.occluded(&shadow) {
-                        let weight = power_heuristic(light.pdf, bsdf.pdf(wo, wi));
-                        radiance += beta * f * light.radiance * (wi.z * weight / light.pdf);
-                    }
+                if !f.is_black() && light.visible_from(scene, hit.position, hit.normal, stats) {
+                    let weight = power_heuristic(light.pdf, bsdf.pdf(wo, wi));
+                    radiance += beta * f * light.radiance * (wi.z * weight / light.pdf);
                 }
             }
 

@@ -430,12 +430,7 @@ impl CachedIntegrator<'_> {
             if f.is_black() || light.radiance.is_black() {
                 continue;
             }
-            let shadow = match light.target {
-                Some((p, pn)) => scene.spawn_ray_to(hit.position, hit.normal, p, Some(pn)),
-                None => scene.spawn_ray(hit.position, hit.normal, light.wi),
-            };
-            stats.rays += 1;
-            if !scene.occluded(&shadow) {
+            if light.visible_from(scene, hit.position, hit.normal, stats) {
                 sum += f * light.radiance * (wi.z / light.pdf);
             }
         }
