@@ -51,3 +51,5 @@ pub mod service;
 pub mod sphere;
 pub mod stats;
 pub mod study;
+#[doc(hidden)]
+pub mod testing;

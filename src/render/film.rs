@@ -101,7 +101,8 @@ impl Transport {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::tile::tests::{cornell, request};
+    use crate::render::tile::tests::request;
+    use crate::testing::cornell;
     use std::cell::Cell;
 
     #[test]

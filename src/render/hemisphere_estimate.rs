@@ -128,8 +128,8 @@ mod tests {
     use crate::bmc::cache::QuadratureCache;
     use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
     use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
-    use crate::render::tile::tests::cornell;
     use crate::sphere::{SampleSetKind, SampleSetSpec};
+    use crate::testing::cornell;
     use glam::DVec3;
 
     /// BMC on cosine Fibonacci points; the noise ratio 1e-3 regularises the

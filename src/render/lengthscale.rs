@@ -217,8 +217,8 @@ impl FittedKernels {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::tile::tests::cornell;
     use crate::sphere::SampleSetKind;
+    use crate::testing::cornell;
     use std::sync::Arc;
 
     fn config(decomposition: IrradianceMethod) -> FitConfig {

@@ -273,17 +273,7 @@ pub(crate) mod tests {
     use std::sync::Arc;
 
     use crate::scene::Scene;
-
-    /// The bundled Cornell box with its camera resized to `side`².
-    pub(crate) fn cornell(side: u32) -> Transport {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-        let text = std::fs::read_to_string(dir.join("cornell-box.json")).expect("bundled scene");
-        let mut doc: serde_json::Value = serde_json::from_str(&text).expect("JSON");
-        doc["camera"]["width"] = side.into();
-        doc["camera"]["height"] = side.into();
-        let scene = Scene::from_json_str(&doc.to_string(), &dir, &dir).expect("loads");
-        Transport::new(Arc::new(scene))
-    }
+    use crate::testing::{cornell, in_pool};
 
     pub(crate) fn request(x: u32, y: u32, width: u32, height: u32) -> TileRequest {
         TileRequest {
@@ -295,14 +285,6 @@ pub(crate) mod tests {
             max_depth: 6,
             seed: 7,
         }
-    }
-
-    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool")
-            .install(f)
     }
 
     #[test]

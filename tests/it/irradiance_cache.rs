@@ -22,6 +22,7 @@ use bmc_irradiance::render::{
 };
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::sphere::{Frame, SampleSetKind, SampleSetSpec};
+use bmc_irradiance::testing::agrees;
 use glam::DVec3;
 use rand::RngExt;
 
@@ -255,7 +256,7 @@ fn bmc_record_agrees_with_monte_carlo_indirect_irradiance() {
         let se = (bmc.variance_of_mean.to_array()[c] + mc.variance_of_mean.to_array()[c]).sqrt();
         assert!(m > 0.0);
         assert!(
-            (b - m).abs() < 4.0 * se,
+            agrees(b, m, se, 4.0, 0.0),
             "channel {c}: BMC {b} vs MC {m} (se {se})"
         );
     }

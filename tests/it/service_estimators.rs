@@ -3,6 +3,7 @@
 //! report in `GET /v1/scenes/{id}`.
 
 use crate::common::{TestApp, error_of, spawn_app_with_scenes};
+use bmc_irradiance::testing::agrees;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -68,7 +69,7 @@ async fn the_three_estimators_agree_within_their_uncertainty() {
             // Both standard deviations are rough for N = 64; 5σ is a
             // generous but still failing-when-wrong bound.
             assert!(
-                (e - r).abs() < 5.0 * sigma,
+                agrees(e, r, sigma, 5.0, 0.0),
                 "{estimator}: {e} vs {r} ± {sigma}"
             );
         }

@@ -2,6 +2,7 @@
 //! it agrees with path tracing and leaves its records in the scene's cache.
 
 use crate::common::spawn_app_with_scenes;
+use bmc_irradiance::testing::agrees;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -51,9 +52,8 @@ async fn cached_radiance_agrees_with_path_tracing_and_fills_the_cache() {
         for c in 0..3 {
             assert!(b[c] > 0.0 && sb[c] > 0.0 && sp[c] > 0.0, "{bmc}");
             // 4σ of both estimates plus 3 % for the records' unmodelled path noise.
-            let tolerance = 4.0 * (sp[c].powi(2) + sb[c].powi(2)).sqrt() + 0.03 * p[c];
             assert!(
-                (p[c] - b[c]).abs() < tolerance,
+                agrees(b[c], p[c], sp[c].hypot(sb[c]), 4.0, 0.03),
                 "point {i} channel {c}: {path} vs {bmc}"
             );
         }

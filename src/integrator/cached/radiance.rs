@@ -222,7 +222,7 @@ mod tests {
     use super::*;
     use crate::bmc::cache::QuadratureCache;
     use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
-    use crate::render::tile::tests::cornell;
+    use crate::testing::{agrees, cornell};
     use std::sync::Arc;
 
     fn floor_query() -> RadianceQuery {
@@ -295,8 +295,11 @@ mod tests {
             // Records are not free of bias from interpolation, but at their own
             // position they estimate the same integral; 4σ of the combined error
             // plus 3 % for the record's unmodelled path noise.
-            let tolerance = 4.0 * (sp * sp + sb * sb).sqrt() + 0.03 * p;
-            assert!((p - b).abs() < tolerance, "path {p} ± {sp}, bmc {b} ± {sb}");
+            // 3 %: the records' unmodelled path noise.
+            assert!(
+                agrees(b, p, sp.hypot(sb), 4.0, 0.03),
+                "path {p} ± {sp}, bmc {b} ± {sb}"
+            );
         }
     }
 

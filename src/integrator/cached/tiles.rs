@@ -244,7 +244,8 @@ mod tests {
     use crate::image::relative_rmse;
     use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
     use crate::render::Transport;
-    use crate::render::tile::tests::{cornell, request};
+    use crate::render::tile::tests::request;
+    use crate::testing::{cornell, in_pool};
 
     /// A small, fast configuration: 16 directions per record.
     fn shading(options: CacheShadingOptions) -> CachedShading {
@@ -284,14 +285,6 @@ mod tests {
             shading,
         }
         .render_tile(request, &Cancel::never())
-    }
-
-    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(f)
     }
 
     #[test]

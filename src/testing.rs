@@ -1,0 +1,63 @@
+//! Test support shared by the unit tests next to the code and the
+//! integration tests in `tests/it`: the bundled-scene fixtures and the one
+//! statistical assertion. Not part of the service's interface.
+//!
+//! # Tolerance policy
+//! A Monte Carlo result is compared with another or with a reference by
+//! [`agrees`]: `|a − b| ≤ k·se + rel·|b|`, where `se` is the standard error of
+//! the difference (the two errors combined in quadrature when both are
+//! random) and
+//! - `k = 4` by default: a correct estimator fails a single check with
+//!   probability 6·10⁻⁵, so a suite of a few hundred such checks stays green;
+//!   `k = 5` where one test makes many comparisons at once;
+//! - `rel` is zero for unbiased comparisons. It is non-zero only where a
+//!   method has a known, bounded bias (interpolation from cache records, BMC
+//!   glossy weights interpolated in `θ_r`), and then the test says which
+//!   bias and how large it is allowed to be.
+//!
+//! Deterministic quantities (closed forms, identities) are compared with
+//! plain absolute or relative bounds instead.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use crate::render::Transport;
+use crate::scene::Scene;
+
+/// Whether `a` and `b` agree within `sigmas` standard errors `se` of their
+/// difference plus a relative allowance `rel·|b|` (module docs).
+pub fn agrees(a: f64, b: f64, se: f64, sigmas: f64, rel: f64) -> bool {
+    (a - b).abs() <= sigmas * se + rel * b.abs()
+}
+
+/// The bundled Cornell box, with its camera resized to `side`² pixels.
+pub fn cornell(side: u32) -> Transport {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let text = std::fs::read_to_string(dir.join("cornell-box.json")).expect("bundled scene");
+    let mut doc: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+    doc["camera"]["width"] = side.into();
+    doc["camera"]["height"] = side.into();
+    let scene = Scene::from_json_str(&doc.to_string(), &dir, &dir).expect("loads");
+    Transport::new(Arc::new(scene))
+}
+
+/// Runs `f` on a rayon pool of `threads` threads (results must not depend on it).
+pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool")
+        .install(f)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn agreement_is_within_sigmas_plus_the_relative_allowance() {
+        assert!(agrees(10.0, 10.3, 0.1, 4.0, 0.0));
+        assert!(!agrees(10.0, 10.5, 0.1, 4.0, 0.0));
+        assert!(agrees(10.0, 10.5, 0.1, 4.0, 0.02));
+    }
+}
