@@ -41,7 +41,7 @@ pub struct IrradianceArgs {
     #[arg(long, default_value_t = 4096)]
     pub samples: u32,
     /// Longest light path in segments (1 = direct light only).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = crate::render::path::DEFAULT_MAX_DEPTH)]
     pub max_depth: u32,
     /// Direct light only (same as --max-depth 1).
     #[arg(long)]

@@ -38,7 +38,7 @@ use super::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;
 
-pub use super::path::MAX_DEPTH;
+pub use super::path::{DEFAULT_MAX_DEPTH, MAX_DEPTH, check_max_depth};
 
 /// How the irradiance integral is split between estimators (module docs,
 /// docs/math.md §14).
@@ -82,7 +82,7 @@ impl Default for IrradianceOptions {
     fn default() -> Self {
         Self {
             samples: 256,
-            max_depth: 16,
+            max_depth: DEFAULT_MAX_DEPTH,
             direct_only: false,
             method: IrradianceMethod::Split,
             seed: 1,
@@ -116,16 +116,7 @@ impl IrradianceOptions {
                 reason: "must be at least 1".into(),
             });
         }
-        if self.max_depth == 0 || self.max_depth > MAX_DEPTH {
-            return Err(RenderError::InvalidOption {
-                field: "max_depth",
-                reason: format!(
-                    "must be in 1..={MAX_DEPTH} (1 = direct light only), got {}",
-                    self.max_depth
-                ),
-            });
-        }
-        Ok(())
+        check_max_depth(self.max_depth)
     }
 }
 

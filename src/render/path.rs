@@ -18,6 +18,7 @@
 use glam::DVec3;
 use rand::{Rng, RngExt};
 
+use super::error::RenderError;
 use super::lights::{emitted_radiance, environment_radiance};
 use super::mean::MeanEstimate;
 use super::rgb::Rgb;
@@ -52,6 +53,25 @@ pub struct PathLimits {
 /// Largest accepted `max_depth`. Russian roulette cannot end paths in a
 /// closed scene of albedo 1, so the depth bound is what keeps a request finite.
 pub const MAX_DEPTH: u32 = 1024;
+/// `max_depth` of every request and command that names none: paths of up to
+/// 16 segments, whose truncated tail (`≈ albedo¹⁶`) is negligible in the
+/// bundled scenes.
+pub const DEFAULT_MAX_DEPTH: u32 = 16;
+
+/// Checks a `max_depth`: path segments counted from the camera, viewer or
+/// query point, in `1..=MAX_DEPTH` (1 = emitters seen directly, or direct
+/// light only for irradiance). The one range check of every request's depth.
+pub fn check_max_depth(max_depth: u32) -> Result<(), RenderError> {
+    if max_depth == 0 || max_depth > MAX_DEPTH {
+        return Err(RenderError::InvalidOption {
+            field: "max_depth",
+            reason: format!(
+                "must be in 1..={MAX_DEPTH} (1 = light seen directly only), got {max_depth}"
+            ),
+        });
+    }
+    Ok(())
+}
 
 /// Paths averaged per direction: each direction's radiance is the mean of
 /// `per_direction ≥ 1` paths of `limits`, sharing their first segment

@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::error::RenderError;
 use super::mean::MeanEstimate;
-use super::path::MAX_DEPTH;
+use super::path::check_max_depth;
 use super::path::{PathLengths, PathLimits, TraceStats};
 use super::rgb::Rgb;
 use super::seed::point_rng;
@@ -107,16 +107,7 @@ impl TileRequest {
                 ),
             ));
         }
-        if self.max_depth == 0 || self.max_depth > MAX_DEPTH {
-            return Err(bad(
-                "max_depth",
-                format!(
-                    "{} is not in 1..={MAX_DEPTH} (1 = emitters seen directly only)",
-                    self.max_depth
-                ),
-            ));
-        }
-        Ok(())
+        check_max_depth(self.max_depth)
     }
 }
 
@@ -353,7 +344,10 @@ pub(crate) mod tests {
             ..request(0, 0, 1, 1)
         };
         assert_eq!(field(depth(0)), "max_depth");
-        assert_eq!(field(depth(MAX_DEPTH + 1)), "max_depth");
+        assert_eq!(
+            field(depth(crate::render::path::MAX_DEPTH + 1)),
+            "max_depth"
+        );
         // Inside a huge image but too large for one request.
         let huge = TileRequest {
             width: 4096,

@@ -31,6 +31,7 @@ use super::config::PlacementOptions;
 use super::shade::{Gather, PlacementPoint, RecordGather, compute_record, lookup};
 use super::stats::ShadingStats;
 use crate::cache::{CacheConfig, CacheError, Interpolated, IrradianceCache, Record, RecordRule};
+use crate::render::path::check_max_depth;
 use crate::render::seed::point_rng;
 use crate::render::{Cancel, QueryPoint, Transport};
 
@@ -75,18 +76,7 @@ fn validate(options: &PlacementOptions) -> Result<(), CacheError> {
             format!("must be finite and > 0, got {t}"),
         ));
     }
-    if options.paths.max_depth == 0
-        || options.paths.max_depth > crate::render::irradiance::MAX_DEPTH
-    {
-        return Err(CacheError::invalid(
-            "max_depth",
-            format!(
-                "must be in 1..={}, got {}",
-                crate::render::irradiance::MAX_DEPTH,
-                options.paths.max_depth
-            ),
-        ));
-    }
+    check_max_depth(options.paths.max_depth)?;
     Ok(())
 }
 

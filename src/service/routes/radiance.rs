@@ -17,6 +17,7 @@ use crate::integrator::Integrator;
 use crate::integrator::cached::{
     RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points, surface_at,
 };
+use crate::render::path::{DEFAULT_MAX_DEPTH, check_max_depth};
 use crate::render::{QueryPoint, RenderError, Rgb};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
@@ -61,7 +62,7 @@ fn default_repeats() -> u32 {
 }
 
 fn default_max_depth() -> u32 {
-    16
+    DEFAULT_MAX_DEPTH
 }
 
 fn default_seed() -> u64 {
@@ -104,15 +105,7 @@ pub async fn radiance(
         u64::from(request.repeats),
         limits.max_samples as u64,
     )?;
-    if request.max_depth == 0 || request.max_depth > crate::render::irradiance::MAX_DEPTH {
-        return Err(ApiError::invalid(
-            "max_depth",
-            format!(
-                "must be in 1..={} (1 = emission only)",
-                crate::render::irradiance::MAX_DEPTH
-            ),
-        ));
-    }
+    check_max_depth(request.max_depth)?;
     let queries = request
         .points
         .iter()

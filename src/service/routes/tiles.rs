@@ -66,7 +66,7 @@ fn default_spp() -> u32 {
 }
 
 fn default_max_depth() -> u32 {
-    16
+    crate::render::path::DEFAULT_MAX_DEPTH
 }
 
 fn default_seed() -> u64 {
