@@ -100,25 +100,23 @@ async fn expect_error(response: reqwest::Response, status: StatusCode) -> (Strin
     )
 }
 
+/// `GET path` as JSON, within the tests' client timeout.
+async fn get_json(app: &TestApp, path: &str) -> Value {
+    client()
+        .get(app.url(path))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap()
+}
+
 /// `/health` is ok and every bundled scene is still listed.
 async fn still_serving(app: &TestApp) {
-    let health: Value = client()
-        .get(app.url("/health"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let health: Value = get_json(app, "/health").await;
     assert_eq!(health["status"], "ok");
-    let list: Value = client()
-        .get(app.url("/v1/scenes"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let list: Value = get_json(app, "/v1/scenes").await;
     let ids: Vec<&str> = list
         .as_array()
         .unwrap()
@@ -471,14 +469,7 @@ async fn posted_json_is_read_as_strictly_as_other_routes() {
     );
 
     // Nothing was replaced: `sky` is still the bundled one.
-    let sky: Value = client()
-        .get(app.url("/v1/scenes/sky"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let sky: Value = get_json(&app, "/v1/scenes/sky").await;
     assert_eq!(sky["source"], "file");
     still_serving(&app).await;
 }
