@@ -81,7 +81,7 @@ struct QuadratureKey {
 
 /// Counters and occupancy of a [`QuadratureCache`], for logs and `/stats`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-pub struct CacheStats {
+pub struct QuadratureCacheStats {
     /// Quadrature requests served from the cache (including waiters on an
     /// in-flight computation). Failed computations count as misses.
     pub quadrature_hits: u64,
@@ -224,12 +224,12 @@ impl QuadratureCache {
     }
 
     /// Current counters and occupancy.
-    pub fn stats(&self) -> CacheStats {
+    pub fn stats(&self) -> QuadratureCacheStats {
         // moka applies inserts and evictions lazily; flush so the figures
         // reflect every completed request.
         self.factorisations.run_pending_tasks();
         self.quadratures.run_pending_tasks();
-        CacheStats {
+        QuadratureCacheStats {
             quadrature_hits: self.quadrature_hits.load(Ordering::Relaxed),
             quadrature_misses: self.quadrature_misses.load(Ordering::Relaxed),
             factorisation_hits: self.factorisation_hits.load(Ordering::Relaxed),

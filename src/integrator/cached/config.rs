@@ -126,19 +126,6 @@ impl CacheShadingOptions {
         PixelFootprint::new(1.0, self.min_pixels, self.max_pixels)?;
         Accuracy::new(self.accuracy)
     }
-
-    /// Placement options for records summing `paths`, seeded with `seed`.
-    pub fn placement(&self, paths: PathLimits, seed: u64) -> Result<PlacementOptions, CacheError> {
-        Ok(PlacementOptions {
-            paths,
-            accuracy: self.validate()?,
-            relative_error_target: self.relative_error_target,
-            occlusion_check: self.occlusion_check,
-            seed,
-            batch_size: self.batch_size,
-            paths_per_direction: self.paths_per_direction,
-        })
-    }
 }
 
 /// Everything shading through the cache needs besides the cache: the
@@ -148,7 +135,10 @@ impl CacheShadingOptions {
 pub struct CachedShading {
     pub rule: Arc<RecordRule>,
     pub glossy: Arc<GlossyRule>,
+    /// Validated when this value is built, never again per shading point.
     pub options: CacheShadingOptions,
+    /// `options.accuracy`, checked.
+    accuracy: Accuracy,
 }
 
 impl CachedShading {
@@ -160,21 +150,42 @@ impl CachedShading {
         quadratures: Arc<QuadratureCache>,
         options: CacheShadingOptions,
     ) -> Result<Self, CacheError> {
-        options.validate()?;
+        let accuracy = options.validate()?;
         Ok(Self {
             rule: Arc::new(RecordRule::new(spec)?),
             glossy: Arc::new(GlossyRule::new(spec, glossy_bins, quadratures)?),
             options,
+            accuracy,
         })
     }
 
     /// The same rules with other per-request options.
     pub fn with_options(&self, options: CacheShadingOptions) -> Result<Self, CacheError> {
-        options.validate()?;
+        let accuracy = options.validate()?;
         Ok(Self {
             options,
+            accuracy,
             ..self.clone()
         })
+    }
+
+    /// Ward's accuracy of lookups, checked.
+    pub fn accuracy(&self) -> Accuracy {
+        self.accuracy
+    }
+
+    /// Placement options for records summing `paths`, seeded with `seed`.
+    pub fn placement(&self, paths: PathLimits, seed: u64) -> PlacementOptions {
+        let o = &self.options;
+        PlacementOptions {
+            paths,
+            accuracy: self.accuracy,
+            relative_error_target: o.relative_error_target,
+            occlusion_check: o.occlusion_check,
+            seed,
+            batch_size: o.batch_size,
+            paths_per_direction: o.paths_per_direction,
+        }
     }
 }
 

@@ -22,7 +22,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::config::CachedShading;
-use super::shade::{CachedIntegrator, OnMiss, ShadePoint, cache_to_render};
+use super::shade::{CachedIntegrator, OnMiss, ShadePoint};
 use super::stats::ShadingStats;
 use crate::cache::IrradianceCache;
 use crate::render::seed::point_rng;
@@ -210,7 +210,7 @@ fn record_variance(
     if bsdf.diffuse.is_black() {
         return Ok(Rgb::BLACK);
     }
-    let accuracy = shading.options.validate().map_err(cache_to_render)?;
+    let accuracy = shading.accuracy();
     let point = QueryPoint::new(hit.position, hit.shading_normal)?;
     Ok(cache.lookup(&point, accuracy).map_or(Rgb::BLACK, |i| {
         i.variance * (bsdf.diffuse / PI) * (bsdf.diffuse / PI)

@@ -272,9 +272,7 @@ impl CachedIntegrator<'_> {
         stats: &mut ShadingStats,
     ) -> Result<Rgb, RenderError> {
         let options = &self.shading.options;
-        let placement = options
-            .placement(indirect_paths(how.max_depth), 0)
-            .map_err(cache_to_render)?;
+        let placement = self.shading.placement(indirect_paths(how.max_depth), 0);
         let radiance = emitted_radiance(self.transport.scene(), hit, -wo);
         if how.max_depth == 0 {
             return Ok(radiance);
@@ -347,9 +345,7 @@ impl CachedIntegrator<'_> {
         let relaxed = PlacementOptions {
             accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * options.accuracy).min(1.0))
                 .map_err(cache_to_render)?,
-            ..options
-                .placement(bounce.paths, 0)
-                .map_err(cache_to_render)?
+            ..self.shading.placement(bounce.paths, 0)
         };
         let reflection = Reflection {
             placement: &relaxed,
@@ -832,7 +828,7 @@ mod tests {
             bsdf: &bsdf,
             wo_local,
         };
-        let placement = shading.options.placement(paths, 0).unwrap();
+        let placement = shading.placement(paths, 0);
         let reflection = Reflection {
             placement: &placement,
             light_samples: 1,

@@ -157,7 +157,6 @@ impl CachedIntegrator<'_> {
         let (transport, shading) = (self.transport, self.shading);
         let camera = &transport.scene().camera;
         request.validate(camera.resolution())?;
-        shading.options.validate().map_err(cache_to_render)?;
         let depth = request.max_depth - 1;
         let mut report = CachedTileReport::default();
         let private;
@@ -176,10 +175,7 @@ impl CachedIntegrator<'_> {
             // The tile's own stream family, so tiles sharing a seed do not
             // reuse each other's record rotations.
             let seed = pixel_rng(request.seed, request.x, request.y).next_u64();
-            let options = shading
-                .options
-                .placement(indirect_paths(depth), seed)
-                .map_err(cache_to_render)?;
+            let options = shading.placement(indirect_paths(depth), seed);
             // A private cache is only read at the bounces, so the batch stays
             // deterministic (see `placement`).
             let reproducible = shading.options.reproducible;
@@ -222,7 +218,7 @@ fn publish(
     cache: &IrradianceCache,
     shading: &CachedShading,
 ) -> Result<u64, RenderError> {
-    let accuracy = shading.options.validate().map_err(cache_to_render)?;
+    let accuracy = shading.accuracy();
     let mut published = 0;
     for r in records {
         let point = QueryPoint::new(r.position, r.normal)?;
