@@ -6,18 +6,18 @@
 //!    logging does not dominate under load);
 //! 2. metrics ([`metrics::track`]): count and latency per route template, method, status;
 //! 3. panic catcher: a panicking handler answers 500 with the JSON error body;
-//! 4. request deadline: a request still running after `limits.request_deadline_secs`
-//!    is dropped and answered 504 `deadline_exceeded` (dropping it also cancels its
-//!    CPU job if that has not started, see `pool.rs`). 504 rather than 503 because the
-//!    service did accept the work and the client may retry with a smaller request;
-//! 5. request head size: a target over [`MAX_URI_BYTES`] answers 414 and headers
+//! 4. request head size: a target over [`MAX_URI_BYTES`] answers 414 and headers
 //!    over [`MAX_HEAD_BYTES`] 431, with the JSON error body (hyper itself cuts
 //!    heads off at [`super::server::HYPER_MAX_HEAD_BYTES`] with a bare 431);
-//! 6. authorisation: with `server.auth_token` set, the routes that change state
-//!    (`POST /v1/scenes`, every `DELETE`) need `Authorization: Bearer <token>`,
-//!    else 401;
-//! 7. body limit (`DefaultBodyLimit`): bodies over `limits.max_body_bytes` make
-//!    [`ApiJson`](super::extract::ApiJson) answer 413 with the JSON error body.
+//! 5. request deadline: a request still running after `limits.request_deadline_secs`
+//!    is dropped and answered 504 `deadline_exceeded` (dropping it also cancels its
+//!    CPU job, see `pool.rs`). 504 rather than 503 because the service did accept
+//!    the work and the client may retry with a smaller request;
+//! 6. body limit (`DefaultBodyLimit`): bodies over `limits.max_body_bytes` make
+//!    [`ApiJson`](super::extract::ApiJson) answer 413 with the JSON error body;
+//! 7. on matched routes only, authorisation: with `server.auth_token` set, the
+//!    routes that change state (`POST /v1/scenes`, every `DELETE`) need
+//!    `Authorization: Bearer <token>`, else 401.
 //!
 //! Connections (timeouts, the connection cap, the shutdown window) are
 //! handled below all of this, in [`super::server`].
