@@ -24,6 +24,16 @@ use std::sync::Arc;
 use crate::render::Transport;
 use crate::scene::Scene;
 
+/// A small valid scene document: a diffuse unit rectangle under a constant
+/// white sky, seen by an 8² camera.
+pub const TINY_SCENE: &str = r#"{
+    "materials": [{"id": "white", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+    "shapes": [{"type": "rectangle", "material": "white"}],
+    "environment": {"type": "constant", "radiance": [1, 1, 1]},
+    "camera": {"type": "perspective", "fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0],
+               "up": [0, 1, 0], "width": 8, "height": 8}
+}"#;
+
 /// Whether `a` and `b` agree within `sigmas` standard errors `se` of their
 /// difference plus a relative allowance `rel·|b|` (module docs).
 pub fn agrees(a: f64, b: f64, se: f64, sigmas: f64, rel: f64) -> bool {

@@ -38,7 +38,7 @@ use super::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;
 
-pub use super::path::{DEFAULT_MAX_DEPTH, MAX_DEPTH, check_max_depth};
+use super::path::{DEFAULT_MAX_DEPTH, check_max_depth};
 
 /// How the irradiance integral is split between estimators (module docs,
 /// docs/math.md §14).
@@ -326,7 +326,7 @@ mod tests {
                 ..
             })
         ));
-        o.max_depth = MAX_DEPTH + 1;
+        o.max_depth = crate::render::path::MAX_DEPTH + 1;
         assert!(o.validate().is_err());
         o.direct_only = true;
         o.max_depth = 9;

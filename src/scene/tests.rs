@@ -5,10 +5,35 @@
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
+use proptest::prelude::prop;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::*;
+
+/// `original` with character edits applied in order: each `(at, op, c)`
+/// removes (`op` 0), inserts `c` (1), replaces by `c` (2) or duplicates the
+/// 64 characters at `at` (3, which repeats keys, values, entries, elements
+/// and attributes). The parsers' fuzz tests mutate the bundled scenes with it.
+pub(crate) fn mutated_text(original: &str, edits: Vec<(prop::sample::Index, u8, char)>) -> String {
+    let mut chars: Vec<char> = original.chars().collect();
+    for (at, op, c) in edits {
+        let i = at.index(chars.len().max(1)).min(chars.len());
+        match op {
+            0 if i < chars.len() => {
+                chars.remove(i);
+            }
+            1 => chars.insert(i, c),
+            2 if i < chars.len() => chars[i] = c,
+            _ => {
+                let end = (i + 64).min(chars.len());
+                let copy: Vec<char> = chars[i..end].to_vec();
+                chars.splice(i..i, copy);
+            }
+        }
+    }
+    chars.into_iter().collect()
+}
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
@@ -680,22 +705,7 @@ mod fuzz {
             edits in proptest::collection::vec((any::<prop::sample::Index>(), 0..4u8, any::<char>()), 1..8),
         ) {
             let original = std::fs::read_to_string(scenes_dir().join("cornell-box.json")).unwrap();
-            let mut chars: Vec<char> = original.chars().collect();
-            for (at, op, c) in edits {
-                let i = at.index(chars.len().max(1)).min(chars.len());
-                match op {
-                    0 if i < chars.len() => { chars.remove(i); }
-                    1 => chars.insert(i, c),
-                    2 if i < chars.len() => chars[i] = c,
-                    // Duplicate a slice: repeats keys, values and entries.
-                    _ => {
-                        let end = (i + 64).min(chars.len());
-                        let copy: Vec<char> = chars[i..end].to_vec();
-                        chars.splice(i..i, copy);
-                    }
-                }
-            }
-            check(&chars.into_iter().collect::<String>());
+            check(&super::mutated_text(&original, edits));
         }
     }
 }

@@ -142,10 +142,7 @@ pub fn cached_setup(
             || config.shading(quadratures),
         )
         .map_err(estimator_error)?;
-    let shading = entry
-        .shading
-        .with_options(config.options)
-        .map_err(estimator_error)?;
+    let shading = entry.shading.with_options(&config);
     let private = if resolved.shared {
         None
     } else {

@@ -347,13 +347,7 @@ fn log_broken(path: &Path, err: &SceneError) {
 mod tests {
     use super::*;
 
-    const TINY: &str = r#"{
-        "materials": [{"id": "white", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
-        "shapes": [{"type": "rectangle", "material": "white"}],
-        "environment": {"type": "constant", "radiance": [1, 1, 1]},
-        "camera": {"type": "perspective", "fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0],
-                   "up": [0, 1, 0], "width": 8, "height": 8}
-    }"#;
+    use crate::testing::TINY_SCENE as TINY;
 
     #[test]
     fn ids_are_url_safe() {

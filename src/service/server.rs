@@ -53,7 +53,7 @@ pub async fn serve(
     let mut http = http1::Builder::new();
     http.timer(TokioTimer::new())
         .header_read_timeout(Duration::from_secs(config.header_read_timeout_secs))
-        .max_buf_size(HYPER_MAX_HEAD_BYTES.max(8192))
+        .max_buf_size(HYPER_MAX_HEAD_BYTES)
         .max_header_size(HYPER_MAX_HEAD_BYTES);
     let connections = Arc::new(Semaphore::new(config.max_connections));
     let graceful = GracefulShutdown::new();

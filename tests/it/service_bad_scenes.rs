@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::time::Duration;
 
-use crate::common::{TestApp, spawn_app_in};
+use crate::common::{TestApp, error_json, spawn_app_in};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 use tempfile::TempDir;
@@ -80,18 +80,9 @@ async fn post_xml(app: &TestApp, query: &str, xml: &str) -> reqwest::Response {
 /// Asserts the status and the error body; returns `(code, field, message)`.
 async fn expect_error(response: reqwest::Response, status: StatusCode) -> (String, String, String) {
     assert_eq!(response.status(), status);
-    let content_type = response.headers()["content-type"]
-        .to_str()
-        .unwrap()
-        .to_owned();
-    assert!(
-        content_type.starts_with("application/json"),
-        "{content_type}"
-    );
-    let bytes = response.bytes().await.unwrap();
+    let (body, len) = error_json(response).await;
     // Errors never echo huge values back.
-    assert!(bytes.len() < 4096, "{} bytes of error body", bytes.len());
-    let body: Value = serde_json::from_slice(&bytes).unwrap();
+    assert!(len < 4096, "{len} bytes of error body");
     let error = &body["error"];
     (
         error["code"].as_str().unwrap().to_owned(),

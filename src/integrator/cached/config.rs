@@ -159,14 +159,14 @@ impl CachedShading {
         })
     }
 
-    /// The same rules with other per-request options.
-    pub fn with_options(&self, options: CacheShadingOptions) -> Result<Self, CacheError> {
-        let accuracy = options.validate()?;
-        Ok(Self {
-            options,
-            accuracy,
+    /// The same rules with the per-request options of `config` (already
+    /// checked when it was resolved).
+    pub fn with_options(&self, config: &CachedConfig) -> Self {
+        Self {
+            options: config.options,
+            accuracy: config.accuracy,
             ..self.clone()
-        })
+        }
     }
 
     /// Ward's accuracy of lookups, checked.
@@ -270,6 +270,8 @@ pub struct CachedConfig {
     pub rule: RecordRuleSpec,
     pub options: CacheShadingOptions,
     pub glossy_bins: usize,
+    /// `options.accuracy`, checked with the rest of `options` by [`CachedSpec::resolve`].
+    accuracy: Accuracy,
 }
 
 /// What the values of a cache's records depend on, and nothing else: the
@@ -321,7 +323,7 @@ impl CachedSpec {
             max_pixels: self.max_pixels.unwrap_or(d.max_pixels),
             ..d
         };
-        options.validate()?;
+        let accuracy = options.validate()?;
         let glossy_bins = self.glossy_bins.unwrap_or(DEFAULT_GLOSSY_BINS);
         if !(2..=super::glossy::MAX_GLOSSY_BINS).contains(&glossy_bins) {
             return Err(CacheError::invalid(
@@ -336,6 +338,7 @@ impl CachedSpec {
             rule,
             options,
             glossy_bins,
+            accuracy,
         })
     }
 }

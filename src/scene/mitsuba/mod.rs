@@ -189,6 +189,25 @@ pub(crate) struct Ctx<'a> {
 }
 
 impl<'a> Ctx<'a> {
+    /// Empty conversion state for a document whose elements with an `id` are `ids`.
+    fn new(ids: HashMap<String, &'a Element>, options: &MitsubaOptions, files: &'a Files) -> Self {
+        Ctx {
+            ids,
+            lenient: options.lenient,
+            point_light_radius: options.point_light_radius,
+            files,
+            warnings: Warnings::default(),
+            materials: Vec::new(),
+            material_of: HashMap::new(),
+            shapes: Vec::new(),
+            environment: None,
+            camera: None,
+            origins: Vec::new(),
+            resolving: Vec::new(),
+            mesh_files: HashMap::new(),
+        }
+    }
+
     /// An unsupported feature: an error, or with `lenient` a warning saying
     /// what is done instead (`fallback`).
     fn unsupported(
@@ -280,21 +299,7 @@ pub(crate) fn from_str(
     let files = Files::new(base_dir, scenes_root)?;
     let scene_el = parse::parse(text, &options.parameters).map_err(|e| e.into_scene_error(file))?;
     let ids = parse::index_ids(&scene_el).map_err(|e| e.into_scene_error(file))?;
-    let mut ctx = Ctx {
-        ids,
-        lenient: options.lenient,
-        point_light_radius: options.point_light_radius,
-        files: &files,
-        warnings: Warnings::default(),
-        materials: Vec::new(),
-        material_of: HashMap::new(),
-        shapes: Vec::new(),
-        environment: None,
-        camera: None,
-        origins: Vec::new(),
-        resolving: Vec::new(),
-        mesh_files: HashMap::new(),
-    };
+    let mut ctx = Ctx::new(ids, options, &files);
     let doc = convert_scene(&mut ctx, &scene_el).map_err(|e| e.into_scene_error(file))?;
     let Ctx {
         origins, warnings, ..

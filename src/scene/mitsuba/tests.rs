@@ -855,22 +855,7 @@ proptest! {
         lenient in any::<bool>(),
     ) {
         let original = std::fs::read_to_string(scenes_dir().join("cornell-box.xml")).unwrap();
-        let mut chars: Vec<char> = original.chars().collect();
-        for (at, op, c) in edits {
-            let i = at.index(chars.len().max(1)).min(chars.len());
-            match op {
-                0 if i < chars.len() => { chars.remove(i); }
-                1 => chars.insert(i, c),
-                2 if i < chars.len() => chars[i] = c,
-                // Duplicate a slice: repeats elements and attributes.
-                _ => {
-                    let end = (i + 64).min(chars.len());
-                    let copy: Vec<char> = chars[i..end].to_vec();
-                    chars.splice(i..i, copy);
-                }
-            }
-        }
-        check_no_panic(&chars.into_iter().collect::<String>(), lenient);
+        check_no_panic(&crate::scene::tests::mutated_text(&original, edits), lenient);
     }
 }
 
@@ -881,21 +866,7 @@ fn a_mesh_file_is_read_once_per_document() {
     use super::shape::{MeshFormat, mesh_file};
     let dir = scenes_dir();
     let files = crate::scene::loader::Files::new(&dir, &dir).unwrap();
-    let mut ctx = super::Ctx {
-        ids: HashMap::new(),
-        lenient: false,
-        point_light_radius: 1e-3,
-        files: &files,
-        warnings: Warnings::default(),
-        materials: Vec::new(),
-        material_of: HashMap::new(),
-        shapes: Vec::new(),
-        environment: None,
-        camera: None,
-        origins: Vec::new(),
-        resolving: Vec::new(),
-        mesh_files: HashMap::new(),
-    };
+    let mut ctx = super::Ctx::new(HashMap::new(), &MitsubaOptions::default(), &files);
     let path = dir.join("meshes/blob.obj");
     let mut reads = 0;
     for _ in 0..3 {

@@ -1,6 +1,6 @@
 //! Spawns the real service on 127.0.0.1:0 for black-box tests.
 
-#![allow(dead_code)] // each test binary uses a different subset of these helpers
+#![allow(dead_code, unused_imports)] // each test binary uses a different subset of these helpers
 
 use bmc_irradiance::service::{Application, Config};
 use tempfile::TempDir;
@@ -70,14 +70,7 @@ pub async fn spawn_app_with(adjust: impl FnOnce(&mut Config)) -> TestApp {
     spawn_app_with_scenes(&[], adjust).await
 }
 
-/// A small valid scene: a diffuse unit rectangle under a constant white sky.
-pub const TINY_SCENE: &str = r#"{
-    "materials": [{"id": "white", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
-    "shapes": [{"type": "rectangle", "material": "white"}],
-    "environment": {"type": "constant", "radiance": [1, 1, 1]},
-    "camera": {"type": "perspective", "fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0],
-               "up": [0, 1, 0], "width": 8, "height": 8}
-}"#;
+pub use bmc_irradiance::testing::TINY_SCENE;
 
 /// Starts the service after writing `files` (name, contents) into its scenes directory.
 pub async fn spawn_app_with_scenes(
@@ -108,8 +101,9 @@ pub async fn spawn_app_in(scenes_dir: TempDir, adjust: impl FnOnce(&mut Config))
     }
 }
 
-/// Asserts the JSON error body shape and returns `(code, field)`.
-pub async fn error_of(response: reqwest::Response) -> (String, Option<String>) {
+/// The JSON error body and its size in bytes, asserting its content type
+/// and that it carries a message.
+pub async fn error_json(response: reqwest::Response) -> (serde_json::Value, usize) {
     let content_type = response.headers()["content-type"]
         .to_str()
         .unwrap()
@@ -118,9 +112,16 @@ pub async fn error_of(response: reqwest::Response) -> (String, Option<String>) {
         content_type.starts_with("application/json"),
         "{content_type}"
     );
-    let body: serde_json::Value = response.json().await.unwrap();
+    let bytes = response.bytes().await.unwrap();
+    let body: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+    assert!(body["error"]["message"].is_string(), "{body}");
+    (body, bytes.len())
+}
+
+/// Asserts the JSON error body shape and returns `(code, field)`.
+pub async fn error_of(response: reqwest::Response) -> (String, Option<String>) {
+    let (body, _) = error_json(response).await;
     let error = &body["error"];
-    assert!(error["message"].is_string(), "{body}");
     (
         error["code"].as_str().unwrap().to_owned(),
         error["field"].as_str().map(str::to_owned),
