@@ -22,6 +22,7 @@ use bmc_irradiance::bmc::cache::QuadratureCache;
 use bmc_irradiance::bmc::estimator::{BayesianEstimator, BmcVariance};
 use bmc_irradiance::bmc::report::QuadratureSpec;
 use bmc_irradiance::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+use bmc_irradiance::render::environment_prior::PriorChoice;
 use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::{IrradianceMethod, IrradianceOptions, QueryPoint, Transport};
 use bmc_irradiance::scene::Scene;
@@ -91,6 +92,7 @@ fn main() -> anyhow::Result<()> {
             transport.irradiance_with_estimator(
                 &query,
                 &estimator,
+                PriorChoice::None,
                 &options,
                 &|| {},
                 &Cancel::never(),

@@ -24,6 +24,8 @@ enum Command {
     Quadrature(cli::quadrature::QuadratureArgs),
     /// Relative RMSE of MC, QMC and BMC on synthetic environments with known irradiance.
     Study(cli::study::StudyArgs),
+    /// Error and calibration of MC, QMC and BMC on a real scene against converged references.
+    StudyScene(cli::study::SceneStudyArgs),
     /// Render the scene camera's image to EXR (and PNG), tile by tile.
     Render(cli::render::RenderArgs),
     /// Relative RMSE of an EXR image against a reference EXR.
@@ -39,6 +41,7 @@ fn main() -> anyhow::Result<()> {
         Command::Serve(args) => bmc_irradiance::service::run_serve(&args),
         Command::Quadrature(args) => print_output(cli::quadrature::run(&args)?),
         Command::Study(args) => print_output(cli::study::run(&args)?),
+        Command::StudyScene(args) => print_output(cli::study::run_scene(&args)?),
         Command::Render(args) => cli::render::run_render(&args, &mut std::io::stdout().lock()),
         Command::Compare(args) => cli::render::run_compare(&args, &mut std::io::stdout().lock()),
     }

@@ -17,6 +17,7 @@ use crate::render::Cancel;
 use crate::render::estimators::{
     EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
+use crate::render::environment_prior::PriorChoice;
 use crate::render::irradiance::{IrradianceMethod, IrradianceOptions};
 use crate::render::lengthscale::FittedKernels;
 use crate::render::points_csv::{parse_points, write_irradiance};
@@ -48,8 +49,13 @@ pub struct IrradianceArgs {
     pub direct_only: bool,
     /// `split`: direct light by light sampling + the rest through the
     /// hemisphere; `hemisphere`: everything through the hemisphere.
-    #[arg(long, alias = "method", value_enum, default_value_t = IrradianceMethod::Split)]
+    /// `auto` picks `hemisphere` for a scene lit only by a smooth environment.
+    #[arg(long, alias = "method", value_enum, default_value_t = IrradianceMethod::Auto)]
     pub decomposition: IrradianceMethod,
+    /// Prior mean of the hemisphere values (default: `environment` for
+    /// `bmc`, `none` for `mc` and `qmc`).
+    #[arg(long, value_enum)]
+    pub prior: Option<PriorChoice>,
     /// Hemisphere estimator: `mc` (cosine-weighted random directions), `qmc`
     /// (spherical Fibonacci, equal weights) or `bmc` (Bayesian quadrature).
     #[arg(long, value_enum, default_value_t = EstimatorMethod::Mc)]
@@ -121,6 +127,7 @@ impl IrradianceArgs {
                 variance: None,
                 noise: self.noise,
             }),
+            prior: self.prior,
         }
     }
 }
@@ -195,7 +202,7 @@ mod tests {
             .expect("valid");
         let o = args.options();
         assert_eq!((o.samples, o.max_depth, o.seed), (64, 3, 9));
-        assert_eq!(o.method, IrradianceMethod::Split);
+        assert_eq!(o.method, IrradianceMethod::Auto);
         assert!(!o.direct_only);
 
         let args =

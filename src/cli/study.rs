@@ -1,4 +1,5 @@
-//! `bmc-irradiance study`: the estimator convergence study.
+//! `bmc-irradiance study`: the estimator convergence study on synthetic
+//! environments, and `study-scene`: the same estimators on a real scene.
 
 use clap::Args;
 
@@ -34,5 +35,63 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<String> {
         serde_json::to_string_pretty(&rows)?
     } else {
         convergence::markdown_table(&rows)
+    })
+}
+
+/// Arguments of `bmc-irradiance study-scene`.
+#[derive(Clone, Debug, Args)]
+pub struct SceneStudyArgs {
+    /// Scene file (JSON or Mitsuba XML).
+    #[arg(long)]
+    pub scene: std::path::PathBuf,
+    /// Camera-visible query points.
+    #[arg(long, default_value_t = 200)]
+    pub points: usize,
+    /// Request seeds per estimator and N.
+    #[arg(long, default_value_t = 6)]
+    pub seeds: u64,
+    /// Hemisphere samples per point, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [16, 64, 256])]
+    pub samples: Vec<u32>,
+    #[arg(long, value_enum, default_value_t = crate::render::IrradianceMethod::Auto)]
+    pub decomposition: crate::render::IrradianceMethod,
+    /// Longest path in segments (1 = direct light only).
+    #[arg(long, default_value_t = crate::render::path::DEFAULT_MAX_DEPTH)]
+    pub max_depth: u32,
+    /// Samples of each point's reference.
+    #[arg(long, default_value_t = 16_384)]
+    pub reference_samples: u32,
+    /// Print JSON rows instead of a Markdown table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs the scene study: the text to print on stdout.
+pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
+    use crate::study::scenes::{self, SceneStudyOptions};
+    let root = match args.scene.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let scene = crate::scene::Scene::load(&args.scene, &root)?;
+    let name = args
+        .scene
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let transport = crate::render::Transport::new(std::sync::Arc::new(scene));
+    let options = SceneStudyOptions {
+        points: args.points,
+        seeds: args.seeds,
+        sample_counts: args.samples.clone(),
+        decomposition: args.decomposition,
+        max_depth: args.max_depth,
+        reference_samples: args.reference_samples,
+        ..SceneStudyOptions::default()
+    };
+    let rows = scenes::run(&transport, &name, &options)?;
+    Ok(if args.json {
+        serde_json::to_string_pretty(&rows)?
+    } else {
+        scenes::markdown_table(&rows)
     })
 }

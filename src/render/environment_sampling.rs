@@ -81,6 +81,33 @@ impl EnvironmentSampler {
     }
 }
 
+/// `Var L / (E L)²` of the environment's luminance over the sphere (uniform
+/// solid-angle measure): the relative variance of a one-sample estimate of
+/// its mean radiance by uniform directions. Zero for a constant environment;
+/// a sun of a few degrees makes it hundreds or more.
+pub fn environment_relative_variance(environment: &Environment) -> f64 {
+    let Environment::Map(map) = environment else {
+        return 0.0;
+    };
+    let (w, h) = (map.width(), map.height());
+    let (mut total, mut mean, mut square) = (0.0, 0.0, 0.0);
+    for y in 0..h {
+        // Solid angle of a texel in row y, up to the constant 2π²/(w h).
+        let weight = (PI * (y as f64 + 0.5) / h as f64).sin();
+        for x in 0..w {
+            let lum = Rgb::from_array(map.texel(x, y)).luminance();
+            total += weight;
+            mean += weight * lum;
+            square += weight * lum * lum;
+        }
+    }
+    if total <= 0.0 || mean <= 0.0 {
+        return 0.0;
+    }
+    let (mean, square) = (mean / total, square / total);
+    (square / (mean * mean) - 1.0).max(0.0)
+}
+
 /// Texel weights `lum · sin θ` plus the floor, as a 2-D distribution over `(u, v)`.
 fn map_distribution(map: &EnvironmentMap) -> Distribution2D {
     let (w, h) = (map.width(), map.height());

@@ -24,7 +24,8 @@ use std::sync::Arc;
 
 use super::cancel::Cancel;
 use super::error::RenderError;
-use super::irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
+use super::environment_prior::PriorChoice;
+use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
 use super::query::QueryPoint;
 use super::transport::Transport;
@@ -125,6 +126,10 @@ pub struct EstimatorSpec {
     pub sample_set: Option<(SampleSetKind, u64)>,
     /// `bmc` only.
     pub kernel: Option<KernelSpec>,
+    /// The prior mean of the hemisphere values; `None`: the environment for
+    /// `bmc`, none for `mc` and `qmc` (which then stay the plain rules; with
+    /// `environment` they become control-variate estimators).
+    pub prior: Option<PriorChoice>,
 }
 
 /// Why a spec or an estimate failed; `field` is the path of the offending
@@ -161,8 +166,16 @@ impl EstimatorError {
 
 /// A checked estimator, ready to run.
 #[derive(Debug, Clone)]
-pub enum PointEstimator {
-    Mc,
+pub struct PointEstimator {
+    pub rule: PointRule,
+    pub prior: PriorChoice,
+}
+
+/// The rule of a [`PointEstimator`].
+#[derive(Debug, Clone)]
+pub enum PointRule {
+    /// Cosine-weighted random directions; with a prior, `count` of them.
+    Mc { count: usize },
     Qmc(SampleMeanEstimator),
     Bmc(BmcSetup),
 }
@@ -186,6 +199,10 @@ pub struct Estimates {
     pub kernel: Option<Kernel>,
     /// `bmc`: whether the weights came from the quadrature cache.
     pub quadrature_cached: Option<bool>,
+    /// The decomposition run (`auto` resolved for the scene).
+    pub decomposition: Decomposition,
+    /// The prior mean the hemisphere part used ([`Transport::hemisphere_prior`]).
+    pub prior: PriorChoice,
 }
 
 impl EstimatorSpec {
@@ -202,12 +219,26 @@ impl EstimatorSpec {
                 "only `bmc` takes a kernel",
             ));
         }
+        let prior = self.prior.unwrap_or(match self.method {
+            EstimatorMethod::Bmc => PriorChoice::Environment,
+            EstimatorMethod::Mc | EstimatorMethod::Qmc => PriorChoice::None,
+        });
+        let rule = self.rule(samples, set_kind, set_seed)?;
+        Ok(PointEstimator { rule, prior })
+    }
+
+    fn rule(
+        &self,
+        samples: usize,
+        set_kind: SampleSetKind,
+        set_seed: u64,
+    ) -> Result<PointRule, EstimatorError> {
         match self.method {
             EstimatorMethod::Mc if self.sample_set.is_some() => Err(EstimatorError::invalid(
                 "sample_set",
                 "`mc` draws fresh random directions; only `qmc` and `bmc` take a sample set",
             )),
-            EstimatorMethod::Mc => Ok(PointEstimator::Mc),
+            EstimatorMethod::Mc => Ok(PointRule::Mc { count: samples }),
             EstimatorMethod::Qmc => {
                 let pdf = match set_kind {
                     SampleSetKind::FibonacciCosine => SamplingPdf::Cosine,
@@ -220,7 +251,7 @@ impl EstimatorSpec {
                     }
                 };
                 SampleMeanEstimator::quasi_monte_carlo(Density::Lambert, pdf, samples)
-                    .map(PointEstimator::Qmc)
+                    .map(PointRule::Qmc)
                     .map_err(|e| EstimatorError::invalid("samples", e.to_string()))
             }
             EstimatorMethod::Bmc => {
@@ -241,7 +272,7 @@ impl EstimatorSpec {
                     count: samples,
                     seed: set_seed,
                 };
-                Ok(PointEstimator::Bmc(BmcSetup {
+                Ok(PointRule::Bmc(BmcSetup {
                     sample_set,
                     kind,
                     lengthscale: kernel.lengthscale.value(),
@@ -273,33 +304,44 @@ impl PointEstimator {
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Estimates, EstimatorError> {
-        let (estimates, kernel, quadrature_cached) = match self {
-            PointEstimator::Mc => (
+        let decomposition = transport.decomposition(options.method);
+        let prior = match transport.hemisphere_prior(self.prior, decomposition) {
+            Some(_) => self.prior,
+            None => PriorChoice::None,
+        };
+        let run = |rule: &dyn crate::bmc::estimator::HemisphereEstimator| {
+            transport.irradiance_with_estimator(points, rule, prior, options, on_done, cancel)
+        };
+        let (estimates, kernel, quadrature_cached) = match &self.rule {
+            // Plain MC keeps its own path (the reference estimator).
+            PointRule::Mc { .. } if prior == PriorChoice::None => (
                 transport.irradiance_at_points(points, options, on_done, cancel)?,
                 None,
                 None,
             ),
-            PointEstimator::Qmc(qmc) => (
-                transport.irradiance_with_estimator(points, qmc, options, on_done, cancel)?,
-                None,
-                None,
-            ),
-            PointEstimator::Bmc(bmc) => {
-                let (quadrature, kernel, cached) =
-                    bmc.quadrature(transport, caches, options.method)?;
-                let estimator = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
-                (
-                    transport
-                        .irradiance_with_estimator(points, &estimator, options, on_done, cancel)?,
-                    Some(kernel),
-                    Some(cached),
+            PointRule::Mc { count } => {
+                let mc = SampleMeanEstimator::monte_carlo(
+                    Density::Lambert,
+                    SamplingPdf::Cosine,
+                    *count,
                 )
+                .map_err(EstimatorError::kernel)?;
+                (run(&mc)?, None, None)
+            }
+            PointRule::Qmc(qmc) => (run(qmc)?, None, None),
+            PointRule::Bmc(bmc) => {
+                let (quadrature, kernel, cached) =
+                    bmc.quadrature(transport, caches, decomposition, prior)?;
+                let estimator = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
+                (run(&estimator)?, Some(kernel), Some(cached))
             }
         };
         Ok(Estimates {
             estimates,
             kernel,
             quadrature_cached,
+            decomposition,
+            prior,
         })
     }
 }
@@ -312,7 +354,8 @@ impl BmcSetup {
         &self,
         transport: &Transport,
         caches: EstimatorCaches,
-        decomposition: IrradianceMethod,
+        decomposition: Decomposition,
+        prior: PriorChoice,
     ) -> Result<(Arc<CachedQuadrature>, Kernel, bool), EstimatorError> {
         let (lengthscale, fitted_noise) = match self.lengthscale {
             Some(value) => (value, DEFAULT_NOISE),
@@ -321,6 +364,7 @@ impl BmcSetup {
                     kernel: self.kind,
                     sample_set: self.sample_set,
                     decomposition,
+                    prior,
                 };
                 let fit = caches
                     .kernels
@@ -356,6 +400,7 @@ mod tests {
             samples: 16,
             sample_set: None,
             kernel: None,
+            prior: None,
         }
     }
 
@@ -370,7 +415,10 @@ mod tests {
     fn options_are_checked_against_the_method() {
         assert!(matches!(
             spec(EstimatorMethod::Mc).resolve(),
-            Ok(PointEstimator::Mc)
+            Ok(PointEstimator {
+                rule: PointRule::Mc { count: 16 },
+                prior: PriorChoice::None
+            })
         ));
         let mc_with_set = EstimatorSpec {
             sample_set: Some((SampleSetKind::Fibonacci, 0)),
@@ -417,8 +465,12 @@ mod tests {
             ..spec(EstimatorMethod::Bmc)
         };
         assert_eq!(field(overflow.resolve()), "kernel.variance");
-        let Ok(PointEstimator::Bmc(setup)) = spec(EstimatorMethod::Bmc).resolve() else {
-            panic!("bmc resolves");
+        let Ok(PointEstimator {
+            rule: PointRule::Bmc(setup),
+            prior: PriorChoice::Environment,
+        }) = spec(EstimatorMethod::Bmc).resolve()
+        else {
+            panic!("bmc resolves, with the environment prior by default");
         };
         // Defaults: Fibonacci-cosine set, SE kernel, "auto" lengthscale.
         assert_eq!(setup.sample_set.kind, DEFAULT_SAMPLE_SET);

@@ -28,7 +28,8 @@ use rayon::prelude::*;
 
 use super::cancel::Cancel;
 use super::error::RenderError;
-use super::irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
+use super::environment_prior::{EnvironmentPrior, PriorChoice};
+use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::path::{PathLengths, PathLimits, TraceStats};
 use super::query::QueryPoint;
 use super::rgb::Rgb;
@@ -38,10 +39,27 @@ use crate::bmc::estimator::{HemisphereEstimator, irradiance_from_lambert};
 use crate::sphere::Frame;
 
 impl Transport {
+    /// The prior mean the hemisphere part uses for `choice` under
+    /// `decomposition`: the environment prior where the hemisphere integrand
+    /// contains the environment seen directly (the hemisphere decomposition
+    /// of a scene with an environment), else none.
+    pub fn hemisphere_prior(
+        &self,
+        choice: PriorChoice,
+        decomposition: Decomposition,
+    ) -> Option<&EnvironmentPrior> {
+        match (choice, decomposition) {
+            (PriorChoice::Environment, Decomposition::Hemisphere) => self.environment_prior(),
+            _ => None,
+        }
+    }
+
     /// Irradiance at every point with `estimator` for the hemisphere part
     /// (module docs), in parallel on the current rayon pool.
     ///
     /// `estimator` must integrate against the Lambert density `cos θ/π`.
+    /// `prior` is subtracted from the hemisphere values and its exact
+    /// integral added back ([`Self::hemisphere_prior`] says which applies).
     /// `options.samples` is the number of light samples of the direct part in
     /// split mode; the hemisphere sample count is the estimator's. `on_done`
     /// is called once per finished point; stops between points once `cancel`
@@ -50,17 +68,21 @@ impl Transport {
         &self,
         points: &[QueryPoint],
         estimator: &dyn HemisphereEstimator,
+        prior: PriorChoice,
         options: &IrradianceOptions,
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Vec<IrradianceEstimate>, RenderError> {
         options.validate()?;
+        let decomposition = self.decomposition(options.method);
+        let prior = self.hemisphere_prior(prior, decomposition);
         points
             .par_iter()
             .enumerate()
             .map(|(i, point)| {
                 cancel.check()?;
-                let estimate = self.estimate_point(point, i as u64, estimator, options);
+                let estimate =
+                    self.estimate_point(point, i as u64, estimator, prior, decomposition, options);
                 on_done();
                 estimate
             })
@@ -72,6 +94,8 @@ impl Transport {
         point: &QueryPoint,
         index: u64,
         estimator: &dyn HemisphereEstimator,
+        prior: Option<&EnvironmentPrior>,
+        decomposition: Decomposition,
         options: &IrradianceOptions,
     ) -> Result<IrradianceEstimate, RenderError> {
         let mut rng = point_rng(options.seed, index);
@@ -79,9 +103,9 @@ impl Transport {
         let depth = options.effective_max_depth();
         let frame =
             Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
-        let lengths = match options.method {
-            IrradianceMethod::Hemisphere => Some(PathLengths::All),
-            IrradianceMethod::Split => (depth > 1).then_some(PathLengths::Indirect),
+        let lengths = match decomposition {
+            Decomposition::Hemisphere => Some(PathLengths::All),
+            Decomposition::Split => (depth > 1).then_some(PathLengths::Indirect),
         };
         let (mut irradiance, mut variance) = (Rgb::BLACK, Rgb::BLACK);
         if let Some(lengths) = lengths {
@@ -92,16 +116,39 @@ impl Transport {
             };
             let samples =
                 self.hemisphere_samples(point, &frame, &directions, limits, &mut rng, &mut stats);
+            // The prior at each direction (zero where a direction carries
+            // nothing) and its exact Lambert integral (docs/math.md §10.4).
+            let (prior_values, prior_integral) = match prior {
+                Some(prior) => (
+                    directions
+                        .iter()
+                        .map(|d| {
+                            if d.z > 0.0 && d.is_finite() {
+                                prior.radiance(frame.to_world(d.normalize()))
+                            } else {
+                                Rgb::BLACK
+                            }
+                        })
+                        .collect(),
+                    prior.lambert_integral(point.normal()),
+                ),
+                None => (vec![Rgb::BLACK; directions.len()], Rgb::BLACK),
+            };
             let mut value = [0.0; 3];
             let mut var = [0.0; 3];
             for c in 0..3 {
-                let channel: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
-                let e = estimator.estimate(&directions, &channel).map_err(|err| {
+                let channel: Vec<f64> = samples
+                    .iter()
+                    .zip(&prior_values)
+                    .map(|(s, m)| s.radiance.to_array()[c] - m.to_array()[c])
+                    .collect();
+                let mut e = estimator.estimate(&directions, &channel).map_err(|err| {
                     RenderError::InvalidOption {
                         field: "estimator",
                         reason: err.to_string(),
                     }
                 })?;
+                e.value += prior_integral.to_array()[c];
                 let e = irradiance_from_lambert(e);
                 value[c] = e.value;
                 var[c] = e.variance;
@@ -109,7 +156,7 @@ impl Transport {
             irradiance = Rgb::from_array(value);
             variance = Rgb::from_array(var);
         }
-        if options.method == IrradianceMethod::Split {
+        if decomposition == Decomposition::Split {
             let direct = self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
             irradiance += direct.mean;
             variance += direct.variance_of_mean;
@@ -125,6 +172,7 @@ impl Transport {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::IrradianceMethod;
     use crate::bmc::cache::QuadratureCache;
     use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
     use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
@@ -189,6 +237,7 @@ mod tests {
                 .irradiance_with_estimator(
                     &point,
                     &bmc,
+                    PriorChoice::None,
                     &options(4096, seed),
                     &|| {},
                     &Cancel::never(),
@@ -198,6 +247,7 @@ mod tests {
                 .irradiance_with_estimator(
                     &point,
                     &mc,
+                    PriorChoice::None,
                     &options(4096, seed),
                     &|| {},
                     &Cancel::never(),
@@ -246,6 +296,7 @@ mod tests {
                     transport.irradiance_with_estimator(
                         &points,
                         &estimator,
+                        PriorChoice::None,
                         &options(4, 5),
                         &|| {},
                         &Cancel::never(),

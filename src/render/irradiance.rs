@@ -29,11 +29,15 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::error::RenderError;
 use super::mean::MeanEstimate;
-use super::path::{AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats};
+use super::path::{
+    AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats, power_heuristic,
+};
 use super::query::QueryPoint;
 use super::rgb::Rgb;
 use super::seed::point_rng;
 use super::transport::Transport;
+use super::environment_sampling::environment_relative_variance;
+use super::lights::environment_radiance;
 use super::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;
@@ -59,8 +63,50 @@ pub enum IrradianceMethod {
     /// Everything through the hemisphere estimator.
     Hemisphere,
     /// Direct light by light sampling + the rest through the hemisphere estimator.
-    #[default]
     Split,
+    /// Chosen per scene by [`Transport::decomposition`]: `hemisphere` for a
+    /// scene lit only by a smooth environment, `split` otherwise.
+    #[default]
+    Auto,
+}
+
+/// A decomposition as run: [`IrradianceMethod`] with `auto` resolved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Decomposition {
+    Hemisphere,
+    Split,
+}
+
+/// Largest relative variance `Var L / (E L)²` of the environment's radiance
+/// over the sphere for which `auto` lets the hemisphere estimator integrate
+/// it (docs/math.md §14): at 1, cosine-distributed directions estimate the
+/// unoccluded irradiance about as well as light sampling would, and the
+/// environment prior mean (§10.4) takes most of the rest.
+pub const SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE: f64 = 1.0;
+
+impl Transport {
+    /// The decomposition `method` stands for in this scene: itself, or for
+    /// `auto` `hemisphere` when the scene has no emitting surface and an
+    /// environment whose relative variance is at most
+    /// [`SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE`], else `split`.
+    pub fn decomposition(&self, method: IrradianceMethod) -> Decomposition {
+        match method {
+            IrradianceMethod::Auto => {
+                let smooth_environment_only = !self.lights().has_area_lights()
+                    && self.scene().environment.as_ref().is_some_and(|env| {
+                        environment_relative_variance(env) <= SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE
+                    });
+                if smooth_environment_only {
+                    Decomposition::Hemisphere
+                } else {
+                    Decomposition::Split
+                }
+            }
+            IrradianceMethod::Hemisphere => Decomposition::Hemisphere,
+            IrradianceMethod::Split => Decomposition::Split,
+        }
+    }
 }
 
 /// What to estimate and with how much work.
@@ -181,6 +227,12 @@ impl Transport {
     }
 
     /// Direct irradiance (path length 1) by `samples` light samples, W/m².
+    ///
+    /// With an environment, each sample also traces one cosine-distributed
+    /// direction, and environment light found by either strategy is weighted
+    /// by the power heuristic (docs/math.md §14, §15.2): light sampling alone
+    /// wastes most samples on a smooth environment that the cosine lobe
+    /// would find, and cosine sampling alone misses a sun.
     pub fn direct_irradiance<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
@@ -190,21 +242,37 @@ impl Transport {
     ) -> MeanEstimate {
         let scene = self.scene();
         let (x, n) = (point.position(), point.normal());
+        let environment = self.lights().has_environment();
+        let frame = Frame::from_normal(n);
         let values = (0..samples).map(|_| {
             let u_select = rng.random();
             let u = [rng.random(), rng.random()];
-            let Some(light) = self.lights().sample(scene, x, u_select, u) else {
-                return Rgb::BLACK;
-            };
-            let cos = n.dot(light.wi);
-            if cos <= 0.0 || light.radiance.is_black() {
-                return Rgb::BLACK;
+            let mut value = Rgb::BLACK;
+            if let Some(light) = self.lights().sample(scene, x, u_select, u) {
+                let cos = n.dot(light.wi);
+                if cos > 0.0 && !light.radiance.is_black() && light.visible_from(scene, x, n, stats)
+                {
+                    // Only environment light is also reachable by the cosine strategy.
+                    let weight = if light.target.is_none() {
+                        power_heuristic(light.pdf, cos / PI)
+                    } else {
+                        1.0
+                    };
+                    value += light.radiance * (weight * cos / light.pdf);
+                }
             }
-            if light.visible_from(scene, x, n, stats) {
-                light.radiance * (cos / light.pdf)
-            } else {
-                Rgb::BLACK
+            if environment {
+                let local = warp::cosine_hemisphere([rng.random(), rng.random()]);
+                let dir = frame.to_world(local);
+                stats.rays += 1;
+                if local.z > 0.0 && scene.intersect(&scene.spawn_ray(x, n, dir)).is_none() {
+                    let pdf = local.z / PI;
+                    let weight = power_heuristic(pdf, self.lights().pdf_environment(scene, dir));
+                    // L cos θ / p = π L for cosine-distributed directions.
+                    value += environment_radiance(scene, dir) * (weight * PI);
+                }
             }
+            value
         });
         MeanEstimate::of(values.collect::<Vec<_>>())
     }
@@ -236,8 +304,8 @@ impl Transport {
     ) -> IrradianceEstimate {
         let mut stats = TraceStats::default();
         let depth = options.effective_max_depth();
-        let parts = match options.method {
-            IrradianceMethod::Hemisphere => vec![self.cosine_hemisphere_irradiance(
+        let parts = match self.decomposition(options.method) {
+            Decomposition::Hemisphere => vec![self.cosine_hemisphere_irradiance(
                 point,
                 options.samples,
                 PathLimits {
@@ -247,7 +315,7 @@ impl Transport {
                 rng,
                 &mut stats,
             )],
-            IrradianceMethod::Split => {
+            Decomposition::Split => {
                 let mut parts =
                     vec![self.direct_irradiance(point, options.samples, rng, &mut stats)];
                 if depth > 1 {

@@ -23,7 +23,8 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::Serialize;
 
-use super::irradiance::IrradianceMethod;
+use super::environment_prior::PriorChoice;
+use super::irradiance::Decomposition;
 use super::path::{PathLengths, PathLimits, TraceStats};
 use super::query::QueryPoint;
 use super::seed::point_rng;
@@ -55,7 +56,10 @@ pub const FALLBACK_NOISE_RATIO: f64 = 1e-3;
 pub struct FitConfig {
     pub kernel: KernelKind,
     pub sample_set: SampleSetSpec,
-    pub decomposition: IrradianceMethod,
+    pub decomposition: Decomposition,
+    /// The prior mean the estimator subtracts: the fit is on the residual
+    /// the GP models (docs/math.md §10.4).
+    pub prior: PriorChoice,
 }
 
 /// A fitted lengthscale with what the likelihood said about it.
@@ -89,10 +93,11 @@ pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<Fitte
     let limits = PathLimits {
         max_depth: FIT_MAX_DEPTH,
         lengths: match config.decomposition {
-            IrradianceMethod::Split => PathLengths::Indirect,
-            IrradianceMethod::Hemisphere => PathLengths::All,
+            Decomposition::Split => PathLengths::Indirect,
+            Decomposition::Hemisphere => PathLengths::All,
         },
     };
+    let prior = transport.hemisphere_prior(config.prior, config.decomposition);
     let observations: Vec<Vec<f64>> = points
         .iter()
         .enumerate()
@@ -104,7 +109,11 @@ pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<Fitte
             transport
                 .hemisphere_samples(point, &frame, &set.directions, limits, &mut rng, &mut stats)
                 .iter()
-                .map(|s| s.radiance.luminance())
+                .zip(&set.directions)
+                .map(|(s, d)| {
+                    let mean = prior.map_or(0.0, |p| p.radiance(frame.to_world(*d)).luminance());
+                    s.radiance.luminance() - mean
+                })
                 .collect()
         })
         .collect();
@@ -221,7 +230,7 @@ mod tests {
     use crate::testing::cornell;
     use std::sync::Arc;
 
-    fn config(decomposition: IrradianceMethod) -> FitConfig {
+    fn config(decomposition: Decomposition) -> FitConfig {
         FitConfig {
             kernel: KernelKind::SquaredExponential,
             sample_set: SampleSetSpec {
@@ -230,6 +239,7 @@ mod tests {
                 seed: 0,
             },
             decomposition,
+            prior: PriorChoice::None,
         }
     }
 
@@ -239,10 +249,10 @@ mod tests {
     #[test]
     fn cornell_box_fit_is_deterministic_and_inside_the_bounds() {
         let transport = cornell(8);
-        let split = fit_lengthscale(&transport, config(IrradianceMethod::Split)).unwrap();
+        let split = fit_lengthscale(&transport, config(Decomposition::Split)).unwrap();
         assert_eq!(
             split,
-            fit_lengthscale(&transport, config(IrradianceMethod::Split)).unwrap()
+            fit_lengthscale(&transport, config(Decomposition::Split)).unwrap()
         );
         assert!(!split.at_bound, "{split:?}");
         assert!(split.log_marginal_likelihood.is_some());
@@ -252,7 +262,7 @@ mod tests {
             "{split:?}"
         );
         assert_eq!(split.points, FIT_POINTS);
-        let hemisphere = fit_lengthscale(&transport, config(IrradianceMethod::Hemisphere)).unwrap();
+        let hemisphere = fit_lengthscale(&transport, config(Decomposition::Hemisphere)).unwrap();
         assert!(hemisphere.lengthscale < split.lengthscale, "{hemisphere:?}");
     }
 
@@ -270,7 +280,7 @@ mod tests {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
         let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
         let transport = Transport::new(Arc::new(scene));
-        let fit = fit_lengthscale(&transport, config(IrradianceMethod::Split)).unwrap();
+        let fit = fit_lengthscale(&transport, config(Decomposition::Split)).unwrap();
         assert_eq!(fit.lengthscale, FALLBACK_LENGTHSCALE);
         assert_eq!(fit.noise_ratio, FALLBACK_NOISE_RATIO);
         assert_eq!(fit.log_marginal_likelihood, None);
@@ -283,10 +293,10 @@ mod tests {
         let kernels = FittedKernels::default();
         assert!(kernels.list().is_empty());
         let first = kernels
-            .get_or_fit(&transport, config(IrradianceMethod::Split))
+            .get_or_fit(&transport, config(Decomposition::Split))
             .unwrap();
         let again = kernels
-            .get_or_fit(&transport, config(IrradianceMethod::Split))
+            .get_or_fit(&transport, config(Decomposition::Split))
             .unwrap();
         assert_eq!(first, again);
         assert_eq!(kernels.list(), [first]);

@@ -151,6 +151,16 @@ impl LightSampler {
         })
     }
 
+    /// Whether any emitting surface has positive power.
+    pub fn has_area_lights(&self) -> bool {
+        self.area_distribution.is_some()
+    }
+
+    /// Whether the scene has an environment to sample.
+    pub fn has_environment(&self) -> bool {
+        self.environment.is_some()
+    }
+
     /// Solid-angle density with which [`LightSampler::sample`] would produce
     /// the direction of a ray from `x` that hit emitter surface `hit`.
     pub fn pdf_area_hit(&self, scene: &Scene, x: DVec3, hit: &SurfaceHit) -> f64 {

@@ -15,6 +15,7 @@
 pub mod bsdf;
 pub mod cancel;
 pub mod distribution;
+pub mod environment_prior;
 pub mod environment_sampling;
 pub mod error;
 pub mod estimators;
@@ -40,7 +41,7 @@ pub use bsdf::{Bsdf, BsdfSample};
 pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
-pub use irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
+pub use irradiance::{Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions};
 pub use mean::MeanEstimate;
 pub use path::{AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats};
 pub use query::QueryPoint;

@@ -6,6 +6,7 @@
 use std::sync::Arc;
 
 use super::bsdf::Bsdf;
+use super::environment_prior::EnvironmentPrior;
 use super::lights::LightSampler;
 use crate::scene::Scene;
 
@@ -16,16 +17,20 @@ pub struct Transport {
     lights: LightSampler,
     /// `bsdfs[i]` reflects like `scene.materials[i]`.
     bsdfs: Vec<Bsdf>,
+    /// The unoccluded environment as a prior mean; `None` without an environment.
+    environment_prior: Option<EnvironmentPrior>,
 }
 
 impl Transport {
     pub fn new(scene: Arc<Scene>) -> Self {
         let lights = LightSampler::new(&scene);
         let bsdfs = scene.materials.iter().map(Bsdf::from).collect();
+        let environment_prior = scene.environment.as_ref().map(EnvironmentPrior::new);
         Self {
             scene,
             lights,
             bsdfs,
+            environment_prior,
         }
     }
 
@@ -35,6 +40,11 @@ impl Transport {
 
     pub fn lights(&self) -> &LightSampler {
         &self.lights
+    }
+
+    /// The environment prior mean (docs/math.md §10.4), if the scene has an environment.
+    pub fn environment_prior(&self) -> Option<&EnvironmentPrior> {
+        self.environment_prior.as_ref()
     }
 
     /// Reflection model of material `material` (`None` for an unknown index).

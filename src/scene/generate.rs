@@ -1,7 +1,8 @@
 //! Procedural assets for the bundled scenes, written by the project's own
-//! code: a sky environment map with a sun-like lobe and a displaced sphere
-//! mesh. `cargo run --example generate_scene_assets` regenerates
-//! `scenes/sky.exr` and `scenes/meshes/blob.obj`.
+//! code: a sky environment map with a sun-like lobe, a smooth overcast sky
+//! without one, and a displaced sphere mesh.
+//! `cargo run --example generate_scene_assets` regenerates `scenes/sky.exr`,
+//! `scenes/overcast.exr` and `scenes/meshes/blob.obj`.
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -47,9 +48,33 @@ pub fn sky_radiance(d: DVec3) -> [f64; 3] {
     })
 }
 
-/// Texels of the sky map, each the average of 4×4 directions inside it so
-/// the narrow sun lobe is not aliased.
-pub fn sky_texels(width: usize, height: usize) -> Vec<[f32; 3]> {
+/// Radiance of the procedural overcast sky along map direction `d` (unit),
+/// W/(m²·sr): a smooth, sunless environment. An overcast sky brightening
+/// towards the zenith (`(1 + 2 cos θ)/3`, the CIE overcast gradation), a
+/// broad warm glow where the sun hides behind the clouds (about 35° wide),
+/// and a dim ground below a horizon blurred over about 10°. Its relative
+/// variance over the sphere is about 0.5, so `auto` integrates it through
+/// the hemisphere with the environment prior (docs/math.md §14).
+pub fn overcast_radiance(d: DVec3) -> [f64; 3] {
+    let cloud = [0.85, 0.9, 1.0];
+    let glow_colour = [1.0, 0.8, 0.55];
+    let ground = [0.16, 0.15, 0.13];
+    let up = d.y.max(0.0);
+    let gradation = (1.0 + 2.0 * up) / 3.0;
+    let glow_direction = DVec3::new(-0.55, 0.45, -0.7).normalize();
+    let glow = 1.2 * (4.0 * (d.dot(glow_direction) - 1.0)).exp();
+    // 0 above the horizon, 1 from 10° below it, smooth in between.
+    let t = (-d.y / 10f64.to_radians().sin()).clamp(0.0, 1.0);
+    let g = t * t * (3.0 - 2.0 * t);
+    std::array::from_fn(|c| {
+        let sky = 1.4 * gradation * cloud[c] + glow * glow_colour[c];
+        sky * (1.0 - g) + ground[c] * g
+    })
+}
+
+/// Texels of a map of `radiance`, each the average of 4×4 directions inside
+/// it so narrow features are not aliased.
+pub fn map_texels(width: usize, height: usize, radiance: fn(DVec3) -> [f64; 3]) -> Vec<[f32; 3]> {
     let frame = EnvironmentMap::new(
         width,
         height,
@@ -66,7 +91,7 @@ pub fn sky_texels(width: usize, height: usize) -> Vec<[f32; 3]> {
                 for i in 0..n {
                     let u = (x as f64 + (i as f64 + 0.5) / n as f64) / width as f64;
                     let v = (y as f64 + (j as f64 + 0.5) / n as f64) / height as f64;
-                    let r = sky_radiance(frame.uv_to_direction(u, v));
+                    let r = radiance(frame.uv_to_direction(u, v));
                     (0..3).for_each(|c| sum[c] += r[c]);
                 }
             }
@@ -124,10 +149,17 @@ pub fn displaced_sphere(segments: usize, rings: usize) -> MeshData {
     }
 }
 
-/// Writes `sky.exr` and `meshes/blob.obj` under `dir` (normally `scenes/`).
+/// Writes `sky.exr`, `overcast.exr` and `meshes/blob.obj` under `dir`
+/// (normally `scenes/`).
 pub fn write_bundled_assets(dir: &Path) -> anyhow::Result<()> {
     let (w, h) = SKY_SIZE;
-    write_exr_half(&dir.join("sky.exr"), w, h, &sky_texels(w, h))?;
+    write_exr_half(&dir.join("sky.exr"), w, h, &map_texels(w, h, sky_radiance))?;
+    write_exr_half(
+        &dir.join("overcast.exr"),
+        w,
+        h,
+        &map_texels(w, h, overcast_radiance),
+    )?;
     std::fs::create_dir_all(dir.join("meshes"))?;
     let (segments, rings) = BLOB_SEGMENTS;
     write_obj(
@@ -163,7 +195,7 @@ mod tests {
 
     #[test]
     fn sky_is_brightest_towards_the_sun() {
-        let texels = sky_texels(32, 16);
+        let texels = map_texels(32, 16, sky_radiance);
         let frame = EnvironmentMap::new(32, 16, texels.clone(), 1.0, DMat3::IDENTITY);
         let brightest = (0..texels.len())
             .max_by(|&a, &b| texels[a][0].total_cmp(&texels[b][0]))
@@ -172,5 +204,18 @@ mod tests {
         let d = frame.uv_to_direction((x as f64 + 0.5) / 32.0, (y as f64 + 0.5) / 16.0);
         assert!(d.dot(sun_direction()) > 0.98, "{d}");
         assert!(frame.radiance(DVec3::Y)[2] > frame.radiance(-DVec3::Y)[2]);
+    }
+
+    #[test]
+    fn overcast_is_smooth_and_sky_is_not() {
+        use crate::scene::Environment;
+        let relative_variance = |radiance| {
+            let map = EnvironmentMap::new(64, 32, map_texels(64, 32, radiance), 1.0, DMat3::IDENTITY);
+            crate::render::environment_sampling::environment_relative_variance(&Environment::Map(map))
+        };
+        let overcast = relative_variance(overcast_radiance);
+        let sky = relative_variance(sky_radiance);
+        assert!(overcast < 1.0, "{overcast}");
+        assert!(sky > 100.0, "{sky}");
     }
 }

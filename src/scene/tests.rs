@@ -513,20 +513,25 @@ fn broken_inputs_name_the_field_or_file() {
 #[test]
 fn bundled_sky_and_mesh_scenes_load() {
     let sky = bundled("sky.json");
-    let Some(Environment::Map(map)) = &sky.environment else {
-        panic!("sky.json has no environment map");
-    };
-    assert_eq!((map.width(), map.height()), generate::SKY_SIZE);
-    // The committed map is the generator's output (to half precision).
+    // The committed maps are the generator's output (to half precision).
     let (w, h) = generate::SKY_SIZE;
-    let fresh = generate::sky_texels(w, h);
-    for (i, t) in fresh.iter().enumerate() {
-        let stored = map.texel(i % w, i / w);
-        for c in 0..3 {
-            assert!(
-                (stored[c] - t[c] as f64).abs() <= 1e-3 * t[c] as f64 + 1e-4,
-                "texel {i}"
-            );
+    for (scene, radiance) in [
+        (&sky, generate::sky_radiance as fn(_) -> _),
+        (&bundled("overcast.json"), generate::overcast_radiance),
+    ] {
+        let Some(Environment::Map(map)) = &scene.environment else {
+            panic!("no environment map");
+        };
+        assert_eq!((map.width(), map.height()), generate::SKY_SIZE);
+        let fresh = generate::map_texels(w, h, radiance);
+        for (i, t) in fresh.iter().enumerate() {
+            let stored = map.texel(i % w, i / w);
+            for c in 0..3 {
+                assert!(
+                    (stored[c] - t[c] as f64).abs() <= 1e-3 * t[c] as f64 + 1e-4,
+                    "texel {i}"
+                );
+            }
         }
     }
     assert!(

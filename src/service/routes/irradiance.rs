@@ -18,7 +18,10 @@ use crate::bmc::KernelKind;
 use crate::render::estimators::{
     EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
-use crate::render::{IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb};
+use crate::render::environment_prior::PriorChoice;
+use crate::render::{
+    Decomposition, IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb,
+};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::metrics::{self, RAYS_TRACED};
@@ -42,10 +45,16 @@ pub struct EstimatorDoc {
     pub method: EstimatorMethod,
     /// Hemisphere samples per point (and light samples in `split`), 1..=`limits.max_samples`.
     pub samples: u32,
-    /// `split` (default) or `hemisphere`.
+    /// `auto` (default: `hemisphere` for a scene lit only by a smooth
+    /// environment, else `split`), `split` or `hemisphere`.
     #[serde(default)]
-    #[schema(value_type = String, example = "split")]
+    #[schema(value_type = String, example = "auto")]
     pub decomposition: IrradianceMethod,
+    /// Prior mean of the hemisphere values: `environment` (the unoccluded
+    /// environment, used where the hemisphere part sees it directly) or
+    /// `none`. Default: `environment` for `bmc`, `none` for `mc` and `qmc`.
+    #[schema(value_type = Option<String>, example = "environment")]
+    pub prior: Option<PriorChoice>,
     /// `qmc` and `bmc` only: the fixed sample set.
     pub sample_set: Option<EstimatorSampleSetDoc>,
     /// `bmc` only: the GP kernel over incident radiance.
@@ -124,6 +133,12 @@ pub struct IrradianceResponse {
     /// `bmc`: the kernel noise σ_n² used (with σ² it sets the weights' smoothing).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<f64>,
+    /// The decomposition run: `split` or `hemisphere` (`auto` resolved).
+    #[schema(value_type = String, example = "hemisphere")]
+    pub decomposition: Decomposition,
+    /// The prior mean used: `environment` or `none`.
+    #[schema(value_type = String, example = "environment")]
+    pub prior: PriorChoice,
 }
 
 /// Irradiance at each point of the request.
@@ -190,7 +205,7 @@ pub async fn irradiance(
             estimates
         })
         .await??;
-    let kernel = estimates.kernel;
+    let (kernel, decomposition, prior) = (estimates.kernel, estimates.decomposition, estimates.prior);
     let estimates = estimates.estimates;
     let rays = estimates.iter().map(|e| e.rays).sum();
     ::metrics::counter!(RAYS_TRACED).increment(rays);
@@ -201,6 +216,8 @@ pub async fn irradiance(
         rays,
         lengthscale: kernel.map(|k| k.lengthscale),
         noise: kernel.map(|k| k.noise),
+        decomposition,
+        prior,
     }))
 }
 
@@ -217,6 +234,7 @@ impl EstimatorDoc {
                 variance: k.variance,
                 noise: k.noise,
             }),
+            prior: self.prior,
         }
     }
 }

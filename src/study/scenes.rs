@@ -1,0 +1,300 @@
+//! The real-scene study: error and calibration of the point estimators (MC,
+//! QMC, QMC with the prior mean as a control variate, BMC) on a scene, as a
+//! user gets them through `POST /v1/scenes/{id}/irradiance`, against a
+//! converged reference (docs/math.md §10.3, §17.4).
+//!
+//! Points are what a camera sees: the first surfaces hit by camera rays
+//! through a jittered grid over the image, front sides only, emitters
+//! excluded. Each point's reference is plain Monte Carlo irradiance with
+//! [`SceneStudyOptions::reference_samples`] samples (its standard error enters
+//! every `z`). Each estimator then runs at every `N` with `seeds` request
+//! seeds; its errors over points, seeds and RGB channels are pooled into the
+//! relative RMSE of §17.4, the ±2σ coverage and the rms `z` of §10.3.
+
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use serde::Serialize;
+
+use crate::bmc::cache::QuadratureCache;
+use crate::render::environment_prior::PriorChoice;
+use crate::render::estimators::{EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec};
+use crate::render::lengthscale::FittedKernels;
+use crate::render::{
+    Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint,
+    Transport,
+};
+
+/// What to run on one scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneStudyOptions {
+    /// Query points (camera-visible surface points).
+    pub points: usize,
+    /// Request seeds per estimator and `N`.
+    pub seeds: u64,
+    /// Hemisphere samples per point `N`.
+    pub sample_counts: Vec<u32>,
+    pub decomposition: IrradianceMethod,
+    /// Longest path in segments (1 = direct light only).
+    pub max_depth: u32,
+    /// Samples of each point's reference.
+    pub reference_samples: u32,
+    /// Seed of the points and the reference.
+    pub seed: u64,
+}
+
+impl Default for SceneStudyOptions {
+    fn default() -> Self {
+        Self {
+            points: 200,
+            seeds: 6,
+            sample_counts: vec![16, 64, 256],
+            decomposition: IrradianceMethod::Auto,
+            max_depth: IrradianceOptions::default().max_depth,
+            reference_samples: 16_384,
+            seed: 2026,
+        }
+    }
+}
+
+/// One estimator at one `N` on one scene.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SceneStudyRow {
+    pub scene: String,
+    pub decomposition: Decomposition,
+    pub max_depth: u32,
+    pub samples: u32,
+    /// `mc`, `qmc`, `qmc+prior` (control variate) or `bmc` (defaults).
+    pub estimator: String,
+    /// Relative RMSE against the reference (§17.4).
+    pub nrmse: f64,
+    /// The same with the reference's own noise removed (§17.3).
+    pub nrmse_vs_truth: f64,
+    /// Fraction of `|z| ≤ 2` (§10.3).
+    pub coverage: f64,
+    /// `sqrt(mean z²)` (§10.3).
+    pub rms_z: f64,
+    /// Rays per point, mean over points and seeds.
+    pub rays_per_point: f64,
+}
+
+/// Errors of the study.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneStudyError {
+    #[error(transparent)]
+    Estimator(#[from] EstimatorError),
+    #[error(transparent)]
+    Render(#[from] crate::render::RenderError),
+    #[error("the camera sees no surface to put points on")]
+    NoPoints,
+}
+
+/// Up to `count` camera-visible surface points (module docs), deterministic in `seed`.
+pub fn camera_points(transport: &Transport, count: usize, seed: u64) -> Vec<QueryPoint> {
+    let scene = transport.scene();
+    let (width, height) = scene.camera.resolution();
+    let mut rng = Pcg64::seed_from_u64(seed);
+    // A grid with about twice as many cells as points, visited in random
+    // order, so misses and back faces still leave enough points.
+    let cells = (2 * count).max(1);
+    let columns = ((cells as f64 * width as f64 / height as f64).sqrt().ceil() as usize).max(1);
+    let rows = cells.div_ceil(columns).max(1);
+    let mut order: Vec<usize> = (0..columns * rows).collect();
+    for i in (1..order.len()).rev() {
+        order.swap(i, rng.random_range(0..=i));
+    }
+    let mut points = Vec::with_capacity(count);
+    for cell in order {
+        if points.len() == count {
+            break;
+        }
+        let (cx, cy) = (cell % columns, cell / columns);
+        let px = (cx as f64 + rng.random::<f64>()) / columns as f64 * width as f64;
+        let py = (cy as f64 + rng.random::<f64>()) / rows as f64 * height as f64;
+        let ray = scene.camera.generate_ray(px, py);
+        let Some(hit) = scene.intersect(&ray) else {
+            continue;
+        };
+        if hit.emitter.is_some() || hit.normal.dot(ray.dir) >= 0.0 {
+            continue;
+        }
+        if let Ok(point) = QueryPoint::new(hit.position, hit.shading_normal) {
+            points.push(point);
+        }
+    }
+    points
+}
+
+/// Runs every estimator of the study at every `N` on `transport`'s scene.
+pub fn run(
+    transport: &Transport,
+    scene: &str,
+    options: &SceneStudyOptions,
+) -> Result<Vec<SceneStudyRow>, SceneStudyError> {
+    let points = camera_points(transport, options.points, options.seed);
+    if points.is_empty() {
+        return Err(SceneStudyError::NoPoints);
+    }
+    let base = IrradianceOptions {
+        samples: options.reference_samples,
+        max_depth: options.max_depth,
+        direct_only: false,
+        method: options.decomposition,
+        seed: options.seed,
+    };
+    let never = Cancel::never();
+    // The reference: plain MC, split, many samples (any unbiased estimator of
+    // the same E would do; split has the smallest variance on area lights).
+    let reference = transport.irradiance_at_points(
+        &points,
+        &IrradianceOptions {
+            method: IrradianceMethod::Split,
+            ..base
+        },
+        &|| {},
+        &never,
+    )?;
+    let kernels = FittedKernels::default();
+    let quadratures = QuadratureCache::new(256 << 20);
+    let caches = EstimatorCaches {
+        kernels: &kernels,
+        quadratures: &quadratures,
+    };
+    let estimators = [
+        ("mc", EstimatorMethod::Mc, None),
+        ("qmc", EstimatorMethod::Qmc, None),
+        (
+            "qmc+prior",
+            EstimatorMethod::Qmc,
+            Some(PriorChoice::Environment),
+        ),
+        ("bmc", EstimatorMethod::Bmc, None),
+    ];
+    let decomposition = transport.decomposition(options.decomposition);
+    let prior_applies = transport
+        .hemisphere_prior(PriorChoice::Environment, decomposition)
+        .is_some();
+    let mut rows = Vec::new();
+    for &samples in &options.sample_counts {
+        for (name, method, prior) in estimators {
+            if prior.is_some() && !prior_applies {
+                continue; // The control variate would be plain QMC again.
+            }
+            let spec = EstimatorSpec {
+                method,
+                samples,
+                sample_set: None,
+                kernel: None,
+                prior,
+            };
+            let estimator = spec.resolve()?;
+            let mut runs = Vec::new();
+            for s in 0..options.seeds {
+                let request = IrradianceOptions {
+                    samples,
+                    seed: options.seed ^ (0x9E37_79B9 + s),
+                    ..base
+                };
+                let estimates =
+                    estimator.estimate(transport, caches, &points, &request, &|| {}, &never)?;
+                runs.push(estimates.estimates);
+            }
+            rows.push(SceneStudyRow {
+                scene: scene.to_owned(),
+                decomposition,
+                max_depth: options.max_depth,
+                samples,
+                estimator: name.to_owned(),
+                ..score(&reference, &runs)
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// The pooled measures of §17.4 and §10.3 for `runs[seed][point]` against
+/// `reference[point]`; the identifying fields are left empty.
+fn score(reference: &[IrradianceEstimate], runs: &[Vec<IrradianceEstimate>]) -> SceneStudyRow {
+    let (mut squared, mut reference_variance, mut count) = (0.0, 0.0, 0usize);
+    let (mut covered, mut z_squared, mut rays) = (0usize, 0.0, 0u64);
+    for run in runs {
+        for (estimate, truth) in run.iter().zip(reference) {
+            rays += estimate.rays;
+            let (e, s) = (estimate.irradiance.to_array(), estimate.std_error.to_array());
+            let (t, r) = (truth.irradiance.to_array(), truth.std_error.to_array());
+            for c in 0..3 {
+                let error = e[c] - t[c];
+                squared += error * error;
+                reference_variance += r[c] * r[c];
+                count += 1;
+                let scale = (s[c] * s[c] + r[c] * r[c]).sqrt();
+                let z = if scale > 0.0 {
+                    error / scale
+                } else if error == 0.0 {
+                    0.0
+                } else {
+                    f64::INFINITY
+                };
+                covered += usize::from(z.abs() <= 2.0);
+                z_squared += z * z;
+            }
+        }
+    }
+    let mean_reference = reference
+        .iter()
+        .map(|r| r.irradiance.to_array().iter().sum::<f64>())
+        .sum::<f64>()
+        / (3 * reference.len()) as f64;
+    let n = count.max(1) as f64;
+    let nrmse = (squared / n).sqrt() / mean_reference;
+    let reference_nrmse = (reference_variance / n).sqrt() / mean_reference;
+    SceneStudyRow {
+        scene: String::new(),
+        decomposition: Decomposition::Split,
+        max_depth: 0,
+        samples: 0,
+        estimator: String::new(),
+        nrmse,
+        nrmse_vs_truth: (nrmse * nrmse - reference_nrmse * reference_nrmse)
+            .max(0.0)
+            .sqrt(),
+        coverage: covered as f64 / n,
+        rms_z: (z_squared / n).sqrt(),
+        rays_per_point: rays as f64 / (runs.len() * reference.len()).max(1) as f64,
+    }
+}
+
+/// The rows as a Markdown table, BMC/QMC ratio beside each BMC row.
+pub fn markdown_table(rows: &[SceneStudyRow]) -> String {
+    let mut out = String::from(
+        "| scene | decomposition | max depth | N | estimator | nrmse | vs truth | BMC/QMC | ±2σ coverage | rms z | rays/point |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for row in rows {
+        let ratio = if row.estimator == "bmc" {
+            rows.iter()
+                .find(|q| {
+                    q.estimator == "qmc" && q.samples == row.samples && q.scene == row.scene
+                })
+                .map_or(String::from("–"), |q| {
+                    format!("{:.2}", row.nrmse_vs_truth / q.nrmse_vs_truth)
+                })
+        } else {
+            String::from("–")
+        };
+        out.push_str(&format!(
+            "| {} | {:?} | {} | {} | {} | {:.4} | {:.4} | {} | {:.3} | {:.2} | {:.0} |\n",
+            row.scene,
+            row.decomposition,
+            row.max_depth,
+            row.samples,
+            row.estimator,
+            row.nrmse,
+            row.nrmse_vs_truth,
+            ratio,
+            row.coverage,
+            row.rms_z,
+            row.rays_per_point,
+        ));
+    }
+    out
+}
