@@ -14,10 +14,11 @@ use super::in_thread_pool;
 use super::quadrature::{KernelArg, SetArg};
 use crate::bmc::cache::QuadratureCache;
 use crate::render::Cancel;
+use crate::render::calibration::Calibrations;
+use crate::render::environment_prior::PriorChoice;
 use crate::render::estimators::{
     EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
-use crate::render::environment_prior::PriorChoice;
 use crate::render::irradiance::{IrradianceMethod, IrradianceOptions};
 use crate::render::lengthscale::FittedKernels;
 use crate::render::points_csv::{parse_points, write_irradiance};
@@ -85,6 +86,10 @@ pub struct IrradianceArgs {
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Report the estimator's own error model instead of error bars
+    /// calibrated on the scene (docs/math.md §10.5).
+    #[arg(long)]
+    pub model_errors: bool,
     /// Append standard-error columns `se_r,se_g,se_b`.
     #[arg(long)]
     pub std_error: bool,
@@ -128,6 +133,7 @@ impl IrradianceArgs {
                 noise: self.noise,
             }),
             prior: self.prior,
+            calibrate: self.model_errors.then_some(false),
         }
     }
 }
@@ -159,11 +165,13 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     );
     // Only this run uses the fitted kernel and the weights, so their caches live as long.
     let kernels = FittedKernels::default();
+    let calibrations = Calibrations::default();
     let quadratures = QuadratureCache::new(Config::default_config().cache.factorisation_bytes);
     let estimate = || {
         let caches = EstimatorCaches {
             kernels: &kernels,
             quadratures: &quadratures,
+            calibrations: &calibrations,
         };
         estimator.estimate(
             &transport,

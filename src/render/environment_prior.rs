@@ -89,7 +89,8 @@ impl EnvironmentPrior {
                     for gx in 0..gw {
                         let (x0, x1) = (gx * bx, ((gx + 1) * bx).min(w));
                         let (u0, u1) = (x0 as f64 / w as f64, x1 as f64 / w as f64);
-                        let solid_angle = 2.0 * PI * (u1 - u0) * ((PI * v0).cos() - (PI * v1).cos());
+                        let solid_angle =
+                            2.0 * PI * (u1 - u0) * ((PI * v0).cos() - (PI * v1).cos());
                         // Texels in a row block cover nearly equal solid angles.
                         let mut sum = Rgb::BLACK;
                         for y in y0..y1 {
@@ -186,8 +187,8 @@ fn real_sh(d: DVec3, out: &mut [f64; COEFFICIENTS]) {
             if l == m + 1 {
                 (p_prev, p) = (p, z * (2 * m + 1) as f64 * p);
             } else if l > m + 1 {
-                let next = ((2 * l - 1) as f64 * z * p - (l + m - 1) as f64 * p_prev)
-                    / (l - m) as f64;
+                let next =
+                    ((2 * l - 1) as f64 * z * p - (l + m - 1) as f64 * p_prev) / (l - m) as f64;
                 (p_prev, p) = (p, next);
             }
             let norm = normalisation(l, m);

@@ -22,9 +22,10 @@
 
 use std::sync::Arc;
 
+use super::calibration::{Calibrations, ErrorCalibration, calibrate};
 use super::cancel::Cancel;
-use super::error::RenderError;
 use super::environment_prior::PriorChoice;
+use super::error::RenderError;
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
 use super::query::QueryPoint;
@@ -130,6 +131,8 @@ pub struct EstimatorSpec {
     /// `bmc`, none for `mc` and `qmc` (which then stay the plain rules; with
     /// `environment` they become control-variate estimators).
     pub prior: Option<PriorChoice>,
+    /// Calibrate the error bars on the scene (docs/math.md §10.5); default true.
+    pub calibrate: Option<bool>,
 }
 
 /// Why a spec or an estimate failed; `field` is the path of the offending
@@ -169,13 +172,19 @@ impl EstimatorError {
 pub struct PointEstimator {
     pub rule: PointRule,
     pub prior: PriorChoice,
+    /// Whether error bars are calibrated (docs/math.md §10.5).
+    pub calibrate: bool,
+    /// The spec it was resolved from (names its calibration).
+    spec: EstimatorSpec,
 }
 
 /// The rule of a [`PointEstimator`].
 #[derive(Debug, Clone)]
 pub enum PointRule {
     /// Cosine-weighted random directions; with a prior, `count` of them.
-    Mc { count: usize },
+    Mc {
+        count: usize,
+    },
     Qmc(SampleMeanEstimator),
     Bmc(BmcSetup),
 }
@@ -203,6 +212,8 @@ pub struct Estimates {
     pub decomposition: Decomposition,
     /// The prior mean the hemisphere part used ([`Transport::hemisphere_prior`]).
     pub prior: PriorChoice,
+    /// The calibration applied to the error bars, if any.
+    pub calibration: Option<ErrorCalibration>,
 }
 
 impl EstimatorSpec {
@@ -224,7 +235,12 @@ impl EstimatorSpec {
             EstimatorMethod::Mc | EstimatorMethod::Qmc => PriorChoice::None,
         });
         let rule = self.rule(samples, set_kind, set_seed)?;
-        Ok(PointEstimator { rule, prior })
+        Ok(PointEstimator {
+            rule,
+            prior,
+            calibrate: self.calibrate.unwrap_or(true),
+            spec: *self,
+        })
     }
 
     fn rule(
@@ -290,12 +306,61 @@ impl EstimatorSpec {
 pub struct EstimatorCaches<'a> {
     pub kernels: &'a FittedKernels,
     pub quadratures: &'a QuadratureCache,
+    pub calibrations: &'a Calibrations,
 }
 
 impl PointEstimator {
     /// Irradiance at every point on the current rayon pool; `on_done` is
-    /// called once per finished point.
+    /// called once per finished point. Unless the spec turned it off, the
+    /// error bars are calibrated for this scene and configuration
+    /// ([`calibrate`], computed on first use and kept in `caches`).
     pub fn estimate(
+        &self,
+        transport: &Transport,
+        caches: EstimatorCaches,
+        points: &[QueryPoint],
+        options: &IrradianceOptions,
+        on_done: &(dyn Fn() + Sync),
+        cancel: &Cancel,
+    ) -> Result<Estimates, EstimatorError> {
+        let calibration = if self.calibrate {
+            let key = format!(
+                "{:?} {:?} depth {} light samples {}",
+                self.spec,
+                options.method,
+                options.effective_max_depth(),
+                options.samples
+            );
+            Some(caches.calibrations.get_or_calibrate(key, || {
+                calibrate(transport, options, cancel, &|points, options| {
+                    self.estimate_with_model_errors(
+                        transport,
+                        caches,
+                        points,
+                        options,
+                        &|| {},
+                        cancel,
+                    )
+                    .map(|e| e.estimates)
+                })
+            })?)
+        } else {
+            None
+        };
+        let mut estimates =
+            self.estimate_with_model_errors(transport, caches, points, options, on_done, cancel)?;
+        if let Some(calibration) = calibration {
+            estimates
+                .estimates
+                .iter_mut()
+                .for_each(|e| calibration.apply(e));
+        }
+        estimates.calibration = calibration;
+        Ok(estimates)
+    }
+
+    /// [`Self::estimate`] with the estimator's own error model.
+    fn estimate_with_model_errors(
         &self,
         transport: &Transport,
         caches: EstimatorCaches,
@@ -320,12 +385,9 @@ impl PointEstimator {
                 None,
             ),
             PointRule::Mc { count } => {
-                let mc = SampleMeanEstimator::monte_carlo(
-                    Density::Lambert,
-                    SamplingPdf::Cosine,
-                    *count,
-                )
-                .map_err(EstimatorError::kernel)?;
+                let mc =
+                    SampleMeanEstimator::monte_carlo(Density::Lambert, SamplingPdf::Cosine, *count)
+                        .map_err(EstimatorError::kernel)?;
                 (run(&mc)?, None, None)
             }
             PointRule::Qmc(qmc) => (run(qmc)?, None, None),
@@ -342,6 +404,7 @@ impl PointEstimator {
             quadrature_cached,
             decomposition,
             prior,
+            calibration: None,
         })
     }
 }
@@ -401,6 +464,7 @@ mod tests {
             sample_set: None,
             kernel: None,
             prior: None,
+            calibrate: None,
         }
     }
 
@@ -417,7 +481,9 @@ mod tests {
             spec(EstimatorMethod::Mc).resolve(),
             Ok(PointEstimator {
                 rule: PointRule::Mc { count: 16 },
-                prior: PriorChoice::None
+                prior: PriorChoice::None,
+                calibrate: true,
+                ..
             })
         ));
         let mc_with_set = EstimatorSpec {
@@ -468,6 +534,7 @@ mod tests {
         let Ok(PointEstimator {
             rule: PointRule::Bmc(setup),
             prior: PriorChoice::Environment,
+            ..
         }) = spec(EstimatorMethod::Bmc).resolve()
         else {
             panic!("bmc resolves, with the environment prior by default");

@@ -27,8 +27,8 @@ use rand::RngExt;
 use rayon::prelude::*;
 
 use super::cancel::Cancel;
-use super::error::RenderError;
 use super::environment_prior::{EnvironmentPrior, PriorChoice};
+use super::error::RenderError;
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::path::{PathLengths, PathLimits, TraceStats};
 use super::query::QueryPoint;
@@ -172,10 +172,10 @@ impl Transport {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::IrradianceMethod;
     use crate::bmc::cache::QuadratureCache;
     use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
     use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+    use crate::render::IrradianceMethod;
     use crate::sphere::{SampleSetKind, SampleSetSpec};
     use crate::testing::cornell;
     use glam::DVec3;

@@ -27,7 +27,9 @@ use rand::{Rng, RngExt};
 use rayon::prelude::*;
 
 use super::cancel::Cancel;
+use super::environment_sampling::environment_relative_variance;
 use super::error::RenderError;
+use super::lights::environment_radiance;
 use super::mean::MeanEstimate;
 use super::path::{
     AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats, power_heuristic,
@@ -36,8 +38,6 @@ use super::query::QueryPoint;
 use super::rgb::Rgb;
 use super::seed::point_rng;
 use super::transport::Transport;
-use super::environment_sampling::environment_relative_variance;
-use super::lights::environment_radiance;
 use super::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;

@@ -19,14 +19,13 @@
 //! give the same fit. [`FittedKernels`] caches fits per configuration, each
 //! computed at most once even under concurrent first requests.
 
-use rand::{RngExt, SeedableRng};
-use rand_pcg::Pcg64;
+use rand::RngExt;
 use serde::Serialize;
 
 use super::environment_prior::PriorChoice;
 use super::irradiance::Decomposition;
 use super::path::{PathLengths, PathLimits, TraceStats};
-use super::query::QueryPoint;
+use super::sample_points::training_points;
 use super::seed::point_rng;
 use super::transport::Transport;
 use crate::bmc::KernelKind;
@@ -89,7 +88,7 @@ pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<Fitte
         count: config.sample_set.count.min(FIT_MAX_SAMPLES),
         ..config.sample_set
     })?;
-    let points = training_points(transport, FIT_POINTS);
+    let points = training_points(transport, FIT_POINTS, FIT_SEED);
     let limits = PathLimits {
         max_depth: FIT_MAX_DEPTH,
         lengths: match config.decomposition {
@@ -146,35 +145,6 @@ pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<Fitte
         )),
         Err(err) => Err(err),
     }
-}
-
-/// Up to `count` points on non-emitting surfaces, shape chosen by area, then
-/// uniform on it; deterministic in [`FIT_SEED`].
-fn training_points(transport: &Transport, count: usize) -> Vec<QueryPoint> {
-    let scene = transport.scene();
-    let shapes: Vec<usize> = (0..scene.shape_count())
-        .filter(|&s| scene.shape_emitter(s).is_none() && scene.shape_area(s) > 0.0)
-        .collect();
-    let total: f64 = shapes.iter().map(|&s| scene.shape_area(s)).sum();
-    if !(total > 0.0 && total.is_finite()) {
-        return Vec::new();
-    }
-    let mut rng = Pcg64::seed_from_u64(FIT_SEED);
-    (0..count)
-        .filter_map(|_| {
-            let mut target = rng.random::<f64>() * total;
-            let shape = *shapes
-                .iter()
-                .find(|&&s| {
-                    target -= scene.shape_area(s);
-                    target < 0.0
-                })
-                .unwrap_or(shapes.last()?);
-            let (position, normal, _) =
-                scene.sample_shape_area(shape, [rng.random(), rng.random()]);
-            QueryPoint::new(position, normal).ok()
-        })
-        .collect()
 }
 
 /// Most fitted configurations kept per scene: every request may name a new

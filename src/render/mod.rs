@@ -13,6 +13,7 @@
 //! `render_image` for the camera's image (`tile`, `film`).
 
 pub mod bsdf;
+pub mod calibration;
 pub mod cancel;
 pub mod distribution;
 pub mod environment_prior;
@@ -30,6 +31,7 @@ pub mod points_csv;
 pub mod polygon;
 pub mod query;
 pub mod rgb;
+pub mod sample_points;
 pub mod seed;
 pub mod strata;
 pub mod tile;

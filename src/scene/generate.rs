@@ -210,8 +210,11 @@ mod tests {
     fn overcast_is_smooth_and_sky_is_not() {
         use crate::scene::Environment;
         let relative_variance = |radiance| {
-            let map = EnvironmentMap::new(64, 32, map_texels(64, 32, radiance), 1.0, DMat3::IDENTITY);
-            crate::render::environment_sampling::environment_relative_variance(&Environment::Map(map))
+            let map =
+                EnvironmentMap::new(64, 32, map_texels(64, 32, radiance), 1.0, DMat3::IDENTITY);
+            crate::render::environment_sampling::environment_relative_variance(&Environment::Map(
+                map,
+            ))
         };
         let overcast = relative_variance(overcast_radiance);
         let sky = relative_variance(sky_radiance);

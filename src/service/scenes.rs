@@ -18,6 +18,7 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use crate::render::Transport;
+use crate::render::calibration::Calibrations;
 use crate::render::lengthscale::{FittedKernel, FittedKernels};
 use crate::scene::{Scene, SceneError, Warnings};
 use crate::service::config::ScenesConfig;
@@ -52,6 +53,8 @@ pub struct LoadedScene {
     /// Lengthscales fitted for `"lengthscale": "auto"`, per estimator
     /// configuration; they live and die with this loaded scene.
     pub kernels: FittedKernels,
+    /// Error-bar calibrations per estimator configuration, likewise.
+    pub calibrations: Calibrations,
     /// Triangles of the scene, counted against `scenes.max_triangles`.
     pub triangles: usize,
     /// Heap bytes of the scene, counted against `scenes.max_scene_bytes`.
@@ -96,6 +99,7 @@ impl LoadedScene {
             transport: Transport::new(Arc::new(scene)),
             generation: NEXT_GENERATION.fetch_add(1, Ordering::Relaxed),
             kernels: FittedKernels::default(),
+            calibrations: Calibrations::default(),
             triangles,
             bytes,
         }

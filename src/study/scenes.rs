@@ -11,17 +11,16 @@
 //! seeds; its errors over points, seeds and RGB channels are pooled into the
 //! relative RMSE of §17.4, the ±2σ coverage and the rms `z` of §10.3.
 
-use rand::{RngExt, SeedableRng};
-use rand_pcg::Pcg64;
 use serde::Serialize;
 
 use crate::bmc::cache::QuadratureCache;
+use crate::render::calibration::Calibrations;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::estimators::{EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec};
 use crate::render::lengthscale::FittedKernels;
+use crate::render::sample_points::camera_points;
 use crate::render::{
-    Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint,
-    Transport,
+    Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, Transport,
 };
 
 /// What to run on one scene.
@@ -69,10 +68,13 @@ pub struct SceneStudyRow {
     pub nrmse: f64,
     /// The same with the reference's own noise removed (§17.3).
     pub nrmse_vs_truth: f64,
-    /// Fraction of `|z| ≤ 2` (§10.3).
+    /// Fraction of `|z| ≤ 2` (§10.3), calibrated error bars (§10.5).
     pub coverage: f64,
-    /// `sqrt(mean z²)` (§10.3).
+    /// `sqrt(mean z²)` (§10.3), calibrated error bars.
     pub rms_z: f64,
+    /// The same two with the estimator's own error model.
+    pub model_coverage: f64,
+    pub model_rms_z: f64,
     /// Rays per point, mean over points and seeds.
     pub rays_per_point: f64,
 }
@@ -86,42 +88,6 @@ pub enum SceneStudyError {
     Render(#[from] crate::render::RenderError),
     #[error("the camera sees no surface to put points on")]
     NoPoints,
-}
-
-/// Up to `count` camera-visible surface points (module docs), deterministic in `seed`.
-pub fn camera_points(transport: &Transport, count: usize, seed: u64) -> Vec<QueryPoint> {
-    let scene = transport.scene();
-    let (width, height) = scene.camera.resolution();
-    let mut rng = Pcg64::seed_from_u64(seed);
-    // A grid with about twice as many cells as points, visited in random
-    // order, so misses and back faces still leave enough points.
-    let cells = (2 * count).max(1);
-    let columns = ((cells as f64 * width as f64 / height as f64).sqrt().ceil() as usize).max(1);
-    let rows = cells.div_ceil(columns).max(1);
-    let mut order: Vec<usize> = (0..columns * rows).collect();
-    for i in (1..order.len()).rev() {
-        order.swap(i, rng.random_range(0..=i));
-    }
-    let mut points = Vec::with_capacity(count);
-    for cell in order {
-        if points.len() == count {
-            break;
-        }
-        let (cx, cy) = (cell % columns, cell / columns);
-        let px = (cx as f64 + rng.random::<f64>()) / columns as f64 * width as f64;
-        let py = (cy as f64 + rng.random::<f64>()) / rows as f64 * height as f64;
-        let ray = scene.camera.generate_ray(px, py);
-        let Some(hit) = scene.intersect(&ray) else {
-            continue;
-        };
-        if hit.emitter.is_some() || hit.normal.dot(ray.dir) >= 0.0 {
-            continue;
-        }
-        if let Ok(point) = QueryPoint::new(hit.position, hit.shading_normal) {
-            points.push(point);
-        }
-    }
-    points
 }
 
 /// Runs every estimator of the study at every `N` on `transport`'s scene.
@@ -155,9 +121,11 @@ pub fn run(
     )?;
     let kernels = FittedKernels::default();
     let quadratures = QuadratureCache::new(256 << 20);
+    let calibrations = Calibrations::default();
     let caches = EstimatorCaches {
         kernels: &kernels,
         quadratures: &quadratures,
+        calibrations: &calibrations,
     };
     let estimators = [
         ("mc", EstimatorMethod::Mc, None),
@@ -179,32 +147,40 @@ pub fn run(
             if prior.is_some() && !prior_applies {
                 continue; // The control variate would be plain QMC again.
             }
-            let spec = EstimatorSpec {
-                method,
-                samples,
-                sample_set: None,
-                kernel: None,
-                prior,
-            };
-            let estimator = spec.resolve()?;
-            let mut runs = Vec::new();
-            for s in 0..options.seeds {
-                let request = IrradianceOptions {
+            // The same estimates twice: with the model's error bars and
+            // with calibrated ones (§10.5); only the error bars differ.
+            let mut runs = [Vec::new(), Vec::new()];
+            for (calibrate, runs) in [false, true].into_iter().zip(&mut runs) {
+                let spec = EstimatorSpec {
+                    method,
                     samples,
-                    seed: options.seed ^ (0x9E37_79B9 + s),
-                    ..base
+                    sample_set: None,
+                    kernel: None,
+                    prior,
+                    calibrate: Some(calibrate),
                 };
-                let estimates =
-                    estimator.estimate(transport, caches, &points, &request, &|| {}, &never)?;
-                runs.push(estimates.estimates);
+                let estimator = spec.resolve()?;
+                for s in 0..options.seeds {
+                    let request = IrradianceOptions {
+                        samples,
+                        seed: options.seed ^ (0x9E37_79B9 + s),
+                        ..base
+                    };
+                    let estimates =
+                        estimator.estimate(transport, caches, &points, &request, &|| {}, &never)?;
+                    runs.push(estimates.estimates);
+                }
             }
+            let model = score(&reference, &runs[0]);
             rows.push(SceneStudyRow {
                 scene: scene.to_owned(),
                 decomposition,
                 max_depth: options.max_depth,
                 samples,
                 estimator: name.to_owned(),
-                ..score(&reference, &runs)
+                model_coverage: model.coverage,
+                model_rms_z: model.rms_z,
+                ..score(&reference, &runs[1])
             });
         }
     }
@@ -219,7 +195,10 @@ fn score(reference: &[IrradianceEstimate], runs: &[Vec<IrradianceEstimate>]) -> 
     for run in runs {
         for (estimate, truth) in run.iter().zip(reference) {
             rays += estimate.rays;
-            let (e, s) = (estimate.irradiance.to_array(), estimate.std_error.to_array());
+            let (e, s) = (
+                estimate.irradiance.to_array(),
+                estimate.std_error.to_array(),
+            );
             let (t, r) = (truth.irradiance.to_array(), truth.std_error.to_array());
             for c in 0..3 {
                 let error = e[c] - t[c];
@@ -259,6 +238,8 @@ fn score(reference: &[IrradianceEstimate], runs: &[Vec<IrradianceEstimate>]) -> 
             .sqrt(),
         coverage: covered as f64 / n,
         rms_z: (z_squared / n).sqrt(),
+        model_coverage: 0.0,
+        model_rms_z: 0.0,
         rays_per_point: rays as f64 / (runs.len() * reference.len()).max(1) as f64,
     }
 }
@@ -266,15 +247,13 @@ fn score(reference: &[IrradianceEstimate], runs: &[Vec<IrradianceEstimate>]) -> 
 /// The rows as a Markdown table, BMC/QMC ratio beside each BMC row.
 pub fn markdown_table(rows: &[SceneStudyRow]) -> String {
     let mut out = String::from(
-        "| scene | decomposition | max depth | N | estimator | nrmse | vs truth | BMC/QMC | ±2σ coverage | rms z | rays/point |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | decomposition | max depth | N | estimator | nrmse | vs truth | BMC/QMC | coverage, model σ | rms z, model σ | coverage, calibrated | rms z, calibrated | rays/point |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for row in rows {
         let ratio = if row.estimator == "bmc" {
             rows.iter()
-                .find(|q| {
-                    q.estimator == "qmc" && q.samples == row.samples && q.scene == row.scene
-                })
+                .find(|q| q.estimator == "qmc" && q.samples == row.samples && q.scene == row.scene)
                 .map_or(String::from("–"), |q| {
                     format!("{:.2}", row.nrmse_vs_truth / q.nrmse_vs_truth)
                 })
@@ -282,7 +261,7 @@ pub fn markdown_table(rows: &[SceneStudyRow]) -> String {
             String::from("–")
         };
         out.push_str(&format!(
-            "| {} | {:?} | {} | {} | {} | {:.4} | {:.4} | {} | {:.3} | {:.2} | {:.0} |\n",
+            "| {} | {:?} | {} | {} | {} | {:.4} | {:.4} | {} | {:.3} | {:.2} | {:.3} | {:.2} | {:.0} |\n",
             row.scene,
             row.decomposition,
             row.max_depth,
@@ -291,6 +270,8 @@ pub fn markdown_table(rows: &[SceneStudyRow]) -> String {
             row.nrmse,
             row.nrmse_vs_truth,
             ratio,
+            row.model_coverage,
+            row.model_rms_z,
             row.coverage,
             row.rms_z,
             row.rays_per_point,

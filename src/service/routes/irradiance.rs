@@ -15,10 +15,11 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::bmc::KernelKind;
+use crate::render::calibration::ErrorCalibration;
+use crate::render::environment_prior::PriorChoice;
 use crate::render::estimators::{
     EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
-use crate::render::environment_prior::PriorChoice;
 use crate::render::{
     Decomposition, IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb,
 };
@@ -55,6 +56,11 @@ pub struct EstimatorDoc {
     /// `none`. Default: `environment` for `bmc`, `none` for `mc` and `qmc`.
     #[schema(value_type = Option<String>, example = "environment")]
     pub prior: Option<PriorChoice>,
+    /// Calibrate the error bars on the scene (default true): the model's
+    /// variance widened by a relative floor and scaled, both fitted once per
+    /// scene and configuration against a reference at held-out points. With
+    /// `false`, `std_dev` is the estimator's own error model.
+    pub calibrate: Option<bool>,
     /// `qmc` and `bmc` only: the fixed sample set.
     pub sample_set: Option<EstimatorSampleSetDoc>,
     /// `bmc` only: the GP kernel over incident radiance.
@@ -139,6 +145,11 @@ pub struct IrradianceResponse {
     /// The prior mean used: `environment` or `none`.
     #[schema(value_type = String, example = "environment")]
     pub prior: PriorChoice,
+    /// The calibration applied to `std_dev`, if any: `std_dev² =
+    /// scale² (model² + (floor · irradiance)²)` per channel.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    pub calibration: Option<ErrorCalibration>,
 }
 
 /// Irradiance at each point of the request.
@@ -196,6 +207,7 @@ pub async fn irradiance(
             let caches = EstimatorCaches {
                 kernels: &scene.kernels,
                 quadratures: &worker.quadratures,
+                calibrations: &scene.calibrations,
             };
             let estimates =
                 point_estimator.estimate(transport, caches, &points, &options, &|| {}, cancel);
@@ -205,7 +217,12 @@ pub async fn irradiance(
             estimates
         })
         .await??;
-    let (kernel, decomposition, prior) = (estimates.kernel, estimates.decomposition, estimates.prior);
+    let (kernel, decomposition, prior, calibration) = (
+        estimates.kernel,
+        estimates.decomposition,
+        estimates.prior,
+        estimates.calibration,
+    );
     let estimates = estimates.estimates;
     let rays = estimates.iter().map(|e| e.rays).sum();
     ::metrics::counter!(RAYS_TRACED).increment(rays);
@@ -218,6 +235,7 @@ pub async fn irradiance(
         noise: kernel.map(|k| k.noise),
         decomposition,
         prior,
+        calibration,
     }))
 }
 
@@ -235,6 +253,7 @@ impl EstimatorDoc {
                 noise: k.noise,
             }),
             prior: self.prior,
+            calibrate: self.calibrate,
         }
     }
 }
