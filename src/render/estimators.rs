@@ -131,7 +131,8 @@ pub struct EstimatorSpec {
     /// `bmc`, none for `mc` and `qmc` (which then stay the plain rules; with
     /// `environment` they become control-variate estimators).
     pub prior: Option<PriorChoice>,
-    /// Calibrate the error bars on the scene (docs/math.md §10.5); default true.
+    /// Calibrate the error bars on the scene (docs/math.md §10.5); default
+    /// true for `qmc` and `bmc`, false for `mc`.
     pub calibrate: Option<bool>,
 }
 
@@ -238,7 +239,11 @@ impl EstimatorSpec {
         Ok(PointEstimator {
             rule,
             prior,
-            calibrate: self.calibrate.unwrap_or(true),
+            // MC's sample variance is already an unbiased estimate of its
+            // variance; QMC's and the GP's models are not calibrated (§10.5).
+            calibrate: self
+                .calibrate
+                .unwrap_or(self.method != EstimatorMethod::Mc),
             spec: *self,
         })
     }
@@ -482,7 +487,7 @@ mod tests {
             Ok(PointEstimator {
                 rule: PointRule::Mc { count: 16 },
                 prior: PriorChoice::None,
-                calibrate: true,
+                calibrate: false,
                 ..
             })
         ));

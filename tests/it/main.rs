@@ -5,6 +5,7 @@
 
 mod common;
 
+mod calibration;
 mod cli_quadrature;
 mod docs_references;
 mod fuzz_requests;

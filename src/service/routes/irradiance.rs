@@ -56,7 +56,8 @@ pub struct EstimatorDoc {
     /// `none`. Default: `environment` for `bmc`, `none` for `mc` and `qmc`.
     #[schema(value_type = Option<String>, example = "environment")]
     pub prior: Option<PriorChoice>,
-    /// Calibrate the error bars on the scene (default true): the model's
+    /// Calibrate the error bars on the scene (default true for `qmc` and
+    /// `bmc`, false for `mc`, whose sample variance is unbiased): the model's
     /// variance widened by a relative floor and scaled, both fitted once per
     /// scene and configuration against a reference at held-out points. With
     /// `false`, `std_dev` is the estimator's own error model.

@@ -1,0 +1,47 @@
+//! Error bars are calibrated (docs/math.md §10.3, §10.5) on a reduced real-scene
+//! study: 40 camera-visible points × 8 seeds on two bundled scenes, checked
+//! against converged references on points the calibration never saw.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use bmc_irradiance::render::{IrradianceMethod, Transport};
+use bmc_irradiance::scene::Scene;
+use bmc_irradiance::study::scenes::{self, SceneStudyOptions};
+
+fn transport(name: &str) -> Transport {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    Transport::new(Arc::new(Scene::load(&dir.join(name), &dir).unwrap()))
+}
+
+#[test]
+fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
+    // The overcast scene under `auto` (hemisphere, environment prior for
+    // BMC) and the Cornell box under `auto` (split), with short paths to keep
+    // the references cheap.
+    for (scene, max_depth) in [("overcast.json", 2), ("cornell-box.json", 3)] {
+        let options = SceneStudyOptions {
+            points: 40,
+            seeds: 8,
+            sample_counts: vec![64],
+            decomposition: IrradianceMethod::Auto,
+            max_depth,
+            reference_samples: 8192,
+            seed: 2026,
+        };
+        let rows = scenes::run(&transport(scene), scene, &options).unwrap();
+        assert!(rows.iter().any(|r| r.estimator == "bmc"));
+        for row in rows {
+            assert!(
+                (0.90..=0.98).contains(&row.coverage) && (0.75..=1.3).contains(&row.rms_z),
+                "{scene} {} N={}: coverage {:.3}, rms z {:.2} (model σ: {:.3}, {:.2})",
+                row.estimator,
+                row.samples,
+                row.coverage,
+                row.rms_z,
+                row.model_coverage,
+                row.model_rms_z
+            );
+        }
+    }
+}
