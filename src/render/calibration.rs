@@ -160,6 +160,10 @@ impl ErrorCalibration {
     }
 }
 
+/// Uncalibrated estimates at points for options (see [`calibrate`]).
+pub type EstimateFn<'a, E> =
+    dyn Fn(&[QueryPoint], &IrradianceOptions) -> Result<Vec<IrradianceEstimate>, E> + 'a;
+
 /// Calibrates the estimator `estimate` runs (module docs): `estimate(points,
 /// options)` must return the uncalibrated estimates of the configuration
 /// for `options` (whose seed it must honour).
@@ -167,7 +171,7 @@ pub fn calibrate<E: From<RenderError>>(
     transport: &Transport,
     options: &IrradianceOptions,
     cancel: &Cancel,
-    estimate: &dyn Fn(&[QueryPoint], &IrradianceOptions) -> Result<Vec<IrradianceEstimate>, E>,
+    estimate: &EstimateFn<'_, E>,
 ) -> Result<ErrorCalibration, E> {
     // Where the scene will be looked at: what its camera sees, or anywhere
     // on its surfaces if the camera sees nothing.

@@ -133,8 +133,9 @@ impl EnvironmentPrior {
             if a == 0.0 {
                 continue;
             }
-            for i in l * l..(l + 1) * (l + 1) {
-                sum += self.coefficients[i] * (a * basis[i]);
+            let band = l * l..(l + 1) * (l + 1);
+            for (c, y) in self.coefficients[band.clone()].iter().zip(&basis[band]) {
+                sum += *c * (a * y);
             }
         }
         sum * (1.0 / PI)
@@ -212,22 +213,19 @@ fn normalisation(l: usize, m: usize) -> f64 {
 mod tests {
     use super::*;
     use crate::scene::EnvironmentMap;
-    use crate::sphere::{SampleSet, SampleSetKind, SampleSetSpec};
     use glam::DMat3;
 
-    /// Many uniform-area directions over the sphere (Fibonacci).
+    /// `count` uniform-area directions over the whole sphere (spherical
+    /// Fibonacci, docs/math.md §5.1).
     fn sphere_points(count: usize) -> Vec<DVec3> {
-        let spec = SampleSetSpec {
-            kind: SampleSetKind::Fibonacci,
-            count,
-            seed: 0,
-        };
-        // The set covers the upper hemisphere; mirror it for the lower one.
-        let upper = SampleSet::generate(spec).unwrap().directions;
-        upper
-            .iter()
-            .copied()
-            .chain(upper.iter().map(|d| DVec3::new(d.x, d.y, -d.z)))
+        let golden = (1.0 + 5f64.sqrt()) / 2.0;
+        (0..count)
+            .map(|i| {
+                let z = 1.0 - (2 * i + 1) as f64 / count as f64;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let phi = 2.0 * PI * i as f64 / golden;
+                DVec3::new(r * phi.cos(), r * phi.sin(), z)
+            })
             .collect()
     }
 
@@ -254,19 +252,22 @@ mod tests {
         }
     }
 
-    /// A smooth, coloured map, rotated so its frame is not the world's.
+    /// A smooth, coloured map (a broad glow and a gradient), rotated so its
+    /// frame is not the world's.
     fn smooth_map() -> Environment {
         let (w, h) = (96, 48);
+        let frame = EnvironmentMap::new(w, h, vec![[0.0; 3]; w * h], 1.0, DMat3::IDENTITY);
+        let glow_at = DVec3::new(0.3, 0.5, -0.8).normalize();
         let mut texels = Vec::with_capacity(w * h);
         for y in 0..h {
             for x in 0..w {
-                let theta = PI * (y as f64 + 0.5) / h as f64;
-                let phi = 2.0 * PI * (x as f64 + 0.5) / w as f64;
-                let glow = (-(1.0 - (theta - 0.8).cos() * (phi - 1.0).cos()) * 2.0).exp();
+                let d =
+                    frame.uv_to_direction((x as f64 + 0.5) / w as f64, (y as f64 + 0.5) / h as f64);
+                let glow = (2.0 * (d.dot(glow_at) - 1.0)).exp();
                 texels.push([
                     (0.5 + glow) as f32,
                     (0.4 + 0.6 * glow) as f32,
-                    (0.3 + 0.2 * theta.cos().max(0.0)) as f32,
+                    (0.4 + 0.2 * d.y) as f32,
                 ]);
             }
         }

@@ -241,9 +241,7 @@ impl EstimatorSpec {
             prior,
             // MC's sample variance is already an unbiased estimate of its
             // variance; QMC's and the GP's models are not calibrated (§10.5).
-            calibrate: self
-                .calibrate
-                .unwrap_or(self.method != EstimatorMethod::Mc),
+            calibrate: self.calibrate.unwrap_or(self.method != EstimatorMethod::Mc),
             spec: *self,
         })
     }
