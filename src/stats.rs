@@ -1,6 +1,8 @@
 //! Running mean and spread by Welford's update (Welford 1962): the one place
 //! the project computes a sample mean and the variance of that mean, for
-//! scalars (`bmc::estimator`) and RGB values (`render`) alike.
+//! scalars (`bmc::estimator`) and RGB values (`render`) alike; and the
+//! standard normal quantile that turns a confidence into a number of
+//! standard deviations (docs/math.md §10.6).
 
 use std::ops::{Add, Div, Mul, Sub};
 
@@ -48,6 +50,38 @@ where
     }
 }
 
+/// `erfc(x)` with fractional error below 1.2e-7 everywhere (the Chebyshev
+/// fit of Press et al., *Numerical Recipes*, 2nd ed., §6.2).
+pub fn erfc(x: f64) -> f64 {
+    let t = 1.0 / (1.0 + 0.5 * x.abs());
+    let poly = -1.265_512_23
+        + t * (1.000_023_68
+            + t * (0.374_091_96
+                + t * (0.096_784_18
+                    + t * (-0.186_288_06
+                        + t * (0.278_868_07
+                            + t * (-1.135_203_98
+                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+    let tail = t * (-x * x + poly).exp();
+    if x >= 0.0 { tail } else { 2.0 - tail }
+}
+
+/// The `z` with `P(|Z| ≤ z) = confidence` for a standard normal `Z`, by
+/// bisection on `erfc(z/√2) = 1 − confidence`; `confidence` in `(0, 1)`.
+pub fn two_sided_normal_quantile(confidence: f64) -> f64 {
+    let tail = 1.0 - confidence;
+    let (mut lo, mut hi) = (0.0f64, 40.0f64);
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if erfc(mid / std::f64::consts::SQRT_2) > tail {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -63,5 +97,15 @@ mod tests {
         assert_eq!(running.count(), 4);
         assert!((running.mean() - 3.5).abs() < 1e-12);
         assert!((running.variance_of_mean().unwrap() - 1.75).abs() < 1e-12);
+    }
+
+    #[test]
+    fn normal_quantiles_match_the_tables() {
+        for (confidence, z) in [(0.6827, 1.0), (0.95, 1.959_964), (0.99, 2.575_829)] {
+            let got = two_sided_normal_quantile(confidence);
+            assert!((got - z).abs() < 2e-4, "{confidence}: {got}");
+        }
+        assert!((erfc(0.0) - 1.0).abs() < 1e-7);
+        assert!((erfc(-1.0) - 1.842_700_79).abs() < 1e-6);
     }
 }

@@ -61,6 +61,16 @@ pub struct SceneStudyArgs {
     /// Samples of each point's reference.
     #[arg(long, default_value_t = 16_384)]
     pub reference_samples: u32,
+    /// Run the error-target study instead: each estimator to this relative
+    /// error in batches of the first `--samples`, against fixed N.
+    #[arg(long)]
+    pub target: Option<f64>,
+    /// Confidence of `--target`.
+    #[arg(long, default_value_t = 0.95)]
+    pub confidence: f64,
+    /// Sample cap per point of `--target`.
+    #[arg(long, default_value_t = 16_384)]
+    pub max_samples: u32,
     /// Print JSON rows instead of a Markdown table.
     #[arg(long)]
     pub json: bool,
@@ -88,6 +98,20 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
         reference_samples: args.reference_samples,
         ..SceneStudyOptions::default()
     };
+    if let Some(relative_error) = args.target {
+        let target = crate::render::error_target::ErrorTarget {
+            relative_error,
+            confidence: args.confidence,
+            max_samples: args.max_samples,
+        };
+        let batch = args.samples.first().copied().unwrap_or(64);
+        let rows = scenes::run_target(&transport, &name, &options, batch, &target)?;
+        return Ok(if args.json {
+            serde_json::to_string_pretty(&rows)?
+        } else {
+            scenes::target_markdown_table(&rows)
+        });
+    }
     let rows = scenes::run(&transport, &name, &options)?;
     Ok(if args.json {
         serde_json::to_string_pretty(&rows)?

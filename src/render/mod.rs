@@ -19,6 +19,7 @@ pub mod distribution;
 pub mod environment_prior;
 pub mod environment_sampling;
 pub mod error;
+pub mod error_target;
 pub mod estimators;
 pub mod film;
 pub mod hemisphere_estimate;

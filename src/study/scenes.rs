@@ -16,6 +16,7 @@ use serde::Serialize;
 use crate::bmc::cache::QuadratureCache;
 use crate::render::calibration::Calibrations;
 use crate::render::environment_prior::PriorChoice;
+use crate::render::error_target::ErrorTarget;
 use crate::render::estimators::{EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec};
 use crate::render::lengthscale::FittedKernels;
 use crate::render::sample_points::camera_points;
@@ -185,6 +186,187 @@ pub fn run(
         }
     }
     Ok(rows)
+}
+
+/// One line of the error-target study: an estimator run to a target, or at
+/// a fixed `N`, and how many of its estimates are within the target.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TargetStudyRow {
+    pub scene: String,
+    pub estimator: String,
+    /// `"target"` or `"fixed"`.
+    pub mode: String,
+    /// The batch size (target) or the sample count (fixed).
+    pub samples: u32,
+    /// Share of (point, seed) estimates whose luminance is within the
+    /// target's relative error of the reference's.
+    pub within: f64,
+    /// Target runs: share of estimates that reported the target met.
+    pub reported_met: Option<f64>,
+    /// Mean hemisphere samples per point.
+    pub mean_samples: f64,
+    /// Rays per point, mean over points and seeds.
+    pub rays_per_point: f64,
+}
+
+/// The error-target study (docs/math.md §10.6): each estimator run to
+/// `target` in batches of `batch` samples, then at fixed `N = batch · 2^k`
+/// up to the target's `max_samples`, stopping at the first `N` whose share
+/// within the target reaches the share the target run reached.
+pub fn run_target(
+    transport: &Transport,
+    scene: &str,
+    options: &SceneStudyOptions,
+    batch: u32,
+    target: &ErrorTarget,
+) -> Result<Vec<TargetStudyRow>, SceneStudyError> {
+    let points = camera_points(transport, options.points, options.seed);
+    if points.is_empty() {
+        return Err(SceneStudyError::NoPoints);
+    }
+    let base = IrradianceOptions {
+        samples: options.reference_samples,
+        max_depth: options.max_depth,
+        direct_only: false,
+        method: options.decomposition,
+        seed: options.seed,
+    };
+    let never = Cancel::never();
+    let reference = transport.irradiance_at_points(
+        &points,
+        &IrradianceOptions {
+            method: IrradianceMethod::Split,
+            ..base
+        },
+        &|| {},
+        &never,
+    )?;
+    let kernels = FittedKernels::default();
+    let quadratures = QuadratureCache::new(256 << 20);
+    let calibrations = Calibrations::default();
+    let caches = EstimatorCaches {
+        kernels: &kernels,
+        quadratures: &quadratures,
+        calibrations: &calibrations,
+    };
+    let within = |estimate: &IrradianceEstimate, truth: &IrradianceEstimate| {
+        let (e, t) = (
+            estimate.irradiance.luminance(),
+            truth.irradiance.luminance(),
+        );
+        (e - t).abs() <= target.relative_error * t.abs()
+    };
+    let mut rows = Vec::new();
+    for (name, method) in [
+        ("mc", EstimatorMethod::Mc),
+        ("qmc", EstimatorMethod::Qmc),
+        ("bmc", EstimatorMethod::Bmc),
+    ] {
+        let spec = |samples| EstimatorSpec {
+            method,
+            samples,
+            sample_set: None,
+            kernel: None,
+            prior: None,
+            calibrate: None,
+        };
+        let request = |samples, s: u64| IrradianceOptions {
+            samples,
+            seed: options.seed ^ (0x9E37_79B9 + s),
+            ..base
+        };
+        let (mut hits, mut met, mut samples, mut rays, mut count) =
+            (0usize, 0usize, 0u64, 0u64, 0usize);
+        let estimator = spec(batch).resolve()?;
+        for s in 0..options.seeds {
+            let (_, targeted) = estimator.estimate_to_target(
+                transport,
+                caches,
+                &points,
+                &request(batch, s),
+                batch,
+                target,
+                &never,
+            )?;
+            for (t, truth) in targeted.iter().zip(&reference) {
+                hits += usize::from(within(&t.estimate, truth));
+                met += usize::from(t.met);
+                samples += u64::from(t.samples);
+                rays += t.estimate.rays;
+                count += 1;
+            }
+        }
+        let target_share = hits as f64 / count as f64;
+        rows.push(TargetStudyRow {
+            scene: scene.to_owned(),
+            estimator: name.to_owned(),
+            mode: "target".into(),
+            samples: batch,
+            within: target_share,
+            reported_met: Some(met as f64 / count as f64),
+            mean_samples: samples as f64 / count as f64,
+            rays_per_point: rays as f64 / count as f64,
+        });
+        let mut n = batch;
+        while n <= target.max_samples {
+            let estimator = spec(n).resolve()?;
+            let (mut hits, mut rays, mut count) = (0usize, 0u64, 0usize);
+            for s in 0..options.seeds {
+                let estimates = estimator.estimate(
+                    transport,
+                    caches,
+                    &points,
+                    &request(n, s),
+                    &|| {},
+                    &never,
+                )?;
+                for (e, truth) in estimates.estimates.iter().zip(&reference) {
+                    hits += usize::from(within(e, truth));
+                    rays += e.rays;
+                    count += 1;
+                }
+            }
+            let share = hits as f64 / count as f64;
+            rows.push(TargetStudyRow {
+                scene: scene.to_owned(),
+                estimator: name.to_owned(),
+                mode: "fixed".into(),
+                samples: n,
+                within: share,
+                reported_met: None,
+                mean_samples: f64::from(n),
+                rays_per_point: rays as f64 / count as f64,
+            });
+            if share >= target_share {
+                break;
+            }
+            n = n.saturating_mul(2);
+        }
+    }
+    Ok(rows)
+}
+
+/// The target study's rows as a Markdown table.
+pub fn target_markdown_table(rows: &[TargetStudyRow]) -> String {
+    let mut out = String::from(
+        "| scene | estimator | mode | N (batch) | within target | reported met | samples/point | rays/point |\n\
+         |---|---|---|---|---|---|---|---|\n",
+    );
+    for row in rows {
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {:.3} | {} | {:.0} | {:.0} |\n",
+            row.scene,
+            row.estimator,
+            row.mode,
+            row.samples,
+            row.within,
+            row.reported_met
+                .map_or(String::from("–"), |m| format!("{m:.3}")),
+            row.mean_samples,
+            row.rays_per_point,
+        ));
+    }
+    out
 }
 
 /// The pooled measures of §17.4 and §10.3 for `runs[seed][point]` against

@@ -229,3 +229,128 @@ async fn bad_estimator_options_name_their_field() {
         );
     }
 }
+
+/// The bundled overcast scene with its map, on a fresh server.
+async fn overcast_app() -> TestApp {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    for name in ["overcast.json", "overcast.exr"] {
+        std::fs::copy(scenes.join(name), dir.path().join(name)).unwrap();
+    }
+    crate::common::spawn_app_in(dir, |_| {}).await
+}
+
+#[tokio::test]
+async fn auto_decomposition_prior_and_calibration_are_reported() {
+    let app = overcast_app().await;
+    let point = json!([{"position": [2.5, 0.0, 1.5], "normal": [0, 1, 0]}]);
+    let post = |estimator: Value| {
+        let body = json!({"points": point, "estimator": estimator, "max_depth": 2, "seed": 3});
+        let app = &app;
+        async move {
+            let response = app.post_json("/v1/scenes/overcast/irradiance", &body).await;
+            let status = response.status();
+            let body = response.json::<Value>().await.unwrap();
+            assert_eq!(status, StatusCode::OK, "{body}");
+            body
+        }
+    };
+    // A scene lit only by a smooth sky: `auto` integrates it through the
+    // hemisphere, BMC with the environment prior and calibrated error bars.
+    let bmc = post(json!({"method": "bmc", "samples": 32})).await;
+    assert_eq!(bmc["decomposition"], "hemisphere", "{bmc}");
+    assert_eq!(bmc["prior"], "environment");
+    assert!(bmc["calibration"]["scale"].as_f64().unwrap() > 0.0, "{bmc}");
+    // Plain MC and QMC: no prior; MC keeps its own sample variance.
+    let mc = post(json!({"method": "mc", "samples": 32})).await;
+    assert_eq!(mc["prior"], "none");
+    assert!(mc.get("calibration").is_none(), "{mc}");
+    let qmc_cv = post(json!({"method": "qmc", "samples": 32, "prior": "environment"})).await;
+    assert_eq!(qmc_cv["prior"], "environment");
+    // Split named explicitly: the prior does not apply to indirect light.
+    let split = post(json!({"method": "bmc", "samples": 32, "decomposition": "split"})).await;
+    assert_eq!(split["decomposition"], "split");
+    assert_eq!(split["prior"], "none");
+    // The estimates agree within their error bars.
+    let reference = post(json!({"method": "mc", "samples": 4096})).await;
+    for body in [&bmc, &mc, &qmc_cv, &split] {
+        let (e, r) = (
+            luminance(body, 0, "irradiance"),
+            luminance(&reference, 0, "irradiance"),
+        );
+        let s = luminance(body, 0, "std_dev").hypot(luminance(&reference, 0, "std_dev"));
+        assert!((e - r).abs() <= 4.0 * s, "{e} vs {r} ± {s}: {body}");
+    }
+}
+
+#[tokio::test]
+async fn error_targets_add_batches_until_met_or_capped() {
+    let app = cornell_app().await;
+    let ask = |target: Value| {
+        let mut body = request(json!({"method": "bmc", "samples": 32}));
+        body["target"] = target;
+        let app = &app;
+        async move {
+            app.post_json("/v1/scenes/cornell-box/irradiance", &body)
+                .await
+        }
+    };
+    let response = ask(json!({"relative_error": 0.05, "max_samples": 2048})).await;
+    assert_eq!(response.status(), StatusCode::OK);
+    let body: Value = response.json().await.unwrap();
+    for i in 0..2 {
+        let samples = body["samples"][i].as_u64().unwrap();
+        let reached = body["relative_error"][i].as_f64().unwrap();
+        let met = body["target_met"][i].as_bool().unwrap();
+        assert!(
+            samples % 32 == 0 && (32..=2048).contains(&samples),
+            "{body}"
+        );
+        // Met exactly when the reported error is within the target; a point
+        // stops early only when met.
+        assert_eq!(met, reached <= 0.05, "{body}");
+        assert!(met || samples == 2048, "{body}");
+        // The reported error is 1.96 σ of the luminance over the estimate.
+        let (e, s) = (
+            luminance(&body, i, "irradiance"),
+            luminance(&body, i, "std_dev"),
+        );
+        assert!(
+            (1.959_964 * s / e - reached).abs() < 1e-3 * reached.max(1e-3),
+            "{body}"
+        );
+    }
+    assert!(
+        body["samples"][0].as_u64().unwrap() > 32,
+        "one batch is not enough: {body}"
+    );
+    // A cap of one batch: one batch, and not met.
+    let capped: Value = ask(json!({"relative_error": 0.001, "max_samples": 32}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(capped["samples"][0], 32);
+    assert_eq!(capped["target_met"][0], false);
+    // Bad targets name their field.
+    for (target, field) in [
+        (json!({"relative_error": 0.0}), "target.relative_error"),
+        (
+            json!({"relative_error": 0.1, "confidence": 1.0}),
+            "target.confidence",
+        ),
+        (
+            json!({"relative_error": 0.1, "max_samples": 16}),
+            "target.max_samples",
+        ),
+        (
+            json!({"relative_error": 0.1, "max_samples": 1_000_000}),
+            "target.max_samples",
+        ),
+    ] {
+        let response = ask(target).await;
+        assert_eq!(response.status(), StatusCode::UNPROCESSABLE_ENTITY);
+        let (_, got) = error_of(response).await;
+        assert_eq!(got.as_deref(), Some(field));
+    }
+}

@@ -17,8 +17,9 @@ use utoipa::ToSchema;
 use crate::bmc::KernelKind;
 use crate::render::calibration::ErrorCalibration;
 use crate::render::environment_prior::PriorChoice;
+use crate::render::error_target::ErrorTarget;
 use crate::render::estimators::{
-    EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
+    EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
 use crate::render::{
     Decomposition, IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb,
@@ -116,6 +117,27 @@ pub struct IrradianceRequest {
     /// Seed of every random stream; same request and seed, same numbers. Default 1.
     #[serde(default = "default_seed")]
     pub seed: u64,
+    /// Estimate each point in batches of `estimator.samples` until its
+    /// calibrated error bar meets this target or `max_samples` is spent.
+    pub target: Option<TargetDoc>,
+}
+
+/// An error target per point (docs/math.md §10.6).
+#[derive(Debug, Clone, Copy, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TargetDoc {
+    /// Largest relative error of the luminance, in (0, 1].
+    pub relative_error: f64,
+    /// Probability that the error is within it, in [0.5, 0.9999]; default 0.95.
+    #[serde(default = "default_confidence")]
+    pub confidence: f64,
+    /// Most hemisphere samples per point, `estimator.samples..=limits.max_samples`;
+    /// default `limits.max_samples`.
+    pub max_samples: Option<u32>,
+}
+
+fn default_confidence() -> f64 {
+    0.95
 }
 
 fn default_max_depth() -> u32 {
@@ -151,6 +173,15 @@ pub struct IrradianceResponse {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
     pub calibration: Option<ErrorCalibration>,
+    /// With a `target`: per point, the hemisphere samples spent, …
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub samples: Option<Vec<u32>>,
+    /// … the relative error `z σ / E` of the luminance reached, …
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_error: Option<Vec<f64>>,
+    /// … and whether it is within the target.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target_met: Option<Vec<bool>>,
 }
 
 /// Irradiance at each point of the request.
@@ -178,8 +209,34 @@ pub async fn irradiance(
         u64::from(request.estimator.samples),
         limits.max_samples as u64,
     )?;
-    // One path per point and hemisphere sample (light samples are shadow rays).
-    limits.check_work(request.points.len() as u64 * u64::from(request.estimator.samples))?;
+    let target = request
+        .target
+        .map(|t| ErrorTarget {
+            relative_error: t.relative_error,
+            confidence: t.confidence,
+            max_samples: t
+                .max_samples
+                .unwrap_or(u32::try_from(limits.max_samples).unwrap_or(u32::MAX)),
+        })
+        .map(|target| {
+            ApiError::check_limit(
+                "target.max_samples",
+                u64::from(target.max_samples),
+                limits.max_samples as u64,
+            )?;
+            target
+                .validate(request.estimator.samples)
+                .map_err(|err| match err {
+                    EstimatorError::Invalid { field, message } => ApiError::invalid(field, message),
+                    other => other.into(),
+                })?;
+            Ok::<_, ApiError>(target)
+        })
+        .transpose()?;
+    // One path per point and hemisphere sample (light samples are shadow
+    // rays), at most `max_samples` of them per point under a target.
+    let samples_per_point = target.map_or(request.estimator.samples, |t| t.max_samples);
+    limits.check_work(request.points.len() as u64 * u64::from(samples_per_point))?;
     let points = request
         .points
         .iter()
@@ -210,21 +267,39 @@ pub async fn irradiance(
                 quadratures: &worker.quadratures,
                 calibrations: &scene.calibrations,
             };
-            let estimates =
-                point_estimator.estimate(transport, caches, &points, &options, &|| {}, cancel);
-            if let Ok(Some(cached)) = estimates.as_ref().map(|e| e.quadrature_cached) {
+            let estimates = match &target {
+                None => point_estimator
+                    .estimate(transport, caches, &points, &options, &|| {}, cancel)
+                    .map(|e| (e, None)),
+                Some(target) => point_estimator
+                    .estimate_to_target(
+                        transport,
+                        caches,
+                        &points,
+                        &options,
+                        options.samples,
+                        target,
+                        cancel,
+                    )
+                    .map(|(first, targeted)| (first, Some(targeted))),
+            };
+            if let Ok(Some(cached)) = estimates.as_ref().map(|(e, _)| e.quadrature_cached) {
                 metrics::record_quadrature_lookup(&worker.quadratures, Some(cached));
             }
             estimates
         })
         .await??;
+    let (estimates, targeted) = estimates;
     let (kernel, decomposition, prior, calibration) = (
         estimates.kernel,
         estimates.decomposition,
         estimates.prior,
         estimates.calibration,
     );
-    let estimates = estimates.estimates;
+    let estimates = match &targeted {
+        Some(targeted) => targeted.iter().map(|t| t.estimate).collect(),
+        None => estimates.estimates,
+    };
     let rays = estimates.iter().map(|e| e.rays).sum();
     ::metrics::counter!(RAYS_TRACED).increment(rays);
     let rgb = |c: Rgb| [c.r, c.g, c.b];
@@ -237,6 +312,13 @@ pub async fn irradiance(
         decomposition,
         prior,
         calibration,
+        samples: targeted
+            .as_ref()
+            .map(|t| t.iter().map(|t| t.samples).collect()),
+        relative_error: targeted
+            .as_ref()
+            .map(|t| t.iter().map(|t| t.relative_error).collect()),
+        target_met: targeted.map(|t| t.iter().map(|t| t.met).collect()),
     }))
 }
 

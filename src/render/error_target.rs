@@ -1,0 +1,176 @@
+//! Error targets: estimate each point until its calibrated error bar says
+//! the relative error is within a target at a confidence, or a sample cap is
+//! reached (docs/math.md §10.6).
+//!
+//! A point is estimated in batches of the estimator's `N` samples; batch `k`
+//! is the same estimator with an independent random stream (a new rotation
+//! of the sample set, new paths), so batch errors are independent and the
+//! mean of `B` batches has variance `Σ_b σ_b² / B²` per channel, `σ_b` the
+//! batch's calibrated standard deviation (§10.5). After each batch a point
+//! stops when `z · σ_Y ≤ relative_error · Y`, with `Y` the luminance of the
+//! mean, `σ_Y = Σ_c w_c σ_c` its standard deviation (the sum, not the root
+//! of the sum of squares, because the channels' errors are strongly
+//! correlated) and `z` the two-sided normal quantile of `confidence`; or
+//! when another batch would pass `max_samples`.
+
+use super::cancel::Cancel;
+use super::estimators::{Estimates, EstimatorCaches, EstimatorError, PointEstimator};
+use super::irradiance::{IrradianceEstimate, IrradianceOptions};
+use super::query::QueryPoint;
+use super::rgb::Rgb;
+use super::transport::Transport;
+use crate::stats::two_sided_normal_quantile;
+
+/// What a caller asks of every point's estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorTarget {
+    /// Largest accepted relative error of the luminance, in `(0, 1]`.
+    pub relative_error: f64,
+    /// Probability that the error is within the target, in `[0.5, 0.9999]`.
+    pub confidence: f64,
+    /// Most hemisphere samples per point, at least the estimator's `N`.
+    pub max_samples: u32,
+}
+
+/// One point's estimate under a target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TargetedEstimate {
+    /// Mean of the batches, with the standard deviation of that mean.
+    pub estimate: IrradianceEstimate,
+    /// Hemisphere samples spent on the point.
+    pub samples: u32,
+    /// `z σ_Y / Y` when the point stopped (module docs).
+    pub relative_error: f64,
+    pub met: bool,
+}
+
+impl ErrorTarget {
+    /// Checks the numbers against the estimator's batch size `samples`;
+    /// errors name the field under `target`.
+    pub fn validate(&self, samples: u32) -> Result<(), EstimatorError> {
+        let invalid = |field: &str, message: String| EstimatorError::Invalid {
+            field: format!("target.{field}"),
+            message,
+        };
+        if !(self.relative_error > 0.0 && self.relative_error <= 1.0) {
+            return Err(invalid(
+                "relative_error",
+                format!("must be in (0, 1], got {}", self.relative_error),
+            ));
+        }
+        if !(0.5..=0.9999).contains(&self.confidence) {
+            return Err(invalid(
+                "confidence",
+                format!("must be in [0.5, 0.9999], got {}", self.confidence),
+            ));
+        }
+        if self.max_samples < samples {
+            return Err(invalid(
+                "max_samples",
+                format!(
+                    "must be at least the estimator's samples ({samples}), got {}",
+                    self.max_samples
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// `z σ_Y / Y` of an estimate (module docs); infinite for `Y ≤ 0` with
+    /// a non-zero error bar.
+    fn relative_half_width(&self, estimate: &IrradianceEstimate) -> f64 {
+        let z = two_sided_normal_quantile(self.confidence);
+        let y = estimate.irradiance.luminance();
+        let sigma = Rgb::luminance(estimate.std_error);
+        if sigma == 0.0 {
+            0.0
+        } else if y > 0.0 {
+            z * sigma / y
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+/// Seed of batch `k` of a request with seed `seed`: the request's own for
+/// the first batch, so a target that one batch meets changes nothing.
+fn batch_seed(seed: u64, k: u64) -> u64 {
+    if k == 0 {
+        seed
+    } else {
+        seed ^ k.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+    }
+}
+
+impl PointEstimator {
+    /// Irradiance at every point to `target` (module docs). Returns the
+    /// metadata of the first batch (kernel, decomposition, prior,
+    /// calibration) and one [`TargetedEstimate`] per point, in order.
+    #[allow(clippy::too_many_arguments)]
+    pub fn estimate_to_target(
+        &self,
+        transport: &Transport,
+        caches: EstimatorCaches,
+        points: &[QueryPoint],
+        options: &IrradianceOptions,
+        batch: u32,
+        target: &ErrorTarget,
+        cancel: &Cancel,
+    ) -> Result<(Estimates, Vec<TargetedEstimate>), EstimatorError> {
+        target.validate(batch)?;
+        if points.is_empty() {
+            return Err(EstimatorError::Invalid {
+                field: "points".into(),
+                message: "at least one point is needed".into(),
+            });
+        }
+        let mut sums = vec![(Rgb::BLACK, Rgb::BLACK, 0u64, 0u32); points.len()];
+        let mut results: Vec<Option<TargetedEstimate>> = vec![None; points.len()];
+        let mut active: Vec<usize> = (0..points.len()).collect();
+        let mut first = None;
+        for k in 0.. {
+            if active.is_empty() {
+                break;
+            }
+            let subset: Vec<QueryPoint> = active.iter().map(|&i| points[i]).collect();
+            let request = IrradianceOptions {
+                seed: batch_seed(options.seed, k),
+                ..*options
+            };
+            let estimates = self.estimate(transport, caches, &subset, &request, &|| {}, cancel)?;
+            let mut still_active = Vec::new();
+            for (&i, e) in active.iter().zip(&estimates.estimates) {
+                let (sum, variance_sum, rays, samples) = &mut sums[i];
+                *sum += e.irradiance;
+                *variance_sum += e.std_error * e.std_error;
+                *rays += e.rays;
+                *samples += batch;
+                let batches = f64::from(*samples / batch);
+                let mean = IrradianceEstimate {
+                    irradiance: *sum * (1.0 / batches),
+                    std_error: variance_sum.map(f64::sqrt) * (1.0 / batches),
+                    rays: *rays,
+                };
+                let relative_error = target.relative_half_width(&mean);
+                let met = relative_error <= target.relative_error;
+                results[i] = Some(TargetedEstimate {
+                    estimate: mean,
+                    samples: *samples,
+                    relative_error,
+                    met,
+                });
+                if !met && samples.saturating_add(batch) <= target.max_samples {
+                    still_active.push(i);
+                }
+            }
+            first.get_or_insert(estimates);
+            active = still_active;
+        }
+        let first = first.expect("at least one point and one batch");
+        let results = results
+            .into_iter()
+            .map(|r| r.expect("every point estimated at least once"))
+            .collect();
+        Ok((first, results))
+    }
+}
