@@ -49,6 +49,9 @@ pub struct CachedQuadrature {
     pub factorised: Arc<CachedFactorisation>,
     /// Kernel means, weights, prior and posterior variance.
     pub quadrature: Quadrature,
+    /// The density the weights integrate against (for the equal-weight
+    /// fallback of the negative-weight guard, docs/math.md §3.6).
+    pub density: Density,
 }
 
 impl CachedQuadrature {
@@ -215,6 +218,7 @@ impl QuadratureCache {
                 Ok::<_, BmcError>(Arc::new(CachedQuadrature {
                     factorised,
                     quadrature,
+                    density: *density,
                 }))
             })
             .map_err(unshare);

@@ -82,6 +82,18 @@ pub enum SamplingPdf {
 }
 
 impl SamplingPdf {
+    /// The density the directions of a sample set of `kind` follow (the
+    /// spherical Fibonacci sets in the limit, docs/math.md §5): `1/(2π)` for
+    /// the uniform-area kinds, `cos θ/π` for the cosine-distributed ones.
+    pub fn of_set(kind: SampleSetKind) -> Self {
+        match kind {
+            SampleSetKind::Fibonacci | SampleSetKind::Uniform | SampleSetKind::Stratified => {
+                Self::Uniform
+            }
+            SampleSetKind::FibonacciCosine | SampleSetKind::Cosine => Self::Cosine,
+        }
+    }
+
     fn eval(self, direction: DVec3) -> f64 {
         match self {
             Self::Uniform => 0.5 * FRAC_1_PI,
@@ -194,17 +206,31 @@ impl HemisphereEstimator for SampleMeanEstimator {
 
     fn estimate(&self, directions: &[DVec3], values: &[f64]) -> Result<Estimate, EstimatorError> {
         check_count(directions.len(), values.len())?;
-        let terms = directions.iter().zip(values).map(|(&w, &f)| {
-            let q = self.pdf.eval(w);
-            // A direction the pdf cannot produce contributes nothing.
-            if q > 0.0 {
-                f * self.density.eval(w) / q
-            } else {
-                0.0
-            }
-        });
-        Ok(mean_and_variance_of_mean(terms))
+        Ok(importance_rule(&self.density, self.pdf, directions, values))
     }
+}
+
+/// The equal-weight rule `Î = (1/N) Σ f(ω_i) p(ω_i)/q(ω_i)` for directions
+/// distributed with `pdf = q`, with the sample variance of its terms over
+/// `N` (docs/math.md §6): MC and QMC, and the fallback of BMC estimates
+/// rejected by the negative-weight guard (docs/math.md §3.6). Non-negative
+/// for non-negative values. `directions` and `values` have equal lengths.
+pub fn importance_rule(
+    density: &Density,
+    pdf: SamplingPdf,
+    directions: &[DVec3],
+    values: &[f64],
+) -> Estimate {
+    let terms = directions.iter().zip(values).map(|(&w, &f)| {
+        let q = pdf.eval(w);
+        // A direction the pdf cannot produce contributes nothing.
+        if q > 0.0 {
+            f * density.eval(w) / q
+        } else {
+            0.0
+        }
+    });
+    mean_and_variance_of_mean(terms)
 }
 
 /// `(mean, sample variance / n)` of the terms (`crate::stats`); an infinite
@@ -246,6 +272,12 @@ pub enum BmcVariance {
 
 /// Bayesian Monte Carlo with precomputed weights: `Î = wᵀY` (GLS mean: the
 /// weights already integrate constants exactly), variance per [`BmcVariance`].
+///
+/// The values are taken as non-negative (radiance): where negative weights
+/// meet a value far above the others and `wᵀY` comes out negative, the
+/// negative-weight guard of docs/math.md §3.6 replaces it by the
+/// equal-weight rule on the same directions ([`importance_rule`] with the
+/// set's own density [`SamplingPdf::of_set`]) and its sample variance.
 #[derive(Clone, Debug)]
 pub struct BayesianEstimator {
     cached: Arc<CachedQuadrature>,
@@ -299,6 +331,18 @@ impl HemisphereEstimator for BayesianEstimator {
         check_count(weights.len(), directions.len())?;
         check_count(weights.len(), values.len())?;
         let value = self.cached.quadrature.estimate(values);
+        // Only for values that are non-negative: residuals from a prior mean
+        // may integrate to less than zero (their caller guards the total).
+        if value < 0.0 && values.iter().all(|v| *v >= 0.0) {
+            // Impossible for non-negative values (docs/math.md §3.6).
+            let pdf = SamplingPdf::of_set(self.cached.factorised.set.spec.kind);
+            return Ok(importance_rule(
+                &self.cached.density,
+                pdf,
+                directions,
+                values,
+            ));
+        }
         let posterior = self.cached.quadrature.posterior_variance;
         let variance = match self.variance {
             BmcVariance::Posterior => posterior,
@@ -417,6 +461,54 @@ mod tests {
             e.variance,
             estimator.quadrature().quadrature.posterior_variance
         );
+    }
+
+    /// Cosine Fibonacci points with a tiny noise ratio have oscillating
+    /// Lambert weights; a spike under the most negative one makes `wᵀY`
+    /// negative, and the estimate becomes the equal-weight (QMC) rule on
+    /// the same directions with its sample variance (docs/math.md §3.6).
+    /// Data that keep `wᵀY ≥ 0` get the BMC estimate, untouched.
+    #[test]
+    fn a_negative_bmc_sum_falls_back_to_the_equal_weight_rule() {
+        let cache = QuadratureCache::new(16 << 20);
+        let kernel = Kernel::new(KernelKind::SquaredExponential, 0.5, 1.0, 1e-8).expect("kernel");
+        let spec = SampleSetSpec {
+            kind: SampleSetKind::FibonacciCosine,
+            count: 64,
+            seed: 0,
+        };
+        let (q, _) = cache
+            .quadrature(
+                spec,
+                &kernel,
+                &Density::Lambert,
+                PriorMean::Gls,
+                KernelMeanMethod::Exact,
+            )
+            .expect("weights");
+        let bmc = BayesianEstimator::new(q.clone(), BmcVariance::AmplitudeFit);
+        let mut rng = Pcg64::seed_from_u64(0);
+        let directions = bmc.directions(&mut rng).into_owned();
+        let weights = &q.quadrature.weights;
+        let (k, &most_negative) = weights
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .expect("weights");
+        assert!(most_negative < 0.0);
+        let mut values: Vec<f64> = directions.iter().map(|&w| linear(w)).collect();
+        let kept = bmc.estimate(&directions, &values).expect("consistent");
+        assert_eq!(kept.value, q.quadrature.estimate(&values));
+        values[k] = 40.0;
+        assert!(q.quadrature.estimate(&values) < 0.0);
+        let fallback = bmc.estimate(&directions, &values).expect("consistent");
+        let qmc = SampleMeanEstimator::quasi_monte_carlo(Density::Lambert, SamplingPdf::Cosine, 64)
+            .expect("valid");
+        assert_eq!(fallback, qmc.estimate(&directions, &values).expect("valid"));
+        // Lambert density on cosine points: the plain mean of the values.
+        let mean = values.iter().sum::<f64>() / 64.0;
+        assert!((fallback.value - mean).abs() < 1e-12, "{fallback:?}");
+        assert!(fallback.variance > 0.0);
     }
 
     #[test]

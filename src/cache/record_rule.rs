@@ -41,6 +41,15 @@
 //!   barely change. On the Cornell box this lowered the cached image's error
 //!   against the converged reference from 2.57 % to 2.43 % (docs/BENCHMARKS.md).
 //!
+//! # Negative weights
+//! Lambert rules on spherical Fibonacci sets (the default) have no negative
+//! weights, but rules on stratified or random sets may. Where negatively
+//! weighted rays meet a value far above the others and the BMC sum comes
+//! out negative in a channel, the negative-weight guard of docs/math.md
+//! §3.6 gives the record the equal-weight rule on the same rays instead,
+//! with its sample variance and no gradients (they differentiate the
+//! rejected GP mean).
+//!
 //! Unit tests check both gradients for the samples' own speeds against
 //! finite differences of recomputed BMC estimates, the rotation gradient
 //! against the closed form for a linear radiance field, and the occlusion
@@ -51,6 +60,7 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use super::error::CacheError;
+use crate::bmc::estimator::{SamplingPdf, importance_rule};
 use crate::bmc::gls::Gls;
 use crate::bmc::{
     Density, Factorisation, Kernel, KernelKind, KernelMeanMethod, PriorMean, Quadrature,
@@ -75,16 +85,21 @@ pub struct RecordRuleSpec {
 /// (rotation) and per world unit (translation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RecordEstimate {
-    /// `E = π Σ w_i L_i` (the Lambert rule integrates `L cos θ/π`, docs/math.md §1).
+    /// `E = π Σ w_i L_i` (the Lambert rule integrates `L cos θ/π`, docs/math.md §1),
+    /// or, where that sum is negative in a channel (module docs), `π` times
+    /// the equal-weight rule on the same rays.
     pub irradiance: Rgb,
     /// Variance of `E` per channel: the posterior variance `π² V σ̂²`, with
     /// `V` the posterior variance of the rule and `σ̂² = ỸᵀQ₁⁻¹Ỹ/N` the
     /// maximum likelihood amplitude of the channel (docs/math.md §12.1) —
     /// the integration error of the rule — plus the Monte Carlo noise of the
     /// values, `π² Σ w_i² Var(L_i)` from the samples' own variances (zero
-    /// when each value is a single path, whose spread is unknown).
+    /// when each value is a single path, whose spread is unknown). For the
+    /// equal-weight fallback: `π²` times the sample variance of its terms
+    /// over `N` (docs/math.md §3.6).
     pub variance: Rgb,
-    /// `∂E/∂ε` for rotations of the normal about the local x and y axes.
+    /// `∂E/∂ε` for rotations of the normal about the local x and y axes
+    /// (zero for the equal-weight fallback).
     pub rotation: [Rgb; 2],
     /// `∂E/∂ε` for translations along the local x and y axes.
     pub translation: [Rgb; 2],
@@ -242,6 +257,10 @@ impl RecordRule {
             }
             irradiance[c] = PI * self.quadrature.estimate(&y);
         }
+        if irradiance.iter().any(|e| *e < 0.0) {
+            // Impossible for non-negative radiance (docs/math.md §3.6).
+            return Ok(self.equal_weight_estimate(samples));
+        }
         let centred = alpha.clone();
         self.factorisation.solve_columns_in_place(&mut alpha, 3);
         let alpha: [&[f64]; 3] = [0, 1, 2].map(|c| &alpha[c * n..(c + 1) * n]);
@@ -273,6 +292,28 @@ impl RecordRule {
             rotation,
             translation,
         })
+    }
+
+    /// The fallback of a record whose BMC sum is negative in a channel
+    /// (module docs, docs/math.md §3.6): per channel
+    /// `E = π (1/N) Σ L_i p(ω_i)/q(ω_i)` with `p = cos θ/π` and `q` the
+    /// density of the rule's sample set, its variance `π²` times the sample
+    /// variance of the terms over `N`, and no gradients.
+    fn equal_weight_estimate(&self, samples: &[RadianceSample]) -> RecordEstimate {
+        let pdf = SamplingPdf::of_set(self.spec.samples.kind);
+        let (mut irradiance, mut variance) = ([0.0; 3], [0.0; 3]);
+        for c in 0..3 {
+            let y: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
+            let e = importance_rule(&Density::Lambert, pdf, &self.set.directions, &y);
+            irradiance[c] = PI * e.value;
+            variance[c] = PI * PI * e.variance;
+        }
+        RecordEstimate {
+            irradiance: Rgb::from_array(irradiance),
+            variance: Rgb::from_array(variance),
+            rotation: [Rgb::BLACK; 2],
+            translation: [Rgb::BLACK; 2],
+        }
     }
 
     /// The speeds `s_i` of the samples under translation (module docs):
@@ -489,6 +530,73 @@ mod tests {
             prior_mean: PriorMean::Gls,
         })
         .unwrap()
+    }
+
+    /// A stratified set has negative Lambert weights (a Fibonacci set has
+    /// none); a lit patch seen through the most negatively weighted ray
+    /// makes `π Σ w_i L_i` negative, and the record takes the equal-weight
+    /// rule on the same rays (docs/math.md §3.6): `E = π (1/N) Σ 2 cos θ_i
+    /// L_i` for uniform-area directions, its sample variance, no gradients.
+    /// Without the spike the BMC record is unchanged.
+    #[test]
+    fn a_negative_record_falls_back_to_the_equal_weight_rule() {
+        let r = RecordRule::new(RecordRuleSpec {
+            samples: SampleSetSpec {
+                kind: SampleSetKind::Stratified,
+                count: 64,
+                seed: 0,
+            },
+            kernel: Kernel::new(KernelKind::SquaredExponential, 0.5, 1.0, 1e-8).unwrap(),
+            prior_mean: PriorMean::Gls,
+        })
+        .unwrap();
+        let w = &r.quadrature().weights;
+        let (k, &most_negative) = w
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .unwrap();
+        assert!(most_negative < 0.0);
+        let dirs = r.directions();
+        let field = |d: &DVec3| Rgb::new(1.0 + 0.5 * d.x, 0.8, 0.6 + 0.3 * d.z);
+        let mut samples: Vec<RadianceSample> = dirs
+            .iter()
+            .map(|d| RadianceSample {
+                radiance: field(d),
+                distance: 2.0,
+                variance: Rgb::BLACK,
+            })
+            .collect();
+        let smooth = r.estimate(&samples).unwrap();
+        let bmc = samples
+            .iter()
+            .zip(w)
+            .map(|(s, w)| s.radiance * *w)
+            .sum::<Rgb>()
+            * PI;
+        assert!((smooth.irradiance.r - bmc.r).abs() < 1e-12, "{smooth:?}");
+        assert!(smooth.rotation[1].r != 0.0);
+        samples[k].radiance = Rgb::new(40.0, 40.0, 40.0);
+        let spiked_bmc = samples
+            .iter()
+            .zip(w)
+            .map(|(s, w)| s.radiance * *w)
+            .sum::<Rgb>();
+        assert!(spiked_bmc.r < 0.0, "{spiked_bmc:?}");
+        let e = r.estimate(&samples).unwrap();
+        let terms: Vec<f64> = samples
+            .iter()
+            .zip(dirs)
+            .map(|(s, d)| 2.0 * d.z * s.radiance.r)
+            .collect();
+        let n = terms.len() as f64;
+        let mean = terms.iter().sum::<f64>() / n;
+        let spread = terms.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        assert!((e.irradiance.r - PI * mean).abs() < 1e-9, "{e:?}");
+        assert!((e.variance.r - PI * PI * spread / n).abs() < 1e-9, "{e:?}");
+        assert!(e.irradiance.g > 0.0 && e.irradiance.b > 0.0);
+        assert_eq!(e.rotation, [Rgb::BLACK; 2]);
+        assert_eq!(e.translation, [Rgb::BLACK; 2]);
     }
 
     #[test]

@@ -227,7 +227,8 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                         "pass {pass}: {seconds:.2} s, {} rays; {} records created ({} at ambient \
                          bounces; {} placement rays), \
                          {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
-                         {} glossy BMC, {} glossy path-traced",
+                         {} glossy BMC ({} lobe-sampled by the negative-weight guard), \
+                         {} glossy path-traced",
                         rendered.rays,
                         r.placement.records_created,
                         r.placement.ambient_records,
@@ -237,6 +238,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                         r.shading.relaxed_hits,
                         r.shading.fallbacks,
                         r.shading.glossy_bmc,
+                        r.shading.glossy_fallbacks,
                         r.shading.glossy_path_traced,
                     )
                 })?;

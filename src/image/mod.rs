@@ -28,9 +28,10 @@ pub const MAX_PIXELS: u64 = 1 << 26;
 /// present, has the same length as `rgb`.
 ///
 /// `variance[i]` is the variance of the Monte Carlo estimate of pixel `i`
-/// (the sample variance of its radiance samples divided by their number),
-/// averaged over the three channels, in (W/(m²·sr))². Its square root is the
-/// pixel's standard error.
+/// (the sample variance of its radiance samples divided by their number, or
+/// the mean variance its shader reports for them over their number where
+/// that is larger, docs/math.md §13.3), averaged over the three channels,
+/// in (W/(m²·sr))². Its square root is the pixel's standard error.
 ///
 /// Serialises (serde) as `{"width", "height", "rgb": [[r, g, b], …],
 /// "variance": [v, …] | null}` — the JSON tile format.

@@ -149,6 +149,18 @@ impl Transport {
                     }
                 })?;
                 e.value += prior_integral.to_array()[c];
+                if e.value < 0.0 && prior.is_some() {
+                    // A negative total of a non-negative integral: the rule
+                    // without the prior on the same samples, which the
+                    // negative-weight guard covers (docs/math.md §3.6).
+                    let raw: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
+                    e = estimator.estimate(&directions, &raw).map_err(|err| {
+                        RenderError::InvalidOption {
+                            field: "estimator",
+                            reason: err.to_string(),
+                        }
+                    })?;
+                }
                 let e = irradiance_from_lambert(e);
                 value[c] = e.value;
                 var[c] = e.variance;

@@ -3,6 +3,25 @@
 use super::rgb::Rgb;
 use crate::stats::RunningMean;
 
+/// One estimate of an RGB quantity and the variance its estimator reports
+/// for it (per channel, in the quantity's units squared; zero where the
+/// estimator knows none, as for a single path).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Evaluation {
+    pub value: Rgb,
+    pub variance: Rgb,
+}
+
+impl Evaluation {
+    /// A value whose estimator reports no variance of its own.
+    pub fn of(value: Rgb) -> Self {
+        Self {
+            value,
+            variance: Rgb::BLACK,
+        }
+    }
+}
+
 /// Sample mean of a quantity with the variance of that mean.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeanEstimate {
@@ -19,6 +38,36 @@ impl MeanEstimate {
         Self {
             mean: running.mean(),
             variance_of_mean: running.variance_of_mean().unwrap_or(Rgb::BLACK),
+        }
+    }
+
+    /// The mean of `evaluations` and, per channel, the larger of the
+    /// variance of the mean from their spread (as [`Self::of`]) and the mean
+    /// of the variances they report themselves over their count
+    /// (docs/math.md §13.3): the spread of one evaluation is unknown, and an
+    /// estimator's own variance (the glossy fallback's) is a floor the
+    /// reported error should not fall below. Where no evaluation reports a
+    /// variance this is [`Self::of`] of their values, bit for bit.
+    pub fn of_evaluations(evaluations: impl IntoIterator<Item = Evaluation>) -> Self {
+        let mut running = RunningMean::new();
+        let mut own = Rgb::BLACK;
+        for e in evaluations {
+            running.push(e.value);
+            own += e.variance;
+        }
+        let n = running.count().max(1) as f64;
+        let spread = running.variance_of_mean().unwrap_or(Rgb::BLACK).to_array();
+        let own = (own * (1.0 / (n * n))).to_array();
+        let variance = std::array::from_fn(|c| {
+            if own[c] > spread[c] {
+                own[c]
+            } else {
+                spread[c]
+            }
+        });
+        Self {
+            mean: running.mean(),
+            variance_of_mean: Rgb::from_array(variance),
         }
     }
 
@@ -44,5 +93,30 @@ mod tests {
         assert!((e.variance_of_mean.g - 7.0).abs() < 1e-12);
         assert_eq!(e.variance_of_mean.b, 0.0);
         assert_eq!(MeanEstimate::of([Rgb::WHITE]).variance_of_mean, Rgb::BLACK);
+    }
+
+    /// Without own variances the spread alone, bit for bit; with them, the
+    /// larger of spread and mean own variance over the count, per channel.
+    #[test]
+    fn evaluations_report_at_least_their_own_variance() {
+        let values = [1.0, 2.0, 4.0, 7.0].map(|v| Rgb::new(v, 2.0 * v, 0.0));
+        let plain = MeanEstimate::of_evaluations(values.map(Evaluation::of));
+        assert_eq!(plain, MeanEstimate::of(values));
+        let with_own = values.map(|value| Evaluation {
+            value,
+            variance: Rgb::new(0.0, 4.0, 8.0),
+        });
+        let e = MeanEstimate::of_evaluations(with_own);
+        assert_eq!(e.mean, plain.mean);
+        // Spread 1.75 beats 0; spread 7 beats 4/4; own 8/4 beats spread 0.
+        assert_eq!(e.variance_of_mean.r, plain.variance_of_mean.r);
+        assert_eq!(e.variance_of_mean.g, plain.variance_of_mean.g);
+        assert!((e.variance_of_mean.b - 2.0).abs() < 1e-12);
+        // One evaluation: no spread, its own variance.
+        let one = MeanEstimate::of_evaluations([Evaluation {
+            value: Rgb::WHITE,
+            variance: Rgb::new(0.5, 0.0, 0.0),
+        }]);
+        assert_eq!(one.variance_of_mean, Rgb::new(0.5, 0.0, 0.0));
     }
 }

@@ -45,7 +45,7 @@ pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
 pub use irradiance::{Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions};
-pub use mean::MeanEstimate;
+pub use mean::{Evaluation, MeanEstimate};
 pub use path::{AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats};
 pub use query::QueryPoint;
 pub use rgb::Rgb;

@@ -16,7 +16,11 @@
 //! [`crate::render::strata::SharedStrata`]). The image stores the mean and
 //! the sample variance / spp, averaged over RGB (see [`Image`]): the
 //! variance of the mean for independent rays, an upper bound for
-//! stratified ones.
+//! stratified ones. A shader may report a variance of its own for a ray
+//! (the irradiance cache's glossy fallback, docs/math.md §13.3); the pixel
+//! then reports at least the mean of those over spp
+//! ([`MeanEstimate::of_evaluations`]), so a pixel of one ray is not
+//! reported exact where its shader knows otherwise.
 //!
 //! Reproducibility: pixel (px, py) draws every random number from
 //! [`pixel_rng`]`(seed, px, py)`, so a pixel's value does not depend on the
@@ -28,10 +32,9 @@ use rayon::prelude::*;
 
 use super::cancel::Cancel;
 use super::error::RenderError;
-use super::mean::MeanEstimate;
+use super::mean::{Evaluation, MeanEstimate};
 use super::path::check_max_depth;
 use super::path::{PathLengths, PathLimits, TraceStats};
-use super::rgb::Rgb;
 use super::seed::point_rng;
 use super::transport::Transport;
 use crate::image::Image;
@@ -135,7 +138,8 @@ pub struct PixelSample {
     pub pattern: [u64; 2],
 }
 
-/// Radiance arriving at the camera along a camera ray, W/(m²·sr). The
+/// Radiance arriving at the camera along a camera ray, W/(m²·sr), with the
+/// variance the shader knows of for it ((W/(m²·sr))², zero if none). The
 /// tile loop calls it `spp` times per pixel with that pixel's generator.
 pub trait CameraRayShader: Sync {
     fn radiance(
@@ -144,7 +148,7 @@ pub trait CameraRayShader: Sync {
         sample: PixelSample,
         rng: &mut Pcg64,
         stats: &mut TraceStats,
-    ) -> Rgb;
+    ) -> Evaluation;
 }
 
 /// path tracing.
@@ -154,16 +158,24 @@ pub struct PathTracer<'a> {
 }
 
 impl CameraRayShader for PathTracer<'_> {
-    fn radiance(&self, ray: Ray, _: PixelSample, rng: &mut Pcg64, stats: &mut TraceStats) -> Rgb {
+    fn radiance(
+        &self,
+        ray: Ray,
+        _: PixelSample,
+        rng: &mut Pcg64,
+        stats: &mut TraceStats,
+    ) -> Evaluation {
         // The camera ray is the path's first segment, so emitters it hits
         // count at full weight (path.rs) — they are seen directly.
         let limits = PathLimits {
             max_depth: self.max_depth,
             lengths: PathLengths::All,
         };
-        self.transport
-            .incident_radiance(ray, limits, rng, stats)
-            .radiance
+        Evaluation::of(
+            self.transport
+                .incident_radiance(ray, limits, rng, stats)
+                .radiance,
+        )
     }
 }
 
@@ -226,7 +238,7 @@ pub fn render_tile_with(
                 };
                 shader.radiance(ray, sample, &mut rng, &mut stats)
             });
-            Some((MeanEstimate::of(samples), stats.rays))
+            Some((MeanEstimate::of_evaluations(samples), stats.rays))
         })
         .collect();
     let pixels = pixels.ok_or(RenderError::Cancelled)?;

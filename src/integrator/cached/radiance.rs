@@ -10,7 +10,9 @@
 //!
 //! Each estimate averages `repeats` independent evaluations drawn from
 //! `point_rng(seed, i)`; its standard error is their sample standard
-//! deviation / √repeats (light-sampling and path noise), plus, through the
+//! deviation / √repeats (light-sampling and path noise), or, if larger, the
+//! root of the mean variance the evaluations report themselves over
+//! `repeats` (the glossy fallback's, docs/math.md §13.3), plus, through the
 //! cache, the variance of the interpolated records (posterior variance plus
 //! the noise of their paths, [`crate::cache::RecordEstimate::variance`])
 //! scaled by `(k_d/π)²`: the records' own error, which repeats cannot reveal
@@ -27,8 +29,8 @@ use super::stats::ShadingStats;
 use crate::cache::IrradianceCache;
 use crate::render::seed::point_rng;
 use crate::render::{
-    Cancel, MeanEstimate, PathLengths, PathLimits, QueryPoint, RenderError, Rgb, TraceStats,
-    Transport,
+    Cancel, Evaluation, MeanEstimate, PathLengths, PathLimits, QueryPoint, RenderError, Rgb,
+    TraceStats, Transport,
 };
 use crate::scene::{Ray, SurfaceHit};
 
@@ -155,9 +157,11 @@ pub fn radiance_at_points(
                             max_depth,
                             lengths: PathLengths::All,
                         };
-                        Ok(transport
-                            .incident_radiance(camera_ray, limits, &mut rng, &mut trace)
-                            .radiance)
+                        Ok(Evaluation::of(
+                            transport
+                                .incident_radiance(camera_ray, limits, &mut rng, &mut trace)
+                                .radiance,
+                        ))
                     }
                     RadianceShading::Cached { cache, shading } => {
                         let integrator = CachedIntegrator {
@@ -181,8 +185,8 @@ pub fn radiance_at_points(
                         )
                     }
                 })
-                .collect::<Result<Vec<Rgb>, RenderError>>()?;
-            let mean = MeanEstimate::of(values);
+                .collect::<Result<Vec<Evaluation>, RenderError>>()?;
+            let mean = MeanEstimate::of_evaluations(values);
             let mut variance = mean.variance_of_mean;
             if let RadianceShading::Cached { cache, shading } = shading {
                 variance += record_variance(transport, hit, cache, shading)?;

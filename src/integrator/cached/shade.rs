@@ -13,7 +13,11 @@
 //!   [`PathLengths::Indirect`]) interpolated from cache records (docs/math.md §9);
 //! - `I_glossy = ∫ L_ind p dω` with the Phong density
 //!   `p = (m+2)/(2π) cos^m α cos θ` is a BMC estimate ([`GlossyRule`]); so
-//!   each path length is counted by exactly one term.
+//!   each path length is counted by exactly one term. Where the BMC sum
+//!   comes out negative in a channel (the negative-weight guard,
+//!   docs/math.md §3.6), the lobe is estimated by as many lobe-sampled
+//!   paths instead, and the shading reports their variance
+//!   (docs/math.md §13.3).
 //!
 //! # Ambient bounces: records gather through the cache
 //! A record's `N` rays need the radiance leaving the surfaces they hit. A
@@ -45,6 +49,7 @@ use super::config::{
     AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, PlacementOptions,
     indirect_paths,
 };
+use super::glossy::lobe_sampled;
 use super::stats::ShadingStats;
 use crate::cache::{
     Accuracy, CacheError, Interpolated, IrradianceCache, PixelFootprint, RadiusLimits, Record,
@@ -53,8 +58,8 @@ use crate::cache::{
 use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::strata::{GridStrata, SharedStrata};
 use crate::render::{
-    AveragedPaths, Bsdf, PathLengths, PathLimits, PixelSample, QueryPoint, RadianceSample,
-    RenderError, Rgb, TraceStats, Transport, warp,
+    AveragedPaths, Bsdf, Evaluation, PathLengths, PathLimits, PixelSample, QueryPoint,
+    RadianceSample, RenderError, Rgb, TraceStats, Transport, warp,
 };
 use crate::scene::SurfaceHit;
 use crate::sphere::Frame;
@@ -258,9 +263,11 @@ struct Surface<'h> {
 impl CachedIntegrator<'_> {
     /// Radiance leaving the surface at `hit` towards the unit world direction
     /// `wo` (pointing away from the surface), W/(m²·sr), shaded as in the
-    /// module docs and `how` says. With `how.sample`, this is ray `index` of
-    /// `count` estimating one value (a pixel's camera rays) and its light
-    /// samples are numbers `index·n ..< (index + 1)·n` of one
+    /// module docs and `how` says, with the variance the shading knows of
+    /// for it: that of the glossy fallback times `k_s²` where it ran
+    /// (docs/math.md §13.3), zero otherwise. With `how.sample`, this is ray
+    /// `index` of `count` estimating one value (a pixel's camera rays) and
+    /// its light samples are numbers `index·n ..< (index + 1)·n` of one
     /// [`SharedStrata`] pattern of `count·n` samples seeded by
     /// `sample.pattern`; otherwise they are stratified among themselves only.
     pub fn outgoing_radiance<R: Rng + ?Sized>(
@@ -270,12 +277,12 @@ impl CachedIntegrator<'_> {
         how: ShadePoint,
         rng: &mut R,
         stats: &mut ShadingStats,
-    ) -> Result<Rgb, RenderError> {
+    ) -> Result<Evaluation, RenderError> {
         let options = &self.shading.options;
         let placement = self.shading.placement(indirect_paths(how.max_depth), 0);
         let radiance = emitted_radiance(self.transport.scene(), hit, -wo);
         if how.max_depth == 0 {
-            return Ok(radiance);
+            return Ok(Evaluation::of(radiance));
         }
         let reflection = Reflection {
             placement: &placement,
@@ -286,11 +293,16 @@ impl CachedIntegrator<'_> {
             indirect: how.max_depth >= 2,
             glossy_bmc: true,
         };
-        Ok(radiance + self.reflected_radiance(hit, wo, &reflection, rng, stats)?)
+        let reflected = self.reflected_radiance(hit, wo, &reflection, rng, stats)?;
+        Ok(Evaluation {
+            value: radiance + reflected.value,
+            variance: reflected.variance,
+        })
     }
 
     /// Radiance reflected at `hit` towards `wo` (no emission): direct light,
-    /// and with `r.indirect` the diffuse and glossy indirect terms.
+    /// and with `r.indirect` the diffuse and glossy indirect terms; with the
+    /// variance of the glossy fallback (times `k_s²`) where it ran.
     fn reflected_radiance<R: Rng + ?Sized>(
         &self,
         hit: &SurfaceHit,
@@ -298,14 +310,14 @@ impl CachedIntegrator<'_> {
         r: &Reflection,
         rng: &mut R,
         stats: &mut ShadingStats,
-    ) -> Result<Rgb, RenderError> {
+    ) -> Result<Evaluation, RenderError> {
         let Some(bsdf) = self.transport.bsdf(hit.material) else {
-            return Ok(Rgb::BLACK);
+            return Ok(Evaluation::of(Rgb::BLACK));
         };
         let frame = Frame::from_normal(hit.shading_normal);
         let wo_local = frame.to_local(wo);
         if wo_local.z <= 0.0 || bsdf.is_black() {
-            return Ok(Rgb::BLACK);
+            return Ok(Evaluation::of(Rgb::BLACK));
         }
         let surface = Surface {
             hit,
@@ -316,6 +328,7 @@ impl CachedIntegrator<'_> {
         let mut trace = TraceStats::default();
         let mut radiance =
             self.direct_radiance(&surface, r.light_samples, r.sample, rng, &mut trace);
+        let mut variance = Rgb::BLACK;
         if r.indirect {
             let point = QueryPoint::new(hit.position, hit.shading_normal)?;
             if !bsdf.diffuse.is_black() {
@@ -324,11 +337,15 @@ impl CachedIntegrator<'_> {
             }
             if !bsdf.specular.is_black() {
                 let i = self.glossy_indirect(&surface, &point, r, rng, &mut trace, stats)?;
-                radiance += bsdf.specular * i;
+                radiance += bsdf.specular * i.value;
+                variance += bsdf.specular * bsdf.specular * i.variance;
             }
         }
         stats.rays += trace.rays;
-        Ok(radiance)
+        Ok(Evaluation {
+            value: radiance,
+            variance,
+        })
     }
 
     /// One estimate per direction by an ambient bounce ([`Gather::Cache`]).
@@ -378,7 +395,11 @@ impl CachedIntegrator<'_> {
                 if all {
                     sample.radiance = emitted_radiance(scene, &hit, dir);
                 }
-                sample.radiance += self.reflected_radiance(&hit, -dir, &reflection, rng, stats)?;
+                // Glossy lobes are path traced here (no BMC, no fallback),
+                // so the reflection reports no variance of its own.
+                sample.radiance += self
+                    .reflected_radiance(&hit, -dir, &reflection, rng, stats)?
+                    .value;
                 Ok(sample)
             })
             .collect()
@@ -498,8 +519,13 @@ impl CachedIntegrator<'_> {
     }
 
     /// `∫ L_ind p dω` for the Phong density of the surface's BSDF at its
-    /// `wo_local`: BMC with the interpolated glossy rule, or one lobe-sampled
-    /// path above [`MAX_BMC_EXPONENT`] or without `r.glossy_bmc`.
+    /// `wo_local` (units of `L`): BMC with the interpolated glossy rule, or
+    /// one lobe-sampled path above [`MAX_BMC_EXPONENT`] or without
+    /// `r.glossy_bmc`; both report no variance (the BMC weights are fixed
+    /// and one path has no spread). Where the BMC sum is negative in a
+    /// channel (the negative-weight guard, docs/math.md §3.6), as many
+    /// lobe-sampled paths as the rule has directions replace it, with their
+    /// variance (docs/math.md §13.3).
     fn glossy_indirect<R: Rng + ?Sized>(
         &self,
         s: &Surface,
@@ -508,23 +534,20 @@ impl CachedIntegrator<'_> {
         rng: &mut R,
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
-    ) -> Result<Rgb, RenderError> {
+    ) -> Result<Evaluation, RenderError> {
         let paths = r.placement.paths;
         let mirror = DVec3::new(-s.wo_local.x, -s.wo_local.y, s.wo_local.z);
         let m = s.bsdf.exponent;
+        // Radiance of one path along a local direction of the surface's frame.
+        let transport = self.transport;
+        let path = |wi: DVec3, rng: &mut R, trace: &mut TraceStats| {
+            transport.hemisphere_samples(point, &s.frame, &[wi], paths, rng, trace)[0].radiance
+        };
         if !r.glossy_bmc || m > MAX_BMC_EXPONENT {
             stats.glossy_path_traced += 1;
-            let lobe = Frame::from_normal(mirror);
-            let wi = lobe.to_world(warp::power_cosine([rng.random(), rng.random()], m));
-            if wi.z <= 0.0 {
-                return Ok(Rgb::BLACK);
-            }
-            let l = self
-                .transport
-                .hemisphere_samples(point, &s.frame, &[wi], paths, rng, trace)[0]
-                .radiance;
-            // p / pdf = (m+2)/(2π) cos^m α cos θ / ((m+1)/(2π) cos^m α).
-            return Ok(l * ((m + 2.0) / (m + 1.0) * wi.z));
+            return Ok(lobe_sampled(m, mirror, 1, rng, |wi, rng| {
+                path(wi, rng, trace)
+            }));
         }
         stats.glossy_bmc += 1;
         let theta_r = mirror.z.clamp(-1.0, 1.0).acos();
@@ -537,11 +560,14 @@ impl CachedIntegrator<'_> {
         let samples =
             self.transport
                 .hemisphere_samples(point, &turned, &rule.directions, paths, rng, trace);
-        Ok(samples
-            .iter()
-            .zip(&rule.weights)
-            .map(|(s, w)| s.radiance * *w)
-            .sum())
+        if let Some(bmc) = rule.estimate(&samples) {
+            return Ok(Evaluation::of(bmc));
+        }
+        stats.glossy_fallbacks += 1;
+        let n = u32::try_from(rule.directions.len()).unwrap_or(u32::MAX);
+        Ok(lobe_sampled(m, mirror, n.max(2), rng, |wi, rng| {
+            path(wi, rng, trace)
+        }))
     }
 }
 
@@ -767,6 +793,7 @@ mod tests {
             integrator
                 .outgoing_radiance(&hit, -ray.dir, how, &mut rng, stats)
                 .unwrap()
+                .value
         };
         let full = shade(8, &mut stats);
         assert_eq!((stats.cache_misses, stats.records_created), (1, 1));
@@ -852,6 +879,7 @@ mod tests {
                         &mut stats,
                     )
                     .unwrap()
+                    .value
             })
             .sum::<Rgb>()
             * (1.0 / 16.0);

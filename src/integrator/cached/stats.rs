@@ -21,6 +21,9 @@ pub struct ShadingStats {
     pub fallbacks: u64,
     /// Glossy lobes integrated by BMC.
     pub glossy_bmc: u64,
+    /// Of those, estimates the negative-weight guard rejected, replaced by
+    /// lobe-sampled paths (docs/math.md §3.6, §13.3).
+    pub glossy_fallbacks: u64,
     /// Glossy lobes too sharp for BMC, path traced instead.
     pub glossy_path_traced: u64,
 }
@@ -35,6 +38,7 @@ impl std::ops::AddAssign for ShadingStats {
         self.ambient_records += o.ambient_records;
         self.fallbacks += o.fallbacks;
         self.glossy_bmc += o.glossy_bmc;
+        self.glossy_fallbacks += o.glossy_fallbacks;
         self.glossy_path_traced += o.glossy_path_traced;
     }
 }

@@ -37,7 +37,7 @@ use crate::render::lights::environment_radiance;
 use crate::render::tile::{
     CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
 };
-use crate::render::{Cancel, PixelSample, QueryPoint, RenderError, Rgb, TraceStats};
+use crate::render::{Cancel, Evaluation, PixelSample, QueryPoint, RenderError, Rgb, TraceStats};
 use crate::scene::Ray;
 
 /// What a cached tile request did.
@@ -70,11 +70,11 @@ impl CameraRayShader for CacheRayShader<'_> {
         sample: PixelSample,
         rng: &mut Pcg64,
         stats: &mut TraceStats,
-    ) -> Rgb {
+    ) -> Evaluation {
         let scene = self.integrator.transport.scene();
         stats.rays += 1;
         let Some(hit) = scene.intersect(&ray) else {
-            return environment_radiance(scene, ray.dir);
+            return Evaluation::of(environment_radiance(scene, ray.dir));
         };
         let mut local = ShadingStats::default();
         let how = ShadePoint {
@@ -92,7 +92,7 @@ impl CameraRayShader for CacheRayShader<'_> {
                 .lock()
                 .unwrap_or_else(|p| p.into_inner())
                 .get_or_insert(e);
-            Rgb::BLACK
+            Evaluation::of(Rgb::BLACK)
         })
     }
 }
