@@ -303,7 +303,7 @@ async fn error_targets_add_batches_until_met_or_capped() {
         let reached = body["relative_error"][i].as_f64().unwrap();
         let met = body["target_met"][i].as_bool().unwrap();
         assert!(
-            samples % 32 == 0 && (32..=2048).contains(&samples),
+            samples.is_multiple_of(32) && (32..=2048).contains(&samples),
             "{body}"
         );
         // Met exactly when the reported error is within the target; a point
