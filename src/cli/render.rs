@@ -50,8 +50,9 @@ pub struct RenderArgs {
     /// Camera rays per pixel.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
-    /// Longest light path in segments (1 = emitters seen directly only).
-    #[arg(long, default_value_t = 64)]
+    /// Longest light path in segments (1 = emitters seen directly only);
+    /// the same default as the service's.
+    #[arg(long, default_value_t = crate::render::path::DEFAULT_MAX_DEPTH)]
     pub max_depth: u32,
     /// Seed of all random streams; same seed, same image.
     #[arg(long, default_value_t = 1)]

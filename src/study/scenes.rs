@@ -21,7 +21,8 @@ use crate::render::estimators::{EstimatorCaches, EstimatorError, EstimatorMethod
 use crate::render::lengthscale::FittedKernels;
 use crate::render::sample_points::camera_points;
 use crate::render::{
-    Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, Transport,
+    Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint,
+    Transport,
 };
 
 /// What to run on one scene.
@@ -91,43 +92,72 @@ pub enum SceneStudyError {
     NoPoints,
 }
 
+/// What every study of a scene starts from: its points, their references
+/// and fresh estimator caches.
+struct Setup {
+    points: Vec<QueryPoint>,
+    reference: Vec<IrradianceEstimate>,
+    /// The request options every run starts from (seed and samples replaced).
+    base: IrradianceOptions,
+    kernels: FittedKernels,
+    quadratures: QuadratureCache,
+    calibrations: Calibrations,
+}
+
+impl Setup {
+    fn new(transport: &Transport, options: &SceneStudyOptions) -> Result<Self, SceneStudyError> {
+        let points = camera_points(transport, options.points, options.seed);
+        if points.is_empty() {
+            return Err(SceneStudyError::NoPoints);
+        }
+        let base = IrradianceOptions {
+            samples: options.reference_samples,
+            max_depth: options.max_depth,
+            direct_only: false,
+            method: options.decomposition,
+            seed: options.seed,
+        };
+        // The reference: plain MC, split, many samples (any unbiased
+        // estimator of the same E would do; split has the smallest variance
+        // on area lights).
+        let reference = transport.irradiance_at_points(
+            &points,
+            &IrradianceOptions {
+                method: IrradianceMethod::Split,
+                ..base
+            },
+            &|| {},
+            &Cancel::never(),
+        )?;
+        Ok(Self {
+            points,
+            reference,
+            base,
+            kernels: FittedKernels::default(),
+            quadratures: QuadratureCache::new(256 << 20),
+            calibrations: Calibrations::default(),
+        })
+    }
+
+    fn caches(&self) -> EstimatorCaches<'_> {
+        EstimatorCaches {
+            kernels: &self.kernels,
+            quadratures: &self.quadratures,
+            calibrations: &self.calibrations,
+        }
+    }
+}
+
 /// Runs every estimator of the study at every `N` on `transport`'s scene.
 pub fn run(
     transport: &Transport,
     scene: &str,
     options: &SceneStudyOptions,
 ) -> Result<Vec<SceneStudyRow>, SceneStudyError> {
-    let points = camera_points(transport, options.points, options.seed);
-    if points.is_empty() {
-        return Err(SceneStudyError::NoPoints);
-    }
-    let base = IrradianceOptions {
-        samples: options.reference_samples,
-        max_depth: options.max_depth,
-        direct_only: false,
-        method: options.decomposition,
-        seed: options.seed,
-    };
+    let setup = Setup::new(transport, options)?;
+    let (points, reference, base, caches) =
+        (&setup.points, &setup.reference, setup.base, setup.caches());
     let never = Cancel::never();
-    // The reference: plain MC, split, many samples (any unbiased estimator of
-    // the same E would do; split has the smallest variance on area lights).
-    let reference = transport.irradiance_at_points(
-        &points,
-        &IrradianceOptions {
-            method: IrradianceMethod::Split,
-            ..base
-        },
-        &|| {},
-        &never,
-    )?;
-    let kernels = FittedKernels::default();
-    let quadratures = QuadratureCache::new(256 << 20);
-    let calibrations = Calibrations::default();
-    let caches = EstimatorCaches {
-        kernels: &kernels,
-        quadratures: &quadratures,
-        calibrations: &calibrations,
-    };
     let estimators = [
         ("mc", EstimatorMethod::Mc, None),
         ("qmc", EstimatorMethod::Qmc, None),
@@ -168,11 +198,11 @@ pub fn run(
                         ..base
                     };
                     let estimates =
-                        estimator.estimate(transport, caches, &points, &request, &|| {}, &never)?;
+                        estimator.estimate(transport, caches, points, &request, &|| {}, &never)?;
                     runs.push(estimates.estimates);
                 }
             }
-            let model = score(&reference, &runs[0]);
+            let model = score(reference, &runs[0]);
             rows.push(SceneStudyRow {
                 scene: scene.to_owned(),
                 decomposition,
@@ -181,7 +211,7 @@ pub fn run(
                 estimator: name.to_owned(),
                 model_coverage: model.coverage,
                 model_rms_z: model.rms_z,
-                ..score(&reference, &runs[1])
+                ..score(reference, &runs[1])
             });
         }
     }
@@ -220,35 +250,10 @@ pub fn run_target(
     batch: u32,
     target: &ErrorTarget,
 ) -> Result<Vec<TargetStudyRow>, SceneStudyError> {
-    let points = camera_points(transport, options.points, options.seed);
-    if points.is_empty() {
-        return Err(SceneStudyError::NoPoints);
-    }
-    let base = IrradianceOptions {
-        samples: options.reference_samples,
-        max_depth: options.max_depth,
-        direct_only: false,
-        method: options.decomposition,
-        seed: options.seed,
-    };
+    let setup = Setup::new(transport, options)?;
+    let (points, reference, base, caches) =
+        (&setup.points, &setup.reference, setup.base, setup.caches());
     let never = Cancel::never();
-    let reference = transport.irradiance_at_points(
-        &points,
-        &IrradianceOptions {
-            method: IrradianceMethod::Split,
-            ..base
-        },
-        &|| {},
-        &never,
-    )?;
-    let kernels = FittedKernels::default();
-    let quadratures = QuadratureCache::new(256 << 20);
-    let calibrations = Calibrations::default();
-    let caches = EstimatorCaches {
-        kernels: &kernels,
-        quadratures: &quadratures,
-        calibrations: &calibrations,
-    };
     let within = |estimate: &IrradianceEstimate, truth: &IrradianceEstimate| {
         let (e, t) = (
             estimate.irradiance.luminance(),
@@ -257,11 +262,8 @@ pub fn run_target(
         (e - t).abs() <= target.relative_error * t.abs()
     };
     let mut rows = Vec::new();
-    for (name, method) in [
-        ("mc", EstimatorMethod::Mc),
-        ("qmc", EstimatorMethod::Qmc),
-        ("bmc", EstimatorMethod::Bmc),
-    ] {
+    // `bmc` takes no target (docs/math.md §10.6).
+    for (name, method) in [("mc", EstimatorMethod::Mc), ("qmc", EstimatorMethod::Qmc)] {
         let spec = |samples| EstimatorSpec {
             method,
             samples,
@@ -282,13 +284,13 @@ pub fn run_target(
             let (_, targeted) = estimator.estimate_to_target(
                 transport,
                 caches,
-                &points,
+                points,
                 &request(batch, s),
                 batch,
                 target,
                 &never,
             )?;
-            for (t, truth) in targeted.iter().zip(&reference) {
+            for (t, truth) in targeted.iter().zip(reference) {
                 hits += usize::from(within(&t.estimate, truth));
                 met += usize::from(t.met);
                 samples += u64::from(t.samples);
@@ -307,20 +309,26 @@ pub fn run_target(
             mean_samples: samples as f64 / count as f64,
             rays_per_point: rays as f64 / count as f64,
         });
+        // Fixed sample sets hold at most `sphere::MAX_SAMPLES` directions;
+        // MC draws fresh ones and has no such bound.
+        let largest = match method {
+            EstimatorMethod::Mc => target.max_samples,
+            _ => target.max_samples.min(crate::sphere::MAX_SAMPLES as u32),
+        };
         let mut n = batch;
-        while n <= target.max_samples {
+        while n <= largest {
             let estimator = spec(n).resolve()?;
             let (mut hits, mut rays, mut count) = (0usize, 0u64, 0usize);
             for s in 0..options.seeds {
                 let estimates = estimator.estimate(
                     transport,
                     caches,
-                    &points,
+                    points,
                     &request(n, s),
                     &|| {},
                     &never,
                 )?;
-                for (e, truth) in estimates.estimates.iter().zip(&reference) {
+                for (e, truth) in estimates.estimates.iter().zip(reference) {
                     hits += usize::from(within(e, truth));
                     rays += e.rays;
                     count += 1;

@@ -287,7 +287,7 @@ async fn auto_decomposition_prior_and_calibration_are_reported() {
 async fn error_targets_add_batches_until_met_or_capped() {
     let app = cornell_app().await;
     let ask = |target: Value| {
-        let mut body = request(json!({"method": "bmc", "samples": 32}));
+        let mut body = request(json!({"method": "qmc", "samples": 32}));
         body["target"] = target;
         let app = &app;
         async move {
@@ -332,6 +332,14 @@ async fn error_targets_add_batches_until_met_or_capped() {
         .unwrap();
     assert_eq!(capped["samples"][0], 32);
     assert_eq!(capped["target_met"][0], false);
+    // BMC takes no target: its batches share one bias.
+    let mut body = request(json!({"method": "bmc", "samples": 32}));
+    body["target"] = json!({"relative_error": 0.05});
+    let response = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &body)
+        .await;
+    assert_eq!(response.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    assert_eq!(error_of(response).await.1.as_deref(), Some("target"));
     // Bad targets name their field.
     for (target, field) in [
         (json!({"relative_error": 0.0}), "target.relative_error"),

@@ -209,6 +209,7 @@ pub async fn irradiance(
         u64::from(request.estimator.samples),
         limits.max_samples as u64,
     )?;
+    let point_estimator = request.estimator.spec().resolve()?;
     let target = request
         .target
         .map(|t| ErrorTarget {
@@ -225,7 +226,7 @@ pub async fn irradiance(
                 limits.max_samples as u64,
             )?;
             target
-                .validate(request.estimator.samples)
+                .validate(&point_estimator, request.estimator.samples)
                 .map_err(|err| match err {
                     EstimatorError::Invalid { field, message } => ApiError::invalid(field, message),
                     other => other.into(),
@@ -255,7 +256,6 @@ pub async fn irradiance(
         seed: request.seed,
     };
     options.validate().map_err(|err| field_error("", err))?;
-    let point_estimator = estimator.spec().resolve()?;
 
     let worker = state.clone();
     let estimates = state
