@@ -115,20 +115,20 @@ fn batch_seed(seed: u64, k: u64) -> u64 {
 }
 
 impl PointEstimator {
-    /// Irradiance at every point to `target` (module docs). Returns the
-    /// metadata of the first batch (kernel, decomposition, prior,
-    /// calibration) and one [`TargetedEstimate`] per point, in order.
-    #[allow(clippy::too_many_arguments)]
+    /// Irradiance at every point to `target` (module docs), in batches of
+    /// the estimator's samples. Returns the metadata of the first batch
+    /// (kernel, decomposition, prior, calibration) and one
+    /// [`TargetedEstimate`] per point, in order.
     pub fn estimate_to_target(
         &self,
         transport: &Transport,
         caches: EstimatorCaches,
         points: &[QueryPoint],
         options: &IrradianceOptions,
-        batch: u32,
         target: &ErrorTarget,
         cancel: &Cancel,
     ) -> Result<(Estimates, Vec<TargetedEstimate>), EstimatorError> {
+        let batch = self.samples();
         target.validate(self, batch)?;
         if points.is_empty() {
             return Err(EstimatorError::Invalid {

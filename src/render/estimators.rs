@@ -362,6 +362,11 @@ impl PointEstimator {
         Ok(estimates)
     }
 
+    /// Hemisphere samples per point of one run.
+    pub fn samples(&self) -> u32 {
+        self.spec.samples
+    }
+
     /// [`Self::estimate`] with the estimator's own error model.
     fn estimate_with_model_errors(
         &self,

@@ -286,7 +286,6 @@ pub fn run_target(
                 caches,
                 points,
                 &request(batch, s),
-                batch,
                 target,
                 &never,
             )?;

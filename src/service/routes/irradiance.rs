@@ -277,7 +277,6 @@ pub async fn irradiance(
                         caches,
                         &points,
                         &options,
-                        options.samples,
                         target,
                         cancel,
                     )
