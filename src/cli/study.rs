@@ -61,6 +61,15 @@ pub struct SceneStudyArgs {
     /// Samples of each point's reference.
     #[arg(long, default_value_t = 16_384)]
     pub reference_samples: u32,
+    /// `bmc` rows: the kernel family (default se).
+    #[arg(long, value_enum)]
+    pub kernel: Option<super::quadrature::KernelArg>,
+    /// `bmc` rows: the lengthscale, a number or `auto` (default).
+    #[arg(long)]
+    pub lengthscale: Option<crate::render::estimators::Lengthscale>,
+    /// `bmc` rows: the kernel noise σ_n² (default: fitted with `auto`).
+    #[arg(long)]
+    pub noise: Option<f64>,
     /// Run the error-target study instead: each estimator to this relative
     /// error in batches of the first `--samples`, against fixed N.
     #[arg(long)]
@@ -96,6 +105,13 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
         decomposition: args.decomposition,
         max_depth: args.max_depth,
         reference_samples: args.reference_samples,
+        bmc_kernel: (args.kernel.is_some() || args.lengthscale.is_some() || args.noise.is_some())
+            .then(|| crate::render::estimators::KernelSpec {
+                kind: args.kernel.map(Into::into),
+                lengthscale: args.lengthscale.unwrap_or_default(),
+                variance: None,
+                noise: args.noise,
+            }),
         ..SceneStudyOptions::default()
     };
     if let Some(relative_error) = args.target {

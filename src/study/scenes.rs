@@ -17,7 +17,9 @@ use crate::bmc::cache::QuadratureCache;
 use crate::render::calibration::Calibrations;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::error_target::ErrorTarget;
-use crate::render::estimators::{EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec};
+use crate::render::estimators::{
+    EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec,
+};
 use crate::render::lengthscale::FittedKernels;
 use crate::render::sample_points::camera_points;
 use crate::render::{
@@ -41,6 +43,8 @@ pub struct SceneStudyOptions {
     pub reference_samples: u32,
     /// Seed of the points and the reference.
     pub seed: u64,
+    /// The kernel of the `bmc` rows (`None`: the defaults).
+    pub bmc_kernel: Option<KernelSpec>,
 }
 
 impl Default for SceneStudyOptions {
@@ -53,6 +57,7 @@ impl Default for SceneStudyOptions {
             max_depth: IrradianceOptions::default().max_depth,
             reference_samples: 16_384,
             seed: 2026,
+            bmc_kernel: None,
         }
     }
 }
@@ -186,7 +191,9 @@ pub fn run(
                     method,
                     samples,
                     sample_set: None,
-                    kernel: None,
+                    kernel: options
+                        .bmc_kernel
+                        .filter(|_| method == EstimatorMethod::Bmc),
                     prior,
                     calibrate: Some(calibrate),
                 };

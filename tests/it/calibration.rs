@@ -28,6 +28,7 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
             max_depth,
             reference_samples: 8192,
             seed: 2026,
+            bmc_kernel: None,
         };
         let rows = scenes::run(&transport(scene), scene, &options).unwrap();
         assert!(rows.iter().any(|r| r.estimator == "bmc"));

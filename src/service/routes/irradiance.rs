@@ -272,14 +272,7 @@ pub async fn irradiance(
                     .estimate(transport, caches, &points, &options, &|| {}, cancel)
                     .map(|e| (e, None)),
                 Some(target) => point_estimator
-                    .estimate_to_target(
-                        transport,
-                        caches,
-                        &points,
-                        &options,
-                        target,
-                        cancel,
-                    )
+                    .estimate_to_target(transport, caches, &points, &options, target, cancel)
                     .map(|(first, targeted)| (first, Some(targeted))),
             };
             if let Ok(Some(cached)) = estimates.as_ref().map(|(e, _)| e.quadrature_cached) {
