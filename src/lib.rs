@@ -22,9 +22,12 @@
 //!   `render::hemisphere_estimate` (irradiance at points with any MC/QMC/BMC
 //!   estimator), `render::estimators` (the point estimator a request or the CLI
 //!   names, resolved once), `render::lengthscale` (the scene-fitted `"auto"`
-//!   lengthscale).
+//!   lengthscale), `render::environment_prior` (the unoccluded environment as
+//!   a prior mean), `render::calibration` (error bars calibrated on the
+//!   scene), `render::error_target` (estimates to a relative error).
 //! - `study`: synthetic environments with known irradiance and the estimator
-//!   convergence study (MC vs QMC vs BMC).
+//!   convergence study (MC vs QMC vs BMC); the real-scene study against
+//!   converged references (`study::scenes`).
 //! - `cache`: the Bayesian irradiance cache's record store — BMC records with
 //!   variance and gradients, concurrent spatial index, interpolation; no scene,
 //!   no rays.
@@ -32,7 +35,8 @@
 //!   points and reproducible placement, outgoing radiance through the cache
 //!   (BMC Phong glossy), camera tiles and radiance queries.
 //! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
-//! - `cli`: the binary's subcommands (`quadrature`, `study`, `render`, `compare`) as library functions.
+//! - `cli`: the binary's subcommands (`irradiance`, `quadrature`, `study`, `study-scene`,
+//!   `render`, `compare`) as library functions.
 //! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).
 //! - `loadtest`: closed-loop load generator for the service (the `bmc-loadtest` binary).
 //!
