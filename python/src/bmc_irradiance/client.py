@@ -1,0 +1,750 @@
+"""The client of every route of the bmc-irradiance HTTP service."""
+
+from __future__ import annotations
+
+import concurrent.futures
+import json
+import os
+import re
+import warnings
+from pathlib import Path
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+from ._http import Response, Transport
+from ._progress import Progress
+from .errors import ServiceError
+from .results import (
+    Chunk,
+    ErrorTarget,
+    Image,
+    IrradianceResult,
+    Quadrature,
+    RadianceResult,
+    Tile,
+)
+
+#: Defaults of ``config/default.toml`` (``[limits]``); a service with other
+#: limits is followed automatically where its 422/413 answers say so.
+DEFAULT_MAX_POINTS = 65536
+DEFAULT_MAX_BODY_BYTES = 4194304
+DEFAULT_MAX_PATHS_PER_REQUEST = 134217728
+DEFAULT_MAX_SAMPLES = 4096
+
+# Longest JSON text of one float (Python's repr, e.g. -1.2345678901234567e-300).
+_FLOAT_CHARS = 24
+
+Vectors = npt.ArrayLike
+TargetLike = Union[ErrorTarget, Mapping[str, Any]]
+Estimator = Union[str, Mapping[str, Any]]
+
+
+def _point_bytes(vectors: int, names: int) -> int:
+    """Most JSON bytes one point of ``vectors`` 3-vectors takes in a request."""
+    return 4 + names + vectors * (5 + 3 * _FLOAT_CHARS)
+
+
+def _splitmix64(z: int) -> int:
+    z = (z + 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
+    return z ^ (z >> 31)
+
+
+def chunk_seed(seed: int, index: int) -> int:
+    """Seed of request ``index`` of a split point set.
+
+    The service seeds point ``i`` of a request from ``(seed, i)``, ``i``
+    counting from 0 in each request, so a split set cannot reproduce one big
+    request's numbers. The first request keeps ``seed`` (its points get
+    exactly the numbers one big request would give them); later requests get
+    64-bit seeds hashed from ``(seed, index)``, so points at the same index of
+    different requests do not share a random stream.
+    """
+    if index == 0:
+        return seed
+    return _splitmix64(_splitmix64(seed) ^ (0xD6E8FEB86659FD93 * index & 0xFFFFFFFFFFFFFFFF))
+
+
+def _vectors(name: str, values: Vectors, count: Optional[int]) -> npt.NDArray[np.float64]:
+    """``values`` as an N×3 float array; a single 3-vector is repeated
+    ``count`` times, or is one point when ``count`` is ``None``."""
+    array = np.asarray(values, dtype=np.float64)
+    if array.shape == (3,):
+        array = array.reshape(1, 3) if count is None else np.broadcast_to(array, (count, 3))
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise ValueError(f"{name} must be an N×3 array, got shape {array.shape}")
+    if count is not None and array.shape[0] != count:
+        raise ValueError(f"{name} has {array.shape[0]} rows, expected {count}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite")
+    return array
+
+
+_POINT_FIELD = re.compile(r"^points\[(\d+)\](.*)$")
+_LIMIT = re.compile(r"above the limit of (\d+)")
+_VALUE = re.compile(r"is (\d+), above")
+
+
+def _estimator_doc(estimator: Optional[Estimator]) -> Optional[Dict[str, Any]]:
+    if estimator is None:
+        return None
+    if isinstance(estimator, str):
+        return {"method": estimator}
+    return dict(estimator)
+
+
+class Client:
+    """A client of one bmc-irradiance service.
+
+    ``url`` is the service's base URL. ``timeout`` bounds each HTTP request
+    in seconds; ``retries`` is how many times a 503 answer with
+    ``Retry-After`` (the CPU queue is full) is retried, each after the wait
+    the header names (at most ``max_retry_wait`` seconds). ``token`` is sent
+    as ``Authorization: Bearer <token>``; the service requires it for
+    ``upload``, ``delete`` and ``clear_cache`` when ``server.auth_token`` is set.
+
+    Point sets larger than one request may carry are split into several
+    requests and reassembled in order. No route reports the service's limits,
+    so ``max_points``, ``max_body_bytes``, ``max_paths_per_request`` and
+    ``max_samples`` start at the defaults of ``config/default.toml``; when the
+    service answers 422 ``limit_exceeded`` for ``points`` or
+    ``estimated_paths``, or 413, the client lowers its own value to the
+    service's and starts the split again. Requests are sent one after the
+    other; each must finish within the service's
+    ``limits.request_deadline_secs`` (30 s by default, else 504), so pass a
+    smaller ``max_points`` for expensive estimators on many points.
+
+    Errors: any non-2xx answer raises :class:`ServiceError` with the
+    service's ``code``, ``message`` and ``field``; network failures raise
+    ``urllib.error.URLError`` (an ``OSError``).
+    """
+
+    def __init__(
+        self,
+        url: str = "http://127.0.0.1:8080",
+        timeout: float = 120.0,
+        retries: int = 5,
+        token: Optional[str] = None,
+        *,
+        max_points: int = DEFAULT_MAX_POINTS,
+        max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
+        max_paths_per_request: int = DEFAULT_MAX_PATHS_PER_REQUEST,
+        max_samples: int = DEFAULT_MAX_SAMPLES,
+        max_retry_wait: float = 60.0,
+    ) -> None:
+        self._http = Transport(url, timeout, retries, token, max_retry_wait)
+        self.max_points = max_points
+        self.max_body_bytes = max_body_bytes
+        self.max_paths_per_request = max_paths_per_request
+        self.max_samples = max_samples
+
+    @property
+    def url(self) -> str:
+        """The service's base URL."""
+        return self._http.base
+
+    # -- service -----------------------------------------------------------
+
+    def health(self) -> Dict[str, Any]:
+        """``GET /health``: ``status`` (``ok`` or ``wedged``), ``version``, ``scenes``, ``cpu``."""
+        return dict(self._http.get_json("/health", accept=(503,)))
+
+    def ready(self) -> bool:
+        """``GET /ready``: whether the service should be sent work now."""
+        return self._http.request("GET", "/ready", accept=(503,)).status == 200
+
+    def openapi(self) -> Dict[str, Any]:
+        """``GET /openapi.json``: the OpenAPI 3 document of every route."""
+        return dict(self._http.get_json("/openapi.json"))
+
+    def metrics(self) -> str:
+        """``GET /metrics``: Prometheus text."""
+        return self._http.request("GET", "/metrics").body.decode("utf-8")
+
+    # -- scenes ------------------------------------------------------------
+
+    def scenes(self) -> List[Dict[str, Any]]:
+        """``GET /v1/scenes``: summaries of the loaded scenes, sorted by id."""
+        return list(self._http.get_json("/v1/scenes"))
+
+    def scene(self, id: str) -> Dict[str, Any]:
+        """``GET /v1/scenes/{id}``: ``shapes``, ``triangles``, ``emitters``,
+        ``resolution`` ([width, height] in pixels), bounds, fitted kernels..."""
+        return dict(self._http.get_json(f"/v1/scenes/{_segment(id)}"))
+
+    def upload(
+        self,
+        scene: Union[str, bytes, "os.PathLike[str]"],
+        id: Optional[str] = None,
+        *,
+        lenient: bool = False,
+    ) -> Dict[str, Any]:
+        """``POST /v1/scenes``: adds a scene, or replaces the one with the same id.
+
+        ``scene`` is a path to a JSON scene document or a Mitsuba 3 XML file,
+        or the document's text. A JSON document's id is its ``name``; ``id``
+        replaces that name. An XML scene's id is ``id``, by default the file's
+        stem; ``lenient`` approximates unsupported Mitsuba features instead of
+        refusing them. Files the scene references (meshes, environment maps)
+        must already be in the service's scenes directory: the service does
+        not accept uploaded assets. Returns the scene's summary.
+        """
+        text, stem = _scene_text(scene)
+        first = text.lstrip()[:1]
+        if first == "{":
+            if id is not None:
+                document = json.loads(text)
+                document["name"] = id
+                text = json.dumps(document)
+            answer = self._http.request(
+                "POST", "/v1/scenes", body=text.encode("utf-8"), content_type="application/json"
+            )
+        elif first == "<":
+            scene_id = id if id is not None else stem
+            if scene_id is None:
+                raise ValueError("an XML scene given as text needs an id")
+            answer = self._http.request(
+                "POST",
+                "/v1/scenes",
+                body=text.encode("utf-8"),
+                content_type="application/xml",
+                query={"id": scene_id, "lenient": True if lenient else None},
+            )
+        else:
+            raise ValueError("the scene is neither a JSON document nor Mitsuba XML")
+        return dict(answer.json())
+
+    def delete(self, id: str) -> None:
+        """``DELETE /v1/scenes/{id}``; requests already using the scene finish normally."""
+        self._http.request("DELETE", f"/v1/scenes/{_segment(id)}")
+
+    def cache(self, scene: str) -> Dict[str, Any]:
+        """``GET /v1/scenes/{id}/cache``: irradiance-cache statistics per configuration."""
+        return dict(self._http.get_json(f"/v1/scenes/{_segment(scene)}/cache"))
+
+    def clear_cache(self, scene: str) -> Dict[str, Any]:
+        """``DELETE /v1/scenes/{id}/cache``: drops the scene's irradiance-cache records."""
+        return dict(self._http.request("DELETE", f"/v1/scenes/{_segment(scene)}/cache").json())
+
+    # -- points ------------------------------------------------------------
+
+    def irradiance(
+        self,
+        scene: str,
+        positions: Vectors,
+        normals: Vectors,
+        method: str = "bmc",
+        samples: int = 64,
+        *,
+        decomposition: Optional[str] = None,
+        prior: Optional[str] = None,
+        calibrate: Optional[bool] = None,
+        sample_set: Optional[Union[str, Mapping[str, Any]]] = None,
+        kernel: Optional[Mapping[str, Any]] = None,
+        target: Optional[TargetLike] = None,
+        max_depth: Optional[int] = None,
+        seed: Optional[int] = None,
+    ) -> IrradianceResult:
+        """Irradiance E(x, n) in W/m² (RGB) at N points
+        (``POST /v1/scenes/{id}/irradiance``).
+
+        ``positions`` and ``normals`` are N×3 (a single normal applies to all
+        points; normals need not be unit length). ``method`` is ``"mc"``,
+        ``"qmc"`` or ``"bmc"`` with ``samples`` hemisphere samples per point;
+        ``decomposition`` (``"auto"``, ``"split"``, ``"hemisphere"``),
+        ``prior`` (``"environment"``, ``"none"``), ``calibrate``,
+        ``sample_set`` (a kind such as ``"fibonacci_cosine"`` or
+        ``{"kind", "seed"}``) and ``kernel`` (``{"kind", "lengthscale",
+        "variance", "noise"}``, ``bmc`` only) default to the service's
+        choices. ``target`` (an :class:`ErrorTarget` or a dict with
+        ``relative_error``, ``confidence``, ``max_samples``) estimates each
+        point until its error bar meets it (``mc`` and ``qmc`` only).
+        ``max_depth`` is the longest path in segments (service default 16);
+        ``seed`` defaults to the service's 1.
+
+        Point sets over the service's limits are sent as several requests
+        (``result.chunks``) and reassembled in order. The first request's
+        points get exactly the numbers of one big request; later requests use
+        seeds derived with :func:`chunk_seed`, because the service seeds each
+        point from its index *within its request*. So a split result is
+        equivalent in distribution to one big request, not bit-identical,
+        and it is reproducible for the same limits and seed.
+        """
+        positions = _vectors("positions", positions, None)
+        count = positions.shape[0]
+        normals = _vectors("normals", normals, count)
+        if count == 0:
+            raise ValueError("no points")
+        estimator: Dict[str, Any] = {"method": method, "samples": int(samples)}
+        if decomposition is not None:
+            estimator["decomposition"] = decomposition
+        if prior is not None:
+            estimator["prior"] = prior
+        if calibrate is not None:
+            estimator["calibrate"] = bool(calibrate)
+        if sample_set is not None:
+            estimator["sample_set"] = (
+                {"kind": sample_set} if isinstance(sample_set, str) else dict(sample_set)
+            )
+        if kernel is not None:
+            estimator["kernel"] = dict(kernel)
+        base: Dict[str, Any] = {"estimator": estimator}
+        if max_depth is not None:
+            base["max_depth"] = int(max_depth)
+        paths_per_point = int(samples)
+        if target is not None:
+            target_doc = target.to_json() if isinstance(target, ErrorTarget) else dict(target)
+            base["target"] = target_doc
+            paths_per_point = int(target_doc.get("max_samples") or self.max_samples)
+        pos, nor = positions.tolist(), normals.tolist()
+
+        def points(start: int, stop: int) -> List[Dict[str, Any]]:
+            return [
+                {"position": p, "normal": n} for p, n in zip(pos[start:stop], nor[start:stop])
+            ]
+
+        answers = self._split(
+            f"/v1/scenes/{_segment(scene)}/irradiance",
+            base,
+            points,
+            count,
+            _point_bytes(2, len('"position":,"normal":')),
+            max(paths_per_point, 1),
+            1 if seed is None else int(seed),
+        )
+        first = answers[0][1]
+        for chunk, doc in answers[1:]:
+            for key in ("decomposition", "prior", "lengthscale", "noise", "calibration"):
+                if doc.get(key) != first.get(key):
+                    warnings.warn(
+                        f"request for points {chunk.start}:{chunk.stop} reported "
+                        f"{key}={doc.get(key)!r}, the first {first.get(key)!r}",
+                        stacklevel=2,
+                    )
+        targeted = "samples" in first
+        return IrradianceResult(
+            value=_rows(answers, "irradiance"),
+            std_dev=_rows(answers, "std_dev"),
+            rays=sum(int(doc["rays"]) for _, doc in answers),
+            decomposition=str(first.get("decomposition")),
+            prior=str(first.get("prior")),
+            calibration=first.get("calibration"),
+            lengthscale=first.get("lengthscale"),
+            noise=first.get("noise"),
+            samples=_flat(answers, "samples", np.int64) if targeted else None,
+            relative_error=_flat(answers, "relative_error", np.float64) if targeted else None,
+            target_met=_flat(answers, "target_met", np.bool_) if targeted else None,
+            chunks=tuple(chunk for chunk, _ in answers),
+        )
+
+    def radiance(
+        self,
+        scene: str,
+        positions: Vectors,
+        normals: Vectors,
+        directions: Vectors,
+        *,
+        estimator: Optional[Estimator] = None,
+        repeats: Optional[int] = None,
+        max_depth: Optional[int] = None,
+        seed: Optional[int] = None,
+    ) -> RadianceResult:
+        """Outgoing radiance in W/(m²·sr) (RGB) leaving surface points towards
+        a viewer direction each (``POST /v1/scenes/{id}/radiance``).
+
+        ``positions`` must lie on surfaces; ``normals`` and ``directions``
+        (from the point towards the viewer, world frame) are N×3 or one
+        3-vector for all. ``estimator`` is ``"cache"`` (the service's default:
+        the scene's shared irradiance cache), ``"path"`` (path tracing) or a
+        dict with ``method`` and the cache options; ``repeats`` independent
+        evaluations are averaged per point (service default 16). Large point
+        sets are split as for :meth:`irradiance`.
+        """
+        positions = _vectors("positions", positions, None)
+        count = positions.shape[0]
+        normals = _vectors("normals", normals, count)
+        directions = _vectors("directions", directions, count)
+        if count == 0:
+            raise ValueError("no points")
+        base: Dict[str, Any] = {}
+        integrator = _estimator_doc(estimator)
+        if integrator is not None:
+            base["estimator"] = integrator
+        if repeats is not None:
+            base["repeats"] = int(repeats)
+        if max_depth is not None:
+            base["max_depth"] = int(max_depth)
+        paths_per_point = repeats if repeats is not None else 16
+        if (integrator or {}).get("method", "cache") in ("cache", "bmc"):
+            options = integrator or {}
+            paths_per_point += (
+                int(options.get("samples") or 64)
+                * int(options.get("paths_per_direction") or 1)
+                * (1 + int(options.get("ambient_bounces") or 0))
+            )
+        pos, nor, dirs = positions.tolist(), normals.tolist(), directions.tolist()
+
+        def points(start: int, stop: int) -> List[Dict[str, Any]]:
+            return [
+                {"position": p, "normal": n, "direction": d}
+                for p, n, d in zip(pos[start:stop], nor[start:stop], dirs[start:stop])
+            ]
+
+        answers = self._split(
+            f"/v1/scenes/{_segment(scene)}/radiance",
+            base,
+            points,
+            count,
+            _point_bytes(3, len('"position":,"normal":,"direction":')),
+            paths_per_point,
+            1 if seed is None else int(seed),
+        )
+        return RadianceResult(
+            value=_rows(answers, "radiance"),
+            std_dev=_rows(answers, "std_dev"),
+            rays=sum(int(doc["rays"]) for _, doc in answers),
+            chunks=tuple(chunk for chunk, _ in answers),
+        )
+
+    def _split(
+        self,
+        path: str,
+        base: Mapping[str, Any],
+        points: Callable[[int, int], List[Dict[str, Any]]],
+        count: int,
+        point_bytes: int,
+        paths_per_point: int,
+        seed: int,
+    ) -> List[Tuple[Chunk, Dict[str, Any]]]:
+        """Sends ``count`` points in as few requests as the limits allow and
+        returns each chunk with its answer, in order. When the service's
+        answer shows a lower limit than assumed, the split starts again, so
+        the result depends only on the final limits."""
+        # Everything but the points, with the longest seed.
+        overhead = len(json.dumps(dict(base, points=[], seed=2**64 - 1), separators=(",", ":")))
+        previous: Optional[int] = None
+        while True:
+            size = min(
+                self.max_points,
+                max(1, (self.max_body_bytes - overhead) // point_bytes),
+                max(1, self.max_paths_per_request // max(paths_per_point, 1)),
+            )
+            if previous is not None and size >= previous:
+                raise RuntimeError(f"cannot split {count} points within the service's limits")
+            previous = size
+            answers: List[Tuple[Chunk, Dict[str, Any]]] = []
+            sent = 0
+            try:
+                for index, start in enumerate(range(0, count, size)):
+                    chunk = Chunk(start, min(start + size, count), chunk_seed(seed, index))
+                    document = dict(base)
+                    document["points"] = points(chunk.start, chunk.stop)
+                    document["seed"] = chunk.seed
+                    data = json.dumps(document, separators=(",", ":"), allow_nan=False).encode()
+                    sent = len(data)
+                    answer = self._http.request(
+                        "POST", path, body=data, content_type="application/json"
+                    )
+                    answers.append((chunk, answer.json()))
+                return answers
+            except ServiceError as err:
+                offset = len(answers) * size
+                if size <= 1 or not self._learn(err, sent):
+                    raise _shift_point_field(err, offset) from None
+                paths_per_point = max(
+                    paths_per_point, _paths_per_point(err, min(size, count - offset))
+                )
+
+    def _learn(self, err: ServiceError, sent: int) -> bool:
+        """Lowers an assumed limit after a 422 ``limit_exceeded`` (``points``,
+        ``estimated_paths``) or a 413 for a body of ``sent`` bytes; whether
+        the split should start again."""
+        if err.status == 422 and err.code == "limit_exceeded":
+            match = _LIMIT.search(err.message)
+            if match is None:
+                return False
+            limit = int(match.group(1))
+            if err.field == "points":
+                self.max_points = min(self.max_points, max(limit, 1))
+                return True
+            if err.field == "estimated_paths":
+                self.max_paths_per_request = min(self.max_paths_per_request, limit)
+                return True
+            return False
+        if err.status == 413:
+            self.max_body_bytes = min(self.max_body_bytes, sent) - 1
+            return True
+        return False
+
+    # -- quadratures -------------------------------------------------------
+
+    def quadrature(
+        self,
+        samples: int = 64,
+        *,
+        sample_set: str = "fibonacci",
+        kernel: str = "squared_exponential",
+        lengthscale: float = 0.5,
+        variance: Optional[float] = None,
+        noise: Optional[float] = None,
+        density: str = "lambert",
+        exponent: Optional[float] = None,
+        mirror_elevation: Optional[float] = None,
+        prior_mean: str = "zero",
+        kernel_mean: str = "exact",
+        seed: Optional[int] = None,
+    ) -> Quadrature:
+        """BMC weights of one configuration (``POST /v1/quadratures``).
+
+        ``samples`` directions of ``sample_set`` (``fibonacci``,
+        ``fibonacci_cosine``, ``uniform``, ``cosine``, ``stratified``; ``seed``
+        for the random kinds), a ``kernel`` (``squared_exponential``,
+        ``matern32``, ``matern52``) with ``lengthscale`` (chordal distance),
+        ``variance`` σ² (service default 1) and ``noise`` σ_n² (default 1e-8),
+        the ``density`` (``lambert``, ``uniform``, or ``phong`` with
+        ``exponent`` and ``mirror_elevation`` in radians), ``prior_mean``
+        (``zero``, ``gls``) and ``kernel_mean`` (``exact``,
+        ``spherical_gaussian``). Computed once, then served from the
+        service's cache (``cached``).
+        """
+        sample_doc: Dict[str, Any] = {"kind": sample_set, "count": int(samples)}
+        if seed is not None:
+            sample_doc["seed"] = int(seed)
+        kernel_doc: Dict[str, Any] = {"kind": kernel, "lengthscale": float(lengthscale)}
+        if variance is not None:
+            kernel_doc["variance"] = float(variance)
+        if noise is not None:
+            kernel_doc["noise"] = float(noise)
+        density_doc: Dict[str, Any] = {"kind": density}
+        if exponent is not None:
+            density_doc["exponent"] = float(exponent)
+        if mirror_elevation is not None:
+            density_doc["mirror_elevation"] = float(mirror_elevation)
+        doc = self._http.post_json(
+            "/v1/quadratures",
+            {
+                "sample_set": sample_doc,
+                "kernel": kernel_doc,
+                "density": density_doc,
+                "prior_mean": prior_mean,
+                "kernel_mean": kernel_mean,
+            },
+        ).json()
+        return Quadrature(
+            id=str(doc["id"]),
+            directions=np.asarray(doc["directions"], dtype=np.float64).reshape(-1, 3),
+            kernel_means=np.asarray(doc["kernel_means"], dtype=np.float64),
+            weights=np.asarray(doc["weights"], dtype=np.float64),
+            prior_variance=float(doc["prior_variance"]),
+            posterior_variance=float(doc["posterior_variance"]),
+            jitter=float(doc["jitter"]),
+            condition_estimate=float(doc["condition_estimate"]),
+            density_integral=float(doc["density_integral"]),
+            cached=bool(doc["cached"]),
+        )
+
+    # -- images ------------------------------------------------------------
+
+    def _tile_request(
+        self,
+        scene: str,
+        x: int,
+        y: int,
+        width: int,
+        height: int,
+        format: str,
+        spp: Optional[int],
+        estimator: Optional[Estimator],
+        max_depth: Optional[int],
+        seed: Optional[int],
+        exposure: Optional[float] = None,
+    ) -> Response:
+        body: Dict[str, Any] = {
+            "x": int(x),
+            "y": int(y),
+            "width": int(width),
+            "height": int(height),
+            "format": format,
+        }
+        if spp is not None:
+            body["samples_per_pixel"] = int(spp)
+        integrator = _estimator_doc(estimator)
+        if integrator is not None:
+            body["estimator"] = integrator
+        if max_depth is not None:
+            body["max_depth"] = int(max_depth)
+        if seed is not None:
+            body["seed"] = int(seed)
+        if exposure is not None:
+            body["exposure"] = float(exposure)
+        return self._http.post_json(f"/v1/scenes/{_segment(scene)}/tiles", body)
+
+    def tile(
+        self,
+        scene: str,
+        x: int,
+        y: int,
+        width: int,
+        height: int,
+        *,
+        spp: Optional[int] = None,
+        estimator: Optional[Estimator] = None,
+        max_depth: Optional[int] = None,
+        seed: Optional[int] = None,
+    ) -> Tile:
+        """One tile of the scene camera's image as floats
+        (``POST /v1/scenes/{id}/tiles``, format ``json``): radiance in
+        W/(m²·sr). ``spp`` camera rays per pixel (service default 1);
+        ``estimator`` ``"cache"`` (default), ``"path"`` or a dict of options."""
+        answer = self._tile_request(
+            scene, x, y, width, height, "json", spp, estimator, max_depth, seed
+        )
+        doc = answer.json()
+        w, h = int(doc["width"]), int(doc["height"])
+        rgb = np.asarray(doc["rgb"], dtype=np.float32).reshape(h, w, 3)
+        variance = doc.get("variance")
+        return Tile(
+            x=int(answer.headers.get("x-tile-x", x)),
+            y=int(answer.headers.get("x-tile-y", y)),
+            rgb=rgb,
+            variance=None
+            if variance is None
+            else np.asarray(variance, dtype=np.float32).reshape(h, w),
+            rays=int(answer.headers.get("x-rays", 0)),
+        )
+
+    def tile_bytes(
+        self,
+        scene: str,
+        x: int,
+        y: int,
+        width: int,
+        height: int,
+        *,
+        format: str = "png",
+        spp: Optional[int] = None,
+        estimator: Optional[Estimator] = None,
+        max_depth: Optional[int] = None,
+        seed: Optional[int] = None,
+        exposure: Optional[float] = None,
+    ) -> bytes:
+        """One tile encoded by the service: ``format`` ``"png"`` (tone-mapped
+        sRGB, ``exposure`` in stops) or ``"exr"`` (R, G, B and ``variance``)."""
+        return self._tile_request(
+            scene, x, y, width, height, format, spp, estimator, max_depth, seed, exposure
+        ).body
+
+    def image(
+        self,
+        scene: str,
+        spp: Optional[int] = 16,
+        estimator: Optional[Estimator] = None,
+        tile: int = 64,
+        workers: int = 4,
+        *,
+        max_depth: Optional[int] = None,
+        seed: Optional[int] = None,
+        progress: Optional[bool] = None,
+    ) -> Image:
+        """The scene camera's whole image, assembled from ``tile``×``tile``
+        tiles fetched ``workers`` at a time: ``rgb`` H×W×3 radiance in
+        W/(m²·sr) and ``variance`` H×W (see :class:`Image`).
+
+        ``estimator`` is ``"cache"`` (the service's default, the scene's
+        shared irradiance cache), ``"path"`` or a dict of options. With
+        ``"path"`` a pixel depends only on the seed and its position, so the
+        image is the same whatever the tiling and arrival order; through the
+        shared cache, records placed by earlier tiles are reused and the
+        pixels depend on the order. ``progress`` draws a text bar on stderr
+        (default: only when stderr is a terminal).
+        """
+        if tile < 1 or workers < 1:
+            raise ValueError("tile and workers must be at least 1")
+        width, height = (int(v) for v in self.scene(scene)["resolution"])
+        jobs = [
+            (x, y, min(tile, width - x), min(tile, height - y))
+            for y in range(0, height, tile)
+            for x in range(0, width, tile)
+        ]
+        rgb = np.zeros((height, width, 3), dtype=np.float32)
+        variance: Optional[npt.NDArray[np.float32]] = np.zeros((height, width), dtype=np.float32)
+        rays = 0
+        bar = Progress(len(jobs), "tiles", enabled=progress)
+        pool = concurrent.futures.ThreadPoolExecutor(max_workers=workers)
+        try:
+            futures = [
+                pool.submit(
+                    self.tile,
+                    scene,
+                    x,
+                    y,
+                    w,
+                    h,
+                    spp=spp,
+                    estimator=estimator,
+                    max_depth=max_depth,
+                    seed=seed,
+                )
+                for x, y, w, h in jobs
+            ]
+            for future in concurrent.futures.as_completed(futures):
+                part = future.result()
+                h, w = part.rgb.shape[:2]
+                rgb[part.y : part.y + h, part.x : part.x + w] = part.rgb
+                if part.variance is None or variance is None:
+                    variance = None
+                else:
+                    variance[part.y : part.y + h, part.x : part.x + w] = part.variance
+                rays += part.rays
+                bar.advance()
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+            bar.close()
+        return Image(rgb=rgb, variance=variance, rays=rays)
+
+
+def _segment(id: str) -> str:
+    """A scene id as one URL path segment."""
+    from urllib.parse import quote
+
+    return quote(id, safe="")
+
+
+def _scene_text(scene: Union[str, bytes, "os.PathLike[str]"]) -> Tuple[str, Optional[str]]:
+    """The scene's text and, for a file, its stem."""
+    if isinstance(scene, bytes):
+        return scene.decode("utf-8"), None
+    if isinstance(scene, str) and scene.lstrip()[:1] in ("{", "<"):
+        return scene, None
+    path = Path(scene)
+    return path.read_text(encoding="utf-8"), path.stem
+
+
+def _rows(answers: Sequence[Tuple[Chunk, Dict[str, Any]]], key: str) -> npt.NDArray[np.float64]:
+    parts = [np.asarray(doc[key], dtype=np.float64).reshape(-1, 3) for _, doc in answers]
+    return np.concatenate(parts, axis=0)
+
+
+def _flat(
+    answers: Sequence[Tuple[Chunk, Dict[str, Any]]], key: str, dtype: Any
+) -> npt.NDArray[Any]:
+    return np.concatenate([np.asarray(doc[key], dtype=dtype) for _, doc in answers])
+
+
+def _paths_per_point(err: ServiceError, points: int) -> int:
+    """Paths per point the service counted in an ``estimated_paths`` refusal of ``points`` points."""
+    match = _VALUE.search(err.message) if err.field == "estimated_paths" else None
+    return -(-int(match.group(1)) // max(points, 1)) if match else 1
+
+
+def _shift_point_field(err: ServiceError, offset: int) -> ServiceError:
+    """``err`` with ``points[i]`` in its field shifted by the chunk's offset."""
+    if offset == 0 or err.field is None:
+        return err
+    match = _POINT_FIELD.match(err.field)
+    if match is None:
+        return err
+    return err.with_field(f"points[{int(match.group(1)) + offset}]{match.group(2)}")

@@ -1,0 +1,121 @@
+"""Scene routes: list, get, upload (JSON and Mitsuba XML), delete, the
+bearer token, and the service routes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from bmc_irradiance import Client, ServiceError
+
+from conftest import SCENES, TOKEN, Server, raw
+
+# A scene that references no file, small enough for any body limit.
+TINY = {
+    "name": "tiny",
+    "materials": [{"id": "m", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+    "shapes": [
+        {"type": "rectangle", "material": "m", "to_world": {"scale": [10, 10, 1]}},
+    ],
+    "environment": {"type": "constant", "radiance": [1, 1, 1]},
+    "camera": {
+        "type": "perspective",
+        "fov": 40,
+        "width": 32,
+        "height": 24,
+        "origin": [0, 0, 5],
+        "target": [0, 0, 0],
+        "up": [0, 1, 0],
+    },
+}
+
+
+def test_scenes_and_scene_equal_the_raw_responses(client: Client, server: Server) -> None:
+    listed = client.scenes()
+    status, doc, _ = raw(f"{server.url}/v1/scenes")
+    assert status == 200 and listed == doc
+    ids = [s["id"] for s in listed]
+    assert {"cornell-box", "cornell-box-xml", "overcast", "sky", "mesh"} <= set(ids)
+    one = client.scene("cornell-box")
+    status, doc, _ = raw(f"{server.url}/v1/scenes/cornell-box")
+    assert status == 200 and one == doc
+    assert one["resolution"] == [256, 256]
+
+
+def test_upload_json_and_xml_then_delete(client: Client, tmp_path: Path) -> None:
+    summary = client.upload(SCENES / "cornell-box.json", id="box-copy")
+    assert summary["id"] == "box-copy"
+    original = client.scene("cornell-box")
+    assert summary["triangles"] == original["triangles"]
+    assert summary["shapes"] == original["shapes"]
+
+    xml = (SCENES / "cornell-box.xml").read_text()
+    from_text = client.upload(xml, id="box-xml-text")
+    assert from_text["id"] == "box-xml-text"
+    copy = tmp_path / "box-from-file.xml"
+    copy.write_text(xml)
+    from_file = client.upload(str(copy))
+    assert from_file["id"] == "box-from-file"  # the file's stem
+    with pytest.raises(ValueError):
+        client.upload(xml)  # XML text needs an id
+    ids = {s["id"] for s in client.scenes()}
+    assert {"box-copy", "box-xml-text", "box-from-file"} <= ids
+
+    for scene in ("box-copy", "box-xml-text", "box-from-file"):
+        client.delete(scene)
+        with pytest.raises(ServiceError) as caught:
+            client.scene(scene)
+        err = caught.value
+        assert (err.status, err.code, err.field) == (404, "not_found", None)
+        assert scene in err.message
+
+
+def test_upload_errors_are_typed(client: Client) -> None:
+    with pytest.raises(ServiceError) as caught:
+        client.upload('{"name": "broken", ')
+    assert (caught.value.status, caught.value.code) == (400, "malformed_json")
+    bad = dict(TINY, name="bad", shapes=[{"type": "rectangle", "material": "nope"}])
+    with pytest.raises(ServiceError) as caught:
+        client.upload(json.dumps(bad))
+    assert caught.value.status == 422
+    assert caught.value.field is not None and caught.value.field.startswith("shapes[0]")
+    with pytest.raises(ValueError):
+        client.upload(b"neither json nor xml")
+    with pytest.raises(FileNotFoundError):
+        client.upload("no-such-file.json")  # not a document, so a path
+    with pytest.raises(ServiceError) as caught:
+        client.delete("no-such-scene")
+    assert (caught.value.status, caught.value.code) == (404, "not_found")
+
+
+def test_mutating_routes_need_the_token(small_server: Server, tmp_path: Path) -> None:
+    anonymous = Client(small_server.url)
+    with pytest.raises(ServiceError) as caught:
+        anonymous.upload(json.dumps(TINY))
+    assert (caught.value.status, caught.value.code) == (401, "unauthorized")
+    path = tmp_path / "tiny.json"
+    path.write_text(json.dumps(TINY))
+    trusted = Client(small_server.url, token=TOKEN)
+    assert trusted.upload(path)["id"] == "tiny"
+    assert anonymous.scene("tiny")["resolution"] == [32, 24]  # reading needs no token
+    with pytest.raises(ServiceError) as caught:
+        anonymous.delete("tiny")
+    assert caught.value.status == 401
+    trusted.delete("tiny")
+    assert "tiny" not in {s["id"] for s in trusted.scenes()}
+
+
+def test_service_routes(client: Client, server: Server) -> None:
+    health = client.health()
+    assert health["status"] == "ok" and health["scenes"] >= 5
+    assert client.ready() is True
+    document = client.openapi()
+    assert "/v1/scenes/{id}/irradiance" in document["paths"]
+    assert "http_requests_total" in client.metrics()
+    stats = client.cache("cornell-box")
+    status, doc, _ = raw(f"{server.url}/v1/scenes/cornell-box/cache")
+    assert status == 200 and stats == doc
+    cleared = client.clear_cache("cornell-box")
+    assert cleared["cleared_records"] >= 0 and cleared["scene"] == "cornell-box"
