@@ -25,7 +25,7 @@ use super::sample_points::{camera_points, training_points};
 use super::transport::Transport;
 
 /// Training points per calibration.
-pub const CALIBRATION_POINTS: usize = 48;
+pub const CALIBRATION_POINTS: usize = 96;
 /// Request seeds per training point.
 pub const CALIBRATION_SEEDS: u64 = 4;
 /// Samples of the training points' Monte Carlo reference: this many times
