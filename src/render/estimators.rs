@@ -19,6 +19,12 @@
 //!   noise ratio unless `noise` is given. The standard error is the posterior
 //!   standard deviation with the amplitude fitted to each point's values
 //!   (`BmcVariance::AmplitudeFit`, §7.3).
+//!
+//! Around any of the three rules: a prior mean (the unoccluded environment
+//! under the hemisphere decomposition, §10.4; `bmc`'s default, a control
+//! variate when `mc` or `qmc` ask for it); error bars calibrated on the scene
+//! (§10.5; the default for `qmc` and `bmc`); and the decomposition `auto`
+//! resolved per scene (§14).
 
 use std::sync::Arc;
 
