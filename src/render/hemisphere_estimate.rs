@@ -134,6 +134,14 @@ impl Transport {
                 ),
                 None => (vec![Rgb::BLACK; directions.len()], Rgb::BLACK),
             };
+            let estimate = |values: &[f64]| {
+                estimator
+                    .estimate(&directions, values)
+                    .map_err(|err| RenderError::InvalidOption {
+                        field: "estimator",
+                        reason: err.to_string(),
+                    })
+            };
             let mut value = [0.0; 3];
             let mut var = [0.0; 3];
             for c in 0..3 {
@@ -142,24 +150,14 @@ impl Transport {
                     .zip(&prior_values)
                     .map(|(s, m)| s.radiance.to_array()[c] - m.to_array()[c])
                     .collect();
-                let mut e = estimator.estimate(&directions, &channel).map_err(|err| {
-                    RenderError::InvalidOption {
-                        field: "estimator",
-                        reason: err.to_string(),
-                    }
-                })?;
+                let mut e = estimate(&channel)?;
                 e.value += prior_integral.to_array()[c];
                 if e.value < 0.0 && prior.is_some() {
                     // A negative total of a non-negative integral: the rule
                     // without the prior on the same samples, which the
                     // negative-weight guard covers (docs/math.md §3.6).
                     let raw: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
-                    e = estimator.estimate(&directions, &raw).map_err(|err| {
-                        RenderError::InvalidOption {
-                            field: "estimator",
-                            reason: err.to_string(),
-                        }
-                    })?;
+                    e = estimate(&raw)?;
                 }
                 let e = irradiance_from_lambert(e);
                 value[c] = e.value;
