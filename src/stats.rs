@@ -50,6 +50,21 @@ where
     }
 }
 
+/// `z = error / sqrt(σ² + r²)` of docs/math.md §10.3, from the variances
+/// `σ²` of the estimate and `r²` of the reference: the error in units of
+/// their combined standard deviation; zero for an exact estimate with no
+/// spread, infinite for a wrong one.
+pub fn standard_score(error: f64, variance: f64, reference_variance: f64) -> f64 {
+    let scale = (variance + reference_variance).sqrt();
+    if scale > 0.0 {
+        error / scale
+    } else if error == 0.0 {
+        0.0
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// `erfc(x)` with fractional error below 1.2e-7 everywhere (the Chebyshev
 /// fit of Press et al., *Numerical Recipes*, 2nd ed., §6.2).
 pub fn erfc(x: f64) -> f64 {

@@ -23,6 +23,7 @@ use super::irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions}
 use super::query::QueryPoint;
 use super::sample_points::{camera_points, training_points};
 use super::transport::Transport;
+use crate::stats::standard_score;
 
 /// Training points per calibration.
 pub const CALIBRATION_POINTS: usize = 96;
@@ -101,14 +102,7 @@ impl ErrorCalibration {
         }
         let z = |scale: f64, floor: f64, t: &Training| {
             let model = t.sigma * t.sigma + (floor * t.magnitude).powi(2);
-            let denominator = (scale * scale * model + t.reference_sigma.powi(2)).sqrt();
-            if denominator > 0.0 {
-                t.error / denominator
-            } else if t.error == 0.0 {
-                0.0
-            } else {
-                f64::INFINITY
-            }
+            standard_score(t.error, scale * scale * model, t.reference_sigma.powi(2))
         };
         let rms = |scale, floor| {
             (training

@@ -87,20 +87,19 @@ impl ErrorTarget {
         }
         Ok(())
     }
+}
 
-    /// `z σ_Y / Y` of an estimate (module docs); infinite for `Y ≤ 0` with
-    /// a non-zero error bar.
-    fn relative_half_width(&self, estimate: &IrradianceEstimate) -> f64 {
-        let z = two_sided_normal_quantile(self.confidence);
-        let y = estimate.irradiance.luminance();
-        let sigma = Rgb::luminance(estimate.std_error);
-        if sigma == 0.0 {
-            0.0
-        } else if y > 0.0 {
-            z * sigma / y
-        } else {
-            f64::INFINITY
-        }
+/// `z σ_Y / Y` of an estimate (module docs); infinite for `Y ≤ 0` with
+/// a non-zero error bar.
+fn relative_half_width(z: f64, estimate: &IrradianceEstimate) -> f64 {
+    let y = estimate.irradiance.luminance();
+    let sigma = estimate.std_error.luminance();
+    if sigma == 0.0 {
+        0.0
+    } else if y > 0.0 {
+        z * sigma / y
+    } else {
+        f64::INFINITY
     }
 }
 
@@ -136,6 +135,7 @@ impl PointEstimator {
                 message: "at least one point is needed".into(),
             });
         }
+        let z = two_sided_normal_quantile(target.confidence);
         let mut sums = vec![(Rgb::BLACK, Rgb::BLACK, 0u64, 0u32); points.len()];
         let mut results: Vec<Option<TargetedEstimate>> = vec![None; points.len()];
         let mut active: Vec<usize> = (0..points.len()).collect();
@@ -163,7 +163,7 @@ impl PointEstimator {
                     std_error: variance_sum.map(f64::sqrt) * (1.0 / batches),
                     rays: *rays,
                 };
-                let relative_error = target.relative_half_width(&mean);
+                let relative_error = relative_half_width(z, &mean);
                 let met = relative_error <= target.relative_error;
                 results[i] = Some(TargetedEstimate {
                     estimate: mean,

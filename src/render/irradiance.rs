@@ -27,7 +27,6 @@ use rand::{Rng, RngExt};
 use rayon::prelude::*;
 
 use super::cancel::Cancel;
-use super::environment_sampling::environment_relative_variance;
 use super::error::RenderError;
 use super::lights::environment_radiance;
 use super::mean::MeanEstimate;
@@ -94,9 +93,9 @@ impl Transport {
         match method {
             IrradianceMethod::Auto => {
                 let smooth_environment_only = !self.lights().has_area_lights()
-                    && self.scene().environment.as_ref().is_some_and(|env| {
-                        environment_relative_variance(env) <= SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE
-                    });
+                    && self
+                        .environment_relative_variance()
+                        .is_some_and(|v| v <= SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE);
                 if smooth_environment_only {
                     Decomposition::Hemisphere
                 } else {

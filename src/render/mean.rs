@@ -33,12 +33,7 @@ pub struct MeanEstimate {
 impl MeanEstimate {
     /// The mean of `values` and its variance, per channel (`crate::stats`).
     pub fn of(values: impl IntoIterator<Item = Rgb>) -> Self {
-        let mut running = RunningMean::new();
-        values.into_iter().for_each(|v| running.push(v));
-        Self {
-            mean: running.mean(),
-            variance_of_mean: running.variance_of_mean().unwrap_or(Rgb::BLACK),
-        }
+        Self::of_evaluations(values.into_iter().map(Evaluation::of))
     }
 
     /// The mean of `evaluations` and, per channel, the larger of the

@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use super::bsdf::Bsdf;
 use super::environment_prior::EnvironmentPrior;
+use super::environment_sampling::environment_relative_variance;
 use super::lights::LightSampler;
 use crate::scene::Scene;
 
@@ -19,6 +20,9 @@ pub struct Transport {
     bsdfs: Vec<Bsdf>,
     /// The unoccluded environment as a prior mean; `None` without an environment.
     environment_prior: Option<EnvironmentPrior>,
+    /// `Var L / (E L)²` of the environment, computed once (every `auto`
+    /// request asks); `None` without an environment.
+    environment_relative_variance: Option<f64>,
 }
 
 impl Transport {
@@ -26,11 +30,16 @@ impl Transport {
         let lights = LightSampler::new(&scene);
         let bsdfs = scene.materials.iter().map(Bsdf::from).collect();
         let environment_prior = scene.environment.as_ref().map(EnvironmentPrior::new);
+        let environment_relative_variance = scene
+            .environment
+            .as_ref()
+            .map(environment_relative_variance);
         Self {
             scene,
             lights,
             bsdfs,
             environment_prior,
+            environment_relative_variance,
         }
     }
 
@@ -45,6 +54,12 @@ impl Transport {
     /// The environment prior mean (docs/math.md §10.4), if the scene has an environment.
     pub fn environment_prior(&self) -> Option<&EnvironmentPrior> {
         self.environment_prior.as_ref()
+    }
+
+    /// `Var L / (E L)²` of the environment's radiance over the sphere
+    /// ([`environment_relative_variance`]), if the scene has an environment.
+    pub fn environment_relative_variance(&self) -> Option<f64> {
+        self.environment_relative_variance
     }
 
     /// Reflection model of material `material` (`None` for an unknown index).

@@ -26,6 +26,7 @@ use crate::render::{
     Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint,
     Transport,
 };
+use crate::stats::standard_score;
 
 /// What to run on one scene.
 #[derive(Clone, Debug, PartialEq)]
@@ -401,14 +402,7 @@ fn score(reference: &[IrradianceEstimate], runs: &[Vec<IrradianceEstimate>]) -> 
                 squared += error * error;
                 reference_variance += r[c] * r[c];
                 count += 1;
-                let scale = (s[c] * s[c] + r[c] * r[c]).sqrt();
-                let z = if scale > 0.0 {
-                    error / scale
-                } else if error == 0.0 {
-                    0.0
-                } else {
-                    f64::INFINITY
-                };
+                let z = standard_score(error, s[c] * s[c], r[c] * r[c]);
                 covered += usize::from(z.abs() <= 2.0);
                 z_squared += z * z;
             }
