@@ -30,6 +30,8 @@ enum Command {
     Render(cli::render::RenderArgs),
     /// Relative RMSE of an EXR image against a reference EXR.
     Compare(cli::render::CompareArgs),
+    /// Fetch a whole camera image from a running service, tile by tile (GET tiles).
+    Fetch(cli::fetch::FetchArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -44,6 +46,7 @@ fn main() -> anyhow::Result<()> {
         Command::StudyScene(args) => print_output(cli::study::run_scene(&args)?),
         Command::Render(args) => cli::render::run_render(&args, &mut std::io::stdout().lock()),
         Command::Compare(args) => cli::render::run_compare(&args, &mut std::io::stdout().lock()),
+        Command::Fetch(args) => cli::fetch::run_fetch(&args, &mut std::io::stdout().lock()),
     }
 }
 

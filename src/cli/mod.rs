@@ -1,5 +1,6 @@
 //! Command-line subcommands as library functions; `main.rs` only dispatches.
 
+pub mod fetch;
 pub mod irradiance;
 pub mod quadrature;
 pub mod render;

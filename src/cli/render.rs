@@ -100,6 +100,9 @@ pub struct CacheArgs {
     /// Mirror-angle nodes of the glossy BMC rule.
     #[arg(long, default_value_t = DEFAULT_GLOSSY_BINS)]
     pub glossy_bins: usize,
+    /// Directions of each glossy BMC estimate (default: `--samples`).
+    #[arg(long)]
+    pub glossy_samples: Option<usize>,
     /// Also place records where the posterior relative error exceeds this.
     #[arg(long)]
     pub relative_error_target: Option<f64>,
@@ -132,6 +135,7 @@ impl CacheArgs {
             min_pixels: Some(self.min_pixels),
             max_pixels: Some(self.max_pixels),
             glossy_bins: Some(self.glossy_bins),
+            glossy_samples: self.glossy_samples,
         };
         let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));
         Ok(spec.resolve()?.shading(quadratures)?)

@@ -10,6 +10,7 @@
 pub mod compare;
 pub mod error;
 pub mod exr_io;
+pub mod false_colour;
 pub mod png_io;
 
 use serde::Serialize;
@@ -160,6 +161,98 @@ impl Image {
         Ok(())
     }
 
+    /// The mean of equally weighted independent estimates of one image (the
+    /// passes of a progressive render, each of the same samples per pixel):
+    /// the pixel-wise mean, and variance `Σ vᵢ / n²` (the variance of a
+    /// mean of independent estimates), kept only if every image has one.
+    pub fn mean_of(images: &[Image]) -> Result<Image, ImageError> {
+        let Some(first) = images.first() else {
+            return Err(ImageError::invalid("images", "no image to average"));
+        };
+        if let Some(other) = images
+            .iter()
+            .find(|i| (i.width, i.height) != (first.width, first.height))
+        {
+            return Err(ImageError::invalid(
+                "images",
+                format!(
+                    "{}×{} and {}×{} differ",
+                    first.width, first.height, other.width, other.height
+                ),
+            ));
+        }
+        let n = images.len() as f64;
+        let rgb = (0..first.rgb.len())
+            .map(|p| {
+                std::array::from_fn(|c| {
+                    (images.iter().map(|i| f64::from(i.rgb[p][c])).sum::<f64>() / n) as f32
+                })
+            })
+            .collect();
+        let variance = images
+            .iter()
+            .map(|i| i.variance.as_deref())
+            .collect::<Option<Vec<_>>>()
+            .map(|vs| {
+                (0..first.rgb.len())
+                    .map(|p| (vs.iter().map(|v| f64::from(v[p])).sum::<f64>() / (n * n)) as f32)
+                    .collect()
+            });
+        Image::from_parts(first.width, first.height, rgb, variance)
+    }
+
+    /// The per-pixel standard error `√variance` as a grey image (every
+    /// channel the same, no variance of its own); `None` without a variance.
+    pub fn std_dev(&self) -> Option<Image> {
+        let variance = self.variance.as_ref()?;
+        let rgb = variance.iter().map(|&v| [v.max(0.0).sqrt(); 3]).collect();
+        Some(Image {
+            width: self.width,
+            height: self.height,
+            rgb,
+            variance: None,
+        })
+    }
+
+    /// Per pixel, the relative standard error `√variance / m` with `m` the
+    /// mean of the three channels (the variance is a channel mean too);
+    /// 0 where both are 0, infinite where only `m` is. `None` without a
+    /// variance.
+    pub fn relative_std_error(&self) -> Option<Vec<f64>> {
+        let variance = self.variance.as_ref()?;
+        Some(
+            self.rgb
+                .iter()
+                .zip(variance)
+                .map(|(p, &v)| {
+                    let sigma = f64::from(v.max(0.0)).sqrt();
+                    let mean = p.iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0;
+                    if sigma == 0.0 { 0.0 } else { sigma / mean.abs() }
+                })
+                .collect(),
+        )
+    }
+
+    /// The relative standard error as a false-colour PNG: `0` at the
+    /// bottom of [`false_colour::viridis`], `scale` (e.g. 0.2 = 20 %) and
+    /// above at the top.
+    pub fn relative_std_error_png(&self, scale: f64) -> Result<Vec<u8>, ImageError> {
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(ImageError::invalid(
+                "scale",
+                format!("{scale} is not a positive number"),
+            ));
+        }
+        let relative = self
+            .relative_std_error()
+            .ok_or_else(|| ImageError::invalid("variance", "the image has no variance"))?;
+        let pixels: Vec<u8> = relative
+            .iter()
+            .flat_map(|&r| false_colour::viridis(r / scale))
+            .collect();
+        png_io::encode_png8(&pixels, self.width, self.height, false)
+    }
+
     /// The image in `encoding` as bytes (the body of a tile response).
     /// `tone_map` applies to PNG only.
     pub fn encode(
@@ -240,6 +333,31 @@ mod tests {
         assert_eq!(image.pixel(4, 0), None);
         assert!(image.insert(&tile, 3, 0).is_err());
         assert!(image.insert(&tile, 0, u32::MAX).is_err());
+    }
+
+    #[test]
+    fn mean_of_passes_averages_values_and_divides_the_variance() {
+        let (a, b) = (ramp(2, 2, 0.0), ramp(2, 2, 2.0));
+        let mean = Image::mean_of(&[a.clone(), b]).expect("same size");
+        assert_eq!(mean.pixel(1, 0), Some([2.0, 1.0, 2.0]));
+        // (0.5 + 0.5) / 4 for pixel 1.
+        assert_eq!(mean.variance().expect("both have one")[1], 0.25);
+        assert_eq!(Image::mean_of(std::slice::from_ref(&a)).expect("one"), a);
+        assert!(Image::mean_of(&[]).is_err());
+        assert!(Image::mean_of(&[a, ramp(1, 2, 0.0)]).is_err());
+    }
+
+    #[test]
+    fn standard_errors_follow_the_variance() {
+        let image = Image::from_parts(2, 1, vec![[2.0; 3], [0.0; 3]], Some(vec![0.25, 0.0]))
+            .expect("valid");
+        assert_eq!(image.std_dev().expect("has variance").pixel(0, 0), Some([0.5; 3]));
+        assert_eq!(image.relative_std_error().expect("has variance"), vec![0.25, 0.0]);
+        let png = image.relative_std_error_png(0.5).expect("encodes");
+        assert_eq!(&png[1..4], b"PNG");
+        assert!(image.relative_std_error_png(0.0).is_err());
+        let bare = Image::from_parts(1, 1, vec![[1.0; 3]], None).expect("valid");
+        assert!(bare.std_dev().is_none() && bare.relative_std_error_png(1.0).is_err());
     }
 
     #[test]

@@ -53,14 +53,25 @@ pub fn encode_png(image: &Image, tone_map: ToneMap) -> Result<Vec<u8>, ImageErro
         .iter()
         .flat_map(|p| p.map(|c| tone_map.to_srgb8(c)))
         .collect();
+    encode_png8(&pixels, image.width(), image.height(), false)
+}
+
+/// 8-bit pixels, row-major, as PNG: RGB, or RGBA with `alpha` (straight,
+/// not premultiplied). The length must match the size.
+pub fn encode_png8(
+    pixels: &[u8],
+    width: u32,
+    height: u32,
+    alpha: bool,
+) -> Result<Vec<u8>, ImageError> {
+    let colour = if alpha {
+        image::ExtendedColorType::Rgba8
+    } else {
+        image::ExtendedColorType::Rgb8
+    };
     let mut bytes = Vec::new();
     PngEncoder::new(&mut bytes)
-        .write_image(
-            &pixels,
-            image.width(),
-            image.height(),
-            image::ExtendedColorType::Rgb8,
-        )
+        .write_image(pixels, width, height, colour)
         .map_err(|e| ImageError::Png {
             what: "encoding".into(),
             reason: e.to_string(),

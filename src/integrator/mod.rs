@@ -4,6 +4,9 @@
 //! [`crate::cache`], is [`cached`].
 
 pub mod cached;
+pub mod preset;
+
+pub use preset::{Preset, TileSettings};
 
 /// How the radiance along a camera ray (or towards a query's viewer) is
 /// computed: the integrator a request or the command line names.

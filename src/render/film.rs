@@ -32,6 +32,7 @@ impl ImageSettings {
             samples_per_pixel: self.samples_per_pixel,
             max_depth: self.max_depth,
             seed: self.seed,
+            pass: 0,
         }
     }
 }

@@ -8,7 +8,7 @@ use rand_pcg::Pcg64;
 
 /// SplitMix64 finaliser (Steele, Lea & Flood, "Fast Splittable Pseudorandom
 /// Number Generators", OOPSLA 2014): a bijective avalanche mix of 64 bits.
-fn splitmix64(mut z: u64) -> u64 {
+pub(crate) fn mix(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
@@ -21,10 +21,10 @@ fn splitmix64(mut z: u64) -> u64 {
 /// (increment) from the index, so different points use different PCG
 /// streams rather than offsets into one sequence.
 pub fn point_rng(seed: u64, index: u64) -> Pcg64 {
-    let hi = splitmix64(seed);
-    let lo = splitmix64(hi ^ index.rotate_left(32));
+    let hi = mix(seed);
+    let lo = mix(hi ^ index.rotate_left(32));
     let state = (u128::from(hi) << 64) | u128::from(lo);
-    let stream = (u128::from(splitmix64(index)) << 64) | u128::from(index);
+    let stream = (u128::from(mix(index)) << 64) | u128::from(index);
     Pcg64::new(state, stream)
 }
 

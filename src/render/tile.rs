@@ -60,6 +60,23 @@ pub struct TileRequest {
     pub max_depth: u32,
     /// Seed of every random stream of the request.
     pub seed: u64,
+    /// Which of the seed's disjoint sets of camera samples (0 = the first):
+    /// pixels draw from [`pixel_rng`]`(`[`pass_seed`]`(seed, pass), px, py)`,
+    /// so passes `0..k` are independent renders whose mean is a render of
+    /// `k · samples_per_pixel` rays ([`crate::image::Image::mean_of`]).
+    /// Whatever else the request seeds (the irradiance cache's records) uses
+    /// `seed` alone, so every pass shares it.
+    pub pass: u32,
+}
+
+/// The seed of pass `pass`'s camera samples: `seed` itself for pass 0 (so a
+/// single-pass render is unchanged), a SplitMix64 mix of both otherwise.
+pub fn pass_seed(seed: u64, pass: u32) -> u64 {
+    if pass == 0 {
+        seed
+    } else {
+        super::seed::mix(seed ^ super::seed::mix(u64::from(pass)))
+    }
 }
 
 impl TileRequest {
@@ -220,7 +237,7 @@ pub fn render_tile_with(
             }
             let px = request.x + (i % width) as u32;
             let py = request.y + (i / width) as u32;
-            let mut rng = pixel_rng(request.seed, px, py);
+            let mut rng = pixel_rng(pass_seed(request.seed, request.pass), px, py);
             let mut stats = TraceStats::default();
             let side = f64::from(request.samples_per_pixel).sqrt().floor() as u32;
             let pattern = [rng.random(), rng.random()];
@@ -287,6 +304,7 @@ pub(crate) mod tests {
             samples_per_pixel: 2,
             max_depth: 6,
             seed: 7,
+            pass: 0,
         }
     }
 

@@ -126,9 +126,48 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// Where world point `p` appears on the image: the continuous pixel
+    /// position (the inverse of [`Self::generate_ray`]) and the distance
+    /// along the view axis; `None` behind the camera. The position may lie
+    /// outside the image.
+    pub fn raster(&self, p: DVec3) -> Option<(f64, f64, f64)> {
+        let local = self.to_world.inverse().transform_point3(p);
+        if local.z <= 0.0 {
+            return None;
+        }
+        let sx = local.x / local.z / self.tan_half.0;
+        let sy = local.y / local.z / self.tan_half.1;
+        let px = (1.0 - sx) * self.width as f64 / 2.0;
+        let py = (1.0 - sy) * self.height as f64 / 2.0;
+        Some((px, py, local.z))
+    }
+
+    /// World-space length that one pixel spans at view depth `depth` (along
+    /// x, at the image centre).
+    pub fn pixel_size_at(&self, depth: f64) -> f64 {
+        let scale = self.to_world.matrix3.x_axis.length();
+        2.0 * self.tan_half.0 * depth * scale / self.width as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn raster_inverts_generate_ray() {
+        let to_world =
+            transform::look_at(DVec3::new(0.3, 0.2, 3.9), DVec3::ZERO, DVec3::Y).unwrap();
+        let cam = Camera::new(to_world, 39.3077, FovAxis::Smaller, 200, 100);
+        for (px, py) in [(0.5, 0.5), (37.25, 81.0), (199.0, 3.5)] {
+            let ray = cam.generate_ray(px, py);
+            let (x, y, depth) = cam.raster(ray.origin + 2.5 * ray.dir).expect("in front");
+            assert!((x - px).abs() < 1e-9 && (y - py).abs() < 1e-9, "{x} {y}");
+            assert!(depth > 0.0);
+        }
+        assert!(cam.raster(cam.origin() - cam.generate_ray(100.0, 50.0).dir).is_none());
+    }
 
     #[test]
     fn cornell_camera_sees_red_on_the_left() {

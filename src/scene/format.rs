@@ -9,13 +9,13 @@
 
 use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
 use serde::de::{MapAccess, SeqAccess, Visitor};
-use serde::{Deserialize, Deserializer};
+use serde::{Deserialize, Deserializer, Serialize};
 
 pub type Rgb = [f64; 3];
 pub type Vec3 = [f64; 3];
 
 /// Top level of a scene file.
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneDoc {
     /// Display name; defaults to the file stem.
@@ -29,14 +29,14 @@ pub struct SceneDoc {
     pub camera: CameraDoc,
 }
 
-#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum MaterialKind {
     Diffuse,
     Glossy,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialDoc {
     pub id: String,
@@ -52,7 +52,7 @@ pub struct MaterialDoc {
     pub exponent: Option<f64>,
 }
 
-#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum ShapeKind {
     Rectangle,
@@ -63,7 +63,7 @@ pub enum ShapeKind {
     Triangles,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ShapeDoc {
     #[serde(rename = "type")]
@@ -91,13 +91,13 @@ pub struct ShapeDoc {
     pub normals: Option<Vec<Vec3>>,
 }
 
-#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum EmitterKind {
     Area,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EmitterDoc {
     #[serde(rename = "type")]
@@ -106,14 +106,14 @@ pub struct EmitterDoc {
     pub radiance: Rgb,
 }
 
-#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum EnvironmentKind {
     Constant,
     Envmap,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EnvironmentDoc {
     #[serde(rename = "type")]
@@ -128,14 +128,14 @@ pub struct EnvironmentDoc {
     pub to_world: Option<TransformDoc>,
 }
 
-#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum CameraKind {
     #[default]
     Perspective,
 }
 
-#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum FovAxis {
     #[default]
@@ -145,7 +145,7 @@ pub enum FovAxis {
     Larger,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDoc {
     #[serde(rename = "type", default)]
@@ -164,7 +164,7 @@ pub struct CameraDoc {
 }
 
 /// One step of a `to_world` transform.
-#[derive(Debug, Deserialize, Clone, PartialEq)]
+#[derive(Debug, Serialize, Deserialize, Clone, PartialEq)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum TransformOp {
     /// Row-major 4×4 affine matrix (last row 0 0 0 1).
@@ -186,12 +186,14 @@ pub enum TransformOp {
 }
 
 /// A `to_world` value: one operation object or a list applied in order
-/// (later operations apply after earlier ones, as in Mitsuba).
-#[derive(Debug, Clone, PartialEq)]
+/// (later operations apply after earlier ones, as in Mitsuba). Serialises
+/// as the list of operations.
+#[derive(Debug, Serialize, Clone, PartialEq)]
 pub struct TransformDoc {
     pub ops: Vec<TransformOp>,
     /// True when written as a single object rather than a list; only used to
     /// print field paths the way the user wrote them.
+    #[serde(skip)]
     pub single: bool,
 }
 

@@ -11,6 +11,7 @@ use glam::{DAffine3, DMat3, DVec3};
 use super::bvh::{Aabb, Bvh};
 use super::emitter::{self, Emitter};
 use super::environment::{self, Environment, EnvironmentMap};
+use super::digest::SceneDigest;
 use super::error::SceneError;
 use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKind};
 use super::material::Material;
@@ -89,6 +90,9 @@ pub(super) fn from_json_str(
 pub(super) struct Files {
     base: PathBuf,
     root: PathBuf,
+    /// Every file resolved so far, in order, each once: what the scene's
+    /// digest covers besides its document.
+    opened: std::sync::Mutex<Vec<PathBuf>>,
 }
 
 impl Files {
@@ -101,7 +105,17 @@ impl Files {
         Ok(Self {
             base: canon(base_dir)?,
             root: canon(scenes_root)?,
+            opened: std::sync::Mutex::new(Vec::new()),
         })
+    }
+
+    /// The content digest of a scene built from `doc` and the files
+    /// resolved so far.
+    fn digest(&self, doc: &SceneDoc) -> Result<SceneDigest, SceneError> {
+        let canonical = serde_json::to_vec(doc)
+            .map_err(|e| SceneError::invalid("", format!("cannot serialise the document: {e}")))?;
+        let opened = self.opened.lock().unwrap_or_else(|p| p.into_inner());
+        SceneDigest::of(&canonical, &opened, &self.root)
     }
 
     pub(super) fn resolve(&self, name: &str, field: &str) -> Result<PathBuf, SceneError> {
@@ -130,6 +144,10 @@ impl Files {
             .map_err(|e| SceneError::file(field, &path, format!("cannot open: {e}")))?;
         if !real.starts_with(&self.root) {
             return Err(escape());
+        }
+        let mut opened = self.opened.lock().unwrap_or_else(|p| p.into_inner());
+        if !opened.contains(&real) {
+            opened.push(real.clone());
         }
         Ok(real)
     }
@@ -224,6 +242,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         .map(|e| load_environment(e, files))
         .transpose()?;
     let camera = Camera::from_doc(&doc.camera, "camera")?;
+    let digest = files.digest(&doc)?;
     let mut scene = builder.finish();
     scene.name = doc.name.unwrap_or_default();
     Ok(Scene {
@@ -232,6 +251,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         emitters,
         environment,
         camera,
+        digest,
         ..scene
     })
 }
@@ -491,6 +511,7 @@ impl GeometryBuilder {
             .fold(Aabb::EMPTY, |a, b| a.union(*b));
         Scene {
             name: String::new(),
+            digest: SceneDigest::default(),
             materials: Vec::new(),
             material_ids: Vec::new(),
             emitters: Vec::new(),

@@ -6,6 +6,7 @@
 
 pub mod bvh;
 pub mod camera;
+pub mod digest;
 pub mod emitter;
 pub mod environment;
 pub mod error;
@@ -23,6 +24,7 @@ pub mod transform;
 use glam::DVec3;
 
 pub use camera::Camera;
+pub use digest::SceneDigest;
 pub use emitter::Emitter;
 pub use environment::{Environment, EnvironmentMap};
 pub use error::SceneError;
@@ -86,6 +88,9 @@ pub struct SurfaceHit {
 /// A loaded scene. Immutable; `Send + Sync`.
 pub struct Scene {
     pub name: String,
+    /// Content address of the document and its files (see [`SceneDigest`]);
+    /// the same for the same scene in any process.
+    pub digest: SceneDigest,
     pub materials: Vec<Material>,
     /// Material ids from the scene file, parallel to `materials`.
     pub material_ids: Vec<String>,

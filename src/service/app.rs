@@ -32,12 +32,13 @@ use std::time::Duration;
 
 use anyhow::Context;
 use axum::extract::{DefaultBodyLimit, Request, State};
-use axum::http::{Method, Uri};
+use axum::http::{HeaderName, Method, Uri, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::{Extension, Router};
 use tokio::net::TcpListener;
 use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::cors::{AllowOrigin, CorsLayer};
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 use utoipa_axum::router::OpenApiRouter;
@@ -52,6 +53,7 @@ use super::routes;
 use super::scenes::{self, SceneRegistry};
 use super::server;
 use super::state::AppState;
+use super::tile_render::TileStore;
 use crate::bmc::cache::QuadratureCache;
 
 /// How often histogram samples are folded into buckets when nobody scrapes.
@@ -103,6 +105,7 @@ impl Application {
             usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX),
         );
         let quadratures = Arc::new(QuadratureCache::new(config.cache.factorisation_bytes));
+        let config_tile_bytes = config.cache.tile_bytes;
         let state = Arc::new(AppState {
             quadratures,
             config,
@@ -110,6 +113,7 @@ impl Application {
             metrics,
             scenes: registry,
             irradiance_caches,
+            tiles: TileStore::new(config_tile_bytes),
         });
         let router = router(state.clone());
         Ok(Application {
@@ -194,6 +198,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         ))
         .routes(routes!(routes::irradiance::irradiance))
         .routes(routes!(routes::tiles::tile))
+        .routes(routes!(routes::tile_get::get_tile))
         .routes(routes!(routes::radiance::radiance))
         .routes(routes!(
             routes::cache::get_cache,
@@ -210,6 +215,32 @@ pub fn router(state: Arc<AppState>) -> Router {
             .with_state(state),
         &limits,
     )
+    .layer(cors())
+}
+
+/// Cross-origin reads: any page may GET tiles, scenes and statistics (and
+/// read the tile headers); changing state stays same-origin (and behind the
+/// bearer token when one is configured).
+fn cors() -> CorsLayer {
+    let exposed = [
+        "etag",
+        "server-timing",
+        "x-tile-x",
+        "x-tile-y",
+        "x-rays",
+        "x-records-created",
+        "x-records",
+        "x-cache-hits",
+        "x-passes",
+        "x-passes-rendered",
+        "x-std-dev-scale",
+    ]
+    .map(HeaderName::from_static);
+    CorsLayer::new()
+        .allow_origin(AllowOrigin::any())
+        .allow_methods([Method::GET, Method::HEAD])
+        .allow_headers([header::IF_NONE_MATCH])
+        .expose_headers(exposed)
 }
 
 /// Adds the JSON fallbacks and the middleware stack described in the module docs.

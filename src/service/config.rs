@@ -102,6 +102,9 @@ pub struct CacheConfig {
     pub factorisation_bytes: u64,
     /// Bytes held by the irradiance-cache records of all scenes together.
     pub irradiance_bytes: u64,
+    /// Bytes held by reproducible tiles' records and rendered passes
+    /// (`GET …/tiles/…`), so passes and AOVs of a tile reuse them.
+    pub tile_bytes: u64,
 }
 
 /// Per-request limits that keep one request from monopolising the service.
@@ -207,6 +210,7 @@ impl Config {
             ("server.max_connections", self.server.max_connections as u64),
             ("cache.factorisation_bytes", self.cache.factorisation_bytes),
             ("cache.irradiance_bytes", self.cache.irradiance_bytes),
+            ("cache.tile_bytes", self.cache.tile_bytes),
         ];
         for (field, value) in positive {
             if value == 0 {

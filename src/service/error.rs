@@ -52,7 +52,9 @@ pub enum ApiError {
     PayloadTooLarge,
     #[error("content-type must be application/json, got {got}")]
     UnsupportedMediaType { got: String },
-    #[error("all {capacity} CPU job slots are taken; retry in {retry_after_secs} s")]
+    #[error(
+        "the CPU queue is full ({capacity} job slots) or its expected wait is over limits.max_queue_wait_secs; retry in {retry_after_secs} s"
+    )]
     Overloaded {
         capacity: usize,
         retry_after_secs: u64,
@@ -252,6 +254,16 @@ impl From<crate::render::RenderError> for ApiError {
                 message: err.to_string(),
             },
             RenderError::Cancelled => ApiError::Cancelled,
+        }
+    }
+}
+
+/// Requests are checked before their images are built or encoded, so an
+/// image error is ours (500).
+impl From<crate::image::ImageError> for ApiError {
+    fn from(err: crate::image::ImageError) -> Self {
+        ApiError::Internal {
+            message: format!("image: {err}"),
         }
     }
 }

@@ -54,6 +54,38 @@ where
     }
 }
 
+/// The query string of a GET request as a `T` (serde_urlencoded: flat
+/// fields, numbers from their text). A bad value or an unknown parameter is
+/// a 422 naming the parameter.
+#[derive(Debug, Clone)]
+pub struct ApiQuery<T>(pub T);
+
+impl<T, S> FromRequestParts<S> for ApiQuery<T>
+where
+    T: DeserializeOwned,
+    S: Send + Sync,
+{
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, ApiError> {
+        let query = parts.uri.query().unwrap_or("");
+        let pairs = url::form_urlencoded::parse(query.as_bytes());
+        let deserializer = serde_urlencoded::Deserializer::new(pairs);
+        serde_path_to_error::deserialize(deserializer)
+            .map(ApiQuery)
+            .map_err(|err| {
+                let message = err.inner().to_string();
+                // Unknown parameters are reported at the top: name them.
+                let field = match message.strip_prefix("unknown field `") {
+                    Some(rest) => rest.split('`').next().unwrap_or("").to_owned(),
+                    None => err.path().to_string(),
+                };
+                let field = if field == "." { String::new() } else { field };
+                ApiError::invalid(field, message)
+            })
+    }
+}
+
 /// What a request body's `content-type` declares; a missing header counts as JSON.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MediaType {

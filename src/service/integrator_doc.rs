@@ -33,6 +33,9 @@ pub struct IntegratorDoc {
     pub method: Integrator,
     /// Directions per record (spherical Fibonacci), 1..=`limits.max_samples`; default 64.
     pub samples: Option<u32>,
+    /// Directions of each glossy BMC estimate (one per camera ray on a
+    /// glossy surface), 1..=`limits.max_samples`; default `samples`.
+    pub glossy_samples: Option<u32>,
     /// SE kernel lengthscale of the records' GP prior (chordal units); default 0.5.
     pub lengthscale: Option<f64>,
     /// Noise variance σ_n² relative to σ² = 1; default 1e-8.
@@ -75,25 +78,33 @@ impl IntegratorDoc {
     /// The library spec, resolved, with the sample count and each record's
     /// paths checked against the limits.
     pub fn resolve(&self, limits: &Limits) -> Result<ResolvedCache, ApiError> {
-        if let Some(samples) = self.samples {
-            ApiError::check_limit(
-                "estimator.samples",
-                u64::from(samples),
-                limits.max_samples as u64,
-            )?;
+        self.resolve_over(CachedSpec::default(), limits)
+    }
+
+    /// [`Self::resolve`] with `base` (a preset's knobs) under the fields
+    /// this document sets.
+    pub fn resolve_over(&self, base: CachedSpec, limits: &Limits) -> Result<ResolvedCache, ApiError> {
+        for (field, count) in [
+            ("estimator.samples", self.samples),
+            ("estimator.glossy_samples", self.glossy_samples),
+        ] {
+            if let Some(count) = count {
+                ApiError::check_limit(field, u64::from(count), limits.max_samples as u64)?;
+            }
         }
         let spec = CachedSpec {
-            samples: self.samples.map(|n| n as usize),
-            lengthscale: self.lengthscale,
-            noise: self.noise,
-            accuracy: self.accuracy,
-            relative_error_target: self.relative_error_target,
-            occlusion_check: self.occlusion_check,
-            light_samples: self.light_samples,
-            paths_per_direction: self.paths_per_direction,
-            ambient_bounces: self.ambient_bounces,
-            reproducible: self.reproducible,
-            ..CachedSpec::default()
+            samples: self.samples.map(|n| n as usize).or(base.samples),
+            glossy_samples: self.glossy_samples.map(|n| n as usize).or(base.glossy_samples),
+            lengthscale: self.lengthscale.or(base.lengthscale),
+            noise: self.noise.or(base.noise),
+            accuracy: self.accuracy.or(base.accuracy),
+            relative_error_target: self.relative_error_target.or(base.relative_error_target),
+            occlusion_check: self.occlusion_check.or(base.occlusion_check),
+            light_samples: self.light_samples.or(base.light_samples),
+            paths_per_direction: self.paths_per_direction.or(base.paths_per_direction),
+            ambient_bounces: self.ambient_bounces.or(base.ambient_bounces),
+            reproducible: self.reproducible.or(base.reproducible),
+            ..base
         };
         // Validated before the budget, so an out-of-range knob is named as such.
         let config = spec.resolve().map_err(estimator_error)?;

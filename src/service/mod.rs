@@ -24,6 +24,7 @@ pub mod routes;
 pub mod scenes;
 pub mod server;
 pub mod state;
+pub mod tile_render;
 
 pub use app::{Application, shutdown_signal};
 pub use config::Config;

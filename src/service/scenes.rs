@@ -68,6 +68,10 @@ pub struct SceneSummary {
     /// The document's display name.
     pub name: String,
     pub source: SceneSource,
+    /// Content digest of the document and its files (64 hex digits): the
+    /// same scene has the same digest in every process.
+    #[schema(value_type = String)]
+    pub digest: crate::scene::SceneDigest,
     /// Entries of the document's `shapes`.
     pub shapes: usize,
     /// Triangles (spheres and disks are analytic and not counted).
@@ -113,6 +117,7 @@ impl LoadedScene {
             id: self.id.clone(),
             name: scene.name.clone(),
             source: self.source.clone(),
+            digest: scene.digest,
             shapes: scene.shape_count(),
             triangles: scene.triangle_count(),
             emitters: scene.emitters.len(),

@@ -11,6 +11,7 @@ use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
 use super::scenes::SceneRegistry;
+use super::tile_render::TileStore;
 
 /// Shared, read-mostly state of one running service.
 pub struct AppState {
@@ -27,4 +28,6 @@ pub struct AppState {
     /// BMC factorisations and weights, `cache.factorisation_bytes` big, shared by
     /// `/v1/quadratures` and every BMC point request (see `routes::quadratures`).
     pub quadratures: Arc<QuadratureCache>,
+    /// Records and passes of reproducible tiles, `cache.tile_bytes` big.
+    pub tiles: TileStore,
 }

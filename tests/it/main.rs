@@ -25,4 +25,5 @@ mod service_quadratures;
 mod service_radiance;
 mod service_robustness;
 mod service_scenes;
+mod service_tile_get;
 mod service_tiles;

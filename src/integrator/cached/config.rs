@@ -150,10 +150,21 @@ impl CachedShading {
         quadratures: Arc<QuadratureCache>,
         options: CacheShadingOptions,
     ) -> Result<Self, CacheError> {
+        Self::with_glossy_spec(spec, spec, glossy_bins, quadratures, options)
+    }
+
+    /// Rules for records by `spec` and for glossy BMC by `glossy`.
+    pub fn with_glossy_spec(
+        spec: RecordRuleSpec,
+        glossy: RecordRuleSpec,
+        glossy_bins: usize,
+        quadratures: Arc<QuadratureCache>,
+        options: CacheShadingOptions,
+    ) -> Result<Self, CacheError> {
         let accuracy = options.validate()?;
         Ok(Self {
             rule: Arc::new(RecordRule::new(spec)?),
-            glossy: Arc::new(GlossyRule::new(spec, glossy_bins, quadratures)?),
+            glossy: Arc::new(GlossyRule::new(glossy, glossy_bins, quadratures)?),
             options,
             accuracy,
         })
@@ -261,6 +272,10 @@ pub struct CachedSpec {
     pub min_pixels: Option<f64>,
     pub max_pixels: Option<f64>,
     pub glossy_bins: Option<usize>,
+    /// Directions of each glossy BMC estimate (one per camera ray on a
+    /// glossy surface, so it sets the glossy shading cost); default the
+    /// records' `samples`.
+    pub glossy_samples: Option<usize>,
 }
 
 /// A checked configuration of the cache integrator.
@@ -270,6 +285,8 @@ pub struct CachedConfig {
     pub rule: RecordRuleSpec,
     pub options: CacheShadingOptions,
     pub glossy_bins: usize,
+    /// Directions of each glossy BMC estimate.
+    pub glossy_samples: usize,
     /// `options.accuracy`, checked with the rest of `options` by [`CachedSpec::resolve`].
     accuracy: Accuracy,
 }
@@ -286,6 +303,7 @@ pub struct RecordsKey {
     /// Path segments counted from the camera or viewer.
     max_depth: u32,
     glossy_bins: usize,
+    glossy_samples: usize,
 }
 
 impl CachedSpec {
@@ -300,15 +318,17 @@ impl CachedSpec {
             rule.kernel.noise = noise;
         }
         rule.kernel.validate()?;
-        if !(1..=crate::sphere::MAX_SAMPLES).contains(&rule.samples.count) {
-            return Err(CacheError::invalid(
-                "samples",
-                format!(
-                    "must be in 1..={}, got {}",
-                    crate::sphere::MAX_SAMPLES,
-                    rule.samples.count
-                ),
-            ));
+        let glossy_samples = self.glossy_samples.unwrap_or(rule.samples.count);
+        for (field, count) in [
+            ("samples", rule.samples.count),
+            ("glossy_samples", glossy_samples),
+        ] {
+            if !(1..=crate::sphere::MAX_SAMPLES).contains(&count) {
+                return Err(CacheError::invalid(
+                    field,
+                    format!("must be in 1..={}, got {count}", crate::sphere::MAX_SAMPLES),
+                ));
+            }
         }
         let d = CacheShadingOptions::default();
         let options = CacheShadingOptions {
@@ -338,6 +358,7 @@ impl CachedSpec {
             rule,
             options,
             glossy_bins,
+            glossy_samples,
             accuracy,
         })
     }
@@ -365,6 +386,7 @@ impl CachedConfig {
             ambient_bounces: self.options.ambient_bounces,
             max_depth,
             glossy_bins: self.glossy_bins,
+            glossy_samples: self.glossy_samples,
         }
     }
 
@@ -376,11 +398,20 @@ impl CachedConfig {
             "ambient_bounces": self.options.ambient_bounces,
             "max_depth": max_depth,
             "glossy_bins": self.glossy_bins,
+            "glossy_samples": self.glossy_samples,
         })
     }
 
     /// The rules (factorised once per configuration) with these options.
     pub fn shading(&self, quadratures: Arc<QuadratureCache>) -> Result<CachedShading, CacheError> {
-        CachedShading::new(self.rule, self.glossy_bins, quadratures, self.options)
+        let mut glossy = self.rule;
+        glossy.samples.count = self.glossy_samples;
+        CachedShading::with_glossy_spec(
+            self.rule,
+            glossy,
+            self.glossy_bins,
+            quadratures,
+            self.options,
+        )
     }
 }

@@ -15,12 +15,15 @@
 //! - `tiles`: camera tiles shaded through a shared or private cache;
 //! - `radiance`: outgoing radiance at surface points, by path tracing or
 //!   through a cache;
+//! - `record_view`: records as the camera sees them (positions, radii,
+//!   an overlay image);
 //! - `stats`: counters.
 
 pub mod config;
 pub mod glossy;
 pub mod placement;
 pub mod radiance;
+pub mod record_view;
 pub mod shade;
 pub mod stats;
 pub mod tiles;
@@ -36,6 +39,7 @@ pub use radiance::{
     RadianceEstimate, RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points,
     surface_at,
 };
+pub use record_view::{RecordView, record_overlay, record_views};
 pub use shade::{
     Bounce, CachedIntegrator, Gather, OnMiss, PlacementPoint, RecordGather, ShadePoint,
     compute_record, lookup,

@@ -28,7 +28,7 @@ use rand::Rng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::config::{CachedShading, indirect_paths};
+use super::config::indirect_paths;
 use super::placement::{PlacementReport, place_records};
 use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint, cache_to_render};
 use super::stats::ShadingStats;
@@ -154,80 +154,143 @@ impl CachedIntegrator<'_> {
         request: &TileRequest,
         cancel: &Cancel,
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
+        if !self.shading.options.reproducible {
+            let mut report = self.place_tile_records(request, cancel)?;
+            let (tile, shading) = self.shade_tile(request, cancel)?;
+            report.shading = shading;
+            return Ok((add_placement_rays(tile, &report), report));
+        }
+        let (records, mut report) = self.tile_records(request, cancel)?;
+        let (tile, shading) = self.render_tile_from_records(request, &records, cancel)?;
+        report.shading = shading;
+        report.records_published = self.publish(&records)?;
+        Ok((add_placement_rays(tile, &report), report))
+    }
+
+    /// The records a reproducible tile places (module docs): a function of
+    /// the scene, this integrator's configuration and the request's
+    /// rectangle, `max_depth` and `seed` only — not of its pass or samples
+    /// per pixel, the thread count or the shared cache — in insertion order.
+    /// A caller may keep them and shade any pass of the tile with
+    /// [`Self::render_tile_from_records`] without placing them again.
+    pub fn tile_records(
+        &self,
+        request: &TileRequest,
+        cancel: &Cancel,
+    ) -> Result<(Vec<Record>, CachedTileReport), RenderError> {
+        let private = self.private_cache()?;
+        let integrator = CachedIntegrator {
+            cache: &private,
+            ..*self
+        };
+        let report = integrator.place_tile_records(request, cancel)?;
+        Ok((private.records(), report))
+    }
+
+    /// One tile shaded through a private cache holding exactly `records`
+    /// (inserted in their order, as [`Self::tile_records`] returns them), so
+    /// the result is bit-identical whatever ran before; returns the tile
+    /// (camera and shading rays only) and the shading counters.
+    pub fn render_tile_from_records(
+        &self,
+        request: &TileRequest,
+        records: &[Record],
+        cancel: &Cancel,
+    ) -> Result<(RenderedTile, ShadingStats), RenderError> {
+        let private = self.private_cache()?;
+        for record in records {
+            private.insert(*record).map_err(cache_to_render)?;
+        }
+        CachedIntegrator {
+            cache: &private,
+            ..*self
+        }
+        .shade_tile(request, cancel)
+    }
+
+    /// Inserts into this integrator's cache the records it does not
+    /// already cover at their own positions; returns how many.
+    pub fn publish(&self, records: &[Record]) -> Result<u64, RenderError> {
+        let accuracy = self.shading.accuracy();
+        let mut published = 0;
+        for r in records {
+            let point = QueryPoint::new(r.position, r.normal)?;
+            if self.cache.lookup(&point, accuracy).is_none() {
+                self.cache.insert(*r).map_err(cache_to_render)?;
+                published += 1;
+            }
+        }
+        Ok(published)
+    }
+
+    /// An empty cache configured as the shared one.
+    fn private_cache(&self) -> Result<IrradianceCache, RenderError> {
+        IrradianceCache::new(*self.cache.config()).map_err(cache_to_render)
+    }
+
+    /// The placement pass (module docs) into this integrator's cache.
+    fn place_tile_records(
+        &self,
+        request: &TileRequest,
+        cancel: &Cancel,
+    ) -> Result<CachedTileReport, RenderError> {
         let (transport, shading) = (self.transport, self.shading);
-        let camera = &transport.scene().camera;
-        request.validate(camera.resolution())?;
+        request.validate(transport.scene().camera.resolution())?;
         let depth = request.max_depth - 1;
         let mut report = CachedTileReport::default();
-        let private;
-        let target = if shading.options.reproducible {
-            private = IrradianceCache::new(*self.cache.config()).map_err(cache_to_render)?;
-            CachedIntegrator {
-                cache: &private,
-                ..*self
-            }
-        } else {
-            *self
-        };
-        if depth >= 2 {
-            let points = self.placement_points(request)?;
-            report.placement_points = points.len() as u64;
-            // The tile's own stream family, so tiles sharing a seed do not
-            // reuse each other's record rotations.
-            let seed = pixel_rng(request.seed, request.x, request.y).next_u64();
-            let options = shading.placement(indirect_paths(depth), seed);
-            // A private cache is only read at the bounces, so the batch stays
-            // deterministic (see `placement`).
-            let reproducible = shading.options.reproducible;
-            let gather = Gather::for_record(target, options.paths, 0, !reproducible);
-            report.placement = place_records(
-                target.cache,
-                transport,
-                &shading.rule,
-                &points,
-                &options,
-                gather,
-                cancel,
-            )
-            .map_err(cache_to_render)?;
+        if depth < 2 {
+            return Ok(report);
         }
+        let points = self.placement_points(request)?;
+        report.placement_points = points.len() as u64;
+        // The tile's own stream family, so tiles sharing a seed do not
+        // reuse each other's record rotations.
+        let seed = pixel_rng(request.seed, request.x, request.y).next_u64();
+        let options = shading.placement(indirect_paths(depth), seed);
+        // A private cache is only read at the bounces, so the batch stays
+        // deterministic (see `placement`).
+        let reproducible = shading.options.reproducible;
+        let gather = Gather::for_record(*self, options.paths, 0, !reproducible);
+        report.placement = place_records(
+            self.cache,
+            transport,
+            &shading.rule,
+            &points,
+            &options,
+            gather,
+            cancel,
+        )
+        .map_err(cache_to_render)?;
+        Ok(report)
+    }
+
+    /// The shading pass (module docs): reads this integrator's cache only.
+    fn shade_tile(
+        &self,
+        request: &TileRequest,
+        cancel: &Cancel,
+    ) -> Result<(RenderedTile, ShadingStats), RenderError> {
+        let camera = &self.transport.scene().camera;
         let shader = CacheRayShader {
-            integrator: target,
-            depth,
+            integrator: *self,
+            depth: request.max_depth - 1,
             stats: Mutex::new(ShadingStats::default()),
             error: Mutex::new(None),
         };
-        let mut tile = render_tile_with(camera, &shader, request, cancel)?;
+        let tile = render_tile_with(camera, &shader, request, cancel)?;
         if let Some(e) = shader.error.into_inner().unwrap_or_else(|p| p.into_inner()) {
             return Err(e);
         }
-        report.shading = shader.stats.into_inner().unwrap_or_else(|p| p.into_inner());
-        report.shading.rays = tile.rays;
-        tile.rays += report.placement.rays;
-        if shading.options.reproducible {
-            report.records_published = publish(&target.cache.records(), self.cache, shading)?;
-        }
-        Ok((tile, report))
+        let mut stats = shader.stats.into_inner().unwrap_or_else(|p| p.into_inner());
+        stats.rays = tile.rays;
+        Ok((tile, stats))
     }
 }
 
-/// Inserts the records `cache` does not already cover at their own
-/// positions; returns how many.
-fn publish(
-    records: &[Record],
-    cache: &IrradianceCache,
-    shading: &CachedShading,
-) -> Result<u64, RenderError> {
-    let accuracy = shading.accuracy();
-    let mut published = 0;
-    for r in records {
-        let point = QueryPoint::new(r.position, r.normal)?;
-        if cache.lookup(&point, accuracy).is_none() {
-            cache.insert(*r).map_err(cache_to_render)?;
-            published += 1;
-        }
-    }
-    Ok(published)
+/// The tile's rays with its placement's added.
+fn add_placement_rays(mut tile: RenderedTile, report: &CachedTileReport) -> RenderedTile {
+    tile.rays += report.placement.rays;
+    tile
 }
 
 #[cfg(test)]

@@ -10,4 +10,5 @@ pub mod openapi;
 pub mod quadratures;
 pub mod radiance;
 pub mod scenes;
+pub mod tile_get;
 pub mod tiles;

@@ -16,14 +16,14 @@ use serde::Deserialize;
 use utoipa::ToSchema;
 
 use crate::image::{ImageEncoding, ToneMap};
-use crate::integrator::Integrator;
-use crate::integrator::cached::{CachedIntegrator, CachedTileReport};
-use crate::render::{Cancel, RenderedTile, TileRequest, Transport};
+use crate::integrator::{Integrator, Preset};
+use crate::render::TileRequest;
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
-use crate::service::integrator_doc::{CachedSetup, IntegratorDoc, cached_setup};
+use crate::service::integrator_doc::IntegratorDoc;
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::state::AppState;
+use crate::service::tile_render::{TileJob, render_progressive};
 
 #[derive(Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -39,17 +39,24 @@ pub struct TileRequestDoc {
     #[serde(default = "default_format")]
     #[schema(value_type = String)]
     pub format: ImageEncoding,
+    /// Quality preset whose knobs the fields below override: `draft`,
+    /// `preview` (default) or `final` (see `integrator::preset`).
+    #[schema(value_type = Option<String>)]
+    pub preset: Option<Preset>,
+    /// Pass to return, 0-based: the mean of passes `0..=pass`; default the
+    /// preset's last (its final image).
+    pub pass: Option<u32>,
     #[serde(default)]
     pub estimator: IntegratorDoc,
-    /// Camera rays per pixel, 1..=`limits.max_samples`; default 1.
-    #[serde(default = "default_spp")]
-    pub samples_per_pixel: u32,
-    /// Longest path in segments; default 16.
-    #[serde(default = "default_max_depth")]
-    pub max_depth: u32,
+    /// Camera rays per pixel in each pass, 1..=`limits.max_samples`;
+    /// default the preset's.
+    pub samples_per_pixel: Option<u32>,
+    /// Longest path in segments; default the preset's.
+    pub max_depth: Option<u32>,
     /// Seed of every random stream; default 1. With `path`, a pixel's value
     /// depends only on the seed and its position (not on the tiling); with
-    /// `bmc` and `reproducible`, the same request gives the same bytes.
+    /// `cache` and `reproducible` (the presets' default), the same request
+    /// gives the same bytes.
     #[serde(default = "default_seed")]
     pub seed: u64,
     /// PNG only: exposure in stops (values scaled by 2^exposure); default 0.
@@ -61,14 +68,6 @@ fn default_format() -> ImageEncoding {
     ImageEncoding::Exr
 }
 
-fn default_spp() -> u32 {
-    1
-}
-
-fn default_max_depth() -> u32 {
-    crate::render::path::DEFAULT_MAX_DEPTH
-}
-
 fn default_seed() -> u64 {
     1
 }
@@ -78,7 +77,7 @@ fn default_seed() -> u64 {
     params(("id" = String, Path, description = "Scene id")),
     request_body = TileRequestDoc,
     responses((status = 200, description = "The tile: EXR, PNG or JSON (`{width, height, rgb, variance}`); \
-                headers x-tile-x, x-tile-y, x-rays",
+                headers x-tile-x, x-tile-y, x-rays, x-records-created, x-cache-hits",
                content((Vec<u8> = "image/x-exr"), (Vec<u8> = "image/png"), (Object = "application/json"))),
                (status = 404, description = "Unknown scene", body = ErrorBody),
                (status = 422, description = "Invalid request", body = ErrorBody),
@@ -92,56 +91,58 @@ pub async fn tile(
     let limits = &state.config.limits;
     let area = u64::from(doc.width) * u64::from(doc.height);
     ApiError::check_limit("width*height", area, limits.max_tile_area as u64)?;
+    let settings = doc.preset.unwrap_or_default().settings();
+    let samples_per_pixel = doc.samples_per_pixel.unwrap_or(settings.samples_per_pixel);
     ApiError::check_limit(
         "samples_per_pixel",
-        u64::from(doc.samples_per_pixel),
+        u64::from(samples_per_pixel),
         limits.max_samples as u64,
     )?;
+    if !doc.exposure.is_finite() {
+        return Err(ApiError::invalid("exposure", "must be a finite number"));
+    }
     let tone_map = ToneMap {
         exposure: doc.exposure,
     };
-    if !doc.exposure.is_finite() {
-        return Err(ApiError::invalid("exposure", "must be a finite number"));
+    let pass = doc.pass.unwrap_or(settings.passes - 1);
+    if pass >= settings.passes {
+        return Err(ApiError::invalid(
+            "pass",
+            format!("{pass} is not in 0..{}", settings.passes),
+        ));
     }
     let request = TileRequest {
         x: doc.x,
         y: doc.y,
         width: doc.width,
         height: doc.height,
-        samples_per_pixel: doc.samples_per_pixel,
-        max_depth: doc.max_depth,
+        samples_per_pixel,
+        max_depth: doc.max_depth.unwrap_or(settings.max_depth),
         seed: doc.seed,
+        pass: 0,
     };
     // Checked here too, so a bad rectangle never takes a CPU slot.
     request.validate(scene.transport.scene().camera.resolution())?;
-    // The work, bounded before it starts: camera paths, plus at most one
-    // record per pixel (placement points are pixel centres) for `bmc`.
-    let cached = match doc.estimator.method {
-        Integrator::Cache => Some(doc.estimator.resolve(limits)?),
+    let integrator = doc.estimator.method;
+    let cached = match integrator {
+        Integrator::Cache => Some(doc.estimator.resolve_over(settings.cached, limits)?),
         Integrator::Path => None,
     };
-    let camera_paths = area * u64::from(doc.samples_per_pixel);
-    let record_paths = cached
-        .as_ref()
-        .map_or(0, |c| area.saturating_mul(c.config.paths_per_record()));
-    limits.check_work(camera_paths.saturating_add(record_paths))?;
+    let job = TileJob {
+        request,
+        integrator,
+        cached,
+        last_pass: pass,
+    };
+    job.check_work(limits)?;
     let format = doc.format;
     let shared = state.clone();
-    let (tile, report, body) = state
+    let (tile, body) = state
         .pool
         .run(move |cancel| {
-            // On the pool: a new configuration factorises its record rule.
-            let cached = cached
-                .map(|spec| cached_setup(&shared, &scene, spec, doc.max_depth))
-                .transpose()?;
-            let (tile, report) = render(&scene.transport, &request, cached, cancel)?;
-            let body = tile
-                .image
-                .encode(format, tone_map)
-                .map_err(|e| ApiError::Internal {
-                    message: format!("cannot encode the tile: {e}"),
-                })?;
-            Ok::<_, ApiError>((tile, report, body))
+            let tile = render_progressive(&shared, &scene, &job, cancel)?;
+            let body = tile.image.encode(format, tone_map)?;
+            Ok::<_, ApiError>((tile, body))
         })
         .await??;
     ::metrics::counter!(RAYS_TRACED).increment(tile.rays);
@@ -152,46 +153,19 @@ pub async fn tile(
                 header::CONTENT_TYPE,
                 HeaderValue::from_static(format.content_type()),
             ),
-            (
-                HeaderName::from_static("x-tile-x"),
-                number(u64::from(tile.x)),
-            ),
-            (
-                HeaderName::from_static("x-tile-y"),
-                number(u64::from(tile.y)),
-            ),
+            (HeaderName::from_static("x-tile-x"), number(u64::from(doc.x))),
+            (HeaderName::from_static("x-tile-y"), number(u64::from(doc.y))),
             (HeaderName::from_static("x-rays"), number(tile.rays)),
             (
                 HeaderName::from_static("x-records-created"),
-                number(report.map_or(0, |r| r.placement.records_created)),
+                number(tile.records_created),
             ),
             (
                 HeaderName::from_static("x-cache-hits"),
-                number(report.map_or(0, |r| r.shading.cache_hits)),
+                number(tile.cache_hits),
             ),
         ],
         body,
     )
         .into_response())
-}
-
-/// Renders on the CPU pool: path tracing, or through the irradiance cache.
-fn render(
-    transport: &Transport,
-    request: &TileRequest,
-    cached: Option<CachedSetup>,
-    cancel: &Cancel,
-) -> Result<(RenderedTile, Option<CachedTileReport>), ApiError> {
-    match cached {
-        None => Ok((transport.render_tile(request, cancel)?, None)),
-        Some(setup) => {
-            let integrator = CachedIntegrator {
-                transport,
-                cache: setup.cache(),
-                shading: &setup.shading,
-            };
-            let (tile, report) = integrator.render_tile(request, cancel)?;
-            Ok((tile, Some(report)))
-        }
-    }
 }

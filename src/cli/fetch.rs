@@ -1,0 +1,193 @@
+//! `bmc-irradiance fetch`: a whole camera image from a running service,
+//! assembled from its GET tiles (`/v1/scenes/{id}/tiles/{tx}/{ty}.exr`),
+//! several at a time, retrying what is retryable: 503 after its
+//! `Retry-After`, 504 and connection failures after a short backoff.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use serde::Deserialize;
+
+use crate::image::exr_io::{decode_exr, write_exr};
+use crate::image::png_io::write_png;
+use crate::image::{Image, ToneMap};
+use crate::integrator::Preset;
+
+/// Command-line arguments of `bmc-irradiance fetch`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct FetchArgs {
+    /// Base URL of the service.
+    #[arg(long, default_value = "http://127.0.0.1:8080")]
+    pub url: String,
+    /// Scene id on the service.
+    #[arg(long)]
+    pub scene: String,
+    /// Quality preset.
+    #[arg(long, value_enum, default_value_t = Preset::default())]
+    pub preset: Preset,
+    /// Pass to fetch (0-based; default the preset's last, its final image).
+    #[arg(long)]
+    pub pass: Option<u32>,
+    /// Tile side in pixels.
+    #[arg(long, default_value_t = 64)]
+    pub size: u32,
+    /// Seed of every random stream.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output EXR (R, G, B and the per-pixel variance).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write a tone-mapped sRGB PNG here.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// PNG exposure in stops.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Tiles requested at once (about the service's worker count keeps
+    /// its queue short).
+    #[arg(long, default_value_t = 2)]
+    pub concurrency: usize,
+    /// Attempts per tile after a 504 or a connection failure before giving
+    /// up; a 503 (busy) is retried after its `Retry-After` without counting.
+    #[arg(long, default_value_t = 5)]
+    pub attempts: u32,
+}
+
+/// What `GET /v1/scenes/{id}` tells that is needed here.
+#[derive(Deserialize)]
+struct SceneInfo {
+    /// Camera image `[width, height]`.
+    resolution: [u32; 2],
+}
+
+/// Runs `fetch`, printing a summary on `out`.
+pub fn run_fetch(args: &FetchArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    if args.size == 0 || args.concurrency == 0 || args.attempts == 0 {
+        bail!("--size, --concurrency and --attempts must be at least 1");
+    }
+    let started = Instant::now();
+    let (image, rays) = tokio::runtime::Runtime::new()?.block_on(fetch(args))?;
+    let elapsed = started.elapsed();
+    write_exr(&image, &args.out)?;
+    if let Some(png) = &args.png {
+        write_png(
+            &image,
+            ToneMap {
+                exposure: args.exposure,
+            },
+            png,
+        )?;
+    }
+    writeln!(
+        out,
+        "{}×{} image of {} ({} preset) in {:.2} s; the service traced {rays} rays for it",
+        image.width(),
+        image.height(),
+        args.scene,
+        args.preset,
+        elapsed.as_secs_f64()
+    )?;
+    Ok(())
+}
+
+async fn fetch(args: &FetchArgs) -> anyhow::Result<(Image, u64)> {
+    let client = reqwest::Client::builder()
+        .timeout(Duration::from_secs(120))
+        .build()?;
+    let base = args.url.trim_end_matches('/');
+    let scene_url = format!("{base}/v1/scenes/{}", args.scene);
+    let info: SceneInfo = client
+        .get(&scene_url)
+        .send()
+        .await
+        .with_context(|| format!("cannot reach {scene_url}"))?
+        .error_for_status()?
+        .json()
+        .await?;
+    let [width, height] = info.resolution;
+    let tiles: Vec<(u32, u32)> = (0..height.div_ceil(args.size))
+        .flat_map(|ty| (0..width.div_ceil(args.size)).map(move |tx| (tx, ty)))
+        .collect();
+    let mut query = format!(
+        "size={}&preset={}&seed={}",
+        args.size, args.preset, args.seed
+    );
+    if let Some(pass) = args.pass {
+        query.push_str(&format!("&pass={pass}"));
+    }
+    let semaphore = std::sync::Arc::new(tokio::sync::Semaphore::new(args.concurrency));
+    let mut jobs = tokio::task::JoinSet::new();
+    for (tx, ty) in tiles {
+        let (client, semaphore) = (client.clone(), semaphore.clone());
+        let url = format!("{scene_url}/tiles/{tx}/{ty}.exr?{query}");
+        let attempts = args.attempts;
+        jobs.spawn(async move {
+            let _permit = semaphore.acquire_owned().await?;
+            let (bytes, rays) = get_with_retries(&client, &url, attempts).await?;
+            anyhow::Ok((tx, ty, decode_exr(&bytes)?, rays))
+        });
+    }
+    let mut image = Image::black(width, height)?;
+    let mut rays = 0;
+    while let Some(done) = jobs.join_next().await {
+        let (tx, ty, tile, tile_rays) = done??;
+        image.insert(&tile, tx * args.size, ty * args.size)?;
+        rays += tile_rays;
+    }
+    Ok((image, rays))
+}
+
+/// Most 503 answers taken for one tile (each waits its `Retry-After`).
+const MAX_BUSY_ANSWERS: u32 = 120;
+
+/// The body of a GET and its `x-rays`, retrying 504 and transport failures
+/// up to `attempts` times in all, and 503 after its `Retry-After` (up to
+/// [`MAX_BUSY_ANSWERS`] times).
+async fn get_with_retries(
+    client: &reqwest::Client,
+    url: &str,
+    attempts: u32,
+) -> anyhow::Result<(Vec<u8>, u64)> {
+    let mut backoff = Duration::from_millis(250);
+    let (mut attempt, mut busy) = (1, 0);
+    loop {
+        let last = attempt >= attempts;
+        match client.get(url).send().await {
+            Ok(response) if response.status().is_success() => {
+                let rays = response
+                    .headers()
+                    .get("x-rays")
+                    .and_then(|v| v.to_str().ok()?.parse().ok())
+                    .unwrap_or(0);
+                return Ok((response.bytes().await?.to_vec(), rays));
+            }
+            Ok(response) if response.status() == 503 && busy < MAX_BUSY_ANSWERS => {
+                busy += 1;
+                let wait = response
+                    .headers()
+                    .get(reqwest::header::RETRY_AFTER)
+                    .and_then(|v| v.to_str().ok()?.trim().parse().ok())
+                    .map_or(backoff, Duration::from_secs);
+                tokio::time::sleep(wait).await;
+                continue;
+            }
+            Ok(response) if !last && response.status() == 504 => {
+                tokio::time::sleep(backoff).await;
+            }
+            Ok(response) => {
+                let status = response.status();
+                let body = response.text().await.unwrap_or_default();
+                bail!("GET {url}: {status}: {body}");
+            }
+            Err(err) if !last => {
+                tracing::warn!(%url, %err, "retrying");
+                tokio::time::sleep(backoff).await;
+            }
+            Err(err) => return Err(err).with_context(|| format!("GET {url}")),
+        }
+        attempt += 1;
+        backoff = (backoff * 2).min(Duration::from_secs(8));
+    }
+}

@@ -1,0 +1,145 @@
+//! Named quality presets of camera tiles: every knob of a render (camera
+//! rays, passes, path depth and the irradiance cache's options) set once
+//! here, so "how good" is asked for by name and explicit knobs only
+//! override. Their measured error and time on the bundled scenes are in
+//! docs/BENCHMARKS.md ("Presets").
+//!
+//! A preset renders `passes` passes of `samples_per_pixel` camera rays each
+//! (see [`crate::render::TileRequest::pass`]): pass `k` is an independent
+//! render with its own camera samples that shares the tile's records, and
+//! the mean of passes `0..=k` ([`crate::image::Image::mean_of`]) is the
+//! progressive image after `k + 1` passes; the mean of all is the final one.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use super::Integrator;
+use super::cached::CachedSpec;
+
+/// A named quality level.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// The fastest useful look: structure and lighting, visibly noisy.
+    Draft,
+    /// The default: an interactive first look that a person can judge
+    /// (a few per cent error on the Cornell box), a whole 256² image cold
+    /// in seconds on two cores.
+    #[default]
+    Preview,
+    /// Publication quality (≈ 2 % error on the Cornell box's diffuse pixels).
+    Final,
+}
+
+/// Everything a preset fixes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TileSettings {
+    pub integrator: Integrator,
+    /// Camera rays per pixel in each pass.
+    pub samples_per_pixel: u32,
+    /// Passes of the progressive render (≥ 1).
+    pub passes: u32,
+    /// Longest path in segments from the camera.
+    pub max_depth: u32,
+    /// The irradiance cache's options, every field set (`reproducible`
+    /// included: a preset's tiles are the same bytes whatever ran before).
+    pub cached: CachedSpec,
+}
+
+impl TileSettings {
+    /// Camera rays per pixel over all passes.
+    pub fn total_samples_per_pixel(&self) -> u32 {
+        self.samples_per_pixel.saturating_mul(self.passes)
+    }
+}
+
+impl Preset {
+    pub const ALL: [Preset; 3] = [Preset::Draft, Preset::Preview, Preset::Final];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Draft => "draft",
+            Preset::Preview => "preview",
+            Preset::Final => "final",
+        }
+    }
+
+    /// The preset's knobs. Records: spherical Fibonacci directions with the
+    /// default SE kernel; more directions and paths per direction lower the
+    /// records' Monte Carlo noise, a smaller accuracy places more of them
+    /// (docs/BENCHMARKS.md "Irradiance cache" for how each knob trades).
+    pub fn settings(self) -> TileSettings {
+        // (spp per pass, passes, max_depth, record directions, paths per
+        // direction, accuracy, smallest record radius in pixels, light
+        // samples, glossy BMC directions)
+        let (spp, passes, max_depth, samples, paths, accuracy, min_pixels, light, glossy) =
+            match self {
+                Preset::Draft => (2, 1, 8, 64, 1, 0.5, 12.0, 1, 8),
+                Preset::Preview => (4, 2, 16, 256, 2, 0.4, 8.0, 4, 16),
+                Preset::Final => (16, 4, 64, 1024, 8, 0.25, 3.0, 4, 64),
+            };
+        TileSettings {
+            integrator: Integrator::Cache,
+            samples_per_pixel: spp,
+            passes,
+            max_depth,
+            cached: CachedSpec {
+                samples: Some(samples),
+                glossy_samples: Some(glossy),
+                paths_per_direction: Some(paths),
+                accuracy: Some(accuracy),
+                light_samples: Some(light),
+                min_pixels: Some(min_pixels),
+                reproducible: Some(true),
+                ..CachedSpec::default()
+            },
+        }
+    }
+}
+
+impl fmt::Display for Preset {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Preset {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Preset::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
+                format!("unknown preset {s:?}; one of {}", names.join(", "))
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_preset_resolves_and_quality_grows() {
+        let mut last_cost = 0;
+        for preset in Preset::ALL {
+            let s = preset.settings();
+            let config = s.cached.resolve().expect("valid options");
+            assert!(config.options.reproducible);
+            assert!(s.passes >= 1 && s.samples_per_pixel >= 1);
+            crate::render::path::check_max_depth(s.max_depth).expect("valid depth");
+            let cost = u64::from(s.total_samples_per_pixel()) * config.paths_per_record();
+            assert!(cost > last_cost, "{preset} is not dearer than the one before");
+            last_cost = cost;
+            assert_eq!(preset.name().parse::<Preset>(), Ok(preset));
+        }
+        assert_eq!(Preset::default(), Preset::Preview);
+        assert!("best".parse::<Preset>().unwrap_err().contains("preview"));
+    }
+}

@@ -1,0 +1,211 @@
+//! `GET /v1/scenes/{id}/tiles/{tx}/{ty}.{format}` end to end: reproducible
+//! bytes and ETags (across other requests and a restart), 304s, passes
+//! without wasted work, the AOVs, CORS and bad parameters.
+
+use crate::common::{TestApp, error_of, spawn_app_in};
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+/// The bundled Cornell box with a 48×40 camera (a partial tile column and
+/// row at size 32), in a scenes directory of its own.
+fn scenes_dir() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc: Value =
+        serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
+    doc["camera"]["width"] = json!(48);
+    doc["camera"]["height"] = json!(40);
+    std::fs::write(dir.path().join("box.json"), doc.to_string()).unwrap();
+    dir
+}
+
+async fn spawn() -> TestApp {
+    spawn_app_in(scenes_dir(), |_| {}).await
+}
+
+/// Draft tiles of 32 pixels: cheap in a debug build.
+const DRAFT: &str = "size=32&preset=draft";
+
+async fn fetch(app: &TestApp, path: &str) -> (StatusCode, reqwest::header::HeaderMap, Vec<u8>) {
+    let response = app.get(path).await;
+    let status = response.status();
+    let headers = response.headers().clone();
+    (status, headers, response.bytes().await.unwrap().to_vec())
+}
+
+fn number(headers: &reqwest::header::HeaderMap, name: &str) -> u64 {
+    headers[name].to_str().unwrap().parse().unwrap()
+}
+
+#[tokio::test]
+async fn the_same_url_gives_the_same_bytes_across_requests_and_restarts() {
+    let url = format!("/v1/scenes/box/tiles/1/0.png?{DRAFT}&exposure=1");
+    let app = spawn().await;
+    let (status, first_headers, first) = fetch(&app, &url).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(first_headers["content-type"], "image/png");
+    assert_eq!(first_headers["access-control-allow-origin"], "*");
+    assert!(first_headers["cache-control"].to_str().unwrap().contains("max-age"));
+    let etag = first_headers["etag"].to_str().unwrap().to_owned();
+    assert!(etag.starts_with('"') && etag.len() > 10, "{etag}");
+    assert!(number(&first_headers, "x-records-created") > 0);
+    // The edge tile is clipped to the image: 16 of 32 columns.
+    assert_eq!(&first[16..20], &16u32.to_be_bytes());
+    // Other work in between: other tiles and seeds, a POST through the shared cache.
+    for other in [
+        format!("/v1/scenes/box/tiles/0/0.png?{DRAFT}"),
+        format!("/v1/scenes/box/tiles/1/0.png?{DRAFT}&seed=4"),
+    ] {
+        assert_eq!(fetch(&app, &other).await.0, StatusCode::OK);
+    }
+    let post = app
+        .post_json(
+            "/v1/scenes/box/tiles",
+            &json!({"x": 0, "y": 0, "width": 48, "height": 40, "preset": "draft",
+                    "estimator": {"reproducible": false}}),
+        )
+        .await;
+    assert_eq!(post.status(), StatusCode::OK);
+    let (_, again_headers, again) = fetch(&app, &url).await;
+    assert_eq!(again, first);
+    assert_eq!(again_headers["etag"], etag.as_str());
+    // A repeat costs no rays: the passes are kept.
+    assert_eq!(number(&again_headers, "x-rays"), 0);
+    // Revalidation.
+    let response = app
+        .client
+        .get(app.url(&url))
+        .header("if-none-match", &etag)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::NOT_MODIFIED);
+    assert_eq!(response.headers()["etag"], etag.as_str());
+    assert!(response.bytes().await.unwrap().is_empty());
+    // Another exposure is another entity.
+    let (_, other_headers, _) = fetch(&app, &format!("/v1/scenes/box/tiles/1/0.png?{DRAFT}")).await;
+    assert_ne!(other_headers["etag"], etag.as_str());
+    // After a restart (a new process state, the same scene files).
+    let copy = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        app.scenes_dir.path().join("box.json"),
+        copy.path().join("box.json"),
+    )
+    .unwrap();
+    drop(app);
+    let restarted = spawn_app_in(copy, |_| {}).await;
+    let (_, headers, bytes) = fetch(&restarted, &url).await;
+    assert_eq!(headers["etag"], etag.as_str());
+    assert_eq!(bytes, first);
+}
+
+#[tokio::test]
+async fn passes_refine_without_redoing_earlier_work() {
+    let app = spawn().await;
+    let pass = |k: u32| format!("/v1/scenes/box/tiles/0/0.json?size=32&preset=preview&pass={k}");
+    let (status, h0, p0) = fetch(&app, &pass(0)).await;
+    assert_eq!(status, StatusCode::OK);
+    let passes = number(&h0, "x-passes");
+    assert!(passes >= 2);
+    assert_eq!(number(&h0, "x-passes-rendered"), 1);
+    let (_, h1, p1) = fetch(&app, &pass(1)).await;
+    // Pass 1 reuses pass 0 and the records: one more pass, no records.
+    assert_eq!(number(&h1, "x-passes-rendered"), 1);
+    assert_eq!(number(&h1, "x-records-created"), 0);
+    let (p0, p1): (Value, Value) = (
+        serde_json::from_slice(&p0).unwrap(),
+        serde_json::from_slice(&p1).unwrap(),
+    );
+    assert_ne!(p0["rgb"], p1["rgb"]);
+    // The mean of two passes has less variance than one.
+    let mean_variance = |v: &Value| {
+        let v = v["variance"].as_array().unwrap();
+        v.iter().map(|x| x.as_f64().unwrap()).sum::<f64>() / v.len() as f64
+    };
+    assert!(mean_variance(&p1) < mean_variance(&p0));
+    // The default is the last pass: the final image.
+    let last = format!("/v1/scenes/box/tiles/0/0.json?size=32&preset=preview&pass={}", passes - 1);
+    let (_, _, final_bytes) = fetch(&app, &last).await;
+    let (_, _, default_bytes) = fetch(&app, "/v1/scenes/box/tiles/0/0.json?size=32").await;
+    assert_eq!(final_bytes, default_bytes);
+    // POST of the same rectangle, preset and seed: the same image.
+    let post = app
+        .post_json(
+            "/v1/scenes/box/tiles",
+            &json!({"x": 0, "y": 0, "width": 32, "height": 32, "format": "json"}),
+        )
+        .await;
+    assert_eq!(post.status(), StatusCode::OK);
+    assert_eq!(post.bytes().await.unwrap().to_vec(), default_bytes);
+}
+
+#[tokio::test]
+async fn uncertainty_and_record_aovs_show_what_they_promise() {
+    let app = spawn().await;
+    let base = "/v1/scenes/box/tiles/0/0";
+    let (_, _, radiance) = fetch(&app, &format!("{base}.png?{DRAFT}")).await;
+    let (status, headers, std_dev) = fetch(&app, &format!("{base}.png?{DRAFT}&aov=std_dev")).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(headers["x-std-dev-scale"], "0.2");
+    assert_ne!(std_dev, radiance);
+    let (_, headers, _) = fetch(&app, &format!("{base}.png?{DRAFT}&aov=std_dev&scale=0.05")).await;
+    assert_eq!(headers["x-std-dev-scale"], "0.05");
+    // Absolute standard errors as JSON: √variance of the radiance tile.
+    let (_, _, tile) = fetch(&app, &format!("{base}.json?{DRAFT}")).await;
+    let (_, _, sd) = fetch(&app, &format!("{base}.json?{DRAFT}&aov=std_dev")).await;
+    let (tile, sd): (Value, Value) = (
+        serde_json::from_slice(&tile).unwrap(),
+        serde_json::from_slice(&sd).unwrap(),
+    );
+    let variance = tile["variance"][5].as_f64().unwrap();
+    let sigma = sd["rgb"][5][0].as_f64().unwrap();
+    assert!((sigma - variance.sqrt()).abs() <= 1e-6 * (1.0 + sigma), "{sigma} {variance}");
+    assert!(tile["variance"].as_array().unwrap().iter().any(|v| v.as_f64().unwrap() > 0.0));
+    // Records: inside the tile, with radii, and drawn on a transparent overlay.
+    let (status, headers, records) = fetch(&app, &format!("{base}.json?{DRAFT}&aov=records")).await;
+    assert_eq!(status, StatusCode::OK);
+    let records: Value = serde_json::from_slice(&records).unwrap();
+    let list = records["records"].as_array().unwrap();
+    assert!(!list.is_empty());
+    assert_eq!(number(&headers, "x-records"), list.len() as u64);
+    for r in list {
+        let [px, py] = [r["pixel"][0].as_f64().unwrap(), r["pixel"][1].as_f64().unwrap()];
+        assert!((0.0..32.0).contains(&px) && (0.0..32.0).contains(&py), "{r}");
+        assert!(r["radius"].as_f64().unwrap() > 0.0);
+    }
+    let (_, headers, overlay) = fetch(&app, &format!("{base}.png?{DRAFT}&aov=records")).await;
+    assert_eq!(headers["content-type"], "image/png");
+    // Colour type 6: RGBA.
+    assert_eq!(overlay[25], 6);
+}
+
+#[tokio::test]
+async fn bad_tile_parameters_are_named() {
+    let app = spawn().await;
+    let cases = [
+        ("/v1/scenes/box/tiles/2/0.png?size=32", "tx"),
+        ("/v1/scenes/box/tiles/0/2.png?size=32", "ty"),
+        ("/v1/scenes/box/tiles/0/0.png?size=4096", "size"),
+        ("/v1/scenes/box/tiles/0/0.png?size=0", "size"),
+        ("/v1/scenes/box/tiles/0/0.png?preset=best", "preset"),
+        ("/v1/scenes/box/tiles/0/0.png?aov=albedo", "aov"),
+        ("/v1/scenes/box/tiles/0/0.png?pass=99", "pass"),
+        ("/v1/scenes/box/tiles/0/0.png?seed=-1", "seed"),
+        ("/v1/scenes/box/tiles/0/0.png?colour=1", "colour"),
+        ("/v1/scenes/box/tiles/0/0.png?aov=std_dev&scale=0", "scale"),
+        ("/v1/scenes/box/tiles/0/0.exr?aov=records", "format"),
+        ("/v1/scenes/box/tiles/0/0.gif", "format"),
+        ("/v1/scenes/box/tiles/0/0", "format"),
+        ("/v1/scenes/box/tiles/x/0.png", "tx"),
+    ];
+    for (url, field) in cases {
+        let response = app.get(url).await;
+        assert_eq!(response.status(), StatusCode::UNPROCESSABLE_ENTITY, "{url}");
+        let (code, got) = error_of(response).await;
+        assert_eq!(code, "invalid_field", "{url}");
+        assert_eq!(got.as_deref(), Some(field), "{url}");
+    }
+    let response = app.get("/v1/scenes/nope/tiles/0/0.png").await;
+    assert_eq!(response.status(), StatusCode::NOT_FOUND);
+    let health: Value = app.get("/health").await.json().await.unwrap();
+    assert_eq!(health["status"], "ok");
+}
