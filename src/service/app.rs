@@ -199,6 +199,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .routes(routes!(routes::irradiance::irradiance))
         .routes(routes!(routes::tiles::tile))
         .routes(routes!(routes::tile_get::get_tile))
+        .routes(routes!(routes::presets::presets))
         .routes(routes!(routes::radiance::radiance))
         .routes(routes!(
             routes::cache::get_cache,
@@ -212,7 +213,8 @@ pub fn router(state: Arc<AppState>) -> Router {
         api_routes
             .layer(middleware::from_fn_with_state(token, authorise))
             .layer(Extension(Arc::new(doc)))
-            .with_state(state),
+            .with_state(state)
+            .merge(super::viewer::routes()),
         &limits,
     )
     .layer(cors())

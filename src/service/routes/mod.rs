@@ -7,6 +7,7 @@ pub mod health;
 pub mod irradiance;
 pub mod metrics;
 pub mod openapi;
+pub mod presets;
 pub mod quadratures;
 pub mod radiance;
 pub mod scenes;

@@ -1,0 +1,336 @@
+// The browser viewer of bmc-irradiance: GET tiles (PNG) of the scene camera's
+// image, loaded progressively (every tile's first pass, then later passes,
+// visible tiles first) into one canvas per layer, shown with pan and zoom.
+// Layers: radiance, the relative standard error (false colour, "std_dev"
+// AOV) and the irradiance-cache records ("records" AOV, transparent overlay).
+"use strict";
+
+(() => {
+  const TILE = 64;
+  const WORKERS = 2;
+  const $ = (id) => document.getElementById(id);
+
+  const state = {
+    scene: null, width: 0, height: 0, passes: 1, presets: new Map(),
+    preset: "preview", exposure: 0, uncertainty: false, records: false,
+    zoom: 1, panX: 0, panY: 0,
+    // Bumped whenever what the tiles show changes; older answers are dropped.
+    generation: 0,
+    layers: {},
+    // Highest pass drawn per radiance tile, and which std_dev/records tiles are drawn.
+    drawn: { radiance: new Map(), std_dev: new Set(), records: new Set() },
+    queue: [], inFlight: 0, loaded: 0, total: 0,
+    renderMillis: [], rays: 0, errors: 0, stdDevScale: 0.2,
+  };
+
+  // ---- layers -------------------------------------------------------------
+  function newLayer() {
+    const c = document.createElement("canvas");
+    c.width = state.width;
+    c.height = state.height;
+    return c;
+  }
+
+  function resetLayers() {
+    state.layers = { radiance: newLayer(), std_dev: newLayer(), records: newLayer() };
+    state.drawn = { radiance: new Map(), std_dev: new Set(), records: new Set() };
+  }
+
+  // ---- view ---------------------------------------------------------------
+  const view = $("view");
+  const ctx = view.getContext("2d");
+
+  function resizeView() {
+    const ratio = window.devicePixelRatio || 1;
+    const rect = view.getBoundingClientRect();
+    view.width = Math.max(1, Math.round(rect.width * ratio));
+    view.height = Math.max(1, Math.round(rect.height * ratio));
+    draw();
+  }
+
+  function fit() {
+    if (!state.width) return;
+    const zoom = Math.min(view.width / state.width, view.height / state.height);
+    // Whole pixels per image pixel when the image fits at least once.
+    state.zoom = zoom >= 1 ? Math.floor(zoom) : zoom;
+    state.panX = (view.width - state.width * state.zoom) / 2;
+    state.panY = (view.height - state.height * state.zoom) / 2;
+    draw();
+    schedule();
+  }
+
+  function draw() {
+    ctx.setTransform(1, 0, 0, 1, 0, 0);
+    ctx.fillStyle = "#0d0e10";
+    ctx.fillRect(0, 0, view.width, view.height);
+    if (!state.width) return;
+    ctx.imageSmoothingEnabled = false;
+    ctx.setTransform(state.zoom, 0, 0, state.zoom, state.panX, state.panY);
+    ctx.drawImage(state.uncertainty ? state.layers.std_dev : state.layers.radiance, 0, 0);
+    if (state.records) ctx.drawImage(state.layers.records, 0, 0);
+  }
+
+  // ---- tiles --------------------------------------------------------------
+  function tileUrl(tx, ty, aov, pass) {
+    const q = new URLSearchParams({ size: TILE, preset: state.preset, pass });
+    if (aov === "radiance") q.set("exposure", state.exposure);
+    else q.set("aov", aov);
+    return `/v1/scenes/${encodeURIComponent(state.scene)}/tiles/${tx}/${ty}.png?${q}`;
+  }
+
+  // Tiles ordered by distance of their centre from the view's centre, the
+  // ones on screen first.
+  function tilesInOrder() {
+    const cols = Math.ceil(state.width / TILE), rows = Math.ceil(state.height / TILE);
+    const cx = (view.width / 2 - state.panX) / state.zoom;
+    const cy = (view.height / 2 - state.panY) / state.zoom;
+    const x0 = -state.panX / state.zoom, y0 = -state.panY / state.zoom;
+    const x1 = x0 + view.width / state.zoom, y1 = y0 + view.height / state.zoom;
+    const tiles = [];
+    for (let ty = 0; ty < rows; ty++) {
+      for (let tx = 0; tx < cols; tx++) {
+        const [left, top] = [tx * TILE, ty * TILE];
+        const visible = left < x1 && left + TILE > x0 && top < y1 && top + TILE > y0;
+        const d = Math.hypot(left + TILE / 2 - cx, top + TILE / 2 - cy);
+        tiles.push({ tx, ty, key: `${tx},${ty}`, order: (visible ? 0 : 1e9) + d });
+      }
+    }
+    return tiles.sort((a, b) => a.order - b.order);
+  }
+
+  // Rebuilds the queue from what is missing: radiance pass by pass (every
+  // tile's pass k before any tile's pass k + 1), then the enabled overlays.
+  function schedule() {
+    if (!state.scene) return;
+    const tiles = tilesInOrder();
+    const jobs = [];
+    for (let pass = 0; pass < state.passes; pass++) {
+      for (const t of tiles) {
+        if ((state.drawn.radiance.get(t.key) ?? -1) < pass) jobs.push({ ...t, aov: "radiance", pass });
+      }
+      if (pass === 0) {
+        for (const aov of ["records", "std_dev"]) {
+          const wanted = aov === "records" ? state.records : state.uncertainty;
+          if (!wanted) continue;
+          for (const t of tiles) if (!state.drawn[aov].has(t.key)) jobs.push({ ...t, aov, pass: state.passes - 1 });
+        }
+      }
+    }
+    state.queue = jobs;
+    state.total = state.loaded + jobs.length;
+    progress();
+    for (let i = state.inFlight; i < WORKERS; i++) next();
+  }
+
+  async function next() {
+    const job = state.queue.shift();
+    if (!job) { progress(); return; }
+    state.inFlight++;
+    const generation = state.generation;
+    try {
+      await load(job, generation);
+    } catch (err) {
+      state.errors++;
+      $("progress").textContent = `tile ${job.key}: ${err.message}`;
+    } finally {
+      state.inFlight--;
+    }
+    if (generation === state.generation) next();
+  }
+
+  async function load(job, generation) {
+    // A radiance pass may already be covered by a later one drawn meanwhile.
+    if (job.aov === "radiance" && (state.drawn.radiance.get(job.key) ?? -1) >= job.pass) return;
+    const started = performance.now();
+    let response;
+    for (;;) {
+      response = await fetch(tileUrl(job.tx, job.ty, job.aov, job.pass));
+      if (response.status !== 503) break;
+      const wait = Number(response.headers.get("retry-after") || 1);
+      await new Promise((r) => setTimeout(r, 1000 * wait));
+      if (generation !== state.generation) return;
+    }
+    if (!response.ok) {
+      const body = await response.json().catch(() => ({}));
+      throw new Error(body.error ? body.error.message : `HTTP ${response.status}`);
+    }
+    const bitmap = await createImageBitmap(await response.blob());
+    if (generation !== state.generation) return;
+    const layer = state.layers[job.aov].getContext("2d");
+    layer.clearRect(job.tx * TILE, job.ty * TILE, bitmap.width, bitmap.height);
+    layer.drawImage(bitmap, job.tx * TILE, job.ty * TILE);
+    bitmap.close();
+    if (job.aov === "radiance") state.drawn.radiance.set(job.key, job.pass);
+    else state.drawn[job.aov].add(job.key);
+    if (job.aov === "std_dev") {
+      state.stdDevScale = Number(response.headers.get("x-std-dev-scale") || state.stdDevScale);
+    }
+    const timing = /dur=([\d.]+)/.exec(response.headers.get("server-timing") || "");
+    state.renderMillis.push(timing ? Number(timing[1]) : performance.now() - started);
+    state.rays += Number(response.headers.get("x-rays") || 0);
+    state.loaded++;
+    $("tile-last").textContent = `${(performance.now() - started).toFixed(0)} ms`;
+    draw();
+    progress();
+    if (state.loaded % 8 === 0 || state.queue.length === 0) refreshCacheStats();
+  }
+
+  // ---- panel --------------------------------------------------------------
+  function progress() {
+    const done = state.total === 0 ? 1 : state.loaded / state.total;
+    if (!state.errors) {
+      $("progress").textContent = state.queue.length || state.inFlight
+        ? `${state.loaded} / ${state.total} tiles`
+        : `done: ${state.passes} pass${state.passes > 1 ? "es" : ""} of ${state.preset}`;
+    }
+    $("progress-bar").style.width = `${(100 * done).toFixed(1)}%`;
+    const ms = state.renderMillis;
+    if (ms.length) $("tile-mean").textContent = `${(ms.reduce((a, b) => a + b, 0) / ms.length).toFixed(0)} ms`;
+    $("rays").textContent = state.rays.toLocaleString("en");
+  }
+
+  async function refreshCacheStats() {
+    if (!state.scene) return;
+    const response = await fetch(`/v1/scenes/${encodeURIComponent(state.scene)}/cache`);
+    if (!response.ok) return;
+    const report = await response.json();
+    const sum = (field) => report.caches.reduce((a, c) => a + (c.stats[field] || 0), 0);
+    $("cache-records").textContent = sum("records").toLocaleString("en");
+    $("cache-hits").textContent = sum("hits").toLocaleString("en");
+    $("cache-bytes").textContent = `${(sum("bytes") / 1024).toFixed(0)} KiB`;
+  }
+
+  function drawLegend() {
+    const ramp = $("legend-ramp").getContext("2d");
+    // The viridis anchors the service's false colour interpolates.
+    const anchors = ["#440154", "#472c7a", "#3b518b", "#2c718e", "#21908d", "#27ad81", "#5cc863", "#aadc32", "#fde725"];
+    const gradient = ramp.createLinearGradient(0, 0, 200, 0);
+    anchors.forEach((c, i) => gradient.addColorStop(i / (anchors.length - 1), c));
+    ramp.fillStyle = gradient;
+    ramp.fillRect(0, 0, 200, 12);
+    $("legend-max").textContent = `≥ ${(100 * state.stdDevScale).toFixed(0)} %`;
+    $("legend").hidden = !state.uncertainty;
+  }
+
+  // ---- scene and controls ---------------------------------------------------
+  async function selectScene(id) {
+    const response = await fetch(`/v1/scenes/${encodeURIComponent(id)}`);
+    if (!response.ok) throw new Error(`scene ${id}: HTTP ${response.status}`);
+    const scene = await response.json();
+    state.scene = id;
+    [state.width, state.height] = scene.resolution;
+    restart();
+    fit();
+  }
+
+  // Starts the tiles over (a new scene or preset).
+  function restart() {
+    state.generation++;
+    state.queue = [];
+    state.loaded = 0;
+    state.renderMillis = [];
+    state.rays = 0;
+    state.errors = 0;
+    resetLayers();
+    state.passes = state.presets.get(state.preset)?.passes ?? 1;
+    draw();
+    schedule();
+  }
+
+  function bindControls() {
+    $("scene").addEventListener("change", (e) => selectScene(e.target.value));
+    $("preset").addEventListener("change", (e) => { state.preset = e.target.value; restart(); });
+    $("exposure").addEventListener("input", (e) => {
+      state.exposure = Number(e.target.value);
+      $("exposure-value").textContent = state.exposure;
+      // Only the radiance layer depends on the exposure: reload it at the
+      // passes already shown (the service keeps them, so this is cheap).
+      state.generation++;
+      state.queue = [];
+      state.drawn.radiance = new Map();
+      state.loaded = 0;
+      schedule();
+    });
+    $("uncertainty").addEventListener("change", (e) => {
+      state.uncertainty = e.target.checked; drawLegend(); draw(); schedule();
+    });
+    $("records").addEventListener("change", (e) => { state.records = e.target.checked; draw(); schedule(); });
+    $("fit").addEventListener("click", fit);
+
+    let drag = null;
+    view.addEventListener("pointerdown", (e) => {
+      drag = { x: e.clientX, y: e.clientY, panX: state.panX, panY: state.panY };
+      view.setPointerCapture(e.pointerId);
+      view.classList.add("dragging");
+    });
+    view.addEventListener("pointermove", (e) => {
+      if (!drag) return;
+      const ratio = window.devicePixelRatio || 1;
+      state.panX = drag.panX + (e.clientX - drag.x) * ratio;
+      state.panY = drag.panY + (e.clientY - drag.y) * ratio;
+      draw();
+    });
+    view.addEventListener("pointerup", () => { drag = null; view.classList.remove("dragging"); schedule(); });
+    view.addEventListener("wheel", (e) => {
+      e.preventDefault();
+      const ratio = window.devicePixelRatio || 1;
+      const [mx, my] = [e.offsetX * ratio, e.offsetY * ratio];
+      const factor = Math.exp(-e.deltaY * 0.0015);
+      const zoom = Math.min(64, Math.max(0.05, state.zoom * factor));
+      state.panX = mx - (mx - state.panX) * (zoom / state.zoom);
+      state.panY = my - (my - state.panY) * (zoom / state.zoom);
+      state.zoom = zoom;
+      draw();
+      schedule();
+    }, { passive: false });
+    window.addEventListener("resize", resizeView);
+  }
+
+  async function start() {
+    bindControls();
+    resizeView();
+    drawLegend();
+    const params = new URLSearchParams(location.search);
+    if (params.get("preset")) state.preset = params.get("preset");
+    if (params.get("uncertainty") === "1") { state.uncertainty = true; $("uncertainty").checked = true; drawLegend(); }
+    if (params.get("records") === "1") { state.records = true; $("records").checked = true; }
+    const presets = await (await fetch("/v1/presets")).json();
+    state.presets = new Map(presets.map((p) => [p.name, p]));
+    for (const p of presets) {
+      $("preset").add(new Option(`${p.name} (${p.samples_per_pixel * p.passes} spp)`, p.name));
+      if (p.default && !params.get("preset")) state.preset = p.name;
+    }
+    $("preset").value = state.preset;
+    const response = await fetch("/v1/scenes");
+    const scenes = await response.json();
+    const select = $("scene");
+    for (const s of scenes) select.add(new Option(`${s.id} (${s.resolution[0]}×${s.resolution[1]})`, s.id));
+    const wanted = params.get("scene");
+    const first = scenes.find((s) => s.id === wanted) || scenes.find((s) => s.id === "cornell-box") || scenes[0];
+    if (!first) { $("progress").textContent = "no scenes loaded"; return; }
+    select.value = first.id;
+    await selectScene(first.id);
+  }
+
+  // For people at the console and for the browser test: the state, whether
+  // every scheduled tile is in, and mean RGB (0–255) of a layer or the view.
+  function meanRgb(canvas) {
+    const data = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
+    const sum = [0, 0, 0];
+    let count = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      if (data[i + 3] === 0) continue;
+      sum[0] += data[i]; sum[1] += data[i + 1]; sum[2] += data[i + 2];
+      count++;
+    }
+    return { mean: sum.map((s) => (count ? s / count : 0)), pixels: count };
+  }
+  window.viewer = {
+    state,
+    idle: () => state.scene !== null && state.queue.length === 0 && state.inFlight === 0 && state.loaded > 0,
+    layerStats: (name) => meanRgb(state.layers[name]),
+    viewStats: () => meanRgb(view),
+  };
+
+  start().catch((err) => { $("progress").textContent = err.message; });
+})();
