@@ -8,6 +8,7 @@ mod common;
 mod calibration;
 mod cli_quadrature;
 mod docs_references;
+mod first_run;
 mod fuzz_requests;
 mod irradiance_cache;
 mod irradiance_cli;
