@@ -1,7 +1,11 @@
 //! What a new user meets first, through the real binary: `--help` of the
-//! subcommands that read scene files.
+//! subcommands that read scene files, and `serve` started where there is no
+//! scenes directory, with its log going to a file rather than a terminal.
 
-use std::process::Command;
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
 
 const BIN: &str = env!("CARGO_BIN_EXE_bmc-irradiance");
 
@@ -20,4 +24,50 @@ fn help_says_scene_files_may_be_xml() {
         );
         assert!(!help.contains("Scene JSON file"), "{subcommand}: {help}");
     }
+}
+
+/// `serve`'s log, written to a pipe, carries no colour codes.
+#[test]
+fn serve_log_to_a_pipe_is_plain() {
+    let cwd = tempfile::tempdir().unwrap();
+    // The working directory as the process will see it (no symlinks).
+    let cwd_path = cwd.path().canonicalize().unwrap();
+    let mut child = Command::new(BIN)
+        .args(["serve", "--bind", "127.0.0.1:0"])
+        .current_dir(&cwd_path)
+        .env_clear()
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let (lines, received) = mpsc::channel();
+    let reader = std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines() {
+            let Ok(line) = line else { break };
+            if lines.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut log = Vec::new();
+    while let Ok(line) = received.recv_timeout(Duration::from_secs(60)) {
+        let listening = line.contains("listening");
+        log.push(line);
+        if listening {
+            break;
+        }
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    let _ = reader.join();
+    log.extend(received.try_iter());
+    let log = log.join("\n");
+
+    assert!(log.contains("listening"), "{log}");
+    assert!(
+        !log.contains('\u{1b}'),
+        "colour codes in a piped log: {log:?}"
+    );
 }
