@@ -26,9 +26,11 @@ fn help_says_scene_files_may_be_xml() {
     }
 }
 
-/// `serve`'s log, written to a pipe, carries no colour codes.
+/// Started outside the repository, `serve` finds no `scenes/`: it warns,
+/// naming the directory as configured and absolute and how to point it at
+/// scenes; the log, written to a pipe, carries no colour codes.
 #[test]
-fn serve_log_to_a_pipe_is_plain() {
+fn serve_without_scenes_warns_plainly() {
     let cwd = tempfile::tempdir().unwrap();
     // The working directory as the process will see it (no symlinks).
     let cwd_path = cwd.path().canonicalize().unwrap();
@@ -69,5 +71,20 @@ fn serve_log_to_a_pipe_is_plain() {
     assert!(
         !log.contains('\u{1b}'),
         "colour codes in a piped log: {log:?}"
+    );
+    let warning = log
+        .lines()
+        .find(|l| l.contains("no scenes loaded"))
+        .unwrap_or_else(|| panic!("no warning about the scenes directory: {log}"));
+    assert!(warning.contains("WARN"), "{warning}");
+    assert!(warning.contains("dir=scenes"), "{warning}");
+    let absolute = cwd_path.join("scenes");
+    assert!(
+        warning.contains(&absolute.display().to_string()),
+        "{warning}"
+    );
+    assert!(
+        warning.contains("--config") && warning.contains("BMC_SCENES__DIR="),
+        "{warning}"
     );
 }
