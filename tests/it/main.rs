@@ -27,3 +27,4 @@ mod service_radiance;
 mod service_robustness;
 mod service_scenes;
 mod service_tiles;
+mod walkthrough;
