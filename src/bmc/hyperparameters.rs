@@ -65,6 +65,14 @@ pub struct Fit {
     pub noise_at_bound: bool,
 }
 
+impl Fit {
+    /// Either fitted hyperparameter ended at (within 1 % of) a search bound,
+    /// so the optimum found is the bound's, not the likelihood's.
+    pub fn at_bound(&self) -> bool {
+        self.lengthscale_at_bound || self.noise_at_bound
+    }
+}
+
 /// Why hyperparameters could not be fitted.
 #[derive(Debug, thiserror::Error)]
 pub enum FitError {
@@ -403,6 +411,33 @@ mod tests {
         let ratio = fit.noise / fit.variance;
         assert!((0.02..0.12).contains(&ratio), "{fit:?}");
         assert!((fit.lengthscale / 0.5 - 1.0).abs() < 0.3, "{fit:?}");
+    }
+
+    /// Noise-free draws leave the noise ratio at its lower bound while `ℓ`
+    /// is found inside its range: the fit is still at a bound.
+    #[test]
+    fn noise_at_its_bound_counts_as_at_bound() {
+        let set = set(48);
+        let truth = Kernel::new(KernelKind::SquaredExponential, 0.5, 1.0, 1e-10).expect("kernel");
+        let draws = gp_draws(&set, &truth, 20, 7);
+        let options = FitOptions {
+            noise_ratio_bounds: (1e-5, 1e-1),
+            ..FitOptions::default()
+        };
+        let fit = fit(&set, KernelKind::SquaredExponential, &draws, &options).expect("fit");
+        assert!(fit.noise_at_bound, "{fit:?}");
+        assert!(!fit.lengthscale_at_bound, "{fit:?}");
+        assert!(fit.at_bound());
+        let interior = Fit {
+            noise_at_bound: false,
+            ..fit
+        };
+        assert!(!interior.at_bound());
+        let short = Fit {
+            lengthscale_at_bound: true,
+            ..interior
+        };
+        assert!(short.at_bound());
     }
 
     #[test]

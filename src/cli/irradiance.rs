@@ -29,7 +29,7 @@ use crate::service::Config;
 /// Command-line arguments of `bmc-irradiance irradiance`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct IrradianceArgs {
-    /// Scene JSON file.
+    /// Scene file: JSON, or Mitsuba 3 XML when it ends in `.xml`.
     #[arg(long)]
     pub scene: PathBuf,
     /// Directory that files referenced by the scene may not escape

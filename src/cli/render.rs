@@ -28,7 +28,7 @@ use crate::scene::Scene;
 /// Command-line arguments of `bmc-irradiance render`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct RenderArgs {
-    /// Scene JSON file.
+    /// Scene file: JSON, or Mitsuba 3 XML when it ends in `.xml`.
     #[arg(long)]
     pub scene: PathBuf,
     /// Directory that files referenced by the scene may not escape

@@ -41,7 +41,7 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<String> {
 /// Arguments of `bmc-irradiance study-scene`.
 #[derive(Clone, Debug, Args)]
 pub struct SceneStudyArgs {
-    /// Scene file (JSON or Mitsuba XML).
+    /// Scene file: JSON, or Mitsuba 3 XML when it ends in `.xml`.
     #[arg(long)]
     pub scene: std::path::PathBuf,
     /// Camera-visible query points.

@@ -54,14 +54,19 @@ pub fn run_serve(args: &ServeArgs) -> anyhow::Result<()> {
     serve(config)
 }
 
-/// Logs to stderr, filtered by `RUST_LOG` (default: `info`).
+/// Logs to stderr, filtered by `RUST_LOG` (default: `info`), coloured only
+/// when stderr is a terminal.
 pub fn init_tracing() {
+    use std::io::IsTerminal;
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    // Escape codes in a log file or a journal are noise to whoever reads it.
+    let ansi = std::io::stderr().is_terminal();
     // Ignore a second initialisation (tests, embedding) instead of failing.
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(ansi)
         .try_init();
 }
 

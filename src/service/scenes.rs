@@ -261,15 +261,15 @@ pub fn validate_id(id: &str) -> Result<(), String> {
 }
 
 /// Loads every `*.json` and Mitsuba `*.xml` scene of `dir` in parallel; files
-/// that fail are logged and skipped. A missing directory gives no scenes (and a
-/// warning). A scene's id is its file stem, except an XML file whose stem a JSON
-/// file also has: it gets `<stem>-xml` (`cornell-box.xml` → `cornell-box-xml`),
-/// so both stay reachable.
+/// that fail are logged and skipped. A missing directory or one that gives no
+/// scene is not an error but a warning ([`warn_no_scenes`]). A scene's id is its
+/// file stem, except an XML file whose stem a JSON file also has: it gets
+/// `<stem>-xml` (`cornell-box.xml` → `cornell-box-xml`), so both stay reachable.
 pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
     let entries = match std::fs::read_dir(dir) {
         Ok(entries) => entries,
         Err(err) => {
-            tracing::warn!(dir = %dir.display(), %err, "cannot read the scenes directory; no scenes loaded");
+            warn_no_scenes(dir, &format!("cannot read the scenes directory ({err})"));
             return Vec::new();
         }
     };
@@ -296,7 +296,7 @@ pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
         .collect();
     files.sort();
     let has_json_twin = |path: &Path| files.contains(&path.with_extension("json"));
-    files
+    let loaded: Vec<LoadedScene> = files
         .par_iter()
         .filter_map(|path| {
             let stem = path.file_stem()?.to_string_lossy().into_owned();
@@ -321,7 +321,39 @@ pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
                 }
             }
         })
-        .collect()
+        .collect();
+    if loaded.is_empty() {
+        warn_no_scenes(
+            dir,
+            "the scenes directory holds no loadable *.json or *.xml scene",
+        );
+    }
+    loaded
+}
+
+/// The repository's bundled scenes, as seen when this crate was built.
+const BUNDLED_SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+
+/// Warns that `dir` gave no scene, naming it as configured and as an absolute
+/// path and saying how to point at the bundled scenes. `scenes.dir` is relative
+/// to the working directory, so a service started outside the repository
+/// serves nothing, and a line at INFO was easy to miss.
+fn warn_no_scenes(dir: &Path, why: &str) {
+    let absolute = std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf());
+    // Suggest the bundled directory only where it still exists (not after
+    // `cargo install` from a registry, whose build directory is gone).
+    let example = if Path::new(BUNDLED_SCENES).is_dir() {
+        BUNDLED_SCENES
+    } else {
+        "/path/to/scenes"
+    };
+    tracing::warn!(
+        dir = %dir.display(),
+        absolute = %absolute.display(),
+        "no scenes loaded: {why}; scenes.dir is relative to the working directory: start the \
+         service from the repository root, or set `[scenes] dir` in a `--config` file or \
+         BMC_SCENES__DIR={example}"
+    );
 }
 
 /// Warnings logged one by one per scene; the rest are only counted, so a

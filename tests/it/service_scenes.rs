@@ -1,6 +1,6 @@
 //! `/v1/scenes` end to end: startup loading, listing, posting, deleting.
 
-use crate::common::{TINY_SCENE, error_of, spawn_app_with_scenes};
+use crate::common::{TINY_SCENE, error_json, error_of, spawn_app_with_scenes};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -119,6 +119,8 @@ async fn mitsuba_xml_scenes_load_at_startup_and_by_post() {
     }
     let xml_summary: Value = app.get("/v1/scenes/box-xml").await.json().await.unwrap();
     assert_eq!(xml_summary["resolution"], json!([256, 256]));
+    // A Mitsuba document has no name of its own: a file's is its stem.
+    assert_eq!(xml_summary["name"], "box");
 
     let post_xml = |query: &'static str, content_type: &'static str| {
         app.client
@@ -131,6 +133,8 @@ async fn mitsuba_xml_scenes_load_at_startup_and_by_post() {
     assert_eq!(created.status(), StatusCode::CREATED);
     let summary: Value = created.json().await.unwrap();
     assert_eq!(summary["id"], "posted-xml");
+    // ... and a posted one's is its id.
+    assert_eq!(summary["name"], "posted-xml");
     assert_eq!(summary["source"], "uploaded");
 
     let no_id = post_xml("", "text/xml").await.unwrap();
@@ -143,6 +147,13 @@ async fn mitsuba_xml_scenes_load_at_startup_and_by_post() {
 
     let plain = post_xml("?id=x", "text/plain").await.unwrap();
     assert_eq!(plain.status(), StatusCode::UNSUPPORTED_MEDIA_TYPE);
+    // The route takes both, so its 415 names both.
+    let (body, _) = error_json(plain).await;
+    let message = body["error"]["message"].as_str().unwrap();
+    assert!(
+        message.contains("application/json") && message.contains("application/xml"),
+        "{message}"
+    );
 
     let broken = app
         .client
@@ -155,4 +166,38 @@ async fn mitsuba_xml_scenes_load_at_startup_and_by_post() {
     assert_eq!(broken.status(), StatusCode::UNPROCESSABLE_ENTITY);
     // Nothing already loaded is lost.
     assert_eq!(app.get("/v1/scenes/only").await.status(), StatusCode::OK);
+}
+
+/// `?id=` belongs to XML bodies; with JSON it would be ambiguous beside the
+/// document's `name`, so it is refused naming `id` and nothing is replaced.
+#[tokio::test]
+async fn id_query_with_a_json_scene_is_refused() {
+    let app = spawn_app_with_scenes(&[("kept.json", TINY_SCENE)], |_| {}).await;
+    let before: Value = app.get("/v1/scenes/kept").await.json().await.unwrap();
+    for query in ["?id=kept", "?id=other"] {
+        let response = app
+            .client
+            .post(app.url(&format!("/v1/scenes{query}")))
+            .json(&tiny_named("kept"))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(
+            response.status(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "{query}"
+        );
+        let (code, field) = error_of(response).await;
+        assert_eq!(
+            (code.as_str(), field.as_deref()),
+            ("invalid_field", Some("id"))
+        );
+    }
+    let after: Value = app.get("/v1/scenes/kept").await.json().await.unwrap();
+    assert_eq!(after["source"], "file");
+    assert_eq!(after, before);
+    assert_eq!(
+        app.get("/v1/scenes/other").await.status(),
+        StatusCode::NOT_FOUND
+    );
 }

@@ -39,7 +39,9 @@ pub async fn get_scene(
 #[derive(Debug, Default, serde::Deserialize, utoipa::IntoParams)]
 #[serde(deny_unknown_fields)]
 pub struct PostSceneQuery {
-    /// Id of a scene posted as Mitsuba XML (required for XML).
+    /// Id of a scene posted as Mitsuba XML (required for XML; it is also the
+    /// scene's `name`). Refused (422 naming `id`) with a JSON body, whose id
+    /// is its `name`.
     pub id: Option<String>,
     /// Approximate unsupported Mitsuba features instead of rejecting them.
     #[serde(default)]
@@ -48,8 +50,9 @@ pub struct PostSceneQuery {
 
 /// Adds a scene and replaces one with the same id. The body is either a scene
 /// document (`application/json`, `docs/scene-format.md`) whose `name` becomes
-/// its id, or a Mitsuba 3 scene (`application/xml`) whose id is the `id` query
-/// parameter. Files the scene references must already be in the scenes directory.
+/// its id (an `id` query parameter with it is refused, 422), or a Mitsuba 3
+/// scene (`application/xml`) whose id, and name, is the `id` query parameter.
+/// Files the scene references must already be in the scenes directory.
 /// A scene that would take the loaded scenes over a `scenes.max_*` budget is
 /// refused with 507 and nothing loaded changes.
 #[utoipa::path(post, path = "/v1/scenes", tag = "scenes", params(PostSceneQuery),
