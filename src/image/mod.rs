@@ -227,7 +227,11 @@ impl Image {
                 .map(|(p, &v)| {
                     let sigma = f64::from(v.max(0.0)).sqrt();
                     let mean = p.iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0;
-                    if sigma == 0.0 { 0.0 } else { sigma / mean.abs() }
+                    if sigma == 0.0 {
+                        0.0
+                    } else {
+                        sigma / mean.abs()
+                    }
                 })
                 .collect(),
         )
@@ -351,8 +355,14 @@ mod tests {
     fn standard_errors_follow_the_variance() {
         let image = Image::from_parts(2, 1, vec![[2.0; 3], [0.0; 3]], Some(vec![0.25, 0.0]))
             .expect("valid");
-        assert_eq!(image.std_dev().expect("has variance").pixel(0, 0), Some([0.5; 3]));
-        assert_eq!(image.relative_std_error().expect("has variance"), vec![0.25, 0.0]);
+        assert_eq!(
+            image.std_dev().expect("has variance").pixel(0, 0),
+            Some([0.5; 3])
+        );
+        assert_eq!(
+            image.relative_std_error().expect("has variance"),
+            vec![0.25, 0.0]
+        );
         let png = image.relative_std_error_png(0.5).expect("encodes");
         assert_eq!(&png[1..4], b"PNG");
         assert!(image.relative_std_error_png(0.0).is_err());

@@ -135,7 +135,10 @@ mod tests {
             assert!(s.passes >= 1 && s.samples_per_pixel >= 1);
             crate::render::path::check_max_depth(s.max_depth).expect("valid depth");
             let cost = u64::from(s.total_samples_per_pixel()) * config.paths_per_record();
-            assert!(cost > last_cost, "{preset} is not dearer than the one before");
+            assert!(
+                cost > last_cost,
+                "{preset} is not dearer than the one before"
+            );
             last_cost = cost;
             assert_eq!(preset.name().parse::<Preset>(), Ok(preset));
         }

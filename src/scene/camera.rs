@@ -166,7 +166,10 @@ mod tests {
             assert!((x - px).abs() < 1e-9 && (y - py).abs() < 1e-9, "{x} {y}");
             assert!(depth > 0.0);
         }
-        assert!(cam.raster(cam.origin() - cam.generate_ray(100.0, 50.0).dir).is_none());
+        assert!(
+            cam.raster(cam.origin() - cam.generate_ray(100.0, 50.0).dir)
+                .is_none()
+        );
     }
 
     #[test]

@@ -9,9 +9,9 @@ use std::sync::Arc;
 use glam::{DAffine3, DMat3, DVec3};
 
 use super::bvh::{Aabb, Bvh};
+use super::digest::SceneDigest;
 use super::emitter::{self, Emitter};
 use super::environment::{self, Environment, EnvironmentMap};
-use super::digest::SceneDigest;
 use super::error::SceneError;
 use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKind};
 use super::material::Material;

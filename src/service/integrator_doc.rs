@@ -83,7 +83,11 @@ impl IntegratorDoc {
 
     /// [`Self::resolve`] with `base` (a preset's knobs) under the fields
     /// this document sets.
-    pub fn resolve_over(&self, base: CachedSpec, limits: &Limits) -> Result<ResolvedCache, ApiError> {
+    pub fn resolve_over(
+        &self,
+        base: CachedSpec,
+        limits: &Limits,
+    ) -> Result<ResolvedCache, ApiError> {
         for (field, count) in [
             ("estimator.samples", self.samples),
             ("estimator.glossy_samples", self.glossy_samples),
@@ -94,7 +98,10 @@ impl IntegratorDoc {
         }
         let spec = CachedSpec {
             samples: self.samples.map(|n| n as usize).or(base.samples),
-            glossy_samples: self.glossy_samples.map(|n| n as usize).or(base.glossy_samples),
+            glossy_samples: self
+                .glossy_samples
+                .map(|n| n as usize)
+                .or(base.glossy_samples),
             lengthscale: self.lengthscale.or(base.lengthscale),
             noise: self.noise.or(base.noise),
             accuracy: self.accuracy.or(base.accuracy),

@@ -28,4 +28,5 @@ mod service_robustness;
 mod service_scenes;
 mod service_tile_get;
 mod service_tiles;
+mod viewer_browser;
 mod walkthrough;

@@ -44,7 +44,12 @@ async fn the_same_url_gives_the_same_bytes_across_requests_and_restarts() {
     assert_eq!(status, StatusCode::OK);
     assert_eq!(first_headers["content-type"], "image/png");
     assert_eq!(first_headers["access-control-allow-origin"], "*");
-    assert!(first_headers["cache-control"].to_str().unwrap().contains("max-age"));
+    assert!(
+        first_headers["cache-control"]
+            .to_str()
+            .unwrap()
+            .contains("max-age")
+    );
     let etag = first_headers["etag"].to_str().unwrap().to_owned();
     assert!(etag.starts_with('"') && etag.len() > 10, "{etag}");
     assert!(number(&first_headers, "x-records-created") > 0);
@@ -123,7 +128,10 @@ async fn passes_refine_without_redoing_earlier_work() {
     };
     assert!(mean_variance(&p1) < mean_variance(&p0));
     // The default is the last pass: the final image.
-    let last = format!("/v1/scenes/box/tiles/0/0.json?size=32&preset=preview&pass={}", passes - 1);
+    let last = format!(
+        "/v1/scenes/box/tiles/0/0.json?size=32&preset=preview&pass={}",
+        passes - 1
+    );
     let (_, _, final_bytes) = fetch(&app, &last).await;
     let (_, _, default_bytes) = fetch(&app, "/v1/scenes/box/tiles/0/0.json?size=32").await;
     assert_eq!(final_bytes, default_bytes);
@@ -158,8 +166,17 @@ async fn uncertainty_and_record_aovs_show_what_they_promise() {
     );
     let variance = tile["variance"][5].as_f64().unwrap();
     let sigma = sd["rgb"][5][0].as_f64().unwrap();
-    assert!((sigma - variance.sqrt()).abs() <= 1e-6 * (1.0 + sigma), "{sigma} {variance}");
-    assert!(tile["variance"].as_array().unwrap().iter().any(|v| v.as_f64().unwrap() > 0.0));
+    assert!(
+        (sigma - variance.sqrt()).abs() <= 1e-6 * (1.0 + sigma),
+        "{sigma} {variance}"
+    );
+    assert!(
+        tile["variance"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|v| v.as_f64().unwrap() > 0.0)
+    );
     // Records: inside the tile, with radii, and drawn on a transparent overlay.
     let (status, headers, records) = fetch(&app, &format!("{base}.json?{DRAFT}&aov=records")).await;
     assert_eq!(status, StatusCode::OK);
@@ -168,8 +185,14 @@ async fn uncertainty_and_record_aovs_show_what_they_promise() {
     assert!(!list.is_empty());
     assert_eq!(number(&headers, "x-records"), list.len() as u64);
     for r in list {
-        let [px, py] = [r["pixel"][0].as_f64().unwrap(), r["pixel"][1].as_f64().unwrap()];
-        assert!((0.0..32.0).contains(&px) && (0.0..32.0).contains(&py), "{r}");
+        let [px, py] = [
+            r["pixel"][0].as_f64().unwrap(),
+            r["pixel"][1].as_f64().unwrap(),
+        ];
+        assert!(
+            (0.0..32.0).contains(&px) && (0.0..32.0).contains(&py),
+            "{r}"
+        );
         assert!(r["radius"].as_f64().unwrap() > 0.0);
     }
     let (_, headers, overlay) = fetch(&app, &format!("{base}.png?{DRAFT}&aov=records")).await;

@@ -106,8 +106,7 @@ fn small_cornell(side: u32) -> String {
 
 /// A cheap `bmc` tile of the small Cornell box.
 fn bmc_tile(x: u32, y: u32, side: u32, extra: Value) -> Value {
-    let mut estimator =
-        json!({"method": "bmc", "samples": 16, "light_samples": 2, "accuracy": 0.5,
+    let mut estimator = json!({"method": "bmc", "samples": 16, "light_samples": 2, "accuracy": 0.5,
                "reproducible": false});
     for (key, value) in extra.as_object().unwrap() {
         estimator[key] = value.clone();

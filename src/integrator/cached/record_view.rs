@@ -44,7 +44,7 @@ pub fn record_views(camera: &Camera, records: &[Record]) -> Vec<RecordView> {
 }
 
 /// Colours of the overlay (straight RGBA): validity circles, record centres.
-const CIRCLE: [u8; 4] = [64, 224, 255, 200];
+const CIRCLE: [u8; 4] = [64, 224, 255, 96];
 const CENTRE: [u8; 4] = [255, 64, 160, 255];
 
 /// An RGBA overlay of `width × height` pixels whose top-left pixel is image
@@ -63,7 +63,9 @@ pub fn record_overlay(views: &[RecordView], x: u32, y: u32, width: u32, height: 
     for v in views {
         let [px, py] = v.pixel;
         // The outline, one point per pixel of circumference (at least 8).
-        let r = v.radius_pixels.clamp(1.5, 4.0 * f64::from(width.max(height)));
+        let r = v
+            .radius_pixels
+            .clamp(1.5, 4.0 * f64::from(width.max(height)));
         let steps = (std::f64::consts::TAU * r).ceil().max(8.0) as usize;
         for k in 0..steps {
             let phi = std::f64::consts::TAU * k as f64 / steps as f64;
@@ -85,7 +87,10 @@ mod tests {
         let transport = crate::testing::cornell(32);
         let camera = &transport.scene().camera;
         let ray = camera.generate_ray(10.5, 20.5);
-        let hit = transport.scene().intersect(&ray).expect("the box is closed");
+        let hit = transport
+            .scene()
+            .intersect(&ray)
+            .expect("the box is closed");
         let record = Record {
             position: hit.position,
             normal: hit.shading_normal,

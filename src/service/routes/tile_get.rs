@@ -101,11 +101,10 @@ impl<S: Send + Sync> FromRequestParts<S> for TilePath {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
-        let Path((id, tx, file)) = Path::<(String, String, String)>::from_request_parts(
-            parts, state,
-        )
-        .await
-        .map_err(|rejection| ApiError::invalid("id", rejection.body_text()))?;
+        let Path((id, tx, file)) =
+            Path::<(String, String, String)>::from_request_parts(parts, state)
+                .await
+                .map_err(|rejection| ApiError::invalid("id", rejection.body_text()))?;
         let index = |field: &str, text: &str| {
             text.parse::<u32>()
                 .map_err(|_| ApiError::invalid(field, format!("{text:?} is not a tile index")))
@@ -169,7 +168,9 @@ pub async fn get_tile(
         if index >= count {
             return Err(ApiError::invalid(
                 field,
-                format!("{index} is outside the image: {count} tiles of {size} pixels ({width}×{height})"),
+                format!(
+                    "{index} is outside the image: {count} tiles of {size} pixels ({width}×{height})"
+                ),
             ));
         }
     }
@@ -179,7 +180,10 @@ pub async fn get_tile(
     if pass >= settings.passes {
         return Err(ApiError::invalid(
             "pass",
-            format!("{pass} is not in 0..{} ({preset} has {} passes)", settings.passes, settings.passes),
+            format!(
+                "{pass} is not in 0..{} ({preset} has {} passes)",
+                settings.passes, settings.passes
+            ),
         ));
     }
     let aov = query.aov.unwrap_or_default();
@@ -190,13 +194,18 @@ pub async fn get_tile(
         _ => 0.0,
     };
     if !exposure.is_finite() || query.exposure.is_some_and(|e| !e.is_finite()) {
-        return Err(ApiError::invalid("exposure", "must be a finite number of stops"));
+        return Err(ApiError::invalid(
+            "exposure",
+            "must be a finite number of stops",
+        ));
     }
     let scale = match (aov, format) {
         (Aov::StdDev, ImageEncoding::Png) => query.scale.unwrap_or(DEFAULT_STD_DEV_SCALE),
         _ => DEFAULT_STD_DEV_SCALE,
     };
-    if !(scale.is_finite() && scale > 0.0) || query.scale.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
+    if !(scale.is_finite() && scale > 0.0)
+        || query.scale.is_some_and(|s| !(s.is_finite() && s > 0.0))
+    {
         return Err(ApiError::invalid("scale", "must be a positive number"));
     }
     if aov == Aov::Records && format == ImageEncoding::Exr {
@@ -226,7 +235,10 @@ pub async fn get_tile(
     ]);
     let mut common = HeaderMap::new();
     common.insert(header::ETAG, etag.clone());
-    common.insert(header::CACHE_CONTROL, HeaderValue::from_static(CACHE_CONTROL));
+    common.insert(
+        header::CACHE_CONTROL,
+        HeaderValue::from_static(CACHE_CONTROL),
+    );
     if if_none_match(&headers, &etag) {
         return Ok((StatusCode::NOT_MODIFIED, common).into_response());
     }

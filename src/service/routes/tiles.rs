@@ -153,8 +153,14 @@ pub async fn tile(
                 header::CONTENT_TYPE,
                 HeaderValue::from_static(format.content_type()),
             ),
-            (HeaderName::from_static("x-tile-x"), number(u64::from(doc.x))),
-            (HeaderName::from_static("x-tile-y"), number(u64::from(doc.y))),
+            (
+                HeaderName::from_static("x-tile-x"),
+                number(u64::from(doc.x)),
+            ),
+            (
+                HeaderName::from_static("x-tile-y"),
+                number(u64::from(doc.y)),
+            ),
             (HeaderName::from_static("x-rays"), number(tile.rays)),
             (
                 HeaderName::from_static("x-records-created"),

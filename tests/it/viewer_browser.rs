@@ -1,0 +1,288 @@
+//! The browser viewer (`/`) in a real headless Chromium, driven over the
+//! Chrome DevTools Protocol: the page loads, the Cornell box appears (the
+//! canvas's pixel statistics equal those of the service's PNG tiles), the
+//! uncertainty toggle changes what is shown, and the console stays free of
+//! errors. A screenshot of the page is written to
+//! `target/viewer-screenshot.png` (the one in `docs/` comes from it).
+//!
+//! Needs Debian's `chromium` (`.ci/run` installs it); set `CHROMIUM` to use
+//! another binary.
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpStream;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use base64::Engine;
+use serde_json::{Value, json};
+use tungstenite::stream::MaybeTlsStream;
+use tungstenite::{Message, WebSocket};
+
+use crate::common::{TestApp, spawn_app_in};
+
+/// A headless Chromium, killed on drop.
+struct Browser {
+    child: Child,
+    _profile: tempfile::TempDir,
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A CDP connection in flattened-session mode, with the console errors and
+/// exceptions seen so far.
+struct DevTools {
+    socket: WebSocket<MaybeTlsStream<TcpStream>>,
+    session: Option<String>,
+    next_id: u64,
+    errors: Vec<String>,
+}
+
+impl DevTools {
+    fn call(&mut self, method: &str, params: Value) -> Value {
+        self.next_id += 1;
+        let id = self.next_id;
+        let mut message = json!({"id": id, "method": method, "params": params});
+        if let Some(session) = &self.session {
+            message["sessionId"] = json!(session);
+        }
+        self.socket
+            .send(Message::text(message.to_string()))
+            .unwrap();
+        loop {
+            let Message::Text(text) = self.socket.read().unwrap() else {
+                continue;
+            };
+            let reply: Value = serde_json::from_str(&text).unwrap();
+            if reply["id"] == id {
+                assert!(reply.get("error").is_none(), "{method}: {reply}");
+                return reply["result"].clone();
+            }
+            self.note_event(&reply);
+        }
+    }
+
+    fn note_event(&mut self, event: &Value) {
+        let params = &event["params"];
+        match event["method"].as_str() {
+            Some("Runtime.consoleAPICalled") if params["type"] == "error" => {
+                self.errors
+                    .push(format!("console.error: {}", params["args"]));
+            }
+            Some("Runtime.exceptionThrown") => {
+                self.errors
+                    .push(format!("exception: {}", params["exceptionDetails"]));
+            }
+            Some("Log.entryAdded") if params["entry"]["level"] == "error" => {
+                self.errors.push(format!("log: {}", params["entry"]));
+            }
+            _ => {}
+        }
+    }
+
+    /// The value of a JavaScript expression (promises awaited).
+    fn eval(&mut self, expression: &str) -> Value {
+        let result = self.call(
+            "Runtime.evaluate",
+            json!({"expression": expression, "returnByValue": true, "awaitPromise": true}),
+        );
+        assert!(
+            result.get("exceptionDetails").is_none(),
+            "{expression}: {result}"
+        );
+        result["result"]["value"].clone()
+    }
+
+    /// Waits until `expression` is true.
+    fn wait_for(&mut self, expression: &str, timeout: Duration) {
+        let start = Instant::now();
+        while self.eval(expression) != json!(true) {
+            assert!(
+                start.elapsed() < timeout,
+                "timed out waiting for {expression}"
+            );
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    }
+}
+
+fn launch() -> (Browser, DevTools) {
+    let binary = std::env::var("CHROMIUM").unwrap_or_else(|_| "chromium".into());
+    let profile = tempfile::tempdir().unwrap();
+    let mut child = Command::new(&binary)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--window-size=1280,760",
+            "--remote-debugging-port=0",
+            "about:blank",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| {
+            panic!("cannot start {binary} ({e}); install Debian's chromium or set CHROMIUM")
+        });
+    // Chromium prints the browser's DevTools endpoint on stderr.
+    let stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut endpoint = None;
+    for line in stderr.lines() {
+        let line = line.unwrap();
+        if let Some(url) = line.strip_prefix("DevTools listening on ") {
+            endpoint = Some(url.trim().to_owned());
+            break;
+        }
+    }
+    let browser = Browser {
+        child,
+        _profile: profile,
+    };
+    let endpoint = endpoint.expect("chromium printed no DevTools endpoint");
+    let (socket, _) = tungstenite::connect(endpoint.as_str()).unwrap();
+    let mut tools = DevTools {
+        socket,
+        session: None,
+        next_id: 0,
+        errors: Vec::new(),
+    };
+    let target = tools.call("Target.createTarget", json!({"url": "about:blank"}));
+    let attached = tools.call(
+        "Target.attachToTarget",
+        json!({"targetId": target["targetId"], "flatten": true}),
+    );
+    tools.session = Some(attached["sessionId"].as_str().unwrap().to_owned());
+    for domain in ["Runtime.enable", "Log.enable", "Page.enable"] {
+        tools.call(domain, json!({}));
+    }
+    (browser, tools)
+}
+
+/// Mean RGB (0–255) over all pixels of the service's PNG tiles of the
+/// draft preset, as the viewer requests them.
+async fn server_mean(app: &TestApp, aov: &str) -> [f64; 3] {
+    let (mut sum, mut count) = ([0.0; 3], 0usize);
+    for ty in 0..4 {
+        for tx in 0..4 {
+            let query = match aov {
+                "radiance" => "size=64&preset=draft&pass=0&exposure=0".to_owned(),
+                other => format!("size=64&preset=draft&pass=0&aov={other}"),
+            };
+            let url = format!("/v1/scenes/cornell-box/tiles/{tx}/{ty}.png?{query}");
+            let response = app.get(&url).await;
+            assert_eq!(response.status(), 200, "{url}");
+            let png = image::load_from_memory(&response.bytes().await.unwrap())
+                .unwrap()
+                .to_rgb8();
+            for p in png.pixels() {
+                for c in 0..3 {
+                    sum[c] += f64::from(p[c]);
+                }
+                count += 1;
+            }
+        }
+    }
+    sum.map(|s| s / count as f64)
+}
+
+fn mean_of(stats: &Value) -> [f64; 3] {
+    let m = stats["mean"].as_array().unwrap();
+    [0, 1, 2].map(|c| m[c].as_f64().unwrap())
+}
+
+#[test]
+fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let app = runtime.block_on(async {
+        let dir = tempfile::tempdir().unwrap();
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        std::fs::copy(
+            root.join("cornell-box.json"),
+            dir.path().join("cornell-box.json"),
+        )
+        .unwrap();
+        spawn_app_in(dir, |_| {}).await
+    });
+    let (_browser, mut tools) = launch();
+    tools.call(
+        "Page.navigate",
+        json!({"url": app.url("/?scene=cornell-box&preset=draft")}),
+    );
+    let load = Duration::from_secs(300);
+    tools.wait_for("!!(window.viewer && window.viewer.idle())", load);
+    assert_eq!(tools.eval("window.viewer.state.width"), json!(256));
+
+    // The radiance layer is the service's PNG tiles, pixel for pixel.
+    let radiance = tools.eval("window.viewer.layerStats('radiance')");
+    assert_eq!(radiance["pixels"], json!(256 * 256), "{radiance}");
+    let expected = runtime.block_on(server_mean(&app, "radiance"));
+    let got = mean_of(&radiance);
+    for c in 0..3 {
+        assert!(
+            (got[c] - expected[c]).abs() < 0.5,
+            "{got:?} vs {expected:?}"
+        );
+    }
+    // The box is lit and coloured: red and green walls.
+    assert!(got[0] > 20.0 && got[1] > 20.0, "{got:?}");
+    let shown = mean_of(&tools.eval("window.viewer.viewStats()"));
+
+    // The uncertainty toggle shows the std_dev layer instead.
+    tools.eval("document.getElementById('uncertainty').click()");
+    tools.wait_for(
+        "window.viewer.idle() && window.viewer.state.drawn.std_dev.size === 16",
+        load,
+    );
+    let std_dev = mean_of(&tools.eval("window.viewer.layerStats('std_dev')"));
+    let expected = runtime.block_on(server_mean(&app, "std_dev"));
+    for c in 0..3 {
+        assert!(
+            (std_dev[c] - expected[c]).abs() < 0.5,
+            "{std_dev:?} vs {expected:?}"
+        );
+    }
+    let toggled = mean_of(&tools.eval("window.viewer.viewStats()"));
+    let change: f64 = (0..3).map(|c| (toggled[c] - shown[c]).abs()).sum();
+    assert!(change > 10.0, "{shown:?} → {toggled:?}");
+    assert_eq!(
+        tools.eval("document.getElementById('legend').hidden"),
+        json!(false)
+    );
+
+    // The record overlay draws on top.
+    tools.eval("document.getElementById('uncertainty').click()");
+    tools.eval("document.getElementById('records').click()");
+    tools.wait_for(
+        "window.viewer.idle() && window.viewer.state.drawn.records.size === 16",
+        load,
+    );
+    let records = tools.eval("window.viewer.layerStats('records')");
+    assert!(records["pixels"].as_u64().unwrap() > 100, "{records}");
+
+    let shot = tools.call("Page.captureScreenshot", json!({"format": "png"}));
+    let png = base64::engine::general_purpose::STANDARD
+        .decode(shot["data"].as_str().unwrap())
+        .unwrap();
+    let target = Path::new(env!("CARGO_MANIFEST_DIR")).join("target");
+    std::fs::create_dir_all(&target).unwrap();
+    std::fs::write(target.join("viewer-screenshot.png"), png).unwrap();
+
+    // Drain pending events, then no console errors.
+    tools.eval("1");
+    assert!(
+        tools.errors.is_empty(),
+        "console errors: {:#?}",
+        tools.errors
+    );
+}
