@@ -50,17 +50,29 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
           "max_depth": 16, "seed": 1}'
 # → {"irradiance": [[r,g,b]], "std_dev": [[r,g,b]], "rays": n}  (W/m²)
 
+curl "$BASE/v1/presets"   # draft, preview (the default), final: every knob each sets
+# Tile (tx, ty) of 64-pixel tiles of the camera image, reproducible and cacheable by HTTP:
+curl "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" -o tile.png
+# ?size=64 (tile side) &preset=draft|preview|final &pass=k (mean of passes 0..k; default the
+# last) &seed=1 &exposure=0 (PNG) &aov=radiance|std_dev|records &scale=0.2 (std_dev PNG);
+# .exr: R, G, B and per-pixel variance; .json: {"width","height","rgb","variance"}.
+# aov=std_dev: the standard error (PNG: relative, false colour up to `scale`);
+# aov=records: the tile's irradiance-cache records (PNG overlay or JSON list).
+# Headers: ETag (send it back as If-None-Match: 304), Cache-Control, x-rays,
+# x-records-created, x-passes, Server-Timing.
+curl -s -o /dev/null -w '%{http_code}\n' -H "If-None-Match: $(curl -sI \
+     "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" | tr -d '\r' | sed -n 's/^etag: //Ip')" \
+     "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview"     # → 304
+# Any rectangle by POST, the same knobs in the body (explicit ones override the preset):
 curl -X POST "$BASE/v1/scenes/cornell-box/tiles" -H 'content-type: application/json' \
-     -d '{"x": 0, "y": 0, "width": 64, "height": 64, "format": "png", "samples_per_pixel": 16,
-          "estimator": {"method": "path"}, "exposure": 0}' -o tile.png
-# format "exr": R, G, B and per-pixel variance channels; "json": {"width","height","rgb","variance"};
-# headers x-tile-x, x-tile-y, x-rays. With "path" a pixel depends only on the seed and its position.
-# estimator: {"method": "cache"} (default: the scene's shared irradiance cache with BMC
-#   records; options samples, lengthscale, noise, accuracy, relative_error_target,
-#   occlusion_check, light_samples, paths_per_direction, ambient_bounces, reproducible,
-#   cache: false) or {"method": "path"} (path tracing). "bmc" is accepted for "cache" as
-#   before; for point queries "bmc" means one BMC quadrature per point.
-#   Headers x-records-created and x-cache-hits tell what the cache did.
+     -d '{"x": 0, "y": 0, "width": 32, "height": 32, "format": "json", "preset": "draft",
+          "estimator": {"method": "path"}, "samples_per_pixel": 16}' | head -c 80; echo
+# estimator: {"method": "cache"} (default: the Bayesian irradiance cache; options samples,
+#   glossy_samples, lengthscale, noise, accuracy, relative_error_target, occlusion_check,
+#   light_samples, paths_per_direction, ambient_bounces, reproducible (the presets' true:
+#   records per tile, the same bytes whatever ran before; false: the scene's shared cache),
+#   cache: false) or {"method": "path"} (path tracing). Headers x-records-created and
+#   x-cache-hits tell what the cache did.
 
 curl -X POST "$BASE/v1/scenes/cornell-box/radiance" -H 'content-type: application/json' \
      -d '{"points": [{"position": [0.1, 0.6, -1.0], "normal": [0, 0, 1], "direction": [0.2, -0.1, 1]}],

@@ -164,7 +164,8 @@ impl Image {
     /// The mean of equally weighted independent estimates of one image (the
     /// passes of a progressive render, each of the same samples per pixel):
     /// the pixel-wise mean, and variance `Σ vᵢ / n²` (the variance of a
-    /// mean of independent estimates), kept only if every image has one.
+    /// mean of independent estimates, docs/math.md §16.1), kept only if
+    /// every image has one.
     pub fn mean_of(images: &[Image]) -> Result<Image, ImageError> {
         let Some(first) = images.first() else {
             return Err(ImageError::invalid("images", "no image to average"));
@@ -215,7 +216,8 @@ impl Image {
     }
 
     /// Per pixel, the relative standard error `√variance / m` with `m` the
-    /// mean of the three channels (the variance is a channel mean too);
+    /// mean of the three channels (the variance is a channel mean too;
+    /// docs/math.md §16.2);
     /// 0 where both are 0, infinite where only `m` is. `None` without a
     /// variance.
     pub fn relative_std_error(&self) -> Option<Vec<f64>> {

@@ -70,7 +70,8 @@ pub struct TileRequest {
 }
 
 /// The seed of pass `pass`'s camera samples: `seed` itself for pass 0 (so a
-/// single-pass render is unchanged), a SplitMix64 mix of both otherwise.
+/// single-pass render is unchanged), a SplitMix64 mix of both otherwise
+/// (docs/math.md §16.1).
 pub fn pass_seed(seed: u64, pass: u32) -> u64 {
     if pass == 0 {
         seed
