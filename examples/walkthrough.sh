@@ -63,10 +63,11 @@ curl "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" -o tile.png
 curl -s -o /dev/null -w '%{http_code}\n' -H "If-None-Match: $(curl -sI \
      "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" | tr -d '\r' | sed -n 's/^etag: //Ip')" \
      "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview"     # → 304
-# Any rectangle by POST, the same knobs in the body (explicit ones override the preset):
+# Any rectangle by POST, the same knobs in the body (explicit ones override the preset;
+# an explicit samples_per_pixel renders one pass of that many rays):
 curl -X POST "$BASE/v1/scenes/cornell-box/tiles" -H 'content-type: application/json' \
      -d '{"x": 0, "y": 0, "width": 32, "height": 32, "format": "json", "preset": "draft",
-          "estimator": {"method": "path"}, "samples_per_pixel": 16}' | head -c 80; echo
+          "estimator": {"method": "path"}, "samples_per_pixel": 16}' -o tile.json
 # estimator: {"method": "cache"} (default: the Bayesian irradiance cache; options samples,
 #   glossy_samples, lengthscale, noise, accuracy, relative_error_target, occlusion_check,
 #   light_samples, paths_per_direction, ambient_bounces, reproducible (the presets' true:

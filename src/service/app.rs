@@ -53,7 +53,7 @@ use super::routes;
 use super::scenes::{self, SceneRegistry};
 use super::server;
 use super::state::AppState;
-use super::tile_render::TileStore;
+use super::tile_store::TileStore;
 use crate::bmc::cache::QuadratureCache;
 
 /// How often histogram samples are folded into buckets when nobody scrapes.

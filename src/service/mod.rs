@@ -25,6 +25,7 @@ pub mod scenes;
 pub mod server;
 pub mod state;
 pub mod tile_render;
+pub mod tile_store;
 pub mod viewer;
 
 pub use app::{Application, shutdown_signal};

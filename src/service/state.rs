@@ -11,7 +11,7 @@ use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
 use super::scenes::SceneRegistry;
-use super::tile_render::TileStore;
+use super::tile_store::TileStore;
 
 /// Shared, read-mostly state of one running service.
 pub struct AppState {

@@ -2,87 +2,20 @@
 //! (or of explicit knobs) up to a requested one, averaged, with the work a
 //! reproducible tile has done kept for the next request.
 //!
-//! # What is kept
-//! A reproducible tile's output is a function of the scene's content and
-//! the request, so its parts are memoised by a content key
-//! ([`TileStore`], `cache.tile_bytes`): the tile's **records** (keyed by
-//! scene digest, integrator configuration, depth, rectangle and seed; every
-//! pass and AOV shares them) and each **pass** image (the same key plus the
-//! pass and its samples per pixel). Pass `k` after pass `k − 1` therefore
-//! costs one pass of camera rays, and other AOVs or exposures of a tile
-//! cost only encoding. Concurrent requests for one key wait for one
-//! computation (moka's single flight). Entries are weighed in bytes and the
-//! least valuable are evicted (moka's TinyLFU), never needed for
-//! correctness: an evicted part is computed again, bit-identically.
-//!
-//! Tiles rendered through the shared cache (`reproducible: false`) depend
-//! on what ran before and are not kept here; their records live in the
-//! scene's shared cache.
+//! What a reproducible tile keeps for the next request: `tile_store`.
 
 use std::sync::Arc;
-
-use moka::sync::Cache;
 
 use super::config::Limits;
 use super::error::ApiError;
 use super::integrator_doc::{ResolvedCache, cached_setup};
 use super::scenes::LoadedScene;
 use super::state::AppState;
-use crate::cache::{RECORD_BYTES, Record};
+use super::tile_store::{Key, RenderedPass, TileRecords};
 use crate::image::Image;
 use crate::integrator::Integrator;
-use crate::integrator::cached::{CachedIntegrator, CachedTileReport};
+use crate::integrator::cached::CachedIntegrator;
 use crate::render::{Cancel, TileRequest};
-
-/// A content key (BLAKE3 of a canonical description).
-type Key = [u8; 32];
-
-/// The records a reproducible tile placed, and what placing them took.
-pub struct TileRecords {
-    pub records: Vec<Record>,
-    pub report: CachedTileReport,
-}
-
-/// One rendered pass of a tile.
-pub struct RenderedPass {
-    pub image: Image,
-    /// Rays the pass traced (camera and shading rays).
-    pub rays: u64,
-    /// Diffuse shading points served by records.
-    pub cache_hits: u64,
-}
-
-/// Memoised parts of reproducible tiles (module docs).
-pub struct TileStore {
-    records: Cache<Key, Arc<TileRecords>>,
-    passes: Cache<Key, Arc<RenderedPass>>,
-}
-
-impl TileStore {
-    /// A store of about `bytes` in all, half for records and half for passes.
-    pub fn new(bytes: u64) -> Self {
-        let half_kib = (bytes / 2).div_ceil(1024).max(1);
-        let kib = |b: usize| u32::try_from(b.div_ceil(1024)).unwrap_or(u32::MAX);
-        Self {
-            records: Cache::builder()
-                .max_capacity(half_kib)
-                .weigher(move |_, r: &Arc<TileRecords>| kib(r.records.len() * RECORD_BYTES + 64))
-                .build(),
-            passes: Cache::builder()
-                .max_capacity(half_kib)
-                .weigher(move |_, p: &Arc<RenderedPass>| {
-                    // RGB and variance as f32 per pixel.
-                    kib(p.image.rgb().len() * 16 + 64)
-                })
-                .build(),
-        }
-    }
-
-    /// Records and passes held, for `GET /v1/scenes/{id}/cache`-style reports.
-    pub fn counts(&self) -> (u64, u64) {
-        (self.records.entry_count(), self.passes.entry_count())
-    }
-}
 
 /// One progressive tile request, resolved and checked.
 #[derive(Clone, Copy, Debug)]
@@ -181,35 +114,26 @@ pub fn render_progressive(
         cache: s.cache(),
         shading: &s.shading,
     });
-    let mut out = ProgressiveTile {
-        image: Image::black(1, 1)?,
-        records: None,
-        rays: 0,
-        records_created: 0,
-        cache_hits: 0,
-        passes_rendered: 0,
-    };
+    let (mut rays, mut cache_hits, mut passes_rendered) = (0, 0, 0);
     let reproducible = job.reproducible();
     let records_key = job.records_key(scene);
-    // The tile's records, once for every pass.
-    if let (Some(integrator), true) = (&integrator, reproducible) {
-        let mut placed = false;
-        let records = store
-            .records
-            .try_get_with(records_key, || {
-                placed = true;
-                let (records, report) = integrator.tile_records(&job.request, cancel)?;
-                Ok::<_, ApiError>(Arc::new(TileRecords { records, report }))
-            })
-            .map_err(|e| (*e).clone())?;
-        if placed {
-            out.rays += records.report.placement.rays;
-            out.records_created = records.report.placement.records_created;
-        }
-        out.records = Some(records);
-    }
-    let records = out.records.clone();
     let created = std::cell::Cell::new(0);
+    // The tile's records, once for every pass.
+    let records = match (&integrator, reproducible) {
+        (Some(integrator), true) => {
+            let tile_records = store
+                .records()
+                .try_get_with(records_key, || {
+                    let (records, report) = integrator.tile_records(&job.request, cancel)?;
+                    rays += report.placement.rays;
+                    created.set(report.placement.records_created);
+                    Ok::<_, ApiError>(Arc::new(TileRecords { records, report }))
+                })
+                .map_err(|e| (*e).clone())?;
+            Some(tile_records)
+        }
+        _ => None,
+    };
     let mut passes = Vec::with_capacity(job.last_pass as usize + 1);
     for pass in 0..=job.last_pass {
         let request = TileRequest {
@@ -241,27 +165,31 @@ pub fn render_progressive(
         let pass_image = if reproducible {
             let key = job.pass_key(&records_key, pass);
             store
-                .passes
+                .passes()
                 .try_get_with(key, render)
                 .map_err(|e| (*e).clone())?
         } else {
             render()?
         };
         if rendered.get() {
-            out.rays += pass_image.rays;
-            out.passes_rendered += 1;
+            rays += pass_image.rays;
+            passes_rendered += 1;
         }
-        out.cache_hits += pass_image.cache_hits;
+        cache_hits += pass_image.cache_hits;
         passes.push(pass_image);
     }
-    out.records_created += created.get();
-    let images: Vec<Image> = passes.iter().map(|p| p.image.clone()).collect();
-    out.image = Image::mean_of(&images)?;
-    if let (Some(integrator), Some(records), true) =
-        (&integrator, &out.records, out.records_created > 0)
-    {
+    let records_created = created.get();
+    if let (Some(integrator), Some(records), true) = (&integrator, &records, records_created > 0) {
         // Let the shared cache (and its statistics) know of new records.
         integrator.publish(&records.records)?;
     }
-    Ok(out)
+    let images: Vec<Image> = passes.iter().map(|p| p.image.clone()).collect();
+    Ok(ProgressiveTile {
+        image: Image::mean_of(&images)?,
+        records,
+        rays,
+        records_created,
+        cache_hits,
+        passes_rendered,
+    })
 }

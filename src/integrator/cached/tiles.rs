@@ -301,7 +301,7 @@ mod tests {
     use crate::bmc::cache::QuadratureCache;
     use crate::cache::CacheConfig;
     use crate::image::relative_rmse;
-    use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
+    use crate::integrator::cached::{CacheShadingOptions, CachedShading, default_rule_spec};
     use crate::render::Transport;
     use crate::render::tile::tests::request;
     use crate::testing::{cornell, in_pool};

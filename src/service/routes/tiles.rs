@@ -44,7 +44,8 @@ pub struct TileRequestDoc {
     #[schema(value_type = Option<String>)]
     pub preset: Option<Preset>,
     /// Pass to return, 0-based: the mean of passes `0..=pass`; default the
-    /// preset's last (its final image).
+    /// preset's last (its final image). With an explicit `samples_per_pixel`
+    /// the tile is one pass of that many rays (so `pass` may only be 0).
     pub pass: Option<u32>,
     #[serde(default)]
     pub estimator: IntegratorDoc,
@@ -104,11 +105,17 @@ pub async fn tile(
     let tone_map = ToneMap {
         exposure: doc.exposure,
     };
-    let pass = doc.pass.unwrap_or(settings.passes - 1);
-    if pass >= settings.passes {
+    // An explicit sample count is one pass of that many rays; otherwise the
+    // preset's passes, up to `pass`.
+    let passes = match doc.samples_per_pixel {
+        Some(_) => 1,
+        None => settings.passes,
+    };
+    let pass = doc.pass.unwrap_or(passes - 1);
+    if pass >= passes {
         return Err(ApiError::invalid(
             "pass",
-            format!("{pass} is not in 0..{}", settings.passes),
+            format!("{pass} is not in 0..{passes}"),
         ));
     }
     let request = TileRequest {
