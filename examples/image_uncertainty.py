@@ -3,10 +3,12 @@
 
     cargo run --release -- serve &
     pip install './python[plot]'
-    python3 examples/image_uncertainty.py --scene cornell-box --spp 64 --out cornell-uncertainty.png
+    python3 examples/image_uncertainty.py --scene cornell-box --preset final --out cornell-uncertainty.png
 
-The image is assembled from tiles fetched concurrently (a progress bar shows
-on a terminal). Left: the radiance, tone-mapped as the service's PNG tiles
+The image is assembled from the service's reproducible GET tiles of a
+quality preset (draft, preview or final; `--pass` for an earlier pass of
+the progressive render), fetched concurrently (a progress bar shows on a
+terminal). Left: the radiance, tone-mapped as the service's PNG tiles
 are. Right: the standard error of each pixel's estimate in W/(m²·sr) (the
 square root of the service's per-pixel variance, which is averaged over
 R, G and B), on a log colour scale. The linear image is also written as
@@ -28,18 +30,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--url", default="http://127.0.0.1:8080")
     parser.add_argument("--scene", default="cornell-box")
-    parser.add_argument("--spp", type=int, default=64, help="camera rays per pixel")
-    parser.add_argument("--estimator", default="path",
-                        help="path (path tracing) or cache (the irradiance cache)")
-    parser.add_argument("--tile", type=int, default=64)
+    parser.add_argument("--preset", default="preview",
+                        help="quality preset: draft, preview or final (GET /v1/presets)")
+    parser.add_argument("--pass", dest="pass_index", type=int, default=None,
+                        help="0-based pass of the progressive render (default: the last)")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--size", type=int, default=64, help="tile side in pixels")
     parser.add_argument("--workers", type=int, default=4)
     parser.add_argument("--exposure", type=float, default=0.0, help="stops")
     parser.add_argument("--out", default="uncertainty.png")
     args = parser.parse_args()
 
     client = Client(args.url, timeout=600)
-    image = client.image(args.scene, spp=args.spp, estimator=args.estimator,
-                         tile=args.tile, workers=args.workers)
+    image = client.image(args.scene, preset=args.preset, pass_index=args.pass_index,
+                         seed=args.seed, size=args.size, workers=args.workers)
     exr = Path(args.out).with_suffix(".exr")
     image.save_exr(exr)
     if image.std_dev is None:
@@ -58,7 +62,8 @@ def main() -> None:
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.4))
     left.imshow(srgb8(image.rgb, args.exposure))
-    left.set_title(f"{args.scene}: {args.estimator}, {args.spp} spp")
+    shown_pass = "last pass" if args.pass_index is None else f"pass {args.pass_index}"
+    left.set_title(f"{args.scene}: {args.preset} preset, {shown_pass}")
     positive = std_dev[std_dev > 0]
     norm = LogNorm(vmin=max(positive.min(), np.percentile(positive, 1)), vmax=positive.max()) \
         if positive.size else None

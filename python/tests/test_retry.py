@@ -175,3 +175,38 @@ def test_retry_after_formats() -> None:
     later = email.utils.formatdate(time.time() + 30, usegmt=True)
     assert 25 <= parse_retry_after(later) <= 31
     assert parse_retry_after(email.utils.formatdate(time.time() - 30, usegmt=True)) == 0.0
+
+
+def test_image_tiles_are_retried_after_retry_after(stub: Stub) -> None:
+    def tile(value: float, etag: str) -> Answer:
+        doc = {"width": 1, "height": 1, "rgb": [[value, value, value]], "variance": [0.25]}
+        return 200, dict(JSON, etag=etag, **{"x-rays": "5"}), json.dumps(doc).encode()
+
+    stub.script = [
+        (200, JSON, json.dumps({"id": "s", "resolution": [2, 1]}).encode()),
+        error(503, "overloaded", OVERLOADED, headers={"retry-after": "0"}),
+        tile(1.0, '"a"'),
+        tile(2.0, '"b"'),
+    ]
+    image = Client(stub.url, retries=2).image("s", preset="draft", size=1, workers=1)
+    paths = [r[1] for r in stub.requests]
+    query = "?size=1&preset=draft&seed=1&aov=radiance"
+    assert paths == [
+        "/v1/scenes/s",
+        "/v1/scenes/s/tiles/0/0.json" + query,
+        "/v1/scenes/s/tiles/0/0.json" + query,
+        "/v1/scenes/s/tiles/1/0.json" + query,
+    ]
+    assert image.rgb[:, :, 0].tolist() == [[1.0, 2.0]] and image.std_dev.tolist() == [[0.5, 0.5]]
+    assert [t.etag for t in image.tiles] == ['"a"', '"b"'] and image.rays == 10
+
+
+def test_if_none_match_is_sent_and_a_304_is_none(stub: Stub) -> None:
+    stub.script = [(304, {"etag": '"a"'}, b"")]
+    client = Client(stub.url)
+    assert client.tile_bytes("s", 3, 4, format="exr", preset="final", if_none_match='"a"') is None
+    assert client.tile("s", 3, 4, if_none_match='"a"') is None
+    (m1, p1, h1, _, _), (m2, p2, h2, _, _) = stub.requests
+    assert (m1, p1) == ("GET", "/v1/scenes/s/tiles/3/4.exr?preset=final")
+    assert (m2, p2) == ("GET", "/v1/scenes/s/tiles/3/4.json?aov=radiance")
+    assert h1["if-none-match"] == h2["if-none-match"] == '"a"'

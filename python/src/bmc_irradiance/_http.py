@@ -70,19 +70,22 @@ class Transport:
         content_type: Optional[str] = None,
         query: Optional[Mapping[str, Any]] = None,
         accept: tuple[int, ...] = (),
+        headers: Optional[Mapping[str, str]] = None,
     ) -> Response:
         """Sends one request, retrying 503 + ``Retry-After``; raises
         :class:`ServiceError` for any other non-2xx status unless it is in
-        ``accept`` (then its answer is returned)."""
-        headers = {"accept": "application/json"}
+        ``accept`` (then its answer is returned, e.g. 304). ``headers``
+        (lower-case names) are added to, or replace, the default ones."""
+        sent = {"accept": "application/json"}
+        sent.update(headers or {})
         if content_type is not None:
-            headers["content-type"] = content_type
+            sent["content-type"] = content_type
         if self.token:
-            headers["authorization"] = f"Bearer {self.token}"
+            sent["authorization"] = f"Bearer {self.token}"
         url = self.url(path, query)
         attempt = 0
         while True:
-            request = urllib.request.Request(url, data=body, headers=headers, method=method)
+            request = urllib.request.Request(url, data=body, headers=sent, method=method)
             try:
                 with urllib.request.urlopen(request, timeout=self.timeout) as answer:
                     return Response(answer.status, _lower(answer.headers), answer.read())

@@ -8,7 +8,19 @@ import os
 import re
 import warnings
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import (
+    Any,
+    Callable,
+    Dict,
+    List,
+    Literal,
+    Mapping,
+    Optional,
+    Sequence,
+    Tuple,
+    Union,
+    overload,
+)
 
 import numpy as np
 import numpy.typing as npt
@@ -24,6 +36,8 @@ from .results import (
     Quadrature,
     RadianceResult,
     Tile,
+    TileBytes,
+    TileInfo,
 )
 
 #: Defaults of ``config/default.toml`` (``[limits]``); a service with other
@@ -116,6 +130,11 @@ class Client:
     other; each must finish within the service's
     ``limits.request_deadline_secs`` (30 s by default, else 504), so pass a
     smaller ``max_points`` for expensive estimators on many points.
+
+    Camera images: :meth:`image` assembles the reproducible GET tiles of a
+    quality preset (:meth:`presets`) fetched concurrently; :meth:`tile` and
+    :meth:`tile_bytes` fetch one tile, with its ETag and ``if_none_match``
+    revalidation (``None`` on 304).
 
     Errors: any non-2xx answer raises :class:`ServiceError` with the
     service's ``code``, ``message`` and ``field``; network failures raise
@@ -548,6 +567,37 @@ class Client:
 
     # -- images ------------------------------------------------------------
 
+    def presets(self) -> List[Dict[str, Any]]:
+        """``GET /v1/presets``: the quality presets of camera tiles, cheapest
+        first (``draft``, ``preview``, ``final``). Each is a dict with
+        ``name``, ``default`` (``True`` for the one used when none is named,
+        ``preview``), ``samples_per_pixel`` (camera rays per pixel in each
+        pass), ``passes``, ``max_depth`` and ``estimator`` (the irradiance
+        cache's knobs)."""
+        return list(self._http.get_json("/v1/presets"))
+
+    def _grid_tile(
+        self,
+        scene: str,
+        tx: int,
+        ty: int,
+        extension: str,
+        query: Mapping[str, Any],
+        if_none_match: Optional[str],
+    ) -> Optional[Response]:
+        """``GET /v1/scenes/{id}/tiles/{tx}/{ty}.{extension}``; ``None`` on 304."""
+        headers = {"accept": "application/json" if extension == "json" else "*/*"}
+        if if_none_match is not None:
+            headers["if-none-match"] = if_none_match
+        answer = self._http.request(
+            "GET",
+            f"/v1/scenes/{_segment(scene)}/tiles/{int(tx)}/{int(ty)}.{_segment(extension)}",
+            query=query,
+            accept=(304,),
+            headers=headers,
+        )
+        return None if answer.status == 304 else answer
+
     def _tile_request(
         self,
         scene: str,
@@ -561,7 +611,10 @@ class Client:
         max_depth: Optional[int],
         seed: Optional[int],
         exposure: Optional[float] = None,
+        preset: Optional[str] = None,
+        pass_index: Optional[int] = None,
     ) -> Response:
+        """``POST /v1/scenes/{id}/tiles`` of a pixel rectangle."""
         body: Dict[str, Any] = {
             "x": int(x),
             "y": int(y),
@@ -569,6 +622,10 @@ class Client:
             "height": int(height),
             "format": format,
         }
+        if preset is not None:
+            body["preset"] = preset
+        if pass_index is not None:
+            body["pass"] = int(pass_index)
         if spp is not None:
             body["samples_per_pixel"] = int(spp)
         integrator = _estimator_doc(estimator)
@@ -587,123 +644,409 @@ class Client:
         scene: str,
         x: int,
         y: int,
-        width: int,
-        height: int,
+        width: Optional[int] = None,
+        height: Optional[int] = None,
         *,
+        size: Optional[int] = None,
+        preset: Optional[str] = None,
+        pass_index: Optional[int] = None,
+        aov: str = "radiance",
+        seed: Optional[int] = None,
+        if_none_match: Optional[str] = None,
         spp: Optional[int] = None,
         estimator: Optional[Estimator] = None,
         max_depth: Optional[int] = None,
-        seed: Optional[int] = None,
-    ) -> Tile:
-        """One tile of the scene camera's image as floats
-        (``POST /v1/scenes/{id}/tiles``, format ``json``): radiance in
-        W/(m²·sr). ``spp`` camera rays per pixel (service default 1);
-        ``estimator`` ``"cache"`` (default), ``"path"`` or a dict of options."""
+    ) -> Optional[Tile]:
+        """One tile of the scene camera's image as floats (JSON tiles).
+
+        Two forms:
+
+        * ``tile(scene, tx, ty)`` — the GET route
+          (``/v1/scenes/{id}/tiles/{tx}/{ty}.json``): ``tx`` and ``ty`` are
+          the tile's column and row on the grid of ``size``-pixel squares
+          (service default 64; edge tiles are smaller). ``preset``
+          (``"draft"``, ``"preview"`` — the service's default — or
+          ``"final"``, see :meth:`presets`), ``pass_index`` (0-based; pass
+          *k* is the mean of passes 0..*k*; default the preset's last),
+          ``seed`` (default 1) and ``aov`` (``"radiance"`` or
+          ``"std_dev"``: ``rgb`` is then the per-pixel standard error).
+          The same arguments give the same numbers on any service of the
+          same version and scene content; ``tile.etag`` names them. With
+          ``if_none_match=`` a previous tile's ``etag``, the answer is
+          ``None`` when that is still the tile (HTTP 304: nothing rendered
+          or sent).
+        * ``tile(scene, x, y, width, height)`` — ``POST
+          /v1/scenes/{id}/tiles`` of any pixel rectangle (``x``, ``y`` its
+          top-left pixel), with ``preset`` and ``pass_index`` as above and
+          explicit knobs that override the preset: ``spp`` camera rays per
+          pixel in each pass, ``estimator`` (``"cache"``, ``"path"`` or a
+          dict of options) and ``max_depth``. Never ``None``.
+
+        Radiance in W/(m²·sr). The records AOV is not an image: use
+        :meth:`image` with ``aov="records"``, or :meth:`tile_bytes` with
+        ``format="json", aov="records"`` and ``.json()``.
+        """
+        if _grid_form(width, height):
+            _refuse_knobs("tile", spp=spp, estimator=estimator, max_depth=max_depth)
+            if aov not in ("radiance", "std_dev"):
+                raise ValueError(
+                    f"tile() returns images (aov 'radiance' or 'std_dev'), not {aov!r}; "
+                    "records come from image(scene, aov='records') or "
+                    "tile_bytes(scene, tx, ty, format='json', aov='records').json()"
+                )
+            query = _grid_query(size, preset, pass_index, seed, aov)
+            answer = self._grid_tile(scene, x, y, "json", query, if_none_match)
+            if answer is None:
+                return None
+            return _tile_of(answer, aov)
+        _refuse_grid_options("tile", size=size, if_none_match=if_none_match)
+        if aov != "radiance":
+            raise ValueError("POST tiles are radiance; aov needs the GET form tile(scene, tx, ty)")
+        assert width is not None and height is not None
         answer = self._tile_request(
-            scene, x, y, width, height, "json", spp, estimator, max_depth, seed
+            scene, x, y, width, height, "json", spp, estimator, max_depth, seed,
+            preset=preset, pass_index=pass_index,
         )
-        doc = answer.json()
-        w, h = int(doc["width"]), int(doc["height"])
-        rgb = np.asarray(doc["rgb"], dtype=np.float32).reshape(h, w, 3)
-        variance = doc.get("variance")
-        return Tile(
-            x=int(answer.headers.get("x-tile-x", x)),
-            y=int(answer.headers.get("x-tile-y", y)),
-            rgb=rgb,
-            variance=None
-            if variance is None
-            else np.asarray(variance, dtype=np.float32).reshape(h, w),
-            rays=int(answer.headers.get("x-rays", 0)),
-        )
+        return _tile_of(answer, "radiance", (x, y))
 
     def tile_bytes(
         self,
         scene: str,
         x: int,
         y: int,
-        width: int,
-        height: int,
+        width: Optional[int] = None,
+        height: Optional[int] = None,
         *,
         format: str = "png",
+        size: Optional[int] = None,
+        preset: Optional[str] = None,
+        pass_index: Optional[int] = None,
+        aov: Optional[str] = None,
+        seed: Optional[int] = None,
+        exposure: Optional[float] = None,
+        scale: Optional[float] = None,
+        if_none_match: Optional[str] = None,
         spp: Optional[int] = None,
         estimator: Optional[Estimator] = None,
         max_depth: Optional[int] = None,
-        seed: Optional[int] = None,
-        exposure: Optional[float] = None,
-    ) -> bytes:
-        """One tile encoded by the service: ``format`` ``"png"`` (tone-mapped
-        sRGB, ``exposure`` in stops) or ``"exr"`` (R, G, B and ``variance``)."""
-        return self._tile_request(
-            scene, x, y, width, height, format, spp, estimator, max_depth, seed, exposure
-        ).body
+    ) -> Optional[TileBytes]:
+        """One tile encoded by the service, as :class:`TileBytes` (``bytes``
+        with the answer's ``etag``, ``content_type``, ``rays`` and
+        ``headers``).
+
+        ``format``: ``"png"`` (8-bit sRGB, radiance tone-mapped with
+        ``exposure`` in stops), ``"exr"`` (float R, G, B and ``variance``)
+        or ``"json"``. The two forms of :meth:`tile`:
+
+        * ``tile_bytes(scene, tx, ty, format=..., preset=..., aov=...)`` —
+          the GET route on the grid of ``size``-pixel tiles, with
+          ``pass_index``, ``seed``, ``aov`` (``"radiance"``, ``"std_dev"``:
+          as PNG the relative standard error through a colour map whose top
+          is ``scale``, default 0.2, also in the ``x-std-dev-scale`` header;
+          ``"records"``: a transparent PNG overlay or JSON) and
+          ``if_none_match``: a previous answer's ``etag``, which makes the
+          call return ``None`` if the tile is unchanged (HTTP 304). The
+          bytes are reproducible, so the ETag can key a client-side cache::
+
+              png = client.tile_bytes("cornell-box", 1, 2, preset="final")
+              again = client.tile_bytes("cornell-box", 1, 2, preset="final",
+                                        if_none_match=png.etag)
+              assert again is None  # still the same bytes
+
+        * ``tile_bytes(scene, x, y, width, height, format=...)`` — POST of a
+          pixel rectangle with ``preset``, ``pass_index``, ``seed``,
+          ``exposure`` and the explicit knobs ``spp``, ``estimator`` and
+          ``max_depth``; never ``None`` (and no ETag).
+        """
+        if _grid_form(width, height):
+            _refuse_knobs("tile_bytes", spp=spp, estimator=estimator, max_depth=max_depth)
+            query = _grid_query(size, preset, pass_index, seed, aov, exposure, scale)
+            answer = self._grid_tile(scene, x, y, format, query, if_none_match)
+            return None if answer is None else TileBytes(answer.body, answer.headers)
+        _refuse_grid_options(
+            "tile_bytes", size=size, if_none_match=if_none_match, aov=aov, scale=scale
+        )
+        assert width is not None and height is not None
+        answer = self._tile_request(
+            scene, x, y, width, height, format, spp, estimator, max_depth, seed, exposure,
+            preset=preset, pass_index=pass_index,
+        )
+        return TileBytes(answer.body, answer.headers)
+
+    @overload
+    def image(
+        self,
+        scene: str,
+        preset: Optional[str] = ...,
+        *,
+        aov: Literal["radiance", "std_dev"] = ...,
+        pass_index: Optional[int] = ...,
+        seed: int = ...,
+        size: Optional[int] = ...,
+        workers: int = ...,
+        progress: Optional[bool] = ...,
+        spp: Optional[int] = ...,
+        estimator: Optional[Estimator] = ...,
+        max_depth: Optional[int] = ...,
+        tile: Optional[int] = ...,
+    ) -> Image: ...
+
+    @overload
+    def image(
+        self,
+        scene: str,
+        preset: Optional[str] = ...,
+        *,
+        aov: Literal["records"],
+        pass_index: Optional[int] = ...,
+        seed: int = ...,
+        size: Optional[int] = ...,
+        workers: int = ...,
+        progress: Optional[bool] = ...,
+    ) -> List[Dict[str, Any]]: ...
 
     def image(
         self,
         scene: str,
-        spp: Optional[int] = 16,
-        estimator: Optional[Estimator] = None,
-        tile: int = 64,
-        workers: int = 4,
+        preset: Optional[str] = "preview",
         *,
-        max_depth: Optional[int] = None,
-        seed: Optional[int] = None,
+        aov: str = "radiance",
+        pass_index: Optional[int] = None,
+        seed: int = 1,
+        size: Optional[int] = None,
+        workers: int = 4,
         progress: Optional[bool] = None,
-    ) -> Image:
-        """The scene camera's whole image, assembled from ``tile``×``tile``
-        tiles fetched ``workers`` at a time: ``rgb`` H×W×3 radiance in
-        W/(m²·sr) and ``variance`` H×W (see :class:`Image`).
+        spp: Optional[int] = None,
+        estimator: Optional[Estimator] = None,
+        max_depth: Optional[int] = None,
+        tile: Optional[int] = None,
+    ) -> Union[Image, List[Dict[str, Any]]]:
+        """The scene camera's whole image, assembled from JSON tiles of
+        ``size`` pixels (default 64) fetched ``workers`` at a time, with a
+        text progress bar on stderr (``progress``; default only when stderr
+        is a terminal).
 
-        ``estimator`` is ``"cache"`` (the service's default, the scene's
-        shared irradiance cache), ``"path"`` or a dict of options. With
-        ``"path"`` a pixel depends only on the seed and its position, so the
-        image is the same whatever the tiling and arrival order; through the
-        shared cache, records placed by earlier tiles are reused and the
-        pixels depend on the order. ``progress`` draws a text bar on stderr
-        (default: only when stderr is a terminal).
+        By default the tiles come from the GET route
+        (``/v1/scenes/{id}/tiles/{tx}/{ty}.json``) with a quality
+        ``preset`` (``"draft"``, ``"preview"``, ``"final"``; see
+        :meth:`presets`), ``pass_index`` (0-based; pass *k* is the mean of
+        passes 0..*k*; default the preset's last) and ``seed``. Each tile is
+        reproducible, so the image is the same bytes whatever the order the
+        tiles arrive in, on any service of the same version with the same
+        scene content; each tile's ``etag`` is in ``image.tiles``.
+
+        ``aov``:
+
+        * ``"radiance"`` (default): an :class:`Image` with ``rgb`` (H×W×3,
+          W/(m²·sr)), ``variance`` and ``std_dev`` (H×W);
+        * ``"std_dev"``: an :class:`Image` whose ``rgb`` is the per-pixel
+          standard error in all three channels (``std_dev`` is one of them,
+          ``variance`` is ``None``);
+        * ``"records"``: the list of irradiance-cache record dicts of every
+          tile (``position``, ``normal``, ``radius``, ``irradiance``,
+          ``pixel``, ``radius_pixels``), tiles in row-major order.
+
+        Explicit knobs — ``spp`` (camera rays per pixel in each pass),
+        ``estimator`` (``"cache"``, ``"path"`` or a dict of options) or
+        ``max_depth`` — switch to ``POST /v1/scenes/{id}/tiles``, where they
+        override the preset's (radiance only). With ``"path"`` a pixel
+        depends only on the seed and its position. ``tile`` is the former
+        name of ``size``.
+
+        Errors: a 503 with ``Retry-After`` is retried per tile (the client's
+        ``retries``); any other error answer, e.g. 422 for an unknown preset
+        (``field == "preset"``) or pass (``"pass"``), raises
+        :class:`ServiceError`.
         """
-        if tile < 1 or workers < 1:
-            raise ValueError("tile and workers must be at least 1")
+        if preset is not None and not isinstance(preset, str):
+            raise TypeError(
+                "preset is a name ('draft', 'preview', 'final'); "
+                f"got {preset!r} (camera rays per pixel are spp=...)"
+            )
+        if tile is not None and size is not None and tile != size:
+            raise ValueError("tile is the former name of size: give one")
+        side = int(size if size is not None else tile if tile is not None else 64)
+        if side < 1 or workers < 1:
+            raise ValueError("size and workers must be at least 1")
+        if aov not in _AOVS:
+            raise ValueError(f"aov must be one of {', '.join(_AOVS)}, not {aov!r}")
+        post = spp is not None or estimator is not None or max_depth is not None
+        if post and aov != "radiance":
+            raise ValueError(
+                "spp, estimator and max_depth use POST tiles, which are radiance only; "
+                f"aov={aov!r} needs a preset alone"
+            )
         width, height = (int(v) for v in self.scene(scene)["resolution"])
-        jobs = [
-            (x, y, min(tile, width - x), min(tile, height - y))
-            for y in range(0, height, tile)
-            for x in range(0, width, tile)
+        grid = [
+            (tx, ty)
+            for ty in range(-(-height // side))
+            for tx in range(-(-width // side))
         ]
+        query = _grid_query(side, preset, pass_index, seed, aov)
+
+        def fetch(tx: int, ty: int) -> Response:
+            if post:
+                x, y = tx * side, ty * side
+                return self._tile_request(
+                    scene, x, y, min(side, width - x), min(side, height - y), "json",
+                    spp, estimator, max_depth, seed, preset=preset, pass_index=pass_index,
+                )
+            answer = self._grid_tile(scene, tx, ty, "json", query, None)
+            assert answer is not None  # no If-None-Match, no 304
+            return answer
+
         rgb = np.zeros((height, width, 3), dtype=np.float32)
-        variance: Optional[npt.NDArray[np.float32]] = np.zeros((height, width), dtype=np.float32)
-        rays = 0
-        bar = Progress(len(jobs), "tiles", enabled=progress)
+        variance: Optional[npt.NDArray[np.float32]] = (
+            np.zeros((height, width), dtype=np.float32) if aov == "radiance" else None
+        )
+        records: Dict[Tuple[int, int], List[Dict[str, Any]]] = {}
+        infos: Dict[Tuple[int, int], TileInfo] = {}
+        bar = Progress(len(grid), "tiles", enabled=progress)
         pool = concurrent.futures.ThreadPoolExecutor(max_workers=workers)
         try:
-            futures = [
-                pool.submit(
-                    self.tile,
-                    scene,
-                    x,
-                    y,
-                    w,
-                    h,
-                    spp=spp,
-                    estimator=estimator,
-                    max_depth=max_depth,
-                    seed=seed,
-                )
-                for x, y, w, h in jobs
-            ]
+            futures = {pool.submit(fetch, tx, ty): (tx, ty) for tx, ty in grid}
             for future in concurrent.futures.as_completed(futures):
-                part = future.result()
-                h, w = part.rgb.shape[:2]
-                rgb[part.y : part.y + h, part.x : part.x + w] = part.rgb
-                if part.variance is None or variance is None:
-                    variance = None
+                tx, ty = futures[future]
+                answer = future.result()
+                x, y = tx * side, ty * side
+                w, h = min(side, width - x), min(side, height - y)
+                doc = answer.json()
+                if aov == "records":
+                    records[(tx, ty)] = list(doc["records"])
                 else:
-                    variance[part.y : part.y + h, part.x : part.x + w] = part.variance
-                rays += part.rays
+                    part, part_variance = _tile_arrays(doc)
+                    if part.shape[:2] != (h, w):
+                        raise RuntimeError(
+                            f"tile ({tx}, {ty}) is {part.shape[1]}×{part.shape[0]}, "
+                            f"expected {w}×{h}"
+                        )
+                    rgb[y : y + h, x : x + w] = part
+                    if variance is not None:
+                        if part_variance is None:
+                            variance = None
+                        else:
+                            variance[y : y + h, x : x + w] = part_variance
+                infos[(tx, ty)] = _tile_info(tx, ty, x, y, w, h, answer.headers)
                 bar.advance()
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
             bar.close()
-        return Image(rgb=rgb, variance=variance, rays=rays)
+        if aov == "records":
+            return [record for key in grid for record in records[key]]
+        tiles = tuple(infos[key] for key in grid)
+        return Image(
+            rgb=rgb,
+            variance=variance,
+            rays=sum(t.rays for t in tiles),
+            aov=aov,
+            preset=preset,
+            pass_index=pass_index,
+            seed=seed,
+            size=side,
+            tiles=tiles,
+        )
+
+
+_AOVS = ("radiance", "std_dev", "records")
+
+
+def _grid_form(width: Optional[int], height: Optional[int]) -> bool:
+    """Whether a tile call is the GET form (no width and height)."""
+    if (width is None) != (height is None):
+        raise ValueError(
+            "give both width and height (a POST pixel rectangle) or neither (GET tx, ty)"
+        )
+    return width is None
+
+
+def _refuse_knobs(method: str, **knobs: Any) -> None:
+    given = [name for name, value in knobs.items() if value is not None]
+    if given:
+        raise ValueError(
+            f"{method}(scene, tx, ty) is a GET tile of a preset; {', '.join(given)} need "
+            f"the POST form {method}(scene, x, y, width, height, ...)"
+        )
+
+
+def _refuse_grid_options(method: str, **options: Any) -> None:
+    given = [name for name, value in options.items() if value is not None]
+    if given:
+        raise ValueError(
+            f"{', '.join(given)}: only for the GET form {method}(scene, tx, ty, ...) "
+            "(without width and height)"
+        )
+
+
+def _grid_query(
+    size: Optional[int],
+    preset: Optional[str],
+    pass_index: Optional[int],
+    seed: Optional[int],
+    aov: Optional[str],
+    exposure: Optional[float] = None,
+    scale: Optional[float] = None,
+) -> Dict[str, Any]:
+    """The query of a GET tile; ``None`` values are left out (the service's defaults)."""
+    return {
+        "size": None if size is None else int(size),
+        "preset": preset,
+        "pass": None if pass_index is None else int(pass_index),
+        "seed": None if seed is None else int(seed),
+        "aov": aov,
+        "exposure": None if exposure is None else float(exposure),
+        "scale": None if scale is None else float(scale),
+    }
+
+
+def _tile_arrays(
+    doc: Mapping[str, Any]
+) -> Tuple[npt.NDArray[np.float32], Optional[npt.NDArray[np.float32]]]:
+    """``rgb`` (h×w×3) and ``variance`` (h×w or ``None``) of a JSON tile."""
+    w, h = int(doc["width"]), int(doc["height"])
+    rgb = np.asarray(doc["rgb"], dtype=np.float32).reshape(h, w, 3)
+    variance = doc.get("variance")
+    if variance is None:
+        return rgb, None
+    return rgb, np.asarray(variance, dtype=np.float32).reshape(h, w)
+
+
+def _header_int(headers: Mapping[str, str], name: str) -> Optional[int]:
+    value = headers.get(name)
+    return None if value is None else int(value)
+
+
+def _tile_of(answer: Response, aov: str, origin: Tuple[int, int] = (0, 0)) -> Tile:
+    rgb, variance = _tile_arrays(answer.json())
+    h = answer.headers
+    return Tile(
+        x=int(h.get("x-tile-x", origin[0])),
+        y=int(h.get("x-tile-y", origin[1])),
+        rgb=rgb,
+        variance=variance,
+        rays=int(h.get("x-rays", 0)),
+        etag=h.get("etag"),
+        aov=aov,
+        records_created=int(h.get("x-records-created", 0)),
+        passes=_header_int(h, "x-passes"),
+        passes_rendered=_header_int(h, "x-passes-rendered"),
+    )
+
+
+def _tile_info(
+    tx: int, ty: int, x: int, y: int, w: int, h: int, headers: Mapping[str, str]
+) -> TileInfo:
+    return TileInfo(
+        tx=tx,
+        ty=ty,
+        x=x,
+        y=y,
+        width=w,
+        height=h,
+        etag=headers.get("etag"),
+        rays=int(headers.get("x-rays", 0)),
+        records_created=int(headers.get("x-records-created", 0)),
+        passes_rendered=_header_int(headers, "x-passes-rendered"),
+    )
 
 
 def _segment(id: str) -> str:

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass, field
-from typing import Any, Optional, Tuple, Union
+from typing import Any, Mapping, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -128,29 +129,29 @@ class Quadrature:
 @dataclass(frozen=True)
 class Tile:
     """One tile of the camera image: ``rgb`` (h×w×3, W/(m²·sr)) at column
-    ``x``, row ``y``; ``variance`` (h×w) is the variance of each pixel's
-    estimate averaged over the three channels, or ``None``; ``rays`` traced."""
+    ``x``, row ``y`` (pixels from the top-left corner); ``variance`` (h×w)
+    is the variance of each pixel's estimate averaged over the three
+    channels, or ``None``; ``rays`` traced for it by this request (0 when the
+    service had the tile memoised).
+
+    Tiles of the GET route (``Client.tile(scene, tx, ty)``) also carry their
+    strong ``etag`` (pass it as ``if_none_match`` to revalidate), the ``aov``
+    they show, ``records_created``, the preset's ``passes`` and the
+    ``passes_rendered`` by this request. With ``aov="std_dev"``, ``rgb`` is
+    the per-pixel standard error in all three channels and ``variance`` is
+    ``None``.
+    """
 
     x: int
     y: int
     rgb: npt.NDArray[np.float32]
     variance: Optional[npt.NDArray[np.float32]]
     rays: int
-
-
-@dataclass(frozen=True)
-class Image:
-    """A camera image assembled from tiles.
-
-    ``rgb`` is ``H×W×3`` linear radiance in W/(m²·sr) (float32, top row
-    first). ``variance`` is ``H×W``: the service reports one variance per
-    pixel, the variance of the pixel's estimate averaged over R, G and B,
-    in (W/(m²·sr))² — ``None`` if the service sent none. ``rays`` sums all tiles.
-    """
-
-    rgb: npt.NDArray[np.float32]
-    variance: Optional[npt.NDArray[np.float32]]
-    rays: int
+    etag: Optional[str] = None
+    aov: str = "radiance"
+    records_created: int = 0
+    passes: Optional[int] = None
+    passes_rendered: Optional[int] = None
 
     @property
     def height(self) -> int:
@@ -162,8 +163,117 @@ class Image:
 
     @property
     def std_dev(self) -> Optional[npt.NDArray[np.float32]]:
-        """Per-pixel standard error (H×W, W/(m²·sr)): the square root of ``variance``."""
-        return None if self.variance is None else np.sqrt(self.variance)
+        """Per-pixel standard error (h×w, W/(m²·sr)), see :attr:`Image.std_dev`."""
+        return _std_dev(self.aov, self.rgb, self.variance)
+
+
+@dataclass(frozen=True)
+class TileInfo:
+    """What one tile of an assembled image answered, without its pixels:
+    grid column ``tx`` and row ``ty``, pixel rectangle ``x``, ``y``,
+    ``width``, ``height``, its ``etag`` (GET tiles only), ``rays`` and
+    ``records_created`` by that request, and ``passes_rendered`` (GET tiles:
+    passes the service rendered rather than took from its memo)."""
+
+    tx: int
+    ty: int
+    x: int
+    y: int
+    width: int
+    height: int
+    etag: Optional[str]
+    rays: int
+    records_created: int
+    passes_rendered: Optional[int] = None
+
+
+class TileBytes(bytes):
+    """An encoded tile (PNG, EXR or JSON bytes, usable wherever ``bytes``
+    is) with the answer's headers: ``etag`` (GET tiles), ``content_type``,
+    ``x`` and ``y`` (pixels), ``rays``, and ``headers`` (every header,
+    lower-case names, e.g. ``x-passes``, ``x-std-dev-scale``)."""
+
+    headers: Mapping[str, str]
+
+    def __new__(cls, data: bytes, headers: Mapping[str, str]) -> "TileBytes":
+        obj = super().__new__(cls, data)
+        obj.headers = dict(headers)
+        return obj
+
+    @property
+    def etag(self) -> Optional[str]:
+        """The strong ETag, quoted as the service sent it (``None`` for POST tiles)."""
+        return self.headers.get("etag")
+
+    @property
+    def content_type(self) -> str:
+        return self.headers.get("content-type", "")
+
+    @property
+    def x(self) -> int:
+        return int(self.headers.get("x-tile-x", 0))
+
+    @property
+    def y(self) -> int:
+        return int(self.headers.get("x-tile-y", 0))
+
+    @property
+    def rays(self) -> int:
+        return int(self.headers.get("x-rays", 0))
+
+    def json(self) -> Any:
+        """The body parsed as JSON (``format="json"`` tiles)."""
+        return json.loads(self.decode("utf-8"))
+
+
+@dataclass(frozen=True)
+class Image:
+    """A camera image assembled from tiles.
+
+    ``rgb`` is ``H×W×3`` float32, top row first: linear radiance in
+    W/(m²·sr), or with ``aov="std_dev"`` the per-pixel standard error in all
+    three channels. ``variance`` is ``H×W``: the service reports one variance
+    per pixel, the variance of the pixel's estimate averaged over R, G and
+    B, in (W/(m²·sr))² — ``None`` for ``aov="std_dev"`` or if the service
+    sent none. ``std_dev`` is the standard error either way.
+
+    Metadata: ``rays`` sums what the tiles' requests traced (0 for tiles
+    the service had memoised), ``aov``, ``preset``, ``pass_index`` (``None``:
+    the preset's last pass), ``seed``, ``size`` (the tile side) and
+    ``tiles``, one :class:`TileInfo` per tile in row-major grid order (each
+    GET tile's ``etag`` among them).
+    """
+
+    rgb: npt.NDArray[np.float32]
+    variance: Optional[npt.NDArray[np.float32]]
+    rays: int
+    aov: str = "radiance"
+    preset: Optional[str] = None
+    pass_index: Optional[int] = None
+    seed: Optional[int] = None
+    size: Optional[int] = None
+    tiles: Tuple[TileInfo, ...] = field(default=())
+
+    @property
+    def height(self) -> int:
+        return int(self.rgb.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.rgb.shape[1])
+
+    @property
+    def std_dev(self) -> Optional[npt.NDArray[np.float32]]:
+        """Per-pixel standard error (H×W, W/(m²·sr)): the square root of
+        ``variance`` (negative rounding clamped to 0, as the service does),
+        or for ``aov="std_dev"`` the first channel of ``rgb``; bit-identical
+        either way."""
+        return _std_dev(self.aov, self.rgb, self.variance)
+
+    @property
+    def records_created(self) -> int:
+        """Irradiance-cache records the tiles' requests placed."""
+        return sum(t.records_created for t in self.tiles)
 
     def save_png(self, path: Union[str, "os.PathLike[str]"], exposure: float = 0.0) -> None:
         """Tone-mapped 8-bit sRGB PNG, the service's mapping (:func:`imageio.srgb8`)."""
@@ -176,3 +286,13 @@ class Image:
     def save_pfm(self, path: Union[str, "os.PathLike[str]"]) -> None:
         """Linear float PFM (RGB only)."""
         imageio.write_pfm(path, self.rgb)
+
+
+def _std_dev(
+    aov: str, rgb: npt.NDArray[np.float32], variance: Optional[npt.NDArray[np.float32]]
+) -> Optional[npt.NDArray[np.float32]]:
+    if aov == "std_dev":
+        return rgb[:, :, 0]
+    if variance is None:
+        return None
+    return np.sqrt(np.maximum(variance, np.float32(0.0)))
