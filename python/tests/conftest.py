@@ -82,7 +82,10 @@ def start_server(root: Path, extra_config: str = "") -> Server:
         f"dir = {json.dumps(str(scenes))}\n"
     )
     log = root / "server.log"
-    env = dict(os.environ, NO_COLOR="1", RUST_LOG="info")
+    # Each server its own data directory (the tile log is one process's).
+    env = dict(
+        os.environ, NO_COLOR="1", RUST_LOG="info", BMC_CACHE__DATA_DIR=str(root / "data")
+    )
     with open(log, "wb") as sink:
         process = subprocess.Popen(
             [str(binary()), "serve", "--config", str(config)],

@@ -10,6 +10,8 @@
 //! - `index`: the concurrent multi-level hash grid over records.
 //! - `irradiance_cache`: the shared cache — lookup, insertion with the
 //!   neighbour clamp, byte budget with FIFO eviction, stats.
+//! - `log`: the append-only, checksummed log that keeps records (and
+//!   whatever else is keyed by content) across restarts.
 //!
 //! This is the record store alone: it knows no scene and traces no ray. The
 //! integrator that computes records and shades through them is
@@ -19,6 +21,7 @@
 pub mod error;
 pub mod index;
 pub mod irradiance_cache;
+pub mod log;
 pub mod record;
 pub mod record_rule;
 

@@ -107,6 +107,53 @@ pub struct Record {
 }
 
 impl Record {
+    /// Bytes of [`Self::to_le_bytes`]: 31 little-endian `f64`s.
+    pub const ENCODED_BYTES: usize = 31 * 8;
+
+    /// The record as 31 little-endian `f64`s in field order (position,
+    /// normal, irradiance, variance, radius, rotation then translation
+    /// gradients, channel by channel): the stable form of the record log.
+    pub fn to_le_bytes(&self) -> Vec<u8> {
+        let mut values = Vec::with_capacity(31);
+        values.extend(self.position.to_array());
+        values.extend(self.normal.to_array());
+        values.extend(self.irradiance.to_array());
+        values.extend(self.variance.to_array());
+        values.push(self.radius);
+        for g in self
+            .rotation_gradient
+            .iter()
+            .chain(&self.translation_gradient)
+        {
+            values.extend(g.to_array());
+        }
+        values.iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+
+    /// The inverse of [`Self::to_le_bytes`], validated like an inserted
+    /// record; `None` for a wrong length or an invalid record.
+    pub fn from_le_bytes(bytes: &[u8]) -> Option<Record> {
+        if bytes.len() != Self::ENCODED_BYTES {
+            return None;
+        }
+        let v: Vec<f64> = bytes
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+            .collect();
+        let vec3 = |i: usize| DVec3::new(v[i], v[i + 1], v[i + 2]);
+        let rgb = |i: usize| Rgb::new(v[i], v[i + 1], v[i + 2]);
+        let record = Record {
+            position: vec3(0),
+            normal: vec3(3),
+            irradiance: rgb(6),
+            variance: rgb(9),
+            radius: v[12],
+            rotation_gradient: [vec3(13), vec3(16), vec3(19)],
+            translation_gradient: [vec3(22), vec3(25), vec3(28)],
+        };
+        record.validate().ok().map(|()| record)
+    }
+
     /// Record at `point` from a BMC estimate made in `frame` (the frame the
     /// rays were cast in: the point's normal, possibly turned about it).
     ///
@@ -215,6 +262,21 @@ mod tests {
             rotation_gradient: [DVec3::new(0.5, 0.0, 0.0), DVec3::ZERO, DVec3::ZERO],
             translation_gradient: [DVec3::ZERO, DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO],
         }
+    }
+
+    #[test]
+    fn the_log_form_round_trips_bit_for_bit() {
+        let mut r = record();
+        r.rotation_gradient[1] = DVec3::new(0.25, -1.5e-7, 3.0);
+        r.translation_gradient[2] = DVec3::new(f64::MIN_POSITIVE, 0.0, -2.0);
+        let bytes = r.to_le_bytes();
+        assert_eq!(bytes.len(), Record::ENCODED_BYTES);
+        assert_eq!(Record::from_le_bytes(&bytes), Some(r));
+        assert_eq!(Record::from_le_bytes(&bytes[1..]), None);
+        // A record that would not be inserted is not read back either.
+        let mut bad = r;
+        bad.radius = -1.0;
+        assert_eq!(Record::from_le_bytes(&bad.to_le_bytes()), None);
     }
 
     #[test]

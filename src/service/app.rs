@@ -105,7 +105,7 @@ impl Application {
             usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX),
         );
         let quadratures = Arc::new(QuadratureCache::new(config.cache.factorisation_bytes));
-        let config_tile_bytes = config.cache.tile_bytes;
+        let tiles = open_tile_store(&config.cache)?;
         let state = Arc::new(AppState {
             quadratures,
             config,
@@ -113,7 +113,7 @@ impl Application {
             metrics,
             scenes: registry,
             irradiance_caches,
-            tiles: TileStore::new(config_tile_bytes),
+            tiles,
         });
         let router = router(state.clone());
         Ok(Application {
@@ -168,6 +168,25 @@ impl Application {
         tracing::info!("stopped");
         served
     }
+}
+
+/// The reproducible tiles' store: on `cache.data_dir/tiles.log` when a data
+/// directory is configured (loaded now), in memory otherwise.
+fn open_tile_store(cache: &super::config::CacheConfig) -> anyhow::Result<TileStore> {
+    if cache.data_dir.as_os_str().is_empty() {
+        return Ok(TileStore::new(cache.tile_bytes));
+    }
+    let path = cache.data_dir.join("tiles.log");
+    let store = TileStore::open(cache.tile_bytes, &path)
+        .with_context(|| format!("cannot open the tile log {}", path.display()))?;
+    let stats = store.stats();
+    tracing::info!(log = %path.display(), entries = stats.loaded_entries,
+        dropped_bytes = stats.dropped_bytes, "tile log loaded");
+    if stats.dropped_bytes > 0 {
+        tracing::warn!(log = %path.display(), bytes = stats.dropped_bytes,
+            "cut a torn or corrupt tail from the tile log");
+    }
+    Ok(store)
 }
 
 /// The OpenAPI document's header; paths are added by `routes!` registrations.

@@ -105,6 +105,10 @@ pub struct CacheConfig {
     /// Bytes held by reproducible tiles' records and rendered passes
     /// (`GET …/tiles/…`), so passes and AOVs of a tile reuse them.
     pub tile_bytes: u64,
+    /// Directory of what survives a restart (`tiles.log`, see
+    /// `service::tile_store`), relative to the working directory; empty
+    /// keeps everything in memory only.
+    pub data_dir: std::path::PathBuf,
 }
 
 /// Per-request limits that keep one request from monopolising the service.

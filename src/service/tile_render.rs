@@ -121,15 +121,12 @@ pub fn render_progressive(
     // The tile's records, once for every pass.
     let records = match (&integrator, reproducible) {
         (Some(integrator), true) => {
-            let tile_records = store
-                .records()
-                .try_get_with(records_key, || {
-                    let (records, report) = integrator.tile_records(&job.request, cancel)?;
-                    rays += report.placement.rays;
-                    created.set(report.placement.records_created);
-                    Ok::<_, ApiError>(Arc::new(TileRecords { records, report }))
-                })
-                .map_err(|e| (*e).clone())?;
+            let tile_records = store.records_or(records_key, || {
+                let (records, report) = integrator.tile_records(&job.request, cancel)?;
+                rays += report.placement.rays;
+                created.set(report.placement.records_created);
+                Ok::<_, ApiError>(TileRecords { records, report })
+            })?;
             Some(tile_records)
         }
         _ => None,
@@ -141,7 +138,7 @@ pub fn render_progressive(
             ..job.request
         };
         let rendered = std::cell::Cell::new(false);
-        let render = || -> Result<Arc<RenderedPass>, ApiError> {
+        let render = || -> Result<RenderedPass, ApiError> {
             rendered.set(true);
             let (tile, cache_hits) = match (&integrator, &records) {
                 (None, _) => (transport.render_tile(&request, cancel)?, 0),
@@ -156,20 +153,17 @@ pub fn render_progressive(
                     (tile, report.shading.cache_hits)
                 }
             };
-            Ok(Arc::new(RenderedPass {
+            Ok(RenderedPass {
                 image: tile.image,
                 rays: tile.rays,
                 cache_hits,
-            }))
+            })
         };
         let pass_image = if reproducible {
             let key = job.pass_key(&records_key, pass);
-            store
-                .passes()
-                .try_get_with(key, render)
-                .map_err(|e| (*e).clone())?
+            store.pass_or(key, render)?
         } else {
-            render()?
+            Arc::new(render()?)
         };
         if rendered.get() {
             rays += pass_image.rays;

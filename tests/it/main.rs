@@ -22,6 +22,7 @@ mod service_bad_scenes;
 mod service_basics;
 mod service_estimators;
 mod service_irradiance;
+mod service_persistence;
 mod service_quadratures;
 mod service_radiance;
 mod service_robustness;

@@ -33,6 +33,9 @@ pub struct Health {
     pub scenes: usize,
     /// Running and queued CPU jobs and the age of the oldest running one.
     pub cpu: PoolStatus,
+    /// Reproducible tiles' records and passes held, the on-disk log's size
+    /// and what loading it at startup found.
+    pub tiles: crate::service::tile_store::TileStoreStats,
 }
 
 /// Reports whether the service is alive and which version it runs: 200, or
@@ -73,6 +76,7 @@ fn report(state: &AppState, readiness: bool) -> (StatusCode, Json<Health>) {
         version: env!("CARGO_PKG_VERSION").into(),
         scenes: state.scenes.len(),
         cpu,
+        tiles: state.tiles.stats(),
     };
     (code, Json(health))
 }

@@ -55,6 +55,8 @@ pub fn test_config(scenes_dir: &TempDir, adjust: impl FnOnce(&mut Config)) -> Co
     // admission set it themselves.
     config.limits.max_queue_wait_secs = 3600.0;
     config.scenes.dir = scenes_dir.path().to_owned();
+    // Memory only, unless a test persists on purpose.
+    config.cache.data_dir = Default::default();
     adjust(&mut config);
     config.validate().unwrap();
     config

@@ -1,0 +1,352 @@
+//! An append-only, checksummed log of keyed entries on disk: what the
+//! service keeps across restarts (Radiance's ambient file `-af` is the same
+//! idea for its records).
+//!
+//! # Format
+//! The file starts with the 8-byte magic [`MAGIC`]; each entry follows as
+//!
+//! `length: u32 LE | checksum: 8 bytes | kind: u8 | key: 32 bytes | payload`
+//!
+//! where `length` counts `kind`, `key` and `payload`, and `checksum` is the
+//! first 8 bytes of BLAKE3 over those same bytes. Entries are appended with
+//! one `write_all` each and never rewritten in place.
+//!
+//! # Torn and corrupt tails
+//! A crash can leave a partial last entry, and a disk can return garbage.
+//! [`AppendLog::open`] reads entries in order and stops at the first one
+//! that is incomplete, too long or fails its checksum; the file is cut back
+//! to the end of the last good entry, so every complete entry before the
+//! damage is kept and later appends follow valid data. Nothing in a bad
+//! file makes opening fail, except not being able to read or write it.
+//!
+//! # Compaction
+//! [`AppendLog::rewrite`] replaces the file by one holding only the given
+//! entries (written to a temporary file, synced, then renamed over the log),
+//! so the log can be brought back to what its owner still holds.
+
+use std::fs::{File, OpenOptions};
+use std::io::{self, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// First bytes of every log file (format version 1).
+pub const MAGIC: &[u8; 8] = b"BMCLOG01";
+/// Largest accepted entry (`kind + key + payload`), bytes: a longer length
+/// field is corruption, not an entry.
+pub const MAX_ENTRY_BYTES: u32 = 64 << 20;
+/// Bytes of an entry's header before `kind`: length and checksum.
+const HEADER_BYTES: u64 = 12;
+
+/// An entry's identity: a 256-bit content key.
+pub type LogKey = [u8; 32];
+
+/// One entry as read back.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LogEntry {
+    pub kind: u8,
+    pub key: LogKey,
+    pub payload: Vec<u8>,
+}
+
+/// What opening a log found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct LogReport {
+    /// Complete entries read.
+    pub entries: u64,
+    /// Bytes cut from the end (a torn or corrupt tail); 0 for a clean log.
+    pub dropped_bytes: u64,
+}
+
+/// An open log (module docs); appends are serialised by a mutex.
+pub struct AppendLog {
+    path: PathBuf,
+    file: Mutex<File>,
+    /// Current length of the file.
+    bytes: AtomicU64,
+}
+
+fn checksum(body: &[u8]) -> [u8; 8] {
+    let hash = blake3::hash(body);
+    let mut out = [0; 8];
+    out.copy_from_slice(&hash.as_bytes()[..8]);
+    out
+}
+
+impl AppendLog {
+    /// Opens the log at `path` (creating it and its directory), reads every
+    /// complete entry and cuts a damaged tail (module docs).
+    pub fn open(path: &Path) -> io::Result<(AppendLog, Vec<LogEntry>, LogReport)> {
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir)?;
+        }
+        let mut file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(path)?;
+        // One process per log: another appending or compacting it would
+        // interleave with this one.
+        file.try_lock().map_err(|e| match e {
+            std::fs::TryLockError::WouldBlock => io::Error::new(
+                io::ErrorKind::WouldBlock,
+                "the log is in use by another process",
+            ),
+            std::fs::TryLockError::Error(e) => e,
+        })?;
+        let len = file.metadata()?.len();
+        let mut report = LogReport::default();
+        let mut entries = Vec::new();
+        let mut good = 0;
+        if len >= MAGIC.len() as u64 {
+            let mut reader = BufReader::new(&mut file);
+            let mut magic = [0; 8];
+            reader.read_exact(&mut magic)?;
+            if &magic == MAGIC {
+                good = MAGIC.len() as u64;
+                while let Some(entry) = read_entry(&mut reader, len - good)? {
+                    good += HEADER_BYTES + 33 + entry.payload.len() as u64;
+                    entries.push(entry);
+                }
+            }
+        }
+        if good == 0 {
+            // Empty, shorter than the magic, or not a log of ours: start over.
+            file.set_len(0)?;
+            file.seek(SeekFrom::Start(0))?;
+            file.write_all(MAGIC)?;
+            good = MAGIC.len() as u64;
+            report.dropped_bytes = len;
+        } else if good < len {
+            file.set_len(good)?;
+            report.dropped_bytes = len - good;
+        }
+        file.sync_data()?;
+        file.seek(SeekFrom::Start(good))?;
+        report.entries = entries.len() as u64;
+        Ok((
+            AppendLog {
+                path: path.to_owned(),
+                file: Mutex::new(file),
+                bytes: AtomicU64::new(good),
+            },
+            entries,
+            report,
+        ))
+    }
+
+    /// Appends one entry.
+    pub fn append(&self, kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<()> {
+        let frame = frame(kind, key, payload)?;
+        let mut file = self.file.lock().unwrap_or_else(|p| p.into_inner());
+        file.write_all(&frame)?;
+        self.bytes.fetch_add(frame.len() as u64, Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Current size of the file, bytes.
+    pub fn bytes(&self) -> u64 {
+        self.bytes.load(Ordering::Relaxed)
+    }
+
+    /// Replaces the log by one holding exactly `entries` (module docs).
+    pub fn rewrite<'a>(
+        &self,
+        entries: impl IntoIterator<Item = (u8, &'a LogKey, &'a [u8])>,
+    ) -> io::Result<()> {
+        let mut file = self.file.lock().unwrap_or_else(|p| p.into_inner());
+        let temporary = self.path.with_extension("compacting");
+        let mut out = BufWriter::new(File::create(&temporary)?);
+        out.write_all(MAGIC)?;
+        let mut bytes = MAGIC.len() as u64;
+        for (kind, key, payload) in entries {
+            let frame = frame(kind, key, payload)?;
+            out.write_all(&frame)?;
+            bytes += frame.len() as u64;
+        }
+        let written = out.into_inner().map_err(|e| e.into_error())?;
+        written.sync_all()?;
+        std::fs::rename(&temporary, &self.path)?;
+        let mut reopened = OpenOptions::new().read(true).write(true).open(&self.path)?;
+        reopened.try_lock().map_err(|_| {
+            io::Error::new(io::ErrorKind::WouldBlock, "the compacted log is locked")
+        })?;
+        reopened.seek(SeekFrom::End(0))?;
+        *file = reopened;
+        self.bytes.store(bytes, Ordering::Relaxed);
+        Ok(())
+    }
+}
+
+fn frame(kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<Vec<u8>> {
+    let length = u32::try_from(1 + key.len() + payload.len())
+        .ok()
+        .filter(|&l| l <= MAX_ENTRY_BYTES)
+        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "log entry too large"))?;
+    let mut body = Vec::with_capacity(length as usize);
+    body.push(kind);
+    body.extend_from_slice(key);
+    body.extend_from_slice(payload);
+    let mut frame = Vec::with_capacity(HEADER_BYTES as usize + body.len());
+    frame.extend_from_slice(&length.to_le_bytes());
+    frame.extend_from_slice(&checksum(&body));
+    frame.extend_from_slice(&body);
+    Ok(frame)
+}
+
+/// The next complete, intact entry of at most `remaining` bytes, or `None`
+/// at the end or at damage.
+fn read_entry(reader: &mut impl Read, remaining: u64) -> io::Result<Option<LogEntry>> {
+    if remaining < HEADER_BYTES + 33 {
+        return Ok(None);
+    }
+    let mut header = [0; HEADER_BYTES as usize];
+    reader.read_exact(&mut header)?;
+    let length = u32::from_le_bytes(header[..4].try_into().expect("4 bytes"));
+    if !(33..=MAX_ENTRY_BYTES).contains(&length) || HEADER_BYTES + u64::from(length) > remaining {
+        return Ok(None);
+    }
+    let mut body = vec![0; length as usize];
+    reader.read_exact(&mut body)?;
+    if checksum(&body) != header[4..] {
+        return Ok(None);
+    }
+    let mut key = [0; 32];
+    key.copy_from_slice(&body[1..33]);
+    Ok(Some(LogEntry {
+        kind: body[0],
+        key,
+        payload: body[33..].to_vec(),
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(i: u8) -> LogEntry {
+        LogEntry {
+            kind: i % 3,
+            key: [i; 32],
+            payload: (0..u32::from(i) * 7).map(|b| b as u8).collect(),
+        }
+    }
+
+    fn write(path: &Path, entries: &[LogEntry]) -> u64 {
+        let (log, read, _) = AppendLog::open(path).unwrap();
+        assert!(read.is_empty());
+        for e in entries {
+            log.append(e.kind, &e.key, &e.payload).unwrap();
+        }
+        log.bytes()
+    }
+
+    #[test]
+    fn entries_come_back_in_order_and_appends_continue() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sub/tiles.log");
+        let entries: Vec<_> = (0..20).map(entry).collect();
+        let bytes = write(&path, &entries[..10]);
+        assert_eq!(std::fs::metadata(&path).unwrap().len(), bytes);
+        let (log, read, report) = AppendLog::open(&path).unwrap();
+        assert_eq!(read, entries[..10]);
+        assert_eq!(
+            report,
+            LogReport {
+                entries: 10,
+                dropped_bytes: 0
+            }
+        );
+        for e in &entries[10..] {
+            log.append(e.kind, &e.key, &e.payload).unwrap();
+        }
+        drop(log);
+        assert_eq!(AppendLog::open(&path).unwrap().1, entries);
+    }
+
+    /// A log cut at any byte opens, keeps every entry that ended before the
+    /// cut, and takes appends after it.
+    #[test]
+    fn a_log_truncated_anywhere_keeps_every_complete_entry() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tiles.log");
+        let entries: Vec<_> = (0..6).map(entry).collect();
+        write(&path, &entries);
+        let full = std::fs::read(&path).unwrap();
+        // Where each entry ends.
+        let mut ends = vec![];
+        let mut at = MAGIC.len();
+        for e in &entries {
+            at += HEADER_BYTES as usize + 33 + e.payload.len();
+            ends.push(at);
+        }
+        for cut in 0..=full.len() {
+            std::fs::write(&path, &full[..cut]).unwrap();
+            let (log, read, report) = AppendLog::open(&path).unwrap();
+            let complete = ends.iter().filter(|&&end| end <= cut).count();
+            assert_eq!(read, entries[..complete], "cut at {cut}");
+            let (kept, dropped) = if cut < MAGIC.len() {
+                // Not even the magic: started over.
+                (MAGIC.len(), cut)
+            } else {
+                let kept = ends[..complete].last().copied().unwrap_or(MAGIC.len());
+                (kept, cut - kept)
+            };
+            assert_eq!(log.bytes(), kept as u64, "cut at {cut}");
+            assert_eq!(report.dropped_bytes, dropped as u64, "cut at {cut}");
+            log.append(9, &[7; 32], b"after").unwrap();
+            drop(log);
+            let (_, again, _) = AppendLog::open(&path).unwrap();
+            assert_eq!(again.len(), complete + 1);
+            assert_eq!(again.last().unwrap().payload, b"after");
+        }
+    }
+
+    #[test]
+    fn corrupt_bytes_end_the_log_at_the_last_good_entry() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tiles.log");
+        let entries: Vec<_> = (0..4).map(entry).collect();
+        write(&path, &entries);
+        let mut bytes = std::fs::read(&path).unwrap();
+        // Flip one payload byte of the third entry.
+        let third = MAGIC.len()
+            + entries[..2]
+                .iter()
+                .map(|e| HEADER_BYTES as usize + 33 + e.payload.len())
+                .sum::<usize>();
+        bytes[third + HEADER_BYTES as usize + 40] ^= 0x55;
+        std::fs::write(&path, &bytes).unwrap();
+        let (_, read, report) = AppendLog::open(&path).unwrap();
+        assert_eq!(read, entries[..2]);
+        assert!(report.dropped_bytes > 0);
+        // A file that is not a log at all is started over.
+        std::fs::write(&path, b"something else entirely").unwrap();
+        let (log, read, report) = AppendLog::open(&path).unwrap();
+        assert!(read.is_empty());
+        assert_eq!(report.dropped_bytes, 23);
+        assert_eq!(log.bytes(), MAGIC.len() as u64);
+    }
+
+    #[test]
+    fn rewrite_keeps_only_the_given_entries() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tiles.log");
+        let entries: Vec<_> = (0..8).map(entry).collect();
+        write(&path, &entries);
+        let (log, _, _) = AppendLog::open(&path).unwrap();
+        let keep = [&entries[1], &entries[5]];
+        log.rewrite(keep.iter().map(|e| (e.kind, &e.key, e.payload.as_slice())))
+            .unwrap();
+        log.append(entries[7].kind, &entries[7].key, &entries[7].payload)
+            .unwrap();
+        assert_eq!(log.bytes(), std::fs::metadata(&path).unwrap().len());
+        drop(log);
+        let read = AppendLog::open(&path).unwrap().1;
+        assert_eq!(
+            read,
+            vec![entries[1].clone(), entries[5].clone(), entries[7].clone()]
+        );
+    }
+}
