@@ -217,7 +217,7 @@ fn encode_records(tile: &TileRecords) -> Vec<u8> {
 }
 
 fn decode_records(bytes: &[u8]) -> Option<TileRecords> {
-    if bytes.len() % Record::ENCODED_BYTES != 0 {
+    if !bytes.len().is_multiple_of(Record::ENCODED_BYTES) {
         return None;
     }
     let records = bytes
@@ -263,7 +263,7 @@ fn decode_pass(bytes: &[u8]) -> Option<RenderedPass> {
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
         .collect();
-    if floats.len() != pixels * (3 + usize::from(has_variance)) || bytes[25..].len() % 4 != 0 {
+    if floats.len() != pixels * (3 + usize::from(has_variance)) || !bytes[25..].len().is_multiple_of(4) {
         return None;
     }
     let rgb = floats[..3 * pixels]
