@@ -117,6 +117,9 @@ pub struct CacheConfig {
 pub struct Limits {
     /// Largest request body in bytes (413 beyond).
     pub max_body_bytes: usize,
+    /// Largest scene upload with its assets (`multipart/form-data` on
+    /// `POST /v1/scenes`), bytes (413 beyond).
+    pub max_upload_bytes: u64,
     /// Most points in one point query.
     pub max_points: usize,
     /// Most hemisphere samples per estimate.
@@ -195,6 +198,7 @@ impl Config {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let positive = [
             ("limits.max_body_bytes", self.limits.max_body_bytes as u64),
+            ("limits.max_upload_bytes", self.limits.max_upload_bytes),
             ("limits.max_points", self.limits.max_points as u64),
             ("limits.max_samples", self.limits.max_samples as u64),
             ("limits.max_tile_area", self.limits.max_tile_area as u64),

@@ -77,9 +77,9 @@ pub enum ApiError {
     /// `field` names the config key (`scenes.max_triangles`).
     #[error("{message}")]
     InsufficientStorage { field: String, message: String },
-    /// `POST /v1/scenes` with a body that is neither JSON nor XML (415).
+    /// `POST /v1/scenes` with a body that is neither JSON, XML nor multipart (415).
     #[error(
-        "content-type must be application/json (a scene document) or application/xml (Mitsuba 3), got {got}"
+        "content-type must be application/json (a scene document), application/xml (Mitsuba 3) or multipart/form-data (a scene with its assets), got {got}"
     )]
     UnsupportedSceneMediaType { got: String },
 }

@@ -47,9 +47,11 @@ where
     async fn from_request(req: Request, state: &S) -> Result<Self, ApiError> {
         match body_media_type(&req) {
             MediaType::Json => parse_json(&body_bytes(req, state).await?).map(ApiJson),
-            MediaType::Xml | MediaType::Other => Err(ApiError::UnsupportedMediaType {
-                got: content_type_text(&req),
-            }),
+            MediaType::Xml | MediaType::Multipart | MediaType::Other => {
+                Err(ApiError::UnsupportedMediaType {
+                    got: content_type_text(&req),
+                })
+            }
         }
     }
 }
@@ -93,6 +95,8 @@ pub enum MediaType {
     Json,
     /// `application/xml`, `text/xml` or any `+xml` type.
     Xml,
+    /// `multipart/form-data` (a scene with its assets).
+    Multipart,
     /// Anything else.
     Other,
 }
@@ -108,6 +112,8 @@ pub fn body_media_type(req: &Request) -> MediaType {
         MediaType::Json
     } else if essence == "application/xml" || essence == "text/xml" || essence.ends_with("+xml") {
         MediaType::Xml
+    } else if essence == "multipart/form-data" {
+        MediaType::Multipart
     } else {
         MediaType::Other
     }

@@ -263,7 +263,9 @@ fn decode_pass(bytes: &[u8]) -> Option<RenderedPass> {
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
         .collect();
-    if floats.len() != pixels * (3 + usize::from(has_variance)) || !bytes[25..].len().is_multiple_of(4) {
+    if floats.len() != pixels * (3 + usize::from(has_variance))
+        || !bytes[25..].len().is_multiple_of(4)
+    {
         return None;
     }
     let rgb = floats[..3 * pixels]

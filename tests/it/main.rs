@@ -29,5 +29,6 @@ mod service_robustness;
 mod service_scenes;
 mod service_tile_get;
 mod service_tiles;
+mod service_upload;
 mod viewer_browser;
 mod walkthrough;

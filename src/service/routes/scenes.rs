@@ -7,6 +7,7 @@ use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, Request, State};
 use axum::http::StatusCode;
 
+use crate::scene::bundle::{DocumentKind, SceneBundle};
 use crate::scene::{MitsubaOptions, Scene};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{
@@ -52,7 +53,12 @@ pub struct PostSceneQuery {
 /// document (`application/json`, `docs/scene-format.md`) whose `name` becomes
 /// its id (an `id` query parameter with it is refused, 422), or a Mitsuba 3
 /// scene (`application/xml`) whose id, and name, is the `id` query parameter.
-/// Files the scene references must already be in the scenes directory.
+/// As `multipart/form-data`, the document comes with the files it references:
+/// a part `scene` (the document) and parts `asset` whose filenames are the
+/// relative paths it names (`..`, absolute paths and the like are refused,
+/// 422 naming `assets[i]`; more than `limits.max_upload_bytes` in all is a
+/// 422 naming that limit).
+/// Otherwise files the scene references must already be in the scenes directory.
 /// A scene that would take the loaded scenes over a `scenes.max_*` budget is
 /// refused with 507 and nothing loaded changes.
 #[utoipa::path(post, path = "/v1/scenes", tag = "scenes", params(PostSceneQuery),
@@ -60,7 +66,7 @@ pub struct PostSceneQuery {
                  content_type = "application/json"),
     responses((status = 201, description = "Scene added", body = SceneSummary),
                (status = 200, description = "Scene replaced", body = SceneSummary),
-               (status = 415, description = "Neither JSON nor XML", body = ErrorBody),
+               (status = 415, description = "Neither JSON, XML nor multipart", body = ErrorBody),
                (status = 422, description = "Invalid scene", body = ErrorBody),
                (status = 507, description = "Over a scenes budget", body = ErrorBody)))]
 pub async fn post_scene(
@@ -115,6 +121,42 @@ pub async fn post_scene(
             }
             (id, scene)
         }
+        MediaType::Multipart => {
+            let limit = state.config.limits.max_upload_bytes;
+            let upload = read_upload(request, limit).await?;
+            let options = MitsubaOptions {
+                lenient: query.lenient,
+                ..MitsubaOptions::default()
+            };
+            let id = match upload.kind {
+                DocumentKind::Json => {
+                    if query.id.is_some() {
+                        return Err(ApiError::invalid(
+                            "id",
+                            "the `id` query parameter is for XML scenes; a JSON scene's id is its `name`",
+                        ));
+                    }
+                    let PostedName { name } = parse_json(upload.document.as_bytes())?;
+                    document_id(name)?
+                }
+                DocumentKind::MitsubaXml => {
+                    let id = query.id.ok_or_else(|| {
+                        ApiError::invalid("id", "an XML scene needs an `id` query parameter")
+                    })?;
+                    validate_id(&id).map_err(|reason| ApiError::invalid("id", reason))?;
+                    id
+                }
+            };
+            let (mut scene, warnings) = state
+                .pool
+                .run(move |_| upload.bundle.load(&upload.document, upload.kind, &options))
+                .await??;
+            log_warnings(&id, &warnings);
+            if scene.name.is_empty() {
+                scene.name = id.clone();
+            }
+            (id, scene)
+        }
         MediaType::Other => {
             return Err(ApiError::UnsupportedSceneMediaType {
                 got: content_type_text(&request),
@@ -136,6 +178,79 @@ pub async fn post_scene(
     };
     tracing::info!(id = %summary.id, "scene posted");
     Ok((status, Json(summary)))
+}
+
+/// A scene uploaded with its assets.
+struct Upload {
+    document: String,
+    kind: DocumentKind,
+    bundle: SceneBundle,
+}
+
+/// Reads a `multipart/form-data` upload of at most `limit` bytes: one part
+/// named `scene` (the document; `.xml` file name or an XML content type
+/// means Mitsuba XML, JSON otherwise) and any number named `asset`, each
+/// with a `filename` that is the relative path the document uses.
+async fn read_upload(request: Request, limit: u64) -> Result<Upload, ApiError> {
+    let content_type = content_type_text(&request);
+    let boundary = multer::parse_boundary(&content_type)
+        .map_err(|e| ApiError::invalid("content-type", format!("no multipart boundary: {e}")))?;
+    let constraints =
+        multer::Constraints::new().size_limit(multer::SizeLimit::new().whole_stream(limit));
+    let mut parts = multer::Multipart::with_constraints(
+        request.into_body().into_data_stream(),
+        boundary,
+        constraints,
+    );
+    let malformed = |e: multer::Error| match e {
+        multer::Error::StreamSizeExceeded { .. } => ApiError::LimitExceeded {
+            field: "limits.max_upload_bytes".into(),
+            value: limit.saturating_add(1),
+            limit,
+        },
+        other => ApiError::invalid("body", format!("malformed multipart upload: {other}")),
+    };
+    let (mut document, mut bundle) = (None, SceneBundle::default());
+    while let Some(part) = parts.next_field().await.map_err(malformed)? {
+        match part.name() {
+            Some("scene") => {
+                let xml = part.file_name().is_some_and(|f| f.ends_with(".xml"))
+                    || part
+                        .content_type()
+                        .is_some_and(|m| m.essence_str().ends_with("xml"));
+                let text = part.text().await.map_err(malformed)?;
+                let kind = if xml {
+                    DocumentKind::MitsubaXml
+                } else {
+                    DocumentKind::Json
+                };
+                if document.replace((text, kind)).is_some() {
+                    return Err(ApiError::invalid("scene", "more than one `scene` part"));
+                }
+            }
+            Some("asset") => {
+                let field = format!("assets[{}]", bundle.len());
+                let name = part.file_name().map(str::to_owned).ok_or_else(|| {
+                    ApiError::invalid(&field, "an asset part needs a filename (its relative path)")
+                })?;
+                let bytes = part.bytes().await.map_err(malformed)?;
+                bundle.add(&name, bytes.to_vec(), &field)?;
+            }
+            other => {
+                return Err(ApiError::invalid(
+                    "body",
+                    format!("unknown part {other:?}: parts are `scene` and `asset`"),
+                ));
+            }
+        }
+    }
+    let (document, kind) =
+        document.ok_or_else(|| ApiError::invalid("scene", "the upload has no `scene` part"))?;
+    Ok(Upload {
+        document,
+        kind,
+        bundle,
+    })
 }
 
 /// The `name` of a posted JSON scene document; the other fields are left

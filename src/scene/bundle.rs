@@ -1,0 +1,207 @@
+//! A scene uploaded with its files: the document (JSON or Mitsuba XML) and
+//! the assets it references (OBJ/PLY meshes, EXR maps, PNG textures), each
+//! under the relative path the document names it by.
+//!
+//! The assets are written into a fresh private directory, which is the
+//! scenes root of the load (so the document can reach nothing else), and
+//! removed after loading: a loaded scene holds everything it needs in
+//! memory. Asset names are checked before anything is written: relative
+//! paths of plain components only (no `..`, no root or drive, no `.`
+//! segments, no backslashes or NULs), each at most [`MAX_NAME_BYTES`] long
+//! and [`MAX_DEPTH`] deep, no name twice, at most [`MAX_ASSETS`] of them.
+//! The files are created by this code, never links, so nothing can point
+//! outside the directory either.
+
+use std::path::{Component, Path, PathBuf};
+
+use super::Scene;
+use super::error::SceneError;
+use super::mitsuba::{MitsubaOptions, Warnings};
+
+/// Most assets in one bundle.
+pub const MAX_ASSETS: usize = 256;
+/// Longest asset name, bytes.
+pub const MAX_NAME_BYTES: usize = 255;
+/// Most directory levels in an asset name.
+pub const MAX_DEPTH: usize = 8;
+
+/// The document's format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DocumentKind {
+    Json,
+    MitsubaXml,
+}
+
+/// A document and its assets (module docs).
+#[derive(Clone, Debug, Default)]
+pub struct SceneBundle {
+    /// `(relative name, bytes)` in upload order.
+    assets: Vec<(PathBuf, Vec<u8>)>,
+}
+
+impl SceneBundle {
+    /// Adds an asset; `field` names it in errors (e.g. `assets[2]`).
+    pub fn add(&mut self, name: &str, bytes: Vec<u8>, field: &str) -> Result<(), SceneError> {
+        if self.assets.len() >= MAX_ASSETS {
+            return Err(SceneError::invalid(
+                field,
+                format!("more than {MAX_ASSETS} assets"),
+            ));
+        }
+        let path = check_name(name).map_err(|reason| {
+            SceneError::invalid(field, format!("asset name {name:?}: {reason}"))
+        })?;
+        if self.assets.iter().any(|(p, _)| *p == path) {
+            return Err(SceneError::invalid(
+                field,
+                format!("asset {name:?} is named twice"),
+            ));
+        }
+        self.assets.push((path, bytes));
+        Ok(())
+    }
+
+    pub fn len(&self) -> usize {
+        self.assets.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.assets.is_empty()
+    }
+
+    /// Writes the assets into a private directory and loads `document`
+    /// against it (module docs); the directory is gone when this returns.
+    pub fn load(
+        &self,
+        document: &str,
+        kind: DocumentKind,
+        options: &MitsubaOptions,
+    ) -> Result<(Scene, Warnings), SceneError> {
+        let dir = tempfile::Builder::new()
+            .prefix("bmc-upload-")
+            .tempdir()
+            .map_err(|e| io_error(Path::new("<upload directory>"), e))?;
+        for (name, bytes) in &self.assets {
+            let path = dir.path().join(name);
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent).map_err(|e| io_error(parent, e))?;
+            }
+            // `create_new`: a name cannot reuse a file written before it.
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+                .and_then(|mut f| std::io::Write::write_all(&mut f, bytes))
+                .map_err(|e| io_error(&path, e))?;
+        }
+        let root = dir.path();
+        match kind {
+            DocumentKind::Json => {
+                Scene::from_json_str(document, root, root).map(|s| (s, Warnings::default()))
+            }
+            DocumentKind::MitsubaXml => Scene::from_mitsuba_xml_str(document, root, root, options),
+        }
+    }
+}
+
+fn io_error(path: &Path, source: std::io::Error) -> SceneError {
+    SceneError::Io {
+        file: path.to_owned(),
+        source,
+    }
+}
+
+/// The asset name as a relative path of plain components, or why not.
+fn check_name(name: &str) -> Result<PathBuf, &'static str> {
+    if name.is_empty() {
+        return Err("is empty");
+    }
+    if name.len() > MAX_NAME_BYTES {
+        return Err("is too long");
+    }
+    if name.contains('\\') || name.contains('\0') {
+        return Err("contains a backslash or NUL");
+    }
+    let path = Path::new(name);
+    let mut depth = 0;
+    for component in path.components() {
+        match component {
+            Component::Normal(_) => depth += 1,
+            Component::ParentDir => return Err("climbs out with `..`"),
+            Component::RootDir | Component::Prefix(_) => return Err("is absolute"),
+            Component::CurDir => return Err("has a `.` segment"),
+        }
+    }
+    // `Path::components` drops inner `.` segments and repeated slashes;
+    // refuse them too, so the name is exactly the path.
+    if name.split('/').any(|s| s.is_empty() || s == ".") {
+        return Err("has an empty or `.` segment");
+    }
+    if depth > MAX_DEPTH {
+        return Err("is nested too deeply");
+    }
+    Ok(path.to_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_that_could_escape_are_refused() {
+        for bad in [
+            "",
+            "../x.obj",
+            "a/../../x.obj",
+            "/etc/passwd",
+            "a\\b.obj",
+            "./a.obj",
+            "a/./b.obj",
+            "a//b.obj",
+            "a/",
+            "x\0.obj",
+            &"d/".repeat(9).to_string(),
+        ] {
+            assert!(check_name(bad).is_err(), "{bad:?}");
+        }
+        for good in ["blob.obj", "meshes/blob.obj", "a/b/c/d.exr", "x..y.png"] {
+            assert_eq!(check_name(good).unwrap(), Path::new(good));
+        }
+        let mut bundle = SceneBundle::default();
+        bundle.add("a.obj", vec![], "assets[0]").unwrap();
+        let err = bundle.add("a.obj", vec![], "assets[1]").unwrap_err();
+        assert_eq!(err.field(), Some("assets[1]"));
+    }
+
+    #[test]
+    fn a_document_loads_with_its_mesh_and_reaches_nothing_else() {
+        let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let doc = |file: &str| {
+            format!(
+                r#"{{"name": "up", "shapes": [{{"type": "obj", "filename": "{file}", "material": "m"}}],
+                    "materials": [{{"id": "m", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}}],
+                    "camera": {{"type": "perspective", "fov": 40, "width": 8, "height": 8,
+                                "origin": [0, 0, 3], "target": [0, 0, 0], "up": [0, 1, 0]}}}}"#
+            )
+        };
+        let mut bundle = SceneBundle::default();
+        bundle
+            .add("meshes/tri.obj", obj.as_bytes().to_vec(), "assets[0]")
+            .unwrap();
+        let options = MitsubaOptions::default();
+        let (scene, _) = bundle
+            .load(&doc("meshes/tri.obj"), DocumentKind::Json, &options)
+            .unwrap();
+        assert_eq!(scene.triangle_count(), 1);
+        // The document cannot name a file outside the bundle.
+        let err = bundle
+            .load(&doc("../../etc/hosts"), DocumentKind::Json, &options)
+            .unwrap_err();
+        assert!(matches!(err, SceneError::PathEscape { .. }), "{err}");
+        // The same content gives the same digest as the same files on disk.
+        let (again, _) = bundle
+            .load(&doc("meshes/tri.obj"), DocumentKind::Json, &options)
+            .unwrap();
+        assert_eq!(again.digest, scene.digest);
+    }
+}

@@ -1,0 +1,192 @@
+//! `POST /v1/scenes` as `multipart/form-data`: a scene with its OBJ mesh and
+//! EXR map renders; names that would escape, documents that reach outside
+//! the upload, and uploads over the limit are refused with the field named.
+
+use std::path::Path;
+
+use crate::common::{TestApp, error_of, spawn_app_with};
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+const BOUNDARY: &str = "bmc-test-boundary-7f3a";
+
+/// A document with a mesh under `meshes/` and the bundled sky map.
+fn document(mesh: &str) -> String {
+    json!({
+        "name": "uploaded",
+        "materials": [{"id": "m", "type": "diffuse", "reflectance": [0.6, 0.5, 0.4]}],
+        "shapes": [{"type": "obj", "filename": mesh, "material": "m"}],
+        "environment": {"type": "envmap", "filename": "sky.exr"},
+        "camera": {"type": "perspective", "fov": 40, "width": 16, "height": 16,
+                   "origin": [0, 0.5, 3], "target": [0, 0.3, 0], "up": [0, 1, 0]}
+    })
+    .to_string()
+}
+
+const OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 1 0\n\
+                   f 1 2 3\nf 1 3 4\nf 1 2 5\nf 2 3 5\n";
+
+/// A multipart body of `parts`: (name, filename, content type, bytes).
+fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
+    let mut body = Vec::new();
+    for (name, filename, content_type, bytes) in parts {
+        body.extend(format!("--{BOUNDARY}\r\n").bytes());
+        let disposition = match filename {
+            Some(f) => format!("form-data; name=\"{name}\"; filename=\"{f}\""),
+            None => format!("form-data; name=\"{name}\""),
+        };
+        body.extend(format!("Content-Disposition: {disposition}\r\n").bytes());
+        body.extend(format!("Content-Type: {content_type}\r\n\r\n").bytes());
+        body.extend(bytes);
+        body.extend(b"\r\n");
+    }
+    body.extend(format!("--{BOUNDARY}--\r\n").bytes());
+    body
+}
+
+fn sky() -> Vec<u8> {
+    std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky.exr")).unwrap()
+}
+
+async fn upload(app: &TestApp, query: &str, body: Vec<u8>) -> reqwest::Response {
+    app.client
+        .post(app.url(&format!("/v1/scenes{query}")))
+        .header(
+            "content-type",
+            format!("multipart/form-data; boundary={BOUNDARY}"),
+        )
+        .body(body)
+        .send()
+        .await
+        .unwrap()
+}
+
+#[tokio::test]
+async fn a_scene_uploaded_with_its_mesh_and_map_renders() {
+    let app = spawn_app_with(|_| {}).await;
+    let body = multipart(&[
+        (
+            "scene",
+            Some("scene.json"),
+            "application/json",
+            document("meshes/pyramid.obj").into_bytes(),
+        ),
+        (
+            "asset",
+            Some("meshes/pyramid.obj"),
+            "text/plain",
+            OBJ.as_bytes().to_vec(),
+        ),
+        ("asset", Some("sky.exr"), "image/x-exr", sky()),
+    ]);
+    let response = upload(&app, "", body.clone()).await;
+    assert_eq!(response.status(), StatusCode::CREATED);
+    let summary: Value = response.json().await.unwrap();
+    assert_eq!(summary["id"], "uploaded");
+    assert_eq!(summary["triangles"], 4);
+    assert_eq!(summary["environment"], true);
+    let digest = summary["digest"].as_str().unwrap().to_owned();
+    // It renders: the map lights the mesh.
+    let tile: Value = app
+        .get("/v1/scenes/uploaded/tiles/0/0.json?preset=draft&size=16")
+        .await
+        .json()
+        .await
+        .unwrap();
+    let lit = tile["rgb"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p[0].as_f64().unwrap() > 0.0)
+        .count();
+    assert!(lit > 100, "{lit} of 256 pixels lit");
+    // The same upload again: the same content digest (a replacement, 200).
+    let again = upload(&app, "", body).await;
+    assert_eq!(again.status(), StatusCode::OK);
+    let again: Value = again.json().await.unwrap();
+    assert_eq!(again["digest"], digest.as_str());
+}
+
+#[tokio::test]
+async fn escaping_and_oversized_uploads_are_refused() {
+    let app = spawn_app_with(|config| config.limits.max_upload_bytes = 64 * 1024).await;
+    let scene = |mesh: &str| {
+        (
+            "scene",
+            Some("scene.json"),
+            "application/json",
+            document(mesh).into_bytes(),
+        )
+    };
+    let cases: Vec<(Vec<u8>, &str)> = vec![
+        (
+            multipart(&[
+                scene("x.obj"),
+                ("asset", Some("../x.obj"), "text/plain", OBJ.into()),
+            ]),
+            "assets[0]",
+        ),
+        (
+            multipart(&[
+                scene("x.obj"),
+                ("asset", Some("/tmp/x.obj"), "text/plain", OBJ.into()),
+            ]),
+            "assets[0]",
+        ),
+        (
+            multipart(&[
+                scene("x.obj"),
+                ("asset", Some("x.obj"), "text/plain", OBJ.into()),
+                ("asset", Some("a/../x.obj"), "text/plain", OBJ.into()),
+            ]),
+            "assets[1]",
+        ),
+        // The document itself reaching outside the upload.
+        (
+            multipart(&[
+                scene("../../../../etc/hostname"),
+                ("asset", Some("sky.exr"), "image/x-exr", sky()),
+            ]),
+            "shapes[0].filename",
+        ),
+        // A referenced file that was not uploaded.
+        (
+            multipart(&[
+                scene("meshes/missing.obj"),
+                ("asset", Some("sky.exr"), "image/x-exr", sky()),
+            ]),
+            "shapes[0].filename",
+        ),
+        (
+            multipart(&[("asset", Some("x.obj"), "text/plain", OBJ.into())]),
+            "scene",
+        ),
+        (
+            multipart(&[
+                scene("x.obj"),
+                (
+                    "asset",
+                    Some("big.bin"),
+                    "application/octet-stream",
+                    vec![7; 80 * 1024],
+                ),
+            ]),
+            "limits.max_upload_bytes",
+        ),
+    ];
+    for (body, field) in cases {
+        let response = upload(&app, "", body).await;
+        assert!(
+            response.status().is_client_error(),
+            "{field}: {}",
+            response.status()
+        );
+        let (_, got) = error_of(response).await;
+        assert_eq!(got.as_deref(), Some(field));
+    }
+    // Nothing was added, and the service is fine.
+    let scenes: Value = app.get("/v1/scenes").await.json().await.unwrap();
+    assert_eq!(scenes, json!([]));
+    let health: Value = app.get("/health").await.json().await.unwrap();
+    assert_eq!(health["status"], "ok");
+}
