@@ -7,7 +7,7 @@
 #
 # It reads the scene files in scenes/ beside this script and writes tile.png
 # into the current directory. It changes nothing it did not add: the scenes it
-# uploads (my-box, my-box-xml) are deleted at the end, and the bundled
+# uploads (my-box, my-box-xml, my-sky) are deleted at the end, and the bundled
 # cornell-box is only queried (its irradiance cache is cleared, which the next
 # request refills). With server.auth_token set, export BMC_TOKEN. Any HTTP
 # error stops the script, printing the service's JSON error body.
@@ -43,6 +43,11 @@ sed 's/"name": "cornell-box"/"name": "my-box"/' "$SCENES/cornell-box.json" |
 # A Mitsuba 3 scene: the id comes from the query.
 curl -X POST "$BASE/v1/scenes?id=my-box-xml&lenient=false" -H 'content-type: application/xml' \
      --data-binary @"$SCENES/cornell-box.xml"
+# A scene with the files it references (multipart: one "scene" part, "asset" parts named
+# by the relative paths the document uses; "..", absolute names: 422 naming assets[i]):
+sed 's/"name": "sky"/"name": "my-sky"/' "$SCENES/sky.json" |
+    curl -X POST "$BASE/v1/scenes" -F 'scene=@-;filename=scene.json;type=application/json' \
+         -F "asset=@$SCENES/sky.exr;filename=sky.exr"
 
 curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: application/json' \
      -d '{"points": [{"position": [0, -0.99, 0], "normal": [0, 1, 0]}],
@@ -111,3 +116,4 @@ curl -X POST "$BASE/v1/quadratures" -H 'content-type: application/json' \
 # Remove the scenes this walkthrough added (the bundled ones stay).
 curl -X DELETE "$BASE/v1/scenes/my-box"
 curl -X DELETE "$BASE/v1/scenes/my-box-xml"
+curl -X DELETE "$BASE/v1/scenes/my-sky"

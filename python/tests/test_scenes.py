@@ -119,3 +119,26 @@ def test_service_routes(client: Client, server: Server) -> None:
     assert status == 200 and stats == doc
     cleared = client.clear_cache("cornell-box")
     assert cleared["cleared_records"] >= 0 and cleared["scene"] == "cornell-box"
+
+
+def test_upload_with_assets_found_in_the_document(client: Client, tmp_path: Path) -> None:
+    """A scene outside the service's scenes directory travels with the files
+    it names (``assets="auto"``): the bundled mesh scene under a new name."""
+    scene_dir = tmp_path / "elsewhere"
+    (scene_dir / "meshes").mkdir(parents=True)
+    (scene_dir / "meshes" / "blob.obj").write_bytes((SCENES / "meshes" / "blob.obj").read_bytes())
+    document = json.loads((SCENES / "mesh.json").read_text())
+    document["name"] = "carried-mesh"
+    path = scene_dir / "carried.json"
+    path.write_text(json.dumps(document))
+    summary = client.upload(path, assets="auto")
+    assert summary["id"] == "carried-mesh"
+    assert summary["triangles"] == client.scene("mesh")["triangles"]
+    # The same content as the bundled scene's, apart from its name.
+    assert summary["digest"] != client.scene("mesh")["digest"]
+    # A name that climbs out is refused, naming the part.
+    with pytest.raises(ServiceError) as refused:
+        client.upload(path, assets={"../blob.obj": b"v 0 0 0\n"})
+    assert refused.value.status == 422
+    assert refused.value.field == "assets[0]"
+    client.delete("carried-mesh")

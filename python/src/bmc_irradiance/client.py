@@ -200,6 +200,7 @@ class Client:
         id: Optional[str] = None,
         *,
         lenient: bool = False,
+        assets: Union[None, str, Sequence[str], Mapping[str, Union[bytes, "os.PathLike[str]"]]] = None,
     ) -> Dict[str, Any]:
         """``POST /v1/scenes``: adds a scene, or replaces the one with the same id.
 
@@ -207,33 +208,59 @@ class Client:
         or the document's text. A JSON document's id is its ``name``; ``id``
         replaces that name. An XML scene's id is ``id``, by default the file's
         stem; ``lenient`` approximates unsupported Mitsuba features instead of
-        refusing them. Files the scene references (meshes, environment maps)
-        must already be in the service's scenes directory: the service does
-        not accept uploaded assets. Returns the scene's summary.
+        refusing them. Returns the scene's summary.
+
+        Without ``assets``, files the scene references (meshes, environment
+        maps, textures) must already be in the service's scenes directory.
+        With ``assets`` they travel with it (``multipart/form-data``):
+
+        - ``"auto"``: every file the document names (``"filename"`` values
+          of a JSON document, ``<string name="filename" value=…>`` of XML),
+          read relative to the scene file's directory;
+        - a list of such relative names;
+        - a mapping from relative name to bytes or a local path.
+
+        The service refuses names that climb out (``..``), absolute names and
+        uploads over its ``limits.max_upload_bytes``, as a
+        :class:`ServiceError` naming the part (``assets[i]``).
         """
         text, stem = _scene_text(scene)
         first = text.lstrip()[:1]
-        if first == "{":
-            if id is not None:
-                document = json.loads(text)
-                document["name"] = id
-                text = json.dumps(document)
-            answer = self._http.request(
-                "POST", "/v1/scenes", body=text.encode("utf-8"), content_type="application/json"
-            )
-        elif first == "<":
+        if first not in ("{", "<"):
+            raise ValueError("the scene is neither a JSON document nor Mitsuba XML")
+        xml = first == "<"
+        query: Dict[str, Any] = {}
+        if first == "{" and id is not None:
+            document = json.loads(text)
+            document["name"] = id
+            text = json.dumps(document)
+        if xml:
             scene_id = id if id is not None else stem
             if scene_id is None:
                 raise ValueError("an XML scene given as text needs an id")
+            query = {"id": scene_id, "lenient": True if lenient else None}
+        if assets is None:
             answer = self._http.request(
                 "POST",
                 "/v1/scenes",
                 body=text.encode("utf-8"),
-                content_type="application/xml",
-                query={"id": scene_id, "lenient": True if lenient else None},
+                content_type="application/xml" if xml else "application/json",
+                query=query,
             )
-        else:
-            raise ValueError("the scene is neither a JSON document nor Mitsuba XML")
+            return dict(answer.json())
+        # A scene given as a path (it has a stem): names resolve beside it.
+        base = Path(os.fspath(scene)).parent if stem is not None else None  # type: ignore[arg-type]
+        files = _asset_files(text, xml, assets, base)
+        boundary = "bmc-" + os.urandom(12).hex()
+        parts = [("scene", "scene.xml" if xml else "scene.json", text.encode("utf-8"))]
+        parts += [("asset", name, data) for name, data in files]
+        answer = self._http.request(
+            "POST",
+            "/v1/scenes",
+            body=_multipart(parts, boundary),
+            content_type=f"multipart/form-data; boundary={boundary}",
+            query=query,
+        )
         return dict(answer.json())
 
     def delete(self, id: str) -> None:
@@ -1054,6 +1081,60 @@ def _segment(id: str) -> str:
     from urllib.parse import quote
 
     return quote(id, safe="")
+
+
+def _referenced_files(text: str, xml: bool) -> List[str]:
+    """The files a scene document names, each once, in order."""
+    if xml:
+        names = re.findall(r'<string\s+name="filename"\s+value="([^"]*)"', text)
+    else:
+        names = []
+
+        def walk(value: Any) -> None:
+            if isinstance(value, dict):
+                for key, item in value.items():
+                    if key == "filename" and isinstance(item, str):
+                        names.append(item)
+                    else:
+                        walk(item)
+            elif isinstance(value, list):
+                for item in value:
+                    walk(item)
+
+        walk(json.loads(text))
+    return list(dict.fromkeys(names))
+
+
+def _asset_files(
+    text: str,
+    xml: bool,
+    assets: Union[str, Sequence[str], Mapping[str, Union[bytes, "os.PathLike[str]"]]],
+    base: Optional[Path],
+) -> List[Tuple[str, bytes]]:
+    """``(relative name, bytes)`` of the assets to upload (see ``upload``)."""
+    if isinstance(assets, Mapping):
+        return [
+            (name, data if isinstance(data, bytes) else Path(data).read_bytes())
+            for name, data in assets.items()
+        ]
+    names = _referenced_files(text, xml) if assets == "auto" else list(assets)
+    if names and base is None:
+        raise ValueError("assets by name need the scene as a file path (or pass a mapping)")
+    return [(name, (base / name).read_bytes()) for name in names] if base else []
+
+
+def _multipart(parts: Sequence[Tuple[str, str, bytes]], boundary: str) -> bytes:
+    """A ``multipart/form-data`` body of ``(part name, filename, bytes)``."""
+    out = bytearray()
+    for name, filename, data in parts:
+        out += f"--{boundary}\r\n".encode()
+        out += (
+            f'Content-Disposition: form-data; name="{name}"; filename="{filename}"\r\n'
+            "Content-Type: application/octet-stream\r\n\r\n"
+        ).encode()
+        out += data + b"\r\n"
+    out += f"--{boundary}--\r\n".encode()
+    return bytes(out)
 
 
 def _scene_text(scene: Union[str, bytes, "os.PathLike[str]"]) -> Tuple[str, Optional[str]]:
