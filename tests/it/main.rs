@@ -7,6 +7,7 @@ mod common;
 
 mod calibration;
 mod cli_quadrature;
+mod cluster;
 mod docs_references;
 mod first_run;
 mod fuzz_requests;
