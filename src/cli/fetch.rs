@@ -4,15 +4,14 @@
 //! `Retry-After`, 504 and connection failures after a short backoff.
 
 use std::io::Write;
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use serde::Deserialize;
 
-use crate::image::exr_io::{decode_exr, write_exr};
-use crate::image::png_io::write_png;
-use crate::image::{Image, ToneMap};
+use super::render::ImageOutput;
+use crate::image::Image;
+use crate::image::exr_io::decode_exr;
 use crate::integrator::Preset;
 
 /// Command-line arguments of `bmc-irradiance fetch`.
@@ -36,15 +35,8 @@ pub struct FetchArgs {
     /// Seed of every random stream.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output EXR (R, G, B and the per-pixel variance).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Also write a tone-mapped sRGB PNG here.
-    #[arg(long)]
-    pub png: Option<PathBuf>,
-    /// PNG exposure in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub exposure: f32,
+    #[command(flatten)]
+    pub output: ImageOutput,
     /// Tiles requested at once (about the service's worker count keeps
     /// its queue short).
     #[arg(long, default_value_t = 2)]
@@ -70,16 +62,7 @@ pub fn run_fetch(args: &FetchArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let started = Instant::now();
     let (image, rays) = tokio::runtime::Runtime::new()?.block_on(fetch(args))?;
     let elapsed = started.elapsed();
-    write_exr(&image, &args.out)?;
-    if let Some(png) = &args.png {
-        write_png(
-            &image,
-            ToneMap {
-                exposure: args.exposure,
-            },
-            png,
-        )?;
-    }
+    args.output.write(&image)?;
     writeln!(
         out,
         "{}×{} image of {} ({} preset) in {:.2} s; the service traced {rays} rays for it",

@@ -35,15 +35,8 @@ pub struct RenderArgs {
     /// (default: the scene file's directory).
     #[arg(long)]
     pub scenes_root: Option<PathBuf>,
-    /// Output EXR (channels R, G, B and the per-pixel variance `variance`).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Also write a tone-mapped sRGB PNG here.
-    #[arg(long)]
-    pub png: Option<PathBuf>,
-    /// PNG exposure in stops (values scaled by 2^exposure, then clamped).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub exposure: f32,
+    #[command(flatten)]
+    pub output: ImageOutput,
     /// How camera rays are shaded.
     #[arg(long, value_enum, default_value_t = Integrator::Path)]
     pub method: Integrator,
@@ -255,16 +248,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
     let seconds = start.elapsed().as_secs_f64();
     progress.finish_and_clear();
 
-    write_exr(&rendered.image, &args.out)?;
-    if let Some(png) = &args.png {
-        write_png(
-            &rendered.image,
-            ToneMap {
-                exposure: args.exposure,
-            },
-            png,
-        )?;
-    }
+    args.output.write(&rendered.image)?;
     writeln!(
         out,
         "rendered {width}×{height} at {} spp in {seconds:.2} s: {} rays, {:.3} Mrays/s",
@@ -273,6 +257,34 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
         rendered.rays as f64 / seconds / 1e6
     )?;
     Ok(())
+}
+
+/// Where a rendered image goes: an EXR, and optionally a PNG.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ImageOutput {
+    /// Output EXR (channels R, G, B and the per-pixel variance `variance`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write a tone-mapped sRGB PNG here.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// PNG exposure in stops (values scaled by 2^exposure, then clamped).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+}
+
+impl ImageOutput {
+    /// Writes the EXR, and the PNG when one is asked for.
+    pub fn write(&self, image: &crate::image::Image) -> anyhow::Result<()> {
+        write_exr(image, &self.out)?;
+        if let Some(png) = &self.png {
+            let tone_map = ToneMap {
+                exposure: self.exposure,
+            };
+            write_png(image, tone_map, png)?;
+        }
+        Ok(())
+    }
 }
 
 /// Command-line arguments of `bmc-irradiance compare`.
