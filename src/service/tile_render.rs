@@ -51,11 +51,14 @@ impl TileJob {
         limits.check_work(camera.saturating_add(records))
     }
 
-    /// The content key of the tile's records: everything they depend on.
+    /// The content key of the tile's records: everything they depend on,
+    /// the release included (a new release may compute them differently,
+    /// so it never reads an older release's entries from the tile log).
     fn records_key(&self, scene: &LoadedScene) -> Key {
         let r = &self.request;
         let text = format!(
-            "records\0{}\0{:?}\0{:?}\0{} {} {} {} {} {}",
+            "records\0{}\0{}\0{:?}\0{:?}\0{} {} {} {} {} {}",
+            env!("CARGO_PKG_VERSION"),
             scene.transport.scene().digest,
             self.integrator,
             self.cached.map(|c| c.config),
