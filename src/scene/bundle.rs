@@ -61,6 +61,11 @@ impl SceneBundle {
         Ok(())
     }
 
+    /// The assets, `(relative name, bytes)`, in upload order.
+    pub fn assets(&self) -> impl Iterator<Item = (&Path, &[u8])> {
+        self.assets.iter().map(|(p, b)| (p.as_path(), b.as_slice()))
+    }
+
     pub fn len(&self) -> usize {
         self.assets.len()
     }

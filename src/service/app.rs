@@ -49,6 +49,7 @@ use super::error::{ApiError, ErrorBody};
 use super::irradiance_caches::IrradianceCaches;
 use super::metrics::{self, Metrics};
 use super::pool::CpuPool;
+use super::posted_scenes::PostedScenes;
 use super::routes;
 use super::scenes::{self, SceneRegistry};
 use super::server;
@@ -94,7 +95,17 @@ impl Application {
             .await
             .context("scene loading panicked")?;
         let registry = SceneRegistry::new(&config.scenes);
-        for scene in loaded {
+        let posted = PostedScenes::new(&config.cache.data_dir);
+        let (keeper, scenes_dir) = (
+            PostedScenes::new(&config.cache.data_dir),
+            config.scenes.dir.clone(),
+        );
+        let reposted = tokio::task::spawn_blocking(move || keeper.load_all(&scenes_dir))
+            .await
+            .context("loading posted scenes panicked")?;
+        // Posted scenes replace directory scenes of the same id, as they did
+        // when they were posted.
+        for scene in loaded.into_iter().chain(reposted) {
             let id = scene.id.clone();
             if let Err(over) = registry.insert(scene) {
                 tracing::error!(%id, %over, "scene skipped: over the scenes budget");
@@ -114,6 +125,7 @@ impl Application {
             scenes: registry,
             irradiance_caches,
             tiles,
+            posted,
         });
         let router = router(state.clone());
         Ok(Application {

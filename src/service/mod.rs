@@ -20,6 +20,7 @@ pub mod integrator_doc;
 pub mod irradiance_caches;
 pub mod metrics;
 pub mod pool;
+pub mod posted_scenes;
 pub mod routes;
 pub mod scenes;
 pub mod server;

@@ -10,6 +10,7 @@ use super::config::Config;
 use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
+use super::posted_scenes::PostedScenes;
 use super::scenes::SceneRegistry;
 use super::tile_store::TileStore;
 
@@ -30,4 +31,6 @@ pub struct AppState {
     pub quadratures: Arc<QuadratureCache>,
     /// Records and passes of reproducible tiles, `cache.tile_bytes` big.
     pub tiles: TileStore,
+    /// Where posted scenes are kept across restarts (`cache.data_dir`).
+    pub posted: PostedScenes,
 }

@@ -13,6 +13,7 @@ use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{
     MediaType, SceneId, body_bytes, body_media_type, content_type_text, parse_json,
 };
+use crate::service::posted_scenes::Posted;
 use crate::service::scenes::{LoadedScene, SceneSource, SceneSummary, log_warnings, validate_id};
 use crate::service::state::AppState;
 
@@ -77,7 +78,7 @@ pub async fn post_scene(
     let Query(query) =
         query.map_err(|rejection| ApiError::invalid("query", rejection.body_text()))?;
     let root = state.config.scenes.dir.clone();
-    let (id, scene) = match body_media_type(&request) {
+    let (id, scene, posted) = match body_media_type(&request) {
         MediaType::Json => {
             if query.id.is_some() {
                 return Err(ApiError::invalid(
@@ -93,11 +94,17 @@ pub async fn post_scene(
             let id = document_id(name)?;
             let text = String::from_utf8(bytes.to_vec())
                 .map_err(|_| ApiError::invalid("body", "the JSON is not UTF-8"))?;
+            let posted = Posted {
+                document: text.clone(),
+                kind: DocumentKind::Json,
+                lenient: false,
+                bundle: None,
+            };
             let scene = state
                 .pool
                 .run(move |_| Scene::from_json_str(&text, &root, &root))
                 .await??;
-            (id, scene)
+            (id, scene, posted)
         }
         MediaType::Xml => {
             let id = query.id.ok_or_else(|| {
@@ -111,6 +118,12 @@ pub async fn post_scene(
                 lenient: query.lenient,
                 ..MitsubaOptions::default()
             };
+            let posted = Posted {
+                document: text.clone(),
+                kind: DocumentKind::MitsubaXml,
+                lenient: query.lenient,
+                bundle: None,
+            };
             let (mut scene, warnings) = state
                 .pool
                 .run(move |_| Scene::from_mitsuba_xml_str(&text, &root, &root, &options))
@@ -119,7 +132,7 @@ pub async fn post_scene(
             if scene.name.is_empty() {
                 scene.name = id.clone();
             }
-            (id, scene)
+            (id, scene, posted)
         }
         MediaType::Multipart => {
             let limit = state.config.limits.max_upload_bytes;
@@ -147,15 +160,25 @@ pub async fn post_scene(
                     id
                 }
             };
-            let (mut scene, warnings) = state
+            let (loaded, upload) = state
                 .pool
-                .run(move |_| upload.bundle.load(&upload.document, upload.kind, &options))
-                .await??;
+                .run(move |_| {
+                    let loaded = upload.bundle.load(&upload.document, upload.kind, &options);
+                    (loaded, upload)
+                })
+                .await?;
+            let (mut scene, warnings) = loaded?;
             log_warnings(&id, &warnings);
             if scene.name.is_empty() {
                 scene.name = id.clone();
             }
-            (id, scene)
+            let posted = Posted {
+                document: upload.document,
+                kind: upload.kind,
+                lenient: query.lenient,
+                bundle: Some(upload.bundle),
+            };
+            (id, scene, posted)
         }
         MediaType::Other => {
             return Err(ApiError::UnsupportedSceneMediaType {
@@ -167,6 +190,13 @@ pub async fn post_scene(
     let summary = loaded.summary();
     let generation = loaded.generation;
     let replaced = state.scenes.insert(loaded)?;
+    // Kept for the next start (with `cache.data_dir`); a failing disk costs
+    // only that, and says so.
+    let (keeper, id) = (state.clone(), summary.id.clone());
+    let kept = tokio::task::spawn_blocking(move || keeper.posted.save(&id, &posted)).await;
+    if let Ok(Err(err)) | Err(err) = kept.map_err(std::io::Error::other) {
+        tracing::warn!(id = %summary.id, %err, "posted scene not kept for restarts");
+    }
     // The previous version's records are useless now; free them.
     state
         .irradiance_caches
@@ -290,6 +320,8 @@ pub async fn delete_scene(
         id: id.clone(),
     })?;
     state.irradiance_caches.retire(&id, None);
+    let (keeper, kept) = (state.clone(), id.clone());
+    let _ = tokio::task::spawn_blocking(move || keeper.posted.remove(&kept)).await;
     tracing::info!(%id, "scene deleted");
     Ok(StatusCode::NO_CONTENT)
 }
