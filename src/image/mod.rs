@@ -166,8 +166,8 @@ impl Image {
     /// the pixel-wise mean, and variance `Σ vᵢ / n²` (the variance of a
     /// mean of independent estimates, docs/math.md §16.1), kept only if
     /// every image has one.
-    pub fn mean_of(images: &[Image]) -> Result<Image, ImageError> {
-        let Some(first) = images.first() else {
+    pub fn mean_of(images: &[&Image]) -> Result<Image, ImageError> {
+        let Some(&first) = images.first() else {
             return Err(ImageError::invalid("images", "no image to average"));
         };
         if let Some(other) = images
@@ -344,13 +344,13 @@ mod tests {
     #[test]
     fn mean_of_passes_averages_values_and_divides_the_variance() {
         let (a, b) = (ramp(2, 2, 0.0), ramp(2, 2, 2.0));
-        let mean = Image::mean_of(&[a.clone(), b]).expect("same size");
+        let mean = Image::mean_of(&[&a, &b]).expect("same size");
         assert_eq!(mean.pixel(1, 0), Some([2.0, 1.0, 2.0]));
         // (0.5 + 0.5) / 4 for pixel 1.
         assert_eq!(mean.variance().expect("both have one")[1], 0.25);
-        assert_eq!(Image::mean_of(std::slice::from_ref(&a)).expect("one"), a);
+        assert_eq!(Image::mean_of(&[&a]).expect("one"), a);
         assert!(Image::mean_of(&[]).is_err());
-        assert!(Image::mean_of(&[a, ramp(1, 2, 0.0)]).is_err());
+        assert!(Image::mean_of(&[&a, &ramp(1, 2, 0.0)]).is_err());
     }
 
     #[test]

@@ -90,22 +90,21 @@ impl Application {
                 "no server.auth_token: anyone who reaches this address can replace or delete scenes and clear caches"
             );
         }
-        let dir = config.scenes.dir.clone();
-        let loaded = tokio::task::spawn_blocking(move || scenes::load_dir(&dir))
-            .await
-            .context("scene loading panicked")?;
-        let registry = SceneRegistry::new(&config.scenes);
-        let posted = PostedScenes::new(&config.cache.data_dir);
-        let (keeper, scenes_dir) = (
-            PostedScenes::new(&config.cache.data_dir),
+        // Posted scenes load after the directory's, so they replace directory
+        // scenes of the same id, as they did when they were posted.
+        let (dir, posted) = (
             config.scenes.dir.clone(),
+            PostedScenes::new(&config.cache.data_dir),
         );
-        let reposted = tokio::task::spawn_blocking(move || keeper.load_all(&scenes_dir))
-            .await
-            .context("loading posted scenes panicked")?;
-        // Posted scenes replace directory scenes of the same id, as they did
-        // when they were posted.
-        for scene in loaded.into_iter().chain(reposted) {
+        let (loaded, posted) = tokio::task::spawn_blocking(move || {
+            let mut loaded = scenes::load_dir(&dir);
+            loaded.extend(posted.load_all(&dir));
+            (loaded, posted)
+        })
+        .await
+        .context("scene loading panicked")?;
+        let registry = SceneRegistry::new(&config.scenes);
+        for scene in loaded {
             let id = scene.id.clone();
             if let Err(over) = registry.insert(scene) {
                 tracing::error!(%id, %over, "scene skipped: over the scenes budget");

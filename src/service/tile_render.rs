@@ -180,7 +180,7 @@ pub fn render_progressive(
         // Let the shared cache (and its statistics) know of new records.
         integrator.publish(&records.records)?;
     }
-    let images: Vec<Image> = passes.iter().map(|p| p.image.clone()).collect();
+    let images: Vec<&Image> = passes.iter().map(|p| &p.image).collect();
     Ok(ProgressiveTile {
         image: Image::mean_of(&images)?,
         records,

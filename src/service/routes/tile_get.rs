@@ -299,11 +299,10 @@ pub async fn get_tile(
     ::metrics::counter!(RAYS_TRACED).increment(tile.rays);
     let mut response = (common, body).into_response();
     let h = response.headers_mut();
-    let content_type = match (aov, format) {
-        (Aov::Records, ImageEncoding::Json) => "application/json",
-        _ => format.content_type(),
-    };
-    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static(format.content_type()),
+    );
     let mut number = |name: &'static str, n: u64| {
         h.insert(HeaderName::from_static(name), HeaderValue::from(n));
     };
