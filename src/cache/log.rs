@@ -19,6 +19,12 @@
 //! damage is kept and later appends follow valid data. Nothing in a bad
 //! file makes opening fail, except not being able to read or write it.
 //!
+//! # The same format elsewhere
+//! [`encode_entry`] and [`decode_entry`] frame one entry the same way for
+//! other transports (the replicas' shared stream), and [`decode_log`] reads
+//! a whole log image strictly (an export being imported): there, damage is
+//! an error naming the entry, not a tail to cut.
+//!
 //! # Compaction
 //! [`AppendLog::rewrite`] replaces the file by one holding only the given
 //! entries (written to a temporary file, synced, then renamed over the log),
@@ -179,6 +185,34 @@ impl AppendLog {
     }
 }
 
+/// One entry framed as in the file: length, checksum, kind, key, payload.
+pub fn encode_entry(kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<Vec<u8>> {
+    frame(kind, key, payload)
+}
+
+/// The entry framed in exactly `bytes`, if it is complete and intact.
+pub fn decode_entry(bytes: &[u8]) -> Option<LogEntry> {
+    let mut reader = bytes;
+    let entry = read_entry(&mut reader, bytes.len() as u64).ok()??;
+    reader.is_empty().then_some(entry)
+}
+
+/// Every entry of a whole log image (the magic, then entries), read
+/// strictly: `Err(i)` when entry `i` is incomplete or damaged, or the magic
+/// is missing (`i = 0`).
+pub fn decode_log(bytes: &[u8]) -> Result<Vec<LogEntry>, usize> {
+    let mut reader = bytes.strip_prefix(MAGIC.as_slice()).ok_or(0usize)?;
+    let mut entries = Vec::new();
+    while !reader.is_empty() {
+        let remaining = reader.len() as u64;
+        match read_entry(&mut reader, remaining) {
+            Ok(Some(entry)) => entries.push(entry),
+            _ => return Err(entries.len()),
+        }
+    }
+    Ok(entries)
+}
+
 fn frame(kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<Vec<u8>> {
     let length = u32::try_from(1 + key.len() + payload.len())
         .ok()
@@ -327,6 +361,24 @@ mod tests {
         assert!(read.is_empty());
         assert_eq!(report.dropped_bytes, 23);
         assert_eq!(log.bytes(), MAGIC.len() as u64);
+    }
+
+    #[test]
+    fn entries_round_trip_outside_a_file() {
+        let entries: Vec<_> = (0..5).map(entry).collect();
+        let mut image = MAGIC.to_vec();
+        for e in &entries {
+            let framed = encode_entry(e.kind, &e.key, &e.payload).unwrap();
+            assert_eq!(decode_entry(&framed).as_ref(), Some(e));
+            assert!(decode_entry(&framed[..framed.len() - 1]).is_none());
+            image.extend(framed);
+        }
+        assert_eq!(decode_log(&image).unwrap(), entries);
+        assert_eq!(decode_log(&image[..image.len() - 1]), Err(4));
+        assert_eq!(decode_log(b"BMCLOG02"), Err(0));
+        let mut flipped = image.clone();
+        flipped[MAGIC.len() + 20] ^= 1;
+        assert_eq!(decode_log(&flipped), Err(0));
     }
 
     #[test]

@@ -99,13 +99,22 @@ impl SceneBundle {
                 .and_then(|mut f| std::io::Write::write_all(&mut f, bytes))
                 .map_err(|e| io_error(&path, e))?;
         }
-        let root = dir.path();
-        match kind {
-            DocumentKind::Json => {
-                Scene::from_json_str(document, root, root).map(|s| (s, Warnings::default()))
-            }
-            DocumentKind::MitsubaXml => Scene::from_mitsuba_xml_str(document, root, root, options),
+        load_document(document, kind, options, dir.path())
+    }
+}
+
+/// Parses `document` with the files it references resolved against `root`.
+pub fn load_document(
+    document: &str,
+    kind: DocumentKind,
+    options: &MitsubaOptions,
+    root: &Path,
+) -> Result<(Scene, Warnings), SceneError> {
+    match kind {
+        DocumentKind::Json => {
+            Scene::from_json_str(document, root, root).map(|s| (s, Warnings::default()))
         }
+        DocumentKind::MitsubaXml => Scene::from_mitsuba_xml_str(document, root, root, options),
     }
 }
 

@@ -53,6 +53,7 @@ use super::posted_scenes::PostedScenes;
 use super::routes;
 use super::scenes::{self, SceneRegistry};
 use super::server;
+use super::shared_store::SharedStore;
 use super::state::AppState;
 use super::tile_store::TileStore;
 use crate::bmc::cache::QuadratureCache;
@@ -115,7 +116,12 @@ impl Application {
             usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX),
         );
         let quadratures = Arc::new(QuadratureCache::new(config.cache.factorisation_bytes));
-        let tiles = open_tile_store(&config.cache)?;
+        let shared = SharedStore::connect(&config.cluster).context("cluster.redis_url")?;
+        let mut tiles = open_tile_store(&config.cache)?;
+        if let Some(shared) = &shared {
+            tiles = tiles.sharing_through(shared.outbox());
+            tracing::info!(prefix = %config.cluster.redis_prefix, "sharing tiles and scenes with other replicas through Redis");
+        }
         let state = Arc::new(AppState {
             quadratures,
             config,
@@ -125,6 +131,7 @@ impl Application {
             irradiance_caches,
             tiles,
             posted,
+            shared,
         });
         let router = router(state.clone());
         Ok(Application {
@@ -167,6 +174,7 @@ impl Application {
                 }
             })
         };
+        let follower = super::replicas::follow(&self.state);
         tracing::info!(addr = %self.local_addr(), "listening");
         let served = server::serve(
             self.listener,
@@ -176,6 +184,9 @@ impl Application {
         )
         .await;
         upkeep.abort();
+        if let Some(follower) = follower {
+            follower.abort();
+        }
         tracing::info!("stopped");
         served
     }
@@ -234,6 +245,10 @@ pub fn router(state: Arc<AppState>) -> Router {
         .routes(routes!(
             routes::cache::get_cache,
             routes::cache::delete_cache
+        ))
+        .routes(routes!(
+            routes::records::export_records,
+            routes::records::import_records
         ))
         .routes(routes!(routes::quadratures::post_quadrature))
         .split_for_parts();
@@ -351,8 +366,10 @@ async fn check_head_size(request: Request, next: Next) -> Response {
 
 /// Requires the bearer token on the routes that change state (module docs).
 async fn authorise(State(token): State<Arc<String>>, request: Request, next: Next) -> Response {
+    let path = request.uri().path();
     let mutating = request.method() == Method::DELETE
-        || (request.method() == Method::POST && request.uri().path() == "/v1/scenes");
+        || (request.method() == Method::POST
+            && (path == "/v1/scenes" || path.ends_with("/records")));
     if token.is_empty() || !mutating {
         return next.run(request).await;
     }

@@ -70,6 +70,21 @@ pub struct Config {
     pub cache: CacheConfig,
     pub limits: Limits,
     pub scenes: ScenesConfig,
+    pub cluster: ClusterConfig,
+}
+
+/// Sharing with other replicas (`service::shared_store`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClusterConfig {
+    /// Redis shared by the replicas (`redis://host:port/db`); empty = this
+    /// process alone.
+    pub redis_url: String,
+    /// Prefix of every Redis key of this service.
+    pub redis_prefix: String,
+    /// Entries kept in the shared stream of tile parts; older ones are
+    /// trimmed (approximately, as Redis's `MAXLEN ~` does).
+    pub shared_parts: u64,
 }
 
 /// Listener and thread counts.
@@ -219,6 +234,7 @@ impl Config {
             ("cache.factorisation_bytes", self.cache.factorisation_bytes),
             ("cache.irradiance_bytes", self.cache.irradiance_bytes),
             ("cache.tile_bytes", self.cache.tile_bytes),
+            ("cluster.shared_parts", self.cluster.shared_parts),
         ];
         for (field, value) in positive {
             if value == 0 {
@@ -232,6 +248,20 @@ impl Config {
             return Err(ConfigError::Invalid {
                 field: "limits.max_queue_wait_secs",
                 reason: "must be greater than zero".into(),
+            });
+        }
+        if !self.cluster.redis_url.is_empty()
+            && let Err(err) = redis::Client::open(self.cluster.redis_url.as_str())
+        {
+            return Err(ConfigError::Invalid {
+                field: "cluster.redis_url",
+                reason: format!("is not a Redis URL: {err}"),
+            });
+        }
+        if self.cluster.redis_prefix.is_empty() || self.cluster.redis_prefix.contains(' ') {
+            return Err(ConfigError::Invalid {
+                field: "cluster.redis_prefix",
+                reason: "must be non-empty and without spaces".into(),
             });
         }
         if self.scenes.dir.as_os_str().is_empty() {

@@ -268,6 +268,34 @@ impl From<crate::image::ImageError> for ApiError {
     }
 }
 
+/// An import names the entry it refuses (422): `body` when the body is not
+/// an export at all, `entries[i]` otherwise.
+impl From<crate::service::tile_store::ImportError> for ApiError {
+    fn from(err: crate::service::tile_store::ImportError) -> Self {
+        use crate::service::tile_store::ImportError;
+        let field = match &err {
+            ImportError::NotALog => "body".to_owned(),
+            ImportError::Damaged { entry }
+            | ImportError::NotRecords { entry, .. }
+            | ImportError::Malformed { entry }
+            | ImportError::OtherScene { entry, .. } => format!("entries[{entry}]"),
+        };
+        ApiError::invalid(field, err.to_string())
+    }
+}
+
+/// A blocking task that panicked or was cancelled is ours (500).
+impl From<tokio::task::JoinError> for ApiError {
+    fn from(err: tokio::task::JoinError) -> Self {
+        match err.try_into_panic() {
+            Ok(panic) => ApiError::from_panic(panic.as_ref()),
+            Err(err) => ApiError::Internal {
+                message: format!("blocking task: {err}"),
+            },
+        }
+    }
+}
+
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         if let ApiError::Internal { message } = &self {

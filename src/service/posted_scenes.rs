@@ -4,14 +4,22 @@
 //! posted without assets resolves its files against the scenes directory
 //! again when reloaded, as it did when posted. A replacement is written
 //! beside the old copy and renamed over it; `DELETE` removes the copy.
+//!
+//! Replicas pass posted scenes to each other as one blob
+//! ([`Posted::encode`]): `BMCSCN01 | header length: u32 LE | header JSON |
+//! asset bytes`, the header holding the document, how it was posted and
+//! each asset's name and length, in order.
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
 use super::scenes::{LoadedScene, SceneSource, log_warnings, validate_id};
-use crate::scene::bundle::{DocumentKind, SceneBundle};
-use crate::scene::{MitsubaOptions, Scene};
+use crate::scene::bundle::{DocumentKind, SceneBundle, load_document};
+use crate::scene::{MitsubaOptions, Scene, SceneError, Warnings};
+
+/// First bytes of a posted scene's blob.
+const BLOB_MAGIC: &[u8; 8] = b"BMCSCN01";
 
 /// A posted scene as it was received.
 pub struct Posted {
@@ -20,6 +28,95 @@ pub struct Posted {
     pub lenient: bool,
     /// The assets it came with (`None`: its files are in the scenes directory).
     pub bundle: Option<SceneBundle>,
+}
+
+/// The header of a posted scene's blob (module docs).
+#[derive(Serialize, Deserialize)]
+struct BlobHeader {
+    xml: bool,
+    lenient: bool,
+    document: String,
+    /// `(name, bytes)` of each asset; `None`: posted without assets.
+    assets: Option<Vec<(String, u64)>>,
+}
+
+impl Posted {
+    /// The blob replicas exchange (module docs).
+    pub fn encode(&self) -> Vec<u8> {
+        let header = BlobHeader {
+            xml: self.kind == DocumentKind::MitsubaXml,
+            lenient: self.lenient,
+            document: self.document.clone(),
+            assets: self.bundle.as_ref().map(|b| {
+                b.assets()
+                    .map(|(p, bytes)| (p.to_string_lossy().into_owned(), bytes.len() as u64))
+                    .collect()
+            }),
+        };
+        let header = serde_json::to_vec(&header).expect("a header serialises");
+        let mut out = BLOB_MAGIC.to_vec();
+        out.extend((header.len() as u32).to_le_bytes());
+        out.extend(header);
+        for (_, bytes) in self.bundle.iter().flat_map(SceneBundle::assets) {
+            out.extend_from_slice(bytes);
+        }
+        out
+    }
+
+    /// A blob read back; asset names are checked again (`SceneBundle::add`).
+    pub fn decode(blob: &[u8]) -> anyhow::Result<Posted> {
+        let rest = blob
+            .strip_prefix(BLOB_MAGIC.as_slice())
+            .ok_or_else(|| anyhow::anyhow!("not a posted-scene blob"))?;
+        let (length, rest) = rest
+            .split_first_chunk::<4>()
+            .ok_or_else(|| anyhow::anyhow!("truncated blob"))?;
+        let length = u32::from_le_bytes(*length) as usize;
+        anyhow::ensure!(rest.len() >= length, "truncated blob header");
+        let (header, mut rest) = rest.split_at(length);
+        let header: BlobHeader = serde_json::from_slice(header)?;
+        let bundle = match header.assets {
+            None => None,
+            Some(assets) => {
+                let mut bundle = SceneBundle::default();
+                for (i, (name, len)) in assets.into_iter().enumerate() {
+                    let len = usize::try_from(len)?;
+                    anyhow::ensure!(rest.len() >= len, "truncated asset {name:?}");
+                    let (bytes, tail) = rest.split_at(len);
+                    bundle.add(&name, bytes.to_vec(), &format!("assets[{i}]"))?;
+                    rest = tail;
+                }
+                Some(bundle)
+            }
+        };
+        anyhow::ensure!(rest.is_empty(), "trailing bytes after the assets");
+        Ok(Posted {
+            document: header.document,
+            kind: if header.xml {
+                DocumentKind::MitsubaXml
+            } else {
+                DocumentKind::Json
+            },
+            lenient: header.lenient,
+            bundle,
+        })
+    }
+
+    /// Loads the scene as it was when posted: against its assets, or
+    /// against `scenes_dir` when it came without.
+    pub fn load(&self, scenes_dir: &Path) -> Result<(Scene, Warnings), SceneError> {
+        match &self.bundle {
+            Some(bundle) => bundle.load(&self.document, self.kind, &self.options()),
+            None => load_document(&self.document, self.kind, &self.options(), scenes_dir),
+        }
+    }
+
+    fn options(&self) -> MitsubaOptions {
+        MitsubaOptions {
+            lenient: self.lenient,
+            ..MitsubaOptions::default()
+        }
+    }
 }
 
 /// `post.json`.
@@ -31,6 +128,7 @@ struct PostRecord {
 }
 
 /// Where posted scenes are kept; `None` keeps them in memory only.
+#[derive(Clone)]
 pub struct PostedScenes {
     dir: Option<PathBuf>,
 }
@@ -128,16 +226,56 @@ fn load_one(dir: &Path, scenes_dir: &Path) -> anyhow::Result<Scene> {
         scenes_dir.to_owned()
     };
     std::fs::create_dir_all(&root)?;
-    let scene = if record.xml {
-        let options = MitsubaOptions {
-            lenient: record.lenient,
-            ..MitsubaOptions::default()
-        };
-        let (scene, warnings) = Scene::from_mitsuba_xml_str(&document, &root, &root, &options)?;
-        log_warnings(&dir.display().to_string(), &warnings);
-        scene
+    let kind = if record.xml {
+        DocumentKind::MitsubaXml
     } else {
-        Scene::from_json_str(&document, &root, &root)?
+        DocumentKind::Json
     };
+    let options = MitsubaOptions {
+        lenient: record.lenient,
+        ..MitsubaOptions::default()
+    };
+    let (scene, warnings) = load_document(&document, kind, &options, &root)?;
+    log_warnings(&dir.display().to_string(), &warnings);
     Ok(scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_posted_scene_travels_as_one_blob() {
+        let mut bundle = SceneBundle::default();
+        bundle
+            .add("meshes/a.obj", b"v 0 0 0\n".to_vec(), "assets[0]")
+            .unwrap();
+        bundle.add("sky.exr", vec![1, 2, 3], "assets[1]").unwrap();
+        let posted = Posted {
+            document: "<scene/>".into(),
+            kind: DocumentKind::MitsubaXml,
+            lenient: true,
+            bundle: Some(bundle),
+        };
+        let blob = posted.encode();
+        let back = Posted::decode(&blob).unwrap();
+        assert_eq!(back.document, "<scene/>");
+        assert_eq!(back.kind, DocumentKind::MitsubaXml);
+        assert!(back.lenient);
+        let assets: Vec<_> = back.bundle.as_ref().unwrap().assets().collect();
+        assert_eq!(
+            assets,
+            [
+                (Path::new("meshes/a.obj"), b"v 0 0 0\n".as_slice()),
+                (Path::new("sky.exr"), [1, 2, 3].as_slice())
+            ]
+        );
+        assert!(Posted::decode(&blob[..blob.len() - 1]).is_err());
+        assert!(Posted::decode(b"BMCSCN01").is_err());
+        // Names are checked again on the way in.
+        let escaping = blob.windows(12).position(|w| w == b"meshes/a.obj").unwrap();
+        let mut evil = blob.clone();
+        evil[escaping..escaping + 6].copy_from_slice(b"../../");
+        assert!(Posted::decode(&evil).is_err());
+    }
 }

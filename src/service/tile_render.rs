@@ -128,7 +128,11 @@ pub fn render_progressive(
                 let (records, report) = integrator.tile_records(&job.request, cancel)?;
                 rays += report.placement.rays;
                 created.set(report.placement.records_created);
-                Ok::<_, ApiError>(TileRecords { records, report })
+                Ok::<_, ApiError>(TileRecords {
+                    scene: *transport.scene().digest.as_bytes(),
+                    records,
+                    report,
+                })
             })?;
             Some(tile_records)
         }

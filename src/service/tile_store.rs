@@ -19,6 +19,16 @@
 //! Eviction: memory holds `cache.tile_bytes` by TinyLFU; the log is
 //! rewritten with what memory holds whenever it passes twice that.
 //!
+//! With `cluster.redis_url` set, every part computed here is also sent to
+//! the other replicas (`service::shared_store`), and theirs are merged in
+//! ([`TileStore::merge`]); parts are content-keyed and computed
+//! deterministically, so a merged part is the one this replica would have
+//! computed, bit for bit.
+//!
+//! A scene's records can be exported as a log image and imported into
+//! another service ([`TileStore::export`], [`TileStore::import`]); each
+//! records entry names the scene content it belongs to.
+//!
 //! Tiles rendered through the shared cache (`reproducible: false`) depend
 //! on what ran before and are not kept here; their records live in the
 //! scene's shared cache.
@@ -28,7 +38,8 @@ use std::sync::Arc;
 
 use moka::sync::Cache;
 
-use crate::cache::log::{AppendLog, LogReport};
+use super::shared_store::Outbox;
+use crate::cache::log::{self, AppendLog, LogEntry, LogReport};
 use crate::cache::{RECORD_BYTES, Record};
 use crate::image::Image;
 use crate::integrator::cached::CachedTileReport;
@@ -38,6 +49,8 @@ pub type Key = [u8; 32];
 
 /// The records a reproducible tile placed, and what placing them took.
 pub struct TileRecords {
+    /// The content digest of the scene they belong to (`scene::SceneDigest`).
+    pub scene: [u8; 32],
     pub records: Vec<Record>,
     pub report: CachedTileReport,
 }
@@ -61,11 +74,40 @@ pub struct TileStore {
     budget: u64,
     /// What opening the log found.
     loaded: LogReport,
+    /// Where parts computed here go to reach other replicas (framed log
+    /// entries); `None` without a shared store.
+    outbox: Option<Outbox>,
 }
 
-/// Log entry kinds.
-const RECORDS: u8 = 1;
+/// Log entry kinds. Kind 1, records without their scene, is no longer
+/// written and is skipped when read.
 const PASS: u8 = 2;
+const RECORDS: u8 = 3;
+
+/// Why an import was refused; `entry` counts from 0.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum ImportError {
+    #[error("not a records export (the `BMCLOG01` magic is missing)")]
+    NotALog,
+    #[error("entry {entry} is incomplete or fails its checksum")]
+    Damaged { entry: usize },
+    #[error("entry {entry} is not a records entry (kind {kind})")]
+    NotRecords { entry: usize, kind: u8 },
+    #[error("entry {entry} holds records that do not decode")]
+    Malformed { entry: usize },
+    #[error("entry {entry} belongs to another scene content (digest {digest})")]
+    OtherScene { entry: usize, digest: String },
+}
+
+/// What an import added.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, utoipa::ToSchema)]
+pub struct ImportReport {
+    /// Tiles whose records were added, and those already held.
+    pub imported: u64,
+    pub already_held: u64,
+    /// Records in the added tiles.
+    pub records: u64,
+}
 
 /// What `/health` reports about the store.
 #[derive(Clone, Copy, Debug, serde::Serialize, utoipa::ToSchema)]
@@ -101,7 +143,15 @@ impl TileStore {
             log: None,
             budget: bytes,
             loaded: LogReport::default(),
+            outbox: None,
         }
+    }
+
+    /// The same store, sending every part it computes to `outbox` as a
+    /// framed log entry (`cache::log::encode_entry`).
+    pub fn sharing_through(mut self, outbox: Outbox) -> Self {
+        self.outbox = Some(outbox);
+        self
     }
 
     /// [`Self::new`] backed by the log at `path`: every intact entry is
@@ -110,20 +160,8 @@ impl TileStore {
     pub fn open(bytes: u64, path: &Path) -> std::io::Result<Self> {
         let mut store = Self::new(bytes);
         let (log, entries, report) = AppendLog::open(path)?;
-        for entry in entries {
-            match entry.kind {
-                RECORDS => {
-                    if let Some(records) = decode_records(&entry.payload) {
-                        store.records.insert(entry.key, Arc::new(records));
-                    }
-                }
-                PASS => {
-                    if let Some(pass) = decode_pass(&entry.payload) {
-                        store.passes.insert(entry.key, Arc::new(pass));
-                    }
-                }
-                _ => {}
-            }
+        for entry in &entries {
+            store.insert_entry(entry);
         }
         store.log = Some(log);
         store.loaded = report;
@@ -140,7 +178,7 @@ impl TileStore {
         self.records
             .try_get_with(key, || {
                 let records = place()?;
-                self.persist(RECORDS, &key, || encode_records(&records));
+                self.persist(RECORDS, &key, &encode_records(&records), true);
                 Ok(Arc::new(records))
             })
             .map_err(|e: Arc<E>| (*e).clone())
@@ -156,7 +194,7 @@ impl TileStore {
         self.passes
             .try_get_with(key, || {
                 let pass = render()?;
-                self.persist(PASS, &key, || encode_pass(&pass));
+                self.persist(PASS, &key, &encode_pass(&pass), true);
                 Ok(Arc::new(pass))
             })
             .map_err(|e: Arc<E>| (*e).clone())
@@ -175,15 +213,111 @@ impl TileStore {
         }
     }
 
-    /// Appends an entry to the log, if any; past twice the budget, the log
-    /// is rewritten with what memory still holds (the eviction policy of
-    /// the disk: what the in-memory TinyLFU keeps). A failing disk costs
-    /// persistence, never the request.
-    fn persist(&self, kind: u8, key: &Key, payload: impl FnOnce() -> Vec<u8>) {
+    /// Adds a part another replica computed (a framed log entry from the
+    /// shared store), unless it is held already; it is logged here too, so
+    /// it survives a restart of this replica. Returns whether it was new;
+    /// a damaged frame or an unknown kind is ignored.
+    pub fn merge(&self, framed: &[u8]) -> bool {
+        let Some(entry) = log::decode_entry(framed) else {
+            return false;
+        };
+        let held = match entry.kind {
+            RECORDS => self.records.contains_key(&entry.key),
+            PASS => self.passes.contains_key(&entry.key),
+            _ => true,
+        };
+        if held || !self.insert_entry(&entry) {
+            return false;
+        }
+        self.persist(entry.kind, &entry.key, &entry.payload, false);
+        true
+    }
+
+    /// The records of every tile of the scene content `scene` held here, as
+    /// a log image (`cache::log`: magic, then one records entry per tile).
+    pub fn export(&self, scene: &[u8; 32]) -> Vec<u8> {
+        self.records.run_pending_tasks();
+        let mut image = log::MAGIC.to_vec();
+        for (key, tile) in self.records.iter().filter(|(_, t)| &t.scene == scene) {
+            // An entry over the format's size limit cannot be exported.
+            if let Ok(framed) = log::encode_entry(RECORDS, &key, &encode_records(&tile)) {
+                image.extend(framed);
+            }
+        }
+        image
+    }
+
+    /// Adds the records entries of an export (`Self::export`) of the scene
+    /// content `scene`; all or nothing: any entry that is damaged, not
+    /// records, or of another scene content refuses the whole import.
+    pub fn import(&self, scene: &[u8; 32], image: &[u8]) -> Result<ImportReport, ImportError> {
+        let entries = log::decode_log(image).map_err(|entry| {
+            if entry == 0 && !image.starts_with(log::MAGIC) {
+                ImportError::NotALog
+            } else {
+                ImportError::Damaged { entry }
+            }
+        })?;
+        let mut tiles = Vec::with_capacity(entries.len());
+        for (i, entry) in entries.iter().enumerate() {
+            if entry.kind != RECORDS {
+                return Err(ImportError::NotRecords {
+                    entry: i,
+                    kind: entry.kind,
+                });
+            }
+            let tile = decode_records(&entry.payload).ok_or(ImportError::Malformed { entry: i })?;
+            if &tile.scene != scene {
+                return Err(ImportError::OtherScene {
+                    entry: i,
+                    digest: tile.scene.iter().map(|b| format!("{b:02x}")).collect(),
+                });
+            }
+            tiles.push((entry, tile));
+        }
+        let mut report = ImportReport::default();
+        for (entry, tile) in tiles {
+            if self.records.contains_key(&entry.key) {
+                report.already_held += 1;
+                continue;
+            }
+            report.imported += 1;
+            report.records += tile.records.len() as u64;
+            self.records.insert(entry.key, Arc::new(tile));
+            self.persist(RECORDS, &entry.key, &entry.payload, true);
+        }
+        Ok(report)
+    }
+
+    /// Decodes and inserts one entry; false when it does not decode.
+    fn insert_entry(&self, entry: &LogEntry) -> bool {
+        match entry.kind {
+            RECORDS => decode_records(&entry.payload)
+                .map(|records| self.records.insert(entry.key, Arc::new(records)))
+                .is_some(),
+            PASS => decode_pass(&entry.payload)
+                .map(|pass| self.passes.insert(entry.key, Arc::new(pass)))
+                .is_some(),
+            _ => false,
+        }
+    }
+
+    /// Appends an entry to the log, if any, and with `share` sends it to
+    /// the other replicas, if any. Past twice the budget, the log is
+    /// rewritten with what memory still holds (the eviction policy of the
+    /// disk: what the in-memory TinyLFU keeps). A failing disk or a full
+    /// outbox costs persistence or sharing, never the request.
+    fn persist(&self, kind: u8, key: &Key, payload: &[u8], share: bool) {
+        if let (Some(outbox), true) = (&self.outbox, share) {
+            match log::encode_entry(kind, key, payload) {
+                Ok(framed) => outbox.send(framed),
+                Err(err) => tracing::warn!(%err, "tile part too large to share"),
+            }
+        }
         let Some(log) = &self.log else {
             return;
         };
-        if let Err(err) = log.append(kind, key, &payload()) {
+        if let Err(err) = log.append(kind, key, payload) {
             tracing::warn!(%err, "cannot append to the tile log; this part will not survive a restart");
             return;
         }
@@ -212,11 +346,15 @@ impl TileStore {
     }
 }
 
+/// `scene digest: 32 bytes | records` (`Record::to_le_bytes` each).
 fn encode_records(tile: &TileRecords) -> Vec<u8> {
-    tile.records.iter().flat_map(Record::to_le_bytes).collect()
+    let mut out = tile.scene.to_vec();
+    out.extend(tile.records.iter().flat_map(Record::to_le_bytes));
+    out
 }
 
 fn decode_records(bytes: &[u8]) -> Option<TileRecords> {
+    let (scene, bytes) = bytes.split_first_chunk::<32>()?;
     if !bytes.len().is_multiple_of(Record::ENCODED_BYTES) {
         return None;
     }
@@ -225,6 +363,7 @@ fn decode_records(bytes: &[u8]) -> Option<TileRecords> {
         .map(Record::from_le_bytes)
         .collect::<Option<Vec<_>>>()?;
     Some(TileRecords {
+        scene: *scene,
         records,
         report: CachedTileReport::default(),
     })
@@ -318,6 +457,75 @@ mod tests {
             (p.image.clone(), 99, 7)
         );
         assert!(decode_pass(&encode_pass(&p)[..30]).is_none());
+    }
+
+    fn tile(scene: u8) -> TileRecords {
+        use glam::DVec3;
+        let valid = Record {
+            position: DVec3::ZERO,
+            normal: DVec3::Z,
+            irradiance: crate::render::Rgb::new(1.0, 2.0, 3.0),
+            variance: crate::render::Rgb::new(0.1, 0.1, 0.1),
+            radius: 0.5,
+            rotation_gradient: [DVec3::ZERO; 3],
+            translation_gradient: [DVec3::ZERO; 3],
+        };
+        TileRecords {
+            scene: [scene; 32],
+            records: vec![valid; 3],
+            report: CachedTileReport::default(),
+        }
+    }
+
+    #[test]
+    fn a_scene_s_records_export_and_import_and_nothing_else() {
+        let store = TileStore::new(1 << 20);
+        store.records_or::<()>([1; 32], || Ok(tile(7))).unwrap();
+        store.records_or::<()>([2; 32], || Ok(tile(7))).unwrap();
+        store.records_or::<()>([3; 32], || Ok(tile(8))).unwrap();
+        store.pass_or::<()>([4; 32], || Ok(pass(1.0))).unwrap();
+        let export = store.export(&[7; 32]);
+        assert_eq!(log::decode_log(&export).unwrap().len(), 2);
+
+        let other = TileStore::new(1 << 20);
+        let report = other.import(&[7; 32], &export).unwrap();
+        assert_eq!(
+            (report.imported, report.already_held, report.records),
+            (2, 0, 6)
+        );
+        let back = other
+            .records_or::<()>([2; 32], || panic!("not imported"))
+            .unwrap();
+        assert_eq!(back.records, tile(7).records);
+        assert_eq!(other.import(&[7; 32], &export).unwrap().already_held, 2);
+        // Refused whole: another scene's content, damage, not an export.
+        let fresh = TileStore::new(1 << 20);
+        assert!(matches!(
+            fresh.import(&[8; 32], &export),
+            Err(ImportError::OtherScene { entry: 0, .. })
+        ));
+        assert_eq!(
+            fresh.import(&[7; 32], &export[..export.len() - 3]).err(),
+            Some(ImportError::Damaged { entry: 1 })
+        );
+        assert_eq!(
+            fresh.import(&[7; 32], b"{}").err(),
+            Some(ImportError::NotALog)
+        );
+        assert_eq!(fresh.stats().tiles, 0);
+    }
+
+    #[test]
+    fn parts_from_another_replica_merge_once() {
+        let store = TileStore::new(1 << 20);
+        let framed = log::encode_entry(PASS, &[5; 32], &encode_pass(&pass(2.0))).unwrap();
+        assert!(store.merge(&framed));
+        assert!(!store.merge(&framed), "held already");
+        assert!(!store.merge(&framed[..framed.len() - 1]), "damaged");
+        let merged = store
+            .pass_or::<()>([5; 32], || panic!("not merged"))
+            .unwrap();
+        assert_eq!(merged.image, pass(2.0).image);
     }
 
     #[test]

@@ -1,9 +1,16 @@
-//! Three replicas behind a real HAProxy (Debian's `haproxy`, which `.ci/run`
-//! installs) with `deploy/haproxy.cfg.in`: eight clients render the Cornell
-//! box's tiles through it, the replica that owns the scene is killed in the
-//! middle, and every tile still arrives, bit-identical to a single process's
-//! render of the same reproducible request. Set `HAPROXY` to use another
-//! binary.
+//! Three replicas sharing a real Redis, behind a real HAProxy (Debian's
+//! `redis-server` and `haproxy`, which `.ci/run` installs) with
+//! `deploy/haproxy.cfg.in`:
+//! - a scene uploaded with its mesh and EXR map through the balancer renders
+//!   on every replica, asked directly;
+//! - eight clients render the Cornell box's tiles through the balancer, the
+//!   replica that owns the scene is killed in the middle, and every tile
+//!   still arrives, bit-identical to a single process's render of the same
+//!   reproducible request; the survivors merged what the others shared;
+//! - with Redis gone, the replicas say so in `/health` and `/metrics` and
+//!   go on answering.
+//!
+//! Set `HAPROXY` or `REDIS_SERVER` to use other binaries.
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -15,6 +22,7 @@ use std::time::Duration;
 use tokio::sync::Mutex;
 
 use crate::common::spawn_app_in;
+use crate::service_upload::{BOUNDARY, OBJ, document, multipart, sky};
 
 const BIN: &str = env!("CARGO_BIN_EXE_bmc-irradiance");
 
@@ -33,7 +41,7 @@ fn root() -> &'static Path {
 }
 
 /// A replica on an ephemeral port; its address from the `listening` log line.
-fn replica(dir: &Path) -> (Process, String) {
+fn replica(dir: &Path, redis: &str) -> (Process, String) {
     let scenes = dir.join("scenes");
     std::fs::create_dir_all(&scenes).unwrap();
     std::fs::copy(
@@ -46,6 +54,7 @@ fn replica(dir: &Path) -> (Process, String) {
         .env("BMC_SCENES__DIR", &scenes)
         .env("BMC_CACHE__DATA_DIR", dir.join("data"))
         .env("BMC_SERVER__WORKER_THREADS", "1")
+        .env("BMC_CLUSTER__REDIS_URL", redis)
         .env("NO_COLOR", "1")
         .env("RUST_LOG", "info")
         .stdout(Stdio::null())
@@ -94,14 +103,57 @@ async fn tile(client: &reqwest::Client, url: &str, retries: &AtomicU64) -> (Vec<
     panic!("{url}: no answer after 60 attempts");
 }
 
+/// A Redis server on a free loopback port, keeping nothing on disk; waits
+/// until it answers `PING`.
+fn redis_server() -> (Process, String) {
+    let binary = std::env::var("REDIS_SERVER").unwrap_or_else(|_| "redis-server".into());
+    let port = free_port();
+    let child = Command::new(&binary)
+        .args(["--port", &port.to_string(), "--bind", "127.0.0.1"])
+        .args(["--save", "", "--appendonly", "no"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start {binary} ({e}); install Debian's redis-server"));
+    let process = Process(child);
+    for _ in 0..100 {
+        if let Ok(mut stream) = std::net::TcpStream::connect(("127.0.0.1", port)) {
+            use std::io::{Read, Write};
+            let mut reply = [0; 7];
+            if stream.write_all(b"PING\r\n").is_ok()
+                && stream.read_exact(&mut reply).is_ok()
+                && &reply == b"+PONG\r\n"
+            {
+                return (process, format!("redis://127.0.0.1:{port}/0"));
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    panic!("redis-server did not answer on port {port}");
+}
+
+/// `/health` of the replica at `addr`.
+async fn health(client: &reqwest::Client, addr: &str) -> serde_json::Value {
+    client
+        .get(format!("http://{addr}/health"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
-async fn a_replica_dies_mid_render_and_the_image_is_still_exact() {
+async fn replicas_share_scenes_and_records_and_survive_a_death() {
     let haproxy = std::env::var("HAPROXY").unwrap_or_else(|_| "haproxy".into());
+    let (redis, redis_url) = redis_server();
+    let mut redis = Some(redis);
     let dirs: Vec<_> = (0..3).map(|_| tempfile::tempdir().unwrap()).collect();
     let mut replicas: Vec<(Option<Process>, String)> = dirs
         .iter()
         .map(|d| {
-            let (p, a) = replica(d.path());
+            let (p, a) = replica(d.path(), &redis_url);
             (Some(p), a)
         })
         .collect();
@@ -146,6 +198,43 @@ async fn a_replica_dies_mid_render_and_the_image_is_still_exact() {
     }
     // Let every replica pass its first readiness checks.
     tokio::time::sleep(Duration::from_millis(1500)).await;
+
+    // A scene uploaded with its assets through the balancer renders on
+    // every replica, each asked directly.
+    let upload = multipart(&[
+        (
+            "scene",
+            Some("scene.json"),
+            "application/json",
+            document("meshes/pyramid.obj").into_bytes(),
+        ),
+        (
+            "asset",
+            Some("meshes/pyramid.obj"),
+            "text/plain",
+            OBJ.as_bytes().to_vec(),
+        ),
+        ("asset", Some("sky.exr"), "image/x-exr", sky()),
+    ]);
+    let posted = client
+        .post(format!("{base}/v1/scenes"))
+        .header(
+            "content-type",
+            format!("multipart/form-data; boundary={BOUNDARY}"),
+        )
+        .body(upload)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(posted.status(), 201);
+    let mut uploaded = Vec::new();
+    for (_, addr) in &replicas {
+        let url = format!("http://{addr}/v1/scenes/uploaded/tiles/0/0.png?size=16&preset=draft");
+        let response = client.get(&url).send().await.unwrap();
+        assert_eq!(response.status(), 200, "{url}");
+        uploaded.push(response.bytes().await.unwrap());
+    }
+    assert!(uploaded.windows(2).all(|w| w[0] == w[1]));
 
     let urls: Vec<String> = (0..4)
         .flat_map(|ty| (0..4).map(move |tx| (tx, ty)))
@@ -221,4 +310,43 @@ async fn a_replica_dies_mid_render_and_the_image_is_still_exact() {
         .unwrap();
     assert!(after.status().is_success());
     assert_ne!(after.headers()["x-served-by"], killed.as_str());
+    // The survivors merged the parts the others shared.
+    for (_, addr) in &survivors {
+        let shared = &health(&client, addr).await["shared"];
+        assert_eq!(shared["connected"], true, "{shared}");
+        assert!(shared["parts_merged"].as_u64().unwrap() > 0, "{shared}");
+    }
+
+    // Redis gone: the replicas say so and keep answering from their own stores.
+    drop(redis.take());
+    let addr = &survivors[0].1;
+    let mut reported = false;
+    for _ in 0..100 {
+        if health(&client, addr).await["shared"]["connected"] == false {
+            reported = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert!(reported, "{}", health(&client, addr).await);
+    let metrics = client
+        .get(format!("http://{addr}/metrics"))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        metrics.contains("bmc_shared_store_connected 0"),
+        "{metrics}"
+    );
+    let fresh = client
+        .get(format!(
+            "{base}/v1/scenes/cornell-box/tiles/1/1.png?preset=draft&seed=7"
+        ))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(fresh.status(), 200);
 }

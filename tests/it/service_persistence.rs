@@ -205,3 +205,76 @@ async fn posted_scenes_survive_a_restart() {
     assert_eq!(third.get("/v1/scenes/posted-box").await.status(), 404);
     assert_eq!(third.get("/v1/scenes/posted-sky").await.status(), 200);
 }
+
+/// A scene's records exported from one service and imported into another
+/// (memory only, nothing shared): the second renders the same bytes
+/// without placing a record. Imports that are not exports of this scene's
+/// content are refused whole, naming the entry.
+#[tokio::test]
+async fn records_export_from_one_service_and_import_into_another() {
+    let first = spawn_app_in(scenes_dir(), |_| {}).await;
+    let (images, _, rays) = render_all(&first).await;
+    assert!(rays > 0);
+    let export = first.get("/v1/scenes/box/records").await;
+    assert_eq!(export.status(), 200);
+    assert_eq!(
+        export.headers()["content-type"],
+        "application/vnd.bmc-records"
+    );
+    let export = export.bytes().await.unwrap().to_vec();
+    assert!(export.starts_with(b"BMCLOG01"));
+
+    let second = spawn_app_in(scenes_dir(), |_| {}).await;
+    let post = |app: &TestApp, id: &str, body: Vec<u8>| {
+        app.client
+            .post(app.url(&format!("/v1/scenes/{id}/records")))
+            .header("content-type", "application/vnd.bmc-records")
+            .body(body)
+            .send()
+    };
+    let imported: Value = post(&second, "box", export.clone())
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(imported["imported"], 4, "{imported}");
+    assert!(imported["records"].as_u64().unwrap() > 0);
+    // Records of every tile come from the import: the passes cost camera
+    // rays only, and the images are the first service's.
+    for (i, (tx, ty)) in TILES.into_iter().enumerate() {
+        let url = format!("/v1/scenes/box/tiles/{tx}/{ty}.png?size=32&preset=draft");
+        let response = second.get(&url).await;
+        assert_eq!(response.headers()["x-records-created"], "0", "{url}");
+        assert_eq!(response.bytes().await.unwrap(), images[i], "{url}");
+    }
+    let again: Value = post(&second, "box", export.clone())
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(
+        (again["imported"].as_u64(), again["already_held"].as_u64()),
+        (Some(0), Some(4))
+    );
+
+    // Another scene's content, a cut export, and something else entirely.
+    let mut doc: Value =
+        serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
+    doc["name"] = json!("other");
+    let posted = second.post_json("/v1/scenes", &doc).await;
+    assert_eq!(posted.status(), 201);
+    for (id, body, field) in [
+        ("other", export.clone(), "entries[0]"),
+        ("box", export[..export.len() - 5].to_vec(), "entries[3]"),
+        ("box", b"not an export".to_vec(), "body"),
+    ] {
+        let response = post(&second, id, body).await.unwrap();
+        assert_eq!(response.status(), 422);
+        let (_, named) = crate::common::error_of(response).await;
+        assert_eq!(named.as_deref(), Some(field));
+    }
+    let response = post(&second, "missing", export).await.unwrap();
+    assert_eq!(response.status(), 404);
+}

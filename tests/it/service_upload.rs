@@ -8,10 +8,10 @@ use crate::common::{TestApp, error_of, spawn_app_with};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-const BOUNDARY: &str = "bmc-test-boundary-7f3a";
+pub(crate) const BOUNDARY: &str = "bmc-test-boundary-7f3a";
 
 /// A document with a mesh under `meshes/` and the bundled sky map.
-fn document(mesh: &str) -> String {
+pub(crate) fn document(mesh: &str) -> String {
     json!({
         "name": "uploaded",
         "materials": [{"id": "m", "type": "diffuse", "reflectance": [0.6, 0.5, 0.4]}],
@@ -23,11 +23,11 @@ fn document(mesh: &str) -> String {
     .to_string()
 }
 
-const OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 1 0\n\
+pub(crate) const OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 1 0\n\
                    f 1 2 3\nf 1 3 4\nf 1 2 5\nf 2 3 5\n";
 
 /// A multipart body of `parts`: (name, filename, content type, bytes).
-fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
+pub(crate) fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
     let mut body = Vec::new();
     for (name, filename, content_type, bytes) in parts {
         body.extend(format!("--{BOUNDARY}\r\n").bytes());
@@ -44,7 +44,7 @@ fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
     body
 }
 
-fn sky() -> Vec<u8> {
+pub(crate) fn sky() -> Vec<u8> {
     std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky.exr")).unwrap()
 }
 

@@ -26,12 +26,12 @@ pub struct SceneCacheReport {
     pub cleared_records: Option<u64>,
 }
 
-fn report(
+async fn report(
     state: &AppState,
     id: &str,
     cleared_records: Option<u64>,
 ) -> Result<SceneCacheReport, ApiError> {
-    let scene = state.scenes.get_or_404(id)?;
+    let scene = state.scene(id).await?;
     Ok(SceneCacheReport {
         scene: scene.id.clone(),
         byte_budget_per_cache: state.irradiance_caches.per_cache_bytes(),
@@ -50,7 +50,7 @@ pub async fn get_cache(
     State(state): State<Arc<AppState>>,
     SceneId(id): SceneId,
 ) -> Result<Json<SceneCacheReport>, ApiError> {
-    Ok(Json(report(&state, &id, None)?))
+    Ok(Json(report(&state, &id, None).await?))
 }
 
 /// Drops every record of the scene's irradiance caches; later requests
@@ -63,7 +63,7 @@ pub async fn delete_cache(
     State(state): State<Arc<AppState>>,
     SceneId(id): SceneId,
 ) -> Result<Json<SceneCacheReport>, ApiError> {
-    let scene = state.scenes.get_or_404(&id)?;
+    let scene = state.scene(&id).await?;
     let cleared = state.irradiance_caches.clear(&scene);
-    Ok(Json(report(&state, &id, Some(cleared))?))
+    Ok(Json(report(&state, &id, Some(cleared)).await?))
 }

@@ -36,6 +36,12 @@ pub struct Health {
     /// Reproducible tiles' records and passes held, the on-disk log's size
     /// and what loading it at startup found.
     pub tiles: crate::service::tile_store::TileStoreStats,
+    /// Sharing with other replicas through Redis (absent without
+    /// `cluster.redis_url`): whether Redis is reachable, the last error and
+    /// what was shared. An unreachable Redis leaves the service serving
+    /// from its own stores, so it does not fail liveness or readiness.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shared: Option<crate::service::shared_store::SharedStoreStatus>,
 }
 
 /// Reports whether the service is alive and which version it runs: 200, or
@@ -77,6 +83,7 @@ fn report(state: &AppState, readiness: bool) -> (StatusCode, Json<Health>) {
         scenes: state.scenes.len(),
         cpu,
         tiles: state.tiles.stats(),
+        shared: state.shared.as_ref().map(|s| s.status()),
     };
     (code, Json(health))
 }

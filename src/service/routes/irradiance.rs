@@ -197,7 +197,7 @@ pub async fn irradiance(
     SceneId(id): SceneId,
     ApiJson(request): ApiJson<IrradianceRequest>,
 ) -> Result<Json<IrradianceResponse>, ApiError> {
-    let scene = state.scenes.get_or_404(&id)?;
+    let scene = state.scene(&id).await?;
     let limits = &state.config.limits;
     ApiError::check_count(
         "points",

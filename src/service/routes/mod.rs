@@ -10,6 +10,7 @@ pub mod openapi;
 pub mod presets;
 pub mod quadratures;
 pub mod radiance;
+pub mod records;
 pub mod scenes;
 pub mod tile_get;
 pub mod tiles;

@@ -93,7 +93,7 @@ pub async fn radiance(
     SceneId(id): SceneId,
     ApiJson(request): ApiJson<RadianceRequest>,
 ) -> Result<Json<RadianceResponse>, ApiError> {
-    let scene = state.scenes.get_or_404(&id)?;
+    let scene = state.scene(&id).await?;
     let limits = &state.config.limits;
     ApiError::check_count(
         "points",

@@ -33,7 +33,7 @@ pub async fn get_scene(
     State(state): State<Arc<AppState>>,
     SceneId(id): SceneId,
 ) -> Result<Json<SceneSummary>, ApiError> {
-    Ok(Json(state.scenes.get_or_404(&id)?.summary()))
+    Ok(Json(state.scene(&id).await?.summary()))
 }
 
 /// Query parameters of `POST /v1/scenes`, used by Mitsuba XML bodies only
@@ -192,10 +192,20 @@ pub async fn post_scene(
     let replaced = state.scenes.insert(loaded)?;
     // Kept for the next start (with `cache.data_dir`); a failing disk costs
     // only that, and says so.
-    let (keeper, id) = (state.clone(), summary.id.clone());
-    let kept = tokio::task::spawn_blocking(move || keeper.posted.save(&id, &posted)).await;
+    let blob = state.shared.is_some().then(|| posted.encode());
+    let (keeper, id) = (state.posted.clone(), summary.id.clone());
+    let kept = tokio::task::spawn_blocking(move || keeper.save(&id, &posted)).await;
     if let Ok(Err(err)) | Err(err) = kept.map_err(std::io::Error::other) {
         tracing::warn!(id = %summary.id, %err, "posted scene not kept for restarts");
+    }
+    // Shared with the other replicas, if any; unreachable Redis leaves the
+    // scene on this replica only (and says so in /health).
+    if let (Some(shared), Some(blob)) = (&state.shared, blob)
+        && !shared
+            .put_scene(&summary.id, &summary.digest.to_string(), blob)
+            .await
+    {
+        tracing::warn!(id = %summary.id, "posted scene not shared with other replicas");
     }
     // The previous version's records are useless now; free them.
     state
@@ -315,13 +325,21 @@ pub async fn delete_scene(
     State(state): State<Arc<AppState>>,
     SceneId(id): SceneId,
 ) -> Result<StatusCode, ApiError> {
+    // A scene posted to another replica is known here through the shared
+    // store; deleting it here deletes it everywhere.
+    state.scene(&id).await?;
     state.scenes.remove(&id).ok_or_else(|| ApiError::NotFound {
         what: "scene",
         id: id.clone(),
     })?;
     state.irradiance_caches.retire(&id, None);
-    let (keeper, kept) = (state.clone(), id.clone());
-    let _ = tokio::task::spawn_blocking(move || keeper.posted.remove(&kept)).await;
+    let (keeper, kept) = (state.posted.clone(), id.clone());
+    let _ = tokio::task::spawn_blocking(move || keeper.remove(&kept)).await;
+    if let Some(shared) = &state.shared
+        && !shared.delete_scene(&id).await
+    {
+        tracing::warn!(%id, "deletion not shared with other replicas");
+    }
     tracing::info!(%id, "scene deleted");
     Ok(StatusCode::NO_CONTENT)
 }

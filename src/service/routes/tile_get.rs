@@ -152,7 +152,7 @@ pub async fn get_tile(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let scene = state.scenes.get_or_404(&path.id)?;
+    let scene = state.scene(&path.id).await?;
     let limits = &state.config.limits;
     let (width, height) = scene.transport.scene().camera.resolution();
     let size = query.size.unwrap_or(DEFAULT_TILE_SIZE);

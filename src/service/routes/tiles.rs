@@ -88,7 +88,7 @@ pub async fn tile(
     SceneId(id): SceneId,
     ApiJson(doc): ApiJson<TileRequestDoc>,
 ) -> Result<Response, ApiError> {
-    let scene = state.scenes.get_or_404(&id)?;
+    let scene = state.scene(&id).await?;
     let limits = &state.config.limits;
     let area = u64::from(doc.width) * u64::from(doc.height);
     ApiError::check_limit("width*height", area, limits.max_tile_area as u64)?;
