@@ -180,14 +180,6 @@ impl SceneRegistry {
         self.read().get(id).cloned()
     }
 
-    /// The scene with this id, or 404 `not_found`.
-    pub fn get_or_404(&self, id: &str) -> Result<Arc<LoadedScene>, ApiError> {
-        self.get(id).ok_or_else(|| ApiError::NotFound {
-            what: "scene",
-            id: id.to_owned(),
-        })
-    }
-
     /// Adds or replaces a scene; returns true if it replaced one. A scene
     /// that would take the loaded scenes over the budget (counting them
     /// without the scene it replaces) is refused and nothing changes.
