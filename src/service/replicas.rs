@@ -12,6 +12,25 @@ use super::scenes::{LoadedScene, SceneSource, log_warnings};
 use super::shared_store::SharedEvent;
 use super::state::AppState;
 
+impl AppState {
+    /// The scene with this id: held here, or else posted to another replica
+    /// and adopted now (`service::replicas`); 404 `not_found` otherwise.
+    pub async fn scene(&self, id: &str) -> Result<Arc<LoadedScene>, ApiError> {
+        if let Some(scene) = self.scenes.get(id) {
+            return Ok(scene);
+        }
+        if self.shared.is_some()
+            && let Some(scene) = adopt(self, id, None).await?
+        {
+            return Ok(scene);
+        }
+        Err(ApiError::NotFound {
+            what: "scene",
+            id: id.to_owned(),
+        })
+    }
+}
+
 /// Starts following the other replicas, if a shared store is configured;
 /// the task stops when it is aborted or the state is gone.
 pub fn follow(state: &Arc<AppState>) -> Option<tokio::task::JoinHandle<()>> {

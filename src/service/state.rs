@@ -7,12 +7,11 @@ use std::sync::Arc;
 use crate::bmc::cache::QuadratureCache;
 
 use super::config::Config;
-use super::error::ApiError;
 use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
 use super::posted_scenes::PostedScenes;
-use super::scenes::{LoadedScene, SceneRegistry};
+use super::scenes::SceneRegistry;
 use super::shared_store::SharedStore;
 use super::tile_store::TileStore;
 
@@ -37,23 +36,4 @@ pub struct AppState {
     pub posted: PostedScenes,
     /// The Redis shared with other replicas (`cluster.redis_url`), if any.
     pub shared: Option<Arc<SharedStore>>,
-}
-
-impl AppState {
-    /// The scene with this id: held here, or else posted to another replica
-    /// and adopted now (`service::replicas`); 404 `not_found` otherwise.
-    pub async fn scene(&self, id: &str) -> Result<Arc<LoadedScene>, ApiError> {
-        if let Some(scene) = self.scenes.get(id) {
-            return Ok(scene);
-        }
-        if self.shared.is_some()
-            && let Some(scene) = super::replicas::adopt(self, id, None).await?
-        {
-            return Ok(scene);
-        }
-        Err(ApiError::NotFound {
-            what: "scene",
-            id: id.to_owned(),
-        })
-    }
 }

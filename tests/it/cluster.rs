@@ -63,8 +63,13 @@ fn replica(dir: &Path, redis: &str) -> (Process, String) {
         .unwrap();
     let stderr = BufReader::new(child.stderr.take().unwrap());
     let mut lines = stderr.lines();
+    let mut seen = Vec::new();
     let addr = loop {
-        let line = lines.next().expect("the replica exited").unwrap();
+        let Some(line) = lines.next() else {
+            panic!("the replica exited:\n{}", seen.join("\n"));
+        };
+        let line = line.unwrap();
+        seen.push(line.clone());
         if let Some(rest) = line.split("addr=").nth(1)
             && line.contains("listening")
         {
