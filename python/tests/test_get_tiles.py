@@ -184,3 +184,17 @@ def test_arguments_of_the_wrong_form_are_refused(client: Client) -> None:
         client.tile_bytes(SCENE, 0, 0, 64, 64, if_none_match='"x"')
     with pytest.raises(ValueError, match="width and height"):
         client.tile(SCENE, 0, 0, 64)
+
+
+def test_records_export_and_import(client: Client, server: Server, preview: Image) -> None:
+    """The preview's tile records come back as the raw export; importing
+    them again adds nothing, and bytes that are not an export are refused."""
+    exported = client.export_records(SCENE)
+    status, body, _ = raw(f"{server.url}/v1/scenes/{SCENE}/records")
+    assert status == 200 and exported == body
+    assert exported.startswith(b"BMCLOG01") and len(exported) > 8
+    report = client.import_records(SCENE, exported)
+    assert report["imported"] == 0 and report["already_held"] >= 16
+    with pytest.raises(ServiceError) as refused:
+        client.import_records(SCENE, b"not an export")
+    assert refused.value.status == 422 and refused.value.field == "body"
