@@ -22,7 +22,7 @@ use std::time::Duration;
 use tokio::sync::Mutex;
 
 use crate::common::spawn_app_in;
-use crate::service_upload::{BOUNDARY, OBJ, document, multipart, sky};
+use crate::service_upload::{BOUNDARY, with_mesh_and_map};
 
 const BIN: &str = env!("CARGO_BIN_EXE_bmc-irradiance");
 
@@ -206,21 +206,7 @@ async fn replicas_share_scenes_and_records_and_survive_a_death() {
 
     // A scene uploaded with its assets through the balancer renders on
     // every replica, each asked directly.
-    let upload = multipart(&[
-        (
-            "scene",
-            Some("scene.json"),
-            "application/json",
-            document("meshes/pyramid.obj").into_bytes(),
-        ),
-        (
-            "asset",
-            Some("meshes/pyramid.obj"),
-            "text/plain",
-            OBJ.as_bytes().to_vec(),
-        ),
-        ("asset", Some("sky.exr"), "image/x-exr", sky()),
-    ]);
+    let upload = with_mesh_and_map();
     let posted = client
         .post(format!("{base}/v1/scenes"))
         .header(

@@ -11,7 +11,7 @@ use serde_json::{Value, json};
 pub(crate) const BOUNDARY: &str = "bmc-test-boundary-7f3a";
 
 /// A document with a mesh under `meshes/` and the bundled sky map.
-pub(crate) fn document(mesh: &str) -> String {
+fn document(mesh: &str) -> String {
     json!({
         "name": "uploaded",
         "materials": [{"id": "m", "type": "diffuse", "reflectance": [0.6, 0.5, 0.4]}],
@@ -23,11 +23,11 @@ pub(crate) fn document(mesh: &str) -> String {
     .to_string()
 }
 
-pub(crate) const OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 1 0\n\
+const OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 1 0\n\
                    f 1 2 3\nf 1 3 4\nf 1 2 5\nf 2 3 5\n";
 
 /// A multipart body of `parts`: (name, filename, content type, bytes).
-pub(crate) fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
+fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
     let mut body = Vec::new();
     for (name, filename, content_type, bytes) in parts {
         body.extend(format!("--{BOUNDARY}\r\n").bytes());
@@ -44,7 +44,27 @@ pub(crate) fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8
     body
 }
 
-pub(crate) fn sky() -> Vec<u8> {
+/// The scene `uploaded` with its mesh under `meshes/` and the sky map, as
+/// one multipart body.
+pub(crate) fn with_mesh_and_map() -> Vec<u8> {
+    multipart(&[
+        (
+            "scene",
+            Some("scene.json"),
+            "application/json",
+            document("meshes/pyramid.obj").into_bytes(),
+        ),
+        (
+            "asset",
+            Some("meshes/pyramid.obj"),
+            "text/plain",
+            OBJ.as_bytes().to_vec(),
+        ),
+        ("asset", Some("sky.exr"), "image/x-exr", sky()),
+    ])
+}
+
+fn sky() -> Vec<u8> {
     std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky.exr")).unwrap()
 }
 
@@ -64,21 +84,7 @@ async fn upload(app: &TestApp, query: &str, body: Vec<u8>) -> reqwest::Response 
 #[tokio::test]
 async fn a_scene_uploaded_with_its_mesh_and_map_renders() {
     let app = spawn_app_with(|_| {}).await;
-    let body = multipart(&[
-        (
-            "scene",
-            Some("scene.json"),
-            "application/json",
-            document("meshes/pyramid.obj").into_bytes(),
-        ),
-        (
-            "asset",
-            Some("meshes/pyramid.obj"),
-            "text/plain",
-            OBJ.as_bytes().to_vec(),
-        ),
-        ("asset", Some("sky.exr"), "image/x-exr", sky()),
-    ]);
+    let body = with_mesh_and_map();
     let response = upload(&app, "", body.clone()).await;
     assert_eq!(response.status(), StatusCode::CREATED);
     let summary: Value = response.json().await.unwrap();
