@@ -46,7 +46,7 @@ pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
 pub use irradiance::{Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions};
 pub use mean::{Evaluation, MeanEstimate};
-pub use path::{AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats};
+pub use path::{AveragedPaths, PathDepth, PathLengths, PathLimits, RadianceSample, TraceStats};
 pub use query::QueryPoint;
 pub use rgb::Rgb;
 pub use tile::{CameraRayShader, PixelSample, RenderedTile, TileRequest};

@@ -16,6 +16,7 @@ use super::state::AppState;
 use crate::cache::{CacheConfig, CacheError, IrradianceCache};
 use crate::integrator::Integrator;
 use crate::integrator::cached::{CachedConfig, CachedShading, CachedSpec};
+use crate::render::PathDepth;
 
 /// The integrator of a tile or radiance request; every field but `method`
 /// applies to `cache` only, and every one is optional (defaults in
@@ -146,7 +147,7 @@ pub fn cached_setup(
     state: &AppState,
     scene: &LoadedScene,
     resolved: ResolvedCache,
-    max_depth: u32,
+    max_depth: PathDepth,
 ) -> Result<CachedSetup, ApiError> {
     let config = resolved.config;
     let quadratures = state.quadratures.clone();

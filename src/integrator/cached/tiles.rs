@@ -37,7 +37,9 @@ use crate::render::lights::environment_radiance;
 use crate::render::tile::{
     CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
 };
-use crate::render::{Cancel, Evaluation, PixelSample, QueryPoint, RenderError, Rgb, TraceStats};
+use crate::render::{
+    Cancel, Evaluation, PathDepth, PixelSample, QueryPoint, RenderError, Rgb, TraceStats,
+};
 use crate::scene::Ray;
 
 /// What a cached tile request did.
@@ -57,8 +59,8 @@ pub struct CachedTileReport {
 /// and the first error (the pixel loop's shader interface cannot fail).
 struct CacheRayShader<'a> {
     integrator: CachedIntegrator<'a>,
-    /// Segments counted from the first hit.
-    depth: u32,
+    /// The request's depth, counted from the camera.
+    depth: PathDepth,
     stats: Mutex<ShadingStats>,
     error: Mutex<Option<RenderError>>,
 }
@@ -236,17 +238,22 @@ impl CachedIntegrator<'_> {
     ) -> Result<CachedTileReport, RenderError> {
         let (transport, shading) = (self.transport, self.shading);
         request.validate(transport.scene().camera.resolution())?;
-        let depth = request.max_depth - 1;
         let mut report = CachedTileReport::default();
-        if depth < 2 {
+        // Records serve the indirect light of the camera rays' first hits,
+        // whose paths count their segments from the hit.
+        let Some(from_hit) = request
+            .max_depth
+            .after_first_segment()
+            .filter(|d| d.has_reflections())
+        else {
             return Ok(report);
-        }
+        };
         let points = self.placement_points(request)?;
         report.placement_points = points.len() as u64;
         // The tile's own stream family, so tiles sharing a seed do not
         // reuse each other's record rotations.
         let seed = pixel_rng(request.seed, request.x, request.y).next_u64();
-        let options = shading.placement(indirect_paths(depth), seed);
+        let options = shading.placement(indirect_paths(from_hit), seed);
         // A private cache is only read at the bounces, so the batch stays
         // deterministic (see `placement`).
         let reproducible = shading.options.reproducible;
@@ -273,7 +280,7 @@ impl CachedIntegrator<'_> {
         let camera = &self.transport.scene().camera;
         let shader = CacheRayShader {
             integrator: *self,
-            depth: request.max_depth - 1,
+            depth: request.max_depth,
             stats: Mutex::new(ShadingStats::default()),
             error: Mutex::new(None),
         };
@@ -327,7 +334,7 @@ mod tests {
 
     fn cached_request(x: u32, y: u32, side: u32) -> TileRequest {
         TileRequest {
-            max_depth: 5,
+            max_depth: PathDepth::constant(5),
             ..request(x, y, side, side)
         }
     }

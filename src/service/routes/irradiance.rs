@@ -22,7 +22,7 @@ use crate::render::estimators::{
     EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
 use crate::render::{
-    Decomposition, IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb,
+    Decomposition, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, RenderError, Rgb,
 };
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
@@ -141,7 +141,7 @@ fn default_confidence() -> f64 {
 }
 
 fn default_max_depth() -> u32 {
-    IrradianceOptions::default().max_depth
+    PathDepth::default().get()
 }
 
 fn default_seed() -> u64 {
@@ -248,9 +248,10 @@ pub async fn irradiance(
         })
         .collect::<Result<Vec<_>, _>>()?;
     let estimator = &request.estimator;
+    let max_depth = PathDepth::new(request.max_depth)?;
     let options = IrradianceOptions {
         samples: estimator.samples,
-        max_depth: request.max_depth,
+        max_depth,
         direct_only: false,
         method: estimator.decomposition,
         seed: request.seed,

@@ -17,8 +17,7 @@ use crate::integrator::Integrator;
 use crate::integrator::cached::{
     RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points, surface_at,
 };
-use crate::render::path::{DEFAULT_MAX_DEPTH, check_max_depth};
-use crate::render::{QueryPoint, RenderError, Rgb};
+use crate::render::{PathDepth, QueryPoint, RenderError, Rgb};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::integrator_doc::{IntegratorDoc, cached_setup};
@@ -62,7 +61,7 @@ fn default_repeats() -> u32 {
 }
 
 fn default_max_depth() -> u32 {
-    DEFAULT_MAX_DEPTH
+    PathDepth::default().get()
 }
 
 fn default_seed() -> u64 {
@@ -105,7 +104,7 @@ pub async fn radiance(
         u64::from(request.repeats),
         limits.max_samples as u64,
     )?;
-    check_max_depth(request.max_depth)?;
+    let max_depth = PathDepth::new(request.max_depth)?;
     let queries = request
         .points
         .iter()
@@ -127,7 +126,7 @@ pub async fn radiance(
         .as_ref()
         .map_or(0, |c| points * c.config.paths_per_record());
     limits.check_work((points * u64::from(request.repeats)).saturating_add(record_paths))?;
-    let (max_depth, repeats, seed) = (request.max_depth, request.repeats, request.seed);
+    let (repeats, seed) = (request.repeats, request.seed);
     let shared = state.clone();
     let estimates = state
         .pool
