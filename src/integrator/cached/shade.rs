@@ -76,15 +76,19 @@ pub enum OnMiss {
     PathTrace,
 }
 
-/// A cache error as the render API's typed error, keeping the field name.
-pub(crate) fn cache_to_render(e: CacheError) -> RenderError {
-    match e {
-        CacheError::Invalid { field, reason } => RenderError::InvalidOption { field, reason },
-        CacheError::Bmc(b) => RenderError::InvalidOption {
-            field: "quadrature",
-            reason: b.to_string(),
-        },
-        CacheError::Render(r) => r,
+/// The integrator is where the record store meets the pixel loop: a cache
+/// error becomes the render API's typed error, keeping the field name (a
+/// failed record rule names the `quadrature`).
+impl From<CacheError> for RenderError {
+    fn from(e: CacheError) -> Self {
+        match e {
+            CacheError::Invalid { field, reason } => RenderError::InvalidOption { field, reason },
+            CacheError::Bmc(b) => RenderError::InvalidOption {
+                field: "quadrature",
+                reason: b.to_string(),
+            },
+            CacheError::Render(r) => r,
+        }
     }
 }
 
@@ -364,8 +368,7 @@ impl CachedIntegrator<'_> {
     ) -> Result<Vec<RadianceSample>, RenderError> {
         let options = &self.shading.options;
         let relaxed = PlacementOptions {
-            accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * options.accuracy).min(1.0))
-                .map_err(cache_to_render)?,
+            accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * options.accuracy).min(1.0))?,
             ..self.shading.placement(bounce.paths, 0)
         };
         let reflection = Reflection {
@@ -486,8 +489,7 @@ impl CachedIntegrator<'_> {
                 };
                 let record = self
                     .record_at(&target, &how, rng, stats)
-                    .and_then(|record| cache.insert(record))
-                    .map_err(cache_to_render)?;
+                    .and_then(|record| cache.insert(record))?;
                 stats.records_created += 1;
                 if r.level > 0 {
                     stats.ambient_records += 1;
@@ -496,7 +498,7 @@ impl CachedIntegrator<'_> {
             }
             OnMiss::PathTrace => {
                 let relaxed = PlacementOptions {
-                    accuracy: Accuracy::new(1.0).map_err(cache_to_render)?,
+                    accuracy: Accuracy::new(1.0)?,
                     ..*placement
                 };
                 if let Some(found) = lookup(cache, self.transport, point, &relaxed) {
@@ -556,11 +558,7 @@ impl CachedIntegrator<'_> {
         stats.glossy_bmc += 1;
         let theta_r = mirror.z.clamp(-1.0, 1.0).acos();
         let turned = s.frame.rotated_about_normal(mirror.y.atan2(mirror.x));
-        let rule = self
-            .shading
-            .glossy
-            .weights(m, theta_r)
-            .map_err(cache_to_render)?;
+        let rule = self.shading.glossy.weights(m, theta_r)?;
         let samples =
             self.transport
                 .hemisphere_samples(point, &turned, &rule.directions, paths, rng, trace);

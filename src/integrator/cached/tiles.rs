@@ -30,7 +30,7 @@ use rayon::prelude::*;
 
 use super::config::indirect_paths;
 use super::placement::{PlacementReport, place_records};
-use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint, cache_to_render};
+use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
@@ -135,8 +135,7 @@ impl CachedIntegrator<'_> {
                 let next = camera.generate_ray(cx + 1.0, cy);
                 let angle = ray.dir.angle_between(next.dir);
                 let size = (hit.t * angle).max(f64::MIN_POSITIVE);
-                let footprint = PixelFootprint::new(size, options.min_pixels, options.max_pixels)
-                    .map_err(cache_to_render)?;
+                let footprint = PixelFootprint::new(size, options.min_pixels, options.max_pixels)?;
                 Ok(Some(PlacementPoint {
                     point: QueryPoint::new(hit.position, hit.shading_normal)?,
                     footprint: Some(footprint),
@@ -201,7 +200,7 @@ impl CachedIntegrator<'_> {
     ) -> Result<(RenderedTile, ShadingStats), RenderError> {
         let private = self.private_cache()?;
         for record in records {
-            private.insert(*record).map_err(cache_to_render)?;
+            private.insert(*record)?;
         }
         CachedIntegrator {
             cache: &private,
@@ -218,7 +217,7 @@ impl CachedIntegrator<'_> {
         for r in records {
             let point = QueryPoint::new(r.position, r.normal)?;
             if self.cache.lookup(&point, accuracy).is_none() {
-                self.cache.insert(*r).map_err(cache_to_render)?;
+                self.cache.insert(*r)?;
                 published += 1;
             }
         }
@@ -227,7 +226,7 @@ impl CachedIntegrator<'_> {
 
     /// An empty cache configured as the shared one.
     fn private_cache(&self) -> Result<IrradianceCache, RenderError> {
-        IrradianceCache::new(*self.cache.config()).map_err(cache_to_render)
+        Ok(IrradianceCache::new(*self.cache.config())?)
     }
 
     /// The placement pass (module docs) into this integrator's cache.
@@ -266,8 +265,7 @@ impl CachedIntegrator<'_> {
             &options,
             gather,
             cancel,
-        )
-        .map_err(cache_to_render)?;
+        )?;
         Ok(report)
     }
 
