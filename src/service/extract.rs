@@ -11,8 +11,8 @@
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, FromRequestParts, Path, Request};
+use axum::http::header;
 use axum::http::request::Parts;
-use axum::http::{StatusCode, header};
 use serde::de::{DeserializeOwned, IgnoredAny};
 
 use super::error::ApiError;
@@ -30,10 +30,8 @@ impl<S: Send + Sync> FromRequestParts<S> for SceneId {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
-        Path::<String>::from_request_parts(parts, state)
-            .await
-            .map(|Path(id)| SceneId(id))
-            .map_err(|rejection| ApiError::invalid("id", rejection.body_text()))
+        let Path(id) = Path::<String>::from_request_parts(parts, state).await?;
+        Ok(SceneId(id))
     }
 }
 
@@ -129,15 +127,7 @@ pub fn content_type_text(req: &Request) -> String {
 
 /// Reads the whole body; a body over the configured limit is a 413.
 pub async fn body_bytes<S: Send + Sync>(req: Request, state: &S) -> Result<Bytes, ApiError> {
-    Bytes::from_request(req, state).await.map_err(|rejection| {
-        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-            ApiError::PayloadTooLarge
-        } else {
-            ApiError::MalformedJson {
-                message: rejection.body_text(),
-            }
-        }
-    })
+    Ok(Bytes::from_request(req, state).await?)
 }
 
 /// Deserialises `bytes` as a `T`, naming the offending field on failure.
@@ -206,6 +196,7 @@ fn classify(err: serde_json::Error, path: String) -> ApiError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use axum::http::StatusCode;
     use serde::Deserialize;
 
     #[derive(Debug, Deserialize)]
