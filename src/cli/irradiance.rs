@@ -18,11 +18,9 @@ use crate::render::environment_prior::PriorChoice;
 use crate::render::estimators::{
     EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
-use crate::render::irradiance::{IrradianceMethod, IrradianceOptions};
 use crate::render::lengthscale::FittedKernels;
 use crate::render::points_csv::{parse_points, write_irradiance};
-use crate::render::transport::Transport;
-use crate::render::{Cancel, PathDepth};
+use crate::render::{Cancel, IrradianceMethod, IrradianceOptions, PathDepth, Transport};
 use crate::scene::Scene;
 use crate::service::Config;
 

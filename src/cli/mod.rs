@@ -11,7 +11,7 @@ use crate::render::PathDepth;
 /// Runs `work` on a rayon pool of `threads` threads (`--threads`), or on the
 /// global pool when `None`. Results never depend on the thread count: every
 /// per-point and per-pixel random stream is seeded from its index.
-pub fn in_thread_pool<T: Send>(
+pub(crate) fn in_thread_pool<T: Send>(
     threads: Option<usize>,
     work: impl FnOnce() -> T + Send,
 ) -> anyhow::Result<T> {

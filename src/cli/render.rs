@@ -20,9 +20,7 @@ use crate::integrator::cached::{
     CacheShadingOptions, CachedIntegrator, CachedShading, CachedSpec, CachedTileReport,
     DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, default_rule_spec,
 };
-use crate::render::film::ImageSettings;
-use crate::render::transport::Transport;
-use crate::render::{Cancel, PathDepth};
+use crate::render::{Cancel, ImageSettings, PathDepth, Transport};
 use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance render`.

@@ -146,7 +146,7 @@ pub struct RenderedTile {
 
 /// Which of its pixel's camera rays a ray is: shaders may spread samples
 /// over all rays of the pixel (e.g. light samples on one
-/// [`crate::render::strata::SharedStrata`] pattern).
+/// stratified pattern, as the irradiance cache's light samples do).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PixelSample {
     /// Index of the ray among the pixel's `count` rays.

@@ -369,8 +369,7 @@ fn environment_map_importance_sampling_is_unbiased() {
         })
         .collect();
     let dir = temp_dir("envmap");
-    bmc_irradiance::scene::environment::write_exr_half(&dir.join("sky.exr"), w, h, &texels)
-        .expect("write exr");
+    bmc_irradiance::scene::write_exr_half(&dir.join("sky.exr"), w, h, &texels).expect("write exr");
     let materials = r#"[{"id": "black", "type": "diffuse", "reflectance": [0, 0, 0]}]"#;
     let far_disk =
         r#"{"type": "disk", "material": "black", "to_world": [{"translate": [0, -100, 0]}]}"#;

@@ -275,7 +275,7 @@ impl CachedIntegrator<'_> {
     /// (docs/math.md §13.3), zero otherwise. With `how.sample`, this is ray
     /// `index` of `count` estimating one value (a pixel's camera rays) and
     /// its light samples are numbers `index·n ..< (index + 1)·n` of one
-    /// [`SharedStrata`] pattern of `count·n` samples seeded by
+    /// shared stratified pattern (`SharedStrata`) of `count·n` samples seeded by
     /// `sample.pattern`; otherwise they are stratified among themselves only.
     pub fn outgoing_radiance<R: Rng + ?Sized>(
         &self,

@@ -34,11 +34,9 @@ use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint}
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
-use crate::render::tile::{
-    CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
-};
 use crate::render::{
-    Cancel, Evaluation, PathDepth, PixelSample, QueryPoint, RenderError, Rgb, TraceStats,
+    CameraRayShader, Cancel, Evaluation, PathDepth, PixelSample, QueryPoint, RenderError,
+    RenderedTile, Rgb, TileRequest, TraceStats, pixel_rng, render_tile_with,
 };
 use crate::scene::Ray;
 
