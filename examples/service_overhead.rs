@@ -24,7 +24,9 @@ use bmc_irradiance::bmc::report::QuadratureSpec;
 use bmc_irradiance::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::environment_prior::PriorChoice;
-use bmc_irradiance::render::{IrradianceMethod, IrradianceOptions, QueryPoint, Transport};
+use bmc_irradiance::render::{
+    IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Transport,
+};
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::service::{Application, Config};
 use bmc_irradiance::sphere::{SampleSetKind, SampleSetSpec};
@@ -34,7 +36,7 @@ use serde_json::json;
 const SAMPLES: u32 = 64;
 const LENGTHSCALE: f64 = 0.5;
 const NOISE: f64 = 1e-3;
-const MAX_DEPTH: u32 = 4;
+const MAX_DEPTH: PathDepth = PathDepth::constant(4);
 const SEED: u64 = 1;
 
 /// 16 × 16 points on the Cornell box's back wall, facing into the box.

@@ -4,44 +4,50 @@
 //! hemisphere, with precomputed quadrature weights `w = Q⁻¹ z` and cached
 //! factorisations (see `docs/math.md`).
 //!
-//! ## Layout
-//! The math (`sphere`, `bmc`, `study`) knows nothing of scenes or HTTP; the
-//! service is a thin layer over the library.
-//! - `stats`: the running mean and variance of a sample (Welford), for every layer.
-//! - `sphere`: local shading frames and hemisphere sample sets (local frame, z = normal).
-//! - `bmc`: kernels, densities, exact kernel means, Cholesky factorisation, BMC weights and variance;
-//!   `bmc::cache` (byte-bounded single-flight cache of factorisations and weights),
-//!   `bmc::estimator` (MC, QMC, BMC behind one interface), `bmc::hyperparameters`
-//!   (marginal-likelihood fit of ℓ, σ², σ_n²), `bmc::report` (a quadrature's
-//!   spec, stable id and the report the CLI and the service return).
-//! - `scene`: JSON and Mitsuba 3 XML (`scene::mitsuba`) scene loading, shapes,
-//!   materials, emitters, environment maps, camera, BVH ray tracing
-//!   (`intersect`, `occluded`).
-//! - `render`: light transport — BSDFs, light sampling, incident radiance
-//!   `L_i(x, ω)` and irradiance `E(x, n)` at points; tiles of the camera image;
-//!   `render::hemisphere_estimate` (irradiance at points with any MC/QMC/BMC
-//!   estimator), `render::estimators` (the point estimator a request or the CLI
-//!   names, resolved once), `render::lengthscale` (the scene-fitted `"auto"`
-//!   lengthscale), `render::environment_prior` (the unoccluded environment as
-//!   a prior mean), `render::calibration` (error bars calibrated on the
-//!   scene), `render::error_target` (estimates to a relative error).
-//! - `study`: synthetic environments with known irradiance and the estimator
-//!   convergence study (MC vs QMC vs BMC); the real-scene study against
-//!   converged references (`study::scenes`).
-//! - `cache`: the Bayesian irradiance cache's record store — BMC records with
-//!   variance and gradients, concurrent spatial index, interpolation; no scene,
-//!   no rays.
-//! - `integrator::cached`: the irradiance-cache integrator — records computed at
-//!   points and reproducible placement, outgoing radiance through the cache
-//!   (BMC Phong glossy), camera tiles and radiance queries.
-//! - `image`: RGB images with per-pixel variance; EXR/PNG/JSON encodings, relative RMSE.
-//! - `cli`: the binary's subcommands (`irradiance`, `quadrature`, `study`, `study-scene`,
-//!   `render`, `compare`) as library functions.
-//! - `service`: the HTTP service (config, routes, errors, CPU pool, metrics).
-//! - `loadtest`: closed-loop load generator for the service (the `bmc-loadtest` binary).
+//! ## Public surface
+//! The types most programs need are re-exported here: load a [`Scene`], wrap
+//! it in a [`Transport`], then estimate irradiance at [`QueryPoint`]s with a
+//! [`PointEstimator`] (resolved from an [`EstimatorSpec`], with
+//! [`IrradianceOptions`]), or render [`TileRequest`]s of the camera image by
+//! path tracing ([`Transport::render_tile`]) or through the irradiance cache
+//! ([`CachedIntegrator`], configured by a [`CachedSpec`] or a [`Preset`]);
+//! images come back as [`Image`]s. Path lengths are [`PathDepth`]s.
 //!
-//! How the layers depend on each other, one request traced end to end and the
-//! conventions are in `docs/ARCHITECTURE.md`.
+//! The modules, from the front ends down (how they depend on each other is
+//! in `docs/ARCHITECTURE.md`):
+//! - [`service`]: the HTTP service — [`service::serve`] with a
+//!   [`service::Config`], or [`service::Application`] to embed it.
+//! - [`cli`]: the binary's subcommands (`irradiance`, `quadrature`, `study`,
+//!   `study-scene`, `render`, `compare`, `fetch`) as library functions.
+//! - [`loadtest`]: the closed-loop load generator (the `bmc-loadtest` binary).
+//! - [`integrator`]: how camera rays are shaded ([`Integrator`], [`Preset`]);
+//!   [`integrator::cached`] is the irradiance-cache integrator.
+//! - [`cache`]: the irradiance cache's record store — BMC records with
+//!   variance and gradients, a concurrent spatial index, interpolation; no
+//!   scene, no rays.
+//! - [`render`]: light transport — incident radiance and irradiance at
+//!   points, the camera's pixel loop ([`render::render_tile_with`] with a
+//!   [`render::CameraRayShader`]), and the point estimators
+//!   ([`render::estimators`]) with their prior means
+//!   ([`render::environment_prior`]), fitted lengthscales
+//!   ([`render::lengthscale`]), calibrated error bars
+//!   ([`render::calibration`]) and error targets ([`render::error_target`]);
+//!   [`render::seed`] holds the random streams every result is reproducible by.
+//! - [`scene`]: JSON and Mitsuba 3 XML scenes, the camera, rays and the BVH.
+//! - [`bmc`] and [`sphere`]: the math — kernels, densities, kernel means,
+//!   factorisations, BMC weights and variances, hyperparameter fits;
+//!   hemisphere frames and sample sets.
+//! - [`image`]: RGB images with per-pixel variance; EXR/PNG/JSON encodings,
+//!   relative RMSE.
+//! - [`study`]: the convergence study on synthetic environments and the
+//!   real-scene study against converged references.
+//!
+//! Inside each module, its files are private and its types re-exported at
+//! its root; `stats` (running means and variances) is private to the crate.
+//! A few items are public only for the tests, benches and examples and are
+//! hidden from these docs (`testing`, `scene::generate`, `render::polygon`,
+//! `render::warp`, the service's `AppState` and `CpuPool`); nothing outside
+//! this repository should rely on them.
 
 pub mod bmc;
 pub mod cache;
@@ -53,7 +59,17 @@ pub mod render;
 pub mod scene;
 pub mod service;
 pub mod sphere;
-pub mod stats;
+pub(crate) mod stats;
 pub mod study;
 #[doc(hidden)]
 pub mod testing;
+
+pub use image::{Image, ImageEncoding};
+pub use integrator::cached::{CachedIntegrator, CachedSpec};
+pub use integrator::{Integrator, Preset};
+pub use render::estimators::{EstimatorError, EstimatorMethod, EstimatorSpec, PointEstimator};
+pub use render::{
+    Cancel, IrradianceEstimate, IrradianceOptions, PathDepth, QueryPoint, RenderError,
+    RenderedTile, Rgb, TileRequest, Transport,
+};
+pub use scene::{MitsubaOptions, Scene, SceneError};

@@ -97,7 +97,7 @@ impl Density {
     ///
     /// Phong: in a frame about `r` with `u = cos α` and azimuth `ψ`, the cosine
     /// `cos θ = A + B cos ψ` (`A = u cos θ_r`, `B = sqrt(1−u²) sin θ_r`); its
-    /// clipped azimuthal integral is closed-form ([`clipped_cosine_arc`]), and
+    /// clipped azimuthal integral is closed-form (`clipped_cosine_arc`), and
     /// for `u ≥ sin θ_r` the whole circle is above the horizon, which gives
     /// `cos θ_r (1 − sin^{m+2} θ_r)` in closed form; only `u < sin θ_r` is
     /// integrated numerically (over `α = acos u`).

@@ -3,21 +3,21 @@
 //! resulting weights and posterior variance.
 
 pub mod cache;
-pub mod density;
-pub mod error;
+mod density;
+mod error;
 pub mod estimator;
-pub mod factorisation;
-pub mod gls;
+mod factorisation;
+pub(crate) mod gls;
 pub mod hyperparameters;
-pub mod kernel;
-pub mod kernel_mean;
-pub mod quadrature;
+mod kernel;
+mod kernel_mean;
+mod quadrature;
 pub mod report;
 
 mod bessel;
 mod integrate;
 
-pub use density::{Density, DensityKey};
+pub use density::{Density, DensityKey, MAX_PHONG_EXPONENT};
 pub use error::BmcError;
 pub use factorisation::Factorisation;
 pub use kernel::{Kernel, KernelKey, KernelKind, MAX_LENGTHSCALE, MIN_LENGTHSCALE};

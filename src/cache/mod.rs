@@ -18,12 +18,12 @@
 //! `integrator::cached`, a layer above. No HTTP here; the service keeps one
 //! [`IrradianceCache`] per (scene version, integrator configuration).
 
-pub mod error;
-pub mod index;
-pub mod irradiance_cache;
-pub mod log;
-pub mod record;
-pub mod record_rule;
+mod error;
+mod index;
+mod irradiance_cache;
+pub(crate) mod log;
+mod record;
+mod record_rule;
 
 pub use error::CacheError;
 pub use irradiance_cache::{

@@ -13,16 +13,14 @@ use indicatif::{ProgressBar, ProgressStyle};
 use super::in_thread_pool;
 use super::quadrature::{KernelArg, SetArg};
 use crate::bmc::cache::QuadratureCache;
-use crate::render::Cancel;
 use crate::render::calibration::Calibrations;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::estimators::{
     EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
-use crate::render::irradiance::{IrradianceMethod, IrradianceOptions};
 use crate::render::lengthscale::FittedKernels;
 use crate::render::points_csv::{parse_points, write_irradiance};
-use crate::render::transport::Transport;
+use crate::render::{Cancel, IrradianceMethod, IrradianceOptions, PathDepth, Transport};
 use crate::scene::Scene;
 use crate::service::Config;
 
@@ -43,8 +41,8 @@ pub struct IrradianceArgs {
     #[arg(long, default_value_t = 4096)]
     pub samples: u32,
     /// Longest light path in segments (1 = direct light only).
-    #[arg(long, default_value_t = crate::render::path::DEFAULT_MAX_DEPTH)]
-    pub max_depth: u32,
+    #[arg(long, default_value_t = PathDepth::default(), value_parser = super::max_depth_parser())]
+    pub max_depth: PathDepth,
     /// Direct light only (same as --max-depth 1).
     #[arg(long)]
     pub direct_only: bool,
@@ -209,7 +207,7 @@ mod tests {
         let args = parse("--scene s.json --points p.csv --samples 64 --max-depth 3 --seed 9")
             .expect("valid");
         let o = args.options();
-        assert_eq!((o.samples, o.max_depth, o.seed), (64, 3, 9));
+        assert_eq!((o.samples, o.max_depth.get(), o.seed), (64, 3, 9));
         assert_eq!(o.method, IrradianceMethod::Auto);
         assert!(!o.direct_only);
 
@@ -229,6 +227,13 @@ mod tests {
         assert!(parse("--scene s.json --points p.csv --reference --samples 5").is_err());
         assert!(parse("--scene s.json --points p.csv --method sideways").is_err());
         assert!(parse("--scene s.json --points p.csv --lengthscale short").is_err());
+    }
+
+    #[test]
+    fn an_out_of_range_depth_is_refused_with_the_library_message() {
+        let err = parse("--scene s.json --points p.csv --max-depth 0").unwrap_err();
+        assert_eq!(err.kind(), clap::error::ErrorKind::ValueValidation);
+        assert!(err.to_string().contains("must be in 1..=1024"), "{err}");
     }
 
     #[test]

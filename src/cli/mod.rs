@@ -6,10 +6,12 @@ pub mod quadrature;
 pub mod render;
 pub mod study;
 
+use crate::render::PathDepth;
+
 /// Runs `work` on a rayon pool of `threads` threads (`--threads`), or on the
 /// global pool when `None`. Results never depend on the thread count: every
 /// per-point and per-pixel random stream is seeded from its index.
-pub fn in_thread_pool<T: Send>(
+pub(crate) fn in_thread_pool<T: Send>(
     threads: Option<usize>,
     work: impl FnOnce() -> T + Send,
 ) -> anyhow::Result<T> {
@@ -21,4 +23,12 @@ pub fn in_thread_pool<T: Send>(
             .install(work)),
         None => Ok(work()),
     }
+}
+
+/// Parses `--max-depth`: an integer, checked by [`PathDepth::new`] (so an
+/// out-of-range depth is refused while the arguments are read, with the
+/// library's message).
+fn max_depth_parser() -> impl clap::builder::TypedValueParser<Value = PathDepth> {
+    use clap::builder::TypedValueParser;
+    clap::value_parser!(u32).try_map(PathDepth::new)
 }

@@ -20,9 +20,7 @@ use crate::integrator::cached::{
     CacheShadingOptions, CachedIntegrator, CachedShading, CachedSpec, CachedTileReport,
     DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, default_rule_spec,
 };
-use crate::render::Cancel;
-use crate::render::film::ImageSettings;
-use crate::render::transport::Transport;
+use crate::render::{Cancel, ImageSettings, PathDepth, Transport};
 use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance render`.
@@ -45,8 +43,8 @@ pub struct RenderArgs {
     pub spp: u32,
     /// Longest light path in segments (1 = emitters seen directly only);
     /// the same default as the service's.
-    #[arg(long, default_value_t = crate::render::path::DEFAULT_MAX_DEPTH)]
-    pub max_depth: u32,
+    #[arg(long, default_value_t = PathDepth::default(), value_parser = super::max_depth_parser())]
+    pub max_depth: PathDepth,
     /// Seed of all random streams; same seed, same image.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,

@@ -3,6 +3,7 @@
 
 use clap::Args;
 
+use crate::render::PathDepth;
 use crate::study::convergence::{self, StudyOptions};
 
 /// Arguments of `bmc-irradiance study`.
@@ -56,8 +57,8 @@ pub struct SceneStudyArgs {
     #[arg(long, value_enum, default_value_t = crate::render::IrradianceMethod::Auto)]
     pub decomposition: crate::render::IrradianceMethod,
     /// Longest path in segments (1 = direct light only).
-    #[arg(long, default_value_t = crate::render::path::DEFAULT_MAX_DEPTH)]
-    pub max_depth: u32,
+    #[arg(long, default_value_t = PathDepth::default(), value_parser = super::max_depth_parser())]
+    pub max_depth: PathDepth,
     /// Samples of each point's reference.
     #[arg(long, default_value_t = 16_384)]
     pub reference_samples: u32,

@@ -7,16 +7,17 @@
 //! camera's raster convention ([`crate::scene::Camera::generate_ray`]).
 //! Values are radiance in W/(m²·sr) per linear RGB channel, stored as f32.
 
-pub mod compare;
-pub mod error;
-pub mod exr_io;
-pub mod false_colour;
-pub mod png_io;
+mod compare;
+mod error;
+pub(crate) mod exr_io;
+mod false_colour;
+pub(crate) mod png_io;
 
 use serde::Serialize;
 
 pub use compare::{RelativeRmse, relative_rmse};
 pub use error::ImageError;
+pub use exr_io::{decode_exr, encode_exr, read_exr, write_exr};
 pub use png_io::ToneMap;
 
 /// Largest number of pixels an image may hold (8192², 1.3 GB with variance).
@@ -240,7 +241,7 @@ impl Image {
     }
 
     /// The relative standard error as a false-colour PNG: `0` at the
-    /// bottom of [`false_colour::viridis`], `scale` (e.g. 0.2 = 20 %) and
+    /// bottom of the viridis colour map, `scale` (e.g. 0.2 = 20 %) and
     /// above at the top.
     pub fn relative_std_error_png(&self, scale: f64) -> Result<Vec<u8>, ImageError> {
         if !(scale.is_finite() && scale > 0.0) {

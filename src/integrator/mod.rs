@@ -4,7 +4,7 @@
 //! [`crate::cache`], is [`cached`].
 
 pub mod cached;
-pub mod preset;
+mod preset;
 
 pub use preset::{Preset, TileSettings};
 

@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 
 use super::Integrator;
 use super::cached::CachedSpec;
+use crate::render::PathDepth;
 
 /// A named quality level.
 #[derive(
@@ -44,7 +45,7 @@ pub struct TileSettings {
     /// Passes of the progressive render (≥ 1).
     pub passes: u32,
     /// Longest path in segments from the camera.
-    pub max_depth: u32,
+    pub max_depth: PathDepth,
     /// The irradiance cache's options, every field set (`reproducible`
     /// included: a preset's tiles are the same bytes whatever ran before).
     pub cached: CachedSpec,
@@ -86,7 +87,7 @@ impl Preset {
             integrator: Integrator::Cache,
             samples_per_pixel: spp,
             passes,
-            max_depth,
+            max_depth: PathDepth::constant(max_depth),
             cached: CachedSpec {
                 samples: Some(samples),
                 glossy_samples: Some(glossy),
@@ -133,7 +134,6 @@ mod tests {
             let config = s.cached.resolve().expect("valid options");
             assert!(config.options.reproducible);
             assert!(s.passes >= 1 && s.samples_per_pixel >= 1);
-            crate::render::path::check_max_depth(s.max_depth).expect("valid depth");
             let cost = u64::from(s.total_samples_per_pixel()) * config.paths_per_record();
             assert!(
                 cost > last_cost,

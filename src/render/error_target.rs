@@ -49,15 +49,15 @@ impl ErrorTarget {
     /// Checks the numbers against the estimator's batch size `samples`;
     /// errors name the field under `target`.
     pub fn validate(&self, estimator: &PointEstimator, samples: u32) -> Result<(), EstimatorError> {
-        let invalid = |field: &str, message: String| EstimatorError::Invalid {
-            field: format!("target.{field}"),
+        let invalid = |field: &str, message: String| EstimatorError::InvalidTarget {
+            field: field.into(),
             message,
         };
         if matches!(estimator.rule, PointRule::Bmc(_)) {
             // Measured: on the Cornell box at 2 %, BMC batches reported the
             // target met at 96 % of points and were within it at 70 %.
-            return Err(EstimatorError::Invalid {
-                field: "target".into(),
+            return Err(EstimatorError::InvalidTarget {
+                field: String::new(),
                 message: "error targets need batches whose errors average out; every `bmc` \
                           batch shares the bias of its fixed rings of directions \
                           (docs/math.md §10.6): use `qmc` or `mc`"

@@ -142,12 +142,18 @@ pub struct EstimatorSpec {
     pub calibrate: Option<bool>,
 }
 
-/// Why a spec or an estimate failed; `field` is the path of the offending
-/// option below the estimator (`sample_set.kind`, `kernel.variance`).
+/// Why a spec or an estimate failed; a variant about a field names its path
+/// below the spec it belongs to (`sample_set.kind`, `kernel.variance`).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EstimatorError {
+    /// An option of the [`EstimatorSpec`] outside its domain; `field` is
+    /// below the spec (`samples`, `kernel.variance`).
     #[error("{message}")]
     Invalid { field: String, message: String },
+    /// An error target (`render::error_target`) outside its
+    /// domain; `field` is below the target (empty: the target as a whole).
+    #[error("{message}")]
+    InvalidTarget { field: String, message: String },
     /// The marginal-likelihood fit of an `"auto"` lengthscale failed.
     #[error("lengthscale fit failed: {0}")]
     Fit(String),

@@ -6,6 +6,7 @@
 
 use super::cancel::Cancel;
 use super::error::RenderError;
+use super::path::PathDepth;
 use super::tile::{RenderedTile, TileRequest};
 use super::transport::Transport;
 use crate::image::Image;
@@ -17,7 +18,7 @@ pub const MAX_TILE_SIDE: u32 = 2048;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ImageSettings {
     pub samples_per_pixel: u32,
-    pub max_depth: u32,
+    pub max_depth: PathDepth,
     pub seed: u64,
 }
 

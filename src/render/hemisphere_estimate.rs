@@ -105,7 +105,7 @@ impl Transport {
             Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
         let lengths = match decomposition {
             Decomposition::Hemisphere => Some(PathLengths::All),
-            Decomposition::Split => (depth > 1).then_some(PathLengths::Indirect),
+            Decomposition::Split => depth.has_reflections().then_some(PathLengths::Indirect),
         };
         let (mut irradiance, mut variance) = (Rgb::BLACK, Rgb::BLACK);
         if let Some(lengths) = lengths {
@@ -215,7 +215,7 @@ mod tests {
     fn options(light_samples: u32, seed: u64) -> IrradianceOptions {
         IrradianceOptions {
             samples: light_samples,
-            max_depth: 3,
+            max_depth: crate::render::PathDepth::constant(3),
             direct_only: false,
             method: IrradianceMethod::Split,
             seed,

@@ -41,7 +41,7 @@ use super::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;
 
-use super::path::{DEFAULT_MAX_DEPTH, check_max_depth};
+use super::path::PathDepth;
 
 /// How the irradiance integral is split between estimators (module docs,
 /// docs/math.md §14).
@@ -114,8 +114,8 @@ pub struct IrradianceOptions {
     /// Hemisphere directions per point; in split mode also the number of
     /// light samples for the direct part. At least 1 (2 for a standard error).
     pub samples: u32,
-    /// Longest path counted, in segments (1 = direct light only).
-    pub max_depth: u32,
+    /// Longest path counted, in segments from the point (1 = direct light only).
+    pub max_depth: PathDepth,
     /// Direct light only; the same as `max_depth = 1`.
     pub direct_only: bool,
     pub method: IrradianceMethod,
@@ -127,7 +127,7 @@ impl Default for IrradianceOptions {
     fn default() -> Self {
         Self {
             samples: 256,
-            max_depth: DEFAULT_MAX_DEPTH,
+            max_depth: PathDepth::default(),
             direct_only: false,
             method: IrradianceMethod::Split,
             seed: 1,
@@ -142,7 +142,7 @@ impl IrradianceOptions {
     pub fn reference(seed: u64) -> Self {
         Self {
             samples: 65_536,
-            max_depth: 64,
+            max_depth: PathDepth::constant(64),
             direct_only: false,
             method: IrradianceMethod::Split,
             seed,
@@ -150,10 +150,15 @@ impl IrradianceOptions {
     }
 
     /// Path-length bound after applying `direct_only`.
-    pub fn effective_max_depth(&self) -> u32 {
-        if self.direct_only { 1 } else { self.max_depth }
+    pub fn effective_max_depth(&self) -> PathDepth {
+        if self.direct_only {
+            PathDepth::DIRECT
+        } else {
+            self.max_depth
+        }
     }
 
+    /// Checks the sample count (the depth is valid by construction).
     pub fn validate(&self) -> Result<(), RenderError> {
         if self.samples == 0 {
             return Err(RenderError::InvalidOption {
@@ -161,7 +166,7 @@ impl IrradianceOptions {
                 reason: "must be at least 1".into(),
             });
         }
-        check_max_depth(self.max_depth)
+        Ok(())
     }
 }
 
@@ -317,7 +322,7 @@ impl Transport {
             Decomposition::Split => {
                 let mut parts =
                     vec![self.direct_irradiance(point, options.samples, rng, &mut stats)];
-                if depth > 1 {
+                if depth.has_reflections() {
                     parts.push(self.cosine_hemisphere_irradiance(
                         point,
                         options.samples,
@@ -384,19 +389,8 @@ mod tests {
                 ..
             })
         ));
-        o = IrradianceOptions { max_depth: 0, ..o };
-        o.samples = 4;
-        assert!(matches!(
-            o.validate(),
-            Err(RenderError::InvalidOption {
-                field: "max_depth",
-                ..
-            })
-        ));
-        o.max_depth = crate::render::path::MAX_DEPTH + 1;
-        assert!(o.validate().is_err());
         o.direct_only = true;
-        o.max_depth = 9;
-        assert_eq!(o.effective_max_depth(), 1);
+        o.max_depth = PathDepth::constant(9);
+        assert_eq!(o.effective_max_depth(), PathDepth::DIRECT);
     }
 }

@@ -24,7 +24,7 @@ use serde::Serialize;
 
 use super::environment_prior::PriorChoice;
 use super::irradiance::Decomposition;
-use super::path::{PathLengths, PathLimits, TraceStats};
+use super::path::{PathDepth, PathLengths, PathLimits, TraceStats};
 use super::sample_points::training_points;
 use super::seed::point_rng;
 use super::transport::Transport;
@@ -36,7 +36,7 @@ use crate::sphere::{Frame, SampleSet, SampleSetSpec};
 pub const FIT_POINTS: usize = 32;
 /// Path length bound of the training rays: the first bounces shape the
 /// radiance field's smoothness; deeper ones only add a smooth ambient term.
-pub const FIT_MAX_DEPTH: u32 = 3;
+pub const FIT_MAX_DEPTH: PathDepth = PathDepth::constant(3);
 /// Largest sample set fitted directly (module docs).
 pub const FIT_MAX_SAMPLES: usize = 64;
 /// Seed of the training points and their paths.

@@ -12,42 +12,50 @@
 //! `irradiance` and `irradiance_at_points`; `render_tile` and
 //! `render_image` for the camera's image (`tile`, `film`).
 
-pub mod bsdf;
+mod bsdf;
 pub mod calibration;
-pub mod cancel;
-pub mod distribution;
+mod cancel;
+mod distribution;
 pub mod environment_prior;
-pub mod environment_sampling;
-pub mod error;
+pub(crate) mod environment_sampling;
+mod error;
 pub mod error_target;
 pub mod estimators;
-pub mod film;
-pub mod hemisphere_estimate;
-pub mod irradiance;
+mod film;
+mod hemisphere_estimate;
+mod irradiance;
 pub mod lengthscale;
-pub mod lights;
-pub mod mean;
-pub mod path;
-pub mod points_csv;
+pub(crate) mod lights;
+mod mean;
+mod path;
+pub(crate) mod points_csv;
+#[doc(hidden)]
 pub mod polygon;
-pub mod query;
-pub mod rgb;
-pub mod sample_points;
+mod query;
+mod rgb;
+pub(crate) mod sample_points;
 pub mod seed;
-pub mod strata;
-pub mod tile;
-pub mod trace_stats;
-pub mod transport;
+pub(crate) mod strata;
+pub(crate) mod tile;
+mod trace_stats;
+mod transport;
+#[doc(hidden)]
 pub mod warp;
 
 pub use bsdf::{Bsdf, BsdfSample};
 pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
-pub use irradiance::{Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions};
+pub use irradiance::{
+    Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
+    SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE,
+};
 pub use mean::{Evaluation, MeanEstimate};
-pub use path::{AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats};
+pub use path::{AveragedPaths, PathDepth, PathLengths, PathLimits, RadianceSample, TraceStats};
 pub use query::QueryPoint;
 pub use rgb::Rgb;
-pub use tile::{CameraRayShader, PixelSample, RenderedTile, TileRequest};
+pub use tile::{
+    CameraRayShader, MAX_SAMPLES_PER_PIXEL, MAX_TILE_PIXELS, PathTracer, PixelSample, RenderedTile,
+    TileRequest, pass_seed, pixel_rng, render_tile_with,
+};
 pub use transport::Transport;

@@ -5,7 +5,7 @@
 //!
 //! **Path length** counts segments from the query point: length 1 is light
 //! arriving straight from an emitter or the environment along `ω`; length
-//! `k` has `k − 1` reflections. `max_depth` bounds the length, so
+//! `k` has `k − 1` reflections. `max_depth` ([`PathDepth`]) bounds the length, so
 //! `max_depth = 1` is direct light only — the same meaning as Mitsuba 3's
 //! `max_depth` for an `irradiancemeter` sensor.
 //!
@@ -45,32 +45,127 @@ pub enum PathLengths {
 /// Which paths an incident-radiance estimate sums.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PathLimits {
-    /// Longest path counted, in segments (1 = direct light only).
-    pub max_depth: u32,
+    /// Longest path counted, in segments from the query point.
+    pub max_depth: PathDepth,
     pub lengths: PathLengths,
 }
 
-/// Largest accepted `max_depth`. Russian roulette cannot end paths in a
-/// closed scene of albedo 1, so the depth bound is what keeps a request finite.
-pub const MAX_DEPTH: u32 = 1024;
-/// `max_depth` of every request and command that names none: paths of up to
-/// 16 segments, whose truncated tail (`≈ albedo¹⁶`) is negligible in the
-/// bundled scenes.
-pub const DEFAULT_MAX_DEPTH: u32 = 16;
+/// The longest path a request counts (`max_depth`), in **path segments
+/// from where its paths start**: the camera for a pixel, the viewer for a
+/// radiance query, the query point for irradiance. Depth 1 is light
+/// arriving along the first segment only — emitters the camera or viewer
+/// sees directly, direct light for irradiance; depth `k` adds paths with
+/// up to `k − 1` reflections. The same meaning as Mitsuba 3's `max_depth`
+/// (for an `irradiancemeter`, the query point is the sensor).
+///
+/// A value is always in `1..=`[`PathDepth::MAX`]: [`PathDepth::new`] is the
+/// one range check of every request's and command's depth, and
+/// [`PathDepth::default`] the one default. Paths that start further along
+/// (at a camera ray's first hit) get their depth from
+/// [`PathDepth::after_first_segment`], never by subtracting by hand.
+///
+/// On the wire (JSON, CLI, cache keys) it is the plain integer, and its
+/// `Debug` and `Display` print just that number (as `NonZeroU32` does), so
+/// the keys and entity tags built from them are those of the integer.
+#[derive(
+    Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(try_from = "u32", into = "u32")]
+pub struct PathDepth(u32);
 
-/// Checks a `max_depth`: path segments counted from the camera, viewer or
-/// query point, in `1..=MAX_DEPTH` (1 = emitters seen directly, or direct
-/// light only for irradiance). The one range check of every request's depth.
-pub fn check_max_depth(max_depth: u32) -> Result<(), RenderError> {
-    if max_depth == 0 || max_depth > MAX_DEPTH {
-        return Err(RenderError::InvalidOption {
-            field: "max_depth",
-            reason: format!(
-                "must be in 1..={MAX_DEPTH} (1 = light seen directly only), got {max_depth}"
-            ),
-        });
+impl PathDepth {
+    /// Largest accepted depth. Russian roulette cannot end paths in a
+    /// closed scene of albedo 1, so the depth bound is what keeps a request
+    /// finite.
+    pub const MAX: u32 = 1024;
+    /// Light arriving along the first segment only (direct light for irradiance).
+    pub const DIRECT: PathDepth = PathDepth(1);
+    /// The depth of every request and command that names none: paths of
+    /// up to 16 segments, whose truncated tail (`≈ albedo¹⁶`) is negligible
+    /// in the bundled scenes.
+    const DEFAULT: PathDepth = PathDepth(16);
+
+    /// `segments` as a depth, or an error naming `max_depth` outside
+    /// `1..=`[`Self::MAX`].
+    pub fn new(segments: u32) -> Result<Self, RenderError> {
+        if Self::in_range(segments) {
+            Ok(PathDepth(segments))
+        } else {
+            Err(RenderError::InvalidOption {
+                field: "max_depth",
+                reason: format!(
+                    "must be in 1..={} (1 = light seen directly only), got {segments}",
+                    Self::MAX
+                ),
+            })
+        }
     }
-    Ok(())
+
+    /// [`Self::new`] for constants: fails to compile (in a `const`) or
+    /// panics outside the range.
+    pub const fn constant(segments: u32) -> Self {
+        assert!(Self::in_range(segments), "max_depth out of range");
+        PathDepth(segments)
+    }
+
+    const fn in_range(segments: u32) -> bool {
+        segments >= 1 && segments <= Self::MAX
+    }
+
+    /// The number of segments.
+    pub const fn get(self) -> u32 {
+        self.0
+    }
+
+    /// The depth left to paths that leave the end of the first segment (a
+    /// camera ray's or a viewer's first hit, which then counts segments from
+    /// itself): one segment less, `None` when the first segment is all
+    /// there is (the hit's own emission only).
+    pub const fn after_first_segment(self) -> Option<PathDepth> {
+        if self.0 > 1 {
+            Some(PathDepth(self.0 - 1))
+        } else {
+            None
+        }
+    }
+
+    /// Whether paths with at least one reflection (length ≥ 2) are counted,
+    /// not just light arriving directly.
+    pub const fn has_reflections(self) -> bool {
+        self.0 >= 2
+    }
+}
+
+impl Default for PathDepth {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+impl TryFrom<u32> for PathDepth {
+    type Error = RenderError;
+
+    fn try_from(segments: u32) -> Result<Self, RenderError> {
+        Self::new(segments)
+    }
+}
+
+impl From<PathDepth> for u32 {
+    fn from(depth: PathDepth) -> u32 {
+        depth.0
+    }
+}
+
+impl std::fmt::Debug for PathDepth {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        std::fmt::Debug::fmt(&self.0, f)
+    }
+}
+
+impl std::fmt::Display for PathDepth {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        std::fmt::Display::fmt(&self.0, f)
+    }
 }
 
 /// Paths averaged per direction: each direction's radiance is the mean of
@@ -111,9 +206,7 @@ impl Transport {
     /// summed over the paths `limits` allows.
     ///
     /// Spawn the ray with [`crate::scene::Scene::spawn_ray`] so it leaves the query surface
-    /// cleanly. `max_depth = 0` returns black; callers bound `max_depth`
-    /// (see [`MAX_DEPTH`]), since Russian roulette alone
-    /// does not end paths in a closed scene of albedo 1.
+    /// cleanly.
     pub fn incident_radiance<R: Rng + ?Sized>(
         &self,
         ray: Ray,
@@ -143,9 +236,6 @@ impl Transport {
     ) -> RadianceSample {
         let scene = self.scene();
         let mut sample = RadianceSample::NONE;
-        if limits.max_depth == 0 {
-            return sample;
-        }
         // The first segment's direction came from the caller, so emission
         // found by it is taken at full weight.
         let direct = limits.lengths == PathLengths::All;
@@ -181,7 +271,7 @@ impl Transport {
         &self,
         hit: SurfaceHit,
         dir: DVec3,
-        max_depth: u32,
+        max_depth: PathDepth,
         (strata, stratum): (GridStrata, u32),
         rng: &mut R,
         stats: &mut TraceStats,
@@ -191,7 +281,7 @@ impl Transport {
         let mut beta = Rgb::WHITE;
         let (mut hit, mut dir) = (hit, dir);
         // `hit` was reached by segment `depth`.
-        for depth in 1..max_depth {
+        for depth in 1..max_depth.get() {
             let Some(bsdf) = self.bsdf(hit.material) else {
                 break;
             };
@@ -280,6 +370,34 @@ pub fn power_heuristic(pdf_this: f64, pdf_other: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn path_depth_is_checked_once_and_reads_as_its_integer() {
+        for bad in [0, PathDepth::MAX + 1] {
+            let err = PathDepth::new(bad).unwrap_err();
+            assert_eq!(err.field(), Some("max_depth"));
+            assert!(err.to_string().contains(&format!("got {bad}")), "{err}");
+        }
+        let depth = PathDepth::new(PathDepth::MAX).unwrap();
+        assert_eq!(depth.get(), PathDepth::MAX);
+        assert_eq!(PathDepth::default().get(), 16);
+        assert_eq!(PathDepth::DIRECT, PathDepth::new(1).unwrap());
+        // The first hit of a depth-3 camera ray counts 2 segments from itself.
+        assert_eq!(
+            PathDepth::constant(3).after_first_segment(),
+            Some(PathDepth::constant(2))
+        );
+        assert_eq!(PathDepth::DIRECT.after_first_segment(), None);
+        assert!(!PathDepth::DIRECT.has_reflections() && PathDepth::constant(2).has_reflections());
+        // Keys and entity tags format the depth as the integer they used to hold.
+        assert_eq!(
+            format!("{:?} {}", PathDepth::constant(7), PathDepth::constant(7)),
+            "7 7"
+        );
+        assert_eq!(serde_json::to_string(&PathDepth::constant(7)).unwrap(), "7");
+        assert_eq!(serde_json::from_str::<PathDepth>("7").unwrap().get(), 7);
+        assert!(serde_json::from_str::<PathDepth>("0").is_err());
+    }
 
     #[test]
     fn power_heuristic_weights_sum_to_one() {

@@ -15,14 +15,10 @@
 //! §10.2, for jittered sampling; the rotation by `o` is the Cranley–Patterson
 //! trick applied to cell indices).
 
-use rand::{Rng, RngExt};
-
 /// One pattern of `count` 2D samples (see the module docs). `Copy`, so a
 /// pixel draws it once and hands it to each of its rays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SharedStrata {
-    /// Samples in the pattern, `M ≥ 1`.
-    count: u64,
     /// Grid side `s = ⌊√M⌋`.
     side: u64,
     /// Key of the permutation `π`.
@@ -41,21 +37,10 @@ impl SharedStrata {
         // Multiply-high maps a uniform u64 onto 0..cells (bias < cells/2⁶⁴).
         let offset = ((u128::from(seeds[1]) * u128::from(cells)) >> 64) as u64;
         Self {
-            count,
             side,
             key: seeds[0],
             offset,
         }
-    }
-
-    /// A pattern of `count` samples with seeds drawn from `rng`.
-    pub fn random<R: Rng + ?Sized>(count: u64, rng: &mut R) -> Self {
-        Self::new(count, [rng.random(), rng.random()])
-    }
-
-    /// Samples in the pattern.
-    pub fn count(&self) -> u64 {
-        self.count
     }
 
     /// Sample `j` of the pattern from the uniform jitter `u ∈ [0, 1)²`:
@@ -144,8 +129,13 @@ fn permute(i: u64, n: u64, key: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
+    use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64;
+
+    /// A pattern of `count` samples with seeds drawn from `rng`.
+    fn random_strata(count: u64, rng: &mut Pcg64) -> SharedStrata {
+        SharedStrata::new(count, [rng.random(), rng.random()])
+    }
 
     #[test]
     fn grids_are_near_square_and_cover_the_square() {
@@ -179,7 +169,7 @@ mod tests {
     fn a_pattern_puts_one_sample_in_each_cell() {
         let mut rng = Pcg64::seed_from_u64(1);
         for count in [1, 4, 10, 64, 256] {
-            let strata = SharedStrata::random(count, &mut rng);
+            let strata = random_strata(count, &mut rng);
             let side = count.isqrt();
             let mut hits = vec![0; (side * side) as usize];
             for j in 0..count {
@@ -203,7 +193,7 @@ mod tests {
         for j in [0, 5, 15] {
             let mut counts = [0.0f64; 4];
             for _ in 0..patterns {
-                let strata = SharedStrata::random(16, &mut rng);
+                let strata = random_strata(16, &mut rng);
                 let [x, y] = strata.sample(j, [rng.random(), rng.random()]);
                 counts[usize::from(x >= 0.5) + 2 * usize::from(y >= 0.5)] += 1.0;
             }

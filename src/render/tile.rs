@@ -33,8 +33,7 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::error::RenderError;
 use super::mean::{Evaluation, MeanEstimate};
-use super::path::check_max_depth;
-use super::path::{PathLengths, PathLimits, TraceStats};
+use super::path::{PathDepth, PathLengths, PathLimits, TraceStats};
 use super::seed::point_rng;
 use super::transport::Transport;
 use crate::image::Image;
@@ -56,8 +55,9 @@ pub struct TileRequest {
     pub height: u32,
     /// Camera rays per pixel, jittered over the pixel area.
     pub samples_per_pixel: u32,
-    /// Longest path counted, in segments (1 = emitters seen directly only).
-    pub max_depth: u32,
+    /// Longest path counted, in segments from the camera (1 = emitters seen
+    /// directly only).
+    pub max_depth: PathDepth,
     /// Seed of every random stream of the request.
     pub seed: u64,
     /// Which of the seed's disjoint sets of camera samples (0 = the first):
@@ -81,7 +81,8 @@ pub fn pass_seed(seed: u64, pass: u32) -> u64 {
 }
 
 impl TileRequest {
-    /// Checks the request against an image of `resolution` (width, height).
+    /// Checks the request against an image of `resolution` (width, height);
+    /// its depth is valid by construction.
     pub fn validate(&self, resolution: (u32, u32)) -> Result<(), RenderError> {
         let bad =
             |field: &'static str, reason: String| RenderError::InvalidOption { field, reason };
@@ -128,7 +129,7 @@ impl TileRequest {
                 ),
             ));
         }
-        check_max_depth(self.max_depth)
+        Ok(())
     }
 }
 
@@ -145,7 +146,7 @@ pub struct RenderedTile {
 
 /// Which of its pixel's camera rays a ray is: shaders may spread samples
 /// over all rays of the pixel (e.g. light samples on one
-/// [`crate::render::strata::SharedStrata`] pattern).
+/// stratified pattern, as the irradiance cache's light samples do).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PixelSample {
     /// Index of the ray among the pixel's `count` rays.
@@ -172,7 +173,8 @@ pub trait CameraRayShader: Sync {
 /// path tracing.
 pub struct PathTracer<'a> {
     pub transport: &'a Transport,
-    pub max_depth: u32,
+    /// Segments counted from the camera.
+    pub max_depth: PathDepth,
 }
 
 impl CameraRayShader for PathTracer<'_> {
@@ -303,7 +305,7 @@ pub(crate) mod tests {
             width,
             height,
             samples_per_pixel: 2,
-            max_depth: 6,
+            max_depth: PathDepth::constant(6),
             seed: 7,
             pass: 0,
         }
@@ -370,15 +372,6 @@ pub(crate) mod tests {
         };
         assert_eq!(field(spp(0)), "samples_per_pixel");
         assert_eq!(field(spp(MAX_SAMPLES_PER_PIXEL + 1)), "samples_per_pixel");
-        let depth = |max_depth| TileRequest {
-            max_depth,
-            ..request(0, 0, 1, 1)
-        };
-        assert_eq!(field(depth(0)), "max_depth");
-        assert_eq!(
-            field(depth(crate::render::path::MAX_DEPTH + 1)),
-            "max_depth"
-        );
         // Inside a huge image but too large for one request.
         let huge = TileRequest {
             width: 4096,

@@ -47,7 +47,7 @@ impl Transport {
         &self.scene
     }
 
-    pub fn lights(&self) -> &LightSampler {
+    pub(crate) fn lights(&self) -> &LightSampler {
         &self.lights
     }
 
@@ -57,7 +57,7 @@ impl Transport {
     }
 
     /// `Var L / (E L)²` of the environment's radiance over the sphere
-    /// ([`environment_relative_variance`]), if the scene has an environment.
+    /// (computed once at load), if the scene has an environment.
     pub fn environment_relative_variance(&self) -> Option<f64> {
         self.environment_relative_variance
     }

@@ -173,21 +173,6 @@ impl Bvh {
         (Bvh { nodes }, order)
     }
 
-    /// Bounds of everything in the tree (empty box if no primitives).
-    pub fn bounds(&self) -> Aabb {
-        match self.nodes.first() {
-            Some(n) => Aabb {
-                min: DVec3::new(n.min[0] as f64, n.min[1] as f64, n.min[2] as f64),
-                max: DVec3::new(n.max[0] as f64, n.max[1] as f64, n.max[2] as f64),
-            },
-            None => Aabb::EMPTY,
-        }
-    }
-
-    pub fn node_count(&self) -> usize {
-        self.nodes.len()
-    }
-
     /// Closest-hit traversal. `intersect(i, t_max)` tests primitive position
     /// `i` and returns its hit distance if it is below `t_max`; the caller
     /// records whatever else it needs. Returns the closest distance found.
@@ -409,7 +394,7 @@ mod tests {
     fn traversal_agrees_with_brute_force() {
         let boxes = random_boxes(500, 7);
         let (bvh, order) = Bvh::build(&boxes);
-        assert!(bvh.node_count() < 2 * boxes.len());
+        assert!(bvh.nodes.len() < 2 * boxes.len());
         let mut rng = rand_pcg::Pcg64::seed_from_u64(8);
         for k in 0..300 {
             // Finite and infinite ray extents take different paths.

@@ -4,33 +4,39 @@
 //! All geometry is f64 at the API. Everything is immutable after loading, so
 //! a [`Scene`] is `Send + Sync` and callers trace rays in parallel (rayon).
 
-pub mod bundle;
-pub mod bvh;
-pub mod camera;
-pub mod digest;
-pub mod emitter;
-pub mod environment;
-pub mod error;
-pub mod format;
+pub(crate) mod bundle;
+mod bvh;
+mod camera;
+mod digest;
+mod emitter;
+mod environment;
+mod error;
+mod format;
+#[doc(hidden)]
 pub mod generate;
 mod loader;
-pub mod material;
-pub mod mesh;
-pub mod mitsuba;
-pub mod ray;
+mod material;
+mod mesh;
+mod mitsuba;
+mod ray;
 mod read;
 mod shape;
-pub mod transform;
+mod transform;
 
 use glam::DVec3;
 
 pub use camera::Camera;
 pub use digest::SceneDigest;
 pub use emitter::Emitter;
+/// Writes an equirectangular map as a half-float EXR (tests and the bundled
+/// scenes' generator make their environment maps with it).
+#[doc(hidden)]
+pub use environment::write_exr_half;
 pub use environment::{Environment, EnvironmentMap};
 pub use error::SceneError;
+pub use format::FovAxis;
 pub use material::Material;
-pub use mitsuba::{MitsubaOptions, Warning, Warnings};
+pub use mitsuba::{MAX_WARNINGS, MitsubaOptions, Warning, Warnings};
 pub use ray::Ray;
 
 use bvh::Bvh;
@@ -225,7 +231,8 @@ impl Scene {
 
     /// Ray leaving the surface point `position` (geometric normal `normal`,
     /// either orientation) along the unit direction `dir`; the origin is
-    /// offset to the side `dir` points to (see [`ray::offset_origin`]).
+    /// offset to the side `dir` points to, by a margin that grows with the
+    /// coordinates' magnitude (`ray::offset_origin`).
     pub fn spawn_ray(&self, position: DVec3, normal: DVec3, dir: DVec3) -> Ray {
         Ray {
             origin: ray::offset_origin(position, normal, dir),

@@ -5,7 +5,7 @@
 //! operation applies after the earlier ones, so the matrix is `C·B·A` and a
 //! point is first transformed by `A`.
 
-use glam::{DAffine3, DMat3, DMat4, DVec3, DVec4};
+use glam::{DAffine3, DMat3, DMat4, DVec3};
 
 use super::error::SceneError;
 use super::format::{TransformDoc, TransformOp, Vec3};
@@ -152,16 +152,17 @@ pub fn normal_matrix(t: &DAffine3) -> DMat3 {
     t.matrix3.inverse().transpose()
 }
 
-/// Row-major 4×4 form, for tests and diagnostics.
-pub fn to_rows(t: &DAffine3) -> [[f64; 4]; 4] {
-    let m = DMat4::from(*t).transpose();
-    let r = |v: DVec4| v.to_array();
-    [r(m.x_axis), r(m.y_axis), r(m.z_axis), r(m.w_axis)]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec4;
+
+    /// Row-major 4×4 form, so failures print readably.
+    fn to_rows(t: &DAffine3) -> [[f64; 4]; 4] {
+        let m = DMat4::from(*t).transpose();
+        let r = |v: DVec4| v.to_array();
+        [r(m.x_axis), r(m.y_axis), r(m.z_axis), r(m.w_axis)]
+    }
 
     fn close(a: &DAffine3, b: &DAffine3) -> bool {
         let (a, b) = (to_rows(a), to_rows(b));

@@ -22,6 +22,13 @@
 //! | 503 | `cancelled` | the request's work was cancelled (its client is normally gone) |
 //! | 504 | `deadline_exceeded` | the request ran past `limits.request_deadline_secs` |
 //! | 507 | `insufficient_storage` | a posted scene would exceed a `scenes.max_*` budget |
+//!
+//! Errors of lower layers become `ApiError`s through one `From` each, below,
+//! so handlers convert them with `?`. Library errors name the field below
+//! the spec they check (`normal` of a point, `accuracy` of the cache
+//! integrator); a handler that knows where that spec sits in the request
+//! says so with [`AtField::at`] (`points[3]`, `estimator`), which prefixes the
+//! path ([`ApiError::within`]).
 
 use axum::Json;
 use axum::http::{HeaderValue, StatusCode, header};
@@ -132,6 +139,34 @@ impl ApiError {
         ApiError::check_limit(field, value, limit)
     }
 
+    /// This error as one about the part of the request at `path`: a field
+    /// it names (relative to that part) gets `path` and a dot in front, and
+    /// an error naming no field names `path` itself. Errors about no field
+    /// (not found, overloaded, cancelled, internal, …) are returned as they are.
+    pub fn within(self, path: &str) -> Self {
+        let join = |field: String| match (path.is_empty(), field.is_empty()) {
+            (true, _) => field,
+            (false, true) => path.to_owned(),
+            (false, false) => format!("{path}.{field}"),
+        };
+        match self {
+            ApiError::InvalidField { field, message } => ApiError::InvalidField {
+                field: join(field),
+                message,
+            },
+            ApiError::LimitExceeded {
+                field,
+                value,
+                limit,
+            } => ApiError::LimitExceeded {
+                field: join(field),
+                value,
+                limit,
+            },
+            other => other,
+        }
+    }
+
     /// A 500 for a panic caught in a handler or a CPU job; the payload's text is kept.
     pub fn from_panic(panic: &(dyn std::any::Any + Send)) -> Self {
         let text = panic
@@ -224,14 +259,33 @@ impl From<crate::scene::SceneError> for ApiError {
     }
 }
 
-/// Estimator errors name the option below `estimator` (422); a failed
+/// A step of a handler whose error, converted into an [`ApiError`], is about
+/// one part of the request.
+pub trait AtField<T> {
+    /// The error placed at `path` in the request ([`ApiError::within`]):
+    /// `QueryPoint::new(..).at("points[3]")?` reports a bad normal at
+    /// `points[3].normal`.
+    fn at(self, path: &str) -> Result<T, ApiError>;
+}
+
+impl<T, E: Into<ApiError>> AtField<T> for Result<T, E> {
+    fn at(self, path: &str) -> Result<T, ApiError> {
+        self.map_err(|err| err.into().within(path))
+    }
+}
+
+/// Estimator errors name the option below `estimator` and target errors the
+/// field below `target`, where requests carry them (422); a failed
 /// lengthscale fit is ours (500).
 impl From<crate::render::estimators::EstimatorError> for ApiError {
     fn from(err: crate::render::estimators::EstimatorError) -> Self {
         use crate::render::estimators::EstimatorError;
         match err {
             EstimatorError::Invalid { field, message } => {
-                ApiError::invalid(format!("estimator.{field}"), message)
+                ApiError::invalid(field, message).within("estimator")
+            }
+            EstimatorError::InvalidTarget { field, message } => {
+                ApiError::invalid(field, message).within("target")
             }
             EstimatorError::Fit(message) => ApiError::Internal {
                 message: format!("lengthscale fit failed: {message}"),
@@ -254,6 +308,89 @@ impl From<crate::render::RenderError> for ApiError {
                 message: err.to_string(),
             },
             RenderError::Cancelled => ApiError::Cancelled,
+        }
+    }
+}
+
+/// BMC errors reach a handler only from `POST /v1/quadratures` (the cache and
+/// the point estimators wrap them in errors of their own), so they name the
+/// field of a quadrature request: a parameter by the part of the spec it
+/// belongs to (`kernel.lengthscale`, `density.exponent`,
+/// `sample_set.count`), the kernel when its matrix stays indefinite,
+/// `kernel_mean` when that method cannot integrate the pair (422).
+impl From<crate::bmc::BmcError> for ApiError {
+    fn from(err: crate::bmc::BmcError) -> Self {
+        use crate::bmc::BmcError;
+        let field = match (&err, err.field()) {
+            (_, Some("samples")) => "sample_set.count".to_owned(),
+            (_, Some(field @ ("lengthscale" | "variance" | "noise"))) => format!("kernel.{field}"),
+            (_, Some(field @ ("exponent" | "mirror_elevation"))) => format!("density.{field}"),
+            (_, Some(field)) => field.to_owned(),
+            (BmcError::Unsupported { .. }, None) => "kernel_mean".to_owned(),
+            (_, None) => "kernel".to_owned(),
+        };
+        ApiError::invalid(field, err.to_string())
+    }
+}
+
+/// Cache and cache-integrator errors name the option below the integrator's
+/// spec (`accuracy`, `samples`), to be placed with [`AtField::at`] (422).
+impl From<crate::cache::CacheError> for ApiError {
+    fn from(err: crate::cache::CacheError) -> Self {
+        match err {
+            crate::cache::CacheError::Render(err) => err.into(),
+            err => ApiError::invalid(err.field().unwrap_or_default(), err.to_string()),
+        }
+    }
+}
+
+/// Axum's path extractor fails only on segments that are not valid
+/// percent-encoded UTF-8; every route with path parameters starts with the
+/// scene id, which names the path (422).
+impl From<axum::extract::rejection::PathRejection> for ApiError {
+    fn from(rejection: axum::extract::rejection::PathRejection) -> Self {
+        ApiError::invalid("id", rejection.body_text())
+    }
+}
+
+/// A query string that does not parse as the route's parameters (422).
+impl From<axum::extract::rejection::QueryRejection> for ApiError {
+    fn from(rejection: axum::extract::rejection::QueryRejection) -> Self {
+        ApiError::invalid("query", rejection.body_text())
+    }
+}
+
+/// A body that could not be read: over `limits.max_body_bytes` (413), or
+/// cut off (400).
+impl From<axum::extract::rejection::BytesRejection> for ApiError {
+    fn from(rejection: axum::extract::rejection::BytesRejection) -> Self {
+        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::PayloadTooLarge
+        } else {
+            ApiError::MalformedJson {
+                message: rejection.body_text(),
+            }
+        }
+    }
+}
+
+/// A `multipart/form-data` upload (`POST /v1/scenes`): a content type
+/// without a boundary names `content-type`, an upload over its byte limit
+/// names that limit, anything else is a malformed `body` (422).
+impl From<multer::Error> for ApiError {
+    fn from(err: multer::Error) -> Self {
+        match err {
+            multer::Error::StreamSizeExceeded { limit } => ApiError::LimitExceeded {
+                field: "limits.max_upload_bytes".into(),
+                value: limit.saturating_add(1),
+                limit,
+            },
+            multer::Error::NoMultipart
+            | multer::Error::NoBoundary
+            | multer::Error::DecodeContentType(_) => {
+                ApiError::invalid("content-type", format!("no multipart boundary: {err}"))
+            }
+            other => ApiError::invalid("body", format!("malformed multipart upload: {other}")),
         }
     }
 }
@@ -333,6 +470,41 @@ mod tests {
         assert_eq!(response.status(), StatusCode::SERVICE_UNAVAILABLE);
         assert_eq!(response.headers()[header::RETRY_AFTER], "2");
         assert_eq!(response.headers()[header::CONTENT_TYPE], "application/json");
+    }
+
+    #[test]
+    fn at_places_a_library_error_in_the_request() {
+        use crate::render::{QueryPoint, RenderError};
+        let bad_normal = QueryPoint::new(glam::DVec3::ZERO, glam::DVec3::ZERO);
+        let err = bad_normal.at("points[3]").unwrap_err();
+        assert_eq!(err.field(), Some("points[3].normal"));
+        assert!(err.to_string().starts_with("invalid query point: normal"));
+        // An error naming no field names the part; errors about no field pass.
+        let err = ApiError::invalid("", "bad").within("estimator");
+        assert_eq!(err.field(), Some("estimator"));
+        assert_eq!(ApiError::Cancelled.within("estimator"), ApiError::Cancelled);
+        let cancelled: Result<(), RenderError> = Err(RenderError::Cancelled);
+        assert_eq!(cancelled.at("estimator"), Err(ApiError::Cancelled));
+        let limit = ApiError::check_limit("samples", 9, 8).unwrap_err();
+        assert_eq!(limit.within("estimator").field(), Some("estimator.samples"));
+    }
+
+    #[test]
+    fn bmc_errors_name_the_field_of_a_quadrature_request() {
+        use crate::bmc::{BmcError, KernelKind};
+        let kernel = crate::bmc::Kernel::new(KernelKind::SquaredExponential, -1.0, 1.0, 1e-8);
+        let field = |err: BmcError| ApiError::from(err).field().map(str::to_owned);
+        assert_eq!(
+            field(kernel.unwrap_err()).as_deref(),
+            Some("kernel.lengthscale")
+        );
+        let unsupported = BmcError::Unsupported {
+            method: "spherical_gaussian",
+            what: "this kernel".into(),
+        };
+        assert_eq!(field(unsupported).as_deref(), Some("kernel_mean"));
+        let indefinite = BmcError::NotPositiveDefinite { jitter: 1.0 };
+        assert_eq!(field(indefinite).as_deref(), Some("kernel"));
     }
 
     #[test]

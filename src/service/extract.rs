@@ -11,8 +11,8 @@
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, FromRequestParts, Path, Request};
+use axum::http::header;
 use axum::http::request::Parts;
-use axum::http::{StatusCode, header};
 use serde::de::{DeserializeOwned, IgnoredAny};
 
 use super::error::ApiError;
@@ -30,10 +30,8 @@ impl<S: Send + Sync> FromRequestParts<S> for SceneId {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
-        Path::<String>::from_request_parts(parts, state)
-            .await
-            .map(|Path(id)| SceneId(id))
-            .map_err(|rejection| ApiError::invalid("id", rejection.body_text()))
+        let Path(id) = Path::<String>::from_request_parts(parts, state).await?;
+        Ok(SceneId(id))
     }
 }
 
@@ -129,15 +127,31 @@ pub fn content_type_text(req: &Request) -> String {
 
 /// Reads the whole body; a body over the configured limit is a 413.
 pub async fn body_bytes<S: Send + Sync>(req: Request, state: &S) -> Result<Bytes, ApiError> {
-    Bytes::from_request(req, state).await.map_err(|rejection| {
-        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-            ApiError::PayloadTooLarge
-        } else {
-            ApiError::MalformedJson {
-                message: rejection.body_text(),
-            }
-        }
-    })
+    Ok(Bytes::from_request(req, state).await?)
+}
+
+/// Reads the whole body of a route with a byte limit of its own (uploads
+/// and imports, `limits.max_upload_bytes`), rather than the
+/// `limits.max_body_bytes` of JSON bodies; over the limit is a 422 naming
+/// `limits.max_upload_bytes`.
+pub async fn body_up_to(req: Request, limit: u64) -> Result<Bytes, ApiError> {
+    use http_body_util::{BodyExt, LengthLimitError, Limited};
+    let limited = Limited::new(
+        req.into_body(),
+        usize::try_from(limit).unwrap_or(usize::MAX),
+    );
+    match limited.collect().await {
+        Ok(collected) => Ok(collected.to_bytes()),
+        Err(err) if err.is::<LengthLimitError>() => Err(ApiError::LimitExceeded {
+            field: "limits.max_upload_bytes".into(),
+            value: limit.saturating_add(1),
+            limit,
+        }),
+        Err(err) => Err(ApiError::invalid(
+            "body",
+            format!("cannot read the body: {err}"),
+        )),
+    }
 }
 
 /// Deserialises `bytes` as a `T`, naming the offending field on failure.
@@ -206,6 +220,7 @@ fn classify(err: serde_json::Error, path: String) -> ApiError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use axum::http::StatusCode;
     use serde::Deserialize;
 
     #[derive(Debug, Deserialize)]

@@ -9,13 +9,14 @@ use serde::Deserialize;
 use utoipa::ToSchema;
 
 use super::config::Limits;
-use super::error::ApiError;
+use super::error::{ApiError, AtField};
 use super::irradiance_caches::SceneCache;
 use super::scenes::LoadedScene;
 use super::state::AppState;
-use crate::cache::{CacheConfig, CacheError, IrradianceCache};
+use crate::cache::{CacheConfig, IrradianceCache};
 use crate::integrator::Integrator;
 use crate::integrator::cached::{CachedConfig, CachedShading, CachedSpec};
+use crate::render::PathDepth;
 
 /// The integrator of a tile or radiance request; every field but `method`
 /// applies to `cache` only, and every one is optional (defaults in
@@ -114,7 +115,7 @@ impl IntegratorDoc {
             ..base
         };
         // Validated before the budget, so an out-of-range knob is named as such.
-        let config = spec.resolve().map_err(estimator_error)?;
+        let config = spec.resolve().at("estimator")?;
         limits.check_record_work(config.paths_per_record())?;
         Ok(ResolvedCache {
             config,
@@ -146,7 +147,7 @@ pub fn cached_setup(
     state: &AppState,
     scene: &LoadedScene,
     resolved: ResolvedCache,
-    max_depth: u32,
+    max_depth: PathDepth,
 ) -> Result<CachedSetup, ApiError> {
     let config = resolved.config;
     let quadratures = state.quadratures.clone();
@@ -159,26 +160,16 @@ pub fn cached_setup(
             CacheConfig::default(),
             || config.shading(quadratures),
         )
-        .map_err(estimator_error)?;
+        .at("estimator")?;
     let shading = entry.shading.with_options(&config);
     let private = if resolved.shared {
         None
     } else {
-        Some(IrradianceCache::new(*entry.cache.config()).map_err(estimator_error)?)
+        Some(IrradianceCache::new(*entry.cache.config()).at("estimator")?)
     };
     Ok(CachedSetup {
         entry,
         shading,
         private,
     })
-}
-
-/// A cache or rule error as a 422 naming the estimator field.
-pub fn estimator_error(err: CacheError) -> ApiError {
-    let field = match err.field() {
-        Some("kernel.lengthscale" | "lengthscale") => "estimator.lengthscale".to_owned(),
-        Some(field) => format!("estimator.{field}"),
-        None => "estimator".to_owned(),
-    };
-    ApiError::invalid(field, err.to_string())
 }

@@ -208,7 +208,8 @@ mod tests {
         }
         .resolve()
         .unwrap();
-        (config.records_key(16), config.describe(16))
+        let depth = crate::render::PathDepth::default();
+        (config.records_key(depth), config.describe(depth))
     }
 
     fn scene(id: &str) -> LoadedScene {

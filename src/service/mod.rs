@@ -2,41 +2,53 @@
 //! bounded pool, serialises results. The library modules it serves know
 //! nothing about HTTP.
 //!
-//! - `config`: `config/default.toml` + file + `BMC_<SECTION>__<KEY>` env + flags;
-//! - `app`: [`Application`] (router, middleware, listener, graceful shutdown);
-//! - `state`: [`AppState`], shared by all requests;
-//! - `error`: [`ApiError`] and the JSON error body;
-//! - `extract`: [`ApiJson`], a JSON extractor whose errors name the field;
-//! - `pool`: [`CpuPool`], bounded rayon pool (503 + `Retry-After` when full);
+//! Its public surface is how to run it: [`serve`] (or [`run_serve`] with the
+//! `serve` subcommand's [`ServeArgs`]) runs it until SIGINT/SIGTERM with a
+//! [`Config`] ([`config`]: `config/default.toml` + file + `BMC_<SECTION>__<KEY>`
+//! environment + flags); [`Application`] binds the router (middleware,
+//! routes, fallbacks) to a listener for embedding and tests, and stops on any
+//! future ([`shutdown_signal`] is the one [`serve`] uses). [`ErrorBody`] is
+//! the JSON body of every error response, for clients.
+//!
+//! Inside (private):
+//! - `app`: `Application`, the router and its middleware;
+//! - `state`: `AppState`, shared by all requests;
+//! - `error`: `ApiError`, its JSON body and one `From` per library error;
+//! - `extract`: `ApiJson`, a JSON extractor whose errors name the field;
+//! - `pool`: `CpuPool`, bounded rayon pool (503 + `Retry-After` when full);
 //! - `metrics`: Prometheus names, recorder and per-route middleware;
-//! - `scenes`: the scene registry ([`SceneRegistry`]) and startup loading;
+//! - `scenes`: the scene registry and startup loading;
+//! - `tile_store`, `tile_render`: reproducible tiles' memoised parts and passes;
+//! - `posted_scenes`: scenes posted at runtime, kept across restarts;
+//! - `shared_store`, `replicas`: sharing with other replicas through Redis;
 //! - `routes`: one file per resource.
 
-pub mod app;
+mod app;
 pub mod config;
-pub mod error;
-pub mod extract;
-pub mod integrator_doc;
-pub mod irradiance_caches;
-pub mod metrics;
-pub mod pool;
-pub mod posted_scenes;
-pub mod replicas;
-pub mod routes;
-pub mod scenes;
-pub mod server;
-pub mod shared_store;
-pub mod state;
-pub mod tile_render;
-pub mod tile_store;
-pub mod viewer;
+mod error;
+mod extract;
+mod integrator_doc;
+mod irradiance_caches;
+mod metrics;
+mod pool;
+mod posted_scenes;
+mod replicas;
+mod routes;
+mod scenes;
+mod server;
+mod shared_store;
+mod state;
+mod tile_render;
+mod tile_store;
+mod viewer;
 
 pub use app::{Application, shutdown_signal};
 pub use config::Config;
-pub use error::ApiError;
-pub use extract::ApiJson;
+pub use error::{ErrorBody, ErrorDetail};
+// What `Application::state` hands to tests; the service's internals, not an API.
+#[doc(hidden)]
 pub use pool::CpuPool;
-pub use scenes::{LoadedScene, SceneRegistry};
+#[doc(hidden)]
 pub use state::AppState;
 
 /// Arguments of `bmc-irradiance serve`.

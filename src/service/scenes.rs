@@ -239,16 +239,29 @@ impl SceneRegistry {
 }
 
 /// Checks that `id` can be used as a scene id (see module docs).
-pub fn validate_id(id: &str) -> Result<(), String> {
+pub fn validate_id(id: &str) -> Result<(), InvalidId> {
     let ok_chars = id
         .chars()
         .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
     if id.is_empty() || id.len() > MAX_ID_LEN || !ok_chars {
-        Err(format!(
+        Err(InvalidId(format!(
             "scene id must be 1..={MAX_ID_LEN} characters of A-Z, a-z, 0-9, '-', '_', got {id:?}"
-        ))
+        )))
     } else {
         Ok(())
+    }
+}
+
+/// Why a string is not a scene id ([`validate_id`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct InvalidId(String);
+
+/// A 422 about whichever request field carries the id: a handler places it
+/// with [`super::error::AtField::at`] (`id` of a query, `name` of a document).
+impl From<InvalidId> for ApiError {
+    fn from(InvalidId(reason): InvalidId) -> Self {
+        ApiError::invalid("", reason)
     }
 }
 

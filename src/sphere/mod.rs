@@ -1,8 +1,8 @@
 //! Geometry of directions: local shading frames (z = surface normal) and
 //! hemisphere sample sets.
 
-pub mod frame;
-pub mod sample_set;
+mod frame;
+mod sample_set;
 
 pub use frame::Frame;
 pub use sample_set::{MAX_SAMPLES, SampleSet, SampleSetKind, SampleSetSpec};

@@ -23,8 +23,8 @@ use crate::render::estimators::{
 use crate::render::lengthscale::FittedKernels;
 use crate::render::sample_points::camera_points;
 use crate::render::{
-    Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, QueryPoint,
-    Transport,
+    Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, PathDepth,
+    QueryPoint, Transport,
 };
 use crate::stats::standard_score;
 
@@ -39,7 +39,7 @@ pub struct SceneStudyOptions {
     pub sample_counts: Vec<u32>,
     pub decomposition: IrradianceMethod,
     /// Longest path in segments (1 = direct light only).
-    pub max_depth: u32,
+    pub max_depth: PathDepth,
     /// Samples of each point's reference.
     pub reference_samples: u32,
     /// Seed of the points and the reference.
@@ -55,7 +55,7 @@ impl Default for SceneStudyOptions {
             seeds: 6,
             sample_counts: vec![16, 64, 256],
             decomposition: IrradianceMethod::Auto,
-            max_depth: IrradianceOptions::default().max_depth,
+            max_depth: PathDepth::default(),
             reference_samples: 16_384,
             seed: 2026,
             bmc_kernel: None,
@@ -214,7 +214,7 @@ pub fn run(
             rows.push(SceneStudyRow {
                 scene: scene.to_owned(),
                 decomposition,
-                max_depth: options.max_depth,
+                max_depth: options.max_depth.get(),
                 samples,
                 estimator: name.to_owned(),
                 model_coverage: model.coverage,

@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use bmc_irradiance::render::{IrradianceMethod, Transport};
+use bmc_irradiance::render::{IrradianceMethod, PathDepth, Transport};
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::study::scenes::{self, SceneStudyOptions};
 
@@ -25,7 +25,7 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
             seeds: 8,
             sample_counts: vec![64],
             decomposition: IrradianceMethod::Auto,
-            max_depth,
+            max_depth: PathDepth::constant(max_depth),
             reference_samples: 8192,
             seed: 2026,
             bmc_kernel: None,

@@ -18,7 +18,7 @@ use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::MeanEstimate;
 use bmc_irradiance::render::seed::point_rng;
 use bmc_irradiance::render::{
-    PathLengths, PathLimits, QueryPoint, Rgb, TraceStats, Transport, warp,
+    PathDepth, PathLengths, PathLimits, QueryPoint, Rgb, TraceStats, Transport, warp,
 };
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::sphere::{Frame, SampleSetKind, SampleSetSpec};
@@ -56,7 +56,7 @@ fn config() -> CacheConfig {
 fn options(seed: u64) -> PlacementOptions {
     PlacementOptions {
         paths: PathLimits {
-            max_depth: 3,
+            max_depth: PathDepth::constant(3),
             lengths: PathLengths::Indirect,
         },
         accuracy: Accuracy::new(0.5).unwrap(),
@@ -199,7 +199,7 @@ fn occlusion_check_stops_records_leaking_through_a_box() {
 
 /// Indirect light (path lengths 2..=6) of the back-wall record tests.
 const INDIRECT: PathLimits = PathLimits {
-    max_depth: 6,
+    max_depth: PathDepth::constant(6),
     lengths: PathLengths::Indirect,
 };
 

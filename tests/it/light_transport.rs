@@ -12,8 +12,8 @@ use bmc_irradiance::render::MeanEstimate;
 use bmc_irradiance::render::polygon::projected_solid_angle;
 use bmc_irradiance::render::seed::point_rng;
 use bmc_irradiance::render::{
-    IrradianceEstimate, IrradianceMethod, IrradianceOptions, PathLengths, PathLimits, QueryPoint,
-    Rgb, TraceStats, Transport,
+    IrradianceEstimate, IrradianceMethod, IrradianceOptions, PathDepth, PathLengths, PathLimits,
+    QueryPoint, Rgb, TraceStats, Transport,
 };
 use bmc_irradiance::scene::{Environment, Scene};
 use bmc_irradiance::sphere::Frame;
@@ -112,7 +112,7 @@ fn assert_close(got: &IrradianceEstimate, expected: Rgb, rel: f64, what: &str) {
 fn options(samples: u32, max_depth: u32, method: IrradianceMethod) -> IrradianceOptions {
     IrradianceOptions {
         samples,
-        max_depth,
+        max_depth: PathDepth::new(max_depth).unwrap(),
         direct_only: false,
         method,
         seed: 7,
@@ -267,7 +267,10 @@ fn external_direction_sets_plug_into_the_hemisphere_estimate() {
     dirs.push(DVec3::new(0.0, f64::NAN, 1.0));
     let mut rng = point_rng(3, 0);
     let mut stats = TraceStats::default();
-    let limits = |max_depth, lengths| PathLimits { max_depth, lengths };
+    let limits = |max_depth, lengths| PathLimits {
+        max_depth: PathDepth::new(max_depth).unwrap(),
+        lengths,
+    };
     let direct = t.hemisphere_samples(
         &p,
         &frame,
@@ -366,8 +369,7 @@ fn environment_map_importance_sampling_is_unbiased() {
         })
         .collect();
     let dir = temp_dir("envmap");
-    bmc_irradiance::scene::environment::write_exr_half(&dir.join("sky.exr"), w, h, &texels)
-        .expect("write exr");
+    bmc_irradiance::scene::write_exr_half(&dir.join("sky.exr"), w, h, &texels).expect("write exr");
     let materials = r#"[{"id": "black", "type": "diffuse", "reflectance": [0, 0, 0]}]"#;
     let far_disk =
         r#"{"type": "disk", "material": "black", "to_world": [{"translate": [0, -100, 0]}]}"#;
@@ -454,7 +456,7 @@ fn paths_sharing_a_first_segment_are_unbiased_and_cheaper() {
         let expected =
             le * (Rgb::WHITE - rho.map(|r| r.powi(depth as i32))) * rho.map(|r| 1.0 / (1.0 - r));
         let limits = PathLimits {
-            max_depth: depth,
+            max_depth: PathDepth::new(depth).unwrap(),
             lengths: PathLengths::All,
         };
         let mut rng = point_rng(3, u64::from(depth));
@@ -501,7 +503,7 @@ fn paths_sharing_a_first_segment_are_unbiased_and_cheaper() {
         Path::new("."),
     );
     let limits = PathLimits {
-        max_depth: 8,
+        max_depth: PathDepth::constant(8),
         lengths: PathLengths::Indirect,
     };
     let dir = DVec3::new(0.2, -0.1, -1.0).normalize();

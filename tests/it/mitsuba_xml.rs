@@ -5,7 +5,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use bmc_irradiance::render::Cancel;
-use bmc_irradiance::render::{IrradianceOptions, QueryPoint, Transport};
+use bmc_irradiance::render::{IrradianceOptions, PathDepth, QueryPoint, Transport};
 use bmc_irradiance::scene::{MitsubaOptions, Scene};
 use glam::DVec3;
 
@@ -31,7 +31,7 @@ fn cornell_box_irradiance_is_identical_from_xml_and_json() {
     .collect();
     let options = IrradianceOptions {
         samples: 64,
-        max_depth: 4,
+        max_depth: PathDepth::constant(4),
         seed: 7,
         ..IrradianceOptions::default()
     };

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use crate::common::{TINY_SCENE, spawn_app_in, spawn_app_with_scenes};
-use bmc_irradiance::image::exr_io::decode_exr;
+use bmc_irradiance::image::decode_exr;
 use bmc_irradiance::scene::Scene;
 use reqwest::StatusCode;
 use serde_json::{Value, json};

@@ -9,7 +9,7 @@ use super::glossy::GlossyRule;
 use crate::bmc::cache::QuadratureCache;
 use crate::bmc::{Kernel, KernelKey, KernelKind, PriorMean};
 use crate::cache::{Accuracy, CacheError, PixelFootprint, RecordRule, RecordRuleSpec};
-use crate::render::{PathLengths, PathLimits};
+use crate::render::{PathDepth, PathLengths, PathLimits};
 use crate::sphere::{SampleSetKind, SampleSetSpec};
 
 /// Phong exponents above this are shaded by path tracing instead of BMC.
@@ -204,18 +204,20 @@ impl CachedShading {
 /// at least this long: a bounce through the cache counts paths of every
 /// length (module docs), which matches a truncation at `max_depth` only
 /// when the truncated tail (`≈ albedo^max_depth`) is negligible.
-pub const AMBIENT_MIN_DEPTH: u32 = 16;
+pub const AMBIENT_MIN_DEPTH: PathDepth = PathDepth::constant(16);
 /// Lookups at a record's bounce use accuracy `min(1, factor · a)`: their
 /// error is attenuated by the albedo and averaged over the record's
 /// hemisphere, so coarser records serve there (as Radiance relaxes its
 /// ambient accuracy at deeper bounces).
 pub(crate) const AMBIENT_ACCURACY_FACTOR: f64 = 2.0;
 
-/// Records' path limits for shading with `max_depth ≥ 2` segments from the
-/// point: the indirect lengths `2..=max_depth`.
-pub fn indirect_paths(max_depth: u32) -> PathLimits {
+/// Records' path limits for shading a point with paths of up to
+/// `from_point` segments counted from the point itself (a camera ray's
+/// depth [`PathDepth::after_first_segment`]): the indirect lengths
+/// `2..=from_point`.
+pub fn indirect_paths(from_point: PathDepth) -> PathLimits {
     PathLimits {
-        max_depth: max_depth.max(1),
+        max_depth: from_point,
         lengths: PathLengths::Indirect,
     }
 }
@@ -301,7 +303,7 @@ pub struct RecordsKey {
     paths_per_direction: u32,
     ambient_bounces: u32,
     /// Path segments counted from the camera or viewer.
-    max_depth: u32,
+    max_depth: PathDepth,
     glossy_bins: usize,
     glossy_samples: usize,
 }
@@ -377,7 +379,7 @@ impl CachedConfig {
 
     /// The key of the records this configuration computes for paths of up
     /// to `max_depth` segments from the camera or viewer.
-    pub fn records_key(&self, max_depth: u32) -> RecordsKey {
+    pub fn records_key(&self, max_depth: PathDepth) -> RecordsKey {
         RecordsKey {
             samples: self.rule.samples.canonical(),
             kernel: self.rule.kernel.cache_key(),
@@ -391,7 +393,7 @@ impl CachedConfig {
     }
 
     /// The same as JSON, for people reading cache statistics.
-    pub fn describe(&self, max_depth: u32) -> serde_json::Value {
+    pub fn describe(&self, max_depth: PathDepth) -> serde_json::Value {
         serde_json::json!({
             "rule": self.rule,
             "paths_per_direction": self.options.paths_per_direction,

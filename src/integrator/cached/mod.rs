@@ -19,14 +19,14 @@
 //!   an overlay image);
 //! - `stats`: counters.
 
-pub mod config;
-pub mod glossy;
-pub mod placement;
-pub mod radiance;
-pub mod record_view;
-pub mod shade;
-pub mod stats;
-pub mod tiles;
+mod config;
+mod glossy;
+mod placement;
+mod radiance;
+mod record_view;
+mod shade;
+mod stats;
+mod tiles;
 
 pub use config::{
     AMBIENT_MIN_DEPTH, CacheShadingOptions, CachedConfig, CachedShading, CachedSpec,

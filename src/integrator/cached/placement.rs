@@ -31,7 +31,6 @@ use super::config::PlacementOptions;
 use super::shade::{Gather, PlacementPoint, RecordGather, compute_record, lookup};
 use super::stats::ShadingStats;
 use crate::cache::{CacheConfig, CacheError, Interpolated, IrradianceCache, Record, RecordRule};
-use crate::render::path::check_max_depth;
 use crate::render::seed::point_rng;
 use crate::render::{Cancel, QueryPoint, Transport};
 
@@ -76,7 +75,6 @@ fn validate(options: &PlacementOptions) -> Result<(), CacheError> {
             format!("must be finite and > 0, got {t}"),
         ));
     }
-    check_max_depth(options.paths.max_depth)?;
     Ok(())
 }
 

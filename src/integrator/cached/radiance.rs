@@ -29,8 +29,8 @@ use super::stats::ShadingStats;
 use crate::cache::IrradianceCache;
 use crate::render::seed::point_rng;
 use crate::render::{
-    Cancel, Evaluation, MeanEstimate, PathLengths, PathLimits, QueryPoint, RenderError, Rgb,
-    TraceStats, Transport,
+    Cancel, Evaluation, MeanEstimate, PathDepth, PathLengths, PathLimits, QueryPoint, RenderError,
+    Rgb, TraceStats, Transport,
 };
 use crate::scene::{Ray, SurfaceHit};
 
@@ -107,9 +107,10 @@ fn probe(transport: &Transport, x: DVec3, towards: DVec3) -> Ray {
 /// The work of a radiance query.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RadianceOptions {
-    /// Path segments counted as a camera ray does (1 = emission only);
-    /// records in a cache must have been made for the same `max_depth`.
-    pub max_depth: u32,
+    /// Path segments counted from the viewer, as a camera ray's from the
+    /// camera (1 = emission only); records in a cache must have been made
+    /// for the same `max_depth`.
+    pub max_depth: PathDepth,
     /// Independent estimates averaged per point (≥ 1); their spread gives
     /// the standard error.
     pub repeats: u32,
@@ -170,7 +171,7 @@ pub fn radiance_at_points(
                             shading,
                         };
                         let how = ShadePoint {
-                            max_depth: max_depth - 1,
+                            max_depth,
                             on_miss: OnMiss::Insert,
                             // Independent repeats, so their spread is the
                             // standard error (no pattern shared between them).
@@ -246,7 +247,7 @@ mod tests {
             &[hit],
             RadianceShading::PathTracing,
             RadianceOptions {
-                max_depth: 8,
+                max_depth: PathDepth::constant(8),
                 repeats: 4096,
                 seed: 1,
             },
@@ -273,7 +274,7 @@ mod tests {
             &[hit],
             cached,
             RadianceOptions {
-                max_depth: 8,
+                max_depth: PathDepth::constant(8),
                 repeats: 4,
                 seed: 1,
             },

@@ -32,7 +32,8 @@
 //! path. The cache's records count indirect paths of every length, so a
 //! bounce through them replaces the truncation at `max_depth` by the
 //! cache's own fixed point; records therefore gather this way only when
-//! `max_depth ≥` [`AMBIENT_MIN_DEPTH`], where the truncated tail is
+//! their paths' depth (counted from the record's point) is at least
+//! [`AMBIENT_MIN_DEPTH`], where the truncated tail is
 //! negligible, and trace exact paths otherwise. In a reproducible
 //! placement pass the bounces only read the private cache (a miss falls
 //! back to one path), so every record of a batch sees the same cache.
@@ -58,7 +59,7 @@ use crate::cache::{
 use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::strata::{GridStrata, SharedStrata};
 use crate::render::{
-    AveragedPaths, Bsdf, Evaluation, PathLengths, PathLimits, PixelSample, QueryPoint,
+    AveragedPaths, Bsdf, Evaluation, PathDepth, PathLengths, PathLimits, PixelSample, QueryPoint,
     RadianceSample, RenderError, Rgb, TraceStats, Transport, warp,
 };
 use crate::scene::SurfaceHit;
@@ -75,15 +76,19 @@ pub enum OnMiss {
     PathTrace,
 }
 
-/// A cache error as the render API's typed error, keeping the field name.
-pub(crate) fn cache_to_render(e: CacheError) -> RenderError {
-    match e {
-        CacheError::Invalid { field, reason } => RenderError::InvalidOption { field, reason },
-        CacheError::Bmc(b) => RenderError::InvalidOption {
-            field: "quadrature",
-            reason: b.to_string(),
-        },
-        CacheError::Render(r) => r,
+/// The integrator is where the record store meets the pixel loop: a cache
+/// error becomes the render API's typed error, keeping the field name (a
+/// failed record rule names the `quadrature`).
+impl From<CacheError> for RenderError {
+    fn from(e: CacheError) -> Self {
+        match e {
+            CacheError::Invalid { field, reason } => RenderError::InvalidOption { field, reason },
+            CacheError::Bmc(b) => RenderError::InvalidOption {
+                field: "quadrature",
+                reason: b.to_string(),
+            },
+            CacheError::Render(r) => r,
+        }
     }
 }
 
@@ -102,10 +107,12 @@ pub struct CachedIntegrator<'a> {
 /// How a point seen along a camera ray or a query direction is shaded.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadePoint {
-    /// Path segments counted from the point: 0 = its emission only, 1 = plus
-    /// direct light, ≥ 2 adds indirect light of lengths `2..=max_depth`. The
-    /// cache's records must have been made for the same depth.
-    pub max_depth: u32,
+    /// The depth of the camera ray or view direction that reaches the
+    /// point, counted from the camera or viewer (the segment arriving here
+    /// is the first): 1 = the point's emission only, 2 = plus direct light,
+    /// ≥ 3 adds indirect light. The cache's records must have been made for
+    /// the same depth ([`super::config::CachedConfig::records_key`]).
+    pub max_depth: PathDepth,
     pub on_miss: OnMiss,
     /// The camera ray of a pixel this point is, if it is one: its light
     /// samples then take their share of one pattern over the pixel's rays.
@@ -268,7 +275,7 @@ impl CachedIntegrator<'_> {
     /// (docs/math.md §13.3), zero otherwise. With `how.sample`, this is ray
     /// `index` of `count` estimating one value (a pixel's camera rays) and
     /// its light samples are numbers `index·n ..< (index + 1)·n` of one
-    /// [`SharedStrata`] pattern of `count·n` samples seeded by
+    /// shared stratified pattern (`SharedStrata`) of `count·n` samples seeded by
     /// `sample.pattern`; otherwise they are stratified among themselves only.
     pub fn outgoing_radiance<R: Rng + ?Sized>(
         &self,
@@ -279,18 +286,19 @@ impl CachedIntegrator<'_> {
         stats: &mut ShadingStats,
     ) -> Result<Evaluation, RenderError> {
         let options = &self.shading.options;
-        let placement = self.shading.placement(indirect_paths(how.max_depth), 0);
         let radiance = emitted_radiance(self.transport.scene(), hit, -wo);
-        if how.max_depth == 0 {
+        // Paths leaving the point count their segments from it.
+        let Some(from_point) = how.max_depth.after_first_segment() else {
             return Ok(Evaluation::of(radiance));
-        }
+        };
+        let placement = self.shading.placement(indirect_paths(from_point), 0);
         let reflection = Reflection {
             placement: &placement,
             light_samples: options.light_samples,
             level: 0,
             on_miss: how.on_miss,
             sample: how.sample,
-            indirect: how.max_depth >= 2,
+            indirect: from_point.has_reflections(),
             glossy_bmc: true,
         };
         let reflected = self.reflected_radiance(hit, wo, &reflection, rng, stats)?;
@@ -360,8 +368,7 @@ impl CachedIntegrator<'_> {
     ) -> Result<Vec<RadianceSample>, RenderError> {
         let options = &self.shading.options;
         let relaxed = PlacementOptions {
-            accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * options.accuracy).min(1.0))
-                .map_err(cache_to_render)?,
+            accuracy: Accuracy::new((AMBIENT_ACCURACY_FACTOR * options.accuracy).min(1.0))?,
             ..self.shading.placement(bounce.paths, 0)
         };
         let reflection = Reflection {
@@ -482,8 +489,7 @@ impl CachedIntegrator<'_> {
                 };
                 let record = self
                     .record_at(&target, &how, rng, stats)
-                    .and_then(|record| cache.insert(record))
-                    .map_err(cache_to_render)?;
+                    .and_then(|record| cache.insert(record))?;
                 stats.records_created += 1;
                 if r.level > 0 {
                     stats.ambient_records += 1;
@@ -492,7 +498,7 @@ impl CachedIntegrator<'_> {
             }
             OnMiss::PathTrace => {
                 let relaxed = PlacementOptions {
-                    accuracy: Accuracy::new(1.0).map_err(cache_to_render)?,
+                    accuracy: Accuracy::new(1.0)?,
                     ..*placement
                 };
                 if let Some(found) = lookup(cache, self.transport, point, &relaxed) {
@@ -552,11 +558,7 @@ impl CachedIntegrator<'_> {
         stats.glossy_bmc += 1;
         let theta_r = mirror.z.clamp(-1.0, 1.0).acos();
         let turned = s.frame.rotated_about_normal(mirror.y.atan2(mirror.x));
-        let rule = self
-            .shading
-            .glossy
-            .weights(m, theta_r)
-            .map_err(cache_to_render)?;
+        let rule = self.shading.glossy.weights(m, theta_r)?;
         let samples =
             self.transport
                 .hemisphere_samples(point, &turned, &rule.directions, paths, rng, trace);
@@ -692,7 +694,7 @@ mod tests {
             },
         );
         let cache = IrradianceCache::new(Default::default()).unwrap();
-        let paths = indirect_paths(32);
+        let paths = indirect_paths(PathDepth::constant(32));
         // The back wall above the boxes.
         let target = PlacementPoint {
             point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
@@ -756,7 +758,7 @@ mod tests {
         }
         // Short paths, or no ambient bounces, gather by paths.
         assert!(matches!(
-            Gather::for_record(integrator, indirect_paths(4), 0, true),
+            Gather::for_record(integrator, indirect_paths(PathDepth::constant(4)), 0, true),
             Gather::Paths
         ));
         assert!(matches!(
@@ -784,9 +786,10 @@ mod tests {
             cache: &cache,
             shading: &shading,
         };
+        // Depths counted from the viewer, whose segment reaches the floor.
         let mut shade = |max_depth: u32, stats: &mut ShadingStats| {
             let how = ShadePoint {
-                max_depth,
+                max_depth: PathDepth::constant(max_depth),
                 on_miss: OnMiss::Insert,
                 sample: None,
             };
@@ -795,15 +798,15 @@ mod tests {
                 .unwrap()
                 .value
         };
-        let full = shade(8, &mut stats);
+        let full = shade(9, &mut stats);
         assert_eq!((stats.cache_misses, stats.records_created), (1, 1));
         assert_eq!(cache.stats().records, 1);
-        let again = shade(8, &mut stats);
+        let again = shade(9, &mut stats);
         assert_eq!((stats.cache_hits, stats.records_created), (1, 1));
-        let direct = shade(1, &mut ShadingStats::default());
+        let direct = shade(2, &mut ShadingStats::default());
         // Indirect light adds to direct light; nothing is emitted here.
         assert!(full.g > direct.g && again.g > direct.g && direct.g > 0.0);
-        assert_eq!(shade(0, &mut ShadingStats::default()), Rgb::BLACK);
+        assert_eq!(shade(1, &mut ShadingStats::default()), Rgb::BLACK);
     }
 
     /// The glossy BMC lobe is turned towards the mirror direction: on a
@@ -841,7 +844,7 @@ mod tests {
         // Viewed from +x above: the mirror direction points at the red wall.
         let wo_local = frame.to_local(DVec3::new(1.0, 1.0, 0.0).normalize());
         let point = QueryPoint::new(hit.position, hit.shading_normal).unwrap();
-        let paths = indirect_paths(4);
+        let paths = indirect_paths(PathDepth::constant(4));
         let shading = test_shading(default_rule_spec(), CacheShadingOptions::default());
         let cache = IrradianceCache::new(Default::default()).unwrap();
         let integrator = CachedIntegrator {

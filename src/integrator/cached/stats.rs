@@ -13,11 +13,11 @@ pub struct ShadingStats {
     pub relaxed_hits: u64,
     /// Diffuse points no record covered.
     pub cache_misses: u64,
-    /// Records created on a miss ([`OnMiss::Insert`]), nested ones included.
+    /// Records created on a miss ([`super::OnMiss::Insert`]), nested ones included.
     pub records_created: u64,
-    /// Of those, created at the bounce of another record's rays ([`Gather::Cache`]).
+    /// Of those, created at the bounce of another record's rays ([`super::Gather::Cache`]).
     pub ambient_records: u64,
-    /// Misses estimated by a path-traced sample ([`OnMiss::PathTrace`]).
+    /// Misses estimated by a path-traced sample ([`super::OnMiss::PathTrace`]).
     pub fallbacks: u64,
     /// Glossy lobes integrated by BMC.
     pub glossy_bmc: u64,

@@ -30,14 +30,14 @@ use rayon::prelude::*;
 
 use super::config::indirect_paths;
 use super::placement::{PlacementReport, place_records};
-use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint, cache_to_render};
+use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
-use crate::render::tile::{
-    CameraRayShader, RenderedTile, TileRequest, pixel_rng, render_tile_with,
+use crate::render::{
+    CameraRayShader, Cancel, Evaluation, PathDepth, PixelSample, QueryPoint, RenderError,
+    RenderedTile, Rgb, TileRequest, TraceStats, pixel_rng, render_tile_with,
 };
-use crate::render::{Cancel, Evaluation, PixelSample, QueryPoint, RenderError, Rgb, TraceStats};
 use crate::scene::Ray;
 
 /// What a cached tile request did.
@@ -57,8 +57,8 @@ pub struct CachedTileReport {
 /// and the first error (the pixel loop's shader interface cannot fail).
 struct CacheRayShader<'a> {
     integrator: CachedIntegrator<'a>,
-    /// Segments counted from the first hit.
-    depth: u32,
+    /// The request's depth, counted from the camera.
+    depth: PathDepth,
     stats: Mutex<ShadingStats>,
     error: Mutex<Option<RenderError>>,
 }
@@ -133,8 +133,7 @@ impl CachedIntegrator<'_> {
                 let next = camera.generate_ray(cx + 1.0, cy);
                 let angle = ray.dir.angle_between(next.dir);
                 let size = (hit.t * angle).max(f64::MIN_POSITIVE);
-                let footprint = PixelFootprint::new(size, options.min_pixels, options.max_pixels)
-                    .map_err(cache_to_render)?;
+                let footprint = PixelFootprint::new(size, options.min_pixels, options.max_pixels)?;
                 Ok(Some(PlacementPoint {
                     point: QueryPoint::new(hit.position, hit.shading_normal)?,
                     footprint: Some(footprint),
@@ -199,7 +198,7 @@ impl CachedIntegrator<'_> {
     ) -> Result<(RenderedTile, ShadingStats), RenderError> {
         let private = self.private_cache()?;
         for record in records {
-            private.insert(*record).map_err(cache_to_render)?;
+            private.insert(*record)?;
         }
         CachedIntegrator {
             cache: &private,
@@ -216,7 +215,7 @@ impl CachedIntegrator<'_> {
         for r in records {
             let point = QueryPoint::new(r.position, r.normal)?;
             if self.cache.lookup(&point, accuracy).is_none() {
-                self.cache.insert(*r).map_err(cache_to_render)?;
+                self.cache.insert(*r)?;
                 published += 1;
             }
         }
@@ -225,7 +224,7 @@ impl CachedIntegrator<'_> {
 
     /// An empty cache configured as the shared one.
     fn private_cache(&self) -> Result<IrradianceCache, RenderError> {
-        IrradianceCache::new(*self.cache.config()).map_err(cache_to_render)
+        Ok(IrradianceCache::new(*self.cache.config())?)
     }
 
     /// The placement pass (module docs) into this integrator's cache.
@@ -236,17 +235,22 @@ impl CachedIntegrator<'_> {
     ) -> Result<CachedTileReport, RenderError> {
         let (transport, shading) = (self.transport, self.shading);
         request.validate(transport.scene().camera.resolution())?;
-        let depth = request.max_depth - 1;
         let mut report = CachedTileReport::default();
-        if depth < 2 {
+        // Records serve the indirect light of the camera rays' first hits,
+        // whose paths count their segments from the hit.
+        let Some(from_hit) = request
+            .max_depth
+            .after_first_segment()
+            .filter(|d| d.has_reflections())
+        else {
             return Ok(report);
-        }
+        };
         let points = self.placement_points(request)?;
         report.placement_points = points.len() as u64;
         // The tile's own stream family, so tiles sharing a seed do not
         // reuse each other's record rotations.
         let seed = pixel_rng(request.seed, request.x, request.y).next_u64();
-        let options = shading.placement(indirect_paths(depth), seed);
+        let options = shading.placement(indirect_paths(from_hit), seed);
         // A private cache is only read at the bounces, so the batch stays
         // deterministic (see `placement`).
         let reproducible = shading.options.reproducible;
@@ -259,8 +263,7 @@ impl CachedIntegrator<'_> {
             &options,
             gather,
             cancel,
-        )
-        .map_err(cache_to_render)?;
+        )?;
         Ok(report)
     }
 
@@ -273,7 +276,7 @@ impl CachedIntegrator<'_> {
         let camera = &self.transport.scene().camera;
         let shader = CacheRayShader {
             integrator: *self,
-            depth: request.max_depth - 1,
+            depth: request.max_depth,
             stats: Mutex::new(ShadingStats::default()),
             error: Mutex::new(None),
         };
@@ -327,7 +330,7 @@ mod tests {
 
     fn cached_request(x: u32, y: u32, side: u32) -> TileRequest {
         TileRequest {
-            max_depth: 5,
+            max_depth: PathDepth::constant(5),
             ..request(x, y, side, side)
         }
     }

@@ -19,12 +19,12 @@ use crate::render::calibration::ErrorCalibration;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::error_target::ErrorTarget;
 use crate::render::estimators::{
-    EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
+    EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
 use crate::render::{
-    Decomposition, IrradianceMethod, IrradianceOptions, QueryPoint, RenderError, Rgb,
+    Decomposition, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Rgb,
 };
-use crate::service::error::{ApiError, ErrorBody};
+use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::metrics::{self, RAYS_TRACED};
 use crate::service::state::AppState;
@@ -141,7 +141,7 @@ fn default_confidence() -> f64 {
 }
 
 fn default_max_depth() -> u32 {
-    IrradianceOptions::default().max_depth
+    PathDepth::default().get()
 }
 
 fn default_seed() -> u64 {
@@ -225,12 +225,7 @@ pub async fn irradiance(
                 u64::from(target.max_samples),
                 limits.max_samples as u64,
             )?;
-            target
-                .validate(&point_estimator, request.estimator.samples)
-                .map_err(|err| match err {
-                    EstimatorError::Invalid { field, message } => ApiError::invalid(field, message),
-                    other => other.into(),
-                })?;
+            target.validate(&point_estimator, request.estimator.samples)?;
             Ok::<_, ApiError>(target)
         })
         .transpose()?;
@@ -244,18 +239,18 @@ pub async fn irradiance(
         .enumerate()
         .map(|(i, p)| {
             QueryPoint::new(DVec3::from(p.position), DVec3::from(p.normal))
-                .map_err(|err| field_error(&format!("points[{i}]."), err))
+                .at(&format!("points[{i}]"))
         })
         .collect::<Result<Vec<_>, _>>()?;
     let estimator = &request.estimator;
+    // The sample count was checked with the estimator.
     let options = IrradianceOptions {
         samples: estimator.samples,
-        max_depth: request.max_depth,
+        max_depth: PathDepth::new(request.max_depth)?,
         direct_only: false,
         method: estimator.decomposition,
         seed: request.seed,
     };
-    options.validate().map_err(|err| field_error("", err))?;
 
     let worker = state.clone();
     let estimates = state
@@ -331,19 +326,4 @@ impl EstimatorDoc {
             calibrate: self.calibrate,
         }
     }
-}
-
-/// A render error as a 422 naming the request field: point fields under
-/// `prefix`, option fields by their request path.
-fn field_error(prefix: &str, err: RenderError) -> ApiError {
-    let field = match &err {
-        RenderError::InvalidPoint { field, .. } => format!("{prefix}{field}"),
-        RenderError::InvalidOption {
-            field: "samples", ..
-        } => "estimator.samples".into(),
-        RenderError::InvalidOption { field, .. } => (*field).into(),
-        RenderError::PointsRow { .. } => prefix.trim_end_matches('.').into(),
-        RenderError::Cancelled => return ApiError::Cancelled,
-    };
-    ApiError::invalid(field, err.to_string())
 }

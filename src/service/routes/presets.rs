@@ -39,7 +39,7 @@ pub async fn presets() -> Json<Vec<PresetDoc>> {
                     default: p == Preset::default(),
                     samples_per_pixel: s.samples_per_pixel,
                     passes: s.passes,
-                    max_depth: s.max_depth,
+                    max_depth: s.max_depth.get(),
                     estimator: serde_json::json!({
                         "method": s.integrator,
                         "samples": c.samples,

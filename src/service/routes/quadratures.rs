@@ -23,7 +23,7 @@ use serde::Deserialize;
 use utoipa::ToSchema;
 
 use crate::bmc::report::{QuadratureReport, QuadratureSpec, quadrature_report};
-use crate::bmc::{BmcError, Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::ApiJson;
 use crate::service::metrics;
@@ -139,29 +139,15 @@ impl QuadratureRequest {
                 mirror_elevation: d.mirror_elevation.unwrap_or(0.0),
             },
         };
-        density.validate().map_err(|e| bmc_error("density", e))?;
+        density.validate()?;
         Ok(QuadratureSpec {
             sample_set: self.sample_set.spec("sample_set", max_samples)?,
-            kernel: Kernel::new(k.kind, k.lengthscale, k.variance, k.noise)
-                .map_err(|e| bmc_error("kernel", e))?,
+            kernel: Kernel::new(k.kind, k.lengthscale, k.variance, k.noise)?,
             density,
             prior_mean: self.prior_mean,
             kernel_mean: self.kernel_mean,
         })
     }
-}
-
-/// A BMC error as a 422 whose field is `prefix.<the library's field>`; errors
-/// about no single field (an unsupported kernel-mean method, a kernel matrix
-/// that stays indefinite) name the part of the request that caused them.
-pub fn bmc_error(prefix: &str, err: BmcError) -> ApiError {
-    let field = match (&err, err.field()) {
-        (_, Some("samples")) => format!("{prefix}.count"),
-        (_, Some(field)) => format!("{prefix}.{field}"),
-        (BmcError::Unsupported { .. }, None) => "kernel_mean".into(),
-        (_, None) => prefix.into(),
-    };
-    ApiError::invalid(field, err.to_string())
 }
 
 /// BMC weights, kernel means and variances of one configuration, computed once
@@ -190,7 +176,6 @@ pub async fn post_quadrature(
             );
             report
         })
-        .await?
-        .map_err(|e| bmc_error("kernel", e))?;
+        .await??;
     Ok(Json(report))
 }

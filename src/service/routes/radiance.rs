@@ -17,9 +17,8 @@ use crate::integrator::Integrator;
 use crate::integrator::cached::{
     RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points, surface_at,
 };
-use crate::render::path::{DEFAULT_MAX_DEPTH, check_max_depth};
-use crate::render::{QueryPoint, RenderError, Rgb};
-use crate::service::error::{ApiError, ErrorBody};
+use crate::render::{PathDepth, QueryPoint, Rgb};
+use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::integrator_doc::{IntegratorDoc, cached_setup};
 use crate::service::metrics::RAYS_TRACED;
@@ -62,7 +61,7 @@ fn default_repeats() -> u32 {
 }
 
 fn default_max_depth() -> u32 {
-    DEFAULT_MAX_DEPTH
+    PathDepth::default().get()
 }
 
 fn default_seed() -> u64 {
@@ -105,7 +104,7 @@ pub async fn radiance(
         u64::from(request.repeats),
         limits.max_samples as u64,
     )?;
-    check_max_depth(request.max_depth)?;
+    let max_depth = PathDepth::new(request.max_depth)?;
     let queries = request
         .points
         .iter()
@@ -113,7 +112,7 @@ pub async fn radiance(
         .map(|(i, p)| {
             QueryPoint::new(DVec3::from(p.position), DVec3::from(p.normal))
                 .and_then(|point| RadianceQuery::new(point, DVec3::from(p.direction)))
-                .map_err(|err| point_error(i, err))
+                .at(&format!("points[{i}]"))
         })
         .collect::<Result<Vec<_>, _>>()?;
     // The work, bounded before it starts: the repeats' paths, plus for `bmc`
@@ -127,7 +126,7 @@ pub async fn radiance(
         .as_ref()
         .map_or(0, |c| points * c.config.paths_per_record());
     limits.check_work((points * u64::from(request.repeats)).saturating_add(record_paths))?;
-    let (max_depth, repeats, seed) = (request.max_depth, request.repeats, request.seed);
+    let (repeats, seed) = (request.repeats, request.seed);
     let shared = state.clone();
     let estimates = state
         .pool
@@ -161,11 +160,10 @@ pub async fn radiance(
                 repeats,
                 seed,
             };
+            // The points and options were checked above, so what fails here
+            // is the shading the estimator asked for.
             radiance_at_points(transport, &queries, &hits, shading, options, cancel)
-            .map_err(|err| match err {
-                RenderError::Cancelled => ApiError::Cancelled,
-                err => ApiError::invalid("estimator", err.to_string()),
-            })
+                .at("estimator")
         })
         .await??;
     let rays = estimates.iter().map(|e| e.rays).sum();
@@ -176,13 +174,4 @@ pub async fn radiance(
         std_dev: estimates.iter().map(|e| rgb(e.std_error)).collect(),
         rays,
     }))
-}
-
-/// A bad point as a 422 naming `points[i].<field>`.
-fn point_error(i: usize, err: RenderError) -> ApiError {
-    let field = match &err {
-        RenderError::InvalidPoint { field, .. } => format!("points[{i}].{field}"),
-        _ => format!("points[{i}]"),
-    };
-    ApiError::invalid(field, err.to_string())
 }

@@ -16,10 +16,9 @@ use axum::body::Bytes;
 use axum::extract::{Request, State};
 use axum::http::header;
 use axum::response::IntoResponse;
-use http_body_util::{BodyExt, LengthLimitError, Limited};
 
 use crate::service::error::{ApiError, ErrorBody};
-use crate::service::extract::SceneId;
+use crate::service::extract::{SceneId, body_up_to};
 use crate::service::state::AppState;
 use crate::service::tile_store::ImportReport;
 
@@ -66,25 +65,7 @@ pub async fn import_records(
     request: Request,
 ) -> Result<Json<ImportReport>, ApiError> {
     let scene = state.scene(&id).await?;
-    let limit = state.config.limits.max_upload_bytes;
-    let body = Limited::new(
-        request.into_body(),
-        usize::try_from(limit).unwrap_or(usize::MAX),
-    )
-    .collect()
-    .await
-    .map_err(|err| {
-        if err.is::<LengthLimitError>() {
-            ApiError::LimitExceeded {
-                field: "limits.max_upload_bytes".into(),
-                value: limit.saturating_add(1),
-                limit,
-            }
-        } else {
-            ApiError::invalid("body", format!("cannot read the body: {err}"))
-        }
-    })?
-    .to_bytes();
+    let body = body_up_to(request, state.config.limits.max_upload_bytes).await?;
     let digest = *scene.transport.scene().digest.as_bytes();
     let keeper = state.clone();
     let report = tokio::task::spawn_blocking(move || keeper.tiles.import(&digest, &body)).await??;

@@ -9,7 +9,7 @@ use axum::http::StatusCode;
 
 use crate::scene::bundle::{DocumentKind, SceneBundle};
 use crate::scene::{MitsubaOptions, Scene};
-use crate::service::error::{ApiError, ErrorBody};
+use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{
     MediaType, SceneId, body_bytes, body_media_type, content_type_text, parse_json,
 };
@@ -75,8 +75,7 @@ pub async fn post_scene(
     query: Result<Query<PostSceneQuery>, QueryRejection>,
     request: Request,
 ) -> Result<(StatusCode, Json<SceneSummary>), ApiError> {
-    let Query(query) =
-        query.map_err(|rejection| ApiError::invalid("query", rejection.body_text()))?;
+    let Query(query) = query?;
     let root = state.config.scenes.dir.clone();
     let (id, scene, posted) = match body_media_type(&request) {
         MediaType::Json => {
@@ -92,8 +91,7 @@ pub async fn post_scene(
             // duplicate keys anywhere are refused as on every other route.
             let PostedName { name } = parse_json(&bytes)?;
             let id = document_id(name)?;
-            let text = String::from_utf8(bytes.to_vec())
-                .map_err(|_| ApiError::invalid("body", "the JSON is not UTF-8"))?;
+            let text = body_text(&bytes, "JSON")?;
             let posted = Posted {
                 document: text.clone(),
                 kind: DocumentKind::Json,
@@ -110,10 +108,9 @@ pub async fn post_scene(
             let id = query.id.ok_or_else(|| {
                 ApiError::invalid("id", "an XML scene needs an `id` query parameter")
             })?;
-            validate_id(&id).map_err(|reason| ApiError::invalid("id", reason))?;
+            validate_id(&id).at("id")?;
             let bytes = body_bytes(request, &()).await?;
-            let text = String::from_utf8(bytes.to_vec())
-                .map_err(|_| ApiError::invalid("body", "the XML is not UTF-8"))?;
+            let text = body_text(&bytes, "XML")?;
             let options = MitsubaOptions {
                 lenient: query.lenient,
                 ..MitsubaOptions::default()
@@ -156,7 +153,7 @@ pub async fn post_scene(
                     let id = query.id.ok_or_else(|| {
                         ApiError::invalid("id", "an XML scene needs an `id` query parameter")
                     })?;
-                    validate_id(&id).map_err(|reason| ApiError::invalid("id", reason))?;
+                    validate_id(&id).at("id")?;
                     id
                 }
             };
@@ -233,8 +230,7 @@ struct Upload {
 /// with a `filename` that is the relative path the document uses.
 async fn read_upload(request: Request, limit: u64) -> Result<Upload, ApiError> {
     let content_type = content_type_text(&request);
-    let boundary = multer::parse_boundary(&content_type)
-        .map_err(|e| ApiError::invalid("content-type", format!("no multipart boundary: {e}")))?;
+    let boundary = multer::parse_boundary(&content_type)?;
     let constraints =
         multer::Constraints::new().size_limit(multer::SizeLimit::new().whole_stream(limit));
     let mut parts = multer::Multipart::with_constraints(
@@ -242,23 +238,15 @@ async fn read_upload(request: Request, limit: u64) -> Result<Upload, ApiError> {
         boundary,
         constraints,
     );
-    let malformed = |e: multer::Error| match e {
-        multer::Error::StreamSizeExceeded { .. } => ApiError::LimitExceeded {
-            field: "limits.max_upload_bytes".into(),
-            value: limit.saturating_add(1),
-            limit,
-        },
-        other => ApiError::invalid("body", format!("malformed multipart upload: {other}")),
-    };
     let (mut document, mut bundle) = (None, SceneBundle::default());
-    while let Some(part) = parts.next_field().await.map_err(malformed)? {
+    while let Some(part) = parts.next_field().await? {
         match part.name() {
             Some("scene") => {
                 let xml = part.file_name().is_some_and(|f| f.ends_with(".xml"))
                     || part
                         .content_type()
                         .is_some_and(|m| m.essence_str().ends_with("xml"));
-                let text = part.text().await.map_err(malformed)?;
+                let text = part.text().await?;
                 let kind = if xml {
                     DocumentKind::MitsubaXml
                 } else {
@@ -273,7 +261,7 @@ async fn read_upload(request: Request, limit: u64) -> Result<Upload, ApiError> {
                 let name = part.file_name().map(str::to_owned).ok_or_else(|| {
                     ApiError::invalid(&field, "an asset part needs a filename (its relative path)")
                 })?;
-                let bytes = part.bytes().await.map_err(malformed)?;
+                let bytes = part.bytes().await?;
                 bundle.add(&name, bytes.to_vec(), &field)?;
             }
             other => {
@@ -300,6 +288,18 @@ struct PostedName {
     name: Option<serde_json::Value>,
 }
 
+/// A posted document's bytes as text; `format` (`JSON`, `XML`) names it in
+/// the 422 for bytes that are not UTF-8.
+fn body_text(bytes: &[u8], format: &str) -> Result<String, ApiError> {
+    match String::from_utf8(bytes.to_vec()) {
+        Ok(text) => Ok(text),
+        Err(_) => Err(ApiError::invalid(
+            "body",
+            format!("the {format} is not UTF-8"),
+        )),
+    }
+}
+
 /// The id of a posted JSON scene document: its `name`.
 fn document_id(name: Option<serde_json::Value>) -> Result<String, ApiError> {
     let id = match name {
@@ -312,7 +312,7 @@ fn document_id(name: Option<serde_json::Value>) -> Result<String, ApiError> {
             ));
         }
     };
-    validate_id(&id).map_err(|reason| ApiError::invalid("name", reason))?;
+    validate_id(&id).at("name")?;
     Ok(id)
 }
 

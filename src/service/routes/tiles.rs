@@ -17,7 +17,7 @@ use utoipa::ToSchema;
 
 use crate::image::{ImageEncoding, ToneMap};
 use crate::integrator::{Integrator, Preset};
-use crate::render::TileRequest;
+use crate::render::{PathDepth, TileRequest};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::integrator_doc::IntegratorDoc;
@@ -118,18 +118,25 @@ pub async fn tile(
             format!("{pass} is not in 0..{passes}"),
         ));
     }
-    let request = TileRequest {
+    let rectangle = TileRequest {
         x: doc.x,
         y: doc.y,
         width: doc.width,
         height: doc.height,
         samples_per_pixel,
-        max_depth: doc.max_depth.unwrap_or(settings.max_depth),
+        max_depth: settings.max_depth,
         seed: doc.seed,
         pass: 0,
     };
-    // Checked here too, so a bad rectangle never takes a CPU slot.
-    request.validate(scene.transport.scene().camera.resolution())?;
+    // Checked here too, so a bad rectangle never takes a CPU slot; then the
+    // depth, so a request with several bad fields is told of the rectangle.
+    rectangle.validate(scene.transport.scene().camera.resolution())?;
+    let request = TileRequest {
+        max_depth: doc
+            .max_depth
+            .map_or(Ok(settings.max_depth), PathDepth::new)?,
+        ..rectangle
+    };
     let integrator = doc.estimator.method;
     let cached = match integrator {
         Integrator::Cache => Some(doc.estimator.resolve_over(settings.cached, limits)?),
