@@ -119,6 +119,8 @@ pub struct IrradianceRequest {
     pub seed: u64,
     /// Estimate each point in batches of `estimator.samples` until its
     /// calibrated error bar meets this target or `max_samples` is spent.
+    /// For targets of a few per cent, batches of a few hundred samples keep
+    /// the reported `target_met` honest (docs/math.md §10.6).
     pub target: Option<TargetDoc>,
 }
 
