@@ -41,9 +41,13 @@ pub const FIT_MAX_DEPTH: PathDepth = PathDepth::constant(3);
 pub const FIT_MAX_SAMPLES: usize = 64;
 /// Seed of the training points and their paths.
 pub const FIT_SEED: u64 = 0x05EE_DF17;
-/// Search range of `ℓ` (chordal distance) and of `η = σ_n²/σ²`.
+/// Search range of `ℓ` (chordal distance) and of `η = σ_n²/σ²`. The noise
+/// ratio may reach 10: values of one path each are noisy enough that the
+/// likelihood wants `η` of order one on the Cornell box (2.6), and a cap
+/// below it (it was 0.1) kept BMC 2 % worse than QMC's equal weights, which
+/// BMC approaches as `η` grows (docs/math.md §10.2).
 pub const LENGTHSCALE_BOUNDS: (f64, f64) = (0.05, 5.0);
-pub const NOISE_RATIO_BOUNDS: (f64, f64) = (1e-5, 1e-1);
+pub const NOISE_RATIO_BOUNDS: (f64, f64) = (1e-5, 10.0);
 /// Used when every training vector is constant, or the scene has no
 /// non-emitting surface to train on (`ℓ` is then not identified, and any
 /// value integrates constants exactly under the GLS mean).
@@ -217,8 +221,8 @@ mod tests {
     /// Split mode (the default): the indirect radiance is smooth enough for
     /// the likelihood to pick an interior lengthscale. In hemisphere mode the
     /// light source's edges make it prefer the shortest `ℓ` allowed. The
-    /// path-traced training radiance is noisy enough that the noise ratio
-    /// ends at its upper bound, which `at_bound` reports.
+    /// path-traced training radiance is noisy: the noise ratio comes out of
+    /// order one, inside its range (it sat at the old upper bound of 0.1).
     #[test]
     fn cornell_box_fit_is_deterministic_with_lengthscale_inside_its_bounds() {
         let transport = cornell(8);
@@ -233,9 +237,12 @@ mod tests {
             lo < split.lengthscale && split.lengthscale < hi,
             "{split:?}"
         );
-        let eta_hi = NOISE_RATIO_BOUNDS.1;
-        assert!(split.noise_ratio > 0.99 * eta_hi, "{split:?}");
-        assert!(split.at_bound, "{split:?}");
+        let (eta_lo, eta_hi) = NOISE_RATIO_BOUNDS;
+        assert!(
+            0.1 < split.noise_ratio && split.noise_ratio < eta_hi && eta_lo < split.noise_ratio,
+            "{split:?}"
+        );
+        assert!(!split.at_bound, "{split:?}");
         assert_eq!(split.points, FIT_POINTS);
         let hemisphere = fit_lengthscale(&transport, config(Decomposition::Hemisphere)).unwrap();
         assert!(hemisphere.lengthscale < split.lengthscale, "{hemisphere:?}");

@@ -149,10 +149,10 @@ async fn auto_lengthscale_is_fitted_once_reported_and_dropped_with_the_scene() {
     assert_eq!(fit["sample_set"]["count"], 32);
     assert_eq!(fit["sample_set"]["kind"], "fibonacci_cosine");
     assert!(fit["log_marginal_likelihood"].is_number());
-    // ℓ is inside its range, but the noise ratio sits at its upper bound
-    // (path-traced training radiance is noisy), and `at_bound` says so.
-    assert!(fit["noise_ratio"].as_f64().unwrap() > 0.099, "{fit}");
-    assert_eq!(fit["at_bound"], true);
+    // ℓ and the noise ratio are inside their ranges: path-traced training
+    // radiance is noisy, so the noise ratio is of order one.
+    assert!(fit["noise_ratio"].as_f64().unwrap() > 0.1, "{fit}");
+    assert_eq!(fit["at_bound"], false);
 
     // Posting the scene again replaces it: the new one starts without fits.
     let replaced = app
