@@ -144,7 +144,7 @@ impl AppendLog {
 
     /// Appends one entry.
     pub fn append(&self, kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<()> {
-        let frame = frame(kind, key, payload)?;
+        let frame = encode_entry(kind, key, payload)?;
         let mut file = self.file.lock().unwrap_or_else(|p| p.into_inner());
         file.write_all(&frame)?;
         self.bytes.fetch_add(frame.len() as u64, Ordering::Relaxed);
@@ -167,7 +167,7 @@ impl AppendLog {
         out.write_all(MAGIC)?;
         let mut bytes = MAGIC.len() as u64;
         for (kind, key, payload) in entries {
-            let frame = frame(kind, key, payload)?;
+            let frame = encode_entry(kind, key, payload)?;
             out.write_all(&frame)?;
             bytes += frame.len() as u64;
         }
@@ -183,11 +183,6 @@ impl AppendLog {
         self.bytes.store(bytes, Ordering::Relaxed);
         Ok(())
     }
-}
-
-/// One entry framed as in the file: length, checksum, kind, key, payload.
-pub fn encode_entry(kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<Vec<u8>> {
-    frame(kind, key, payload)
 }
 
 /// The entry framed in exactly `bytes`, if it is complete and intact.
@@ -213,7 +208,8 @@ pub fn decode_log(bytes: &[u8]) -> Result<Vec<LogEntry>, usize> {
     Ok(entries)
 }
 
-fn frame(kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<Vec<u8>> {
+/// One entry framed as in the file: length, checksum, kind, key, payload.
+pub fn encode_entry(kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<Vec<u8>> {
     let length = u32::try_from(1 + key.len() + payload.len())
         .ok()
         .filter(|&l| l <= MAX_ENTRY_BYTES)

@@ -139,6 +139,15 @@ impl ApiError {
         ApiError::check_limit(field, value, limit)
     }
 
+    /// An upload or import body over `limits.max_upload_bytes` (422 naming it).
+    pub fn upload_too_large(limit: u64) -> Self {
+        ApiError::LimitExceeded {
+            field: "limits.max_upload_bytes".into(),
+            value: limit.saturating_add(1),
+            limit,
+        }
+    }
+
     /// This error as one about the part of the request at `path`: a field
     /// it names (relative to that part) gets `path` and a dot in front, and
     /// an error naming no field names `path` itself. Errors about no field
@@ -380,11 +389,7 @@ impl From<axum::extract::rejection::BytesRejection> for ApiError {
 impl From<multer::Error> for ApiError {
     fn from(err: multer::Error) -> Self {
         match err {
-            multer::Error::StreamSizeExceeded { limit } => ApiError::LimitExceeded {
-                field: "limits.max_upload_bytes".into(),
-                value: limit.saturating_add(1),
-                limit,
-            },
+            multer::Error::StreamSizeExceeded { limit } => ApiError::upload_too_large(limit),
             multer::Error::NoMultipart
             | multer::Error::NoBoundary
             | multer::Error::DecodeContentType(_) => {

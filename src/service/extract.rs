@@ -142,11 +142,7 @@ pub async fn body_up_to(req: Request, limit: u64) -> Result<Bytes, ApiError> {
     );
     match limited.collect().await {
         Ok(collected) => Ok(collected.to_bytes()),
-        Err(err) if err.is::<LengthLimitError>() => Err(ApiError::LimitExceeded {
-            field: "limits.max_upload_bytes".into(),
-            value: limit.saturating_add(1),
-            limit,
-        }),
+        Err(err) if err.is::<LengthLimitError>() => Err(ApiError::upload_too_large(limit)),
         Err(err) => Err(ApiError::invalid(
             "body",
             format!("cannot read the body: {err}"),

@@ -114,6 +114,9 @@ pub struct SharedStore {
     client: Client,
     commands: ConnectionManager,
     prefix: String,
+    /// The two streams: tile parts of this release, and scene events.
+    parts_key: String,
+    scenes_key: String,
     /// This process, so the follower skips what it sent itself.
     origin: String,
     shared_parts: u64,
@@ -145,6 +148,12 @@ impl SharedStore {
             client,
             commands,
             prefix: config.redis_prefix.clone(),
+            parts_key: format!(
+                "{}:parts:{}",
+                config.redis_prefix,
+                env!("CARGO_PKG_VERSION")
+            ),
+            scenes_key: format!("{}:scenes", config.redis_prefix),
             origin,
             shared_parts: config.shared_parts,
             connected: AtomicBool::new(false),
@@ -154,14 +163,6 @@ impl SharedStore {
             dropped: AtomicU64::new(0),
             adopted: AtomicU64::new(0),
         })))
-    }
-
-    fn parts_key(&self) -> String {
-        format!("{}:parts:{}", self.prefix, env!("CARGO_PKG_VERSION"))
-    }
-
-    fn scenes_key(&self) -> String {
-        format!("{}:scenes", self.prefix)
     }
 
     fn scene_key(&self, id: &str) -> String {
@@ -237,7 +238,7 @@ impl SharedStore {
             while let Some(framed) = receiver.recv().await {
                 let Some(store) = store.upgrade() else { break };
                 let mut cmd = redis::cmd("XADD");
-                cmd.arg(store.parts_key())
+                cmd.arg(&store.parts_key)
                     .arg("MAXLEN")
                     .arg("~")
                     .arg(store.shared_parts)
@@ -285,7 +286,7 @@ impl SharedStore {
 
     async fn scene_event(&self, op: &str, id: &str, digest: &str) -> bool {
         let mut cmd = redis::cmd("XADD");
-        cmd.arg(self.scenes_key())
+        cmd.arg(&self.scenes_key)
             .arg("MAXLEN")
             .arg("~")
             .arg(SCENE_EVENTS)
@@ -336,8 +337,8 @@ impl SharedStore {
                     tokio::time::sleep(RETRY_AFTER).await;
                     continue;
                 };
+                let keys = [&store.parts_key, &store.scenes_key];
                 loop {
-                    let keys = [store.parts_key(), store.scenes_key()];
                     let mut cmd = redis::cmd("XREAD");
                     cmd.arg("COUNT")
                         .arg(READ_BATCH)
@@ -355,7 +356,7 @@ impl SharedStore {
                     };
                     let mut events = Vec::new();
                     for stream in reply.into_iter().flat_map(|r| r.keys) {
-                        let which = usize::from(stream.key != keys[0]);
+                        let which = usize::from(&stream.key != keys[0]);
                         for entry in stream.ids {
                             cursors[which].clone_from(&entry.id);
                             if entry.get::<String>("o").as_deref() == Some(&store.origin) {

@@ -33,6 +33,7 @@
 //! on what ran before and are not kept here; their records live in the
 //! scene's shared cache.
 
+use std::borrow::Cow;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -178,7 +179,7 @@ impl TileStore {
         self.records
             .try_get_with(key, || {
                 let records = place()?;
-                self.persist(RECORDS, &key, &encode_records(&records), true);
+                self.persist(RECORDS, &key, || Cow::Owned(encode_records(&records)), true);
                 Ok(Arc::new(records))
             })
             .map_err(|e: Arc<E>| (*e).clone())
@@ -194,7 +195,7 @@ impl TileStore {
         self.passes
             .try_get_with(key, || {
                 let pass = render()?;
-                self.persist(PASS, &key, &encode_pass(&pass), true);
+                self.persist(PASS, &key, || Cow::Owned(encode_pass(&pass)), true);
                 Ok(Arc::new(pass))
             })
             .map_err(|e: Arc<E>| (*e).clone())
@@ -229,7 +230,12 @@ impl TileStore {
         if held || !self.insert_entry(&entry) {
             return false;
         }
-        self.persist(entry.kind, &entry.key, &entry.payload, false);
+        self.persist(
+            entry.kind,
+            &entry.key,
+            || Cow::Borrowed(&entry.payload),
+            false,
+        );
         true
     }
 
@@ -284,7 +290,7 @@ impl TileStore {
             report.imported += 1;
             report.records += tile.records.len() as u64;
             self.records.insert(entry.key, Arc::new(tile));
-            self.persist(RECORDS, &entry.key, &entry.payload, true);
+            self.persist(RECORDS, &entry.key, || Cow::Borrowed(&entry.payload), true);
         }
         Ok(report)
     }
@@ -307,9 +313,21 @@ impl TileStore {
     /// rewritten with what memory still holds (the eviction policy of the
     /// disk: what the in-memory TinyLFU keeps). A failing disk or a full
     /// outbox costs persistence or sharing, never the request.
-    fn persist(&self, kind: u8, key: &Key, payload: &[u8], share: bool) {
-        if let (Some(outbox), true) = (&self.outbox, share) {
-            match log::encode_entry(kind, key, payload) {
+    fn persist<'a>(
+        &self,
+        kind: u8,
+        key: &Key,
+        payload: impl FnOnce() -> Cow<'a, [u8]>,
+        share: bool,
+    ) {
+        let outbox = self.outbox.as_ref().filter(|_| share);
+        if outbox.is_none() && self.log.is_none() {
+            // Memory only: nothing to encode for.
+            return;
+        }
+        let payload = payload();
+        if let Some(outbox) = outbox {
+            match log::encode_entry(kind, key, &payload) {
                 Ok(framed) => outbox.send(framed),
                 Err(err) => tracing::warn!(%err, "tile part too large to share"),
             }
@@ -317,7 +335,7 @@ impl TileStore {
         let Some(log) = &self.log else {
             return;
         };
-        if let Err(err) = log.append(kind, key, payload) {
+        if let Err(err) = log.append(kind, key, &payload) {
             tracing::warn!(%err, "cannot append to the tile log; this part will not survive a restart");
             return;
         }
