@@ -35,6 +35,15 @@ pub enum KernelKind {
     Matern52,
 }
 
+impl KernelKind {
+    /// Every family, the default ([`KernelKind::SquaredExponential`]) first.
+    pub const ALL: [KernelKind; 3] = [
+        KernelKind::SquaredExponential,
+        KernelKind::Matern32,
+        KernelKind::Matern52,
+    ];
+}
+
 /// A stationary kernel of the chordal distance with its hyperparameters.
 ///
 /// Invariant (checked by [`Kernel::new`] and [`Kernel::validate`]):

@@ -65,7 +65,8 @@ pub struct IrradianceArgs {
     /// Seed of a random sample set (uniform, cosine, stratified).
     #[arg(long, default_value_t = 0)]
     pub set_seed: u64,
-    /// `bmc`: the kernel family (default se).
+    /// `bmc`: the kernel family (default: selected by marginal likelihood
+    /// with an `auto` lengthscale, else se).
     #[arg(long, value_enum)]
     pub kernel: Option<KernelArg>,
     /// `bmc`: the kernel lengthscale, a number (chordal units) or `auto`

@@ -1,6 +1,7 @@
 //! `bmc-irradiance study`: the estimator convergence study on synthetic
 //! environments, and `study-scene`: the same estimators on a real scene.
 
+use anyhow::Context;
 use clap::Args;
 
 use crate::render::PathDepth;
@@ -62,7 +63,8 @@ pub struct SceneStudyArgs {
     /// Samples of each point's reference.
     #[arg(long, default_value_t = 16_384)]
     pub reference_samples: u32,
-    /// `bmc` rows: the kernel family (default se).
+    /// `bmc` rows: the kernel family (default: selected by marginal
+    /// likelihood with an `auto` lengthscale, else se).
     #[arg(long, value_enum)]
     pub kernel: Option<super::quadrature::KernelArg>,
     /// `bmc` rows: the lengthscale, a number or `auto` (default).
@@ -71,6 +73,10 @@ pub struct SceneStudyArgs {
     /// `bmc` rows: the kernel noise σ_n² (default: fitted with `auto`).
     #[arg(long)]
     pub noise: Option<f64>,
+    /// Also write the study's points here (`x,y,z,nx,ny,nz`, the input of
+    /// `irradiance --points`), e.g. to compute their reference elsewhere.
+    #[arg(long)]
+    pub points_out: Option<std::path::PathBuf>,
     /// Run the error-target study instead: each estimator to this relative
     /// error in batches of the first `--samples`, against fixed N.
     #[arg(long)]
@@ -115,6 +121,14 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
             }),
         ..SceneStudyOptions::default()
     };
+    if let Some(path) = &args.points_out {
+        let mut out = Vec::new();
+        crate::render::points_csv::write_points(
+            &mut out,
+            &scenes::study_points(&transport, &options),
+        )?;
+        std::fs::write(path, out).with_context(|| format!("writing {}", path.display()))?;
+    }
     if let Some(relative_error) = args.target {
         let target = crate::render::error_target::ErrorTarget {
             relative_error,

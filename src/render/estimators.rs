@@ -44,7 +44,9 @@ use crate::sphere::{SampleSetKind, SampleSetSpec};
 
 /// Sample set of `qmc` and `bmc` when none is named.
 pub const DEFAULT_SAMPLE_SET: SampleSetKind = SampleSetKind::FibonacciCosine;
-/// Kernel family of `bmc` when none is named.
+/// Kernel family of `bmc` when none is named and the lengthscale is a
+/// number; with `"auto"` the family is selected by marginal likelihood
+/// too ([`FittedKernels::get_or_select`]).
 pub const DEFAULT_KERNEL: KernelKind = KernelKind::SquaredExponential;
 /// Kernel amplitude `σ²` of `bmc` when none is given (the weights depend on
 /// `noise/variance` only).
@@ -116,6 +118,7 @@ impl Lengthscale {
 /// The GP kernel of a `bmc` estimator; `None` fields take the defaults above.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct KernelSpec {
+    /// `None`: selected with an `"auto"` lengthscale, else [`DEFAULT_KERNEL`].
     pub kind: Option<KernelKind>,
     pub lengthscale: Lengthscale,
     pub variance: Option<f64>,
@@ -206,7 +209,8 @@ pub enum PointRule {
 #[derive(Debug, Clone, Copy)]
 pub struct BmcSetup {
     sample_set: SampleSetSpec,
-    kind: KernelKind,
+    /// `None`: [`DEFAULT_KERNEL`], or selected with an `"auto"` lengthscale.
+    kind: Option<KernelKind>,
     /// `None`: `"auto"`.
     lengthscale: Option<f64>,
     variance: f64,
@@ -287,12 +291,11 @@ impl EstimatorSpec {
             }
             EstimatorMethod::Bmc => {
                 let kernel = self.kernel.unwrap_or_default();
-                let kind = kernel.kind.unwrap_or(DEFAULT_KERNEL);
                 let variance = kernel.variance.unwrap_or(DEFAULT_VARIANCE);
                 // Check the numbers now (a stand-in ℓ for "auto"), so bad
                 // input is refused before any work.
                 Kernel::new(
-                    kind,
+                    kernel.kind.unwrap_or(DEFAULT_KERNEL),
                     kernel.lengthscale.value().unwrap_or(FALLBACK_LENGTHSCALE),
                     variance,
                     kernel.noise.unwrap_or(DEFAULT_NOISE),
@@ -305,7 +308,7 @@ impl EstimatorSpec {
                 };
                 Ok(PointRule::Bmc(BmcSetup {
                     sample_set,
-                    kind,
+                    kind: kernel.kind,
                     lengthscale: kernel.lengthscale.value(),
                     variance,
                     noise: kernel.noise,
@@ -431,8 +434,8 @@ impl PointEstimator {
 
 impl BmcSetup {
     /// The kernel (fitting `"auto"` on first use for this scene and
-    /// configuration) and its cached weights; the flag says whether the
-    /// weights came from the cache.
+    /// configuration, and selecting the family unless one is named) and its
+    /// cached weights; the flag says whether the weights came from the cache.
     fn quadrature(
         &self,
         transport: &Transport,
@@ -440,25 +443,27 @@ impl BmcSetup {
         decomposition: Decomposition,
         prior: PriorChoice,
     ) -> Result<(Arc<CachedQuadrature>, Kernel, bool), EstimatorError> {
-        let (lengthscale, fitted_noise) = match self.lengthscale {
-            Some(value) => (value, DEFAULT_NOISE),
+        let (kind, lengthscale, fitted_noise) = match self.lengthscale {
+            Some(value) => (self.kind.unwrap_or(DEFAULT_KERNEL), value, DEFAULT_NOISE),
             None => {
                 let config = FitConfig {
-                    kernel: self.kind,
+                    kernel: self.kind.unwrap_or(DEFAULT_KERNEL),
                     sample_set: self.sample_set,
                     decomposition,
                     prior,
                 };
-                let fit = caches
-                    .kernels
-                    .get_or_fit(transport, config)
-                    .map_err(EstimatorError::Fit)?;
-                (fit.lengthscale, fit.noise_ratio * self.variance)
+                let fit = match self.kind {
+                    Some(_) => caches.kernels.get_or_fit(transport, config),
+                    None => caches.kernels.get_or_select(transport, config),
+                }
+                .map_err(EstimatorError::Fit)?;
+                let noise = fit.noise_ratio * self.variance;
+                (fit.config.kernel, fit.lengthscale, noise)
             }
         };
         let noise = self.noise.unwrap_or(fitted_noise);
-        let kernel = Kernel::new(self.kind, lengthscale, self.variance, noise)
-            .map_err(EstimatorError::kernel)?;
+        let kernel =
+            Kernel::new(kind, lengthscale, self.variance, noise).map_err(EstimatorError::kernel)?;
         let spec = QuadratureSpec {
             sample_set: self.sample_set,
             kernel,
@@ -559,9 +564,10 @@ mod tests {
         else {
             panic!("bmc resolves, with the environment prior by default");
         };
-        // Defaults: Fibonacci-cosine set, SE kernel, "auto" lengthscale.
+        // Defaults: Fibonacci-cosine set, the kernel family selected with
+        // the "auto" lengthscale.
         assert_eq!(setup.sample_set.kind, DEFAULT_SAMPLE_SET);
-        assert_eq!(setup.kind, DEFAULT_KERNEL);
+        assert_eq!(setup.kind, None);
         assert_eq!(setup.lengthscale, None);
         assert_eq!(setup.variance, DEFAULT_VARIANCE);
     }

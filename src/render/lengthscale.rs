@@ -190,6 +190,33 @@ impl FittedKernels {
         })
     }
 
+    /// The family of largest pooled marginal likelihood with its fit:
+    /// `config.kernel` is ignored, each of [`KernelKind::ALL`] is fitted
+    /// (and kept) on the same training values, and the best one is returned
+    /// (docs/math.md §7.5). The families have the same two fitted
+    /// hyperparameters, so their maximised likelihoods compare directly. When
+    /// the values are constant, nothing is identified and the first family
+    /// (the default) is kept.
+    pub fn get_or_select(
+        &self,
+        transport: &Transport,
+        config: FitConfig,
+    ) -> Result<FittedKernel, String> {
+        let mut best: Option<FittedKernel> = None;
+        for kernel in KernelKind::ALL {
+            let fit = self.get_or_fit(transport, FitConfig { kernel, ..config })?;
+            let better = match (&best, fit.log_marginal_likelihood) {
+                (None, _) => true,
+                (Some(b), Some(l)) => b.log_marginal_likelihood.is_some_and(|bl| l > bl),
+                (Some(_), None) => false,
+            };
+            if better {
+                best = Some(fit);
+            }
+        }
+        best.ok_or_else(|| "no kernel family to fit".to_owned())
+    }
+
     /// Every successful fit kept, in a stable order.
     pub fn list(&self) -> Vec<FittedKernel> {
         let mut out: Vec<FittedKernel> = self.fits.iter().filter_map(|(_, fit)| fit.ok()).collect();
@@ -282,5 +309,29 @@ mod tests {
             .unwrap();
         assert_eq!(first, again);
         assert_eq!(kernels.list(), [first]);
+    }
+
+    #[test]
+    fn the_family_of_largest_likelihood_is_selected_and_every_fit_kept() {
+        let transport = cornell(8);
+        let kernels = FittedKernels::default();
+        let best = kernels
+            .get_or_select(&transport, config(Decomposition::Hemisphere))
+            .unwrap();
+        let fits = kernels.list();
+        assert_eq!(fits.len(), KernelKind::ALL.len());
+        let likelihoods: Vec<f64> = fits
+            .iter()
+            .map(|f| f.log_marginal_likelihood.expect("Cornell radiance varies"))
+            .collect();
+        let largest = likelihoods.iter().copied().fold(f64::MIN, f64::max);
+        assert_eq!(best.log_marginal_likelihood, Some(largest));
+        assert!(fits.contains(&best));
+        // Asking again selects from the kept fits, identically.
+        let again = kernels
+            .get_or_select(&transport, config(Decomposition::Hemisphere))
+            .unwrap();
+        assert_eq!(again, best);
+        assert_eq!(kernels.list().len(), KernelKind::ALL.len());
     }
 }

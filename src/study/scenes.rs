@@ -13,6 +13,7 @@
 
 use serde::Serialize;
 
+use crate::bmc::Kernel;
 use crate::bmc::cache::QuadratureCache;
 use crate::render::calibration::Calibrations;
 use crate::render::environment_prior::PriorChoice;
@@ -85,6 +86,10 @@ pub struct SceneStudyRow {
     pub model_rms_z: f64,
     /// Rays per point, mean over points and seeds.
     pub rays_per_point: f64,
+    /// `bmc` rows: the kernel used (family and hyperparameters selected by
+    /// marginal likelihood unless named).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kernel: Option<Kernel>,
 }
 
 /// Errors of the study.
@@ -110,9 +115,15 @@ struct Setup {
     calibrations: Calibrations,
 }
 
+/// The study's query points: up to `options.points` camera-visible points,
+/// deterministic in `options.seed`.
+pub fn study_points(transport: &Transport, options: &SceneStudyOptions) -> Vec<QueryPoint> {
+    camera_points(transport, options.points, options.seed)
+}
+
 impl Setup {
     fn new(transport: &Transport, options: &SceneStudyOptions) -> Result<Self, SceneStudyError> {
-        let points = camera_points(transport, options.points, options.seed);
+        let points = study_points(transport, options);
         if points.is_empty() {
             return Err(SceneStudyError::NoPoints);
         }
@@ -187,6 +198,7 @@ pub fn run(
             // The same estimates twice: with the model's error bars and
             // with calibrated ones (§10.5); only the error bars differ.
             let mut runs = [Vec::new(), Vec::new()];
+            let mut kernel = None;
             for (calibrate, runs) in [false, true].into_iter().zip(&mut runs) {
                 let spec = EstimatorSpec {
                     method,
@@ -207,6 +219,7 @@ pub fn run(
                     };
                     let estimates =
                         estimator.estimate(transport, caches, points, &request, &|| {}, &never)?;
+                    kernel = estimates.kernel;
                     runs.push(estimates.estimates);
                 }
             }
@@ -219,6 +232,7 @@ pub fn run(
                 estimator: name.to_owned(),
                 model_coverage: model.coverage,
                 model_rms_z: model.rms_z,
+                kernel,
                 ..score(reference, &runs[1])
             });
         }
@@ -431,6 +445,7 @@ fn score(reference: &[IrradianceEstimate], runs: &[Vec<IrradianceEstimate>]) -> 
         model_coverage: 0.0,
         model_rms_z: 0.0,
         rays_per_point: rays as f64 / (runs.len() * reference.len()).max(1) as f64,
+        kernel: None,
     }
 }
 
@@ -466,6 +481,20 @@ pub fn markdown_table(rows: &[SceneStudyRow]) -> String {
             row.rms_z,
             row.rays_per_point,
         ));
+    }
+    for row in rows {
+        if let Some(k) = &row.kernel {
+            out.push_str(&format!(
+                "\n{} {:?} depth {} N = {}, bmc kernel: {:?}, ℓ = {:.3}, σ_n²/σ² = {:.3e}",
+                row.scene,
+                row.decomposition,
+                row.max_depth,
+                row.samples,
+                k.kind,
+                k.lengthscale,
+                k.noise / k.variance,
+            ));
+        }
     }
     out
 }

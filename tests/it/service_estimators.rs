@@ -134,6 +134,8 @@ async fn auto_lengthscale_is_fitted_once_reported_and_dropped_with_the_scene() {
     .await;
     assert_eq!(explicit, first);
 
+    // No family named: every family was fitted on the same values and the
+    // response names the one of largest marginal likelihood.
     let summary: Value = app
         .get("/v1/scenes/cornell-box")
         .await
@@ -141,18 +143,41 @@ async fn auto_lengthscale_is_fitted_once_reported_and_dropped_with_the_scene() {
         .await
         .unwrap();
     let fits = summary["fitted_kernels"].as_array().unwrap();
-    assert_eq!(fits.len(), 1, "{summary}");
-    let fit = &fits[0];
-    assert_eq!(fit["lengthscale"].as_f64().unwrap(), lengthscale);
-    assert_eq!(fit["kernel"], "squared_exponential");
-    assert_eq!(fit["decomposition"], "split");
-    assert_eq!(fit["sample_set"]["count"], 32);
-    assert_eq!(fit["sample_set"]["kind"], "fibonacci_cosine");
-    assert!(fit["log_marginal_likelihood"].is_number());
-    // ℓ and the noise ratio are inside their ranges: path-traced training
-    // radiance is noisy, so the noise ratio is of order one.
-    assert!(fit["noise_ratio"].as_f64().unwrap() > 0.1, "{fit}");
-    assert_eq!(fit["at_bound"], false);
+    let families: Vec<&str> = fits.iter().map(|f| f["kernel"].as_str().unwrap()).collect();
+    assert_eq!(fits.len(), 3, "{summary}");
+    for family in ["squared_exponential", "matern32", "matern52"] {
+        assert!(families.contains(&family), "{summary}");
+    }
+    let likelihood = |f: &Value| f["log_marginal_likelihood"].as_f64().unwrap();
+    let best = fits
+        .iter()
+        .max_by(|a, b| likelihood(a).total_cmp(&likelihood(b)))
+        .unwrap();
+    assert_eq!(first["kernel"], best["kernel"], "{first} {summary}");
+    assert_eq!(best["lengthscale"].as_f64().unwrap(), lengthscale);
+    for fit in fits {
+        assert_eq!(fit["decomposition"], "split");
+        assert_eq!(fit["sample_set"]["count"], 32);
+        assert_eq!(fit["sample_set"]["kind"], "fibonacci_cosine");
+        // ℓ and the noise ratio are inside their ranges: path-traced
+        // training radiance is noisy, so the noise ratio is of order one.
+        assert!(fit["noise_ratio"].as_f64().unwrap() > 0.1, "{fit}");
+        assert_eq!(fit["at_bound"], false, "{fit}");
+    }
+
+    // A named family is fitted alone and used as named.
+    let se = irradiance(
+        &app,
+        json!({"method": "bmc", "samples": 32,
+               "kernel": {"kind": "squared_exponential", "lengthscale": "auto"}}),
+    )
+    .await;
+    assert_eq!(se["kernel"], "squared_exponential");
+    let se_fit = fits
+        .iter()
+        .find(|f| f["kernel"] == "squared_exponential")
+        .unwrap();
+    assert_eq!(se["lengthscale"], se_fit["lengthscale"]);
 
     // Posting the scene again replaces it: the new one starts without fits.
     let replaced = app

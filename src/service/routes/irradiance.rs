@@ -91,7 +91,9 @@ fn default_set_kind() -> SampleSetKind {
 #[derive(Debug, Clone, Copy, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct EstimatorKernelDoc {
-    /// `squared_exponential` (default), `matern32`, `matern52`.
+    /// `squared_exponential`, `matern32` or `matern52`; default: with an
+    /// `"auto"` lengthscale the family of largest marginal likelihood on the
+    /// scene (the response's `kernel` says which), else `squared_exponential`.
     #[schema(value_type = String, example = "squared_exponential")]
     pub kind: Option<KernelKind>,
     /// ℓ in [0.01, 1000], or `"auto"` (default).
@@ -158,6 +160,11 @@ pub struct IrradianceResponse {
     pub std_dev: Vec<[f64; 3]>,
     /// Rays traced for the whole request.
     pub rays: u64,
+    /// `bmc`: the kernel family used (selected by marginal likelihood when
+    /// the request names none and the lengthscale is `"auto"`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<String>, example = "matern52")]
+    pub kernel: Option<KernelKind>,
     /// `bmc`: the lengthscale used (fitted for `"auto"`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lengthscale: Option<f64>,
@@ -296,6 +303,7 @@ pub async fn irradiance(
         irradiance: estimates.iter().map(|e| rgb(e.irradiance)).collect(),
         std_dev: estimates.iter().map(|e| rgb(e.std_error)).collect(),
         rays,
+        kernel: kernel.map(|k| k.kind),
         lengthscale: kernel.map(|k| k.lengthscale),
         noise: kernel.map(|k| k.noise),
         decomposition,
