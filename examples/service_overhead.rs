@@ -23,9 +23,8 @@ use bmc_irradiance::bmc::estimator::{BayesianEstimator, BmcVariance};
 use bmc_irradiance::bmc::report::QuadratureSpec;
 use bmc_irradiance::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use bmc_irradiance::render::Cancel;
-use bmc_irradiance::render::environment_prior::PriorChoice;
 use bmc_irradiance::render::{
-    IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Transport,
+    HemispherePriors, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Transport,
 };
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::service::{Application, Config};
@@ -94,7 +93,7 @@ fn main() -> anyhow::Result<()> {
             transport.irradiance_with_estimator(
                 &query,
                 &estimator,
-                PriorChoice::None,
+                HemispherePriors::NONE,
                 &options,
                 &|| {},
                 &Cancel::never(),

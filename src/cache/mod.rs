@@ -10,6 +10,8 @@
 //! - `index`: the concurrent multi-level hash grid over records.
 //! - `irradiance_cache`: the shared cache — lookup, insertion with the
 //!   neighbour clamp, byte budget with FIFO eviction, stats.
+//! - `records_prior`: the records as a prior on a point query's indirect
+//!   irradiance.
 //! - `log`: the append-only, checksummed log that keeps records (and
 //!   whatever else is keyed by content) across restarts.
 //!
@@ -24,6 +26,7 @@ mod irradiance_cache;
 pub(crate) mod log;
 mod record;
 mod record_rule;
+mod records_prior;
 
 pub use error::CacheError;
 pub use irradiance_cache::{
@@ -31,3 +34,4 @@ pub use irradiance_cache::{
 };
 pub use record::{PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
 pub use record_rule::{RecordEstimate, RecordRule, RecordRuleSpec};
+pub use records_prior::RecordsPrior;

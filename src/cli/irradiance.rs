@@ -133,6 +133,8 @@ impl IrradianceArgs {
             }),
             prior: self.prior,
             calibrate: self.model_errors.then_some(false),
+            // A run of this command has no irradiance cache to draw on.
+            records_prior: false,
         }
     }
 }
@@ -171,6 +173,7 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
             kernels: &kernels,
             quadratures: &quadratures,
             calibrations: &calibrations,
+            records: None,
         };
         estimator.estimate(
             &transport,

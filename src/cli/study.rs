@@ -73,6 +73,11 @@ pub struct SceneStudyArgs {
     /// `bmc` rows: the kernel noise σ_n² (default: fitted with `auto`).
     #[arg(long)]
     pub noise: Option<f64>,
+    /// Also run `qmc` and `bmc` with the records prior (docs/math.md §10.7),
+    /// on records placed by rendering the camera image once with this
+    /// preset's cache settings (`draft`, `preview`, `final`).
+    #[arg(long, value_enum)]
+    pub records_from: Option<crate::integrator::Preset>,
     /// Also write the study's points here (`x,y,z,nx,ny,nz`, the input of
     /// `irradiance --points`), e.g. to compute their reference elsewhere.
     #[arg(long)]
@@ -119,6 +124,7 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
                 variance: None,
                 noise: args.noise,
             }),
+        records_from: args.records_from,
         ..SceneStudyOptions::default()
     };
     if let Some(path) = &args.points_out {

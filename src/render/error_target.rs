@@ -64,6 +64,15 @@ impl ErrorTarget {
                     .into(),
             });
         }
+        if estimator.records_prior() {
+            return Err(EstimatorError::InvalidTarget {
+                field: String::new(),
+                message: "error targets average independent batches, and every batch would \
+                          count the same records prior again (docs/math.md §10.7): drop \
+                          `records_prior` or the target"
+                    .into(),
+            });
+        }
         if !(self.relative_error > 0.0 && self.relative_error <= 1.0) {
             return Err(invalid(
                 "relative_error",

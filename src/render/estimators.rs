@@ -32,6 +32,8 @@ use super::calibration::{Calibrations, ErrorCalibration, calibrate};
 use super::cancel::Cancel;
 use super::environment_prior::PriorChoice;
 use super::error::RenderError;
+use super::hemisphere_estimate::HemispherePriors;
+use super::integral_prior::IntegralPrior;
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
 use super::query::QueryPoint;
@@ -143,6 +145,10 @@ pub struct EstimatorSpec {
     /// Calibrate the error bars on the scene (docs/math.md §10.5); default
     /// true for `qmc` and `bmc`, false for `mc`.
     pub calibrate: Option<bool>,
+    /// `qmc` and `bmc`, split decomposition: combine the indirect part with
+    /// the irradiance cache's records where they cover the point
+    /// (docs/math.md §10.7; [`EstimatorCaches::records`]).
+    pub records_prior: bool,
 }
 
 /// Why a spec or an estimate failed; a variant about a field names its path
@@ -247,6 +253,12 @@ impl EstimatorSpec {
                 "only `bmc` takes a kernel",
             ));
         }
+        if self.records_prior && self.method == EstimatorMethod::Mc {
+            return Err(EstimatorError::invalid(
+                "records_prior",
+                "`mc` stays plain Monte Carlo; `qmc` and `bmc` take the records prior",
+            ));
+        }
         let prior = self.prior.unwrap_or(match self.method {
             EstimatorMethod::Bmc => PriorChoice::Environment,
             EstimatorMethod::Mc | EstimatorMethod::Qmc => PriorChoice::None,
@@ -325,6 +337,9 @@ pub struct EstimatorCaches<'a> {
     pub kernels: &'a FittedKernels,
     pub quadratures: &'a QuadratureCache,
     pub calibrations: &'a Calibrations,
+    /// The prior of specs with `records_prior` (the scene's irradiance-cache
+    /// records); `None`: no records, the plain estimator.
+    pub records: Option<&'a dyn IntegralPrior>,
 }
 
 impl PointEstimator {
@@ -342,8 +357,14 @@ impl PointEstimator {
         cancel: &Cancel,
     ) -> Result<Estimates, EstimatorError> {
         let calibration = if self.calibrate {
+            // With the records prior, the bars are fitted again each time
+            // the records it draws on double (§10.7).
+            let records = caches
+                .records
+                .filter(|_| self.spec.records_prior)
+                .map(|r| r.state());
             let key = format!(
-                "{:?} {:?} depth {} light samples {}",
+                "{:?} {:?} depth {} light samples {} records {records:?}",
                 self.spec,
                 options.method,
                 options.effective_max_depth(),
@@ -382,6 +403,11 @@ impl PointEstimator {
         self.spec.samples
     }
 
+    /// Whether the spec asked for the records prior (§10.7).
+    pub fn records_prior(&self) -> bool {
+        self.spec.records_prior
+    }
+
     /// [`Self::estimate`] with the estimator's own error model.
     fn estimate_with_model_errors(
         &self,
@@ -397,8 +423,19 @@ impl PointEstimator {
             Some(_) => self.prior,
             None => PriorChoice::None,
         };
+        let records = caches.records.filter(|_| self.spec.records_prior);
         let run = |rule: &dyn crate::bmc::estimator::HemisphereEstimator| {
-            transport.irradiance_with_estimator(points, rule, prior, options, on_done, cancel)
+            transport.irradiance_with_estimator(
+                points,
+                rule,
+                HemispherePriors {
+                    mean: prior,
+                    integral: records,
+                },
+                options,
+                on_done,
+                cancel,
+            )
         };
         let (estimates, kernel, quadrature_cached) = match &self.rule {
             // Plain MC keeps its own path (the reference estimator).
@@ -490,6 +527,7 @@ mod tests {
             kernel: None,
             prior: None,
             calibrate: None,
+            records_prior: false,
         }
     }
 

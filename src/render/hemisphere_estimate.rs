@@ -19,7 +19,9 @@
 //! deviation is the square root of the estimator's variance: for BMC the
 //! GP posterior variance with the amplitude fitted per point and channel
 //! (the caller chooses, see [`crate::bmc::estimator::BmcVariance`]), for
-//! MC/QMC the sample variance of the mean.
+//! MC/QMC the sample variance of the mean. In split mode a known prior on
+//! the indirect part ([`IntegralPrior`], e.g. the irradiance cache's records)
+//! is combined with the hemisphere estimate by precision (docs/math.md §10.7).
 
 use std::f64::consts::TAU;
 
@@ -29,6 +31,7 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::environment_prior::{EnvironmentPrior, PriorChoice};
 use super::error::RenderError;
+use super::integral_prior::{IntegralPrior, combine};
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::path::{PathLengths, PathLimits, TraceStats};
 use super::query::QueryPoint;
@@ -37,6 +40,23 @@ use super::seed::point_rng;
 use super::transport::Transport;
 use crate::bmc::estimator::{HemisphereEstimator, irradiance_from_lambert};
 use crate::sphere::Frame;
+
+/// What is known about a point's irradiance before any ray is traced.
+#[derive(Clone, Copy)]
+pub struct HemispherePriors<'a> {
+    /// The prior mean of the hemisphere values (docs/math.md §10.4).
+    pub mean: PriorChoice,
+    /// A prior on the split decomposition's hemisphere integral (§10.7).
+    pub integral: Option<&'a dyn IntegralPrior>,
+}
+
+impl HemispherePriors<'_> {
+    /// No prior: the rule alone.
+    pub const NONE: Self = Self {
+        mean: PriorChoice::None,
+        integral: None,
+    };
+}
 
 impl Transport {
     /// The prior mean the hemisphere part uses for `choice` under
@@ -58,8 +78,9 @@ impl Transport {
     /// (module docs), in parallel on the current rayon pool.
     ///
     /// `estimator` must integrate against the Lambert density `cos θ/π`.
-    /// `prior` is subtracted from the hemisphere values and its exact
-    /// integral added back ([`Self::hemisphere_prior`] says which applies).
+    /// `priors.mean` is subtracted from the hemisphere values and its exact
+    /// integral added back ([`Self::hemisphere_prior`] says which applies);
+    /// `priors.integral` is combined with the split estimate's hemisphere part.
     /// `options.samples` is the number of light samples of the direct part in
     /// split mode; the hemisphere sample count is the estimator's. `on_done`
     /// is called once per finished point; stops between points once `cancel`
@@ -68,21 +89,27 @@ impl Transport {
         &self,
         points: &[QueryPoint],
         estimator: &dyn HemisphereEstimator,
-        prior: PriorChoice,
+        priors: HemispherePriors<'_>,
         options: &IrradianceOptions,
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Vec<IrradianceEstimate>, RenderError> {
         options.validate()?;
         let decomposition = self.decomposition(options.method);
-        let prior = self.hemisphere_prior(prior, decomposition);
+        let prior = self.hemisphere_prior(priors.mean, decomposition);
         points
             .par_iter()
             .enumerate()
             .map(|(i, point)| {
                 cancel.check()?;
-                let estimate =
-                    self.estimate_point(point, i as u64, estimator, prior, decomposition, options);
+                let estimate = self.estimate_point(
+                    point,
+                    i as u64,
+                    estimator,
+                    (prior, priors.integral),
+                    decomposition,
+                    options,
+                );
                 on_done();
                 estimate
             })
@@ -94,7 +121,7 @@ impl Transport {
         point: &QueryPoint,
         index: u64,
         estimator: &dyn HemisphereEstimator,
-        prior: Option<&EnvironmentPrior>,
+        (prior, integral_prior): (Option<&EnvironmentPrior>, Option<&dyn IntegralPrior>),
         decomposition: Decomposition,
         options: &IrradianceOptions,
     ) -> Result<IrradianceEstimate, RenderError> {
@@ -165,6 +192,13 @@ impl Transport {
             }
             irradiance = Rgb::from_array(value);
             variance = Rgb::from_array(var);
+            // A prior on the indirect part (split only: that is what the
+            // records hold), docs/math.md §10.7.
+            if decomposition == Decomposition::Split
+                && let Some(known) = integral_prior.and_then(|p| p.at(point))
+            {
+                (irradiance, variance) = combine((irradiance, variance), known);
+            }
         }
         if decomposition == Decomposition::Split {
             let direct = self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
@@ -247,7 +281,7 @@ mod tests {
                 .irradiance_with_estimator(
                     &point,
                     &bmc,
-                    PriorChoice::None,
+                    HemispherePriors::NONE,
                     &options(4096, seed),
                     &|| {},
                     &Cancel::never(),
@@ -257,7 +291,7 @@ mod tests {
                 .irradiance_with_estimator(
                     &point,
                     &mc,
-                    PriorChoice::None,
+                    HemispherePriors::NONE,
                     &options(4096, seed),
                     &|| {},
                     &Cancel::never(),
@@ -306,7 +340,7 @@ mod tests {
                     transport.irradiance_with_estimator(
                         &points,
                         &estimator,
-                        PriorChoice::None,
+                        HemispherePriors::NONE,
                         &options(4, 5),
                         &|| {},
                         &Cancel::never(),

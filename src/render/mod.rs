@@ -23,6 +23,7 @@ pub mod error_target;
 pub mod estimators;
 mod film;
 mod hemisphere_estimate;
+mod integral_prior;
 mod irradiance;
 pub mod lengthscale;
 pub(crate) mod lights;
@@ -46,6 +47,8 @@ pub use bsdf::{Bsdf, BsdfSample};
 pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
+pub use hemisphere_estimate::HemispherePriors;
+pub use integral_prior::IntegralPrior;
 pub use irradiance::{
     Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
     SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE,

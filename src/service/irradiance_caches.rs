@@ -27,6 +27,7 @@ use utoipa::ToSchema;
 use super::scenes::LoadedScene;
 use crate::cache::{CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
 use crate::integrator::cached::{CachedShading, RecordsKey};
+use crate::render::PathDepth;
 
 /// Each cache may use `1/SHARE` of the total budget.
 pub const SHARE: usize = 4;
@@ -143,6 +144,21 @@ impl IrradianceCaches {
         self.caches
             .iter()
             .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
+    }
+
+    /// The caches of this version of `scene` whose records sum paths of at
+    /// least `depth` segments from their point: camera depths beyond
+    /// `depth`, since a camera path's first segment ends where records sit.
+    pub fn at_least_as_deep(&self, scene: &LoadedScene, depth: PathDepth) -> Vec<Arc<SceneCache>> {
+        self.of_scene(scene)
+            .filter(|(key, _)| {
+                key.records
+                    .max_depth()
+                    .after_first_segment()
+                    .is_some_and(|d| d.get() >= depth.get())
+            })
+            .map(|(_, entry)| entry)
+            .collect()
     }
 
     /// Stats of every cache of this version of `scene`, sorted by configuration.

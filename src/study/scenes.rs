@@ -11,10 +11,15 @@
 //! seeds; its errors over points, seeds and RGB channels are pooled into the
 //! relative RMSE of §17.4, the ±2σ coverage and the rms `z` of §10.3.
 
+use std::sync::Arc;
+
 use serde::Serialize;
 
 use crate::bmc::Kernel;
 use crate::bmc::cache::QuadratureCache;
+use crate::cache::{Accuracy, CacheConfig, IrradianceCache, RecordsPrior};
+use crate::integrator::Preset;
+use crate::integrator::cached::{CachedIntegrator, CachedSpec};
 use crate::render::calibration::Calibrations;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::error_target::ErrorTarget;
@@ -24,8 +29,8 @@ use crate::render::estimators::{
 use crate::render::lengthscale::FittedKernels;
 use crate::render::sample_points::camera_points;
 use crate::render::{
-    Cancel, Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions, PathDepth,
-    QueryPoint, Transport,
+    Cancel, Decomposition, ImageSettings, IntegralPrior, IrradianceEstimate, IrradianceMethod,
+    IrradianceOptions, PathDepth, QueryPoint, RenderError, Transport,
 };
 use crate::stats::standard_score;
 
@@ -47,6 +52,11 @@ pub struct SceneStudyOptions {
     pub seed: u64,
     /// The kernel of the `bmc` rows (`None`: the defaults).
     pub bmc_kernel: Option<KernelSpec>,
+    /// Also run `qmc` and `bmc` with the records prior (docs/math.md §10.7),
+    /// the records placed by rendering the camera image once (1 spp) with
+    /// this preset's cache settings at the study's depth plus the camera
+    /// segment, on one shared cache.
+    pub records_from: Option<Preset>,
 }
 
 impl Default for SceneStudyOptions {
@@ -60,6 +70,7 @@ impl Default for SceneStudyOptions {
             reference_samples: 16_384,
             seed: 2026,
             bmc_kernel: None,
+            records_from: None,
         }
     }
 }
@@ -156,14 +167,52 @@ impl Setup {
         })
     }
 
-    fn caches(&self) -> EstimatorCaches<'_> {
+    fn caches<'a>(&'a self, records: Option<&'a dyn IntegralPrior>) -> EstimatorCaches<'a> {
         EstimatorCaches {
             kernels: &self.kernels,
             quadratures: &self.quadratures,
             calibrations: &self.calibrations,
+            records,
         }
     }
 }
+
+/// Records over what the camera sees (`SceneStudyOptions::records_from`),
+/// with the accuracy to look them up with.
+fn camera_records(
+    transport: &Transport,
+    preset: Preset,
+    max_depth: PathDepth,
+) -> Result<(IrradianceCache, Accuracy), SceneStudyError> {
+    let spec = CachedSpec {
+        reproducible: Some(false),
+        ..preset.settings().cached
+    };
+    let config = spec.resolve().map_err(RenderError::from)?;
+    let shading = config
+        .shading(Arc::new(QuadratureCache::new(256 << 20)))
+        .map_err(RenderError::from)?;
+    let cache = IrradianceCache::new(CacheConfig::default()).map_err(RenderError::from)?;
+    let integrator = CachedIntegrator {
+        transport,
+        cache: &cache,
+        shading: &shading,
+    };
+    let settings = ImageSettings {
+        samples_per_pixel: 1,
+        max_depth: PathDepth::new(max_depth.get() + 1)?,
+        seed: RECORDS_SEED,
+    };
+    transport.render_image_by(&settings, 64, &|request| {
+        integrator
+            .render_tile(request, &Cancel::never())
+            .map(|(tile, _)| tile)
+    })?;
+    Ok((cache, shading.accuracy()))
+}
+
+/// Seed of the records of [`camera_records`] (shared with no request).
+const RECORDS_SEED: u64 = 0x05EC_04D5;
 
 /// Runs every estimator of the study at every `N` on `transport`'s scene.
 pub fn run(
@@ -172,18 +221,32 @@ pub fn run(
     options: &SceneStudyOptions,
 ) -> Result<Vec<SceneStudyRow>, SceneStudyError> {
     let setup = Setup::new(transport, options)?;
-    let (points, reference, base, caches) =
-        (&setup.points, &setup.reference, setup.base, setup.caches());
+    let records = options
+        .records_from
+        .map(|preset| camera_records(transport, preset, options.max_depth))
+        .transpose()?;
+    let records_prior = records
+        .as_ref()
+        .map(|(cache, accuracy)| RecordsPrior::new([(cache, *accuracy)]));
+    let (points, reference, base, caches) = (
+        &setup.points,
+        &setup.reference,
+        setup.base,
+        setup.caches(records_prior.as_ref().map(|r| r as &dyn IntegralPrior)),
+    );
     let never = Cancel::never();
     let estimators = [
-        ("mc", EstimatorMethod::Mc, None),
-        ("qmc", EstimatorMethod::Qmc, None),
+        ("mc", EstimatorMethod::Mc, None, false),
+        ("qmc", EstimatorMethod::Qmc, None, false),
         (
             "qmc+prior",
             EstimatorMethod::Qmc,
             Some(PriorChoice::Environment),
+            false,
         ),
-        ("bmc", EstimatorMethod::Bmc, None),
+        ("bmc", EstimatorMethod::Bmc, None, false),
+        ("qmc+records", EstimatorMethod::Qmc, None, true),
+        ("bmc+records", EstimatorMethod::Bmc, None, true),
     ];
     let decomposition = transport.decomposition(options.decomposition);
     let prior_applies = transport
@@ -191,9 +254,12 @@ pub fn run(
         .is_some();
     let mut rows = Vec::new();
     for &samples in &options.sample_counts {
-        for (name, method, prior) in estimators {
+        for (name, method, prior, records_prior) in estimators {
             if prior.is_some() && !prior_applies {
                 continue; // The control variate would be plain QMC again.
+            }
+            if records_prior && records.is_none() {
+                continue;
             }
             // The same estimates twice: with the model's error bars and
             // with calibrated ones (§10.5); only the error bars differ.
@@ -209,6 +275,7 @@ pub fn run(
                         .filter(|_| method == EstimatorMethod::Bmc),
                     prior,
                     calibrate: Some(calibrate),
+                    records_prior,
                 };
                 let estimator = spec.resolve()?;
                 for s in 0..options.seeds {
@@ -273,8 +340,12 @@ pub fn run_target(
     target: &ErrorTarget,
 ) -> Result<Vec<TargetStudyRow>, SceneStudyError> {
     let setup = Setup::new(transport, options)?;
-    let (points, reference, base, caches) =
-        (&setup.points, &setup.reference, setup.base, setup.caches());
+    let (points, reference, base, caches) = (
+        &setup.points,
+        &setup.reference,
+        setup.base,
+        setup.caches(None),
+    );
     let never = Cancel::never();
     let within = |estimate: &IrradianceEstimate, truth: &IrradianceEstimate| {
         let (e, t) = (
@@ -293,6 +364,7 @@ pub fn run_target(
             kernel: None,
             prior: None,
             calibrate: None,
+            records_prior: false,
         };
         let request = |samples, s: u64| IrradianceOptions {
             samples,

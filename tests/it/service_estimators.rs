@@ -390,3 +390,79 @@ async fn error_targets_add_batches_until_met_or_capped() {
         assert_eq!(got.as_deref(), Some(field));
     }
 }
+
+#[tokio::test]
+async fn the_records_prior_uses_records_that_rendered_tiles_left() {
+    let app = cornell_app().await;
+    let with_records = json!({"method": "bmc", "samples": 32, "records_prior": true});
+    let plain = json!({"method": "bmc", "samples": 32});
+    // No records yet: the plain estimator's numbers, and it says so.
+    let before = irradiance(&app, with_records.clone()).await;
+    assert_eq!(before["records_prior_points"], 0, "{before}");
+    let without = irradiance(&app, plain).await;
+    assert_eq!(before["irradiance"], without["irradiance"]);
+    assert_eq!(before["std_dev"], without["std_dev"]);
+    assert!(without.get("records_prior_points").is_none(), "{without}");
+
+    // A person looks at the image: the draft tiles (paths of 8 segments
+    // from the camera, so 7 from the records) leave records in the cache.
+    for ty in 0..4 {
+        for tx in 0..4 {
+            let response = app
+                .get(&format!(
+                    "/v1/scenes/cornell-box/tiles/{tx}/{ty}.png?preset=draft"
+                ))
+                .await;
+            assert_eq!(response.status(), StatusCode::OK);
+        }
+    }
+    let after = irradiance(&app, with_records).await;
+    assert_eq!(after["records_prior_points"], 2, "{after}");
+    let reference = irradiance(&app, json!({"method": "mc", "samples": 4096})).await;
+    for point in 0..2 {
+        let (e, s) = (
+            luminance(&after, point, "irradiance"),
+            luminance(&after, point, "std_dev"),
+        );
+        // The records carry information the 32 samples lack: a smaller
+        // posterior standard deviation, which still covers the reference.
+        assert!(
+            s < luminance(&without, point, "std_dev"),
+            "{after} {without}"
+        );
+        let r = luminance(&reference, point, "irradiance");
+        let sigma = s.hypot(luminance(&reference, point, "std_dev"));
+        assert!(agrees(e, r, sigma, 4.0, 0.0), "{e} vs {r} ± {sigma}");
+    }
+
+    // Deeper paths than any record holds: no prior.
+    let mut deep = request(json!({"method": "bmc", "samples": 32, "records_prior": true}));
+    deep["max_depth"] = json!(8);
+    let body: Value = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &deep)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(body["records_prior_points"], 0, "{body}");
+
+    // Plain MC stays plain, and a target would count the prior in every batch.
+    let response = app
+        .post_json(
+            "/v1/scenes/cornell-box/irradiance",
+            &request(json!({"method": "mc", "samples": 32, "records_prior": true})),
+        )
+        .await;
+    assert_eq!(response.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    assert_eq!(
+        error_of(response).await.1.as_deref(),
+        Some("estimator.records_prior")
+    );
+    let mut targeted = request(json!({"method": "qmc", "samples": 32, "records_prior": true}));
+    targeted["target"] = json!({"relative_error": 0.05});
+    let response = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &targeted)
+        .await;
+    assert_eq!(response.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    assert_eq!(error_of(response).await.1.as_deref(), Some("target"));
+}

@@ -308,6 +308,13 @@ pub struct RecordsKey {
     glossy_samples: usize,
 }
 
+impl RecordsKey {
+    /// Path segments counted from the camera or viewer.
+    pub fn max_depth(&self) -> PathDepth {
+        self.max_depth
+    }
+}
+
 impl CachedSpec {
     /// The defaults filled in and every value checked (errors name the field).
     pub fn resolve(&self) -> Result<CachedConfig, CacheError> {

@@ -15,11 +15,12 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::bmc::KernelKind;
+use crate::cache::RecordsPrior;
 use crate::render::calibration::ErrorCalibration;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::error_target::ErrorTarget;
 use crate::render::estimators::{
-    EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
+    Estimates, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
 use crate::render::{
     Decomposition, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Rgb,
@@ -67,6 +68,16 @@ pub struct EstimatorDoc {
     pub sample_set: Option<EstimatorSampleSetDoc>,
     /// `bmc` only: the GP kernel over incident radiance.
     pub kernel: Option<EstimatorKernelDoc>,
+    /// `qmc` and `bmc`, `split` decomposition: where the scene's irradiance
+    /// cache has records at the point (from tiles rendered with the `cache`
+    /// estimator at a depth of at least `max_depth + 1`), combine the
+    /// indirect part with their interpolated irradiance by precision
+    /// (docs/math.md §10.7). The answer then depends on the records held
+    /// when it is asked; `records_prior_points` says how many points used
+    /// them. Default false. Calibrated error bars are fitted again each time
+    /// the records double.
+    #[serde(default)]
+    pub records_prior: bool,
 }
 
 /// The sample set of a `qmc`/`bmc` estimator; its size is `estimator.samples`.
@@ -171,6 +182,10 @@ pub struct IrradianceResponse {
     /// `bmc`: the kernel noise σ_n² used (with σ² it sets the weights' smoothing).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<f64>,
+    /// With `records_prior`: the points whose indirect part was combined with
+    /// the irradiance cache's records.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub records_prior_points: Option<usize>,
     /// The decomposition run: `split` or `hemisphere` (`auto` resolved).
     #[schema(value_type = String, example = "hemisphere")]
     pub decomposition: Decomposition,
@@ -219,6 +234,7 @@ pub async fn irradiance(
         limits.max_samples as u64,
     )?;
     let point_estimator = request.estimator.spec().resolve()?;
+    let records_prior = point_estimator.records_prior();
     let target = request
         .target
         .map(|t| ErrorTarget {
@@ -266,10 +282,25 @@ pub async fn irradiance(
         .pool
         .run(move |cancel| {
             let transport = &scene.transport;
+            // Records whose paths from the hit are at least as long as the
+            // query's (a camera path's depth counts the segment to the hit).
+            let record_caches = if records_prior {
+                worker
+                    .irradiance_caches
+                    .at_least_as_deep(&scene, options.max_depth)
+            } else {
+                Vec::new()
+            };
+            let records = RecordsPrior::new(
+                record_caches
+                    .iter()
+                    .map(|entry| (&entry.cache, entry.shading.accuracy())),
+            );
             let caches = EstimatorCaches {
                 kernels: &scene.kernels,
                 quadratures: &worker.quadratures,
                 calibrations: &scene.calibrations,
+                records: Some(&records),
             };
             let estimates = match &target {
                 None => point_estimator
@@ -282,9 +313,18 @@ pub async fn irradiance(
             if let Ok(Some(cached)) = estimates.as_ref().map(|(e, _)| e.quadrature_cached) {
                 metrics::record_quadrature_lookup(&worker.quadratures, Some(cached));
             }
-            estimates
+            // The points whose indirect part met the records (split only).
+            let covered = |e: &Estimates| match e.decomposition {
+                Decomposition::Split => points.iter().filter(|p| records.covers(p)).count(),
+                Decomposition::Hemisphere => 0,
+            };
+            estimates.map(|(e, targeted)| {
+                let covered = records_prior.then(|| covered(&e));
+                ((e, targeted), covered)
+            })
         })
         .await??;
+    let (estimates, records_prior_points) = estimates;
     let (estimates, targeted) = estimates;
     let (kernel, decomposition, prior, calibration) = (
         estimates.kernel,
@@ -303,6 +343,7 @@ pub async fn irradiance(
         irradiance: estimates.iter().map(|e| rgb(e.irradiance)).collect(),
         std_dev: estimates.iter().map(|e| rgb(e.std_error)).collect(),
         rays,
+        records_prior_points,
         kernel: kernel.map(|k| k.kind),
         lengthscale: kernel.map(|k| k.lengthscale),
         noise: kernel.map(|k| k.noise),
@@ -334,6 +375,7 @@ impl EstimatorDoc {
             }),
             prior: self.prior,
             calibrate: self.calibrate,
+            records_prior: self.records_prior,
         }
     }
 }

@@ -1,0 +1,159 @@
+//! The irradiance cache's records as a prior on a point query's indirect
+//! irradiance (docs/math.md §10.7): where records cover the point, their
+//! interpolated irradiance and its variance (`IrradianceCache::lookup`) are
+//! the prior's mean and variance.
+
+use super::irradiance_cache::{Accuracy, IrradianceCache};
+use crate::render::{IntegralPrior, QueryPoint, Rgb};
+
+/// Records of one or more caches, each looked up with its own accuracy and
+/// its own measured relative prediction error.
+pub struct RecordsPrior<'a> {
+    caches: Vec<Source<'a>>,
+}
+
+/// One cache as a source of the prior.
+struct Source<'a> {
+    cache: &'a IrradianceCache,
+    accuracy: Accuracy,
+    /// `τ²`: mean squared relative error of the cache's prediction at its
+    /// own records, each left out in turn (module docs).
+    relative_error2: f64,
+}
+
+/// Records left out in turn to measure a cache's prediction error.
+pub const HELD_OUT_RECORDS: usize = 256;
+/// Fewest held-out predictions that make the measured error a measurement:
+/// a cache with fewer serves no prior.
+pub const MIN_HELD_OUT: usize = 16;
+
+impl<'a> RecordsPrior<'a> {
+    /// A prior from `caches`, whose records must hold the indirect irradiance
+    /// of paths at least as long as the query's (module docs of the caller).
+    pub fn new(caches: impl IntoIterator<Item = (&'a IrradianceCache, Accuracy)>) -> Self {
+        let caches = caches
+            .into_iter()
+            .filter_map(|(cache, accuracy)| {
+                held_out_error2(cache, accuracy).map(|relative_error2| Source {
+                    cache,
+                    accuracy,
+                    relative_error2,
+                })
+            })
+            .collect();
+        Self { caches }
+    }
+
+    /// Whether the prior has anything to say at `point`.
+    pub fn covers(&self, point: &QueryPoint) -> bool {
+        self.at(point).is_some()
+    }
+}
+
+/// `τ²` of a cache (module docs): for up to [`HELD_OUT_RECORDS`] records
+/// spread over its insertion order, the squared relative difference of
+/// luminance between the record and the interpolation of the others at its
+/// point and normal; `None` below [`MIN_HELD_OUT`] predictions. It holds the
+/// interpolation error and the noise of the records on both sides, so it
+/// errs on the wide side.
+fn held_out_error2(cache: &IrradianceCache, accuracy: Accuracy) -> Option<f64> {
+    let records = cache.records();
+    let step = records.len().div_ceil(HELD_OUT_RECORDS).max(1);
+    let (mut sum, mut count) = (0.0, 0usize);
+    for record in records.iter().step_by(step) {
+        let own = record.irradiance.luminance();
+        let Ok(point) = QueryPoint::new(record.position, record.normal) else {
+            continue;
+        };
+        if own <= 0.0 {
+            continue;
+        }
+        let others = cache.lookup_filtered(&point, accuracy, |r| r.position != record.position);
+        if let Some(others) = others {
+            let d = (others.irradiance.luminance() - own) / own;
+            sum += d * d;
+            count += 1;
+        }
+    }
+    (count >= MIN_HELD_OUT).then(|| sum / count as f64)
+}
+
+impl IntegralPrior for RecordsPrior<'_> {
+    /// Among the caches covering `point`, the one with the smallest prior
+    /// variance of luminance; the variance is the interpolation's plus
+    /// `(τ E)²` per channel, `τ²` the cache's held-out error.
+    fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)> {
+        self.caches
+            .iter()
+            .filter_map(|source| {
+                let found = source.cache.lookup(point, source.accuracy)?;
+                let e = found.irradiance;
+                let variance = found.variance + e * e * source.relative_error2;
+                Some((e, variance))
+            })
+            .min_by(|a, b| a.1.luminance().total_cmp(&b.1.luminance()))
+    }
+
+    /// The bit length of the number of records held: it changes each time
+    /// the records double.
+    fn state(&self) -> u64 {
+        let records: u64 = self.caches.iter().map(|s| s.cache.stats().records).sum();
+        u64::from(u64::BITS - records.leading_zeros())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cache::{CacheConfig, Record};
+    use glam::DVec3;
+
+    /// Records on a 10 × 10 grid in the plane z = 0, 0.1 apart with radius
+    /// 0.25, irradiance `1 + x` times a factor `1 ± noise` alternating.
+    fn grid(noise: f64, variance: f64) -> IrradianceCache {
+        let cache = IrradianceCache::new(CacheConfig::default()).unwrap();
+        for i in 0..10 {
+            for j in 0..10 {
+                let x = 0.1 * f64::from(i);
+                let sign = if (i + j) % 2 == 0 { 1.0 } else { -1.0 };
+                cache
+                    .insert(Record {
+                        position: DVec3::new(x, 0.1 * f64::from(j), 0.0),
+                        normal: DVec3::Z,
+                        irradiance: Rgb::splat((1.0 + x) * (1.0 + sign * noise)),
+                        variance: Rgb::splat(variance),
+                        radius: 0.25,
+                        rotation_gradient: [DVec3::ZERO; 3],
+                        translation_gradient: [DVec3::ZERO; 3],
+                    })
+                    .unwrap();
+            }
+        }
+        cache
+    }
+
+    #[test]
+    fn the_prior_variance_holds_the_measured_prediction_error() {
+        let accuracy = Accuracy::new(0.5).unwrap();
+        let (smooth, noisy) = (grid(0.0, 1e-6), grid(0.2, 1e-6));
+        let e2 = |c| held_out_error2(c, accuracy).expect("enough records");
+        // A linear field is predicted well; alternating ±20 % is not, and
+        // the records' own (tiny) variances do not hide it.
+        assert!(e2(&smooth) < 0.01, "{}", e2(&smooth));
+        assert!(e2(&noisy) > 0.02, "{}", e2(&noisy));
+        let point = QueryPoint::new(DVec3::new(0.45, 0.45, 0.0), DVec3::Z).unwrap();
+        let alone = RecordsPrior::new([(&noisy, accuracy)]);
+        let (mean, variance) = alone.at(&point).expect("covered");
+        assert!(variance.r >= mean.r * mean.r * e2(&noisy) - 1e-12);
+        // With both, the more precise cache is the prior.
+        let both = RecordsPrior::new([(&noisy, accuracy), (&smooth, accuracy)]);
+        let (_, best) = both.at(&point).unwrap();
+        assert!(best.r < variance.r);
+        let far = QueryPoint::new(DVec3::new(50.0, 0.0, 0.0), DVec3::Z).unwrap();
+        assert!(!both.covers(&far));
+        // 200 records: bit length 8; a cache too small to measure serves nothing.
+        assert_eq!(both.state(), 8);
+        let tiny = IrradianceCache::new(CacheConfig::default()).unwrap();
+        assert!(RecordsPrior::new([(&tiny, accuracy)]).caches.is_empty());
+    }
+}

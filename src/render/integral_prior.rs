@@ -1,0 +1,75 @@
+//! A Gaussian prior on the hemisphere part of a split estimate, and its
+//! combination with a rule's estimate (docs/math.md §10.7).
+//!
+//! The rule's estimate `Ĥ` with variance `s²` is read as the likelihood of
+//! the integral `H`; a prior `N(m, v)` on `H` from what the service already
+//! knows (the irradiance cache's records, `cache::RecordsPrior`) gives the
+//! posterior `N((Ĥ/s² + m/v)/(1/s² + 1/v), 1/(1/s² + 1/v))` per channel.
+//! As samples grow, `s² → 0` and the posterior mean tends to `Ĥ`: the prior
+//! moves a finite-sample estimate, never the limit.
+
+use super::query::QueryPoint;
+use super::rgb::Rgb;
+
+/// A prior on the indirect irradiance at a point, W/m², when one is known.
+pub trait IntegralPrior: Sync {
+    /// Mean and variance per channel of the prior at `point`, or `None`.
+    fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)>;
+
+    /// A coarse summary of what the prior knows, which changes when it
+    /// learns much more (e.g. `⌊log₂⌋` of the records it holds): error bars
+    /// calibrated with the prior (docs/math.md §10.5) are fitted again when
+    /// it changes.
+    fn state(&self) -> u64;
+}
+
+/// The posterior of `estimate` (value, variance per channel) under the
+/// prior `(mean, variance)` (module docs). A channel whose estimate or
+/// prior has no positive variance keeps the estimate: a zero variance states
+/// no uncertainty to weigh (all sample values equal), not certainty.
+pub fn combine(estimate: (Rgb, Rgb), prior: (Rgb, Rgb)) -> (Rgb, Rgb) {
+    let (value, variance) = (estimate.0.to_array(), estimate.1.to_array());
+    let (mean, prior_variance) = (prior.0.to_array(), prior.1.to_array());
+    let mut out = (value, variance);
+    for c in 0..3 {
+        let (s2, v) = (variance[c], prior_variance[c]);
+        if s2 > 0.0 && v > 0.0 && s2.is_finite() && v.is_finite() && mean[c].is_finite() {
+            let precision = 1.0 / s2 + 1.0 / v;
+            out.0[c] = (value[c] / s2 + mean[c] / v) / precision;
+            out.1[c] = 1.0 / precision;
+        }
+    }
+    (Rgb::from_array(out.0), Rgb::from_array(out.1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn precision_weighting_per_channel() {
+        let estimate = (Rgb::new(1.0, 2.0, 3.0), Rgb::new(1.0, 4.0, 0.0));
+        let prior = (Rgb::new(3.0, 2.0, 9.0), Rgb::new(1.0, 1.0, 1.0));
+        let (value, variance) = combine(estimate, prior);
+        // Equal variances: the midpoint, half the variance.
+        assert_eq!(value.r, 2.0);
+        assert_eq!(variance.r, 0.5);
+        // Same mean: unchanged value, variance 1/(1/4 + 1) = 0.8.
+        assert_eq!(value.g, 2.0);
+        assert!((variance.g - 0.8).abs() < 1e-15);
+        // No variance on the estimate's side: the estimate is kept.
+        assert_eq!((value.b, variance.b), (3.0, 0.0));
+        // A prior without variance is not taken as certainty.
+        let (kept, _) = combine(estimate, (Rgb::new(5.0, 5.0, 5.0), Rgb::BLACK));
+        assert_eq!(kept, estimate.0);
+    }
+
+    #[test]
+    fn the_estimate_dominates_as_its_variance_vanishes() {
+        let prior = (Rgb::new(10.0, 10.0, 10.0), Rgb::new(0.01, 0.01, 0.01));
+        let (far, _) = combine((Rgb::new(1.0, 1.0, 1.0), Rgb::new(1.0, 1.0, 1.0)), prior);
+        let (near, _) = combine((Rgb::new(1.0, 1.0, 1.0), Rgb::new(1e-8, 1e-8, 1e-8)), prior);
+        assert!(far.r > 9.0);
+        assert!((near.r - 1.0).abs() < 1e-5);
+    }
+}
