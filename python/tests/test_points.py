@@ -78,6 +78,21 @@ def test_options_reach_the_service(client: Client) -> None:
     assert result.prior == "none"
     assert result.calibration is None
     assert result.lengthscale == 0.5
+    assert result.records_prior_points is None
+
+
+def test_the_records_prior_is_asked_for_and_reported(client: Client) -> None:
+    # No test renders tiles of this scene, so it holds no records: the option
+    # reaches the service, which reports that it covered no point; asked of
+    # "mc" it is refused by name.
+    positions = floor_points(3, seed=4)
+    result = client.irradiance(
+        "cornell-box-xml", positions, UP, method="qmc", samples=16, records_prior=True
+    )
+    assert result.records_prior_points == 0
+    with pytest.raises(ServiceError) as refused:
+        client.irradiance("cornell-box", positions, UP, method="mc", records_prior=True)
+    assert refused.value.field == "estimator.records_prior"
 
 
 def test_target_arrays_equal_the_raw_response(client: Client, server: Server) -> None:

@@ -312,6 +312,7 @@ class Client:
         decomposition: Optional[str] = None,
         prior: Optional[str] = None,
         calibrate: Optional[bool] = None,
+        records_prior: Optional[bool] = None,
         sample_set: Optional[Union[str, Mapping[str, Any]]] = None,
         kernel: Optional[Mapping[str, Any]] = None,
         target: Optional[TargetLike] = None,
@@ -329,7 +330,10 @@ class Client:
         ``sample_set`` (a kind such as ``"fibonacci_cosine"`` or
         ``{"kind", "seed"}``) and ``kernel`` (``{"kind", "lengthscale",
         "variance", "noise"}``, ``bmc`` only) default to the service's
-        choices. ``target`` (an :class:`ErrorTarget` or a dict with
+        choices. ``records_prior=True`` (``qmc``, ``bmc``, split) combines
+        each point's indirect part with the irradiance cache's records where
+        rendered tiles left some; ``result.records_prior_points`` counts the
+        points they covered. ``target`` (an :class:`ErrorTarget` or a dict with
         ``relative_error``, ``confidence``, ``max_samples``) estimates each
         point until its error bar meets it (``mc`` and ``qmc`` only).
         ``max_depth`` is the longest path in segments (service default 16);
@@ -355,6 +359,8 @@ class Client:
             estimator["prior"] = prior
         if calibrate is not None:
             estimator["calibrate"] = bool(calibrate)
+        if records_prior is not None:
+            estimator["records_prior"] = bool(records_prior)
         if sample_set is not None:
             estimator["sample_set"] = (
                 {"kind": sample_set} if isinstance(sample_set, str) else dict(sample_set)
@@ -404,6 +410,11 @@ class Client:
             calibration=first.get("calibration"),
             lengthscale=first.get("lengthscale"),
             noise=first.get("noise"),
+            records_prior_points=(
+                sum(int(doc["records_prior_points"]) for _, doc in answers)
+                if "records_prior_points" in first
+                else None
+            ),
             samples=_flat(answers, "samples", np.int64) if targeted else None,
             relative_error=_flat(answers, "relative_error", np.float64) if targeted else None,
             target_met=_flat(answers, "target_met", np.bool_) if targeted else None,

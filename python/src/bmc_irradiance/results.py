@@ -60,7 +60,9 @@ class IrradianceResult:
     ``calibrate=False``). The metadata is the service's: ``decomposition``
     (``split`` or ``hemisphere``), ``prior`` (``environment`` or ``none``),
     ``calibration`` (``scale``, ``floor``, ... or ``None``), and for ``bmc``
-    the ``lengthscale`` and kernel ``noise`` used. With a target, per point:
+    the ``lengthscale`` and kernel ``noise`` used; with ``records_prior``,
+    ``records_prior_points`` counts the points the records covered. With a
+    target, per point:
     ``samples`` spent, ``relative_error`` reached and ``target_met``.
     ``rays`` sums all requests; ``chunks`` lists the requests the point set
     was split into (one unless it exceeded the service's limits).
@@ -74,6 +76,7 @@ class IrradianceResult:
     calibration: Optional[dict[str, Any]] = None
     lengthscale: Optional[float] = None
     noise: Optional[float] = None
+    records_prior_points: Optional[int] = None
     samples: Optional[npt.NDArray[np.int64]] = None
     relative_error: Optional[FloatArray] = None
     target_met: Optional[npt.NDArray[np.bool_]] = None
