@@ -1,6 +1,7 @@
 //! Error bars are calibrated (docs/math.md §10.3, §10.5) on a reduced real-scene
-//! study: 40 camera-visible points × 8 seeds on two bundled scenes, checked
-//! against converged references on points the calibration never saw.
+//! study: 40 camera-visible points × 8 seeds at N = 16 and 64 on two bundled
+//! scenes, checked against converged references on points the calibration
+//! never saw.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -23,7 +24,7 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
         let options = SceneStudyOptions {
             points: 40,
             seeds: 8,
-            sample_counts: vec![64],
+            sample_counts: vec![16, 64],
             decomposition: IrradianceMethod::Auto,
             max_depth: PathDepth::constant(max_depth),
             reference_samples: 8192,
@@ -33,13 +34,11 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
         let rows = scenes::run(&transport(scene), scene, &options).unwrap();
         assert!(rows.iter().any(|r| r.estimator == "bmc"));
         for row in rows {
-            // The default error bars: MC's own sample variance, calibrated
-            // ones for QMC and BMC (docs/math.md §10.5).
-            let (coverage, rms_z) = if row.estimator == "mc" {
-                (row.model_coverage, row.model_rms_z)
-            } else {
-                (row.coverage, row.rms_z)
-            };
+            // The default error bars, calibrated for every estimator
+            // (docs/math.md §10.5); for MC at N = 16 this needs the term for
+            // light that all samples missed (its own sample variance gives
+            // rms z 1.3–5.5 there on the bundled scenes).
+            let (coverage, rms_z) = (row.coverage, row.rms_z);
             assert!(
                 (0.90..=0.98).contains(&coverage) && (0.75..=1.3).contains(&rms_z),
                 "{scene} {} N={}: coverage {coverage:.3}, rms z {rms_z:.2}",
