@@ -46,7 +46,11 @@ fn luminance(body: &Value, point: usize, field: &str) -> f64 {
 #[tokio::test]
 async fn the_three_estimators_agree_within_their_uncertainty() {
     let app = cornell_app().await;
-    let reference = irradiance(&app, json!({"method": "mc", "samples": 4096, "calibrate": false})).await;
+    let reference = irradiance(
+        &app,
+        json!({"method": "mc", "samples": 4096, "calibrate": false}),
+    )
+    .await;
     for estimator in [
         json!({"method": "mc", "samples": 64}),
         json!({"method": "qmc", "samples": 64}),
@@ -270,10 +274,16 @@ async fn auto_decomposition_prior_and_calibration_are_reported() {
     let mc = post(json!({"method": "mc", "samples": 32})).await;
     assert_eq!(mc["prior"], "none");
     let unseen = mc["calibration"]["unseen"].as_f64().unwrap();
-    assert!((unseen - (0.75f64 / (33.0 * 34.0)).sqrt()).abs() < 1e-12, "{mc}");
+    assert!(
+        (unseen - (0.75f64 / (33.0 * 34.0)).sqrt()).abs() < 1e-12,
+        "{mc}"
+    );
     let mc_model = post(json!({"method": "mc", "samples": 32, "calibrate": false})).await;
     assert!(mc_model.get("calibration").is_none(), "{mc_model}");
-    assert_eq!(mc_model["irradiance"], mc["irradiance"], "only the error bars differ");
+    assert_eq!(
+        mc_model["irradiance"], mc["irradiance"],
+        "only the error bars differ"
+    );
     assert!(bmc["calibration"].get("unseen").is_none(), "{bmc}");
     let qmc_cv = post(json!({"method": "qmc", "samples": 32, "prior": "environment"})).await;
     assert_eq!(qmc_cv["prior"], "environment");
