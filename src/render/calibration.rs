@@ -119,9 +119,10 @@ impl ErrorCalibration {
         let value = value.to_array();
         estimate.std_error = super::rgb::Rgb::from_array(std::array::from_fn(|c| {
             let magnitude = floor_magnitude(value[c], self.level[c]);
-            let unseen = self.unseen * self.level[c];
-            (scale * scale * (sigma[c] * sigma[c] + (floor * magnitude).powi(2)) + unseen * unseen)
-                .sqrt()
+            // The unseen term is not scaled by κ; written inside the root
+            // so that without it (QMC, BMC) the result is `κ sqrt(…)` bit for bit.
+            let unseen = self.unseen * self.level[c] / scale;
+            scale * (sigma[c] * sigma[c] + (floor * magnitude).powi(2) + unseen * unseen).sqrt()
         }));
     }
 
