@@ -117,7 +117,6 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
                 variance: None,
                 noise: args.noise,
             }),
-        ..SceneStudyOptions::default()
     };
     if let Some(relative_error) = args.target {
         let target = crate::render::error_target::ErrorTarget {
