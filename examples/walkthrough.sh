@@ -99,16 +99,22 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
                         "sample_set": {"kind": "fibonacci_cosine"},
                         "kernel": {"kind": "squared_exponential", "lengthscale": "auto"}},
           "max_depth": 16, "seed": 1}'
-# → {"irradiance": …, "std_dev": …, "rays": n, "lengthscale": ℓ, "noise": σ_n²,
+# → {"irradiance": …, "std_dev": …, "rays": n, "kernel": "squared_exponential", "lengthscale": ℓ, "noise": σ_n²,
 #    "decomposition": "split", "prior": "none", "calibration": {"scale", "floor", …}}
 #   "decomposition": "auto" (default) integrates a scene lit only by a smooth environment
 #   (scenes/overcast.json) through the hemisphere, with the unoccluded environment as the
 #   prior mean of "bmc" ("prior": "environment" | "none"; docs/math.md §10.4), and
-#   light-samples suns and emitters otherwise. std_dev of "qmc" and "bmc" is calibrated on
-#   the scene (§10.5; "calibrate": false gives the model's own variance).
+#   light-samples suns and emitters otherwise. std_dev of every method is calibrated on
+#   the scene (§10.5; "mc" adds a term for light all its samples missed; "calibrate":
+#   false gives the model's own variance).
 #   "qmc" takes "sample_set" (fibonacci_cosine | fibonacci); "bmc" also a kernel whose
 #   lengthscale is a number or "auto" (default: fitted once per scene and configuration
-#   by marginal likelihood, listed under "fitted_kernels" by GET /v1/scenes/{id}).
+#   by marginal likelihood, listed under "fitted_kernels" by GET /v1/scenes/{id}); with
+#   "auto" and no "kind", the family (squared_exponential | matern32 | matern52) is
+#   selected by marginal likelihood too, and the response's "kernel" names it.
+#   "records_prior": true (qmc, bmc; split) combines each point's indirect part with the
+#   irradiance cache's records where rendered tiles left some (§10.7); the response counts
+#   the points they covered in "records_prior_points".
 
 curl -X POST "$BASE/v1/quadratures" -H 'content-type: application/json' \
      -d '{"sample_set": {"kind": "fibonacci", "count": 64},

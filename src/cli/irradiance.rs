@@ -86,7 +86,8 @@ pub struct IrradianceArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Report the estimator's own error model instead of error bars
-    /// calibrated on the scene (docs/math.md §10.5).
+    /// calibrated on the scene (docs/math.md §10.5); implied by
+    /// `--reference`.
     #[arg(long)]
     pub model_errors: bool,
     /// Append standard-error columns `se_r,se_g,se_b`.
@@ -132,7 +133,9 @@ impl IrradianceArgs {
                 noise: self.noise,
             }),
             prior: self.prior,
-            calibrate: self.model_errors.then_some(false),
+            // A reference reports its own sample variance: at its sample
+            // count nothing is left for a calibration to add (§10.5).
+            calibrate: (self.model_errors || self.reference).then_some(false),
             // A run of this command has no irradiance cache to draw on.
             records_prior: false,
         }

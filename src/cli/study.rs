@@ -63,6 +63,9 @@ pub struct SceneStudyArgs {
     /// Samples of each point's reference.
     #[arg(long, default_value_t = 16_384)]
     pub reference_samples: u32,
+    /// Seed of the points, their reference and the request seeds.
+    #[arg(long, default_value_t = 2026)]
+    pub seed: u64,
     /// `bmc` rows: the kernel family (default: selected by marginal
     /// likelihood with an `auto` lengthscale, else se).
     #[arg(long, value_enum)]
@@ -117,6 +120,7 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
         decomposition: args.decomposition,
         max_depth: args.max_depth,
         reference_samples: args.reference_samples,
+        seed: args.seed,
         bmc_kernel: (args.kernel.is_some() || args.lengthscale.is_some() || args.noise.is_some())
             .then(|| crate::render::estimators::KernelSpec {
                 kind: args.kernel.map(Into::into),
@@ -125,7 +129,6 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
                 noise: args.noise,
             }),
         records_from: args.records_from,
-        ..SceneStudyOptions::default()
     };
     if let Some(path) = &args.points_out {
         let mut out = Vec::new();

@@ -14,6 +14,11 @@
 //! ([`CALIBRATION_POINTS`] area-sampled surface points, [`CALIBRATION_SEEDS`]
 //! request seeds) share nothing with the points of any request, so the
 //! calibration is measured, not assumed, when a study checks it on others.
+//!
+//! Plain MC adds one more term, fixed rather than fitted: the light its `N`
+//! independent directions may all have missed, `(μ_N Ē)²` with
+//! `μ_N² = 3/(4(N + 1)(N + 2))` ([`unseen_light`]), so that an estimate that
+//! saw nothing still reports an error bar of the scene's scale.
 
 use std::sync::Arc;
 
@@ -56,6 +61,26 @@ pub struct ErrorCalibration {
     pub level: [f64; 3],
     /// Training `(point, seed, channel)` triples the fit used.
     pub pairs: usize,
+    /// `μ_N`: standard deviation of light that no sample saw, relative to
+    /// `level` and added after scaling ([`unseen_light`]); 0 for rules
+    /// whose samples are not independent (QMC, BMC).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub unseen: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+/// `μ_N = sqrt(3/(4(N + 1)(N + 2)))` (docs/math.md §10.5): with a Jeffreys
+/// prior `Beta(½, ½)` on the share `p` of the hemisphere (in the sampling
+/// density's measure) that brings light, `N` independent directions that
+/// all missed it leave `p ~ Beta(½, N + ½)`, whose second moment is
+/// `3/(4(N + 1)(N + 2))`; light of the scene's mean level `Ē` over that share
+/// is the missed irradiance `p Ē`.
+pub fn unseen_light(samples: u32) -> f64 {
+    let n = f64::from(samples);
+    (0.75 / ((n + 1.0) * (n + 2.0))).sqrt()
 }
 
 /// One training comparison: the estimator's error against the reference,
@@ -67,6 +92,8 @@ struct Training {
     sigma: f64,
     reference_sigma: f64,
     magnitude: f64,
+    /// `Ē` of the channel.
+    level: f64,
 }
 
 /// `|value|`, but no less than [`FLOOR_MIN_LEVEL`] times `level`.
@@ -81,6 +108,7 @@ impl ErrorCalibration {
         floor: 0.0,
         level: [0.0; 3],
         pairs: 0,
+        unseen: 0.0,
     };
 
     /// Widens `estimate.std_error` (module docs).
@@ -91,18 +119,31 @@ impl ErrorCalibration {
         let value = value.to_array();
         estimate.std_error = super::rgb::Rgb::from_array(std::array::from_fn(|c| {
             let magnitude = floor_magnitude(value[c], self.level[c]);
-            scale * (sigma[c] * sigma[c] + (floor * magnitude).powi(2)).sqrt()
+            // The unseen term is not scaled by κ; written inside the root
+            // so that without it (QMC, BMC) the result is `κ sqrt(…)` bit for bit.
+            let unseen = self.unseen * self.level[c] / scale;
+            scale * (sigma[c] * sigma[c] + (floor * magnitude).powi(2) + unseen * unseen).sqrt()
         }));
     }
 
-    /// Fits `τ` on a grid and `κ` for each by bisection (module docs).
-    fn fit(training: &[Training], level: [f64; 3]) -> Self {
+    /// Fits `τ` on a grid and `κ` for each by bisection (module docs), with
+    /// the fixed term `unseen` ([`Self::unseen`]) in every variance.
+    fn fit(training: &[Training], level: [f64; 3], unseen: f64) -> Self {
         if training.is_empty() {
-            return Self::IDENTITY;
+            return Self {
+                unseen,
+                level,
+                ..Self::IDENTITY
+            };
         }
         let z = |scale: f64, floor: f64, t: &Training| {
             let model = t.sigma * t.sigma + (floor * t.magnitude).powi(2);
-            standard_score(t.error, scale * scale * model, t.reference_sigma.powi(2))
+            let unseen = (unseen * t.level).powi(2);
+            standard_score(
+                t.error,
+                scale * scale * model + unseen,
+                t.reference_sigma.powi(2),
+            )
         };
         let rms = |scale, floor| {
             (training
@@ -146,11 +187,19 @@ impl ErrorCalibration {
                         floor,
                         level,
                         pairs: training.len(),
+                        unseen,
                     },
                 ));
             }
         }
-        best.map_or(Self::IDENTITY, |(_, c)| c)
+        best.map_or(
+            Self {
+                unseen,
+                level,
+                ..Self::IDENTITY
+            },
+            |(_, c)| c,
+        )
     }
 }
 
@@ -160,10 +209,12 @@ pub type EstimateFn<'a, E> =
 
 /// Calibrates the estimator `estimate` runs (module docs): `estimate(points,
 /// options)` must return the uncalibrated estimates of the configuration
-/// for `options` (whose seed it must honour).
+/// for `options` (whose seed it must honour). `unseen` is the estimator's
+/// [`ErrorCalibration::unseen`] (0, or [`unseen_light`] for plain MC).
 pub fn calibrate<E: From<RenderError>>(
     transport: &Transport,
     options: &IrradianceOptions,
+    unseen: f64,
     cancel: &Cancel,
     estimate: &EstimateFn<'_, E>,
 ) -> Result<ErrorCalibration, E> {
@@ -215,11 +266,12 @@ pub fn calibrate<E: From<RenderError>>(
                     sigma: sigma[c],
                     reference_sigma: reference_sigma[c],
                     magnitude: floor_magnitude(value[c], level[c]),
+                    level: level[c],
                 });
             }
         }
     }
-    Ok(ErrorCalibration::fit(&training, level))
+    Ok(ErrorCalibration::fit(&training, level, unseen))
 }
 
 /// Calibrations of one scene by estimator configuration; each computed at
@@ -262,6 +314,7 @@ mod tests {
                 sigma,
                 reference_sigma: 0.0,
                 magnitude: 1.0,
+                level: 1.0,
             })
             .collect()
     }
@@ -270,7 +323,7 @@ mod tests {
     fn too_wide_bars_are_narrowed_to_unit_rms_z() {
         // Errors of size 1 with model σ = 4: κ ≈ 1/4.
         let t = training(&[(1.0, 4.0), (-1.0, 4.0), (0.5, 4.0), (-1.3, 4.0)]);
-        let fit = ErrorCalibration::fit(&t, [1.0; 3]);
+        let fit = ErrorCalibration::fit(&t, [1.0; 3], 0.0);
         let rms = (t
             .iter()
             .map(|t| (t.error / (fit.scale * (t.sigma.powi(2) + fit.floor.powi(2)).sqrt())).powi(2))
@@ -293,7 +346,7 @@ mod tests {
             (-0.3, 0.0),
             (0.2, 0.0),
         ]);
-        let fit = ErrorCalibration::fit(&training(&errors), [1.0, 1.0, 0.0]);
+        let fit = ErrorCalibration::fit(&training(&errors), [1.0, 1.0, 0.0], 0.0);
         assert!(fit.floor > 0.0, "{fit:?}");
         let mut estimate = IrradianceEstimate {
             irradiance: super::super::rgb::Rgb::from_array([1.0, 2.0, 0.0]),
@@ -303,5 +356,41 @@ mod tests {
         fit.apply(&mut estimate);
         assert!(estimate.std_error.r > 0.0 && estimate.std_error.g > estimate.std_error.r);
         assert_eq!(estimate.std_error.b, 0.0);
+    }
+
+    #[test]
+    fn unseen_light_is_the_jeffreys_second_moment_of_a_missed_share() {
+        // p ~ Beta(½, N + ½): E p² = (½ · 3/2) / ((N + 1)(N + 2)).
+        for n in [1u32, 16, 64, 256] {
+            let (a, b) = (0.5, f64::from(n) + 0.5);
+            let second_moment = a * (a + 1.0) / ((a + b) * (a + b + 1.0));
+            assert!((unseen_light(n).powi(2) - second_moment).abs() < 1e-15);
+        }
+        assert!((unseen_light(16) - 0.0495).abs() < 1e-4);
+    }
+
+    #[test]
+    fn an_estimate_that_saw_nothing_keeps_the_unseen_light_bar() {
+        // Errors the model explains exactly, and one zero estimate with a
+        // zero model σ: only the fixed unseen-light term gives it a bar.
+        let errors: Vec<(f64, f64)> = (0..100)
+            .map(|i| (if i % 2 == 0 { 1.0 } else { -1.0 }, 1.0))
+            .collect();
+        let unseen = unseen_light(16);
+        let fit = ErrorCalibration::fit(&training(&errors), [1.0; 3], unseen);
+        assert_eq!(fit.unseen, unseen);
+        let mut nothing = IrradianceEstimate {
+            irradiance: super::super::rgb::Rgb::BLACK,
+            std_error: super::super::rgb::Rgb::BLACK,
+            rays: 0,
+        };
+        fit.apply(&mut nothing);
+        let floor = fit.scale * fit.floor * FLOOR_MIN_LEVEL;
+        let expected = (floor * floor + unseen * unseen).sqrt();
+        assert!((nothing.std_error.r - expected).abs() < 1e-12, "{fit:?}");
+        assert!(nothing.std_error.r >= unseen);
+        // Without the term (QMC, BMC) the same fit leaves only the floor.
+        let plain = ErrorCalibration::fit(&training(&errors), [1.0; 3], 0.0);
+        assert_eq!(plain.unseen, 0.0);
     }
 }

@@ -23,12 +23,12 @@
 //! Around any of the three rules: a prior mean (the unoccluded environment
 //! under the hemisphere decomposition, §10.4; `bmc`'s default, a control
 //! variate when `mc` or `qmc` ask for it); error bars calibrated on the scene
-//! (§10.5; the default for `qmc` and `bmc`); and the decomposition `auto`
+//! (§10.5; the default); and the decomposition `auto`
 //! resolved per scene (§14).
 
 use std::sync::Arc;
 
-use super::calibration::{Calibrations, ErrorCalibration, calibrate};
+use super::calibration::{Calibrations, ErrorCalibration, calibrate, unseen_light};
 use super::cancel::Cancel;
 use super::environment_prior::PriorChoice;
 use super::error::RenderError;
@@ -143,7 +143,7 @@ pub struct EstimatorSpec {
     /// `environment` they become control-variate estimators).
     pub prior: Option<PriorChoice>,
     /// Calibrate the error bars on the scene (docs/math.md §10.5); default
-    /// true for `qmc` and `bmc`, false for `mc`.
+    /// true.
     pub calibrate: Option<bool>,
     /// `qmc` and `bmc`, split decomposition: combine the indirect part with
     /// the irradiance cache's records where they cover the point
@@ -267,9 +267,11 @@ impl EstimatorSpec {
         Ok(PointEstimator {
             rule,
             prior,
-            // MC's sample variance is already an unbiased estimate of its
-            // variance; QMC's and the GP's models are not calibrated (§10.5).
-            calibrate: self.calibrate.unwrap_or(self.method != EstimatorMethod::Mc),
+            // No error model is calibrated on real scenes as it is (§10.5):
+            // QMC's is too wide, the GP's assumes a smooth integrand, and
+            // MC's sample variance is blind to light that its few samples
+            // all missed.
+            calibrate: self.calibrate.unwrap_or(true),
             spec: *self,
         })
     }
@@ -371,7 +373,12 @@ impl PointEstimator {
                 options.samples
             );
             Some(caches.calibrations.get_or_calibrate(key, || {
-                calibrate(transport, options, cancel, &|points, options| {
+                // Light that independent directions all missed (§10.5).
+                let unseen = match self.rule {
+                    PointRule::Mc { .. } => unseen_light(self.spec.samples),
+                    PointRule::Qmc(_) | PointRule::Bmc(_) => 0.0,
+                };
+                calibrate(transport, options, unseen, cancel, &|points, options| {
                     self.estimate_with_model_errors(
                         transport,
                         caches,
@@ -545,7 +552,7 @@ mod tests {
             Ok(PointEstimator {
                 rule: PointRule::Mc { count: 16 },
                 prior: PriorChoice::None,
-                calibrate: false,
+                calibrate: true,
                 ..
             })
         ));

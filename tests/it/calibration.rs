@@ -1,6 +1,7 @@
 //! Error bars are calibrated (docs/math.md §10.3, §10.5) on a reduced real-scene
-//! study: 40 camera-visible points × 8 seeds on two bundled scenes, checked
-//! against converged references on points the calibration never saw.
+//! study: 40 camera-visible points × 8 seeds at N = 16 and 64 on two bundled
+//! scenes, checked against converged references on points the calibration
+//! never saw.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -29,7 +30,7 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
         let options = SceneStudyOptions {
             points: 40,
             seeds: 8,
-            sample_counts: vec![64],
+            sample_counts: vec![16, 64],
             decomposition: IrradianceMethod::Auto,
             max_depth: PathDepth::constant(max_depth),
             reference_samples: 8192,
@@ -41,20 +42,24 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
         assert!(rows.iter().any(|r| r.estimator == "bmc"));
         let nrmse = |name: &str| rows.iter().find(|r| r.estimator == name).map(|r| r.nrmse);
         if records_from.is_some() {
-            // The records carry what 64 samples cannot: measured 0.39× at
-            // N = 64 on 200 points (docs/BENCHMARKS.md, records prior).
+            // The records carry what 64 samples cannot: measured 0.52× at
+            // N = 64 on 200 points, depth 16 (docs/BENCHMARKS.md, records prior).
             let (with, plain) = (nrmse("bmc+records").unwrap(), nrmse("qmc").unwrap());
             assert!(with < 0.7 * plain, "bmc+records {with} vs qmc {plain}");
         }
         for row in rows {
-            // The default error bars: MC's own sample variance, calibrated
-            // ones for QMC and BMC (docs/math.md §10.5), with the records
-            // prior too (§10.7).
-            let (coverage, rms_z) = if row.estimator == "mc" {
-                (row.model_coverage, row.model_rms_z)
-            } else {
-                (row.coverage, row.rms_z)
-            };
+            // The default error bars, calibrated for every estimator
+            // (docs/math.md §10.5); for MC at N = 16 this needs the term for
+            // light that all samples missed (its own sample variance gives
+            // rms z 1.3–5.5 there on the bundled scenes). With the records
+            // prior (§10.7) they are in band from N = 64 only: at N = 16 the
+            // rule's 16-sample variance weighs it against the records, and
+            // the bars were measured too wide here (coverage 0.988, rms z
+            // 0.70) and too narrow at depth 16 (rms z 1.60, BENCHMARKS).
+            if row.estimator.ends_with("+records") && row.samples < 64 {
+                continue;
+            }
+            let (coverage, rms_z) = (row.coverage, row.rms_z);
             assert!(
                 (0.90..=0.98).contains(&coverage) && (0.75..=1.3).contains(&rms_z),
                 "{scene} {} N={}: coverage {coverage:.3}, rms z {rms_z:.2}",

@@ -46,7 +46,11 @@ fn luminance(body: &Value, point: usize, field: &str) -> f64 {
 #[tokio::test]
 async fn the_three_estimators_agree_within_their_uncertainty() {
     let app = cornell_app().await;
-    let reference = irradiance(&app, json!({"method": "mc", "samples": 4096})).await;
+    let reference = irradiance(
+        &app,
+        json!({"method": "mc", "samples": 4096, "calibrate": false}),
+    )
+    .await;
     for estimator in [
         json!({"method": "mc", "samples": 64}),
         json!({"method": "qmc", "samples": 64}),
@@ -289,10 +293,23 @@ async fn auto_decomposition_prior_and_calibration_are_reported() {
     assert_eq!(bmc["decomposition"], "hemisphere", "{bmc}");
     assert_eq!(bmc["prior"], "environment");
     assert!(bmc["calibration"]["scale"].as_f64().unwrap() > 0.0, "{bmc}");
-    // Plain MC and QMC: no prior; MC keeps its own sample variance.
+    // Plain MC and QMC: no prior. MC's error bars are calibrated too, with
+    // the term for light that all 32 samples missed (docs/math.md §10.5);
+    // `"calibrate": false` returns its own sample variance of the mean.
     let mc = post(json!({"method": "mc", "samples": 32})).await;
     assert_eq!(mc["prior"], "none");
-    assert!(mc.get("calibration").is_none(), "{mc}");
+    let unseen = mc["calibration"]["unseen"].as_f64().unwrap();
+    assert!(
+        (unseen - (0.75f64 / (33.0 * 34.0)).sqrt()).abs() < 1e-12,
+        "{mc}"
+    );
+    let mc_model = post(json!({"method": "mc", "samples": 32, "calibrate": false})).await;
+    assert!(mc_model.get("calibration").is_none(), "{mc_model}");
+    assert_eq!(
+        mc_model["irradiance"], mc["irradiance"],
+        "only the error bars differ"
+    );
+    assert!(bmc["calibration"].get("unseen").is_none(), "{bmc}");
     let qmc_cv = post(json!({"method": "qmc", "samples": 32, "prior": "environment"})).await;
     assert_eq!(qmc_cv["prior"], "environment");
     // Split named explicitly: the prior does not apply to indirect light.
@@ -300,7 +317,7 @@ async fn auto_decomposition_prior_and_calibration_are_reported() {
     assert_eq!(split["decomposition"], "split");
     assert_eq!(split["prior"], "none");
     // The estimates agree within their error bars.
-    let reference = post(json!({"method": "mc", "samples": 4096})).await;
+    let reference = post(json!({"method": "mc", "samples": 4096, "calibrate": false})).await;
     for body in [&bmc, &mc, &qmc_cv, &split] {
         let (e, r) = (
             luminance(body, 0, "irradiance"),

@@ -58,11 +58,12 @@ pub struct EstimatorDoc {
     /// `none`. Default: `environment` for `bmc`, `none` for `mc` and `qmc`.
     #[schema(value_type = Option<String>, example = "environment")]
     pub prior: Option<PriorChoice>,
-    /// Calibrate the error bars on the scene (default true for `qmc` and
-    /// `bmc`, false for `mc`, whose sample variance is unbiased): the model's
+    /// Calibrate the error bars on the scene (default true): the model's
     /// variance widened by a relative floor and scaled, both fitted once per
-    /// scene and configuration against a reference at held-out points. With
-    /// `false`, `std_dev` is the estimator's own error model.
+    /// scene and configuration against a reference at held-out points, and
+    /// for `mc` a term for light that all its samples missed. With `false`,
+    /// `std_dev` is the estimator's own error model (for `mc` its sample
+    /// variance of the mean).
     pub calibrate: Option<bool>,
     /// `qmc` and `bmc` only: the fixed sample set.
     pub sample_set: Option<EstimatorSampleSetDoc>,
@@ -193,7 +194,8 @@ pub struct IrradianceResponse {
     #[schema(value_type = String, example = "environment")]
     pub prior: PriorChoice,
     /// The calibration applied to `std_dev`, if any: `std_dev² =
-    /// scale² (model² + (floor · irradiance)²)` per channel.
+    /// scale² (model² + (floor · irradiance)²) + (unseen · level)²` per
+    /// channel (`unseen` only for `mc`).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
     pub calibration: Option<ErrorCalibration>,
