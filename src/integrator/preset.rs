@@ -81,7 +81,7 @@ impl Preset {
             match self {
                 Preset::Draft => (2, 1, 8, 64, 1, 0.5, 12.0, 1, 8),
                 Preset::Preview => (4, 2, 16, 256, 2, 0.4, 8.0, 4, 16),
-                Preset::Final => (16, 4, 64, 1024, 8, 0.25, 3.0, 4, 64),
+                Preset::Final => (16, 4, 64, 1024, 4, 0.25, 3.0, 4, 64),
             };
         TileSettings {
             integrator: Integrator::Cache,
