@@ -23,8 +23,9 @@ use bmc_irradiance::bmc::estimator::{BayesianEstimator, BmcVariance};
 use bmc_irradiance::bmc::report::QuadratureSpec;
 use bmc_irradiance::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use bmc_irradiance::render::Cancel;
+use bmc_irradiance::render::environment_prior::PriorChoice;
 use bmc_irradiance::render::{
-    HemispherePriors, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Transport,
+    IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Transport,
 };
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::service::{Application, Config};
@@ -93,7 +94,7 @@ fn main() -> anyhow::Result<()> {
             transport.irradiance_with_estimator(
                 &query,
                 &estimator,
-                HemispherePriors::NONE,
+                PriorChoice::None,
                 &options,
                 &|| {},
                 &Cancel::never(),

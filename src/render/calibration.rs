@@ -352,6 +352,7 @@ mod tests {
             irradiance: super::super::rgb::Rgb::from_array([1.0, 2.0, 0.0]),
             std_error: super::super::rgb::Rgb::BLACK,
             rays: 0,
+            indirect: None,
         };
         fit.apply(&mut estimate);
         assert!(estimate.std_error.r > 0.0 && estimate.std_error.g > estimate.std_error.r);
@@ -383,6 +384,7 @@ mod tests {
             irradiance: super::super::rgb::Rgb::BLACK,
             std_error: super::super::rgb::Rgb::BLACK,
             rays: 0,
+            indirect: None,
         };
         fit.apply(&mut nothing);
         let floor = fit.scale * fit.floor * FLOOR_MIN_LEVEL;

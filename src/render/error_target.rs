@@ -171,6 +171,7 @@ impl PointEstimator {
                     irradiance: *sum * (1.0 / batches),
                     std_error: variance_sum.map(f64::sqrt) * (1.0 / batches),
                     rays: *rays,
+                    indirect: None,
                 };
                 let relative_error = relative_half_width(z, &mean);
                 let met = relative_error <= target.relative_error;

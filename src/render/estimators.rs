@@ -32,8 +32,7 @@ use super::calibration::{Calibrations, ErrorCalibration, calibrate, unseen_light
 use super::cancel::Cancel;
 use super::environment_prior::PriorChoice;
 use super::error::RenderError;
-use super::hemisphere_estimate::HemispherePriors;
-use super::integral_prior::IntegralPrior;
+use super::integral_prior::{IntegralPrior, combine_part};
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
 use super::query::QueryPoint;
@@ -379,22 +378,15 @@ impl PointEstimator {
                     PointRule::Qmc(_) | PointRule::Bmc(_) => 0.0,
                 };
                 calibrate(transport, options, unseen, cancel, &|points, options| {
-                    self.estimate_with_model_errors(
-                        transport,
-                        caches,
-                        points,
-                        options,
-                        &|| {},
-                        cancel,
-                    )
-                    .map(|e| e.estimates)
+                    self.before_calibration(transport, caches, points, options, &|| {}, cancel)
+                        .map(|e| e.estimates)
                 })
             })?)
         } else {
             None
         };
         let mut estimates =
-            self.estimate_with_model_errors(transport, caches, points, options, on_done, cancel)?;
+            self.before_calibration(transport, caches, points, options, on_done, cancel)?;
         if let Some(calibration) = calibration {
             estimates
                 .estimates
@@ -415,6 +407,40 @@ impl PointEstimator {
         self.spec.records_prior
     }
 
+    /// The estimates whose error bars [`Self::estimate`] calibrates: the
+    /// rule's with its own error model, or with the records prior, the
+    /// rule's estimates (with the rule's calibrated error bars, if the spec
+    /// calibrates) combined with the records where they cover a point (§10.7).
+    fn before_calibration(
+        &self,
+        transport: &Transport,
+        caches: EstimatorCaches,
+        points: &[QueryPoint],
+        options: &IrradianceOptions,
+        on_done: &(dyn Fn() + Sync),
+        cancel: &Cancel,
+    ) -> Result<Estimates, EstimatorError> {
+        let Some(records) = caches.records.filter(|_| self.spec.records_prior) else {
+            return self
+                .estimate_with_model_errors(transport, caches, points, options, on_done, cancel);
+        };
+        let rule = PointEstimator {
+            spec: EstimatorSpec {
+                records_prior: false,
+                ..self.spec
+            },
+            ..self.clone()
+        };
+        let mut estimates = rule.estimate(transport, caches, points, options, on_done, cancel)?;
+        for (estimate, point) in estimates.estimates.iter_mut().zip(points) {
+            if let Some(known) = records.at(point) {
+                combine_part(estimate, known);
+            }
+        }
+        estimates.calibration = None;
+        Ok(estimates)
+    }
+
     /// [`Self::estimate`] with the estimator's own error model.
     fn estimate_with_model_errors(
         &self,
@@ -430,19 +456,8 @@ impl PointEstimator {
             Some(_) => self.prior,
             None => PriorChoice::None,
         };
-        let records = caches.records.filter(|_| self.spec.records_prior);
         let run = |rule: &dyn crate::bmc::estimator::HemisphereEstimator| {
-            transport.irradiance_with_estimator(
-                points,
-                rule,
-                HemispherePriors {
-                    mean: prior,
-                    integral: records,
-                },
-                options,
-                on_done,
-                cancel,
-            )
+            transport.irradiance_with_estimator(points, rule, prior, options, on_done, cancel)
         };
         let (estimates, kernel, quadrature_cached) = match &self.rule {
             // Plain MC keeps its own path (the reference estimator).

@@ -19,9 +19,8 @@
 //! deviation is the square root of the estimator's variance: for BMC the
 //! GP posterior variance with the amplitude fitted per point and channel
 //! (the caller chooses, see [`crate::bmc::estimator::BmcVariance`]), for
-//! MC/QMC the sample variance of the mean. In split mode a known prior on
-//! the indirect part ([`IntegralPrior`], e.g. the irradiance cache's records)
-//! is combined with the hemisphere estimate by precision (docs/math.md §10.7).
+//! MC/QMC the sample variance of the mean. In split mode the estimate also
+//! reports its indirect part, for a prior on it (docs/math.md §10.7).
 
 use std::f64::consts::TAU;
 
@@ -31,7 +30,6 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::environment_prior::{EnvironmentPrior, PriorChoice};
 use super::error::RenderError;
-use super::integral_prior::{IntegralPrior, combine};
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::path::{PathLengths, PathLimits, TraceStats};
 use super::query::QueryPoint;
@@ -40,23 +38,6 @@ use super::seed::point_rng;
 use super::transport::Transport;
 use crate::bmc::estimator::{HemisphereEstimator, irradiance_from_lambert};
 use crate::sphere::Frame;
-
-/// What is known about a point's irradiance before any ray is traced.
-#[derive(Clone, Copy)]
-pub struct HemispherePriors<'a> {
-    /// The prior mean of the hemisphere values (docs/math.md §10.4).
-    pub mean: PriorChoice,
-    /// A prior on the split decomposition's hemisphere integral (§10.7).
-    pub integral: Option<&'a dyn IntegralPrior>,
-}
-
-impl HemispherePriors<'_> {
-    /// No prior: the rule alone.
-    pub const NONE: Self = Self {
-        mean: PriorChoice::None,
-        integral: None,
-    };
-}
 
 impl Transport {
     /// The prior mean the hemisphere part uses for `choice` under
@@ -78,9 +59,8 @@ impl Transport {
     /// (module docs), in parallel on the current rayon pool.
     ///
     /// `estimator` must integrate against the Lambert density `cos θ/π`.
-    /// `priors.mean` is subtracted from the hemisphere values and its exact
-    /// integral added back ([`Self::hemisphere_prior`] says which applies);
-    /// `priors.integral` is combined with the split estimate's hemisphere part.
+    /// `prior` is subtracted from the hemisphere values and its exact
+    /// integral added back ([`Self::hemisphere_prior`] says which applies).
     /// `options.samples` is the number of light samples of the direct part in
     /// split mode; the hemisphere sample count is the estimator's. `on_done`
     /// is called once per finished point; stops between points once `cancel`
@@ -89,27 +69,21 @@ impl Transport {
         &self,
         points: &[QueryPoint],
         estimator: &dyn HemisphereEstimator,
-        priors: HemispherePriors<'_>,
+        prior: PriorChoice,
         options: &IrradianceOptions,
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Vec<IrradianceEstimate>, RenderError> {
         options.validate()?;
         let decomposition = self.decomposition(options.method);
-        let prior = self.hemisphere_prior(priors.mean, decomposition);
+        let prior = self.hemisphere_prior(prior, decomposition);
         points
             .par_iter()
             .enumerate()
             .map(|(i, point)| {
                 cancel.check()?;
-                let estimate = self.estimate_point(
-                    point,
-                    i as u64,
-                    estimator,
-                    (prior, priors.integral),
-                    decomposition,
-                    options,
-                );
+                let estimate =
+                    self.estimate_point(point, i as u64, estimator, prior, decomposition, options);
                 on_done();
                 estimate
             })
@@ -121,7 +95,7 @@ impl Transport {
         point: &QueryPoint,
         index: u64,
         estimator: &dyn HemisphereEstimator,
-        (prior, integral_prior): (Option<&EnvironmentPrior>, Option<&dyn IntegralPrior>),
+        prior: Option<&EnvironmentPrior>,
         decomposition: Decomposition,
         options: &IrradianceOptions,
     ) -> Result<IrradianceEstimate, RenderError> {
@@ -192,14 +166,8 @@ impl Transport {
             }
             irradiance = Rgb::from_array(value);
             variance = Rgb::from_array(var);
-            // A prior on the indirect part (split only: that is what the
-            // records hold), docs/math.md §10.7.
-            if decomposition == Decomposition::Split
-                && let Some(known) = integral_prior.and_then(|p| p.at(point))
-            {
-                (irradiance, variance) = combine((irradiance, variance), known);
-            }
         }
+        let indirect = (decomposition == Decomposition::Split).then_some(irradiance);
         if decomposition == Decomposition::Split {
             let direct = self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
             irradiance += direct.mean;
@@ -209,6 +177,7 @@ impl Transport {
             irradiance,
             std_error: variance.map(f64::sqrt),
             rays: stats.rays,
+            indirect,
         })
     }
 }
@@ -281,7 +250,7 @@ mod tests {
                 .irradiance_with_estimator(
                     &point,
                     &bmc,
-                    HemispherePriors::NONE,
+                    PriorChoice::None,
                     &options(4096, seed),
                     &|| {},
                     &Cancel::never(),
@@ -291,7 +260,7 @@ mod tests {
                 .irradiance_with_estimator(
                     &point,
                     &mc,
-                    HemispherePriors::NONE,
+                    PriorChoice::None,
                     &options(4096, seed),
                     &|| {},
                     &Cancel::never(),
@@ -340,7 +309,7 @@ mod tests {
                     transport.irradiance_with_estimator(
                         &points,
                         &estimator,
-                        HemispherePriors::NONE,
+                        PriorChoice::None,
                         &options(4, 5),
                         &|| {},
                         &Cancel::never(),

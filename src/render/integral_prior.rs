@@ -8,6 +8,7 @@
 //! As samples grow, `s² → 0` and the posterior mean tends to `Ĥ`: the prior
 //! moves a finite-sample estimate, never the limit.
 
+use super::irradiance::IrradianceEstimate;
 use super::query::QueryPoint;
 use super::rgb::Rgb;
 
@@ -42,6 +43,24 @@ pub fn combine(estimate: (Rgb, Rgb), prior: (Rgb, Rgb)) -> (Rgb, Rgb) {
     (Rgb::from_array(out.0), Rgb::from_array(out.1))
 }
 
+/// `estimate` under `prior`, a prior on its indirect part (`None`: left as
+/// it is): the part is combined by [`combine`] with the estimate's whole
+/// variance as its own, and the total moves by what the part moved. The
+/// whole error goes to the part because a calibrated variance (§10.5) is
+/// fitted on the total, not on its parts; the direct part's own share is
+/// small (it is light-sampled), so the prior weighs a little less than it
+/// could.
+pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
+    let Some(part) = estimate.indirect else {
+        return;
+    };
+    let variance = estimate.std_error * estimate.std_error;
+    let (posterior, posterior_variance) = combine((part, variance), prior);
+    estimate.irradiance += posterior - part;
+    estimate.std_error = posterior_variance.map(f64::sqrt);
+    estimate.indirect = Some(posterior);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -62,6 +81,29 @@ mod tests {
         // A prior without variance is not taken as certainty.
         let (kept, _) = combine(estimate, (Rgb::new(5.0, 5.0, 5.0), Rgb::BLACK));
         assert_eq!(kept, estimate.0);
+    }
+
+    #[test]
+    fn a_prior_on_the_part_moves_the_total_by_what_the_part_moved() {
+        let mut estimate = IrradianceEstimate {
+            irradiance: Rgb::splat(5.0),
+            std_error: Rgb::splat(1.0),
+            rays: 7,
+            indirect: Some(Rgb::splat(2.0)),
+        };
+        combine_part(&mut estimate, (Rgb::splat(4.0), Rgb::splat(1.0)));
+        // Part: (2 + 4)/2 = 3 with variance ½; the direct 3 is kept.
+        assert_eq!(estimate.irradiance, Rgb::splat(6.0));
+        assert_eq!(estimate.indirect, Some(Rgb::splat(3.0)));
+        assert!((estimate.std_error.r - 0.5f64.sqrt()).abs() < 1e-15);
+        assert_eq!(estimate.rays, 7);
+        // Without a split part there is nothing to combine.
+        let mut hemisphere = IrradianceEstimate {
+            indirect: None,
+            ..estimate
+        };
+        combine_part(&mut hemisphere, (Rgb::splat(100.0), Rgb::splat(1.0)));
+        assert_eq!(hemisphere.irradiance, Rgb::splat(6.0));
     }
 
     #[test]

@@ -180,6 +180,10 @@ pub struct IrradianceEstimate {
     pub std_error: Rgb,
     /// Rays traced for this point (closest-hit and shadow).
     pub rays: u64,
+    /// Split decomposition through a hemisphere rule: the rule's indirect
+    /// part of `irradiance` (the part a prior on the integral concerns,
+    /// docs/math.md §10.7); `None` otherwise.
+    pub indirect: Option<Rgb>,
 }
 
 impl Transport {
@@ -344,6 +348,7 @@ impl Transport {
             irradiance,
             std_error: variance.map(f64::sqrt),
             rays: stats.rays,
+            indirect: None,
         }
     }
 

@@ -144,6 +144,7 @@ mod tests {
             irradiance: Rgb::new(0.5, 1.0, 2.0),
             std_error: Rgb::splat(0.25),
             rays: 10,
+            indirect: None,
         }];
         let mut out = Vec::new();
         write_irradiance(&mut out, &points, &estimates, true).unwrap();

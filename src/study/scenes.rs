@@ -262,7 +262,9 @@ pub fn run(
                 continue;
             }
             // The same estimates twice: with the model's error bars and
-            // with calibrated ones (§10.5); only the error bars differ.
+            // with calibrated ones (§10.5); only the error bars differ,
+            // except with the records prior, which weighs the records
+            // against the rule's error bars of each kind (§10.7).
             let mut runs = [Vec::new(), Vec::new()];
             let mut kernel = None;
             for (calibrate, runs) in [false, true].into_iter().zip(&mut runs) {

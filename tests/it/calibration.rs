@@ -40,9 +40,13 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
         };
         let rows = scenes::run(&transport(scene), scene, &options).unwrap();
         assert!(rows.iter().any(|r| r.estimator == "bmc"));
-        let nrmse = |name: &str| rows.iter().find(|r| r.estimator == name).map(|r| r.nrmse);
+        let nrmse = |name: &str| {
+            rows.iter()
+                .find(|r| r.estimator == name && r.samples == 64)
+                .map(|r| r.nrmse)
+        };
         if records_from.is_some() {
-            // The records carry what 64 samples cannot: measured 0.52× at
+            // The records carry what 64 samples cannot: measured 0.47× at
             // N = 64 on 200 points, depth 16 (docs/BENCHMARKS.md, records prior).
             let (with, plain) = (nrmse("bmc+records").unwrap(), nrmse("qmc").unwrap());
             assert!(with < 0.7 * plain, "bmc+records {with} vs qmc {plain}");
@@ -52,10 +56,10 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
             // (docs/math.md §10.5); for MC at N = 16 this needs the term for
             // light that all samples missed (its own sample variance gives
             // rms z 1.3–5.5 there on the bundled scenes). With the records
-            // prior (§10.7) they are in band from N = 64 only: at N = 16 the
-            // rule's 16-sample variance weighs it against the records, and
-            // the bars were measured too wide here (coverage 0.988, rms z
-            // 0.70) and too narrow at depth 16 (rms z 1.60, BENCHMARKS).
+            // prior (§10.7) this reduced set is in band from N = 64 only: at
+            // N = 16 its bars are a little too wide (coverage 0.971, rms z
+            // 0.69, where plain QMC is at 0.77), though on the 200-point
+            // study every bmc+records row is in band (docs/BENCHMARKS.md).
             if row.estimator.ends_with("+records") && row.samples < 64 {
                 continue;
             }
