@@ -167,7 +167,9 @@ impl Transport {
             irradiance = Rgb::from_array(value);
             variance = Rgb::from_array(var);
         }
-        let indirect = (decomposition == Decomposition::Split).then_some(irradiance);
+        // Only paths that reflect have an indirect part (at depth 1 it is
+        // zero by definition, and no prior may move it).
+        let indirect = (lengths == Some(PathLengths::Indirect)).then_some(irradiance);
         if decomposition == Decomposition::Split {
             let direct = self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
             irradiance += direct.mean;

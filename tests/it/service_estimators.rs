@@ -463,6 +463,32 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
         .unwrap();
     assert_eq!(body["records_prior_points"], 0, "{body}");
 
+    // Direct light only: there is no indirect part for the records to move.
+    let direct_only = |records_prior: bool| {
+        let mut body = request(
+            json!({"method": "bmc", "samples": 32, "records_prior": records_prior, "calibrate": false}),
+        );
+        body["max_depth"] = json!(1);
+        body
+    };
+    let direct: Value = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &direct_only(true))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(direct["records_prior_points"], 0, "{direct}");
+    let plain: Value = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &direct_only(false))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(
+        direct["irradiance"], plain["irradiance"],
+        "{direct} {plain}"
+    );
+
     // Plain MC stays plain, and a target would count the prior in every batch.
     let response = app
         .post_json(

@@ -315,10 +315,14 @@ pub async fn irradiance(
             if let Ok(Some(cached)) = estimates.as_ref().map(|(e, _)| e.quadrature_cached) {
                 metrics::record_quadrature_lookup(&worker.quadratures, Some(cached));
             }
-            // The points whose indirect part met the records (split only).
-            let covered = |e: &Estimates| match e.decomposition {
-                Decomposition::Split => points.iter().filter(|p| records.covers(p)).count(),
-                Decomposition::Hemisphere => 0,
+            // The points whose indirect part met the records (split, with
+            // reflections: estimates that report an indirect part).
+            let covered = |e: &Estimates| {
+                e.estimates
+                    .iter()
+                    .zip(&points)
+                    .filter(|(e, p)| e.indirect.is_some() && records.covers(p))
+                    .count()
             };
             estimates.map(|(e, targeted)| {
                 let covered = records_prior.then(|| covered(&e));
