@@ -56,7 +56,7 @@ class IrradianceResult:
     """Irradiance at N points (``POST /v1/scenes/{id}/irradiance``).
 
     ``value`` and ``std_dev`` are ``N×3`` arrays (RGB) in W/m²: the estimate and
-    its standard error (calibrated for ``qmc`` and ``bmc`` unless
+    its standard error (calibrated on the scene for every method unless
     ``calibrate=False``). The metadata is the service's: ``decomposition``
     (``split`` or ``hemisphere``), ``prior`` (``environment`` or ``none``),
     ``calibration`` (``scale``, ``floor``, ... or ``None``), and for ``bmc``
