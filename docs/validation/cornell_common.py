@@ -147,3 +147,29 @@ def write_csv(path: str, header: list[str], rows: list[list]) -> None:
         w.writerow(header)
         for r in rows:
             w.writerow([f"{v:.9g}" if isinstance(v, float) else v for v in r])
+
+
+def irradiance_meter(p, n, radius: float, offset: float, bsdf: dict | None = None) -> dict:
+    """A Mitsuba shape dict: a disk of ``radius`` at p + offset*n facing n,
+    carrying an ``irradiancemeter`` on a 1x1 box-filtered ``hdrfilm`` (the
+    pixel is the irradiance E [W/m^2] averaged over the disk); black unless
+    ``bsdf`` is given.  Must be called after mi.set_variant()."""
+    import mitsuba as mi
+    p = np.asarray(p, float)
+    n = np.asarray(n, float) / np.linalg.norm(n)
+    o = p + offset * n
+    up = [0, 0, 1] if abs(n[2]) < 0.9 else [0, 1, 0]
+    to_world = mi.ScalarTransform4f().look_at(
+        origin=o.tolist(), target=(o + n).tolist(), up=up).scale([radius, radius, 1])
+    return {
+        "type": "disk",
+        "to_world": to_world,
+        "bsdf": bsdf or {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}},
+        "sensor": {
+            "type": "irradiancemeter",
+            "sampler": {"type": "independent", "sample_count": 1},
+            "film": {"type": "hdrfilm", "width": 1, "height": 1,
+                     "rfilter": {"type": "box"}, "pixel_format": "rgb",
+                     "component_format": "float32"},
+        },
+    }

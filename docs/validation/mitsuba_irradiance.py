@@ -63,7 +63,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from cornell_common import DEFAULT_POINTS, read_points, write_csv  # noqa: E402
+from cornell_common import DEFAULT_POINTS, irradiance_meter, read_points, write_csv  # noqa: E402
 
 VARIANT = "scalar_rgb"
 KINDS = {
@@ -90,24 +90,7 @@ def meter_scene_dict(p, n, integrator: dict, radius: float = 1e-3,
     if black_light:
         d["light"]["bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}}
     d["integrator"] = dict(integrator)
-    p = np.asarray(p, float)
-    n = np.asarray(n, float) / np.linalg.norm(n)
-    o = p + offset * n
-    up = [0, 0, 1] if abs(n[2]) < 0.9 else [0, 1, 0]
-    to_world = mi.ScalarTransform4f().look_at(
-        origin=o.tolist(), target=(o + n).tolist(), up=up).scale([radius, radius, 1])
-    d["meter"] = {
-        "type": "disk",
-        "to_world": to_world,
-        "bsdf": meter_bsdf or {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}},
-        "sensor": {
-            "type": "irradiancemeter",
-            "sampler": {"type": "independent", "sample_count": 1},
-            "film": {"type": "hdrfilm", "width": 1, "height": 1,
-                     "rfilter": {"type": "box"}, "pixel_format": "rgb",
-                     "component_format": "float32"},
-        },
-    }
+    d["meter"] = irradiance_meter(p, n, radius, offset, meter_bsdf)
     return d
 
 

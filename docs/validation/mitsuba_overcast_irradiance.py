@@ -79,7 +79,7 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-from cornell_common import read_points, write_csv  # noqa: E402
+from cornell_common import irradiance_meter, read_points, write_csv  # noqa: E402
 
 DEFAULT_SCENE = os.path.join(HERE, "..", "..", "scenes", "overcast.json")
 VARIANTS = ("scalar_rgb", "llvm_ad_rgb")
@@ -193,27 +193,9 @@ def mitsuba_scene_dict(scene: dict, scene_dir: str, max_depth: int,
 
 
 def add_meter(d: dict, p, n, radius: float, offset: float) -> dict:
-    """Adds the irradiance-meter disk at p + offset*n facing n (black)."""
-    import mitsuba as mi
+    """Adds the (black) irradiance-meter disk at p + offset*n facing n."""
     d = dict(d)
-    p = np.asarray(p, float)
-    n = np.asarray(n, float) / np.linalg.norm(n)
-    o = p + offset * n
-    up = [0, 0, 1] if abs(n[2]) < 0.9 else [0, 1, 0]
-    to_world = mi.ScalarTransform4f().look_at(
-        origin=o.tolist(), target=(o + n).tolist(), up=up).scale([radius, radius, 1])
-    d["meter"] = {
-        "type": "disk",
-        "to_world": to_world,
-        "bsdf": {"type": "diffuse", "reflectance": _rgb([0, 0, 0])},
-        "sensor": {
-            "type": "irradiancemeter",
-            "sampler": {"type": "independent", "sample_count": 1},
-            "film": {"type": "hdrfilm", "width": 1, "height": 1,
-                     "rfilter": {"type": "box"}, "pixel_format": "rgb",
-                     "component_format": "float32"},
-        },
-    }
+    d["meter"] = irradiance_meter(p, n, radius, offset)
     return d
 
 

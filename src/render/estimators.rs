@@ -360,10 +360,7 @@ impl PointEstimator {
         let calibration = if self.calibrate {
             // With the records prior, the bars are fitted again each time
             // the records it draws on double (§10.7).
-            let records = caches
-                .records
-                .filter(|_| self.spec.records_prior)
-                .map(|r| r.state());
+            let records = self.records(&caches).map(|r| r.state());
             let key = format!(
                 "{:?} {:?} depth {} light samples {} records {records:?}",
                 self.spec,
@@ -407,6 +404,11 @@ impl PointEstimator {
         self.spec.records_prior
     }
 
+    /// The records prior this estimator uses: the caches' if the spec asked.
+    fn records<'a>(&self, caches: &EstimatorCaches<'a>) -> Option<&'a dyn IntegralPrior> {
+        caches.records.filter(|_| self.spec.records_prior)
+    }
+
     /// The estimates whose error bars [`Self::estimate`] calibrates: the
     /// rule's with its own error model, or with the records prior, the
     /// rule's estimates (with the rule's calibrated error bars, if the spec
@@ -420,7 +422,7 @@ impl PointEstimator {
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Estimates, EstimatorError> {
-        let Some(records) = caches.records.filter(|_| self.spec.records_prior) else {
+        let Some(records) = self.records(&caches) else {
             return self
                 .estimate_with_model_errors(transport, caches, points, options, on_done, cancel);
         };

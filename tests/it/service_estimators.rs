@@ -26,8 +26,13 @@ fn request(estimator: Value) -> Value {
 }
 
 async fn irradiance(app: &TestApp, estimator: Value) -> Value {
+    post_irradiance(app, &request(estimator)).await
+}
+
+/// The 200 answer to a whole irradiance request body.
+async fn post_irradiance(app: &TestApp, body: &Value) -> Value {
     let response = app
-        .post_json("/v1/scenes/cornell-box/irradiance", &request(estimator))
+        .post_json("/v1/scenes/cornell-box/irradiance", body)
         .await;
     assert_eq!(response.status(), StatusCode::OK);
     response.json().await.unwrap()
@@ -455,12 +460,7 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     // Deeper paths than any record holds: no prior.
     let mut deep = request(json!({"method": "bmc", "samples": 32, "records_prior": true}));
     deep["max_depth"] = json!(8);
-    let body: Value = app
-        .post_json("/v1/scenes/cornell-box/irradiance", &deep)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let body = post_irradiance(&app, &deep).await;
     assert_eq!(body["records_prior_points"], 0, "{body}");
 
     // Direct light only: there is no indirect part for the records to move.
@@ -471,19 +471,9 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
         body["max_depth"] = json!(1);
         body
     };
-    let direct: Value = app
-        .post_json("/v1/scenes/cornell-box/irradiance", &direct_only(true))
-        .await
-        .json()
-        .await
-        .unwrap();
+    let direct = post_irradiance(&app, &direct_only(true)).await;
     assert_eq!(direct["records_prior_points"], 0, "{direct}");
-    let plain: Value = app
-        .post_json("/v1/scenes/cornell-box/irradiance", &direct_only(false))
-        .await
-        .json()
-        .await
-        .unwrap();
+    let plain = post_irradiance(&app, &direct_only(false)).await;
     assert_eq!(
         direct["irradiance"], plain["irradiance"],
         "{direct} {plain}"
