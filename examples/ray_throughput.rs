@@ -3,7 +3,13 @@
 //! timed with the thread's own CPU time from `/proc/thread-self/stat`
 //! (Linux; 10 ms ticks, so each measurement runs for seconds).
 //!
-//! Usage: `cargo run --release --example ray_throughput [-- SCENE.json ...]`
+//! Usage: `cargo run --release --example ray_throughput [-- [--dump DIR] SCENE.json ...]`
+//!
+//! `--dump DIR` also writes each scene's triangles and both ray sets as
+//! little-endian f32 rows (`<scene>.triangles.f32`: 9 per triangle;
+//! `<scene>.closest.f32`, `<scene>.shadow.f32`: origin, direction, t_max),
+//! so that another tracer can be timed on the same rays
+//! (`docs/validation/embree_same_rays.py`).
 
 use std::path::Path;
 use std::time::Instant;
@@ -31,6 +37,11 @@ fn thread_cpu_seconds() -> f64 {
 fn main() -> anyhow::Result<()> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     let mut names: Vec<String> = std::env::args().skip(1).collect();
+    let dump = match names.iter().position(|a| a == "--dump") {
+        Some(i) if i + 1 < names.len() => Some(names.drain(i..i + 2).nth(1).unwrap_or_default()),
+        Some(_) => anyhow::bail!("--dump needs a directory"),
+        None => None,
+    };
     if names.is_empty() {
         names = vec!["cornell-box.json".into(), "mesh.json".into()];
     }
@@ -55,6 +66,9 @@ fn main() -> anyhow::Result<()> {
                 t_max: (c - a).length(),
             });
         }
+        if let Some(dir) = &dump {
+            write_dump(Path::new(dir), &name, &scene, &closest, &shadow)?;
+        }
         for (kind, rays) in [("closest", &closest), ("shadow", &shadow)] {
             let (cpu0, wall0) = (thread_cpu_seconds(), Instant::now());
             let mut hits = 0usize;
@@ -77,6 +91,35 @@ fn main() -> anyhow::Result<()> {
                 hits as f64 / traced as f64
             );
         }
+    }
+    Ok(())
+}
+
+/// Writes the scene's triangles and the two ray sets as f32 rows.
+fn write_dump(
+    dir: &Path,
+    name: &str,
+    scene: &Scene,
+    closest: &[Ray],
+    shadow: &[Ray],
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let stem = name.trim_end_matches(".json");
+    let f32_bytes = |values: &mut dyn Iterator<Item = f64>| -> Vec<u8> {
+        values.flat_map(|v| (v as f32).to_le_bytes()).collect()
+    };
+    let triangles = f32_bytes(
+        &mut scene
+            .triangle_vertices()
+            .flat_map(|t| t.into_iter().flat_map(|p| p.to_array())),
+    );
+    std::fs::write(dir.join(format!("{stem}.triangles.f32")), triangles)?;
+    for (kind, rays) in [("closest", closest), ("shadow", shadow)] {
+        let rows = f32_bytes(&mut rays.iter().flat_map(|r| {
+            let (o, d) = (r.origin, r.dir);
+            [o.x, o.y, o.z, d.x, d.y, d.z, r.t_max]
+        }));
+        std::fs::write(dir.join(format!("{stem}.{kind}.f32")), rows)?;
     }
     Ok(())
 }

@@ -46,21 +46,22 @@ use shape::{Geometry, Shape, Triangle, TriangleAccel};
 /// [`MAX_SCENE_MEMORY_BYTES`]; see [`TRIANGLE_BYTES`]).
 pub const MAX_TRIANGLES: usize = 10_000_000;
 /// Most bytes a scene's geometry may take once built, estimated from its
-/// triangle count before building ([`TRIANGLE_BYTES`] each). 1 GiB (≈ 3.5
+/// triangle count before building ([`TRIANGLE_BYTES`] each). 1 GiB (≈ 3.3
 /// million triangles) keeps one scene well inside a few-GiB service, which
 /// also caps all scenes together (`scenes.max_scene_bytes`). Measured: about
-/// 240 bytes per triangle without vertex normals.
+/// 226 bytes per triangle without vertex normals.
 pub const MAX_SCENE_MEMORY_BYTES: u64 = 1 << 30;
 /// Upper bound of the bytes one triangle retains in a built scene: the
 /// world-space triangle, its intersection form, its BVH-order index, its
 /// entry in its shape's area CDF, vertex normals (if it has them) and at
-/// most two BVH nodes (a binary tree over N leaves has < 2N nodes).
+/// two thirds of a BVH node (the 4-wide tree over N primitives has fewer
+/// than 2N/3 nodes, `bvh::Bvh::build`).
 pub const TRIANGLE_BYTES: u64 = (std::mem::size_of::<Triangle>()
     + std::mem::size_of::<TriangleAccel>()
     + std::mem::size_of::<u32>()
     + std::mem::size_of::<f64>()
     + std::mem::size_of::<[DVec3; 3]>()
-    + 2 * bvh::NODE_BYTES) as u64;
+    + (2 * bvh::NODE_BYTES).div_ceil(3)) as u64;
 
 /// Estimated bytes retained by `triangles` triangles ([`TRIANGLE_BYTES`]).
 pub fn triangle_bytes(triangles: usize) -> u64 {
@@ -317,6 +318,12 @@ impl Scene {
     /// Axis-aligned bounds of all geometry, (min, max).
     pub fn bounds(&self) -> (DVec3, DVec3) {
         (self.bounds.min, self.bounds.max)
+    }
+
+    /// World-space vertices of every triangle, in authoring order (to feed
+    /// another ray tracer the same geometry, e.g. for a benchmark).
+    pub fn triangle_vertices(&self) -> impl Iterator<Item = [DVec3; 3]> + '_ {
+        self.triangles.iter().map(|t| t.p)
     }
 
     /// Number of triangles (spheres and disks are analytic and not counted).
