@@ -223,10 +223,17 @@ const TRAVERSAL_COST: f64 = 1.0;
 const BINS: usize = 16;
 /// Leaves larger than this are split even if the SAH prefers a leaf.
 const MAX_LEAF: usize = 4;
-/// Depth bound of the binary tree; the traversal stack is sized from it.
+/// Depth from which the binary tree stops asking the SAH and halves ranges
+/// instead (so leaves stay ≤ [`MAX_LEAF`] whatever the geometry); ranges of
+/// fewer than 2³² primitives are halved down to leaves within 32 more levels.
 const MAX_DEPTH: usize = 60;
+const TREE_DEPTH: usize = MAX_DEPTH + 32;
 /// Each level of the 4-wide tree leaves at most three siblings waiting.
-const STACK: usize = 3 * (MAX_DEPTH + 1) + 4;
+const STACK: usize = 3 * (TREE_DEPTH + 1) + 4;
+// Leaf slots hold their count in 4 bits and their first primitive in 27.
+const _: () = assert!(MAX_LEAF < 1 << (31 - LEAF_COUNT_SHIFT));
+const _: () = assert!(super::MAX_TRIANGLES <= LEAF_FIRST_MASK as usize);
+const _: () = assert!(super::MAX_SHAPES <= LEAF_FIRST_MASK as usize);
 
 /// A 4-wide BVH: a binned-SAH binary tree collapsed so that every node
 /// tests four child boxes at once (one f32 SIMD slab test).
@@ -408,7 +415,7 @@ fn build_binary(bounds: &[Aabb]) -> (Vec<BinaryNode>, Vec<u32>) {
             .iter()
             .fold(Aabb::EMPTY, |b, &i| b.union(bounds[i as usize]));
         let split = if depth >= MAX_DEPTH {
-            None
+            (range.len() > MAX_LEAF).then_some(range.len() / 2)
         } else {
             split(range, bounds, &centroids, &bb)
         };
@@ -472,7 +479,6 @@ fn collapse(binary: &[BinaryNode]) -> Vec<Node> {
             let child = &binary[k];
             node.set_bounds(slot, &child.bounds);
             node.child[slot] = if child.count > 0 {
-                debug_assert!(child.count as usize <= MAX_LEAF && child.first <= LEAF_FIRST_MASK);
                 LEAF | (child.count << LEAF_COUNT_SHIFT) | child.first
             } else {
                 nodes.push(Node::EMPTY);
@@ -672,6 +678,50 @@ mod tests {
                 box_hit(&boxes[order[i] as usize], o, d, t_max).filter(|&t| t < t_max)
             });
             assert_eq!(got, expected, "ray {k}");
+        }
+    }
+
+    #[test]
+    fn deep_unbalanced_trees_keep_small_leaves() {
+        // Boxes halving in size towards the origin: the SAH peels off a few
+        // at a time, so the SAH depth bound is reached with hundreds left.
+        let boxes: Vec<Aabb> = (0..600)
+            .map(|k| {
+                let c = 0.5f64.powi(k);
+                Aabb {
+                    min: DVec3::new(c, -c, -c),
+                    max: DVec3::new(2.0 * c, c, c),
+                }
+            })
+            .collect();
+        let (bvh, order) = Bvh::build(&boxes);
+        let leaf_sizes = bvh
+            .nodes
+            .iter()
+            .flat_map(|n| n.child)
+            .filter(|c| c & LEAF != 0);
+        assert!(
+            leaf_sizes
+                .map(|c| ((c & !LEAF) >> LEAF_COUNT_SHIFT) as usize)
+                .all(|n| n <= MAX_LEAF)
+        );
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        for _ in 0..500 {
+            let o = DVec3::new(-1.0, 0.0, 0.0) + DVec3::new(0.0, rng.random(), rng.random()) * 1e-3;
+            let d = (DVec3::new(1.0, 0.0, 0.0)
+                + (DVec3::new(0.0, rng.random(), rng.random()) - 0.5) * 1e-3)
+                .normalize();
+            let expected = boxes
+                .iter()
+                .filter_map(|b| box_hit(b, o, d, 1e9))
+                .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))));
+            let mut seen = 0;
+            let got = bvh.closest(o, d, 1e9, |i, t_max| {
+                seen += 1;
+                box_hit(&boxes[order[i] as usize], o, d, t_max).filter(|&t| t < t_max)
+            });
+            assert_eq!(got, expected);
+            assert!(seen > 0);
         }
     }
 
