@@ -22,9 +22,13 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from embree_throughput import build_scene  # noqa: E402
 
 
 def load_rows(path: str, width: int) -> np.ndarray:
@@ -45,15 +49,10 @@ def main(argv=None):
     ap.add_argument("dir")
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args(argv)
-    from embreex import mesh_construction, rtcore_scene
-
     stems = sorted(f[: -len(".triangles.f32")] for f in os.listdir(args.dir) if f.endswith(".triangles.f32"))
     for stem in stems:
         tris = load_rows(os.path.join(args.dir, f"{stem}.triangles.f32"), 9)
-        scene = rtcore_scene.EmbreeScene()
-        verts = np.ascontiguousarray(tris.reshape(-1, 3))
-        faces = np.arange(len(verts), dtype=np.int32).reshape(-1, 3)
-        _mesh = mesh_construction.TriangleMesh(scene, verts, faces)
+        scene, _mesh = build_scene(tris)
         for kind, query in (("closest", "INTERSECT"), ("shadow", "OCCLUDED")):
             rays = load_rows(os.path.join(args.dir, f"{stem}.{kind}.f32"), 7)
             o = np.ascontiguousarray(rays[:, 0:3])

@@ -118,9 +118,9 @@ impl Node {
 
     /// Which of the four children the ray enters before `t_max`, as a bit
     /// mask, and the entry distances (a lower bound of the exact ones).
-    #[inline(always)]
     /// `PARALLEL_AXES` compiles the containment test for parallel axes in;
     /// most rays have none and take the plain slab test.
+    #[inline(always)]
     fn hit<const PARALLEL_AXES: bool>(&self, ray: &SlabRay, t_max: f32) -> (u32, Vec4) {
         let b = &self.bounds;
         let slab = |axis: usize| {
@@ -414,11 +414,12 @@ fn build_binary(bounds: &[Aabb]) -> (Vec<BinaryNode>, Vec<u32>) {
         let bb = range
             .iter()
             .fold(Aabb::EMPTY, |b, &i| b.union(bounds[i as usize]));
-        let split = if depth >= MAX_DEPTH {
-            (range.len() > MAX_LEAF).then_some(range.len() / 2)
-        } else {
-            split(range, bounds, &centroids, &bb)
-        };
+        // Where the SAH cannot split (past the depth bound, or all centroids
+        // coincide) a range too big for a leaf is halved.
+        let sah = (depth < MAX_DEPTH)
+            .then(|| split(range, bounds, &centroids, &bb))
+            .flatten();
+        let split = sah.or_else(|| (range.len() > MAX_LEAF).then_some(range.len() / 2));
         nodes[index] = match split {
             Some(mid) => {
                 let left = nodes.len();
@@ -491,8 +492,9 @@ fn collapse(binary: &[BinaryNode]) -> Vec<Node> {
     nodes
 }
 
-/// Binned SAH split of `range` (reordered in place); `None` makes a leaf.
-/// Returns the number of primitives going left.
+/// Binned SAH split of `range` (reordered in place): the number of
+/// primitives going left, or `None` when the SAH prefers a leaf or all
+/// centroids coincide (the caller halves ranges too big for a leaf).
 fn split(range: &mut [u32], bounds: &[Aabb], centroids: &[DVec3], bb: &Aabb) -> Option<usize> {
     let count = range.len();
     if count <= 1 {
@@ -554,10 +556,7 @@ fn split(range: &mut [u32], bounds: &[Aabb], centroids: &[DVec3], bb: &Aabb) -> 
             });
             Some(mid)
         }
-        Some(_) => None,
-        // All centroids coincide: only an arbitrary split can bound the leaf size.
-        None if count > MAX_LEAF => Some(count / 2),
-        None => None,
+        _ => None,
     }
 }
 
