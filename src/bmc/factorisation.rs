@@ -14,11 +14,14 @@
 //! for them: a rayon join in there would let the worker steal one of those
 //! waiting requests and deadlock on its own key. The explicit `Par` argument of
 //! faer's low-level routines keeps this independent of faer's global setting.
+//! Every call into faer is followed by `dense::clear_upper_vector_state`
+//! (that module says why).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt;
 use faer::{Conj, Mat, MatMut, Par};
 
+use super::dense::clear_upper_vector_state;
 use super::error::BmcError;
 use super::kernel::{Kernel, KernelKey};
 use crate::sphere::{MAX_SAMPLES, SampleSet, SampleSetSpec};
@@ -144,6 +147,7 @@ impl Factorisation {
             Par::Seq,
             MemStack::new(&mut []),
         );
+        clear_upper_vector_state();
         x
     }
 
@@ -162,6 +166,7 @@ impl Factorisation {
             Par::Seq,
             MemStack::new(&mut []),
         );
+        clear_upper_vector_state();
     }
 
     /// `Q⁻¹ b`, or a typed error when the length is wrong.
@@ -197,14 +202,15 @@ fn cholesky_in_place(q: &mut Mat<f64>) -> bool {
         Par::Seq,
         Default::default(),
     ));
-    llt::factor::cholesky_in_place(
+    let factored = llt::factor::cholesky_in_place(
         q.as_mut(),
         Default::default(),
         Par::Seq,
         MemStack::new(&mut scratch),
         Default::default(),
-    )
-    .is_ok()
+    );
+    clear_upper_vector_state();
+    factored.is_ok()
 }
 
 fn condition_estimate(l: &Mat<f64>) -> f64 {
@@ -301,3 +307,4 @@ mod tests {
         assert_eq!(f.try_solve(&[1.0]).unwrap_err().field(), Some("values"));
     }
 }
+

@@ -28,7 +28,9 @@
 use rayon::prelude::*;
 
 use super::config::PlacementOptions;
-use super::shade::{Gather, PlacementPoint, RecordGather, compute_record, lookup};
+use super::shade::{
+    Gather, GatheredRecord, PlacementPoint, RecordGather, finish_records, gather_record, lookup,
+};
 use super::stats::ShadingStats;
 use crate::cache::{CacheConfig, CacheError, Interpolated, IrradianceCache, Record, RecordRule};
 use crate::render::seed::point_rng;
@@ -114,21 +116,29 @@ pub fn place_records(
                     .map(|_| (first + i, true)),
             })
             .collect();
-        let computed: Vec<Result<(Record, ShadingStats), CacheError>> = wanted
+        let gathered: Vec<(&PlacementPoint, GatheredRecord, ShadingStats)> = wanted
             .par_iter()
             .map(|&(i, _)| {
                 cancel.check()?;
                 let mut rng = point_rng(options.seed, i as u64);
                 let mut stats = ShadingStats::default();
-                let record = compute_record(
-                    transport, rule, &points[i], limits, &how, &mut rng, &mut stats,
-                )?;
-                Ok((record, stats))
+                let target = &points[i];
+                let rays = gather_record(transport, rule, target, &how, &mut rng, &mut stats)?;
+                Ok((target, rays, stats))
             })
+            .collect::<Result<_, CacheError>>()?;
+        cancel.check()?;
+        // Estimated in one batch per thread: each batch reads the rule's
+        // tables from memory once (`RecordRule::estimate_batch`).
+        let (stats, gathered): (Vec<ShadingStats>, Vec<_>) =
+            gathered.into_iter().map(|(p, g, s)| (s, (p, g))).unzip();
+        let per_thread = gathered.len().div_ceil(rayon::current_num_threads()).max(1);
+        let records: Vec<Result<Record, CacheError>> = gathered
+            .par_chunks(per_thread)
+            .flat_map_iter(|chunk| finish_records(rule, chunk, limits))
             .collect();
-        for (result, &(_, for_variance)) in computed.into_iter().zip(&wanted) {
-            let (record, stats) = result?;
-            cache.insert(record)?;
+        for ((record, stats), &(_, for_variance)) in records.into_iter().zip(stats).zip(&wanted) {
+            cache.insert(record?)?;
             report.records_created += 1 + stats.records_created;
             report.ambient_records += stats.ambient_records;
             report.records_for_variance += u64::from(for_variance);

@@ -622,18 +622,64 @@ pub fn compute_record<R: Rng + ?Sized>(
     rng: &mut R,
     stats: &mut ShadingStats,
 ) -> Result<Record, CacheError> {
+    let rays = gather_record(transport, rule, target, how, rng, stats)?;
+    let mut one = finish_records(rule, &[(target, rays)], limits);
+    one.pop().expect("one record per gathered record")
+}
+
+/// A record's rays, gathered but not yet estimated ([`gather_record`]).
+pub struct GatheredRecord {
+    /// The record's local frame, turned about the normal.
+    frame: Frame,
+    /// One radiance sample per direction of the rule, in its order.
+    samples: Vec<RadianceSample>,
+}
+
+/// The rays of [`compute_record`]: the frame turned by a random angle from
+/// `rng`, then the samples.
+pub fn gather_record<R: Rng + ?Sized>(
+    transport: &Transport,
+    rule: &RecordRule,
+    target: &PlacementPoint,
+    how: &RecordGather,
+    rng: &mut R,
+    stats: &mut ShadingStats,
+) -> Result<GatheredRecord, CacheError> {
     let point = &target.point;
     let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
     let samples = how.samples(transport, point, &frame, rule.directions(), rng, stats)?;
-    let estimate = rule.estimate(&samples)?;
-    let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
-    let limits = match &target.footprint {
-        Some(fp) => limits.with_footprint(fp),
-        None => limits,
-    };
-    Ok(Record::from_estimate(
-        point, &frame, &estimate, &distances, limits,
-    ))
+    Ok(GatheredRecord { frame, samples })
+}
+
+/// The records of [`compute_record`] from gathered rays, in order, estimated
+/// together ([`RecordRule::estimate_batch`]).
+pub fn finish_records(
+    rule: &RecordRule,
+    gathered: &[(&PlacementPoint, GatheredRecord)],
+    limits: RadiusLimits,
+) -> Vec<Result<Record, CacheError>> {
+    let samples: Vec<&[RadianceSample]> =
+        gathered.iter().map(|(_, g)| g.samples.as_slice()).collect();
+    let estimates = rule.estimate_batch(&samples);
+    gathered
+        .iter()
+        .zip(estimates)
+        .map(|((target, g), estimate)| {
+            let estimate = estimate?;
+            let distances: Vec<f64> = g.samples.iter().map(|s| s.distance).collect();
+            let limits = match &target.footprint {
+                Some(fp) => limits.with_footprint(fp),
+                None => limits,
+            };
+            Ok(Record::from_estimate(
+                &target.point,
+                &g.frame,
+                &estimate,
+                &distances,
+                limits,
+            ))
+        })
+        .collect()
 }
 
 /// Cache lookup with the options' accuracy and optional occlusion test.
