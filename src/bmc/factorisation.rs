@@ -307,4 +307,3 @@ mod tests {
         assert_eq!(f.try_solve(&[1.0]).unwrap_err().field(), Some("values"));
     }
 }
-

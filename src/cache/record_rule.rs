@@ -716,7 +716,10 @@ mod tests {
                 v.into_iter().flat_map(Rgb::to_array).collect::<Vec<f64>>()
             };
             for (a, b) in values(got).iter().zip(values(&alone)) {
-                assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "record {i}: {a} vs {b}");
+                assert!(
+                    (a - b).abs() <= 1e-12 * (1.0 + b.abs()),
+                    "record {i}: {a} vs {b}"
+                );
             }
             assert!(values(got).iter().any(|v| *v != 0.0));
         }
