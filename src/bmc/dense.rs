@@ -31,7 +31,7 @@ pub(crate) fn clear_upper_vector_state() {
 /// If `M` is not `n × n` or `X` not a whole number of columns.
 pub fn symmetric_product(m: &[f64], n: usize, x: &[f64]) -> Vec<f64> {
     assert_eq!(m.len(), n * n, "symmetric matrix size");
-    let columns = if n == 0 { 0 } else { x.len() / n };
+    let columns = x.len().checked_div(n).unwrap_or(0);
     assert_eq!(columns * n, x.len(), "whole columns");
     let mut out = vec![0.0; x.len()];
     faer::linalg::matmul::matmul(
