@@ -1,6 +1,9 @@
 //! Thin command-line front end; all work lives in the library.
 
 use bmc_irradiance::cli;
+use std::io::Write;
+use std::process::ExitCode;
+
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -34,8 +37,20 @@ enum Command {
     Fetch(cli::fetch::FetchArgs),
 }
 
-fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        // The reader went away (`… | head`): what it wanted was written, as
+        // a Unix tool killed by SIGPIPE would have it.
+        Err(e) if closed_output(&e) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("Error: {e:?}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Irradiance(args) => {
             cli::irradiance::run_irradiance(&args, &mut std::io::stdout().lock())
@@ -51,6 +66,15 @@ fn main() -> anyhow::Result<()> {
 }
 
 fn print_output(output: String) -> anyhow::Result<()> {
-    println!("{output}");
+    writeln!(std::io::stdout().lock(), "{output}")?;
     Ok(())
+}
+
+/// Whether `e` comes from writing to a pipe whose reader has closed it.
+fn closed_output(e: &anyhow::Error) -> bool {
+    e.chain().any(|cause| {
+        cause
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }

@@ -122,3 +122,24 @@ fn bad_parameters_fail_with_the_field_named() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
 }
+
+/// `bmc-irradiance … | head -1`: a reader that closes the pipe early ends
+/// the command quietly and successfully, with no error or panic.
+#[test]
+fn a_closed_output_pipe_ends_the_command_quietly() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
+        .args(["quadrature", "--samples", "1024", "--json"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("binary runs");
+    // Closed long before the factorisation of 1024 directions is written.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("binary ends");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {stderr}", out.status);
+    assert!(
+        !stderr.contains("Error") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+}
