@@ -338,7 +338,7 @@ impl RecordRule {
             let y: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
             let mean = match self.spec.prior_mean {
                 PriorMean::Zero => 0.0,
-                // The 4-lane dot of this file, as the other products here.
+                // The 4-lane dot of this file.
                 PriorMean::Gls => dot(self.gls.ones_solved(), &y) / self.gls.ones_sum(),
             };
             columns.extend(y.iter().map(|v| v - mean));
