@@ -275,18 +275,18 @@ impl RecordRule {
             // α̃ = Q⁻¹(Y − m̂1), every column in one solve.
             let mut alpha = centred.clone();
             self.factorisation.solve_columns_in_place(&mut alpha, 3 * k);
-            let bmc: Vec<(usize, &[RadianceSample], &[f64])> = batch
+            // (index in the batch, irradiance) of the BMC records, in order.
+            let bmc: Vec<(usize, [f64; 3])> = stages
                 .iter()
-                .zip(&stages)
                 .enumerate()
-                .filter(|(_, (_, stage))| matches!(stage, Stage::Bmc(_)))
-                .map(|(i, ((samples, speeds), _))| (i, *samples, *speeds))
+                .filter_map(|(i, stage)| match stage {
+                    Stage::Bmc(irradiance) => Some((i, *irradiance)),
+                    Stage::Done(_) => None,
+                })
                 .collect();
-            let [a_w_s, b_w_s_u] = self.speed_products(bmc.iter().map(|(_, _, s)| *s));
-            for (j, (i, samples, speeds)) in bmc.into_iter().enumerate() {
-                let Stage::Bmc(irradiance) = stages[i] else {
-                    unreachable!("only BMC records were taken")
-                };
+            let [a_w_s, b_w_s_u] = self.speed_products(bmc.iter().map(|&(i, _)| batch[i].1));
+            for (j, (i, irradiance)) in bmc.into_iter().enumerate() {
+                let (samples, speeds) = batch[i];
                 let products = SpeedProducts {
                     a_w_s: &a_w_s[j * n..][..n],
                     b_w_s_u: [0, 1].map(|e| &b_w_s_u[(2 * j + e) * n..][..n]),
@@ -644,13 +644,19 @@ mod tests {
     use crate::sphere::SampleSetKind;
 
     fn rule(kind: KernelKind, lengthscale: f64, count: usize) -> RecordRule {
+        let kernel = Kernel::new(kind, lengthscale, 1.0, 1e-8).unwrap();
+        rule_on(SampleSetKind::Fibonacci, kernel, count)
+    }
+
+    /// The GLS rule on `count` directions of a set of `kind`.
+    fn rule_on(kind: SampleSetKind, kernel: Kernel, count: usize) -> RecordRule {
         RecordRule::new(RecordRuleSpec {
             samples: SampleSetSpec {
-                kind: SampleSetKind::Fibonacci,
+                kind,
                 count,
                 seed: 0,
             },
-            kernel: Kernel::new(kind, lengthscale, 1.0, 1e-8).unwrap(),
+            kernel,
             prior_mean: PriorMean::Gls,
         })
         .unwrap()
@@ -668,16 +674,8 @@ mod tests {
     /// equal-weight rule.
     #[test]
     fn a_batch_estimates_each_record_as_alone() {
-        let r = RecordRule::new(RecordRuleSpec {
-            samples: SampleSetSpec {
-                kind: SampleSetKind::Stratified,
-                count: 64,
-                seed: 0,
-            },
-            kernel: Kernel::new(KernelKind::Matern32, 0.4, 1.0, 1e-6).unwrap(),
-            prior_mean: PriorMean::Gls,
-        })
-        .unwrap();
+        let kernel = Kernel::new(KernelKind::Matern32, 0.4, 1.0, 1e-6).unwrap();
+        let r = rule_on(SampleSetKind::Stratified, kernel, 64);
         let dirs = r.directions().to_vec();
         let record = |phase: f64| -> Vec<RadianceSample> {
             dirs.iter()
@@ -734,16 +732,8 @@ mod tests {
     /// Without the spike the BMC record is unchanged.
     #[test]
     fn a_negative_record_falls_back_to_the_equal_weight_rule() {
-        let r = RecordRule::new(RecordRuleSpec {
-            samples: SampleSetSpec {
-                kind: SampleSetKind::Stratified,
-                count: 64,
-                seed: 0,
-            },
-            kernel: Kernel::new(KernelKind::SquaredExponential, 0.5, 1.0, 1e-8).unwrap(),
-            prior_mean: PriorMean::Gls,
-        })
-        .unwrap();
+        let kernel = Kernel::new(KernelKind::SquaredExponential, 0.5, 1.0, 1e-8).unwrap();
+        let r = rule_on(SampleSetKind::Stratified, kernel, 64);
         let w = &r.quadrature().weights;
         let (k, &most_negative) = w
             .iter()

@@ -116,7 +116,7 @@ pub fn place_records(
                     .map(|_| (first + i, true)),
             })
             .collect();
-        let gathered: Vec<(&PlacementPoint, GatheredRecord, ShadingStats)> = wanted
+        let (gathered, stats): (Vec<(&PlacementPoint, GatheredRecord)>, Vec<ShadingStats>) = wanted
             .par_iter()
             .map(|&(i, _)| {
                 cancel.check()?;
@@ -124,14 +124,14 @@ pub fn place_records(
                 let mut stats = ShadingStats::default();
                 let target = &points[i];
                 let rays = gather_record(transport, rule, target, &how, &mut rng, &mut stats)?;
-                Ok((target, rays, stats))
+                Ok(((target, rays), stats))
             })
-            .collect::<Result<_, CacheError>>()?;
+            .collect::<Result<Vec<_>, CacheError>>()?
+            .into_iter()
+            .unzip();
         cancel.check()?;
         // Estimated in one batch per thread: each batch reads the rule's
         // tables from memory once (`RecordRule::estimate_batch`).
-        let (stats, gathered): (Vec<ShadingStats>, Vec<_>) =
-            gathered.into_iter().map(|(p, g, s)| (s, (p, g))).unzip();
         let per_thread = gathered.len().div_ceil(rayon::current_num_threads()).max(1);
         let records: Vec<Result<Record, CacheError>> = gathered
             .par_chunks(per_thread)
