@@ -10,8 +10,6 @@
 //! never skips a primitive the exact f64 ray hits; primitives themselves are
 //! intersected in f64 by the caller.
 
-use std::ops::Range;
-
 use glam::{DVec3, Vec4};
 
 /// Axis-aligned box in f64.
@@ -69,19 +67,16 @@ struct BinaryNode {
 /// Largest f32 strictly below `x`. Strictly, so that a ray whose origin lies
 /// exactly on a primitive's bounding plane and whose direction component is
 /// (±)0 is still inside the padded slab whatever the sign of that zero.
-pub(super) fn round_down(x: f64) -> f32 {
+fn round_down(x: f64) -> f32 {
     let f = x as f32;
     if f as f64 >= x { f.next_down() } else { f }
 }
 
 /// Smallest f32 strictly above `x`.
-pub(super) fn round_up(x: f64) -> f32 {
+fn round_up(x: f64) -> f32 {
     let f = x as f32;
     if (f as f64) <= x { f.next_up() } else { f }
 }
-
-/// The most primitives a leaf holds.
-pub const MAX_LEAF: usize = 4;
 
 /// A child slot of a [`Node`] that holds primitives has this bit set; the
 /// next four bits are the primitive count and the low 27 bits the first
@@ -226,6 +221,8 @@ const MARGIN: f32 = 1.0 / 4_194_304.0;
 /// SAH cost of one traversal step relative to one primitive test.
 const TRAVERSAL_COST: f64 = 1.0;
 const BINS: usize = 16;
+/// Leaves larger than this are split even if the SAH prefers a leaf.
+const MAX_LEAF: usize = 4;
 /// Depth from which the binary tree stops asking the SAH and halves ranges
 /// instead (so leaves stay ≤ [`MAX_LEAF`] whatever the geometry); ranges of
 /// fewer than 2³² primitives are halved down to leaves within 32 more levels.
@@ -250,23 +247,6 @@ pub struct Bvh {
 pub const NODE_BYTES: usize = std::mem::size_of::<Node>();
 
 impl Bvh {
-    /// Largest coordinate magnitude of the primitives' bounds.
-    pub fn extent(&self) -> f64 {
-        self.extent
-    }
-
-    /// The position ranges of the leaves, each once, in no particular order.
-    pub fn leaves(&self) -> impl Iterator<Item = Range<usize>> + '_ {
-        self.nodes
-            .iter()
-            .flat_map(|n| n.child)
-            .filter(|code| code & LEAF != 0)
-            .map(|code| {
-                let first = (code & LEAF_FIRST_MASK) as usize;
-                first..first + ((code & !LEAF) >> LEAF_COUNT_SHIFT) as usize
-            })
-    }
-
     /// Bytes the tree holds on the heap.
     pub fn heap_bytes(&self) -> u64 {
         (self.nodes.capacity() * NODE_BYTES) as u64
@@ -275,8 +255,7 @@ impl Bvh {
     /// Builds a tree over `bounds`. Returns the tree and the build order:
     /// leaf ranges index positions in `order`, and `order[i]` is the index in
     /// `bounds` of the primitive at position `i`. Callers store their
-    /// primitives permuted by `order`. Leaves hold at most [`MAX_LEAF`]
-    /// primitives.
+    /// primitives permuted by `order`.
     ///
     /// Fewer than 2N/3 nodes for N primitives: a node with fewer than four
     /// children holds only leaves (it would have opened an interior child
@@ -303,35 +282,12 @@ impl Bvh {
         &self,
         origin: DVec3,
         dir: DVec3,
-        t_max: f64,
+        mut t_max: f64,
         mut intersect: impl FnMut(usize, f64) -> Option<f64>,
     ) -> Option<f64> {
-        self.closest_by_leaf(origin, dir, t_max, |leaf, mut t_max| {
-            let mut found = None;
-            for i in leaf {
-                if let Some(t) = intersect(i, t_max) {
-                    t_max = t;
-                    found = Some(t);
-                }
-            }
-            found
-        })
-    }
-
-    /// Closest-hit traversal a leaf at a time: `intersect(positions, t_max)`
-    /// tests the leaf's primitives and returns the closest hit distance below
-    /// `t_max`, if any.
-    #[inline]
-    pub fn closest_by_leaf(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        mut t_max: f64,
-        mut intersect: impl FnMut(Range<usize>, f64) -> Option<f64>,
-    ) -> Option<f64> {
         let mut found = None;
-        self.traverse(origin, dir, &mut t_max, |leaf, t_max| {
-            if let Some(t) = intersect(leaf, *t_max) {
+        self.traverse(origin, dir, &mut t_max, |i, t_max| {
+            if let Some(t) = intersect(i, *t_max) {
                 *t_max = t;
                 found = Some(t);
             }
@@ -346,38 +302,20 @@ impl Bvh {
         &self,
         origin: DVec3,
         dir: DVec3,
-        t_max: f64,
+        mut t_max: f64,
         mut intersect: impl FnMut(usize, f64) -> bool,
     ) -> bool {
-        self.any_by_leaf(origin, dir, t_max, |mut leaf, t_max| {
-            leaf.any(|i| intersect(i, t_max))
-        })
+        self.traverse(origin, dir, &mut t_max, |i, t_max| intersect(i, *t_max))
     }
 
-    /// Any-hit traversal a leaf at a time: true as soon as
-    /// `intersect(positions, t_max)` reports a hit among a leaf's primitives.
-    #[inline]
-    pub fn any_by_leaf(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        mut t_max: f64,
-        mut intersect: impl FnMut(Range<usize>, f64) -> bool,
-    ) -> bool {
-        self.traverse(origin, dir, &mut t_max, |leaf, t_max| {
-            intersect(leaf, *t_max)
-        })
-    }
-
-    /// Front-to-back traversal; `visit(leaf positions, t_max)` may shrink
-    /// `t_max` and returns true to stop.
+    /// Front-to-back traversal; `visit` may shrink `t_max` and returns true to stop.
     #[inline(always)]
     fn traverse(
         &self,
         origin: DVec3,
         dir: DVec3,
         t_max: &mut f64,
-        mut visit: impl FnMut(Range<usize>, &mut f64) -> bool,
+        mut visit: impl FnMut(usize, &mut f64) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
             return false;
@@ -397,7 +335,7 @@ impl Bvh {
         &self,
         ray: &SlabRay,
         t_max: &mut f64,
-        visit: &mut impl FnMut(Range<usize>, &mut f64) -> bool,
+        visit: &mut impl FnMut(usize, &mut f64) -> bool,
     ) -> bool {
         let mut t_max32 = round_up(*t_max);
         // Children wait with their entry distance, so a pop can drop them
@@ -411,8 +349,10 @@ impl Bvh {
                 if code & LEAF != 0 {
                     let first = (code & LEAF_FIRST_MASK) as usize;
                     let count = ((code & !LEAF) >> LEAF_COUNT_SHIFT) as usize;
-                    if visit(first..first + count, t_max) {
-                        return true;
+                    for i in first..first + count {
+                        if visit(i, t_max) {
+                            return true;
+                        }
                     }
                     t_max32 = round_up(*t_max);
                 } else {

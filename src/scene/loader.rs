@@ -16,8 +16,7 @@ use super::error::SceneError;
 use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKind};
 use super::material::Material;
 use super::mesh::{self, MeshData};
-use super::packet::LeafTriangles;
-use super::shape::{self, Geometry, Shape, Triangle};
+use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel};
 use super::{Camera, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
 
 /// Largest accepted scene file (inline triangle lists can be big).
@@ -490,11 +489,10 @@ impl GeometryBuilder {
     fn finish(self) -> Scene {
         let bounds: Vec<Aabb> = self.triangles.iter().map(Triangle::bounds).collect();
         let (triangle_bvh, order) = Bvh::build(&bounds);
-        let vertices: Vec<[DVec3; 3]> = order
+        let accel = order
             .iter()
-            .map(|&i| self.triangles[i as usize].p)
+            .map(|&i| TriangleAccel::new(&self.triangles[i as usize]))
             .collect();
-        let leaf_triangles = LeafTriangles::new(&vertices, triangle_bvh.leaves());
         let analytic: Vec<u32> = (0..self.shapes.len() as u32)
             .filter(|&i| !matches!(self.shapes[i as usize].geometry, Geometry::Mesh { .. }))
             .collect();
@@ -522,8 +520,8 @@ impl GeometryBuilder {
             shapes: self.shapes,
             triangles: self.triangles,
             vertex_normals: self.vertex_normals,
+            accel,
             accel_index: order,
-            leaf_triangles,
             triangle_bvh,
             analytic_bvh,
             analytic_shapes,

@@ -18,7 +18,6 @@ mod loader;
 mod material;
 mod mesh;
 mod mitsuba;
-mod packet;
 mod ray;
 mod read;
 mod shape;
@@ -41,8 +40,7 @@ pub use mitsuba::{MAX_WARNINGS, MitsubaOptions, Warning, Warnings};
 pub use ray::Ray;
 
 use bvh::Bvh;
-use packet::{LeafTriangles, PacketRay};
-use shape::{Geometry, Shape, Triangle};
+use shape::{Geometry, Shape, Triangle, TriangleAccel};
 
 /// Largest number of triangles a scene may hold (also bounded by
 /// [`MAX_SCENE_MEMORY_BYTES`]; see [`TRIANGLE_BYTES`]).
@@ -54,13 +52,13 @@ pub const MAX_TRIANGLES: usize = 10_000_000;
 /// 226 bytes per triangle without vertex normals.
 pub const MAX_SCENE_MEMORY_BYTES: u64 = 1 << 30;
 /// Upper bound of the bytes one triangle retains in a built scene: the
-/// world-space triangle, its BVH-order index, its f32 and f64 copies in its leaf, its
-/// entry in its shape's area CDF, vertex normals (if it has them) and two
-/// thirds of a BVH node (the 4-wide tree over N primitives has fewer than
-/// 2N/3 nodes, `bvh::Bvh::build`).
+/// world-space triangle, its intersection form, its BVH-order index, its
+/// entry in its shape's area CDF, vertex normals (if it has them) and at
+/// two thirds of a BVH node (the 4-wide tree over N primitives has fewer
+/// than 2N/3 nodes, `bvh::Bvh::build`).
 pub const TRIANGLE_BYTES: u64 = (std::mem::size_of::<Triangle>()
+    + std::mem::size_of::<TriangleAccel>()
     + std::mem::size_of::<u32>()
-    + packet::SLOT * std::mem::size_of::<f64>()
     + std::mem::size_of::<f64>()
     + std::mem::size_of::<[DVec3; 3]>()
     + (2 * bvh::NODE_BYTES).div_ceil(3)) as u64;
@@ -112,10 +110,9 @@ pub struct Scene {
     triangles: Vec<Triangle>,
     /// Per-vertex shading normals of triangles that have them.
     vertex_normals: Vec<[DVec3; 3]>,
-    /// For each position of the triangle BVH's build order: the index in
-    /// `triangles`; and leaf by leaf the triangles for the intersection tests.
+    /// Triangles in BVH order, and for each its index in `triangles`.
+    accel: Vec<TriangleAccel>,
     accel_index: Vec<u32>,
-    leaf_triangles: LeafTriangles,
     triangle_bvh: Bvh,
     /// Spheres and disks: their own small BVH over shape indices.
     analytic_bvh: Bvh,
@@ -169,27 +166,12 @@ impl Scene {
     /// Closest hit with `0 < t < ray.t_max`.
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
         let (o, d) = (ray.origin, ray.dir);
-        let packet_ray = PacketRay::new(o, d, self.triangle_bvh.extent());
         let mut tri_hit = (0usize, 0.0, 0.0);
-        let t_tri = self
-            .triangle_bvh
-            .closest_by_leaf(o, d, ray.t_max, |leaf, mut t_max| {
-                let mut found = None;
-                let masks = self.leaf_triangles.test(&leaf, &packet_ray, t_max);
-                for i in lanes(leaf.start, masks.maybe) {
-                    if let Some((t, u, v)) = shape::intersect_triangle(
-                        &self.leaf_triangles.vertices(&leaf, i),
-                        o,
-                        d,
-                        t_max,
-                    ) {
-                        tri_hit = (i, u, v);
-                        t_max = t;
-                        found = Some(t);
-                    }
-                }
-                found
-            });
+        let t_tri = self.triangle_bvh.closest(o, d, ray.t_max, |i, t_max| {
+            let (t, u, v) = self.accel[i].intersect(o, d, t_max)?;
+            tri_hit = (i, u, v);
+            Some(t)
+        });
         let mut analytic_hit = 0usize;
         let t_analytic = self
             .analytic_bvh
@@ -239,26 +221,13 @@ impl Scene {
     /// True if anything is hit with `0 < t < ray.t_max` (stops at the first).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let (o, d) = (ray.origin, ray.dir);
-        let packet_ray = PacketRay::new(o, d, self.triangle_bvh.extent());
-        self.triangle_bvh
-            .any_by_leaf(o, d, ray.t_max, |leaf, t_max| {
-                let masks = self.leaf_triangles.test(&leaf, &packet_ray, t_max);
-                masks.sure != 0
-                    || lanes(leaf.start, masks.maybe).any(|i| {
-                        shape::intersect_triangle(
-                            &self.leaf_triangles.vertices(&leaf, i),
-                            o,
-                            d,
-                            t_max,
-                        )
-                        .is_some()
-                    })
-            })
-            || self.analytic_bvh.any(o, d, ray.t_max, |i, t_max| {
-                self.shapes[self.analytic_shapes[i] as usize]
-                    .intersect_analytic(o, d, t_max)
-                    .is_some()
-            })
+        self.triangle_bvh.any(o, d, ray.t_max, |i, t_max| {
+            self.accel[i].intersect(o, d, t_max).is_some()
+        }) || self.analytic_bvh.any(o, d, ray.t_max, |i, t_max| {
+            self.shapes[self.analytic_shapes[i] as usize]
+                .intersect_analytic(o, d, t_max)
+                .is_some()
+        })
     }
 
     /// Ray leaving the surface point `position` (geometric normal `normal`,
@@ -385,25 +354,13 @@ impl Scene {
             + cdfs
             + bytes(&self.triangles)
             + bytes(&self.vertex_normals)
-            + self.leaf_triangles.heap_bytes()
+            + bytes(&self.accel)
             + bytes(&self.accel_index)
             + bytes(&self.analytic_shapes)
             + self.triangle_bvh.heap_bytes()
             + self.analytic_bvh.heap_bytes()
             + environment
     }
-}
-
-/// Positions `first + k` for the set bits `k` of `mask`, in order.
-#[inline(always)]
-fn lanes(first: usize, mut mask: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (mask != 0).then(|| {
-            let lane = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            first + lane
-        })
-    })
 }
 
 #[cfg(test)]

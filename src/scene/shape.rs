@@ -79,36 +79,47 @@ impl Triangle {
     }
 }
 
-/// Möller–Trumbore ("Fast, Minimum Storage Ray/Triangle Intersection",
-/// 1997) in f64 on the vertices `p`: `(t, u, v)` for a hit with
-/// `0 < t < t_max`. Edges are inclusive, so rays through a shared edge hit
-/// one of its triangles.
-#[inline(always)]
-pub(crate) fn intersect_triangle(
-    p: &[DVec3; 3],
-    o: DVec3,
-    d: DVec3,
-    t_max: f64,
-) -> Option<(f64, f64, f64)> {
-    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
-    let pv = d.cross(e2);
-    let det = e1.dot(pv);
-    if det == 0.0 {
-        return None;
+/// Triangle in the form the intersection test wants, stored in BVH order.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TriangleAccel {
+    pub v0: DVec3,
+    pub e1: DVec3,
+    pub e2: DVec3,
+}
+
+impl TriangleAccel {
+    pub fn new(t: &Triangle) -> Self {
+        Self {
+            v0: t.p[0],
+            e1: t.p[1] - t.p[0],
+            e2: t.p[2] - t.p[0],
+        }
     }
-    let inv = 1.0 / det;
-    let s = o - p[0];
-    let u = s.dot(pv) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
+
+    /// Möller–Trumbore ("Fast, Minimum Storage Ray/Triangle Intersection",
+    /// 1997) in f64: `(t, u, v)` for a hit with `0 < t < t_max`. Edges are
+    /// inclusive, so rays through a shared edge hit one of its triangles.
+    #[inline(always)]
+    pub fn intersect(&self, o: DVec3, d: DVec3, t_max: f64) -> Option<(f64, f64, f64)> {
+        let p = d.cross(self.e2);
+        let det = self.e1.dot(p);
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let s = o - self.v0;
+        let u = s.dot(p) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            return None;
+        }
+        let q = s.cross(self.e1);
+        let v = d.dot(q) * inv;
+        if v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        let t = self.e2.dot(q) * inv;
+        (t > 0.0 && t < t_max).then_some((t, u, v))
     }
-    let q = s.cross(e1);
-    let v = d.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let t = e2.dot(q) * inv;
-    (t > 0.0 && t < t_max).then_some((t, u, v))
 }
 
 impl Shape {
@@ -325,13 +336,16 @@ mod tests {
             primitive: 0,
             normals: u32::MAX,
         };
-        let a = |o, d, t_max| intersect_triangle(&t.p, o, d, t_max);
+        let a = TriangleAccel::new(&t);
         let o = DVec3::new(0.25, 0.5, 1.0);
-        let (d, u, v) = a(o, -DVec3::Z, 10.0).unwrap();
+        let (d, u, v) = a.intersect(o, -DVec3::Z, 10.0).unwrap();
         assert!((d - 1.0).abs() < 1e-15 && (u - 0.25).abs() < 1e-15 && (v - 0.5).abs() < 1e-15);
         assert_eq!(t.point(u, v), DVec3::new(0.25, 0.5, 0.0));
-        assert!(a(DVec3::new(0.75, 0.5, 1.0), -DVec3::Z, 10.0).is_none());
-        assert!(a(o, DVec3::Z, 10.0).is_none());
+        assert!(
+            a.intersect(DVec3::new(0.75, 0.5, 1.0), -DVec3::Z, 10.0)
+                .is_none()
+        );
+        assert!(a.intersect(o, DVec3::Z, 10.0).is_none());
         assert_eq!(t.normal(), DVec3::Z);
     }
 }

@@ -238,7 +238,11 @@ fn triangle_bvh_agrees_with_brute_force() {
         let brute_tri = scene
             .triangles
             .iter()
-            .filter_map(|t| shape::intersect_triangle(&t.p, o, d, f64::INFINITY).map(|h| h.0))
+            .filter_map(|t| {
+                TriangleAccel::new(t)
+                    .intersect(o, d, f64::INFINITY)
+                    .map(|h| h.0)
+            })
             .fold(f64::INFINITY, f64::min);
         let brute = brute_tri.min(
             scene.shapes[1]
