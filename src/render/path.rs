@@ -22,7 +22,8 @@ use super::error::RenderError;
 use super::lights::{emitted_radiance, environment_radiance};
 use super::mean::MeanEstimate;
 use super::rgb::Rgb;
-use super::strata::GridStrata;
+use super::seed::mix;
+use super::strata::{GridStrata, SharedStrata};
 pub use super::trace_stats::TraceStats;
 use super::transport::Transport;
 use crate::scene::{Ray, SurfaceHit};
@@ -234,6 +235,44 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> RadianceSample {
+        let strata = GridStrata::new(paths.max(1));
+        self.first_segment(
+            ray,
+            limits,
+            paths,
+            |j| FirstVertex::Grid(strata, j),
+            rng,
+            stats,
+        )
+    }
+
+    /// [`Self::incident_radiance`] for ray `first.index` of a group of
+    /// rays (a pixel's) whose first-vertex light and BSDF samples are
+    /// spread over the group's shared patterns (`render::strata`): each
+    /// sample stays uniform on its own, so the estimate stays unbiased, and
+    /// the group's mean gets the stratification's lower variance.
+    pub fn incident_radiance_stratified<R: Rng + ?Sized>(
+        &self,
+        ray: Ray,
+        limits: PathLimits,
+        first: SharedFirstVertex,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> RadianceSample {
+        self.first_segment(ray, limits, 1, |_| FirstVertex::Shared(first), rng, stats)
+    }
+
+    /// Traces `ray` and averages `paths` continuations from its hit, the
+    /// `j`-th drawing its first-vertex samples as `first(j)` says.
+    fn first_segment<R: Rng + ?Sized>(
+        &self,
+        ray: Ray,
+        limits: PathLimits,
+        paths: u32,
+        first: impl Fn(u32) -> FirstVertex,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> RadianceSample {
         let scene = self.scene();
         let mut sample = RadianceSample::NONE;
         // The first segment's direction came from the caller, so emission
@@ -251,14 +290,13 @@ impl Transport {
             sample.radiance = emitted_radiance(scene, &hit, ray.dir);
         }
         let paths = paths.max(1);
-        let strata = GridStrata::new(paths);
         // Given the shared hit the continuations are independent, so their
         // spread estimates the variance of their mean (an upper bound, as
         // their first light samples are stratified).
-        let continuations =
-            MeanEstimate::of((0..paths).map(|j| {
-                self.continue_path(hit, ray.dir, limits.max_depth, (strata, j), rng, stats)
-            }));
+        let continuations = MeanEstimate::of(
+            (0..paths)
+                .map(|j| self.continue_path(hit, ray.dir, limits.max_depth, first(j), rng, stats)),
+        );
         sample.radiance += continuations.mean;
         sample.variance = continuations.variance_of_mean;
         sample
@@ -266,13 +304,13 @@ impl Transport {
 
     /// Radiance of path lengths `2..=max_depth` arriving along `dir` from
     /// the first hit `hit` (its emission excluded): NEE at every vertex,
-    /// the first one's light sample drawn within cell `stratum` of `strata`.
+    /// the first one's samples drawn as `first` says.
     fn continue_path<R: Rng + ?Sized>(
         &self,
         hit: SurfaceHit,
         dir: DVec3,
         max_depth: PathDepth,
-        (strata, stratum): (GridStrata, u32),
+        first: FirstVertex,
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Rgb {
@@ -299,7 +337,7 @@ impl Transport {
             let u_select = rng.random();
             let mut u = [rng.random(), rng.random()];
             if depth == 1 {
-                u = strata.sample(stratum, u);
+                u = first.light(u);
             }
             if let Some(light) = self.lights().sample(scene, hit.position, u_select, u) {
                 let wi = frame.to_local(light.wi);
@@ -311,7 +349,12 @@ impl Transport {
             }
 
             // Continue the path by sampling the BSDF.
-            let Some(sample) = bsdf.sample(wo, rng.random(), [rng.random(), rng.random()]) else {
+            let lobe = rng.random();
+            let mut u = [rng.random(), rng.random()];
+            if depth == 1 {
+                u = first.bsdf(u);
+            }
+            let Some(sample) = bsdf.sample(wo, lobe, u) else {
                 break;
             };
             beta *= sample.value * (sample.wi.z / sample.pdf);
@@ -351,6 +394,59 @@ impl Transport {
         radiance
     }
 }
+
+/// How a path's first-vertex samples (at the hit of its first segment)
+/// are drawn from their uniform numbers.
+#[derive(Clone, Copy, Debug)]
+enum FirstVertex {
+    /// The light sample within cell `j` of a grid (the continuations of
+    /// one first segment); the BSDF sample as drawn.
+    Grid(GridStrata, u32),
+    /// Both within the cells of a group's shared patterns.
+    Shared(SharedFirstVertex),
+}
+
+impl FirstVertex {
+    fn light(&self, u: [f64; 2]) -> [f64; 2] {
+        match self {
+            FirstVertex::Grid(strata, j) => strata.sample(*j, u),
+            FirstVertex::Shared(s) => s.light.sample(s.index, u),
+        }
+    }
+
+    fn bsdf(&self, u: [f64; 2]) -> [f64; 2] {
+        match self {
+            FirstVertex::Grid(..) => u,
+            FirstVertex::Shared(s) => s.bsdf.sample(s.index, u),
+        }
+    }
+}
+
+/// Ray `index` of a group of `count` rays that spread their first-vertex
+/// light samples and BSDF samples over two shared patterns.
+#[derive(Clone, Copy, Debug)]
+pub struct SharedFirstVertex {
+    light: SharedStrata,
+    bsdf: SharedStrata,
+    index: u64,
+}
+
+impl SharedFirstVertex {
+    /// From the group's two uniform seed words (the same for all its rays);
+    /// the BSDF pattern's seeds are mixed from them, so the two patterns'
+    /// permutations and offsets are unrelated.
+    pub fn new(index: u32, count: u32, seeds: [u64; 2]) -> Self {
+        let count = u64::from(count);
+        Self {
+            light: SharedStrata::new(count, seeds),
+            bsdf: SharedStrata::new(count, seeds.map(|w| mix(w ^ BSDF_PATTERN))),
+            index: u64::from(index),
+        }
+    }
+}
+
+/// Distinguishes the BSDF pattern's seeds from the light pattern's.
+const BSDF_PATTERN: u64 = 0x5DEE_CE66_D1CE_4E5B;
 
 /// Veach's power heuristic with β = 2 for one sample from each strategy.
 pub fn power_heuristic(pdf_this: f64, pdf_other: f64) -> f64 {

@@ -33,7 +33,7 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::error::RenderError;
 use super::mean::{Evaluation, MeanEstimate};
-use super::path::{PathDepth, PathLengths, PathLimits, TraceStats};
+use super::path::{PathDepth, PathLengths, PathLimits, SharedFirstVertex, TraceStats};
 use super::seed::point_rng;
 use super::transport::Transport;
 use crate::image::Image;
@@ -181,19 +181,22 @@ impl CameraRayShader for PathTracer<'_> {
     fn radiance(
         &self,
         ray: Ray,
-        _: PixelSample,
+        sample: PixelSample,
         rng: &mut Pcg64,
         stats: &mut TraceStats,
     ) -> Evaluation {
         // The camera ray is the path's first segment, so emitters it hits
-        // count at full weight (path.rs) — they are seen directly.
+        // count at full weight (path.rs) — they are seen directly. The
+        // pixel's rays spread their first light and BSDF samples over
+        // shared patterns, as their positions over the pixel.
         let limits = PathLimits {
             max_depth: self.max_depth,
             lengths: PathLengths::All,
         };
+        let first = SharedFirstVertex::new(sample.index, sample.count, sample.pattern);
         Evaluation::of(
             self.transport
-                .incident_radiance(ray, limits, rng, stats)
+                .incident_radiance_stratified(ray, limits, first, rng, stats)
                 .radiance,
         )
     }
