@@ -495,6 +495,57 @@ mod tests {
         assert!(serde_json::from_str::<PathDepth>("0").is_err());
     }
 
+    /// Groups of 64 paths along one camera ray (to the back of the floor:
+    /// direct light and colour bleeding): with shared first-vertex patterns
+    /// the group means keep the independent paths' mean (unbiased) and
+    /// scatter clearly less (measured: 0.54 of the variance).
+    #[test]
+    fn shared_first_vertex_patterns_keep_the_mean_and_lower_the_spread() {
+        use rand::{RngExt, SeedableRng};
+        let transport = crate::testing::cornell(16);
+        let ray = transport.scene().camera.generate_ray(5.5, 12.5);
+        let limits = PathLimits {
+            max_depth: PathDepth::constant(8),
+            lengths: PathLengths::All,
+        };
+        let (groups, size) = (300, 64u32);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut stats = TraceStats::default();
+        let mut means = [Vec::new(), Vec::new()];
+        for _ in 0..groups {
+            let seeds = [rng.random(), rng.random()];
+            let (mut shared, mut independent) = (0.0, 0.0);
+            for index in 0..size {
+                let first = SharedFirstVertex::new(index, size, seeds);
+                shared += transport
+                    .incident_radiance_stratified(ray, limits, first, &mut rng, &mut stats)
+                    .radiance
+                    .luminance();
+                independent += transport
+                    .incident_radiance(ray, limits, &mut rng, &mut stats)
+                    .radiance
+                    .luminance();
+            }
+            means[0].push(shared / f64::from(size));
+            means[1].push(independent / f64::from(size));
+        }
+        let moments = |v: &[f64]| {
+            let m = v.iter().sum::<f64>() / v.len() as f64;
+            let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64;
+            (m, var)
+        };
+        let ((m_shared, v_shared), (m_indep, v_indep)) = (moments(&means[0]), moments(&means[1]));
+        let se = ((v_shared + v_indep) / f64::from(groups)).sqrt();
+        assert!(
+            (m_shared - m_indep).abs() < 4.0 * se,
+            "means {m_shared} vs {m_indep} (se {se})"
+        );
+        assert!(
+            v_shared < 0.7 * v_indep,
+            "variance of a group mean: {v_shared} shared vs {v_indep} independent"
+        );
+    }
+
     #[test]
     fn power_heuristic_weights_sum_to_one() {
         for (a, b) in [
