@@ -423,7 +423,7 @@ impl FirstVertex {
 }
 
 /// Ray `index` of a group of `count` rays that spread their first-vertex
-/// light samples and BSDF samples over two shared patterns.
+/// light samples and BSDF samples over two shared patterns (docs/math.md §16).
 #[derive(Clone, Copy, Debug)]
 pub struct SharedFirstVertex {
     light: SharedStrata,

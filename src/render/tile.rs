@@ -12,8 +12,8 @@
 //! edges inside the pixel (anti-aliasing) from `O(spp^-1/2)` towards
 //! `O(spp^-3/4)` (Mitchell 1996). Each ray also learns which of the pixel's
 //! rays it is ([`PixelSample`]), so a shader can stratify other dimensions
-//! over all of them (the irradiance cache's light samples,
-//! [`crate::render::strata::SharedStrata`]). The image stores the mean and
+//! over all of them (the irradiance cache's light samples and the path
+//! tracer's first-vertex samples, [`crate::render::strata::SharedStrata`]). The image stores the mean and
 //! the sample variance / spp, averaged over RGB (see [`Image`]): the
 //! variance of the mean for independent rays, an upper bound for
 //! stratified ones. A shader may report a variance of its own for a ray
