@@ -235,7 +235,7 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> RadianceSample {
-        let strata = GridStrata::new(paths.max(1));
+        let strata = GridStrata::new(paths);
         self.first_segment(
             ray,
             limits,
