@@ -158,6 +158,25 @@ impl SpatialIndex {
         true
     }
 
+    /// Replace record `id` in cell `key` by `record` (same position and
+    /// radius, so the same cell); whether it was there.
+    pub fn replace(&self, key: CellKey, id: u64, record: Record) -> bool {
+        let _writer = self.writer();
+        let present = self.shards[self.shard(&key)]
+            .load()
+            .get(&key)
+            .is_some_and(|c| c.iter().any(|(rid, _)| *rid == id));
+        if present {
+            self.update_cell(key, |old| {
+                let cell = old
+                    .iter()
+                    .map(|&(rid, r)| (rid, if rid == id { record } else { r }));
+                Some(cell.collect())
+            });
+        }
+        present
+    }
+
     /// Record `id` in cell `key`, if present.
     pub fn get(&self, key: CellKey, id: u64) -> Option<Record> {
         self.shards[self.shard(&key)]

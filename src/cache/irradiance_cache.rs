@@ -153,6 +153,13 @@ pub struct CacheStats {
     pub misses: u64,
 }
 
+/// Where [`IrradianceCache::insert_awaiting_values`] put a record.
+#[derive(Clone, Copy, Debug)]
+pub struct RecordSlot {
+    id: u64,
+    key: CellKey,
+}
+
 #[derive(Debug, Default)]
 struct Ledger {
     order: VecDeque<(u64, CellKey)>,
@@ -210,7 +217,41 @@ impl IrradianceCache {
     /// Insert a record (radius clamped to the limits and, if configured, by
     /// the neighbour clamp), evicting the oldest records beyond the byte
     /// budget. Returns the record as stored.
-    pub fn insert(&self, mut record: Record) -> Result<Record, CacheError> {
+    pub fn insert(&self, record: Record) -> Result<Record, CacheError> {
+        self.insert_slot(record).map(|(_, stored)| stored)
+    }
+
+    /// [`Self::insert`] of a record whose values (irradiance, variance,
+    /// gradients) are not known yet; [`Self::fill_values`] sets them later.
+    /// Everything insertion decides (radius, neighbour clamp, eviction)
+    /// depends on position, normal and radius only, so inserting first and
+    /// filling later leaves the cache as inserting the finished record
+    /// would. Until then lookups see the record with the values it was
+    /// given: only for a cache no one else reads, whose caller asks only
+    /// whether a point is covered (the placement pass).
+    pub fn insert_awaiting_values(&self, record: Record) -> Result<RecordSlot, CacheError> {
+        self.insert_slot(record).map(|(slot, _)| slot)
+    }
+
+    /// Sets the values of the record inserted at `slot` from `values` (its
+    /// position, normal and radius are kept); `Ok(false)` if it was evicted
+    /// meanwhile.
+    pub fn fill_values(&self, slot: RecordSlot, values: &Record) -> Result<bool, CacheError> {
+        values.validate()?;
+        let Some(stored) = self.index.get(slot.key, slot.id) else {
+            return Ok(false);
+        };
+        let filled = Record {
+            irradiance: values.irradiance,
+            variance: values.variance,
+            rotation_gradient: values.rotation_gradient,
+            translation_gradient: values.translation_gradient,
+            ..stored
+        };
+        Ok(self.index.replace(slot.key, slot.id, filled))
+    }
+
+    fn insert_slot(&self, mut record: Record) -> Result<(RecordSlot, Record), CacheError> {
         record.validate()?;
         record.radius = self.limits.clamp(record.radius);
         if self.config.neighbour_clamp {
@@ -236,7 +277,7 @@ impl IrradianceCache {
             self.index.remove(key, old);
             ledger.evictions += 1;
         }
-        Ok(record)
+        Ok((RecordSlot { id, key }, record))
     }
 
     /// Interpolated irradiance at `point`, or `None` (a miss) when no record

@@ -30,7 +30,7 @@ mod records_prior;
 
 pub use error::CacheError;
 pub use irradiance_cache::{
-    Accuracy, CacheConfig, CacheStats, Interpolated, IrradianceCache, RECORD_BYTES,
+    Accuracy, CacheConfig, CacheStats, Interpolated, IrradianceCache, RECORD_BYTES, RecordSlot,
 };
 pub use record::{PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
 pub use record_rule::{RecordEstimate, RecordRule, RecordRuleSpec};

@@ -154,6 +154,28 @@ impl Record {
         record.validate().ok().map(|()| record)
     }
 
+    /// Validity radius of a record whose rays hit at `distances`: their
+    /// harmonic mean distance clamped to `limits` (`limits.max` if no ray hit
+    /// anything).
+    pub fn radius_from(distances: &[f64], limits: RadiusLimits) -> f64 {
+        limits.clamp(harmonic_mean_distance(distances).unwrap_or(limits.max))
+    }
+
+    /// The record [`Self::from_estimate`] would make at `point`, with zero
+    /// irradiance, variance and gradients until its estimate is known
+    /// (`IrradianceCache::insert_awaiting_values`).
+    pub fn awaiting_values(point: &QueryPoint, distances: &[f64], limits: RadiusLimits) -> Record {
+        Record {
+            position: point.position(),
+            normal: point.normal(),
+            irradiance: Rgb::BLACK,
+            variance: Rgb::BLACK,
+            radius: Self::radius_from(distances, limits),
+            rotation_gradient: [DVec3::ZERO; 3],
+            translation_gradient: [DVec3::ZERO; 3],
+        }
+    }
+
     /// Record at `point` from a BMC estimate made in `frame` (the frame the
     /// rays were cast in: the point's normal, possibly turned about it).
     ///
@@ -171,7 +193,7 @@ impl Record {
         distances: &[f64],
         limits: RadiusLimits,
     ) -> Record {
-        let radius = limits.clamp(harmonic_mean_distance(distances).unwrap_or(limits.max));
+        let radius = Self::radius_from(distances, limits);
         let world = |g: &[Rgb; 2]| -> [DVec3; 3] {
             let (x, y) = (g[0].to_array(), g[1].to_array());
             [0, 1, 2].map(|c| frame.s * x[c] + frame.t * y[c])

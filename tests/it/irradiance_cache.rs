@@ -8,11 +8,12 @@ use std::sync::Arc;
 
 use bmc_irradiance::bmc::{Kernel, KernelKind, PriorMean};
 use bmc_irradiance::cache::{
-    Accuracy, CacheConfig, Interpolated, IrradianceCache, Record, RecordRule, RecordRuleSpec,
+    Accuracy, CacheConfig, Interpolated, IrradianceCache, RECORD_BYTES, Record, RecordRule,
+    RecordRuleSpec,
 };
 use bmc_irradiance::integrator::cached::{
-    Gather, PlacementOptions, PlacementPoint, RecordGather, ShadingStats, compute_record, lookup,
-    place_and_shade, place_records,
+    Gather, PlacementCache, PlacementOptions, PlacementPoint, RecordGather, ShadingStats,
+    compute_record, lookup, place_and_shade, place_records,
 };
 use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::MeanEstimate;
@@ -117,7 +118,7 @@ fn two_pass_placement_is_bit_identical_across_thread_counts_and_history() {
     let shared = IrradianceCache::new(config()).unwrap();
     with_threads(2, || {
         place_records(
-            &shared,
+            PlacementCache::Shared(&shared),
             &transport,
             &rule,
             &back_wall(5),
@@ -139,6 +140,55 @@ fn two_pass_placement_is_bit_identical_across_thread_counts_and_history() {
     // A different seed gives different values.
     let (other, _, _) = place_and_shade(&transport, &rule, config(), &points, &options(8)).unwrap();
     assert_ne!(bits(&one), bits(&other));
+}
+
+/// A pass over a cache only it reads inserts records before their
+/// estimates and fills them in batches; the cache must end as if each record
+/// had gone in finished: same records, radii (neighbour clamp) and
+/// evictions, bit for bit, with several held-back batches in one pass.
+#[test]
+fn held_back_estimates_leave_the_cache_as_finished_inserts() {
+    let transport = cornell();
+    let rule = rule(32);
+    let points = back_wall(20);
+    let place = |config: CacheConfig, private: bool| {
+        let cache = IrradianceCache::new(config).unwrap();
+        let into = if private {
+            PlacementCache::Private(&cache)
+        } else {
+            PlacementCache::Shared(&cache)
+        };
+        let report = with_threads(1, || {
+            place_records(
+                into,
+                &transport,
+                &rule,
+                &points,
+                &options(5),
+                Gather::Paths,
+                &Cancel::never(),
+            )
+            .unwrap()
+        });
+        (cache.records(), report, cache.stats().evictions)
+    };
+    let tight = CacheConfig {
+        byte_budget: 40 * RECORD_BYTES,
+        ..config()
+    };
+    for config in [config(), tight] {
+        let (held, held_report, held_evictions) = place(config, true);
+        let (finished, report, evictions) = place(config, false);
+        assert_eq!(held, finished);
+        assert_eq!(held_report, report);
+        assert_eq!(held_evictions, evictions);
+        // More than one held-back batch of 32 (one thread), values filled in.
+        assert!(report.records_created > 64, "{report:?}");
+        assert!(
+            held.iter()
+                .all(|r| r.irradiance.to_array().iter().all(|&e| e > 0.0))
+        );
+    }
 }
 
 #[test]

@@ -34,7 +34,7 @@ pub use config::{
     MAX_LIGHT_SAMPLES, PlacementOptions, RecordsKey, default_rule_spec, indirect_paths,
 };
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
-pub use placement::{PlacementReport, place_and_shade, place_records, shade};
+pub use placement::{PlacementCache, PlacementReport, place_and_shade, place_records, shade};
 pub use radiance::{
     RadianceEstimate, RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points,
     surface_at,

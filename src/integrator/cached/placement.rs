@@ -18,6 +18,19 @@
 //! batch size trades parallelism against duplicate records for nearby points
 //! of one batch.
 //!
+//! # Estimates in batches
+//! A record's BMC estimate reads the rule's `N × N` tables (24 MB at
+//! N = 1024), so estimating records together, one solve for all of their
+//! columns, costs far less per record than one at a time. A pass over a
+//! cache no one else reads ([`PlacementCache::Private`]), gathering by paths
+//! and with no variance target, inserts each record as soon as its rays are
+//! gathered, with its values still unknown, and estimates up to
+//! [`HELD_BACK`] of them at once later: where records go, their radii and
+//! evictions depend only on positions, normals and radii, and the pass only
+//! asks whether a point is covered, so the cache ends exactly as with
+//! finished inserts. Otherwise each batch of points estimates its own
+//! records.
+//!
 //! # Light leaks
 //! With `occlusion_check`, a record is only used if a shadow ray between the
 //! point and the record, both lifted off their surfaces by `10⁻³ R_k` along
@@ -29,10 +42,14 @@ use rayon::prelude::*;
 
 use super::config::PlacementOptions;
 use super::shade::{
-    Gather, GatheredRecord, PlacementPoint, RecordGather, finish_records, gather_record, lookup,
+    Gather, GatheredRecord, PlacementPoint, RecordGather, awaiting_record, finish_records,
+    gather_record, lookup,
 };
 use super::stats::ShadingStats;
-use crate::cache::{CacheConfig, CacheError, Interpolated, IrradianceCache, Record, RecordRule};
+use crate::cache::{
+    CacheConfig, CacheError, Interpolated, IrradianceCache, RadiusLimits, Record, RecordRule,
+    RecordSlot,
+};
 use crate::render::seed::point_rng;
 use crate::render::{Cancel, QueryPoint, Transport};
 
@@ -47,6 +64,16 @@ pub struct PlacementReport {
     pub records_for_variance: u64,
     /// Rays traced for records.
     pub rays: u64,
+}
+
+impl PlacementReport {
+    /// Counts one record placed at a point with `stats` from its gathering.
+    fn count(&mut self, stats: &ShadingStats, for_variance: bool) {
+        self.records_created += 1 + stats.records_created;
+        self.ambient_records += stats.ambient_records;
+        self.records_for_variance += u64::from(for_variance);
+        self.rays += stats.rays;
+    }
 }
 
 /// Whether the variance target asks for another record here.
@@ -80,12 +107,31 @@ fn validate(options: &PlacementOptions) -> Result<(), CacheError> {
     Ok(())
 }
 
+/// The cache a placement pass fills, by who reads it meanwhile.
+#[derive(Clone, Copy)]
+pub enum PlacementCache<'a> {
+    /// Read by the pass only (a private cache, dropped if the pass fails).
+    Private(&'a IrradianceCache),
+    /// Read by other requests too: every record goes in finished.
+    Shared(&'a IrradianceCache),
+}
+
+/// Records whose estimates a pass may hold back (module docs, "Estimates in
+/// batches"), estimated in batches of [`HELD_BATCH`], in parallel.
+const HELD_BACK: usize = 128;
+/// Records estimated together once held back: from about 32 on, a record's
+/// estimate costs a third of one made alone (docs/BENCHMARKS.md). A fixed
+/// number, not a share per thread, so which records share a batch (and with
+/// it the last bits of faer's blocked solves) does not depend on the thread
+/// count.
+const HELD_BATCH: usize = 32;
+
 /// Placement pass (module docs): records where the cache has no value (or,
 /// with a target, too uncertain a value) at each point, in point order,
 /// their rays gathered as `gather` says. Only a read-only `gather` (paths, or
 /// the cache without nested insertion) keeps the pass deterministic.
 pub fn place_records(
-    cache: &IrradianceCache,
+    into: PlacementCache,
     transport: &Transport,
     rule: &RecordRule,
     points: &[PlacementPoint],
@@ -94,13 +140,22 @@ pub fn place_records(
     cancel: &Cancel,
 ) -> Result<PlacementReport, CacheError> {
     validate(options)?;
+    let (cache, private) = match into {
+        PlacementCache::Private(cache) => (cache, true),
+        PlacementCache::Shared(cache) => (cache, false),
+    };
     let limits = cache.radius_limits();
+    // Held-back estimates are invisible only to a pass that asks whether a
+    // point is covered, never for a value (module docs).
+    let hold_back =
+        private && matches!(gather, Gather::Paths) && options.relative_error_target.is_none();
     let how = RecordGather {
         paths: options.paths,
         per_direction: options.paths_per_direction,
         gather,
     };
     let mut report = PlacementReport::default();
+    let mut awaiting = Vec::new();
     for (b, batch) in points.chunks(options.batch_size).enumerate() {
         cancel.check()?;
         let first = b * options.batch_size;
@@ -130,22 +185,56 @@ pub fn place_records(
             .into_iter()
             .unzip();
         cancel.check()?;
-        // Estimated in one batch per thread: each batch reads the rule's
-        // tables from memory once (`RecordRule::estimate_batch`).
-        let per_thread = gathered.len().div_ceil(rayon::current_num_threads()).max(1);
-        let records: Vec<Result<Record, CacheError>> = gathered
-            .par_chunks(per_thread)
-            .flat_map_iter(|chunk| finish_records(rule, chunk, limits))
-            .collect();
-        for ((record, stats), &(_, for_variance)) in records.into_iter().zip(stats).zip(&wanted) {
-            cache.insert(record?)?;
-            report.records_created += 1 + stats.records_created;
-            report.ambient_records += stats.ambient_records;
-            report.records_for_variance += u64::from(for_variance);
-            report.rays += stats.rays;
+        for (stats, &(_, for_variance)) in stats.iter().zip(&wanted) {
+            report.count(stats, for_variance);
+        }
+        if hold_back {
+            for gathered in gathered {
+                let slot = cache.insert_awaiting_values(awaiting_record(&gathered, limits))?;
+                awaiting.push((slot, gathered));
+            }
+            if awaiting.len() >= HELD_BACK {
+                fill_awaiting(cache, rule, &mut awaiting, limits)?;
+            }
+        } else {
+            let per_thread = gathered.len().div_ceil(rayon::current_num_threads());
+            for record in estimate_records(rule, &gathered, limits, per_thread) {
+                cache.insert(record?)?;
+            }
         }
     }
+    fill_awaiting(cache, rule, &mut awaiting, limits)?;
     Ok(report)
+}
+
+/// Records estimated from gathered rays, in order, in batches of `batch`
+/// in parallel: each batch reads the rule's tables from memory once
+/// (`RecordRule::estimate_batch`).
+fn estimate_records(
+    rule: &RecordRule,
+    gathered: &[(&PlacementPoint, GatheredRecord)],
+    limits: RadiusLimits,
+    batch: usize,
+) -> Vec<Result<Record, CacheError>> {
+    gathered
+        .par_chunks(batch.max(1))
+        .flat_map_iter(|chunk| finish_records(rule, chunk, limits))
+        .collect()
+}
+
+/// Estimates the records inserted awaiting their values and fills them in.
+fn fill_awaiting(
+    cache: &IrradianceCache,
+    rule: &RecordRule,
+    awaiting: &mut Vec<(RecordSlot, (&PlacementPoint, GatheredRecord))>,
+    limits: RadiusLimits,
+) -> Result<(), CacheError> {
+    let (slots, gathered): (Vec<RecordSlot>, Vec<_>) = awaiting.drain(..).unzip();
+    let records = estimate_records(rule, &gathered, limits, HELD_BATCH);
+    for (slot, record) in slots.into_iter().zip(records) {
+        cache.fill_values(slot, &record?)?;
+    }
+    Ok(())
 }
 
 /// Shading pass: read-only lookups, in parallel, results in point order.
@@ -174,7 +263,7 @@ pub fn place_and_shade(
 ) -> Result<(Vec<Option<Interpolated>>, IrradianceCache, PlacementReport), CacheError> {
     let cache = IrradianceCache::new(config)?;
     let report = place_records(
-        &cache,
+        PlacementCache::Private(&cache),
         transport,
         rule,
         points,

@@ -635,6 +635,13 @@ pub struct GatheredRecord {
     samples: Vec<RadianceSample>,
 }
 
+impl GatheredRecord {
+    /// Distance to the first hit along each direction (∞ where none).
+    fn distances(&self) -> Vec<f64> {
+        self.samples.iter().map(|s| s.distance).collect()
+    }
+}
+
 /// The rays of [`compute_record`]: the frame turned by a random angle from
 /// `rng`, then the samples.
 pub fn gather_record<R: Rng + ?Sized>(
@@ -665,21 +672,37 @@ pub fn finish_records(
         .iter()
         .zip(estimates)
         .map(|((target, g), estimate)| {
-            let estimate = estimate?;
-            let distances: Vec<f64> = g.samples.iter().map(|s| s.distance).collect();
-            let limits = match &target.footprint {
-                Some(fp) => limits.with_footprint(fp),
-                None => limits,
-            };
             Ok(Record::from_estimate(
                 &target.point,
                 &g.frame,
-                &estimate,
-                &distances,
-                limits,
+                &estimate?,
+                &g.distances(),
+                record_limits(target, limits),
             ))
         })
         .collect()
+}
+
+/// The record [`finish_records`] will make from `gathered`, its values
+/// still zero (`Record::awaiting_values`).
+pub fn awaiting_record(
+    (target, gathered): &(&PlacementPoint, GatheredRecord),
+    limits: RadiusLimits,
+) -> Record {
+    Record::awaiting_values(
+        &target.point,
+        &gathered.distances(),
+        record_limits(target, limits),
+    )
+}
+
+/// The radius limits of a record at `target`: `limits` narrowed by the
+/// pixel footprint where there is one.
+fn record_limits(target: &PlacementPoint, limits: RadiusLimits) -> RadiusLimits {
+    match &target.footprint {
+        Some(fp) => limits.with_footprint(fp),
+        None => limits,
+    }
 }
 
 /// Cache lookup with the options' accuracy and optional occlusion test.

@@ -29,7 +29,7 @@ use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
 use super::config::indirect_paths;
-use super::placement::{PlacementReport, place_records};
+use super::placement::{PlacementCache, PlacementReport, place_records};
 use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
@@ -154,7 +154,8 @@ impl CachedIntegrator<'_> {
         cancel: &Cancel,
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
         if !self.shading.options.reproducible {
-            let mut report = self.place_tile_records(request, cancel)?;
+            let mut report =
+                self.place_tile_records(request, |c| PlacementCache::Shared(c), cancel)?;
             let (tile, shading) = self.shade_tile(request, cancel)?;
             report.shading = shading;
             return Ok((add_placement_rays(tile, &report), report));
@@ -182,7 +183,8 @@ impl CachedIntegrator<'_> {
             cache: &private,
             ..*self
         };
-        let report = integrator.place_tile_records(request, cancel)?;
+        let report =
+            integrator.place_tile_records(request, |c| PlacementCache::Private(c), cancel)?;
         Ok((private.records(), report))
     }
 
@@ -227,10 +229,12 @@ impl CachedIntegrator<'_> {
         Ok(IrradianceCache::new(*self.cache.config())?)
     }
 
-    /// The placement pass (module docs) into this integrator's cache.
+    /// The placement pass (module docs) into this integrator's cache, with
+    /// `readers` saying who reads it meanwhile.
     fn place_tile_records(
         &self,
         request: &TileRequest,
+        readers: fn(&IrradianceCache) -> PlacementCache<'_>,
         cancel: &Cancel,
     ) -> Result<CachedTileReport, RenderError> {
         let (transport, shading) = (self.transport, self.shading);
@@ -256,7 +260,7 @@ impl CachedIntegrator<'_> {
         let reproducible = shading.options.reproducible;
         let gather = Gather::for_record(*self, options.paths, 0, !reproducible);
         report.placement = place_records(
-            self.cache,
+            readers(self.cache),
             transport,
             &shading.rule,
             &points,
