@@ -108,6 +108,7 @@ fn record_batches(c: &mut Criterion) {
                     ]),
                     distance: 1.0 + ((i * 3 + r) % 11) as f64 * 0.2,
                     variance: Rgb::from_array([0.01; 3]),
+                    direct: Rgb::BLACK,
                 })
                 .collect()
         })

@@ -112,7 +112,7 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 #   by marginal likelihood, listed under "fitted_kernels" by GET /v1/scenes/{id}); with
 #   "auto" and no "kind", the family (squared_exponential | matern32 | matern52) is
 #   selected by marginal likelihood too, and the response's "kernel" names it.
-#   "records_prior": true (qmc, bmc; split) combines each point's indirect part with the
+#   "records_prior": true (qmc, bmc) combines each point's indirect part with the
 #   irradiance cache's records where rendered tiles left some (§10.7); the response counts
 #   the points they covered in "records_prior_points".
 

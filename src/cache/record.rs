@@ -382,6 +382,7 @@ mod tests {
                 radiance: Rgb::splat(a + b.dot(frame.to_world(*d))),
                 distance: f64::INFINITY,
                 variance: Rgb::BLACK,
+                direct: Rgb::BLACK,
             })
             .collect();
         let estimate = rule.estimate(&samples).unwrap();

@@ -687,6 +687,7 @@ mod tests {
                     ),
                     distance: 1.0 + (d.x + phase).abs(),
                     variance: Rgb::splat(1e-3 * phase),
+                    direct: Rgb::BLACK,
                 })
                 .collect()
         };
@@ -749,6 +750,7 @@ mod tests {
                 radiance: field(d),
                 distance: 2.0,
                 variance: Rgb::BLACK,
+                direct: Rgb::BLACK,
             })
             .collect();
         let smooth = r.estimate(&samples).unwrap();
@@ -817,6 +819,7 @@ mod tests {
                 radiance: Rgb::new(a + b.dot(*d), a, 0.0),
                 distance: f64::INFINITY,
                 variance: Rgb::BLACK,
+                direct: Rgb::BLACK,
             })
             .collect();
         let e = r.estimate(&samples).unwrap();
@@ -868,6 +871,7 @@ mod tests {
                     radiance: Rgb::splat(*v),
                     distance: y.length(),
                     variance: Rgb::BLACK,
+                    direct: Rgb::BLACK,
                 })
                 .collect();
             // The exact derivative moves each sample with its own 1/r.
@@ -922,12 +926,14 @@ mod tests {
                         radiance: Rgb::BLACK,
                         distance: to_occluder,
                         variance: Rgb::BLACK,
+                        direct: Rgb::BLACK,
                     }
                 } else {
                     RadianceSample {
                         radiance: Rgb::WHITE,
                         distance: 3.0 / d.z,
                         variance: Rgb::BLACK,
+                        direct: Rgb::BLACK,
                     }
                 }
             })
@@ -960,6 +966,7 @@ mod tests {
                 radiance: Rgb::new(1.0 + d.x, 2.0, 0.5 + d.z),
                 distance: 1.0,
                 variance: Rgb::BLACK,
+                direct: Rgb::BLACK,
             })
             .collect();
         let noisy: Vec<RadianceSample> = exact
@@ -967,6 +974,7 @@ mod tests {
             .enumerate()
             .map(|(i, s)| RadianceSample {
                 variance: Rgb::new(0.01 * i as f64, 0.0, 0.5),
+                direct: Rgb::BLACK,
                 ..*s
             })
             .collect();
@@ -996,6 +1004,7 @@ mod tests {
                 radiance: Rgb::splat(f64::NAN),
                 distance: 1.0,
                 variance: Rgb::BLACK,
+                direct: Rgb::BLACK,
             };
             8
         ];

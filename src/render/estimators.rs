@@ -144,7 +144,7 @@ pub struct EstimatorSpec {
     /// Calibrate the error bars on the scene (docs/math.md §10.5); default
     /// true.
     pub calibrate: Option<bool>,
-    /// `qmc` and `bmc`, split decomposition: combine the indirect part with
+    /// `qmc` and `bmc`, either decomposition: combine the indirect part with
     /// the irradiance cache's records where they cover the point
     /// (docs/math.md §10.7; [`EstimatorCaches::records`]).
     pub records_prior: bool,

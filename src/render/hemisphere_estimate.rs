@@ -19,8 +19,11 @@
 //! deviation is the square root of the estimator's variance: for BMC the
 //! GP posterior variance with the amplitude fitted per point and channel
 //! (the caller chooses, see [`crate::bmc::estimator::BmcVariance`]), for
-//! MC/QMC the sample variance of the mean. In split mode the estimate also
-//! reports its indirect part, for a prior on it (docs/math.md §10.7).
+//! MC/QMC the sample variance of the mean. Where paths reflect, the estimate
+//! also reports its indirect part (paths of 2 or more segments), for a prior
+//! on it (docs/math.md §10.7): in split mode the hemisphere rule's whole
+//! estimate, under the hemisphere decomposition the rule over each value
+//! less the emission its direction sees directly.
 
 use std::f64::consts::TAU;
 
@@ -30,7 +33,7 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::environment_prior::{EnvironmentPrior, PriorChoice};
 use super::error::RenderError;
-use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
+use super::irradiance::{Decomposition, IndirectPart, IrradianceEstimate, IrradianceOptions};
 use super::path::{PathLengths, PathLimits, TraceStats};
 use super::query::QueryPoint;
 use super::rgb::Rgb;
@@ -109,6 +112,7 @@ impl Transport {
             Decomposition::Split => depth.has_reflections().then_some(PathLengths::Indirect),
         };
         let (mut irradiance, mut variance) = (Rgb::BLACK, Rgb::BLACK);
+        let mut indirect = None;
         if let Some(lengths) = lengths {
             let directions = estimator.directions(&mut rng);
             let limits = PathLimits {
@@ -166,10 +170,35 @@ impl Transport {
             }
             irradiance = Rgb::from_array(value);
             variance = Rgb::from_array(var);
+            // Only paths that reflect have an indirect part (at depth 1 it
+            // is zero by definition, and no prior may move it).
+            indirect = match lengths {
+                PathLengths::Indirect => Some(IndirectPart::whole(irradiance)),
+                PathLengths::All if depth.has_reflections() => {
+                    // The same rule over each value less the emission its
+                    // direction sees directly (docs/math.md §10.7), and the
+                    // share of the variance that is the part's.
+                    let mut part = [0.0; 3];
+                    let mut share = [1.0; 3];
+                    for c in 0..3 {
+                        let channel: Vec<f64> = samples
+                            .iter()
+                            .map(|s| s.radiance.to_array()[c] - s.direct.to_array()[c])
+                            .collect();
+                        let e = irradiance_from_lambert(estimate(&channel)?);
+                        part[c] = e.value;
+                        if var[c] > 0.0 {
+                            share[c] = (e.variance / var[c]).clamp(0.0, 1.0);
+                        }
+                    }
+                    Some(IndirectPart {
+                        irradiance: Rgb::from_array(part),
+                        variance_share: Rgb::from_array(share),
+                    })
+                }
+                PathLengths::All => None,
+            };
         }
-        // Only paths that reflect have an indirect part (at depth 1 it is
-        // zero by definition, and no prior may move it).
-        let indirect = (lengths == Some(PathLengths::Indirect)).then_some(irradiance);
         if decomposition == Decomposition::Split {
             let direct = self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
             irradiance += direct.mean;
@@ -291,6 +320,48 @@ mod tests {
             bmc_sq < mc_sq,
             "BMC {bmc_sq} vs MC {mc_sq} (sums of squared errors)"
         );
+    }
+
+    /// Under the hemisphere decomposition the indirect part is the rule over
+    /// the values less what each direction sees directly: the whole less the
+    /// part is then the depth-1 estimate on the same directions (the light
+    /// is seen directly from the wall), and there is no part at depth 1.
+    #[test]
+    fn the_hemisphere_indirect_part_is_the_whole_less_the_direct_light() {
+        let transport = cornell(8);
+        let point = [wall_point()];
+        let estimator = bmc(64, 0.5);
+        let run = |max_depth: u32| {
+            let options = IrradianceOptions {
+                max_depth: crate::render::PathDepth::constant(max_depth),
+                method: IrradianceMethod::Hemisphere,
+                ..options(1, 17)
+            };
+            transport
+                .irradiance_with_estimator(
+                    &point,
+                    &estimator,
+                    PriorChoice::None,
+                    &options,
+                    &|| {},
+                    &Cancel::never(),
+                )
+                .unwrap()[0]
+        };
+        let (whole, direct) = (run(8), run(1));
+        assert_eq!(direct.indirect, None);
+        let part = whole.indirect.expect("an indirect part at depth 8");
+        for c in 0..3 {
+            let (w, p, d) = (
+                whole.irradiance.to_array()[c],
+                part.irradiance.to_array()[c],
+                direct.irradiance.to_array()[c],
+            );
+            assert!(d > 0.0 && p > 0.0, "direct {d}, indirect {p}");
+            assert!((w - p - d).abs() <= 1e-12 * w, "{w} − {p} vs {d}");
+            let share = part.variance_share.to_array()[c];
+            assert!((0.0..=1.0).contains(&share), "share {share}");
+        }
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! A Gaussian prior on the hemisphere part of a split estimate, and its
+//! A Gaussian prior on the indirect part of a point's estimate, and its
 //! combination with a rule's estimate (docs/math.md §10.7).
 //!
 //! The rule's estimate `Ĥ` with variance `s²` is read as the likelihood of
@@ -8,7 +8,7 @@
 //! As samples grow, `s² → 0` and the posterior mean tends to `Ĥ`: the prior
 //! moves a finite-sample estimate, never the limit.
 
-use super::irradiance::IrradianceEstimate;
+use super::irradiance::{IndirectPart, IrradianceEstimate};
 use super::query::QueryPoint;
 use super::rgb::Rgb;
 
@@ -44,21 +44,30 @@ pub fn combine(estimate: (Rgb, Rgb), prior: (Rgb, Rgb)) -> (Rgb, Rgb) {
 }
 
 /// `estimate` under `prior`, a prior on its indirect part (`None`: left as
-/// it is): the part is combined by [`combine`] with the estimate's whole
-/// variance as its own, and the total moves by what the part moved. The
-/// whole error goes to the part because a calibrated variance (§10.5) is
-/// fitted on the total, not on its parts; the direct part's own share is
-/// small (it is light-sampled), so the prior weighs a little less than it
-/// could.
+/// it is): the part is combined by [`combine`] with its share of the
+/// estimate's variance ([`IndirectPart::variance_share`]), the total moves
+/// by what the part moved, and the rest of the variance stays beside the
+/// part's posterior variance. The share is of the estimate's variance as
+/// stated (calibrated, §10.5, by default), since calibration is fitted on
+/// the total, not on its parts.
 pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
     let Some(part) = estimate.indirect else {
         return;
     };
     let variance = estimate.std_error * estimate.std_error;
-    let (posterior, posterior_variance) = combine((part, variance), prior);
-    estimate.irradiance += posterior - part;
-    estimate.std_error = posterior_variance.map(f64::sqrt);
-    estimate.indirect = Some(posterior);
+    let part_variance = variance * part.variance_share;
+    let rest = (variance - part_variance).map(|v| v.max(0.0));
+    let (posterior, posterior_variance) = combine((part.irradiance, part_variance), prior);
+    estimate.irradiance += posterior - part.irradiance;
+    let total = posterior_variance + rest;
+    estimate.std_error = total.map(f64::sqrt);
+    estimate.indirect = Some(IndirectPart {
+        irradiance: posterior,
+        variance_share: Rgb::from_array(std::array::from_fn(|c| {
+            let (p, t) = (posterior_variance.to_array()[c], total.to_array()[c]);
+            if t > 0.0 { p / t } else { 1.0 }
+        })),
+    });
 }
 
 #[cfg(test)]
@@ -89,21 +98,45 @@ mod tests {
             irradiance: Rgb::splat(5.0),
             std_error: Rgb::splat(1.0),
             rays: 7,
-            indirect: Some(Rgb::splat(2.0)),
+            indirect: Some(IndirectPart::whole(Rgb::splat(2.0))),
         };
         combine_part(&mut estimate, (Rgb::splat(4.0), Rgb::splat(1.0)));
         // Part: (2 + 4)/2 = 3 with variance ½; the direct 3 is kept.
         assert_eq!(estimate.irradiance, Rgb::splat(6.0));
-        assert_eq!(estimate.indirect, Some(Rgb::splat(3.0)));
+        assert_eq!(
+            estimate.indirect,
+            Some(IndirectPart::whole(Rgb::splat(3.0)))
+        );
         assert!((estimate.std_error.r - 0.5f64.sqrt()).abs() < 1e-15);
         assert_eq!(estimate.rays, 7);
-        // Without a split part there is nothing to combine.
-        let mut hemisphere = IrradianceEstimate {
+        // Without an indirect part there is nothing to combine.
+        let mut direct_only = IrradianceEstimate {
             indirect: None,
             ..estimate
         };
-        combine_part(&mut hemisphere, (Rgb::splat(100.0), Rgb::splat(1.0)));
-        assert_eq!(hemisphere.irradiance, Rgb::splat(6.0));
+        combine_part(&mut direct_only, (Rgb::splat(100.0), Rgb::splat(1.0)));
+        assert_eq!(direct_only.irradiance, Rgb::splat(6.0));
+    }
+
+    #[test]
+    fn the_part_weighs_its_share_of_the_variance_and_keeps_the_rest() {
+        let mut estimate = IrradianceEstimate {
+            irradiance: Rgb::splat(5.0),
+            std_error: Rgb::splat(2.0),
+            rays: 7,
+            indirect: Some(IndirectPart {
+                irradiance: Rgb::splat(2.0),
+                variance_share: Rgb::splat(0.25),
+            }),
+        };
+        combine_part(&mut estimate, (Rgb::splat(4.0), Rgb::splat(1.0)));
+        // The part's variance is ¼ · 4 = 1: the midpoint 3 with variance ½,
+        // beside the other 3 of the whole's 4.
+        assert_eq!(estimate.irradiance, Rgb::splat(6.0));
+        assert!((estimate.std_error.g - 3.5f64.sqrt()).abs() < 1e-15);
+        let part = estimate.indirect.unwrap();
+        assert_eq!(part.irradiance, Rgb::splat(3.0));
+        assert!((part.variance_share.b - 0.5 / 3.5).abs() < 1e-15);
     }
 
     #[test]

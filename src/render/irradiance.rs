@@ -180,10 +180,33 @@ pub struct IrradianceEstimate {
     pub std_error: Rgb,
     /// Rays traced for this point (closest-hit and shadow).
     pub rays: u64,
-    /// Split decomposition through a hemisphere rule: the rule's indirect
-    /// part of `irradiance` (the part a prior on the integral concerns,
-    /// docs/math.md §10.7); `None` otherwise.
-    pub indirect: Option<Rgb>,
+    /// The indirect part of `irradiance` (paths of 2 or more segments), the
+    /// part a prior on the integral concerns (docs/math.md §10.7), where a
+    /// hemisphere rule estimated it; `None` otherwise.
+    pub indirect: Option<IndirectPart>,
+}
+
+/// The indirect part of an [`IrradianceEstimate`] (docs/math.md §10.7).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IndirectPart {
+    /// Indirect irradiance, W/m².
+    pub irradiance: Rgb,
+    /// The share of the estimate's variance that is the part's, per channel,
+    /// in `[0, 1]`: 1 in split mode (the light-sampled direct part's share is
+    /// small and its variance is estimated apart), the rule's own variance
+    /// of the part over that of the whole under the hemisphere
+    /// decomposition, where the direct part is most of it.
+    pub variance_share: Rgb,
+}
+
+impl IndirectPart {
+    /// A part that carries the estimate's whole variance.
+    pub fn whole(irradiance: Rgb) -> Self {
+        Self {
+            irradiance,
+            variance_share: Rgb::WHITE,
+        }
+    }
 }
 
 impl Transport {

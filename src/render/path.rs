@@ -191,6 +191,11 @@ pub struct RadianceSample {
     /// ([`Transport::incident_radiance_averaged`]); zero for a single path,
     /// whose spread is unknown.
     pub variance: Rgb,
+    /// The part of `radiance` that is emission seen directly along the
+    /// direction (the environment where the ray escaped, an emitter's
+    /// radiance where it hit one), W/(m²·sr); zero when the paths summed
+    /// exclude length 1 ([`PathLengths::Indirect`]).
+    pub direct: Rgb,
 }
 
 impl RadianceSample {
@@ -199,6 +204,7 @@ impl RadianceSample {
         radiance: Rgb::BLACK,
         distance: f64::INFINITY,
         variance: Rgb::BLACK,
+        direct: Rgb::BLACK,
     };
 }
 
@@ -281,13 +287,15 @@ impl Transport {
         stats.rays += 1;
         let Some(hit) = scene.intersect(&ray) else {
             if direct {
-                sample.radiance = environment_radiance(scene, ray.dir);
+                sample.direct = environment_radiance(scene, ray.dir);
+                sample.radiance = sample.direct;
             }
             return sample;
         };
         sample.distance = hit.t;
         if direct {
-            sample.radiance = emitted_radiance(scene, &hit, ray.dir);
+            sample.direct = emitted_radiance(scene, &hit, ray.dir);
+            sample.radiance = sample.direct;
         }
         let paths = paths.max(1);
         // Given the shared hit the continuations are independent, so their

@@ -21,11 +21,17 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
     // The overcast scene under `auto` (hemisphere, environment prior for
     // BMC) and the Cornell box under `auto` (split), with short paths to keep
     // the references cheap.
-    // On the Cornell box also with the records prior (§10.7), on records a
-    // preview render of the camera image leaves.
-    for (scene, max_depth, records_from) in [
-        ("overcast.json", 2, None),
-        ("cornell-box.json", 3, Some(Preset::Preview)),
+    // On both also with the records prior (§10.7), on records a preview
+    // render of the camera image leaves, and the share of QMC's error below
+    // which it must bring BMC at N = 64: on the Cornell box the records carry
+    // what 64 samples cannot (measured 0.47× on 200 points, depth 16); on the
+    // overcast scene they concern only the indirect part of the hemisphere
+    // decomposition, less of the error (0.92× here, 0.89× on 200 points at
+    // depth 16, 0.72× with a final render's records; docs/BENCHMARKS.md,
+    // records prior).
+    for (scene, max_depth, records_from, records_gain) in [
+        ("overcast.json", 2, Preset::Preview, 0.97),
+        ("cornell-box.json", 3, Preset::Preview, 0.7),
     ] {
         let options = SceneStudyOptions {
             points: 40,
@@ -36,7 +42,7 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
             reference_samples: 8192,
             seed: 2026,
             bmc_kernel: None,
-            records_from,
+            records_from: Some(records_from),
         };
         let rows = scenes::run(&transport(scene), scene, &options).unwrap();
         assert!(rows.iter().any(|r| r.estimator == "bmc"));
@@ -45,21 +51,21 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
                 .find(|r| r.estimator == name && r.samples == 64)
                 .map(|r| r.nrmse)
         };
-        if records_from.is_some() {
-            // The records carry what 64 samples cannot: measured 0.47× at
-            // N = 64 on 200 points, depth 16 (docs/BENCHMARKS.md, records prior).
-            let (with, plain) = (nrmse("bmc+records").unwrap(), nrmse("qmc").unwrap());
-            assert!(with < 0.7 * plain, "bmc+records {with} vs qmc {plain}");
-        }
+        let (with, plain) = (nrmse("bmc+records").unwrap(), nrmse("qmc").unwrap());
+        assert!(
+            with < records_gain * plain,
+            "{scene}: bmc+records {with} vs qmc {plain}"
+        );
         for row in rows {
             // The default error bars, calibrated for every estimator
             // (docs/math.md §10.5); for MC at N = 16 this needs the term for
             // light that all samples missed (its own sample variance gives
             // rms z 1.3–5.5 there on the bundled scenes). With the records
             // prior (§10.7) this reduced set is in band from N = 64 only: at
-            // N = 16 its bars are a little too wide (coverage 0.971, rms z
-            // 0.69, where plain QMC is at 0.77), though on the 200-point
-            // study every bmc+records row is in band (docs/BENCHMARKS.md).
+            // N = 16 its bars are a little too wide (Cornell box: coverage
+            // 0.971, rms z 0.69, where plain QMC is at 0.77; overcast: 0.967,
+            // 0.70, plain QMC 0.81), though on the 200-point study every
+            // bmc+records row is in band (docs/BENCHMARKS.md).
             if row.estimator.ends_with("+records") && row.samples < 64 {
                 continue;
             }

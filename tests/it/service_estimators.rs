@@ -277,6 +277,61 @@ async fn overcast_app() -> TestApp {
     crate::common::spawn_app_in(dir, |_| {}).await
 }
 
+/// Under the hemisphere decomposition (the overcast scene's `auto`) the
+/// records move each point's indirect part: the values less the sky each
+/// direction sees directly (docs/math.md §10.7).
+#[tokio::test]
+async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
+    let app = overcast_app().await;
+    let points = json!([
+        {"position": [-1.0, 0.0, 2.0], "normal": [0, 1, 0]},
+        {"position": [0.5, 0.0, 3.0], "normal": [0, 1, 0]},
+        {"position": [1.5, 0.0, -1.0], "normal": [0, 1, 0]}
+    ]);
+    let post = |estimator: Value| {
+        let body = json!({"points": points, "estimator": estimator, "max_depth": 2, "seed": 5});
+        let app = &app;
+        async move {
+            let response = app.post_json("/v1/scenes/overcast/irradiance", &body).await;
+            let status = response.status();
+            let body = response.json::<Value>().await.unwrap();
+            assert_eq!(status, StatusCode::OK, "{body}");
+            body
+        }
+    };
+    // The whole 320×240 image in 64-pixel tiles.
+    for ty in 0..4 {
+        for tx in 0..5 {
+            let response = app
+                .get(&format!(
+                    "/v1/scenes/overcast/tiles/{tx}/{ty}.png?preset=preview"
+                ))
+                .await;
+            assert_eq!(response.status(), StatusCode::OK);
+        }
+    }
+    let with = post(json!({"method": "bmc", "samples": 32, "records_prior": true})).await;
+    let without = post(json!({"method": "bmc", "samples": 32})).await;
+    let reference = post(json!({"method": "mc", "samples": 4096, "calibrate": false})).await;
+    assert_eq!(with["decomposition"], "hemisphere", "{with}");
+    // Preview records cover the first point only (draft tiles left none
+    // that serve these points).
+    assert_eq!(with["records_prior_points"], 1, "{with}");
+    let (e, s) = (
+        luminance(&with, 0, "irradiance"),
+        luminance(&with, 0, "std_dev"),
+    );
+    // It moves the estimate; under an open sky the indirect part is a small
+    // share of the error, so the error bar hardly narrows.
+    assert_ne!(e, luminance(&without, 0, "irradiance"), "{with} {without}");
+    let r = luminance(&reference, 0, "irradiance");
+    let sigma = s.hypot(luminance(&reference, 0, "std_dev"));
+    assert!(agrees(e, r, sigma, 4.0, 0.0), "{e} vs {r} ± {sigma}");
+    for point in 1..3 {
+        assert_eq!(with["irradiance"][point], without["irradiance"][point]);
+    }
+}
+
 #[tokio::test]
 async fn auto_decomposition_prior_and_calibration_are_reported() {
     let app = overcast_app().await;

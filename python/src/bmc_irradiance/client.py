@@ -330,7 +330,7 @@ class Client:
         ``sample_set`` (a kind such as ``"fibonacci_cosine"`` or
         ``{"kind", "seed"}``) and ``kernel`` (``{"kind", "lengthscale",
         "variance", "noise"}``, ``bmc`` only) default to the service's
-        choices. ``records_prior=True`` (``qmc``, ``bmc``, split) combines
+        choices. ``records_prior=True`` (``qmc``, ``bmc``) combines
         each point's indirect part with the irradiance cache's records where
         rendered tiles left some; ``result.records_prior_points`` counts the
         points they covered. ``target`` (an :class:`ErrorTarget` or a dict with

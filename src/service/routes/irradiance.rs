@@ -69,7 +69,7 @@ pub struct EstimatorDoc {
     pub sample_set: Option<EstimatorSampleSetDoc>,
     /// `bmc` only: the GP kernel over incident radiance.
     pub kernel: Option<EstimatorKernelDoc>,
-    /// `qmc` and `bmc`, `split` decomposition: where the scene's irradiance
+    /// `qmc` and `bmc`, either decomposition: where the scene's irradiance
     /// cache has records at the point (from tiles rendered with the `cache`
     /// estimator at a depth of at least `max_depth + 1`), combine the
     /// indirect part with their interpolated irradiance by precision
@@ -315,8 +315,8 @@ pub async fn irradiance(
             if let Ok(Some(cached)) = estimates.as_ref().map(|(e, _)| e.quadrature_cached) {
                 metrics::record_quadrature_lookup(&worker.quadratures, Some(cached));
             }
-            // The points whose indirect part met the records (split, with
-            // reflections: estimates that report an indirect part).
+            // The points whose indirect part met the records (estimates
+            // with reflections report an indirect part).
             let covered = |e: &Estimates| {
                 e.estimates
                     .iter()
