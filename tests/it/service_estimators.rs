@@ -277,6 +277,17 @@ async fn overcast_app() -> TestApp {
     crate::common::spawn_app_in(dir, |_| {}).await
 }
 
+/// The 200 answer of the overcast scene to `estimator` at `points`
+/// (paths of 2 segments).
+async fn overcast_irradiance(app: &TestApp, points: &Value, estimator: Value, seed: u64) -> Value {
+    let body = json!({"points": points, "estimator": estimator, "max_depth": 2, "seed": seed});
+    let response = app.post_json("/v1/scenes/overcast/irradiance", &body).await;
+    let status = response.status();
+    let body = response.json::<Value>().await.unwrap();
+    assert_eq!(status, StatusCode::OK, "{body}");
+    body
+}
+
 /// Under the hemisphere decomposition (the overcast scene's `auto`) the
 /// records move each point's indirect part: the values less the sky each
 /// direction sees directly (docs/math.md §10.7).
@@ -288,17 +299,7 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
         {"position": [0.5, 0.0, 3.0], "normal": [0, 1, 0]},
         {"position": [1.5, 0.0, -1.0], "normal": [0, 1, 0]}
     ]);
-    let post = |estimator: Value| {
-        let body = json!({"points": points, "estimator": estimator, "max_depth": 2, "seed": 5});
-        let app = &app;
-        async move {
-            let response = app.post_json("/v1/scenes/overcast/irradiance", &body).await;
-            let status = response.status();
-            let body = response.json::<Value>().await.unwrap();
-            assert_eq!(status, StatusCode::OK, "{body}");
-            body
-        }
-    };
+    let post = |estimator: Value| overcast_irradiance(&app, &points, estimator, 5);
     // The whole 320×240 image in 64-pixel tiles.
     for ty in 0..4 {
         for tx in 0..5 {
@@ -336,17 +337,7 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
 async fn auto_decomposition_prior_and_calibration_are_reported() {
     let app = overcast_app().await;
     let point = json!([{"position": [2.5, 0.0, 1.5], "normal": [0, 1, 0]}]);
-    let post = |estimator: Value| {
-        let body = json!({"points": point, "estimator": estimator, "max_depth": 2, "seed": 3});
-        let app = &app;
-        async move {
-            let response = app.post_json("/v1/scenes/overcast/irradiance", &body).await;
-            let status = response.status();
-            let body = response.json::<Value>().await.unwrap();
-            assert_eq!(status, StatusCode::OK, "{body}");
-            body
-        }
-    };
+    let post = |estimator: Value| overcast_irradiance(&app, &point, estimator, 3);
     // A scene lit only by a smooth sky: `auto` integrates it through the
     // hemisphere, BMC with the environment prior and calibrated error bars.
     let bmc = post(json!({"method": "bmc", "samples": 32})).await;
