@@ -22,8 +22,8 @@ use bmc_irradiance::bmc::cache::QuadratureCache;
 use bmc_irradiance::bmc::estimator::{BayesianEstimator, BmcVariance};
 use bmc_irradiance::bmc::report::QuadratureSpec;
 use bmc_irradiance::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
-use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::environment_prior::PriorChoice;
+use bmc_irradiance::render::{Cancel, HemisphereRule};
 use bmc_irradiance::render::{
     IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Transport,
 };
@@ -93,8 +93,11 @@ fn main() -> anyhow::Result<()> {
         let estimates = pool.install(|| {
             transport.irradiance_with_estimator(
                 &query,
-                &estimator,
-                PriorChoice::None,
+                HemisphereRule {
+                    estimator: &estimator,
+                    prior: PriorChoice::None,
+                    indirect_part: false,
+                },
                 &options,
                 &|| {},
                 &Cancel::never(),

@@ -974,7 +974,6 @@ mod tests {
             .enumerate()
             .map(|(i, s)| RadianceSample {
                 variance: Rgb::new(0.01 * i as f64, 0.0, 0.5),
-                direct: Rgb::BLACK,
                 ..*s
             })
             .collect();

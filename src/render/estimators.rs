@@ -32,6 +32,7 @@ use super::calibration::{Calibrations, ErrorCalibration, calibrate, unseen_light
 use super::cancel::Cancel;
 use super::environment_prior::PriorChoice;
 use super::error::RenderError;
+use super::hemisphere_estimate::HemisphereRule;
 use super::integral_prior::{IntegralPrior, combine_part};
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
@@ -197,6 +198,10 @@ pub struct PointEstimator {
     pub calibrate: bool,
     /// The spec it was resolved from (names its calibration).
     spec: EstimatorSpec,
+    /// Also estimate the indirect part under the hemisphere decomposition
+    /// (the rule under a records prior, §10.7; it costs three more
+    /// evaluations of the rule per point).
+    indirect_part: bool,
 }
 
 /// The rule of a [`PointEstimator`].
@@ -272,6 +277,7 @@ impl EstimatorSpec {
             // all missed.
             calibrate: self.calibrate.unwrap_or(true),
             spec: *self,
+            indirect_part: false,
         })
     }
 
@@ -431,6 +437,7 @@ impl PointEstimator {
                 records_prior: false,
                 ..self.spec
             },
+            indirect_part: true,
             ..self.clone()
         };
         let mut estimates = rule.estimate(transport, caches, points, options, on_done, cancel)?;
@@ -459,7 +466,12 @@ impl PointEstimator {
             None => PriorChoice::None,
         };
         let run = |rule: &dyn crate::bmc::estimator::HemisphereEstimator| {
-            transport.irradiance_with_estimator(points, rule, prior, options, on_done, cancel)
+            let rule = HemisphereRule {
+                estimator: rule,
+                prior,
+                indirect_part: self.indirect_part,
+            };
+            transport.irradiance_with_estimator(points, rule, options, on_done, cancel)
         };
         let (estimates, kernel, quadrature_cached) = match &self.rule {
             // Plain MC keeps its own path (the reference estimator).

@@ -22,8 +22,9 @@
 //! MC/QMC the sample variance of the mean. Where paths reflect, the estimate
 //! also reports its indirect part (paths of 2 or more segments), for a prior
 //! on it (docs/math.md §10.7): in split mode the hemisphere rule's whole
-//! estimate, under the hemisphere decomposition the rule over each value
-//! less the emission its direction sees directly.
+//! estimate; under the hemisphere decomposition, when
+//! [`HemisphereRule::indirect_part`] asks, the rule over each value less the
+//! emission its direction sees directly.
 
 use std::f64::consts::TAU;
 
@@ -42,6 +43,32 @@ use super::transport::Transport;
 use crate::bmc::estimator::{HemisphereEstimator, irradiance_from_lambert};
 use crate::sphere::Frame;
 
+/// What [`Transport::irradiance_with_estimator`] runs for the hemisphere
+/// part.
+#[derive(Clone, Copy)]
+pub struct HemisphereRule<'a> {
+    /// The rule; it must integrate against the Lambert density `cos θ/π`.
+    pub estimator: &'a dyn HemisphereEstimator,
+    /// Subtracted from the hemisphere values, its exact integral added back
+    /// ([`Transport::hemisphere_prior`] says where it applies).
+    pub prior: PriorChoice,
+    /// Also estimate the indirect part under the hemisphere decomposition
+    /// (for a prior on it, docs/math.md §10.7), at three more evaluations of
+    /// the rule per point; split estimates always report theirs (the rule's
+    /// whole estimate).
+    pub indirect_part: bool,
+}
+
+/// A [`HemisphereRule`] resolved for the scene: the prior that applies and
+/// the decomposition.
+#[derive(Clone, Copy)]
+struct ResolvedRule<'a> {
+    estimator: &'a dyn HemisphereEstimator,
+    prior: Option<&'a EnvironmentPrior>,
+    decomposition: Decomposition,
+    indirect_part: bool,
+}
+
 impl Transport {
     /// The prior mean the hemisphere part uses for `choice` under
     /// `decomposition`: the environment prior where the hemisphere integrand
@@ -58,12 +85,9 @@ impl Transport {
         }
     }
 
-    /// Irradiance at every point with `estimator` for the hemisphere part
+    /// Irradiance at every point with `rule` for the hemisphere part
     /// (module docs), in parallel on the current rayon pool.
     ///
-    /// `estimator` must integrate against the Lambert density `cos θ/π`.
-    /// `prior` is subtracted from the hemisphere values and its exact
-    /// integral added back ([`Self::hemisphere_prior`] says which applies).
     /// `options.samples` is the number of light samples of the direct part in
     /// split mode; the hemisphere sample count is the estimator's. `on_done`
     /// is called once per finished point; stops between points once `cancel`
@@ -71,22 +95,25 @@ impl Transport {
     pub fn irradiance_with_estimator(
         &self,
         points: &[QueryPoint],
-        estimator: &dyn HemisphereEstimator,
-        prior: PriorChoice,
+        rule: HemisphereRule,
         options: &IrradianceOptions,
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Vec<IrradianceEstimate>, RenderError> {
         options.validate()?;
         let decomposition = self.decomposition(options.method);
-        let prior = self.hemisphere_prior(prior, decomposition);
+        let resolved = ResolvedRule {
+            estimator: rule.estimator,
+            prior: self.hemisphere_prior(rule.prior, decomposition),
+            decomposition,
+            indirect_part: rule.indirect_part,
+        };
         points
             .par_iter()
             .enumerate()
             .map(|(i, point)| {
                 cancel.check()?;
-                let estimate =
-                    self.estimate_point(point, i as u64, estimator, prior, decomposition, options);
+                let estimate = self.estimate_point(point, i as u64, &resolved, options);
                 on_done();
                 estimate
             })
@@ -97,11 +124,15 @@ impl Transport {
         &self,
         point: &QueryPoint,
         index: u64,
-        estimator: &dyn HemisphereEstimator,
-        prior: Option<&EnvironmentPrior>,
-        decomposition: Decomposition,
+        rule: &ResolvedRule,
         options: &IrradianceOptions,
     ) -> Result<IrradianceEstimate, RenderError> {
+        let ResolvedRule {
+            estimator,
+            prior,
+            decomposition,
+            indirect_part,
+        } = *rule;
         let mut rng = point_rng(options.seed, index);
         let mut stats = TraceStats::default();
         let depth = options.effective_max_depth();
@@ -147,8 +178,17 @@ impl Transport {
                         reason: err.to_string(),
                     })
             };
+            // Only paths that reflect have an indirect part (at depth 1 it
+            // is zero by definition, and no prior may move it). Under the
+            // hemisphere decomposition it is the same rule over each value
+            // less the emission its direction sees directly (docs/math.md
+            // §10.7), with the share of the variance that is the part's.
+            let hemisphere_part =
+                indirect_part && lengths == PathLengths::All && depth.has_reflections();
             let mut value = [0.0; 3];
             let mut var = [0.0; 3];
+            let mut part = [0.0; 3];
+            let mut share = [1.0; 3];
             for c in 0..3 {
                 let channel: Vec<f64> = samples
                     .iter()
@@ -167,36 +207,29 @@ impl Transport {
                 let e = irradiance_from_lambert(e);
                 value[c] = e.value;
                 var[c] = e.variance;
+                if hemisphere_part {
+                    let channel: Vec<f64> = samples
+                        .iter()
+                        .map(|s| s.radiance.to_array()[c] - s.direct.to_array()[c])
+                        .collect();
+                    let p = irradiance_from_lambert(estimate(&channel)?);
+                    part[c] = p.value;
+                    if e.variance > 0.0 {
+                        share[c] = (p.variance / e.variance).clamp(0.0, 1.0);
+                    }
+                }
             }
             irradiance = Rgb::from_array(value);
             variance = Rgb::from_array(var);
-            // Only paths that reflect have an indirect part (at depth 1 it
-            // is zero by definition, and no prior may move it).
-            indirect = match lengths {
-                PathLengths::Indirect => Some(IndirectPart::whole(irradiance)),
-                PathLengths::All if depth.has_reflections() => {
-                    // The same rule over each value less the emission its
-                    // direction sees directly (docs/math.md §10.7), and the
-                    // share of the variance that is the part's.
-                    let mut part = [0.0; 3];
-                    let mut share = [1.0; 3];
-                    for c in 0..3 {
-                        let channel: Vec<f64> = samples
-                            .iter()
-                            .map(|s| s.radiance.to_array()[c] - s.direct.to_array()[c])
-                            .collect();
-                        let e = irradiance_from_lambert(estimate(&channel)?);
-                        part[c] = e.value;
-                        if var[c] > 0.0 {
-                            share[c] = (e.variance / var[c]).clamp(0.0, 1.0);
-                        }
-                    }
-                    Some(IndirectPart {
-                        irradiance: Rgb::from_array(part),
-                        variance_share: Rgb::from_array(share),
-                    })
-                }
-                PathLengths::All => None,
+            indirect = if lengths == PathLengths::Indirect {
+                Some(IndirectPart::whole(irradiance))
+            } else if hemisphere_part {
+                Some(IndirectPart {
+                    irradiance: Rgb::from_array(part),
+                    variance_share: Rgb::from_array(share),
+                })
+            } else {
+                None
             };
         }
         if decomposition == Decomposition::Split {
@@ -280,8 +313,11 @@ mod tests {
             let b = transport
                 .irradiance_with_estimator(
                     &point,
-                    &bmc,
-                    PriorChoice::None,
+                    HemisphereRule {
+                        estimator: &bmc,
+                        prior: PriorChoice::None,
+                        indirect_part: false,
+                    },
                     &options(4096, seed),
                     &|| {},
                     &Cancel::never(),
@@ -290,8 +326,11 @@ mod tests {
             let m = transport
                 .irradiance_with_estimator(
                     &point,
-                    &mc,
-                    PriorChoice::None,
+                    HemisphereRule {
+                        estimator: &mc,
+                        prior: PriorChoice::None,
+                        indirect_part: false,
+                    },
                     &options(4096, seed),
                     &|| {},
                     &Cancel::never(),
@@ -340,8 +379,11 @@ mod tests {
             transport
                 .irradiance_with_estimator(
                     &point,
-                    &estimator,
-                    PriorChoice::None,
+                    HemisphereRule {
+                        estimator: &estimator,
+                        prior: PriorChoice::None,
+                        indirect_part: true,
+                    },
                     &options,
                     &|| {},
                     &Cancel::never(),
@@ -381,8 +423,11 @@ mod tests {
                 .install(|| {
                     transport.irradiance_with_estimator(
                         &points,
-                        &estimator,
-                        PriorChoice::None,
+                        HemisphereRule {
+                            estimator: &estimator,
+                            prior: PriorChoice::None,
+                            indirect_part: false,
+                        },
                         &options(4, 5),
                         &|| {},
                         &Cancel::never(),

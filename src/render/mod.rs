@@ -47,6 +47,7 @@ pub use bsdf::{Bsdf, BsdfSample};
 pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
+pub use hemisphere_estimate::HemisphereRule;
 pub use integral_prior::IntegralPrior;
 pub use irradiance::{
     Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
