@@ -148,6 +148,30 @@ impl Node {
     }
 }
 
+/// The slots of `mask` (bit s set: child s is entered) in increasing order
+/// of their entry distance `near` (≥ 0), in the low two bits of the first
+/// `mask.count_ones()` entries. A sorting network over keys whose high
+/// bits are the distance's (non-negative floats order like their bits) and
+/// whose low two bits are the slot: no data-dependent branch, which on
+/// random rays would be mispredicted about half the time.
+#[inline(always)]
+fn nearest_first(near: Vec4, mask: u32) -> [u32; 4] {
+    let bits = near.to_array().map(|x| x.to_bits() & 0x7FFF_FFFC);
+    let mut key: [u32; 4] = std::array::from_fn(|s| {
+        if mask & (1 << s) != 0 {
+            bits[s] | s as u32
+        } else {
+            u32::MAX
+        }
+    });
+    for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+        let (lo, hi) = (key[a].min(key[b]), key[a].max(key[b]));
+        key[a] = lo;
+        key[b] = hi;
+    }
+    key
+}
+
 /// The f32 slab distances carry a relative rounding error of a few ulps
 /// (f32 direction and inverse, one subtraction, one product: below 6·2⁻²⁴)
 /// and keep their sign, so scaling by 1 ∓ 2⁻²⁰ makes them conservative
@@ -277,16 +301,19 @@ impl Bvh {
     /// Closest-hit traversal. `intersect(i, t_max)` tests primitive position
     /// `i` and returns its hit distance if it is below `t_max`; the caller
     /// records whatever else it needs. Returns the closest distance found.
+    /// `prims` are the primitives in build order, read only to prefetch
+    /// the leaves the ray will visit (an empty slice prefetches none).
     #[inline]
-    pub fn closest(
+    pub fn closest<P>(
         &self,
         origin: DVec3,
         dir: DVec3,
         mut t_max: f64,
+        prims: &[P],
         mut intersect: impl FnMut(usize, f64) -> Option<f64>,
     ) -> Option<f64> {
         let mut found = None;
-        self.traverse(origin, dir, &mut t_max, |i, t_max| {
+        self.traverse(origin, dir, &mut t_max, prims, |i, t_max| {
             if let Some(t) = intersect(i, *t_max) {
                 *t_max = t;
                 found = Some(t);
@@ -296,25 +323,30 @@ impl Bvh {
         found
     }
 
-    /// Any-hit traversal: true as soon as `intersect(i, t_max)` reports a hit.
+    /// Any-hit traversal: true as soon as `intersect(i, t_max)` reports a
+    /// hit. `prims` as for [`Bvh::closest`].
     #[inline]
-    pub fn any(
+    pub fn any<P>(
         &self,
         origin: DVec3,
         dir: DVec3,
         mut t_max: f64,
+        prims: &[P],
         mut intersect: impl FnMut(usize, f64) -> bool,
     ) -> bool {
-        self.traverse(origin, dir, &mut t_max, |i, t_max| intersect(i, *t_max))
+        self.traverse(origin, dir, &mut t_max, prims, |i, t_max| {
+            intersect(i, *t_max)
+        })
     }
 
     /// Front-to-back traversal; `visit` may shrink `t_max` and returns true to stop.
     #[inline(always)]
-    fn traverse(
+    fn traverse<P>(
         &self,
         origin: DVec3,
         dir: DVec3,
         t_max: &mut f64,
+        prims: &[P],
         mut visit: impl FnMut(usize, &mut f64) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
@@ -323,18 +355,22 @@ impl Bvh {
         // Every point of the tree lies within this distance of the origin.
         let reach = 2.0 * (origin.abs().max_element() + self.extent);
         let ray = SlabRay::new(origin, dir, reach.min(*t_max));
+        let prefetch =
+            self.nodes.len() * NODE_BYTES + std::mem::size_of_val(prims) > PREFETCH_ABOVE;
+        let prims = if prefetch { prims } else { &[] };
         if ray.parallel.contains(&true) {
-            self.walk::<true>(&ray, t_max, &mut visit)
+            self.walk::<true, P>(&ray, t_max, prims, &mut visit)
         } else {
-            self.walk::<false>(&ray, t_max, &mut visit)
+            self.walk::<false, P>(&ray, t_max, prims, &mut visit)
         }
     }
 
     #[inline(always)]
-    fn walk<const PARALLEL_AXES: bool>(
+    fn walk<const PARALLEL_AXES: bool, P>(
         &self,
         ray: &SlabRay,
         t_max: &mut f64,
+        prims: &[P],
         visit: &mut impl FnMut(usize, &mut f64) -> bool,
     ) -> bool {
         let mut t_max32 = round_up(*t_max);
@@ -357,29 +393,20 @@ impl Bvh {
                     t_max32 = round_up(*t_max);
                 } else {
                     let node = &self.nodes[code as usize];
-                    let (mut mask, near) = node.hit::<PARALLEL_AXES>(ray, t_max32);
-                    let near = near.to_array();
-                    // Sort the hit children farthest first: the last is
-                    // visited next, the others wait on the stack.
-                    let mut hits = [(0u32, 0.0f32); 4];
-                    let mut n = 0;
-                    while mask != 0 {
-                        let slot = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        let mut j = n;
-                        while j > 0 && hits[j - 1].1 < near[slot] {
-                            hits[j] = hits[j - 1];
-                            j -= 1;
-                        }
-                        hits[j] = (node.child[slot], near[slot]);
-                        n += 1;
-                    }
-                    if n > 0 {
-                        for &hit in &hits[..n - 1] {
-                            stack[top].write(hit);
+                    let (mask, near) = node.hit::<PARALLEL_AXES>(ray, t_max32);
+                    if mask != 0 {
+                        // Nearest first: the first is visited next, the
+                        // others wait on the stack, farthest deepest.
+                        let order = nearest_first(near, mask);
+                        let near = near.to_array();
+                        let slot = |k: usize| (order[k] & 3) as usize;
+                        for k in (1..mask.count_ones() as usize).rev() {
+                            let child = node.child[slot(k)];
+                            self.prefetch(child, prims);
+                            stack[top].write((child, near[slot(k)]));
                             top += 1;
                         }
-                        current = hits[n - 1];
+                        current = (node.child[slot(0)], near[slot(0)]);
                         continue;
                     }
                 }
@@ -390,6 +417,43 @@ impl Bvh {
             top -= 1;
             // SAFETY: every entry below the old `top` was written.
             current = unsafe { stack[top].assume_init() };
+        }
+    }
+}
+
+/// Trees and primitives of fewer bytes than this stay in the caches of one
+/// core, where prefetching only costs instructions (measured: −3 % on the
+/// Cornell box, +15 to +35 % on the 101k-triangle mesh).
+const PREFETCH_ABOVE: usize = 1 << 20;
+
+impl Bvh {
+    /// Asks the cache for a child's node or leaf primitives while the
+    /// traversal goes on: incoherent rays spend a third of their time
+    /// waiting for these loads, and a child that waits on the stack is
+    /// loaded by the time it is popped. Leaves are prefetched only when
+    /// `prims` is not empty.
+    #[inline(always)]
+    fn prefetch<P>(&self, child: u32, prims: &[P]) {
+        if prims.is_empty() {
+            return;
+        }
+        let (start, bytes) = if child & LEAF != 0 {
+            let first = (child & LEAF_FIRST_MASK) as usize;
+            let count = ((child & !LEAF) >> LEAF_COUNT_SHIFT) as usize;
+            let Some(p) = prims.get(first) else { return };
+            (p as *const P as *const u8, count * std::mem::size_of::<P>())
+        } else {
+            let Some(n) = self.nodes.get(child as usize) else {
+                return;
+            };
+            (n as *const Node as *const u8, NODE_BYTES)
+        };
+        #[cfg(target_arch = "x86_64")]
+        for offset in (0..bytes).step_by(64) {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            // SAFETY: a prefetch never faults, and `start + offset` stays
+            // within the node or the leaf's primitives.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.add(offset) as *const i8) };
         }
     }
 }
@@ -603,9 +667,17 @@ mod tests {
 
     #[test]
     fn traversal_agrees_with_brute_force() {
-        let boxes = random_boxes(500, 7);
-        let (bvh, order) = Bvh::build(&boxes);
+        // The larger set is above `PREFETCH_ABOVE`, so its traversal
+        // prefetches nodes and leaves.
+        for n in [500, 30_000] {
+            traversal_agrees_with_brute_force_on(&random_boxes(n, 7));
+        }
+    }
+
+    fn traversal_agrees_with_brute_force_on(boxes: &[Aabb]) {
+        let (bvh, order) = Bvh::build(boxes);
         assert!(3 * bvh.nodes.len() < 2 * boxes.len());
+        let prims: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
         let mut rng = rand_pcg::Pcg64::seed_from_u64(8);
         for k in 0..300 {
             // Finite and infinite ray extents take different paths.
@@ -617,14 +689,32 @@ mod tests {
                 .iter()
                 .filter_map(|b| box_hit(b, o, d, t_max))
                 .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))));
-            let got = bvh.closest(o, d, t_max, |i, t_max| {
-                box_hit(&boxes[order[i] as usize], o, d, t_max).filter(|&t| t < t_max)
+            let got = bvh.closest(o, d, t_max, &prims, |i, t_max| {
+                box_hit(&prims[i], o, d, t_max).filter(|&t| t < t_max)
             });
             assert_eq!(got, expected);
-            let any = bvh.any(o, d, t_max, |i, t_max| {
-                box_hit(&boxes[order[i] as usize], o, d, t_max).is_some()
+            let any = bvh.any(o, d, t_max, &prims, |i, t_max| {
+                box_hit(&prims[i], o, d, t_max).is_some()
             });
             assert_eq!(any, expected.is_some());
+        }
+    }
+
+    #[test]
+    fn children_are_ordered_nearest_first() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for _ in 0..2000 {
+            let mask: u32 = rng.random_range(1..16);
+            // Whole numbers repeat often, so ties are exercised too.
+            let near: [f32; 4] = std::array::from_fn(|_| rng.random_range(0..4) as f32);
+            let order = nearest_first(Vec4::from_array(near), mask);
+            let slots: Vec<usize> = order[..mask.count_ones() as usize]
+                .iter()
+                .map(|&k| (k & 3) as usize)
+                .collect();
+            let mut expected: Vec<usize> = (0..4).filter(|s| mask & (1 << s) != 0).collect();
+            expected.sort_by(|&a, &b| near[a].total_cmp(&near[b]).then(a.cmp(&b)));
+            assert_eq!(slots, expected, "near {near:?} mask {mask:b}");
         }
     }
 
@@ -642,7 +732,7 @@ mod tests {
         ];
         let (bvh, _) = Bvh::build(&boxes);
         // Origin x = 0 lies on the first box's slab plane; dir.x = 0.
-        let hits = |o: DVec3, d: DVec3| bvh.any(o, d, 1e9, |_, _| true);
+        let hits = |o: DVec3, d: DVec3| bvh.any(o, d, 1e9, &[(); 0], |_, _| true);
         assert!(hits(DVec3::new(0.0, 5.0, 0.5), -DVec3::Y));
         assert!(hits(DVec3::new(-0.0, 5.0, 0.5), DVec3::new(0.0, -1.0, 0.0)));
         assert!(hits(DVec3::new(1.0, 5.0, 1.0), -DVec3::Y));
@@ -673,7 +763,7 @@ mod tests {
                 .iter()
                 .filter_map(|b| box_hit(b, o, d, 1e9))
                 .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))));
-            let got = bvh.closest(o, d, 1e9, |i, t_max| {
+            let got = bvh.closest(o, d, 1e9, &[(); 0], |i, t_max| {
                 box_hit(&boxes[order[i] as usize], o, d, t_max).filter(|&t| t < t_max)
             });
             assert_eq!(got, expected, "ray {k}");
@@ -715,7 +805,7 @@ mod tests {
                 .filter_map(|b| box_hit(b, o, d, 1e9))
                 .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))));
             let mut seen = 0;
-            let got = bvh.closest(o, d, 1e9, |i, t_max| {
+            let got = bvh.closest(o, d, 1e9, &[(); 0], |i, t_max| {
                 seen += 1;
                 box_hit(&boxes[order[i] as usize], o, d, t_max).filter(|&t| t < t_max)
             });
@@ -743,10 +833,16 @@ mod tests {
         assert!(leaf_sizes.clone().count() >= 100 / MAX_LEAF);
         assert!(leaf_sizes.all(|c| ((c & !LEAF) >> LEAF_COUNT_SHIFT) as usize <= MAX_LEAF));
         let mut seen = 0;
-        bvh.closest(DVec3::splat(-1.0), DVec3::ONE.normalize(), 1e9, |_, _| {
-            seen += 1;
-            None
-        });
+        bvh.closest(
+            DVec3::splat(-1.0),
+            DVec3::ONE.normalize(),
+            1e9,
+            &[(); 0],
+            |_, _| {
+                seen += 1;
+                None
+            },
+        );
         assert_eq!(seen, 100);
     }
 }

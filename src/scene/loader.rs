@@ -16,7 +16,7 @@ use super::error::SceneError;
 use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKind};
 use super::material::Material;
 use super::mesh::{self, MeshData};
-use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel};
+use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
 use super::{Camera, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
 
 /// Largest accepted scene file (inline triangle lists can be big).
@@ -489,10 +489,9 @@ impl GeometryBuilder {
     fn finish(self) -> Scene {
         let bounds: Vec<Aabb> = self.triangles.iter().map(Triangle::bounds).collect();
         let (triangle_bvh, order) = Bvh::build(&bounds);
-        let accel = order
-            .iter()
-            .map(|&i| TriangleAccel::new(&self.triangles[i as usize]))
-            .collect();
+        let in_order = || order.iter().map(|&i| &self.triangles[i as usize]);
+        let accel = in_order().map(TriangleAccel::new).collect();
+        let accel_tags = in_order().map(TriangleTag::new).collect();
         let analytic: Vec<u32> = (0..self.shapes.len() as u32)
             .filter(|&i| !matches!(self.shapes[i as usize].geometry, Geometry::Mesh { .. }))
             .collect();
@@ -521,7 +520,7 @@ impl GeometryBuilder {
             triangles: self.triangles,
             vertex_normals: self.vertex_normals,
             accel,
-            accel_index: order,
+            accel_tags,
             triangle_bvh,
             analytic_bvh,
             analytic_shapes,

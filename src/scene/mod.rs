@@ -40,7 +40,7 @@ pub use mitsuba::{MAX_WARNINGS, MitsubaOptions, Warning, Warnings};
 pub use ray::Ray;
 
 use bvh::Bvh;
-use shape::{Geometry, Shape, Triangle, TriangleAccel};
+use shape::{Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
 
 /// Largest number of triangles a scene may hold (also bounded by
 /// [`MAX_SCENE_MEMORY_BYTES`]; see [`TRIANGLE_BYTES`]).
@@ -52,13 +52,13 @@ pub const MAX_TRIANGLES: usize = 10_000_000;
 /// 226 bytes per triangle without vertex normals.
 pub const MAX_SCENE_MEMORY_BYTES: u64 = 1 << 30;
 /// Upper bound of the bytes one triangle retains in a built scene: the
-/// world-space triangle, its intersection form, its BVH-order index, its
+/// world-space triangle, its intersection form and hit tag, its
 /// entry in its shape's area CDF, vertex normals (if it has them) and at
 /// two thirds of a BVH node (the 4-wide tree over N primitives has fewer
 /// than 2N/3 nodes, `bvh::Bvh::build`).
 pub const TRIANGLE_BYTES: u64 = (std::mem::size_of::<Triangle>()
     + std::mem::size_of::<TriangleAccel>()
-    + std::mem::size_of::<u32>()
+    + std::mem::size_of::<TriangleTag>()
     + std::mem::size_of::<f64>()
     + std::mem::size_of::<[DVec3; 3]>()
     + (2 * bvh::NODE_BYTES).div_ceil(3)) as u64;
@@ -110,9 +110,9 @@ pub struct Scene {
     triangles: Vec<Triangle>,
     /// Per-vertex shading normals of triangles that have them.
     vertex_normals: Vec<[DVec3; 3]>,
-    /// Triangles in BVH order, and for each its index in `triangles`.
+    /// Triangles in BVH order, and what a hit on each reports.
     accel: Vec<TriangleAccel>,
-    accel_index: Vec<u32>,
+    accel_tags: Vec<TriangleTag>,
     triangle_bvh: Bvh,
     /// Spheres and disks: their own small BVH over shape indices.
     analytic_bvh: Bvh,
@@ -166,21 +166,29 @@ impl Scene {
     /// Closest hit with `0 < t < ray.t_max`.
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
         let (o, d) = (ray.origin, ray.dir);
-        let mut tri_hit = (0usize, 0.0, 0.0);
-        let t_tri = self.triangle_bvh.closest(o, d, ray.t_max, |i, t_max| {
-            let (t, u, v) = self.accel[i].intersect(o, d, t_max)?;
-            tri_hit = (i, u, v);
-            Some(t)
-        });
+        let mut tri_hit = None;
+        let t_tri = self
+            .triangle_bvh
+            .closest(o, d, ray.t_max, &self.accel, |i, t_max| {
+                let (t, u, v) = self.accel[i].intersect(o, d, t_max)?;
+                // The tag is read here, not after the traversal, so that its
+                // cache miss overlaps the rest of the traversal.
+                tri_hit = Some((i, u, v, self.accel_tags[i]));
+                Some(t)
+            });
         let mut analytic_hit = 0usize;
-        let t_analytic = self
-            .analytic_bvh
-            .closest(o, d, t_tri.unwrap_or(ray.t_max), |i, t_max| {
+        let t_analytic = self.analytic_bvh.closest(
+            o,
+            d,
+            t_tri.unwrap_or(ray.t_max),
+            &self.analytic_shapes,
+            |i, t_max| {
                 let shape = self.analytic_shapes[i] as usize;
                 let t = self.shapes[shape].intersect_analytic(o, d, t_max)?;
                 analytic_hit = shape;
                 Some(t)
-            });
+            },
+        );
         if let Some(t) = t_analytic {
             let shape = &self.shapes[analytic_hit];
             let (position, normal) = shape.analytic_hit(o, d, t);
@@ -196,11 +204,11 @@ impl Scene {
             });
         }
         let t = t_tri?;
-        let (i, u, v) = tri_hit;
-        let tri = &self.triangles[self.accel_index[i] as usize];
-        let shape = &self.shapes[tri.shape as usize];
+        let (i, u, v, tag) = tri_hit?;
+        let tri = &self.accel[i];
+        let shape = &self.shapes[tag.shape as usize];
         let normal = tri.normal();
-        let shading_normal = match self.vertex_normals.get(tri.normals as usize) {
+        let shading_normal = match self.vertex_normals.get(tag.normals as usize) {
             Some(n) => (n[0] * (1.0 - u - v) + n[1] * u + n[2] * v)
                 .try_normalize()
                 .unwrap_or(normal),
@@ -213,21 +221,25 @@ impl Scene {
             shading_normal,
             material: shape.material,
             emitter: shape.emitter,
-            shape: tri.shape as usize,
-            primitive: tri.primitive,
+            shape: tag.shape as usize,
+            primitive: tag.primitive,
         })
     }
 
     /// True if anything is hit with `0 < t < ray.t_max` (stops at the first).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let (o, d) = (ray.origin, ray.dir);
-        self.triangle_bvh.any(o, d, ray.t_max, |i, t_max| {
-            self.accel[i].intersect(o, d, t_max).is_some()
-        }) || self.analytic_bvh.any(o, d, ray.t_max, |i, t_max| {
-            self.shapes[self.analytic_shapes[i] as usize]
-                .intersect_analytic(o, d, t_max)
-                .is_some()
-        })
+        self.triangle_bvh
+            .any(o, d, ray.t_max, &self.accel, |i, t_max| {
+                self.accel[i].intersect(o, d, t_max).is_some()
+            })
+            || self
+                .analytic_bvh
+                .any(o, d, ray.t_max, &self.analytic_shapes, |i, t_max| {
+                    self.shapes[self.analytic_shapes[i] as usize]
+                        .intersect_analytic(o, d, t_max)
+                        .is_some()
+                })
     }
 
     /// Ray leaving the surface point `position` (geometric normal `normal`,
@@ -355,7 +367,7 @@ impl Scene {
             + bytes(&self.triangles)
             + bytes(&self.vertex_normals)
             + bytes(&self.accel)
-            + bytes(&self.accel_index)
+            + bytes(&self.accel_tags)
             + bytes(&self.analytic_shapes)
             + self.triangle_bvh.heap_bytes()
             + self.analytic_bvh.heap_bytes()
