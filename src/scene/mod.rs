@@ -167,15 +167,20 @@ impl Scene {
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
         let (o, d) = (ray.origin, ray.dir);
         let mut tri_hit = None;
-        let t_tri = self
-            .triangle_bvh
-            .closest(o, d, ray.t_max, &self.accel, |i, t_max| {
+        let t_tri = self.triangle_bvh.closest(
+            o,
+            d,
+            ray.t_max,
+            &self.accel,
+            #[inline(always)]
+            |i, t_max| {
                 let (t, u, v) = self.accel[i].intersect(o, d, t_max)?;
                 // The tag is read here, not after the traversal, so that its
                 // cache miss overlaps the rest of the traversal.
                 tri_hit = Some((i, u, v, self.accel_tags[i]));
                 Some(t)
-            });
+            },
+        );
         let mut analytic_hit = 0usize;
         let t_analytic = self.analytic_bvh.closest(
             o,
@@ -229,17 +234,20 @@ impl Scene {
     /// True if anything is hit with `0 < t < ray.t_max` (stops at the first).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let (o, d) = (ray.origin, ray.dir);
-        self.triangle_bvh
-            .any(o, d, ray.t_max, &self.accel, |i, t_max| {
-                self.accel[i].intersect(o, d, t_max).is_some()
+        self.triangle_bvh.any(
+            o,
+            d,
+            ray.t_max,
+            &self.accel,
+            #[inline(always)]
+            |i, t_max| self.accel[i].intersect(o, d, t_max).is_some(),
+        ) || self
+            .analytic_bvh
+            .any(o, d, ray.t_max, &self.analytic_shapes, |i, t_max| {
+                self.shapes[self.analytic_shapes[i] as usize]
+                    .intersect_analytic(o, d, t_max)
+                    .is_some()
             })
-            || self
-                .analytic_bvh
-                .any(o, d, ray.t_max, &self.analytic_shapes, |i, t_max| {
-                    self.shapes[self.analytic_shapes[i] as usize]
-                        .intersect_analytic(o, d, t_max)
-                        .is_some()
-                })
     }
 
     /// Ray leaving the surface point `position` (geometric normal `normal`,
