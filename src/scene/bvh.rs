@@ -85,6 +85,13 @@ const LEAF: u32 = 1 << 31;
 const LEAF_COUNT_SHIFT: u32 = 27;
 const LEAF_FIRST_MASK: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
 
+/// The primitive positions of a leaf slot (`code & LEAF != 0`).
+#[inline(always)]
+fn leaf_range(code: u32) -> std::ops::Range<usize> {
+    let first = (code & LEAF_FIRST_MASK) as usize;
+    first..first + ((code & !LEAF) >> LEAF_COUNT_SHIFT) as usize
+}
+
 /// Four children's boxes, one SIMD lane each, in f32 rounded outwards so
 /// they always contain the f64 primitives (two cache lines).
 #[derive(Clone, Copy, Debug)]
@@ -398,9 +405,7 @@ impl Bvh {
             let (code, entry) = current;
             if entry <= t_max32 {
                 if code & LEAF != 0 {
-                    let first = (code & LEAF_FIRST_MASK) as usize;
-                    let count = ((code & !LEAF) >> LEAF_COUNT_SHIFT) as usize;
-                    for i in first..first + count {
+                    for i in leaf_range(code) {
                         if visit(i, t_max) {
                             return true;
                         }
@@ -445,31 +450,38 @@ impl Bvh {
     /// Asks the cache for a child's node or leaf primitives while the
     /// traversal goes on: incoherent rays spend a third of their time
     /// waiting for these loads, and a child that waits on the stack is
-    /// loaded by the time it is popped. Leaves are prefetched only when
-    /// `prims` is not empty.
+    /// loaded by the time it is popped. Nothing is prefetched when `prims`
+    /// is empty.
     #[inline(always)]
     fn prefetch<P>(&self, child: u32, prims: &[P]) {
         if prims.is_empty() {
             return;
         }
-        let (start, bytes) = if child & LEAF != 0 {
-            let first = (child & LEAF_FIRST_MASK) as usize;
-            let count = ((child & !LEAF) >> LEAF_COUNT_SHIFT) as usize;
-            let Some(p) = prims.get(first) else { return };
-            (p as *const P as *const u8, count * std::mem::size_of::<P>())
-        } else {
-            let Some(n) = self.nodes.get(child as usize) else {
+        // Raw addresses only: the bytes (padding included) are never read.
+        let (start, len) = if child & LEAF != 0 {
+            let Some(leaf) = prims.get(leaf_range(child)) else {
                 return;
             };
-            (n as *const Node as *const u8, NODE_BYTES)
+            (leaf.as_ptr().cast::<u8>(), size_of_val(leaf))
+        } else {
+            let Some(node) = self.nodes.get(child as usize) else {
+                return;
+            };
+            ((node as *const Node).cast::<u8>(), NODE_BYTES)
         };
+        // Every 64-byte line the bytes touch, from the line holding the first.
         #[cfg(target_arch = "x86_64")]
-        for offset in (0..bytes).step_by(64) {
+        {
             use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            // SAFETY: a prefetch never faults, and `start + offset` stays
-            // within the node or the leaf's primitives.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.add(offset) as *const i8) };
+            let misalignment = start as usize % 64;
+            let first_line = start.wrapping_sub(misalignment);
+            for offset in (0..misalignment + len).step_by(64) {
+                // SAFETY: a prefetch never faults, whatever the address.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(first_line.wrapping_add(offset).cast()) };
+            }
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (start, len);
     }
 }
 
