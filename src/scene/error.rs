@@ -42,6 +42,11 @@ pub enum SceneError {
         file: PathBuf,
         message: String,
     },
+    /// The ray tracing library could not build the scene (it ran out of
+    /// memory, or the library is missing); not the document's fault.
+    #[cfg(feature = "embree")]
+    #[error("building the scene's ray tracing structure failed: {message}")]
+    Tracer { message: String },
 }
 
 impl SceneError {
@@ -49,6 +54,8 @@ impl SceneError {
     pub fn field(&self) -> Option<&str> {
         match self {
             SceneError::Io { .. } => None,
+            #[cfg(feature = "embree")]
+            SceneError::Tracer { .. } => None,
             SceneError::Syntax { field, .. }
             | SceneError::Invalid { field, .. }
             | SceneError::PathEscape { field, .. }
