@@ -42,11 +42,6 @@ pub enum SceneError {
         file: PathBuf,
         message: String,
     },
-    /// The ray tracing library could not build the scene (it ran out of
-    /// memory, or the library is missing); not the document's fault.
-    #[cfg(feature = "embree")]
-    #[error("building the scene's ray tracing structure failed: {message}")]
-    Tracer { message: String },
 }
 
 impl SceneError {
@@ -54,8 +49,6 @@ impl SceneError {
     pub fn field(&self) -> Option<&str> {
         match self {
             SceneError::Io { .. } => None,
-            #[cfg(feature = "embree")]
-            SceneError::Tracer { .. } => None,
             SceneError::Syntax { field, .. }
             | SceneError::Invalid { field, .. }
             | SceneError::PathEscape { field, .. }

@@ -243,7 +243,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         .transpose()?;
     let camera = Camera::from_doc(&doc.camera, "camera")?;
     let digest = files.digest(&doc)?;
-    let mut scene = builder.finish()?;
+    let mut scene = builder.finish();
     scene.name = doc.name.unwrap_or_default();
     Ok(Scene {
         materials,
@@ -486,22 +486,10 @@ impl GeometryBuilder {
         Ok((Geometry::Mesh { first, count, cdf }, total))
     }
 
-    fn finish(self) -> Result<Scene, SceneError> {
+    fn finish(self) -> Scene {
         let bounds: Vec<Aabb> = self.triangles.iter().map(Triangle::bounds).collect();
-        // The tree's build order also lays the triangles' intersection forms
-        // out along the tree, which keeps a ray's candidates close in memory
-        // whichever tracer proposes them.
         let (triangle_bvh, order) = Bvh::build(&bounds);
         let in_order = || order.iter().map(|&i| &self.triangles[i as usize]);
-        #[cfg(feature = "embree")]
-        let triangle_bvh = {
-            drop(triangle_bvh);
-            super::embree::EmbreeTriangles::build(in_order().map(|t| t.p)).map_err(|e| {
-                SceneError::Tracer {
-                    message: format!("Embree: {e:?}"),
-                }
-            })?
-        };
         let accel = in_order().map(TriangleAccel::new).collect();
         let accel_tags = in_order().map(TriangleTag::new).collect();
         let analytic: Vec<u32> = (0..self.shapes.len() as u32)
@@ -520,7 +508,7 @@ impl GeometryBuilder {
             .iter()
             .chain(&analytic_bounds)
             .fold(Aabb::EMPTY, |a, b| a.union(*b));
-        Ok(Scene {
+        Scene {
             name: String::new(),
             digest: SceneDigest::default(),
             materials: Vec::new(),
@@ -537,7 +525,7 @@ impl GeometryBuilder {
             analytic_bvh,
             analytic_shapes,
             bounds: all,
-        })
+        }
     }
 }
 

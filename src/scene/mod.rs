@@ -8,8 +8,6 @@ pub(crate) mod bundle;
 mod bvh;
 mod camera;
 mod digest;
-#[cfg(feature = "embree")]
-mod embree;
 mod emitter;
 mod environment;
 mod error;
@@ -42,12 +40,6 @@ pub use mitsuba::{MAX_WARNINGS, MitsubaOptions, Warning, Warnings};
 pub use ray::Ray;
 
 use bvh::Bvh;
-/// What traces the scene's triangles: the project's own tree, or Embree with
-/// the `embree` feature (the same queries, `scene::embree`).
-#[cfg(not(feature = "embree"))]
-type TriangleTracer = Bvh;
-#[cfg(feature = "embree")]
-type TriangleTracer = embree::EmbreeTriangles;
 use shape::{Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
 
 /// Largest number of triangles a scene may hold (also bounded by
@@ -121,7 +113,7 @@ pub struct Scene {
     /// Triangles in BVH order, and what a hit on each reports.
     accel: Vec<TriangleAccel>,
     accel_tags: Vec<TriangleTag>,
-    triangle_bvh: TriangleTracer,
+    triangle_bvh: Bvh,
     /// Spheres and disks: their own small BVH over shape indices.
     analytic_bvh: Bvh,
     analytic_shapes: Vec<u32>,
