@@ -177,6 +177,7 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
             quadratures: &quadratures,
             calibrations: &calibrations,
             records: None,
+            direct: None,
         };
         estimator.estimate(
             &transport,

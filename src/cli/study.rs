@@ -81,6 +81,11 @@ pub struct SceneStudyArgs {
     /// preset's cache settings (`draft`, `preview`, `final`).
     #[arg(long, value_enum)]
     pub records_from: Option<crate::integrator::Preset>,
+    /// With `--records-from` and the hemisphere decomposition: also run `qmc`
+    /// and `bmc` with direct-light records at the records' places as a prior
+    /// on the direct part (docs/math.md §10.8).
+    #[arg(long, requires = "records_from")]
+    pub direct_records: bool,
     /// Also write the study's points here (`x,y,z,nx,ny,nz`, the input of
     /// `irradiance --points`), e.g. to compute their reference elsewhere.
     #[arg(long)]
@@ -129,6 +134,7 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
                 noise: args.noise,
             }),
         records_from: args.records_from,
+        direct_records: args.direct_records,
     };
     if let Some(path) = &args.points_out {
         let mut out = Vec::new();

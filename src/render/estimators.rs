@@ -33,7 +33,7 @@ use super::cancel::Cancel;
 use super::environment_prior::PriorChoice;
 use super::error::RenderError;
 use super::hemisphere_estimate::HemisphereRule;
-use super::integral_prior::{IntegralPrior, combine_part};
+use super::integral_prior::{IntegralPrior, combine_direct, combine_part};
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
 use super::query::QueryPoint;
@@ -347,6 +347,10 @@ pub struct EstimatorCaches<'a> {
     /// The prior of specs with `records_prior` (the scene's irradiance-cache
     /// records); `None`: no records, the plain estimator.
     pub records: Option<&'a dyn IntegralPrior>,
+    /// With `records_prior` under the hemisphere decomposition, the prior
+    /// on the direct part: direct-light records at the records' places
+    /// (docs/math.md §10.8); `None`: none.
+    pub direct: Option<&'a dyn IntegralPrior>,
 }
 
 impl PointEstimator {
@@ -365,10 +369,12 @@ impl PointEstimator {
     ) -> Result<Estimates, EstimatorError> {
         let calibration = if self.calibrate {
             // With the records prior, the bars are fitted again each time
-            // the records it draws on double (§10.7).
+            // the records it draws on double (§10.7), or the direct-light
+            // records do (§10.8).
             let records = self.records(&caches).map(|r| r.state());
+            let direct = self.direct(&caches).map(|r| r.state());
             let key = format!(
-                "{:?} {:?} depth {} light samples {} records {records:?}",
+                "{:?} {:?} depth {} light samples {} records {records:?} direct {direct:?}",
                 self.spec,
                 options.method,
                 options.effective_max_depth(),
@@ -415,10 +421,18 @@ impl PointEstimator {
         caches.records.filter(|_| self.spec.records_prior)
     }
 
+    /// The direct-light records this estimator uses (§10.8): the caches' if
+    /// the spec asked for the records prior.
+    fn direct<'a>(&self, caches: &EstimatorCaches<'a>) -> Option<&'a dyn IntegralPrior> {
+        caches.direct.filter(|_| self.spec.records_prior)
+    }
+
     /// The estimates whose error bars [`Self::estimate`] calibrates: the
     /// rule's with its own error model, or with the records prior, the
     /// rule's estimates (with the rule's calibrated error bars, if the spec
-    /// calibrates) combined with the records where they cover a point (§10.7).
+    /// calibrates) combined with the records where they cover a point
+    /// (§10.7), then, under the hemisphere decomposition, their direct part
+    /// with the direct-light records (§10.8).
     fn before_calibration(
         &self,
         transport: &Transport,
@@ -428,10 +442,11 @@ impl PointEstimator {
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Estimates, EstimatorError> {
-        let Some(records) = self.records(&caches) else {
+        let (records, direct) = (self.records(&caches), self.direct(&caches));
+        if records.is_none() && direct.is_none() {
             return self
                 .estimate_with_model_errors(transport, caches, points, options, on_done, cancel);
-        };
+        }
         let rule = PointEstimator {
             spec: EstimatorSpec {
                 records_prior: false,
@@ -441,9 +456,14 @@ impl PointEstimator {
             ..self.clone()
         };
         let mut estimates = rule.estimate(transport, caches, points, options, on_done, cancel)?;
+        // In split mode the direct part is light-sampled, not the rule's.
+        let direct = direct.filter(|_| estimates.decomposition == Decomposition::Hemisphere);
         for (estimate, point) in estimates.estimates.iter_mut().zip(points) {
-            if let Some(known) = records.at(point) {
+            if let Some(known) = records.and_then(|r| r.at(point)) {
                 combine_part(estimate, known);
+            }
+            if let Some(known) = direct.and_then(|d| d.at(point)) {
+                combine_direct(estimate, known);
             }
         }
         estimates.calibration = None;

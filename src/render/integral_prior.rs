@@ -70,6 +70,35 @@ pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
     });
 }
 
+/// `estimate` under `prior`, a prior on its direct part: the estimate less
+/// its indirect part, or all of it where it reports none, as direct-light
+/// records hold it (docs/math.md §10.8). So an estimate with reflections
+/// must report its indirect part (estimators do with the records prior);
+/// one that reports none is taken to be of direct light only. The part is combined by [`combine`] with the share
+/// of the estimate's variance that is not the indirect part's, the total
+/// moves by what the part moved, and the indirect part keeps its own
+/// variance, now a share of the smaller total.
+pub fn combine_direct(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
+    let (indirect, indirect_share) = match estimate.indirect {
+        Some(part) => (part.irradiance, part.variance_share),
+        None => (Rgb::BLACK, Rgb::BLACK),
+    };
+    let variance = estimate.std_error * estimate.std_error;
+    let rest = variance * indirect_share;
+    let part_variance = (variance - rest).map(|v| v.max(0.0));
+    let part = estimate.irradiance - indirect;
+    let (posterior, posterior_variance) = combine((part, part_variance), prior);
+    estimate.irradiance += posterior - part;
+    let total = posterior_variance + rest;
+    estimate.std_error = total.map(f64::sqrt);
+    if let Some(part) = estimate.indirect.as_mut() {
+        part.variance_share = Rgb::from_array(std::array::from_fn(|c| {
+            let (r, t) = (rest.to_array()[c], total.to_array()[c]);
+            if t > 0.0 { r / t } else { 1.0 }
+        }));
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -137,6 +166,37 @@ mod tests {
         let part = estimate.indirect.unwrap();
         assert_eq!(part.irradiance, Rgb::splat(3.0));
         assert!((part.variance_share.b - 0.5 / 3.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_prior_on_the_direct_part_leaves_the_indirect_part_as_it_was() {
+        let mut estimate = IrradianceEstimate {
+            irradiance: Rgb::splat(5.0),
+            std_error: Rgb::splat(2.0),
+            rays: 7,
+            indirect: Some(IndirectPart {
+                irradiance: Rgb::splat(2.0),
+                variance_share: Rgb::splat(0.25),
+            }),
+        };
+        combine_direct(&mut estimate, (Rgb::splat(5.0), Rgb::splat(3.0)));
+        // Direct part 3 with variance ¾ · 4 = 3 against the prior 5 with 3:
+        // the midpoint 4 with variance 1.5, beside the indirect part's 1.
+        assert!((estimate.irradiance.r - 6.0).abs() < 1e-12);
+        assert!((estimate.std_error.r - 2.5f64.sqrt()).abs() < 1e-15);
+        let part = estimate.indirect.unwrap();
+        assert_eq!(part.irradiance, Rgb::splat(2.0));
+        assert!((part.variance_share.g - 1.0 / 2.5).abs() < 1e-15);
+        // Direct light only: the whole estimate is the part.
+        let mut direct_only = IrradianceEstimate {
+            irradiance: Rgb::splat(1.0),
+            std_error: Rgb::splat(1.0),
+            rays: 7,
+            indirect: None,
+        };
+        combine_direct(&mut direct_only, (Rgb::splat(3.0), Rgb::splat(1.0)));
+        assert!((direct_only.irradiance.g - 2.0).abs() < 1e-12);
+        assert!((direct_only.std_error.b - 0.5f64.sqrt()).abs() < 1e-15);
     }
 
     #[test]

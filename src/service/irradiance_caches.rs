@@ -17,8 +17,12 @@
 //! is a moka cache weighed by the sum, so creating a cache beyond the total
 //! evicts the least valuable one (moka's TinyLFU) as a whole. A configuration
 //! whose rule alone exceeds the total is refused (422) and its rule dropped.
+//! Each cache also holds the direct-light twins of its records (docs/math.md
+//! §10.8), made when a records-prior query first needs them, within
+//! [`DIRECT_SHARE`]⁻¹ of the cache's own budget, weighed with it.
 
-use std::sync::Arc;
+use std::collections::HashSet;
+use std::sync::{Arc, Mutex};
 
 use moka::sync::Cache;
 use serde::Serialize;
@@ -26,11 +30,19 @@ use utoipa::ToSchema;
 
 use super::scenes::LoadedScene;
 use crate::cache::{CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
-use crate::integrator::cached::{CachedShading, RecordsKey};
-use crate::render::PathDepth;
+use crate::integrator::cached::{CachedShading, RecordsKey, direct_records};
+use crate::render::{Cancel, PathDepth, RenderError, Transport};
 
 /// Each cache may use `1/SHARE` of the total budget.
 pub const SHARE: usize = 4;
+
+/// The direct-light twins of a cache's records may use `1/DIRECT_SHARE` of
+/// the cache's budget (beyond it their own FIFO eviction drops the oldest).
+pub const DIRECT_SHARE: usize = 4;
+
+/// Seed of every direct-light twin (with its place: the same record has the
+/// same twin in every replica and after every restart).
+const DIRECT_SEED: u64 = 0x00D1_2EC7;
 
 /// Identity of one cache.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -58,8 +70,65 @@ pub struct ConfigurationStats {
 pub struct SceneCache {
     pub cache: IrradianceCache,
     pub shading: CachedShading,
+    /// Direct-light twins of the records (docs/math.md §10.8).
+    direct: DirectTwins,
     /// The configuration as people read it in `GET /v1/scenes/{id}/cache`.
     description: serde_json::Value,
+}
+
+impl SceneCache {
+    /// The direct-light twins of every record held now (docs/math.md §10.8),
+    /// made for the records that have none yet. Returns them and the rays
+    /// traced for the new ones.
+    pub fn direct_twins(
+        &self,
+        transport: &Transport,
+        cancel: &Cancel,
+    ) -> Result<(&IrradianceCache, u64), RenderError> {
+        // One request makes the missing twins; others wait for them rather
+        // than trace the same rays.
+        let mut mirrored = self
+            .direct
+            .mirrored
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        let new: Vec<_> = self
+            .cache
+            .records()
+            .into_iter()
+            .filter(|r| !mirrored.contains(&place(r)))
+            .collect();
+        let rays = direct_records(
+            transport,
+            &new,
+            &self.shading.rule,
+            &self.direct.twins,
+            DIRECT_SEED,
+            cancel,
+        )?;
+        mirrored.extend(new.iter().map(place));
+        Ok((&self.direct.twins, rays))
+    }
+}
+
+/// A record's place as bits (records are told apart by where they are).
+fn place(record: &crate::cache::Record) -> [u64; 3] {
+    record.position.to_array().map(f64::to_bits)
+}
+
+/// The direct-light twins of one cache's records.
+struct DirectTwins {
+    twins: IrradianceCache,
+    /// The places of the records whose twin has been made.
+    mirrored: Mutex<HashSet<[u64; 3]>>,
+}
+
+impl DirectTwins {
+    fn clear(&self) {
+        let mut mirrored = self.mirrored.lock().unwrap_or_else(|e| e.into_inner());
+        self.twins.clear();
+        mirrored.clear();
+    }
 }
 
 /// All irradiance caches of the service.
@@ -78,7 +147,8 @@ impl IrradianceCaches {
             caches: Cache::builder()
                 .max_capacity(total_bytes.div_ceil(1024) as u64)
                 .weigher(move |_, entry: &Arc<SceneCache>| {
-                    kib(per_cache_bytes + entry.shading.rule.size_bytes())
+                    let records = per_cache_bytes + per_cache_bytes / DIRECT_SHARE;
+                    kib(records + entry.shading.rule.size_bytes())
                 })
                 .support_invalidation_closures()
                 .build(),
@@ -127,8 +197,16 @@ impl IrradianceCaches {
                         ),
                     ));
                 }
+                let direct = CacheConfig {
+                    byte_budget: config.byte_budget / DIRECT_SHARE,
+                    ..config
+                };
                 Ok(Arc::new(SceneCache {
                     cache: IrradianceCache::new(config)?,
+                    direct: DirectTwins {
+                        twins: IrradianceCache::new(direct)?,
+                        mirrored: Mutex::new(HashSet::new()),
+                    },
                     shading,
                     description: describe(),
                 }))
@@ -144,6 +222,11 @@ impl IrradianceCaches {
         self.caches
             .iter()
             .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
+    }
+
+    /// Every cache of this version of `scene`.
+    pub fn all(&self, scene: &LoadedScene) -> Vec<Arc<SceneCache>> {
+        self.of_scene(scene).map(|(_, entry)| entry).collect()
     }
 
     /// The caches of this version of `scene` whose records sum paths of at
@@ -181,6 +264,7 @@ impl IrradianceCaches {
             .map(|(_, entry)| {
                 let records = entry.cache.stats().records;
                 entry.cache.clear();
+                entry.direct.clear();
                 records
             })
             .sum()

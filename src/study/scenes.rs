@@ -17,9 +17,9 @@ use serde::Serialize;
 
 use crate::bmc::Kernel;
 use crate::bmc::cache::QuadratureCache;
-use crate::cache::{Accuracy, CacheConfig, IrradianceCache, RecordsPrior};
+use crate::cache::{CacheConfig, IrradianceCache, RecordsPrior};
 use crate::integrator::Preset;
-use crate::integrator::cached::{CachedIntegrator, CachedSpec};
+use crate::integrator::cached::{CachedIntegrator, CachedShading, CachedSpec, direct_records};
 use crate::render::calibration::Calibrations;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::error_target::ErrorTarget;
@@ -57,6 +57,10 @@ pub struct SceneStudyOptions {
     /// this preset's cache settings at the study's depth plus the camera
     /// segment, on one shared cache.
     pub records_from: Option<Preset>,
+    /// With `records_from` under the hemisphere decomposition: also run
+    /// `qmc` and `bmc` with the records' direct-light twins as a prior on
+    /// the direct part (docs/math.md §10.8).
+    pub direct_records: bool,
 }
 
 impl Default for SceneStudyOptions {
@@ -71,6 +75,7 @@ impl Default for SceneStudyOptions {
             seed: 2026,
             bmc_kernel: None,
             records_from: None,
+            direct_records: false,
         }
     }
 }
@@ -167,23 +172,28 @@ impl Setup {
         })
     }
 
-    fn caches<'a>(&'a self, records: Option<&'a dyn IntegralPrior>) -> EstimatorCaches<'a> {
+    fn caches<'a>(
+        &'a self,
+        records: Option<&'a dyn IntegralPrior>,
+        direct: Option<&'a dyn IntegralPrior>,
+    ) -> EstimatorCaches<'a> {
         EstimatorCaches {
             kernels: &self.kernels,
             quadratures: &self.quadratures,
             calibrations: &self.calibrations,
             records,
+            direct,
         }
     }
 }
 
 /// Records over what the camera sees (`SceneStudyOptions::records_from`),
-/// with the accuracy to look them up with.
+/// with the rules they were computed with.
 fn camera_records(
     transport: &Transport,
     preset: Preset,
     max_depth: PathDepth,
-) -> Result<(IrradianceCache, Accuracy), SceneStudyError> {
+) -> Result<(IrradianceCache, CachedShading), SceneStudyError> {
     let spec = CachedSpec {
         reproducible: Some(false),
         ..preset.settings().cached
@@ -208,7 +218,35 @@ fn camera_records(
             .render_tile(request, &Cancel::never())
             .map(|(tile, _)| tile)
     })?;
-    Ok((cache, shading.accuracy()))
+    Ok((cache, shading))
+}
+
+/// Direct-light twins (docs/math.md §10.8) of `records`, or, for a study
+/// of direct light only, of the records a render one segment deeper leaves
+/// (`records` then holds none: there is no indirect light to record).
+fn camera_direct_records(
+    transport: &Transport,
+    preset: Preset,
+    max_depth: PathDepth,
+    (records, shading): &(IrradianceCache, CachedShading),
+) -> Result<IrradianceCache, SceneStudyError> {
+    let deeper;
+    let places = if max_depth.has_reflections() {
+        records
+    } else {
+        deeper = camera_records(transport, preset, PathDepth::new(2)?)?.0;
+        &deeper
+    };
+    let twins = IrradianceCache::new(CacheConfig::default()).map_err(RenderError::from)?;
+    direct_records(
+        transport,
+        &places.records(),
+        &shading.rule,
+        &twins,
+        RECORDS_SEED,
+        &Cancel::never(),
+    )?;
+    Ok(twins)
 }
 
 /// Seed of the records of [`camera_records`] (shared with no request).
@@ -227,13 +265,23 @@ pub fn run(
         .transpose()?;
     let records_prior = records
         .as_ref()
-        .map(|(cache, accuracy)| RecordsPrior::new([(cache, *accuracy)]));
-    let (points, reference, base, caches) = (
-        &setup.points,
-        &setup.reference,
-        setup.base,
-        setup.caches(records_prior.as_ref().map(|r| r as &dyn IntegralPrior)),
-    );
+        .map(|(cache, shading)| RecordsPrior::new([(cache, shading.accuracy())]));
+    let decomposition = transport.decomposition(options.decomposition);
+    let direct = match (options.records_from, &records) {
+        (Some(preset), Some(records))
+            if options.direct_records && decomposition == Decomposition::Hemisphere =>
+        {
+            let twins = camera_direct_records(transport, preset, options.max_depth, records)?;
+            Some((twins, records.1.accuracy()))
+        }
+        _ => None,
+    };
+    let direct_prior = direct
+        .as_ref()
+        .map(|(twins, accuracy)| RecordsPrior::new([(twins, *accuracy)]));
+    let (points, reference, base) = (&setup.points, &setup.reference, setup.base);
+    let records_known = records_prior.as_ref().map(|r| r as &dyn IntegralPrior);
+    let direct_known = direct_prior.as_ref().map(|r| r as &dyn IntegralPrior);
     let never = Cancel::never();
     let estimators = [
         ("mc", EstimatorMethod::Mc, None, false),
@@ -247,8 +295,9 @@ pub fn run(
         ("bmc", EstimatorMethod::Bmc, None, false),
         ("qmc+records", EstimatorMethod::Qmc, None, true),
         ("bmc+records", EstimatorMethod::Bmc, None, true),
+        ("qmc+records+direct", EstimatorMethod::Qmc, None, true),
+        ("bmc+records+direct", EstimatorMethod::Bmc, None, true),
     ];
-    let decomposition = transport.decomposition(options.decomposition);
     let prior_applies = transport
         .hemisphere_prior(PriorChoice::Environment, decomposition)
         .is_some();
@@ -261,6 +310,11 @@ pub fn run(
             if records_prior && records.is_none() {
                 continue;
             }
+            let direct_row = name.ends_with("+direct");
+            if direct_row && direct_known.is_none() {
+                continue;
+            }
+            let caches = setup.caches(records_known, direct_known.filter(|_| direct_row));
             // The same estimates twice: with the model's error bars and
             // with calibrated ones (§10.5); only the error bars differ,
             // except with the records prior, which weighs the records
@@ -346,7 +400,7 @@ pub fn run_target(
         &setup.points,
         &setup.reference,
         setup.base,
-        setup.caches(None),
+        setup.caches(None, None),
     );
     let never = Cancel::never();
     let within = |estimate: &IrradianceEstimate, truth: &IrradianceEstimate| {

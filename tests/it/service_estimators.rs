@@ -280,7 +280,18 @@ async fn overcast_app() -> TestApp {
 /// The 200 answer of the overcast scene to `estimator` at `points`
 /// (paths of 2 segments).
 async fn overcast_irradiance(app: &TestApp, points: &Value, estimator: Value, seed: u64) -> Value {
-    let body = json!({"points": points, "estimator": estimator, "max_depth": 2, "seed": seed});
+    overcast_at_depth(app, points, estimator, seed, 2).await
+}
+
+async fn overcast_at_depth(
+    app: &TestApp,
+    points: &Value,
+    estimator: Value,
+    seed: u64,
+    max_depth: u32,
+) -> Value {
+    let body =
+        json!({"points": points, "estimator": estimator, "max_depth": max_depth, "seed": seed});
     let response = app.post_json("/v1/scenes/overcast/irradiance", &body).await;
     let status = response.status();
     let body = response.json::<Value>().await.unwrap();
@@ -290,7 +301,9 @@ async fn overcast_irradiance(app: &TestApp, points: &Value, estimator: Value, se
 
 /// Under the hemisphere decomposition (the overcast scene's `auto`) the
 /// records move each point's indirect part: the values less the sky each
-/// direction sees directly (docs/math.md §10.7).
+/// direction sees directly (docs/math.md §10.7); and the direct-light twins
+/// of the records move the direct part, the whole estimate of direct light
+/// alone (§10.8).
 #[tokio::test]
 async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
     let app = overcast_app().await;
@@ -325,6 +338,30 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
     // It moves the estimate; under an open sky the indirect part is a small
     // share of the error, so the error bar hardly narrows.
     assert_ne!(e, luminance(&without, 0, "irradiance"), "{with} {without}");
+    let r = luminance(&reference, 0, "irradiance");
+    let sigma = s.hypot(luminance(&reference, 0, "std_dev"));
+    assert!(agrees(e, r, sigma, 4.0, 0.0), "{e} vs {r} ± {sigma}");
+    for point in 1..3 {
+        assert_eq!(with["irradiance"][point], without["irradiance"][point]);
+    }
+    assert_eq!(with["direct_records_points"], 1, "{with}");
+    assert!(without.get("direct_records_points").is_none(), "{without}");
+
+    // Direct light only: no indirect part, and the twins carry the sky the
+    // first point sees past the occluders, which its 32 directions sample
+    // only coarsely.
+    let sky = |estimator: Value| overcast_at_depth(&app, &points, estimator, 5, 1);
+    let with = sky(json!({"method": "bmc", "samples": 32, "records_prior": true})).await;
+    let without = sky(json!({"method": "bmc", "samples": 32})).await;
+    let reference = sky(json!({"method": "mc", "samples": 4096, "calibrate": false})).await;
+    assert_eq!(with["records_prior_points"], 0, "{with}");
+    assert_eq!(with["direct_records_points"], 1, "{with}");
+    let (e, s) = (
+        luminance(&with, 0, "irradiance"),
+        luminance(&with, 0, "std_dev"),
+    );
+    assert_ne!(e, luminance(&without, 0, "irradiance"), "{with} {without}");
+    assert!(s < luminance(&without, 0, "std_dev"), "{with} {without}");
     let r = luminance(&reference, 0, "irradiance");
     let sigma = s.hypot(luminance(&reference, 0, "std_dev"));
     assert!(agrees(e, r, sigma, 4.0, 0.0), "{e} vs {r} ± {sigma}");
@@ -486,6 +523,8 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     }
     let after = irradiance(&app, with_records).await;
     assert_eq!(after["records_prior_points"], 2, "{after}");
+    // Split mode light-samples the direct part: no twins are made or used.
+    assert!(after.get("direct_records_points").is_none(), "{after}");
     let reference = irradiance(&app, json!({"method": "mc", "samples": 4096})).await;
     for point in 0..2 {
         let (e, s) = (

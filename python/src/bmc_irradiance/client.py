@@ -332,8 +332,10 @@ class Client:
         "variance", "noise"}``, ``bmc`` only) default to the service's
         choices. ``records_prior=True`` (``qmc``, ``bmc``) combines
         each point's indirect part with the irradiance cache's records where
-        rendered tiles left some; ``result.records_prior_points`` counts the
-        points they covered. ``target`` (an :class:`ErrorTarget` or a dict with
+        rendered tiles left some, and under the hemisphere decomposition its
+        direct part with the direct light seen from the records' places;
+        ``result.records_prior_points`` and ``result.direct_records_points``
+        count the points they covered. ``target`` (an :class:`ErrorTarget` or a dict with
         ``relative_error``, ``confidence``, ``max_samples``) estimates each
         point until its error bar meets it (``mc`` and ``qmc`` only).
         ``max_depth`` is the longest path in segments (service default 16);
@@ -413,6 +415,11 @@ class Client:
             records_prior_points=(
                 sum(int(doc["records_prior_points"]) for _, doc in answers)
                 if "records_prior_points" in first
+                else None
+            ),
+            direct_records_points=(
+                sum(int(doc["direct_records_points"]) for _, doc in answers)
+                if "direct_records_points" in first
                 else None
             ),
             samples=_flat(answers, "samples", np.int64) if targeted else None,

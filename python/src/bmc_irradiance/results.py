@@ -61,7 +61,9 @@ class IrradianceResult:
     (``split`` or ``hemisphere``), ``prior`` (``environment`` or ``none``),
     ``calibration`` (``scale``, ``floor``, ... or ``None``), and for ``bmc``
     the ``lengthscale`` and kernel ``noise`` used; with ``records_prior``,
-    ``records_prior_points`` counts the points the records covered. With a
+    ``records_prior_points`` counts the points the records covered and, under
+    the hemisphere decomposition, ``direct_records_points`` those the
+    records' direct-light twins covered. With a
     target, per point:
     ``samples`` spent, ``relative_error`` reached and ``target_met``.
     ``rays`` sums all requests; ``chunks`` lists the requests the point set
@@ -77,6 +79,7 @@ class IrradianceResult:
     lengthscale: Optional[float] = None
     noise: Optional[float] = None
     records_prior_points: Optional[int] = None
+    direct_records_points: Optional[int] = None
     samples: Optional[npt.NDArray[np.int64]] = None
     relative_error: Optional[FloatArray] = None
     target_met: Optional[npt.NDArray[np.bool_]] = None

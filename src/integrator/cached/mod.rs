@@ -20,6 +20,7 @@
 //! - `stats`: counters.
 
 mod config;
+mod direct_records;
 mod glossy;
 mod placement;
 mod radiance;
@@ -33,6 +34,7 @@ pub use config::{
     DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, MAX_AMBIENT_BOUNCES, MAX_BMC_EXPONENT,
     MAX_LIGHT_SAMPLES, PlacementOptions, RecordsKey, default_rule_spec, indirect_paths,
 };
+pub use direct_records::direct_records;
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
 pub use placement::{PlacementCache, PlacementReport, place_and_shade, place_records, shade};
 pub use radiance::{

@@ -73,10 +73,13 @@ pub struct EstimatorDoc {
     /// cache has records at the point (from tiles rendered with the `cache`
     /// estimator at a depth of at least `max_depth + 1`), combine the
     /// indirect part with their interpolated irradiance by precision
-    /// (docs/math.md §10.7). The answer then depends on the records held
-    /// when it is asked; `records_prior_points` says how many points used
-    /// them. Default false. Calibrated error bars are fitted again each time
-    /// the records double.
+    /// (docs/math.md §10.7); under the hemisphere decomposition also the
+    /// direct part with the direct light seen from the records' places
+    /// (their direct-light twins, made on first use: a thousand rays or so
+    /// per record, §10.8). The answer then depends on the records held when
+    /// it is asked; `records_prior_points` and `direct_records_points` say how
+    /// many points used them. Default false. Calibrated error bars are
+    /// fitted again each time the records double.
     #[serde(default)]
     pub records_prior: bool,
 }
@@ -187,6 +190,11 @@ pub struct IrradianceResponse {
     /// the irradiance cache's records.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub records_prior_points: Option<usize>,
+    /// With `records_prior` under the hemisphere decomposition: the points
+    /// whose direct part was combined with the direct-light twins of the
+    /// records (docs/math.md §10.8).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub direct_records_points: Option<usize>,
     /// The decomposition run: `split` or `hemisphere` (`auto` resolved).
     #[schema(value_type = String, example = "hemisphere")]
     pub decomposition: Decomposition,
@@ -298,11 +306,29 @@ pub async fn irradiance(
                     .iter()
                     .map(|entry| (&entry.cache, entry.shading.accuracy())),
             );
+            // Under the hemisphere decomposition the direct part has a prior
+            // too: the twins of every cache's records, at any depth, since
+            // they hold the direct light alone (docs/math.md §10.8).
+            let twin_caches = if records_prior
+                && transport.decomposition(options.method) == Decomposition::Hemisphere
+            {
+                worker.irradiance_caches.all(&scene)
+            } else {
+                Vec::new()
+            };
+            let mut twins = Vec::with_capacity(twin_caches.len());
+            for entry in &twin_caches {
+                let (cache, rays) = entry.direct_twins(transport, cancel)?;
+                ::metrics::counter!(RAYS_TRACED).increment(rays);
+                twins.push((cache, entry.shading.accuracy()));
+            }
+            let direct = RecordsPrior::new(twins);
             let caches = EstimatorCaches {
                 kernels: &scene.kernels,
                 quadratures: &worker.quadratures,
                 calibrations: &scene.calibrations,
                 records: Some(&records),
+                direct: Some(&direct),
             };
             let estimates = match &target {
                 None => point_estimator
@@ -316,13 +342,18 @@ pub async fn irradiance(
                 metrics::record_quadrature_lookup(&worker.quadratures, Some(cached));
             }
             // The points whose indirect part met the records (estimates
-            // with reflections report an indirect part).
+            // with reflections report an indirect part), and those whose
+            // direct part met the twins (hemisphere estimates only).
             let covered = |e: &Estimates| {
-                e.estimates
+                let indirect = e
+                    .estimates
                     .iter()
                     .zip(&points)
                     .filter(|(e, p)| e.indirect.is_some() && records.covers(p))
-                    .count()
+                    .count();
+                let direct = (e.decomposition == Decomposition::Hemisphere)
+                    .then(|| points.iter().filter(|p| direct.covers(p)).count());
+                (indirect, direct)
             };
             estimates.map(|(e, targeted)| {
                 let covered = records_prior.then(|| covered(&e));
@@ -330,7 +361,9 @@ pub async fn irradiance(
             })
         })
         .await??;
-    let (estimates, records_prior_points) = estimates;
+    let (estimates, covered) = estimates;
+    let records_prior_points = covered.map(|(indirect, _)| indirect);
+    let direct_records_points = covered.and_then(|(_, direct)| direct);
     let (estimates, targeted) = estimates;
     let (kernel, decomposition, prior, calibration) = (
         estimates.kernel,
@@ -350,6 +383,7 @@ pub async fn irradiance(
         std_dev: estimates.iter().map(|e| rgb(e.std_error)).collect(),
         rays,
         records_prior_points,
+        direct_records_points,
         kernel: kernel.map(|k| k.kind),
         lengthscale: kernel.map(|k| k.lengthscale),
         noise: kernel.map(|k| k.noise),

@@ -1,0 +1,184 @@
+//! Direct-light records: at the places of an irradiance cache's records,
+//! the irradiance of the emission each place sees directly (the environment
+//! where a ray escapes, an emitter's radiance where it hits one), estimated
+//! by the record rule from one-segment rays, with its gradients. Records
+//! hold the indirect part (§10.7); these twins carry what the environment
+//! and the emitters give once occluded by the scene, which a hemisphere
+//! estimate's direct part integrates from its own few directions
+//! (docs/math.md §10.8).
+
+use rand::{RngExt, SeedableRng};
+use rayon::prelude::*;
+
+use crate::cache::{IrradianceCache, RadiusLimits, Record, RecordRule};
+use crate::render::{
+    AveragedPaths, Cancel, PathDepth, PathLengths, PathLimits, QueryPoint, RenderError, TraceStats,
+    Transport,
+};
+use crate::sphere::Frame;
+
+/// Records estimated per batch ([`RecordRule::estimate_batch`] shares its
+/// table reads among them).
+const BATCH: usize = 32;
+
+/// The direct-light twins of `records`, inserted into `twins`: each at the
+/// record's place and with its validity radius, estimated by `rule`
+/// from one ray per direction (paths of one segment, the rule's directions
+/// turned about the normal by a random angle drawn from `seed` and the
+/// record's place, so a record has the same twin whenever and with whatever
+/// others it is computed). Returns the rays traced.
+pub fn direct_records(
+    transport: &Transport,
+    records: &[Record],
+    rule: &RecordRule,
+    twins: &IrradianceCache,
+    seed: u64,
+    cancel: &Cancel,
+) -> Result<u64, RenderError> {
+    let paths = AveragedPaths {
+        limits: PathLimits {
+            max_depth: PathDepth::new(1)?,
+            lengths: PathLengths::All,
+        },
+        per_direction: 1,
+    };
+    let batches: Vec<Result<(Vec<Record>, u64), RenderError>> = records
+        .par_chunks(BATCH)
+        .map(|batch| {
+            cancel.check()?;
+            let mut trace = TraceStats::default();
+            let mut gathered = Vec::with_capacity(batch.len());
+            for record in batch {
+                let mut rng = rand_pcg::Pcg64::seed_from_u64(place_seed(seed, record.position));
+                let point = QueryPoint::new(record.position, record.normal)?;
+                let frame = Frame::from_normal(record.normal)
+                    .rotated_about_normal(std::f64::consts::TAU * rng.random::<f64>());
+                let samples = transport.hemisphere_samples_averaged(
+                    &point,
+                    &frame,
+                    rule.directions(),
+                    paths,
+                    &mut rng,
+                    &mut trace,
+                );
+                gathered.push((point, frame, samples));
+            }
+            let values: Vec<&[_]> = gathered.iter().map(|(_, _, s)| s.as_slice()).collect();
+            let estimates = rule.estimate_batch(&values);
+            let twins = gathered
+                .iter()
+                .zip(estimates)
+                .zip(batch)
+                .map(|(((point, frame, samples), estimate), record)| {
+                    let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
+                    // The twin keeps the record's radius (and clamps its
+                    // gradients to it), so both cover the same points.
+                    let limits = RadiusLimits {
+                        min: record.radius,
+                        max: record.radius,
+                    };
+                    Ok(Record::from_estimate(
+                        point, frame, &estimate?, &distances, limits,
+                    ))
+                })
+                .collect::<Result<Vec<_>, RenderError>>()?;
+            Ok((twins, trace.rays))
+        })
+        .collect();
+    let mut rays = 0;
+    for batch in batches {
+        let (batch, traced) = batch?;
+        rays += traced;
+        for twin in batch {
+            twins.insert(twin)?;
+        }
+    }
+    Ok(rays)
+}
+
+/// The seed of a record's twin: `seed` mixed with the bits of its place.
+fn place_seed(seed: u64, position: glam::DVec3) -> u64 {
+    // An odd multiplier and a rotation spread each coordinate's bits.
+    position.to_array().iter().fold(seed, |h, c| {
+        (h ^ c.to_bits())
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .rotate_left(29)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use glam::DVec3;
+
+    use super::*;
+    use crate::bmc::cache::QuadratureCache;
+    use crate::cache::CacheConfig;
+    use crate::integrator::cached::CachedSpec;
+    use crate::render::Rgb;
+
+    /// A unit disk at the origin facing +z under a constant sky of radiance
+    /// 2: above it the whole sky is seen, `E = 2π`; one unit below it,
+    /// facing up, the disk hides the cone of half-angle 45°, which holds
+    /// `sin² 45° = ½` of the cosine-weighted sky, `E = π`.
+    #[test]
+    fn twins_hold_the_sky_the_places_see_past_the_occluders() {
+        let doc = r#"{
+            "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+            "shapes": [{"type": "disk", "material": "grey"}],
+            "environment": {"type": "constant", "radiance": [2, 2, 2]},
+            "camera": {"type": "perspective", "fov": 30, "origin": [0, 0, 4],
+                       "target": [0, 0, 0], "up": [0, 1, 0], "width": 4, "height": 4}
+        }"#;
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
+        let transport = Transport::new(Arc::new(scene));
+        let place = |z: f64| Record {
+            position: DVec3::new(0.0, 0.0, z),
+            normal: DVec3::Z,
+            irradiance: Rgb::BLACK,
+            variance: Rgb::BLACK,
+            radius: 0.3,
+            rotation_gradient: [DVec3::ZERO; 3],
+            translation_gradient: [DVec3::ZERO; 3],
+        };
+        let spec = CachedSpec {
+            samples: Some(256),
+            ..CachedSpec::default()
+        };
+        let shading = spec
+            .resolve()
+            .unwrap()
+            .shading(Arc::new(QuadratureCache::new(64 << 20)))
+            .unwrap();
+        let places = [place(0.0), place(-1.0)];
+        let twins_of = |places: &[Record]| {
+            let cache = IrradianceCache::new(CacheConfig::default()).unwrap();
+            let rays = direct_records(
+                &transport,
+                places,
+                &shading.rule,
+                &cache,
+                7,
+                &Cancel::never(),
+            )
+            .unwrap();
+            (cache, rays)
+        };
+        let (cache, rays) = twins_of(&places);
+        assert_eq!(rays, 2 * 256);
+        let twins = cache.records();
+        assert_eq!(twins.len(), 2);
+        let at = |z: f64| *twins.iter().find(|t| t.position.z == z).unwrap();
+        let (open, under) = (at(0.0), at(-1.0));
+        let pi = std::f64::consts::PI;
+        assert!((open.irradiance.g - 2.0 * pi).abs() < 1e-9 * pi, "{open:?}");
+        assert!((under.irradiance.g - pi).abs() < 0.05 * pi, "{under:?}");
+        assert!(under.variance.g > 0.0);
+        assert_eq!((open.radius, under.radius), (0.3, 0.3));
+        // A place has the same twin whatever it is computed with.
+        let (alone, _) = twins_of(&places[1..]);
+        assert_eq!(alone.records()[0], under);
+    }
+}
