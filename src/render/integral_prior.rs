@@ -54,19 +54,10 @@ pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
     let Some(part) = estimate.indirect else {
         return;
     };
-    let variance = estimate.std_error * estimate.std_error;
-    let part_variance = variance * part.variance_share;
-    let rest = (variance - part_variance).map(|v| v.max(0.0));
-    let (posterior, posterior_variance) = combine((part.irradiance, part_variance), prior);
-    estimate.irradiance += posterior - part.irradiance;
-    let total = posterior_variance + rest;
-    estimate.std_error = total.map(f64::sqrt);
+    let moved = move_part(estimate, part.irradiance, part.variance_share, prior);
     estimate.indirect = Some(IndirectPart {
-        irradiance: posterior,
-        variance_share: Rgb::from_array(std::array::from_fn(|c| {
-            let (p, t) = (posterior_variance.to_array()[c], total.to_array()[c]);
-            if t > 0.0 { p / t } else { 1.0 }
-        })),
+        irradiance: moved.posterior,
+        variance_share: share(moved.posterior_variance, moved.total),
     });
 }
 
@@ -74,29 +65,66 @@ pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
 /// its indirect part, or all of it where it reports none, as direct-light
 /// records hold it (docs/math.md §10.8). So an estimate with reflections
 /// must report its indirect part (estimators do with the records prior);
-/// one that reports none is taken to be of direct light only. The part is combined by [`combine`] with the share
-/// of the estimate's variance that is not the indirect part's, the total
-/// moves by what the part moved, and the indirect part keeps its own
-/// variance, now a share of the smaller total.
+/// one that reports none is taken to be of direct light only. The part is
+/// combined as in [`combine_part`], with the share of the variance that is
+/// not the indirect part's, and the indirect part keeps its own variance,
+/// now a share of the smaller total.
 pub fn combine_direct(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
     let (indirect, indirect_share) = match estimate.indirect {
         Some(part) => (part.irradiance, part.variance_share),
         None => (Rgb::BLACK, Rgb::BLACK),
     };
+    let direct_share = indirect_share.map(|s| 1.0 - s);
+    let moved = move_part(
+        estimate,
+        estimate.irradiance - indirect,
+        direct_share,
+        prior,
+    );
+    if let Some(part) = estimate.indirect.as_mut() {
+        part.variance_share = share(moved.rest, moved.total);
+    }
+}
+
+/// What [`move_part`] did: the part's posterior mean and variance, the rest
+/// of the estimate's variance and the new total variance, per channel.
+struct Moved {
+    posterior: Rgb,
+    posterior_variance: Rgb,
+    rest: Rgb,
+    total: Rgb,
+}
+
+/// Combines `part` of `estimate`, which has `part_share` of its variance,
+/// with `prior`, and moves the total by what the part moved; the rest of the
+/// variance stays beside the part's posterior variance.
+fn move_part(
+    estimate: &mut IrradianceEstimate,
+    part: Rgb,
+    part_share: Rgb,
+    prior: (Rgb, Rgb),
+) -> Moved {
     let variance = estimate.std_error * estimate.std_error;
-    let rest = variance * indirect_share;
-    let part_variance = (variance - rest).map(|v| v.max(0.0));
-    let part = estimate.irradiance - indirect;
+    let part_variance = variance * part_share;
+    let rest = (variance - part_variance).map(|v| v.max(0.0));
     let (posterior, posterior_variance) = combine((part, part_variance), prior);
     estimate.irradiance += posterior - part;
     let total = posterior_variance + rest;
     estimate.std_error = total.map(f64::sqrt);
-    if let Some(part) = estimate.indirect.as_mut() {
-        part.variance_share = Rgb::from_array(std::array::from_fn(|c| {
-            let (r, t) = (rest.to_array()[c], total.to_array()[c]);
-            if t > 0.0 { r / t } else { 1.0 }
-        }));
+    Moved {
+        posterior,
+        posterior_variance,
+        rest,
+        total,
     }
+}
+
+/// `of / total` per channel, 1 where the total is zero.
+fn share(of: Rgb, total: Rgb) -> Rgb {
+    Rgb::from_array(std::array::from_fn(|c| {
+        let (p, t) = (of.to_array()[c], total.to_array()[c]);
+        if t > 0.0 { p / t } else { 1.0 }
+    }))
 }
 
 #[cfg(test)]

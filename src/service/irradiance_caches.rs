@@ -92,9 +92,11 @@ impl SceneCache {
             .mirrored
             .lock()
             .unwrap_or_else(|e| e.into_inner());
-        let new: Vec<_> = self
-            .cache
-            .records()
+        let records = self.cache.records();
+        // Forget the places of records the cache has evicted since.
+        let held: HashSet<[u64; 3]> = records.iter().map(place).collect();
+        mirrored.retain(|p| held.contains(p));
+        let new: Vec<_> = records
             .into_iter()
             .filter(|r| !mirrored.contains(&place(r)))
             .collect();
