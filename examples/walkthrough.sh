@@ -113,8 +113,10 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 #   "auto" and no "kind", the family (squared_exponential | matern32 | matern52) is
 #   selected by marginal likelihood too, and the response's "kernel" names it.
 #   "records_prior": true (qmc, bmc) combines each point's indirect part with the
-#   irradiance cache's records where rendered tiles left some (§10.7); the response counts
-#   the points they covered in "records_prior_points".
+#   irradiance cache's records where rendered tiles left some (§10.7), and under the
+#   hemisphere decomposition its direct part with the direct light seen from the records'
+#   places (§10.8); the response counts the points they covered in "records_prior_points"
+#   and "direct_records_points".
 
 curl -X POST "$BASE/v1/quadratures" -H 'content-type: application/json' \
      -d '{"sample_set": {"kind": "fibonacci", "count": 64},
