@@ -10,8 +10,8 @@
 //! - `index`: the concurrent multi-level hash grid over records.
 //! - `irradiance_cache`: the shared cache — lookup, insertion with the
 //!   neighbour clamp, byte budget with FIFO eviction, stats.
-//! - `records_prior`: the records as a prior on a point query's indirect
-//!   irradiance.
+//! - `records_prior`: the records (or their direct-light twins) as a prior
+//!   on a point query's indirect (or direct) irradiance.
 //! - `log`: the append-only, checksummed log that keeps records (and
 //!   whatever else is keyed by content) across restarts.
 //!

@@ -1,5 +1,6 @@
 //! The irradiance cache's records as a prior on a point query's indirect
-//! irradiance (docs/math.md §10.7): where records cover the point, their
+//! irradiance (docs/math.md §10.7), or their direct-light twins as one on
+//! its direct irradiance (§10.8): where records cover the point, their
 //! interpolated irradiance and its variance (`IrradianceCache::lookup`) are
 //! the prior's mean and variance.
 
@@ -28,8 +29,9 @@ pub const HELD_OUT_RECORDS: usize = 256;
 pub const MIN_HELD_OUT: usize = 16;
 
 impl<'a> RecordsPrior<'a> {
-    /// A prior from `caches`, whose records must hold the indirect irradiance
-    /// of paths at least as long as the query's (module docs of the caller).
+    /// A prior from `caches`, whose records must hold the part the prior is
+    /// for: the indirect irradiance of paths at least as long as the query's,
+    /// or the direct light alone (direct-light twins).
     pub fn new(caches: impl IntoIterator<Item = (&'a IrradianceCache, Accuracy)>) -> Self {
         let caches = caches
             .into_iter()

@@ -1,9 +1,11 @@
-//! A Gaussian prior on the indirect part of a point's estimate, and its
-//! combination with a rule's estimate (docs/math.md §10.7).
+//! A Gaussian prior on a part of a point's estimate, the indirect part
+//! (docs/math.md §10.7) or the direct part (§10.8), and its combination
+//! with a rule's estimate.
 //!
 //! The rule's estimate `Ĥ` with variance `s²` is read as the likelihood of
 //! the integral `H`; a prior `N(m, v)` on `H` from what the service already
-//! knows (the irradiance cache's records, `cache::RecordsPrior`) gives the
+//! knows (the irradiance cache's records or their direct-light twins,
+//! `cache::RecordsPrior`) gives the
 //! posterior `N((Ĥ/s² + m/v)/(1/s² + 1/v), 1/(1/s² + 1/v))` per channel.
 //! As samples grow, `s² → 0` and the posterior mean tends to `Ĥ`: the prior
 //! moves a finite-sample estimate, never the limit.
@@ -12,7 +14,8 @@ use super::irradiance::{IndirectPart, IrradianceEstimate};
 use super::query::QueryPoint;
 use super::rgb::Rgb;
 
-/// A prior on the indirect irradiance at a point, W/m², when one is known.
+/// A prior on a part of the irradiance at a point (indirect or direct),
+/// W/m², when one is known.
 pub trait IntegralPrior: Sync {
     /// Mean and variance per channel of the prior at `point`, or `None`.
     fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)>;

@@ -316,12 +316,14 @@ pub async fn irradiance(
             } else {
                 Vec::new()
             };
-            let mut twins = Vec::with_capacity(twin_caches.len());
-            for entry in &twin_caches {
-                let (cache, rays) = entry.direct_twins(transport, cancel)?;
-                ::metrics::counter!(RAYS_TRACED).increment(rays);
-                twins.push((cache, entry.shading.accuracy()));
-            }
+            let twins = twin_caches
+                .iter()
+                .map(|entry| {
+                    let (cache, rays) = entry.direct_twins(transport, cancel)?;
+                    ::metrics::counter!(RAYS_TRACED).increment(rays);
+                    Ok((cache, entry.shading.accuracy()))
+                })
+                .collect::<Result<Vec<_>, crate::render::RenderError>>()?;
             let direct = RecordsPrior::new(twins);
             let caches = EstimatorCaches {
                 kernels: &scene.kernels,
