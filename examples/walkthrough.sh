@@ -115,8 +115,9 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 #   "records_prior": true (qmc, bmc) combines each point's indirect part with the
 #   irradiance cache's records where rendered tiles left some (§10.7), and under the
 #   hemisphere decomposition its direct part with the direct light seen from the records'
-#   places (§10.8); the response counts the points they covered in "records_prior_points"
-#   and "direct_records_points".
+#   places (§10.8), each prior weighed by a variance scale fitted with the calibration
+#   ("calibration": {"prior_scales": …}, §10.9); the response counts the points they
+#   covered in "records_prior_points" and "direct_records_points".
 
 curl -X POST "$BASE/v1/quadratures" -H 'content-type: application/json' \
      -d '{"sample_set": {"kind": "fibonacci", "count": 64},

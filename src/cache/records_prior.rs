@@ -56,8 +56,9 @@ impl<'a> RecordsPrior<'a> {
 /// spread over its insertion order, the squared relative difference of
 /// luminance between the record and the interpolation of the others at its
 /// point and normal; `None` below [`MIN_HELD_OUT`] predictions. It holds the
-/// interpolation error and the noise of the records on both sides, so it
-/// errs on the wide side.
+/// interpolation error and the noise of the records on both sides, and is
+/// measured about a validity radius from the others, so it errs on the wide
+/// side (docs/math.md §10.9: the estimators scale it on the scene).
 fn held_out_error2(cache: &IrradianceCache, accuracy: Accuracy) -> Option<f64> {
     let records = cache.records();
     let step = records.len().div_ceil(HELD_OUT_RECORDS).max(1);

@@ -24,6 +24,7 @@ use std::sync::Arc;
 
 use super::cancel::Cancel;
 use super::error::RenderError;
+use super::integral_prior::PriorScales;
 use super::irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
 use super::query::QueryPoint;
 use super::sample_points::{camera_points, training_points};
@@ -66,6 +67,11 @@ pub struct ErrorCalibration {
     /// whose samples are not independent (QMC, BMC).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub unseen: f64,
+    /// With the records prior: the multipliers of the priors' variances
+    /// fitted on the same training points before the bars
+    /// (docs/math.md §10.9).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prior_scales: Option<PriorScales>,
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -109,6 +115,7 @@ impl ErrorCalibration {
         level: [0.0; 3],
         pairs: 0,
         unseen: 0.0,
+        prior_scales: None,
     };
 
     /// Widens `estimate.std_error` (module docs).
@@ -188,6 +195,7 @@ impl ErrorCalibration {
                         level,
                         pairs: training.len(),
                         unseen,
+                        prior_scales: None,
                     },
                 ));
             }
@@ -218,60 +226,132 @@ pub fn calibrate<E: From<RenderError>>(
     cancel: &Cancel,
     estimate: &EstimateFn<'_, E>,
 ) -> Result<ErrorCalibration, E> {
-    // Where the scene will be looked at: what its camera sees, or anywhere
-    // on its surfaces if the camera sees nothing.
-    let mut points = camera_points(transport, CALIBRATION_POINTS, CALIBRATION_SEED);
-    if points.len() < CALIBRATION_POINTS / 2 {
-        points = training_points(transport, CALIBRATION_POINTS, CALIBRATION_SEED);
-    }
-    // Plain MC with light sampling: unbiased for every decomposition, and
-    // with enough samples that its own noise does not hide the estimator's.
-    let reference_samples = options
-        .samples
-        .saturating_mul(CALIBRATION_REFERENCE_FACTOR)
-        .clamp(CALIBRATION_REFERENCE_SAMPLES, CALIBRATION_REFERENCE_MAX);
-    let reference = transport.irradiance_at_points(
-        &points,
-        &IrradianceOptions {
-            samples: reference_samples,
-            method: IrradianceMethod::Split,
-            seed: CALIBRATION_SEED,
-            ..*options
-        },
-        &|| {},
-        cancel,
-    )?;
-    let level: [f64; 3] = std::array::from_fn(|c| {
-        reference
-            .iter()
-            .map(|r| r.irradiance.to_array()[c])
-            .sum::<f64>()
-            / reference.len().max(1) as f64
-    });
-    let mut training = Vec::new();
-    for s in 0..CALIBRATION_SEEDS {
-        let run = estimate(
+    let training = TrainingSet::new(transport, options, cancel)?;
+    let runs = training
+        .requests(options)
+        .map(|request| estimate(&training.points, &request))
+        .collect::<Result<Vec<_>, E>>()?;
+    Ok(training.fit(&runs, None, unseen))
+}
+
+/// The training points of a calibration and their reference (module docs).
+pub struct TrainingSet {
+    /// [`CALIBRATION_POINTS`] points where the scene will be looked at.
+    pub points: Vec<QueryPoint>,
+    reference: Vec<IrradianceEstimate>,
+    /// Mean reference irradiance per channel (see [`ErrorCalibration::level`]).
+    level: [f64; 3],
+}
+
+impl TrainingSet {
+    /// The points and their reference for an estimator run with `options`.
+    pub fn new(
+        transport: &Transport,
+        options: &IrradianceOptions,
+        cancel: &Cancel,
+    ) -> Result<Self, RenderError> {
+        // Where the scene will be looked at: what its camera sees, or anywhere
+        // on its surfaces if the camera sees nothing.
+        let mut points = camera_points(transport, CALIBRATION_POINTS, CALIBRATION_SEED);
+        if points.len() < CALIBRATION_POINTS / 2 {
+            points = training_points(transport, CALIBRATION_POINTS, CALIBRATION_SEED);
+        }
+        // Plain MC with light sampling: unbiased for every decomposition, and
+        // with enough samples that its own noise does not hide the estimator's.
+        let reference_samples = options
+            .samples
+            .saturating_mul(CALIBRATION_REFERENCE_FACTOR)
+            .clamp(CALIBRATION_REFERENCE_SAMPLES, CALIBRATION_REFERENCE_MAX);
+        let reference = transport.irradiance_at_points(
             &points,
             &IrradianceOptions {
-                seed: CALIBRATION_SEED.wrapping_add(1 + s),
+                samples: reference_samples,
+                method: IrradianceMethod::Split,
+                seed: CALIBRATION_SEED,
                 ..*options
             },
+            &|| {},
+            cancel,
         )?;
-        for (e, r) in run.iter().zip(&reference) {
-            let (value, sigma) = (e.irradiance.to_array(), e.std_error.to_array());
-            let (truth, reference_sigma) = (r.irradiance.to_array(), r.std_error.to_array());
-            for c in 0..3 {
-                training.push(Training {
-                    error: value[c] - truth[c],
-                    sigma: sigma[c],
-                    reference_sigma: reference_sigma[c],
-                    magnitude: floor_magnitude(value[c], level[c]),
-                    level: level[c],
-                });
+        let level: [f64; 3] = std::array::from_fn(|c| {
+            reference
+                .iter()
+                .map(|r| r.irradiance.to_array()[c])
+                .sum::<f64>()
+                / reference.len().max(1) as f64
+        });
+        Ok(Self {
+            points,
+            reference,
+            level,
+        })
+    }
+
+    /// The [`CALIBRATION_SEEDS`] requests the estimator is run with at the
+    /// points: `options` with the training seeds.
+    pub fn requests(
+        &self,
+        options: &IrradianceOptions,
+    ) -> impl Iterator<Item = IrradianceOptions> + use<> {
+        let options = *options;
+        (0..CALIBRATION_SEEDS).map(move |s| IrradianceOptions {
+            seed: CALIBRATION_SEED.wrapping_add(1 + s),
+            ..options
+        })
+    }
+
+    /// Sum over runs, points and channels of the squared error against the
+    /// reference, each channel relative to its level: the mean of its
+    /// expectation over the reference's noise is the estimator's own mean
+    /// squared error plus a constant, so the run with the smallest is the
+    /// most accurate whatever the reference's noise.
+    pub fn squared_error(&self, runs: &[Vec<IrradianceEstimate>]) -> f64 {
+        runs.iter()
+            .flat_map(|run| run.iter().zip(&self.reference))
+            .map(|(e, r)| {
+                let (value, truth) = (e.irradiance.to_array(), r.irradiance.to_array());
+                (0..3)
+                    .filter(|&c| self.level[c] > 0.0)
+                    .map(|c| ((value[c] - truth[c]) / self.level[c]).powi(2))
+                    .sum::<f64>()
+            })
+            .sum()
+    }
+
+    /// The calibration of the estimator whose uncalibrated estimates at the
+    /// points are `runs`, one per request of [`Self::requests`]; with
+    /// `only`, fitted on the estimates it marks (per run, per point).
+    pub fn fit(
+        &self,
+        runs: &[Vec<IrradianceEstimate>],
+        only: Option<&[Vec<bool>]>,
+        unseen: f64,
+    ) -> ErrorCalibration {
+        let level = self.level;
+        let mut training = Vec::new();
+        for (k, run) in runs.iter().enumerate() {
+            let marked = |i: usize| only.is_none_or(|only| only[k][i]);
+            for (_, (e, r)) in run
+                .iter()
+                .zip(&self.reference)
+                .enumerate()
+                .filter(|(i, _)| marked(*i))
+            {
+                let (value, sigma) = (e.irradiance.to_array(), e.std_error.to_array());
+                let (truth, reference_sigma) = (r.irradiance.to_array(), r.std_error.to_array());
+                for c in 0..3 {
+                    training.push(Training {
+                        error: value[c] - truth[c],
+                        sigma: sigma[c],
+                        reference_sigma: reference_sigma[c],
+                        magnitude: floor_magnitude(value[c], level[c]),
+                        level: level[c],
+                    });
+                }
             }
         }
+        ErrorCalibration::fit(&training, level, unseen)
     }
-    Ok(ErrorCalibration::fit(&training, level, unseen))
 }
 
 /// Calibrations of one scene by estimator configuration; each computed at

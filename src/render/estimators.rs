@@ -28,15 +28,16 @@
 
 use std::sync::Arc;
 
-use super::calibration::{Calibrations, ErrorCalibration, calibrate, unseen_light};
+use super::calibration::{Calibrations, ErrorCalibration, TrainingSet, calibrate, unseen_light};
 use super::cancel::Cancel;
 use super::environment_prior::PriorChoice;
 use super::error::RenderError;
 use super::hemisphere_estimate::HemisphereRule;
-use super::integral_prior::{IntegralPrior, combine_direct, combine_part};
+use super::integral_prior::{IntegralPrior, PriorScales, combine_direct, combine_part, scaled};
 use super::irradiance::{Decomposition, IrradianceEstimate, IrradianceOptions};
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
 use super::query::QueryPoint;
+use super::rgb::Rgb;
 use super::transport::Transport;
 use crate::bmc::cache::{CachedQuadrature, QuadratureCache};
 use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
@@ -386,24 +387,117 @@ impl PointEstimator {
                     PointRule::Mc { .. } => unseen_light(self.spec.samples),
                     PointRule::Qmc(_) | PointRule::Bmc(_) => 0.0,
                 };
+                if self.has_priors(&caches) {
+                    return self.calibrate_with_priors(transport, caches, options, unseen, cancel);
+                }
                 calibrate(transport, options, unseen, cancel, &|points, options| {
-                    self.before_calibration(transport, caches, points, options, &|| {}, cancel)
-                        .map(|e| e.estimates)
+                    self.estimate_with_model_errors(
+                        transport,
+                        caches,
+                        points,
+                        options,
+                        &|| {},
+                        cancel,
+                    )
+                    .map(|e| e.estimates)
                 })
             })?)
         } else {
             None
         };
-        let mut estimates =
-            self.before_calibration(transport, caches, points, options, on_done, cancel)?;
+        let (mut estimates, calibrated) = if self.has_priors(&caches) {
+            let scales = calibration
+                .and_then(|c| c.prior_scales)
+                .unwrap_or(PriorScales::ONE);
+            self.with_priors(transport, caches, points, options, scales, on_done, cancel)?
+        } else {
+            let estimates = self
+                .estimate_with_model_errors(transport, caches, points, options, on_done, cancel)?;
+            let all = vec![true; estimates.estimates.len()];
+            (estimates, all)
+        };
         if let Some(calibration) = calibration {
-            estimates
+            for (estimate, _) in estimates
                 .estimates
                 .iter_mut()
-                .for_each(|e| calibration.apply(e));
+                .zip(calibrated)
+                .filter(|(_, calibrated)| *calibrated)
+            {
+                calibration.apply(estimate);
+            }
         }
         estimates.calibration = calibration;
         Ok(estimates)
+    }
+
+    /// The calibration of an estimator with the records prior (§10.9): the
+    /// rule's estimates at the training points are combined with the priors
+    /// under each pair of [`PriorScales::CANDIDATES`], the pair with the
+    /// smallest squared error against the reference is kept, and the bars
+    /// of that combination are fitted as any estimator's.
+    fn calibrate_with_priors(
+        &self,
+        transport: &Transport,
+        caches: EstimatorCaches,
+        options: &IrradianceOptions,
+        unseen: f64,
+        cancel: &Cancel,
+    ) -> Result<ErrorCalibration, EstimatorError> {
+        let training = TrainingSet::new(transport, options, cancel)?;
+        let rule = self.rule();
+        let runs = training
+            .requests(options)
+            .map(|request| {
+                rule.estimate(
+                    transport,
+                    caches,
+                    &training.points,
+                    &request,
+                    &|| {},
+                    cancel,
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let Some(decomposition) = runs.first().map(|r| r.decomposition) else {
+            return Ok(training.fit(&[], None, unseen));
+        };
+        let known = self.priors_at(&caches, &training.points, decomposition);
+        let combined = |scales| {
+            runs.iter()
+                .map(|run| {
+                    let mut estimates = run.estimates.clone();
+                    let moved = combine_priors(&mut estimates, &known, scales);
+                    (estimates, moved)
+                })
+                .unzip::<_, _, Vec<_>, Vec<_>>()
+        };
+        // A prior that covers no training point keeps its stated variance.
+        let candidates = |used: bool| {
+            if used {
+                &PriorScales::CANDIDATES[..]
+            } else {
+                &PriorScales::CANDIDATES[..1]
+            }
+        };
+        let mut best = (
+            PriorScales::ONE,
+            training.squared_error(&combined(PriorScales::ONE).0),
+        );
+        for &records in candidates(known.iter().any(|k| k.records.is_some())) {
+            for &direct in candidates(known.iter().any(|k| k.direct.is_some())) {
+                let scales = PriorScales { records, direct };
+                let error = training.squared_error(&combined(scales).0);
+                if error < best.1 {
+                    best = (scales, error);
+                }
+            }
+        }
+        // Estimates no prior moved keep the rule's calibrated bars; the
+        // combination's are fitted on those the priors moved.
+        let (runs, moved) = combined(best.0);
+        let mut calibration = training.fit(&runs, Some(&moved), unseen);
+        calibration.prior_scales = Some(best.0);
+        Ok(calibration)
     }
 
     /// Hemisphere samples per point of one run.
@@ -427,47 +521,72 @@ impl PointEstimator {
         caches.direct.filter(|_| self.spec.records_prior)
     }
 
-    /// The estimates whose error bars [`Self::estimate`] calibrates: the
-    /// rule's with its own error model, or with the records prior, the
-    /// rule's estimates (with the rule's calibrated error bars, if the spec
-    /// calibrates) combined with the records where they cover a point
-    /// (§10.7), then, under the hemisphere decomposition, their direct part
-    /// with the direct-light records (§10.8).
-    fn before_calibration(
+    /// Whether the estimator combines its rule with priors: the spec asked
+    /// for the records prior and the caches hold one (§10.7, §10.8).
+    fn has_priors(&self, caches: &EstimatorCaches) -> bool {
+        self.records(caches).is_some() || self.direct(caches).is_some()
+    }
+
+    /// With the records prior: the rule's estimates (with the rule's
+    /// calibrated error bars, if the spec calibrates) combined with the
+    /// records where they cover a point (§10.7), then, under the hemisphere
+    /// decomposition, their direct part with the direct-light records
+    /// (§10.8), the priors' variances scaled by `scales` (§10.9); and for
+    /// each estimate whether a prior moved it (the others keep the rule's
+    /// error bars, the moved ones are calibrated again).
+    #[allow(clippy::too_many_arguments)]
+    fn with_priors(
         &self,
         transport: &Transport,
         caches: EstimatorCaches,
         points: &[QueryPoint],
         options: &IrradianceOptions,
+        scales: PriorScales,
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
-    ) -> Result<Estimates, EstimatorError> {
-        let (records, direct) = (self.records(&caches), self.direct(&caches));
-        if records.is_none() && direct.is_none() {
-            return self
-                .estimate_with_model_errors(transport, caches, points, options, on_done, cancel);
-        }
-        let rule = PointEstimator {
+    ) -> Result<(Estimates, Vec<bool>), EstimatorError> {
+        let mut estimates = self
+            .rule()
+            .estimate(transport, caches, points, options, on_done, cancel)?;
+        let known = self.priors_at(&caches, points, estimates.decomposition);
+        let moved = combine_priors(&mut estimates.estimates, &known, scales);
+        estimates.calibration = None;
+        Ok((estimates, moved))
+    }
+
+    /// The rule under the records prior: the same spec without it, which
+    /// also reports the indirect part of its estimates.
+    fn rule(&self) -> PointEstimator {
+        PointEstimator {
             spec: EstimatorSpec {
                 records_prior: false,
                 ..self.spec
             },
             indirect_part: true,
             ..self.clone()
-        };
-        let mut estimates = rule.estimate(transport, caches, points, options, on_done, cancel)?;
-        // In split mode the direct part is light-sampled, not the rule's.
-        let direct = direct.filter(|_| estimates.decomposition == Decomposition::Hemisphere);
-        for (estimate, point) in estimates.estimates.iter_mut().zip(points) {
-            if let Some(known) = records.and_then(|r| r.at(point)) {
-                combine_part(estimate, known);
-            }
-            if let Some(known) = direct.and_then(|d| d.at(point)) {
-                combine_direct(estimate, known);
-            }
         }
-        estimates.calibration = None;
-        Ok(estimates)
+    }
+
+    /// The priors at each point, for estimates run under `decomposition`
+    /// (in split mode the direct part is light-sampled, not the rule's, so
+    /// it takes no direct prior).
+    fn priors_at(
+        &self,
+        caches: &EstimatorCaches,
+        points: &[QueryPoint],
+        decomposition: Decomposition,
+    ) -> Vec<KnownPriors> {
+        let records = self.records(caches);
+        let direct = self
+            .direct(caches)
+            .filter(|_| decomposition == Decomposition::Hemisphere);
+        points
+            .iter()
+            .map(|point| KnownPriors {
+                records: records.and_then(|r| r.at(point)),
+                direct: direct.and_then(|d| d.at(point)),
+            })
+            .collect()
     }
 
     /// [`Self::estimate`] with the estimator's own error model.
@@ -523,6 +642,34 @@ impl PointEstimator {
             calibration: None,
         })
     }
+}
+
+/// The priors' means and variances at a point, where they cover it.
+struct KnownPriors {
+    records: Option<(Rgb, Rgb)>,
+    direct: Option<(Rgb, Rgb)>,
+}
+
+/// Combines each estimate with the priors at its point (§10.7, §10.8),
+/// their variances scaled by `scales`; whether a prior moved each.
+fn combine_priors(
+    estimates: &mut [IrradianceEstimate],
+    known: &[KnownPriors],
+    scales: PriorScales,
+) -> Vec<bool> {
+    estimates
+        .iter_mut()
+        .zip(known)
+        .map(|(estimate, known)| {
+            let records = known
+                .records
+                .is_some_and(|prior| combine_part(estimate, scaled(prior, scales.records)));
+            let direct = known
+                .direct
+                .map(|prior| combine_direct(estimate, scaled(prior, scales.direct)));
+            records || direct.is_some()
+        })
+        .collect()
 }
 
 impl BmcSetup {
@@ -664,5 +811,106 @@ mod tests {
         assert_eq!(setup.kind, None);
         assert_eq!(setup.lengthscale, None);
         assert_eq!(setup.variance, DEFAULT_VARIANCE);
+    }
+
+    /// A prior on the direct part that knows each point's irradiance (a
+    /// Monte Carlo reference of many samples), scaled by `bias`, and states
+    /// a relative standard deviation `stated`.
+    struct ReferencePrior<'a> {
+        transport: &'a Transport,
+        bias: f64,
+        stated: f64,
+    }
+
+    impl IntegralPrior for ReferencePrior<'_> {
+        fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)> {
+            let options = IrradianceOptions {
+                samples: 4096,
+                max_depth: super::super::PathDepth::new(1).unwrap(),
+                method: super::super::IrradianceMethod::Split,
+                seed: 99,
+                ..IrradianceOptions::default()
+            };
+            let reference = self
+                .transport
+                .irradiance_at_points(&[*point], &options, &|| {}, &Cancel::never())
+                .unwrap();
+            let e = reference[0].irradiance;
+            Some((e * self.bias, e * e * (self.stated * self.stated)))
+        }
+
+        fn state(&self) -> u64 {
+            0
+        }
+    }
+
+    /// A ground under a constant sky, partly shaded by a square above it:
+    /// 16 directions see the square's edges badly, a prior that knows the
+    /// answer and says it knows it poorly is trusted more than it says, and
+    /// a wrong prior that says it is sure is trusted less (docs/math.md §10.9).
+    #[test]
+    fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
+        let doc = r#"{
+            "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+            "shapes": [
+                {"type": "rectangle", "material": "grey",
+                 "to_world": [{"scale": [3, 3, 1]}]},
+                {"type": "rectangle", "material": "grey",
+                 "to_world": [{"scale": [0.6, 0.6, 1]}, {"translate": [0, 0, 0.4]}]}
+            ],
+            "environment": {"type": "constant", "radiance": [1, 1, 1]},
+            "camera": {"type": "perspective", "fov": 50, "origin": [0.3, -0.2, 4],
+                       "target": [0, 0, 0], "up": [0, 1, 0], "width": 16, "height": 16}
+        }"#;
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
+        let transport = Transport::new(Arc::new(scene));
+        let (kernels, quadratures) = (FittedKernels::default(), QuadratureCache::new(16 << 20));
+        let options = IrradianceOptions {
+            samples: 16,
+            max_depth: super::super::PathDepth::new(1).unwrap(),
+            method: super::super::IrradianceMethod::Hemisphere,
+            seed: 5,
+            ..IrradianceOptions::default()
+        };
+        let estimator = EstimatorSpec {
+            records_prior: true,
+            ..spec(EstimatorMethod::Qmc)
+        }
+        .resolve()
+        .unwrap();
+        let fitted = |bias, stated| {
+            let prior = ReferencePrior {
+                transport: &transport,
+                bias,
+                stated,
+            };
+            // Each prior is fitted apart (its state says nothing of it).
+            let calibrations = Calibrations::default();
+            let caches = EstimatorCaches {
+                kernels: &kernels,
+                quadratures: &quadratures,
+                calibrations: &calibrations,
+                records: None,
+                direct: Some(&prior),
+            };
+            let points = crate::render::sample_points::camera_points(&transport, 8, 3);
+            let estimates = estimator
+                .estimate(
+                    &transport,
+                    caches,
+                    &points,
+                    &options,
+                    &|| {},
+                    &Cancel::never(),
+                )
+                .unwrap();
+            estimates.calibration.unwrap().prior_scales.unwrap()
+        };
+        let trusted = fitted(1.0, 0.5);
+        assert!(trusted.direct <= 1.0 / 16.0, "{trusted:?}");
+        assert_eq!(trusted.records, 1.0, "no records prior");
+        let wrong = fitted(0.7, 0.01);
+        assert!(wrong.direct >= 1.0, "{wrong:?}");
     }
 }

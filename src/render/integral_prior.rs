@@ -27,6 +27,36 @@ pub trait IntegralPrior: Sync {
     fn state(&self) -> u64;
 }
 
+/// Multipliers of the priors' variances `v`, fitted with the error bars on
+/// the scene's training points (docs/math.md §10.9): the held-out error that
+/// `v` holds is measured where records stood, farther from the others than a
+/// query point usually is from the nearest, so `v` can be several times too
+/// wide, and the weights of the combination with it.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PriorScales {
+    /// Of the indirect part's prior (the records, §10.7).
+    pub records: f64,
+    /// Of the direct part's prior (the direct-light records, §10.8).
+    pub direct: f64,
+}
+
+impl PriorScales {
+    /// The priors' variances as they state them.
+    pub const ONE: Self = Self {
+        records: 1.0,
+        direct: 1.0,
+    };
+
+    /// The candidates tried by the fit: variance multipliers `4ᵏ`,
+    /// `k = −4 … 1`, the stated variance first.
+    pub const CANDIDATES: [f64; 6] = [1.0, 1.0 / 256.0, 1.0 / 64.0, 1.0 / 16.0, 0.25, 4.0];
+}
+
+/// `prior` with its variance multiplied by `scale`.
+pub fn scaled(prior: (Rgb, Rgb), scale: f64) -> (Rgb, Rgb) {
+    (prior.0, prior.1 * scale)
+}
+
 /// The posterior of `estimate` (value, variance per channel) under the
 /// prior `(mean, variance)` (module docs). A channel whose estimate or
 /// prior has no positive variance keeps the estimate: a zero variance states
@@ -46,22 +76,23 @@ pub fn combine(estimate: (Rgb, Rgb), prior: (Rgb, Rgb)) -> (Rgb, Rgb) {
     (Rgb::from_array(out.0), Rgb::from_array(out.1))
 }
 
-/// `estimate` under `prior`, a prior on its indirect part (`None`: left as
-/// it is): the part is combined by [`combine`] with its share of the
+/// `estimate` under `prior`, a prior on its indirect part (an estimate that
+/// reports none is left as it is, and `false` returned): the part is combined by [`combine`] with its share of the
 /// estimate's variance ([`IndirectPart::variance_share`]), the total moves
 /// by what the part moved, and the rest of the variance stays beside the
 /// part's posterior variance. The share is of the estimate's variance as
 /// stated (calibrated, §10.5, by default), since calibration is fitted on
 /// the total, not on its parts.
-pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
+pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> bool {
     let Some(part) = estimate.indirect else {
-        return;
+        return false;
     };
     let moved = move_part(estimate, part.irradiance, part.variance_share, prior);
     estimate.indirect = Some(IndirectPart {
         irradiance: moved.posterior,
         variance_share: share(moved.posterior_variance, moved.total),
     });
+    true
 }
 
 /// `estimate` under `prior`, a prior on its direct part: the estimate less
@@ -160,7 +191,10 @@ mod tests {
             rays: 7,
             indirect: Some(IndirectPart::whole(Rgb::splat(2.0))),
         };
-        combine_part(&mut estimate, (Rgb::splat(4.0), Rgb::splat(1.0)));
+        assert!(combine_part(
+            &mut estimate,
+            (Rgb::splat(4.0), Rgb::splat(1.0))
+        ));
         // Part: (2 + 4)/2 = 3 with variance ½; the direct 3 is kept.
         assert_eq!(estimate.irradiance, Rgb::splat(6.0));
         assert_eq!(
@@ -174,7 +208,10 @@ mod tests {
             indirect: None,
             ..estimate
         };
-        combine_part(&mut direct_only, (Rgb::splat(100.0), Rgb::splat(1.0)));
+        assert!(!combine_part(
+            &mut direct_only,
+            (Rgb::splat(100.0), Rgb::splat(1.0))
+        ));
         assert_eq!(direct_only.irradiance, Rgb::splat(6.0));
     }
 
