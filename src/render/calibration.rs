@@ -68,7 +68,8 @@ pub struct ErrorCalibration {
     #[serde(default, skip_serializing_if = "is_zero")]
     pub unseen: f64,
     /// With the records prior: the multipliers of the priors' variances
-    /// fitted on the same training points before the bars
+    /// fitted on the same training points before the bars, which are then
+    /// fitted on, and applied to, the estimates a prior moved
     /// (docs/math.md §10.9).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prior_scales: Option<PriorScales>,
