@@ -661,13 +661,15 @@ fn combine_priors(
         .iter_mut()
         .zip(known)
         .map(|(estimate, known)| {
-            let records = known
-                .records
-                .is_some_and(|prior| combine_part(estimate, scaled(prior, scales.records)));
-            let direct = known
-                .direct
-                .map(|prior| combine_direct(estimate, scaled(prior, scales.direct)));
-            records || direct.is_some()
+            let mut moved = false;
+            if let Some(prior) = known.records {
+                moved |= combine_part(estimate, scaled(prior, scales.records));
+            }
+            if let Some(prior) = known.direct {
+                combine_direct(estimate, scaled(prior, scales.direct));
+                moved = true;
+            }
+            moved
         })
         .collect()
 }
@@ -815,15 +817,20 @@ mod tests {
 
     /// A prior on the direct part that knows each point's irradiance (a
     /// Monte Carlo reference of many samples), scaled by `bias`, and states
-    /// a relative standard deviation `stated`.
+    /// a relative standard deviation `stated`; on the half `x > 0` of the
+    /// scene only, if `half`.
     struct ReferencePrior<'a> {
         transport: &'a Transport,
         bias: f64,
         stated: f64,
+        half: bool,
     }
 
     impl IntegralPrior for ReferencePrior<'_> {
         fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)> {
+            if self.half && point.position().x <= 0.0 {
+                return None;
+            }
             let options = IrradianceOptions {
                 samples: 4096,
                 max_depth: super::super::PathDepth::new(1).unwrap(),
@@ -847,7 +854,9 @@ mod tests {
     /// A ground under a constant sky, partly shaded by a square above it:
     /// 16 directions see the square's edges badly, a prior that knows the
     /// answer and says it knows it poorly is trusted more than it says, and
-    /// a wrong prior that says it is sure is trusted less (docs/math.md §10.9).
+    /// a wrong prior that says it is sure is trusted less (docs/math.md
+    /// §10.9); where the prior says nothing, the estimate and its error bar
+    /// are the rule's.
     #[test]
     fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
         let doc = r#"{
@@ -873,18 +882,8 @@ mod tests {
             seed: 5,
             ..IrradianceOptions::default()
         };
-        let estimator = EstimatorSpec {
-            records_prior: true,
-            ..spec(EstimatorMethod::Qmc)
-        }
-        .resolve()
-        .unwrap();
-        let fitted = |bias, stated| {
-            let prior = ReferencePrior {
-                transport: &transport,
-                bias,
-                stated,
-            };
+        let points = crate::render::sample_points::camera_points(&transport, 12, 3);
+        let run = |records_prior: bool, prior: Option<&ReferencePrior>| {
             // Each prior is fitted apart (its state says nothing of it).
             let calibrations = Calibrations::default();
             let caches = EstimatorCaches {
@@ -892,25 +891,50 @@ mod tests {
                 quadratures: &quadratures,
                 calibrations: &calibrations,
                 records: None,
-                direct: Some(&prior),
+                direct: prior.map(|p| p as &dyn IntegralPrior),
             };
-            let points = crate::render::sample_points::camera_points(&transport, 8, 3);
-            let estimates = estimator
-                .estimate(
-                    &transport,
-                    caches,
-                    &points,
-                    &options,
-                    &|| {},
-                    &Cancel::never(),
-                )
-                .unwrap();
-            estimates.calibration.unwrap().prior_scales.unwrap()
+            EstimatorSpec {
+                records_prior,
+                ..spec(EstimatorMethod::Qmc)
+            }
+            .resolve()
+            .unwrap()
+            .estimate(
+                &transport,
+                caches,
+                &points,
+                &options,
+                &|| {},
+                &Cancel::never(),
+            )
+            .unwrap()
         };
-        let trusted = fitted(1.0, 0.5);
+        let prior = |bias, stated, half| ReferencePrior {
+            transport: &transport,
+            bias,
+            stated,
+            half,
+        };
+        let scales = |estimates: &Estimates| estimates.calibration.unwrap().prior_scales.unwrap();
+        let trusted = scales(&run(true, Some(&prior(1.0, 0.5, false))));
         assert!(trusted.direct <= 1.0 / 16.0, "{trusted:?}");
         assert_eq!(trusted.records, 1.0, "no records prior");
-        let wrong = fitted(0.7, 0.01);
+        let wrong = scales(&run(true, Some(&prior(0.7, 0.01, false))));
         assert!(wrong.direct >= 1.0, "{wrong:?}");
+        let rule = run(false, None);
+        let half = run(true, Some(&prior(1.0, 0.5, true)));
+        let (mut moved, mut kept) = (0, 0);
+        for ((with, without), point) in half.estimates.iter().zip(&rule.estimates).zip(&points) {
+            if point.position().x <= 0.0 {
+                kept += 1;
+                assert_eq!(
+                    (with.irradiance, with.std_error),
+                    (without.irradiance, without.std_error)
+                );
+            } else {
+                moved += usize::from(with.irradiance != without.irradiance);
+            }
+        }
+        assert!(moved > 0 && kept > 0, "{moved} moved, {kept} kept");
     }
 }

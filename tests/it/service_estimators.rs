@@ -341,11 +341,23 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
     let r = luminance(&reference, 0, "irradiance");
     let sigma = s.hypot(luminance(&reference, 0, "std_dev"));
     assert!(agrees(e, r, sigma, 4.0, 0.0), "{e} vs {r} ± {sigma}");
+    // Points no prior covers keep the rule's estimate and error bar.
     for point in 1..3 {
         assert_eq!(with["irradiance"][point], without["irradiance"][point]);
+        assert_eq!(with["std_dev"][point], without["std_dev"][point]);
     }
     assert_eq!(with["direct_records_points"], 1, "{with}");
     assert!(without.get("direct_records_points").is_none(), "{without}");
+    // Each prior's variance is scaled by a factor fitted with the
+    // calibration (docs/math.md §10.9), reported beside it.
+    for prior in ["records", "direct"] {
+        let scale = with["calibration"]["prior_scales"][prior].as_f64();
+        assert!(scale.is_some_and(|s| s > 0.0), "{with}");
+    }
+    assert!(
+        without["calibration"].get("prior_scales").is_none(),
+        "{without}"
+    );
 
     // Direct light only: no indirect part, and the twins carry the sky the
     // first point sees past the occluders, which its 32 directions sample
