@@ -59,7 +59,8 @@ class IrradianceResult:
     its standard error (calibrated on the scene for every method unless
     ``calibrate=False``). The metadata is the service's: ``decomposition``
     (``split`` or ``hemisphere``), ``prior`` (``environment`` or ``none``),
-    ``calibration`` (``scale``, ``floor``, ... or ``None``), and for ``bmc``
+    ``calibration`` (``scale``, ``floor``, ..., with ``records_prior`` the
+    fitted ``prior_scales``; or ``None``), and for ``bmc``
     the ``lengthscale`` and kernel ``noise`` used; with ``records_prior``,
     ``records_prior_points`` counts the points the records covered and, under
     the hemisphere decomposition, ``direct_records_points`` those the
