@@ -216,23 +216,30 @@ impl ErrorCalibration {
 pub type EstimateFn<'a, E> =
     dyn Fn(&[QueryPoint], &IrradianceOptions) -> Result<Vec<IrradianceEstimate>, E> + 'a;
 
-/// Calibrates the estimator `estimate` runs (module docs): `estimate(points,
-/// options)` must return the uncalibrated estimates of the configuration
-/// for `options` (whose seed it must honour). `unseen` is the estimator's
-/// [`ErrorCalibration::unseen`] (0, or [`unseen_light`] for plain MC).
-pub fn calibrate<E: From<RenderError>>(
-    transport: &Transport,
+/// Calibrates the estimator `estimate` runs (module docs) on `training`:
+/// `estimate(points, options)` must return the uncalibrated estimates of the
+/// configuration for `options` (whose seed it must honour). `unseen` is the
+/// estimator's [`ErrorCalibration::unseen`] (0, or [`unseen_light`] for plain MC).
+pub fn calibrate<E>(
+    training: &TrainingSet,
     options: &IrradianceOptions,
     unseen: f64,
-    cancel: &Cancel,
     estimate: &EstimateFn<'_, E>,
 ) -> Result<ErrorCalibration, E> {
-    let training = TrainingSet::new(transport, options, cancel)?;
     let runs = training
         .requests(options)
         .map(|request| estimate(&training.points, &request))
         .collect::<Result<Vec<_>, E>>()?;
     Ok(training.fit(&runs, None, unseen))
+}
+
+/// Samples of the training reference for estimators run with `options`
+/// ([`CALIBRATION_REFERENCE_FACTOR`]).
+fn reference_samples(options: &IrradianceOptions) -> u32 {
+    options
+        .samples
+        .saturating_mul(CALIBRATION_REFERENCE_FACTOR)
+        .clamp(CALIBRATION_REFERENCE_SAMPLES, CALIBRATION_REFERENCE_MAX)
 }
 
 /// The training points of a calibration and their reference (module docs).
@@ -259,14 +266,10 @@ impl TrainingSet {
         }
         // Plain MC with light sampling: unbiased for every decomposition, and
         // with enough samples that its own noise does not hide the estimator's.
-        let reference_samples = options
-            .samples
-            .saturating_mul(CALIBRATION_REFERENCE_FACTOR)
-            .clamp(CALIBRATION_REFERENCE_SAMPLES, CALIBRATION_REFERENCE_MAX);
         let reference = transport.irradiance_at_points(
             &points,
             &IrradianceOptions {
-                samples: reference_samples,
+                samples: reference_samples(options),
                 method: IrradianceMethod::Split,
                 seed: CALIBRATION_SEED,
                 ..*options
@@ -332,12 +335,8 @@ impl TrainingSet {
         let mut training = Vec::new();
         for (k, run) in runs.iter().enumerate() {
             let marked = |i: usize| only.is_none_or(|only| only[k][i]);
-            for (_, (e, r)) in run
-                .iter()
-                .zip(&self.reference)
-                .enumerate()
-                .filter(|(i, _)| marked(*i))
-            {
+            let pairs = run.iter().zip(&self.reference).enumerate();
+            for (_, (e, r)) in pairs.filter(|(i, _)| marked(*i)) {
                 let (value, sigma) = (e.irradiance.to_array(), e.std_error.to_array());
                 let (truth, reference_sigma) = (r.irradiance.to_array(), r.std_error.to_array());
                 for c in 0..3 {
@@ -357,15 +356,20 @@ impl TrainingSet {
 
 /// Calibrations of one scene by estimator configuration; each computed at
 /// most once while kept, at most [`MAX_CALIBRATIONS`] kept (least used go
-/// first). A cancelled calibration is not kept.
+/// first). A cancelled calibration is not kept. The training sets are kept
+/// beside them: their reference depends only on the samples and depth of
+/// the request, so the estimators of a configuration (a rule and the rule
+/// with the records prior, at each count of records) share one.
 pub struct Calibrations {
     kept: moka::sync::Cache<String, ErrorCalibration>,
+    training: moka::sync::Cache<String, Arc<TrainingSet>>,
 }
 
 impl Default for Calibrations {
     fn default() -> Self {
         Self {
             kept: moka::sync::Cache::new(MAX_CALIBRATIONS),
+            training: moka::sync::Cache::new(MAX_CALIBRATIONS),
         }
     }
 }
@@ -380,6 +384,26 @@ impl Calibrations {
         self.kept
             .try_get_with(key, compute)
             .map_err(|err: Arc<E>| (*err).clone())
+    }
+
+    /// The training set for estimators run with `options`, computed on
+    /// first use ([`TrainingSet::new`]).
+    pub fn training_set(
+        &self,
+        transport: &Transport,
+        options: &IrradianceOptions,
+        cancel: &Cancel,
+    ) -> Result<Arc<TrainingSet>, RenderError> {
+        let key = format!(
+            "reference samples {} depth {:?}",
+            reference_samples(options),
+            options.effective_max_depth()
+        );
+        self.training
+            .try_get_with(key, || {
+                TrainingSet::new(transport, options, cancel).map(Arc::new)
+            })
+            .map_err(|err: Arc<RenderError>| (*err).clone())
     }
 }
 

@@ -387,10 +387,15 @@ impl PointEstimator {
                     PointRule::Mc { .. } => unseen_light(self.spec.samples),
                     PointRule::Qmc(_) | PointRule::Bmc(_) => 0.0,
                 };
+                let training = caches
+                    .calibrations
+                    .training_set(transport, options, cancel)?;
                 if self.has_priors(&caches) {
-                    return self.calibrate_with_priors(transport, caches, options, unseen, cancel);
+                    return self.calibrate_with_priors(
+                        transport, caches, &training, options, unseen, cancel,
+                    );
                 }
-                calibrate(transport, options, unseen, cancel, &|points, options| {
+                calibrate(&training, options, unseen, &|points, options| {
                     self.estimate_with_model_errors(
                         transport,
                         caches,
@@ -439,11 +444,11 @@ impl PointEstimator {
         &self,
         transport: &Transport,
         caches: EstimatorCaches,
+        training: &TrainingSet,
         options: &IrradianceOptions,
         unseen: f64,
         cancel: &Cancel,
     ) -> Result<ErrorCalibration, EstimatorError> {
-        let training = TrainingSet::new(transport, options, cancel)?;
         let rule = self.rule();
         let runs = training
             .requests(options)
@@ -458,9 +463,7 @@ impl PointEstimator {
                 )
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let Some(decomposition) = runs.first().map(|r| r.decomposition) else {
-            return Ok(training.fit(&[], None, unseen));
-        };
+        let decomposition = transport.decomposition(options.method);
         let known = self.priors_at(&caches, &training.points, decomposition);
         let combined = |scales| {
             runs.iter()
