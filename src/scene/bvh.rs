@@ -12,8 +12,6 @@
 //! never skips a primitive the exact f64 ray hits; primitives themselves are
 //! intersected in f64 by the caller.
 
-use std::ops::Range;
-
 use glam::{DVec3, Vec4};
 
 /// Axis-aligned box in f64.
@@ -71,13 +69,13 @@ struct BinaryNode {
 /// Largest f32 strictly below `x`. Strictly, so that a ray whose origin lies
 /// exactly on a primitive's bounding plane and whose direction component is
 /// (±)0 is still inside the padded slab whatever the sign of that zero.
-pub(super) fn round_down(x: f64) -> f32 {
+fn round_down(x: f64) -> f32 {
     let f = x as f32;
     if f as f64 >= x { f.next_down() } else { f }
 }
 
 /// Smallest f32 strictly above `x`.
-pub(super) fn round_up(x: f64) -> f32 {
+fn round_up(x: f64) -> f32 {
     let f = x as f32;
     if (f as f64) <= x { f.next_up() } else { f }
 }
@@ -91,7 +89,7 @@ const LEAF_FIRST_MASK: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
 
 /// The primitive positions of a leaf slot (`code & LEAF != 0`).
 #[inline(always)]
-fn leaf_range(code: u32) -> Range<usize> {
+fn leaf_range(code: u32) -> std::ops::Range<usize> {
     let first = (code & LEAF_FIRST_MASK) as usize;
     first..first + ((code & !LEAF) >> LEAF_COUNT_SHIFT) as usize
 }
@@ -272,9 +270,8 @@ const MARGIN: f32 = 1.0 / 4_194_304.0;
 /// SAH cost of one traversal step relative to one primitive test.
 const TRAVERSAL_COST: f64 = 1.0;
 const BINS: usize = 16;
-/// Leaves larger than this are split even if the SAH prefers a leaf (four:
-/// a leaf's triangles are tested as the four lanes of one SIMD packet).
-pub const MAX_LEAF: usize = 4;
+/// Leaves larger than this are split even if the SAH prefers a leaf.
+const MAX_LEAF: usize = 4;
 /// Depth from which the binary tree stops asking the SAH and halves ranges
 /// instead (so leaves stay ≤ [`MAX_LEAF`] whatever the geometry); ranges of
 /// fewer than 2³² primitives are halved down to leaves within 32 more levels.
@@ -299,20 +296,6 @@ pub struct Bvh {
 pub const NODE_BYTES: usize = std::mem::size_of::<Node>();
 
 impl Bvh {
-    /// Largest coordinate magnitude of the primitives' bounds.
-    pub fn extent(&self) -> f64 {
-        self.extent
-    }
-
-    /// The position ranges of the leaves, each once, in no particular order.
-    pub fn leaves(&self) -> impl Iterator<Item = Range<usize>> + '_ {
-        self.nodes
-            .iter()
-            .flat_map(|n| n.child)
-            .filter(|code| code & LEAF != 0)
-            .map(leaf_range)
-    }
-
     /// Bytes the tree holds on the heap.
     pub fn heap_bytes(&self) -> u64 {
         (self.nodes.capacity() * NODE_BYTES) as u64
@@ -350,40 +333,9 @@ impl Bvh {
         &self,
         origin: DVec3,
         dir: DVec3,
-        t_max: f64,
-        prims: &[P],
-        mut intersect: impl FnMut(usize, f64) -> Option<f64>,
-    ) -> Option<f64> {
-        self.closest_by_leaf(
-            origin,
-            dir,
-            t_max,
-            prims,
-            #[inline(always)]
-            |leaf, mut t_max| {
-                let mut found = None;
-                for i in leaf {
-                    if let Some(t) = intersect(i, t_max) {
-                        t_max = t;
-                        found = Some(t);
-                    }
-                }
-                found
-            },
-        )
-    }
-
-    /// Closest-hit traversal a leaf at a time: `intersect(positions, t_max)`
-    /// tests the leaf's primitives and returns the closest hit distance
-    /// below `t_max`, if any. `prims` as for [`Bvh::closest`].
-    #[inline]
-    pub fn closest_by_leaf<P>(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
         mut t_max: f64,
         prims: &[P],
-        mut intersect: impl FnMut(Range<usize>, f64) -> Option<f64>,
+        mut intersect: impl FnMut(usize, f64) -> Option<f64>,
     ) -> Option<f64> {
         let mut found = None;
         // The callbacks are inlined into the traversal loop: a call per
@@ -395,8 +347,8 @@ impl Bvh {
             &mut t_max,
             prims,
             #[inline(always)]
-            |leaf, t_max| {
-                if let Some(t) = intersect(leaf, *t_max) {
+            |i, t_max| {
+                if let Some(t) = intersect(i, *t_max) {
                     *t_max = t;
                     found = Some(t);
                 }
@@ -413,31 +365,9 @@ impl Bvh {
         &self,
         origin: DVec3,
         dir: DVec3,
-        t_max: f64,
-        prims: &[P],
-        mut intersect: impl FnMut(usize, f64) -> bool,
-    ) -> bool {
-        self.any_by_leaf(
-            origin,
-            dir,
-            t_max,
-            prims,
-            #[inline(always)]
-            |mut leaf, t_max| leaf.any(|i| intersect(i, t_max)),
-        )
-    }
-
-    /// Any-hit traversal a leaf at a time: true as soon as
-    /// `intersect(positions, t_max)` reports a hit among a leaf's
-    /// primitives. `prims` as for [`Bvh::closest`].
-    #[inline]
-    pub fn any_by_leaf<P>(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
         mut t_max: f64,
         prims: &[P],
-        mut intersect: impl FnMut(Range<usize>, f64) -> bool,
+        mut intersect: impl FnMut(usize, f64) -> bool,
     ) -> bool {
         // Any hit ends the search, so the order of the children does not
         // matter: they wait on the stack in slot order, unsorted.
@@ -447,12 +377,12 @@ impl Bvh {
             &mut t_max,
             prims,
             #[inline(always)]
-            |leaf, t_max| intersect(leaf, *t_max),
+            |i, t_max| intersect(i, *t_max),
         )
     }
 
-    /// Traversal, front to back if `NEAREST_FIRST`; `visit(leaf positions,
-    /// t_max)` may shrink `t_max` and returns true to stop.
+    /// Traversal, front to back if `NEAREST_FIRST`; `visit` may shrink
+    /// `t_max` and returns true to stop.
     #[inline(always)]
     fn traverse<const NEAREST_FIRST: bool, P>(
         &self,
@@ -460,7 +390,7 @@ impl Bvh {
         dir: DVec3,
         t_max: &mut f64,
         prims: &[P],
-        mut visit: impl FnMut(Range<usize>, &mut f64) -> bool,
+        mut visit: impl FnMut(usize, &mut f64) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
             return false;
@@ -484,7 +414,7 @@ impl Bvh {
         ray: &SlabRay,
         t_max: &mut f64,
         prims: &[P],
-        visit: &mut impl FnMut(Range<usize>, &mut f64) -> bool,
+        visit: &mut impl FnMut(usize, &mut f64) -> bool,
     ) -> bool {
         let mut t_max32 = round_up(*t_max);
         // Children wait with their entry distance, so a pop can drop them
@@ -496,8 +426,10 @@ impl Bvh {
             let (code, entry) = current;
             if entry <= t_max32 {
                 if code & LEAF != 0 {
-                    if visit(leaf_range(code), t_max) {
-                        return true;
+                    for i in leaf_range(code) {
+                        if visit(i, t_max) {
+                            return true;
+                        }
                     }
                     t_max32 = round_up(*t_max);
                 } else {
@@ -688,18 +620,7 @@ fn split(range: &mut [u32], bounds: &[Aabb], centroids: &[DVec3], bb: &Aabb) -> 
         .iter()
         .fold(Aabb::EMPTY, |b, &i| b.grow(centroids[i as usize]));
     let extent = cb.max - cb.min;
-    let pc: f64 = std::env::var("BMC_PC")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(0.0);
-    let prim_cost = |n: usize| {
-        if pc > 0.0 {
-            n.div_ceil(MAX_LEAF) as f64 * pc
-        } else {
-            n as f64
-        }
-    };
-    let leaf_cost = prim_cost(count);
+    let leaf_cost = count as f64;
     let parent_area = bb.half_area().max(f64::MIN_POSITIVE);
     let mut best: Option<(f64, usize, usize)> = None; // cost, axis, bins left
     for axis in 0..3 {
@@ -735,7 +656,7 @@ fn split(range: &mut [u32], bounds: &[Aabb], centroids: &[DVec3], bb: &Aabb) -> 
                 continue;
             }
             let cost = TRAVERSAL_COST
-                + (acc.half_area() * prim_cost(n) + right_area[b] * prim_cost(right_count[b]))
+                + (acc.half_area() * n as f64 + right_area[b] * right_count[b] as f64)
                     / parent_area;
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, b));

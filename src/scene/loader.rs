@@ -16,7 +16,6 @@ use super::error::SceneError;
 use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKind};
 use super::material::Material;
 use super::mesh::{self, MeshData};
-use super::packet::LeafRows;
 use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
 use super::{Camera, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
 
@@ -492,8 +491,6 @@ impl GeometryBuilder {
         let (triangle_bvh, order) = Bvh::build(&bounds);
         let in_order = || order.iter().map(|&i| &self.triangles[i as usize]);
         let accel = in_order().map(TriangleAccel::new).collect();
-        let vertices: Vec<_> = in_order().map(|t| t.p).collect();
-        let leaf_rows = LeafRows::new(&vertices, triangle_bvh.leaves());
         let accel_tags = in_order().map(TriangleTag::new).collect();
         let analytic: Vec<u32> = (0..self.shapes.len() as u32)
             .filter(|&i| !matches!(self.shapes[i as usize].geometry, Geometry::Mesh { .. }))
@@ -524,7 +521,6 @@ impl GeometryBuilder {
             vertex_normals: self.vertex_normals,
             accel,
             accel_tags,
-            leaf_rows,
             triangle_bvh,
             analytic_bvh,
             analytic_shapes,

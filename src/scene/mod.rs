@@ -18,7 +18,6 @@ mod loader;
 mod material;
 mod mesh;
 mod mitsuba;
-mod packet;
 mod ray;
 mod read;
 mod shape;
@@ -41,7 +40,6 @@ pub use mitsuba::{MAX_WARNINGS, MitsubaOptions, Warning, Warnings};
 pub use ray::Ray;
 
 use bvh::Bvh;
-use packet::{LeafRows, PacketRay};
 use shape::{Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
 
 /// Largest number of triangles a scene may hold (also bounded by
@@ -61,7 +59,6 @@ pub const MAX_SCENE_MEMORY_BYTES: u64 = 1 << 30;
 pub const TRIANGLE_BYTES: u64 = (std::mem::size_of::<Triangle>()
     + std::mem::size_of::<TriangleAccel>()
     + std::mem::size_of::<TriangleTag>()
-    + std::mem::size_of::<[f32; packet::ROWS]>()
     + std::mem::size_of::<f64>()
     + std::mem::size_of::<[DVec3; 3]>()
     + (2 * bvh::NODE_BYTES).div_ceil(3)) as u64;
@@ -97,42 +94,6 @@ pub struct SurfaceHit {
 }
 
 /// A loaded scene. Immutable; `Send + Sync`.
-/// Triangle positions that may hold a ray's closest hit, in the order the
-/// traversal found them ([`Scene::intersect`]).
-#[derive(Default)]
-struct Candidates {
-    at: [u32; 8],
-    len: usize,
-}
-
-impl Candidates {
-    /// Appends `i` (prefetching its f64 form and tag, read when the
-    /// candidates are resolved); true when that filled the list.
-    #[inline(always)]
-    fn push(&mut self, i: usize) -> bool {
-        self.at[self.len] = i as u32;
-        self.len += 1;
-        self.len == self.at.len()
-    }
-
-    fn iter(&self) -> impl Iterator<Item = usize> + '_ {
-        self.at[..self.len].iter().map(|&i| i as usize)
-    }
-}
-
-/// The positions of `leaf` whose lanes are set in `mask`, in order.
-#[inline(always)]
-fn lanes(leaf: &std::ops::Range<usize>, mut mask: u32) -> impl Iterator<Item = usize> {
-    let first = leaf.start;
-    std::iter::from_fn(move || {
-        (mask != 0).then(|| {
-            let lane = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            first + lane
-        })
-    })
-}
-
 pub struct Scene {
     pub name: String,
     /// Content address of the document and its files (see [`SceneDigest`]);
@@ -152,8 +113,6 @@ pub struct Scene {
     /// Triangles in BVH order, and what a hit on each reports.
     accel: Vec<TriangleAccel>,
     accel_tags: Vec<TriangleTag>,
-    /// The same triangles in f32 rows, leaf by leaf, for the SIMD filter.
-    leaf_rows: LeafRows,
     triangle_bvh: Bvh,
     /// Spheres and disks: their own small BVH over shape indices.
     analytic_bvh: Bvh,
@@ -207,52 +166,21 @@ impl Scene {
     /// Closest hit with `0 < t < ray.t_max`.
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
         let (o, d) = (ray.origin, ray.dir);
-        // The traversal collects candidates, in the order it finds them: lanes
-        // the f32 filter is sure of (the f64 test would hit them), which
-        // bound the search by an upper bound of their distance, and lanes it
-        // is unsure of that the f64 test hits. Testing the candidates in
-        // f64 in that order afterwards gives the closest hit a plain f64
-        // traversal finds, bit for bit: the looser bounds only let it visit
-        // more, and what it finds beyond the exact bound fails that test.
-        let mut candidates = Candidates::default();
-        let packet = PacketRay::new(o, d, self.triangle_bvh.extent());
-        self.triangle_bvh.closest_by_leaf(
+        let mut tri_hit = None;
+        let t_tri = self.triangle_bvh.closest(
             o,
             d,
             ray.t_max,
-            self.leaf_rows.entries(),
+            &self.accel,
             #[inline(always)]
-            |leaf, mut t_max| {
-                let masks = self.leaf_rows.test(&leaf, &packet, t_max);
-                let mut found = None;
-                for i in lanes(&leaf, masks.maybe) {
-                    let lane = i - leaf.start;
-                    let bound = if masks.sure & (1 << lane) != 0 {
-                        f64::from(masks.sure_before[lane]).min(t_max)
-                    } else if let Some((t, _, _)) = self.accel[i].intersect(o, d, t_max) {
-                        t
-                    } else {
-                        continue;
-                    };
-                    if candidates.push(i) {
-                        // Full: keep only the closest so far.
-                        let (best, t) = self.resolve(&candidates, o, d, ray.t_max);
-                        candidates = Candidates::default();
-                        if let Some((j, ..)) = best {
-                            candidates.push(j);
-                        }
-                        t_max = t.min(bound);
-                    } else {
-                        t_max = bound;
-                    }
-                    found = Some(t_max);
-                }
-                found
+            |i, t_max| {
+                let (t, u, v) = self.accel[i].intersect(o, d, t_max)?;
+                // The tag is read here, not after the traversal, so that its
+                // cache miss overlaps the rest of the traversal.
+                tri_hit = Some((i, u, v, self.accel_tags[i]));
+                Some(t)
             },
         );
-        let (tri_hit, t_bound) = self.resolve(&candidates, o, d, ray.t_max);
-        let t_tri = tri_hit.map(|_| t_bound);
-        let tri_hit = tri_hit.map(|(i, u, v)| (i, u, v, self.accel_tags[i]));
         let mut analytic_hit = 0usize;
         let t_analytic = self.analytic_bvh.closest(
             o,
@@ -303,44 +231,16 @@ impl Scene {
         })
     }
 
-    /// The f64 test of each candidate in order, each bounded by the closest
-    /// hit before it: the closest (position, u, v), and its distance
-    /// (`t_max` if none).
-    #[inline(always)]
-    fn resolve(
-        &self,
-        candidates: &Candidates,
-        o: DVec3,
-        d: DVec3,
-        mut t_max: f64,
-    ) -> (Option<(usize, f64, f64)>, f64) {
-        let mut best = None;
-        for i in candidates.iter() {
-            if let Some((t, u, v)) = self.accel[i].intersect(o, d, t_max) {
-                best = Some((i, u, v));
-                t_max = t;
-            }
-        }
-        (best, t_max)
-    }
-
     /// True if anything is hit with `0 < t < ray.t_max` (stops at the first).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let (o, d) = (ray.origin, ray.dir);
-        let packet = PacketRay::new(o, d, self.triangle_bvh.extent());
-        self.triangle_bvh.any_by_leaf(
+        self.triangle_bvh.any(
             o,
             d,
             ray.t_max,
-            self.leaf_rows.entries(),
+            &self.accel,
             #[inline(always)]
-            |leaf, t_max| {
-                // A lane the filter is sure of is a hit of the f64 test.
-                let masks = self.leaf_rows.test(&leaf, &packet, t_max);
-                masks.sure != 0
-                    || lanes(&leaf, masks.maybe)
-                        .any(|i| self.accel[i].intersect(o, d, t_max).is_some())
-            },
+            |i, t_max| self.accel[i].intersect(o, d, t_max).is_some(),
         ) || self
             .analytic_bvh
             .any(o, d, ray.t_max, &self.analytic_shapes, |i, t_max| {
@@ -476,7 +376,6 @@ impl Scene {
             + bytes(&self.vertex_normals)
             + bytes(&self.accel)
             + bytes(&self.accel_tags)
-            + self.leaf_rows.heap_bytes()
             + bytes(&self.analytic_shapes)
             + self.triangle_bvh.heap_bytes()
             + self.analytic_bvh.heap_bytes()
