@@ -31,7 +31,8 @@ use super::error::RenderError;
 use super::lights::environment_radiance;
 use super::mean::MeanEstimate;
 use super::path::{
-    AveragedPaths, PathLengths, PathLimits, RadianceSample, TraceStats, power_heuristic,
+    AveragedPaths, FirstSegment, PathLengths, PathLimits, RadianceSample, TraceStats,
+    power_heuristic,
 };
 use super::query::QueryPoint;
 use super::rgb::Rgb;
@@ -242,18 +243,48 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> Vec<RadianceSample> {
+        let traced = self.hemisphere_first_segments(point, frame, local_dirs, paths.limits, stats);
+        self.continue_hemisphere(&traced, paths, rng, stats)
+    }
+
+    /// The first step of [`Self::hemisphere_samples_averaged`]: each
+    /// direction's first segment ([`Self::trace_first_segment`]), no random
+    /// number drawn.
+    pub fn hemisphere_first_segments(
+        &self,
+        point: &QueryPoint,
+        frame: &Frame,
+        local_dirs: &[DVec3],
+        limits: PathLimits,
+        stats: &mut TraceStats,
+    ) -> Vec<FirstSegment> {
         local_dirs
             .iter()
             .map(|local| {
                 if local.z.is_nan() || local.z <= 0.0 || !local.is_finite() {
-                    return RadianceSample::NONE;
+                    return FirstSegment::NONE;
                 }
                 let dir = frame.to_world(local.normalize());
                 let ray = self
                     .scene()
                     .spawn_ray(point.position(), point.normal(), dir);
-                self.incident_radiance_averaged(ray, paths.limits, paths.per_direction, rng, stats)
+                self.trace_first_segment(ray, limits, stats)
             })
+            .collect()
+    }
+
+    /// The second step of [`Self::hemisphere_samples_averaged`]: the
+    /// continuations of `traced` in order, drawn from `rng`.
+    pub fn continue_hemisphere<R: Rng + ?Sized>(
+        &self,
+        traced: &[FirstSegment],
+        paths: AveragedPaths,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> Vec<RadianceSample> {
+        traced
+            .iter()
+            .map(|t| self.continue_averaged(t, paths.limits, paths.per_direction, rng, stats))
             .collect()
     }
 

@@ -54,7 +54,9 @@ pub use irradiance::{
     SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE,
 };
 pub use mean::{Evaluation, MeanEstimate};
-pub use path::{AveragedPaths, PathDepth, PathLengths, PathLimits, RadianceSample, TraceStats};
+pub use path::{
+    AveragedPaths, FirstSegment, PathDepth, PathLengths, PathLimits, RadianceSample, TraceStats,
+};
 pub use query::QueryPoint;
 pub use rgb::Rgb;
 pub use tile::{

@@ -241,15 +241,8 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> RadianceSample {
-        let strata = GridStrata::new(paths);
-        self.first_segment(
-            ray,
-            limits,
-            paths,
-            |j| FirstVertex::Grid(strata, j),
-            rng,
-            stats,
-        )
+        let traced = self.trace_first_segment(ray, limits, stats);
+        self.continue_averaged(&traced, limits, paths, rng, stats)
     }
 
     /// [`Self::incident_radiance`] for ray `first.index` of a group of
@@ -265,20 +258,21 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> RadianceSample {
-        self.first_segment(ray, limits, 1, |_| FirstVertex::Shared(first), rng, stats)
+        let traced = self.trace_first_segment(ray, limits, stats);
+        let first = |_| FirstVertex::Shared(first);
+        self.continue_first_segment(&traced, limits, 1, first, rng, stats)
     }
 
-    /// Traces `ray` and averages `paths` continuations from its hit, the
-    /// `j`-th drawing its first-vertex samples as `first(j)` says.
-    fn first_segment<R: Rng + ?Sized>(
+    /// The first step of [`Self::incident_radiance_averaged`]: `ray` traced
+    /// and what it sees directly, with no random number drawn, so the
+    /// continuations may follow later ([`Self::continue_averaged`]) and give
+    /// the same bits as the one-step call with the same generator.
+    pub fn trace_first_segment(
         &self,
         ray: Ray,
         limits: PathLimits,
-        paths: u32,
-        first: impl Fn(u32) -> FirstVertex,
-        rng: &mut R,
         stats: &mut TraceStats,
-    ) -> RadianceSample {
+    ) -> FirstSegment {
         let scene = self.scene();
         let mut sample = RadianceSample::NONE;
         // The first segment's direction came from the caller, so emission
@@ -290,20 +284,56 @@ impl Transport {
                 sample.direct = environment_radiance(scene, ray.dir);
                 sample.radiance = sample.direct;
             }
-            return sample;
+            return FirstSegment { sample, hit: None };
         };
         sample.distance = hit.t;
         if direct {
             sample.direct = emitted_radiance(scene, &hit, ray.dir);
             sample.radiance = sample.direct;
         }
+        FirstSegment {
+            sample,
+            hit: Some((hit, ray.dir)),
+        }
+    }
+
+    /// The second step of [`Self::incident_radiance_averaged`]: the mean of
+    /// `paths` continuations from the hit of `traced`.
+    pub fn continue_averaged<R: Rng + ?Sized>(
+        &self,
+        traced: &FirstSegment,
+        limits: PathLimits,
+        paths: u32,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> RadianceSample {
+        let strata = GridStrata::new(paths);
+        let first = |j| FirstVertex::Grid(strata, j);
+        self.continue_first_segment(traced, limits, paths, first, rng, stats)
+    }
+
+    /// `paths` continuations from the hit of `traced`, the `j`-th drawing
+    /// its first-vertex samples as `first(j)` says, averaged.
+    fn continue_first_segment<R: Rng + ?Sized>(
+        &self,
+        traced: &FirstSegment,
+        limits: PathLimits,
+        paths: u32,
+        first: impl Fn(u32) -> FirstVertex,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> RadianceSample {
+        let mut sample = traced.sample;
+        let Some((hit, dir)) = traced.hit else {
+            return sample;
+        };
         let paths = paths.max(1);
         // Given the shared hit the continuations are independent, so their
         // spread estimates the variance of their mean (an upper bound, as
         // their first light samples are stratified).
         let continuations = MeanEstimate::of(
             (0..paths)
-                .map(|j| self.continue_path(hit, ray.dir, limits.max_depth, first(j), rng, stats)),
+                .map(|j| self.continue_path(hit, dir, limits.max_depth, first(j), rng, stats)),
         );
         sample.radiance += continuations.mean;
         sample.variance = continuations.variance_of_mean;
@@ -400,6 +430,29 @@ impl Transport {
             hit = next;
         }
         radiance
+    }
+}
+
+/// A ray traced to its first hit, its continuations still to come
+/// ([`Transport::trace_first_segment`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FirstSegment {
+    /// What the segment sees directly, and its length.
+    sample: RadianceSample,
+    /// The hit and the ray's direction, if it hit anything.
+    hit: Option<(SurfaceHit, DVec3)>,
+}
+
+impl FirstSegment {
+    /// Nothing traced (a direction that leaves no surface).
+    pub const NONE: Self = Self {
+        sample: RadianceSample::NONE,
+        hit: None,
+    };
+
+    /// Distance to the first hit (∞ when the ray escaped).
+    pub fn distance(&self) -> f64 {
+        self.sample.distance
     }
 }
 

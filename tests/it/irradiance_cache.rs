@@ -142,16 +142,18 @@ fn two_pass_placement_is_bit_identical_across_thread_counts_and_history() {
     assert_ne!(bits(&one), bits(&other));
 }
 
-/// A pass over a cache only it reads inserts records before their
-/// estimates and fills them in batches; the cache must end as if each record
-/// had gone in finished: same records, radii (neighbour clamp) and
-/// evictions, bit for bit, with several held-back batches in one pass.
+/// A pass over a cache only it reads inserts records once their first
+/// segments are traced, then traces their paths and estimates them in
+/// batches; the cache must end as if each record had gone in finished:
+/// same records, values, radii (neighbour clamp), evictions and rays, bit
+/// for bit, with several held-back batches in one pass and with paths
+/// averaged per direction (their first-vertex strata).
 #[test]
 fn held_back_estimates_leave_the_cache_as_finished_inserts() {
     let transport = cornell();
     let rule = rule(32);
     let points = back_wall(20);
-    let place = |config: CacheConfig, private: bool| {
+    let place = |config: CacheConfig, private: bool, paths_per_direction: u32| {
         let cache = IrradianceCache::new(config).unwrap();
         let into = if private {
             PlacementCache::Private(&cache)
@@ -164,7 +166,10 @@ fn held_back_estimates_leave_the_cache_as_finished_inserts() {
                 &transport,
                 &rule,
                 &points,
-                &options(5),
+                &PlacementOptions {
+                    paths_per_direction,
+                    ..options(5)
+                },
                 Gather::Paths,
                 &Cancel::never(),
             )
@@ -176,9 +181,9 @@ fn held_back_estimates_leave_the_cache_as_finished_inserts() {
         byte_budget: 40 * RECORD_BYTES,
         ..config()
     };
-    for config in [config(), tight] {
-        let (held, held_report, held_evictions) = place(config, true);
-        let (finished, report, evictions) = place(config, false);
+    for (config, paths) in [(config(), 1), (tight, 1), (config(), 3)] {
+        let (held, held_report, held_evictions) = place(config, true, paths);
+        let (finished, report, evictions) = place(config, false, paths);
         assert_eq!(held, finished);
         assert_eq!(held_report, report);
         assert_eq!(held_evictions, evictions);

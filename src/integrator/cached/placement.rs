@@ -23,13 +23,19 @@
 //! N = 1024), so estimating records together, one solve for all of their
 //! columns, costs far less per record than one at a time. A pass over a
 //! cache no one else reads ([`PlacementCache::Private`]), gathering by paths
-//! and with no variance target, inserts each record as soon as its rays are
-//! gathered, with its values still unknown, and estimates up to
-//! [`HELD_BACK`] of them at once later: where records go, their radii and
-//! evictions depend only on positions, normals and radii, and the pass only
-//! asks whether a point is covered, so the cache ends exactly as with
-//! finished inserts. Otherwise each batch of points estimates its own
-//! records.
+//! and with no variance target, inserts each record as soon as its first
+//! segments are traced (their distances fix its radius), with its values
+//! still unknown, and later traces the paths of up to [`HELD_BACK`] of them
+//! at once, in parallel, and estimates them together: where records go,
+//! their radii and evictions depend only on positions, normals and radii,
+//! and the pass only asks whether a point is covered, so the cache ends
+//! exactly as with finished inserts. The first segments draw no random
+//! numbers, so each record's paths draw the same ones as when traced right
+//! after them (`TracedRecord`): the records are the same bits. Tracing a
+//! record's paths per batch of points instead left a thread idle whenever a
+//! batch wanted fewer records than there are threads (most batches, once
+//! most points are covered). Otherwise each batch of points gathers and
+//! estimates its own records.
 //!
 //! # Light leaks
 //! With `occlusion_check`, a record is only used if a shadow ray between the
@@ -42,8 +48,8 @@ use rayon::prelude::*;
 
 use super::config::PlacementOptions;
 use super::shade::{
-    Gather, GatheredRecord, PlacementPoint, RecordGather, awaiting_record, finish_records,
-    gather_record, lookup,
+    Gather, GatheredRecord, PlacementPoint, RecordGather, TracedRecord, awaiting_record,
+    finish_records, gather_record, lookup, trace_record,
 };
 use super::stats::ShadingStats;
 use crate::cache::{
@@ -116,8 +122,10 @@ pub enum PlacementCache<'a> {
     Shared(&'a IrradianceCache),
 }
 
-/// Records whose estimates a pass may hold back (module docs, "Estimates in
-/// batches"), estimated in batches of [`HELD_BATCH`], in parallel.
+/// Records whose paths and estimates a pass may hold back (module docs,
+/// "Estimates in batches"), estimated in batches of [`HELD_BATCH`], in
+/// parallel. Each keeps its first segments meanwhile (224 bytes per
+/// direction: 29 MB at 1024 directions).
 const HELD_BACK: usize = 128;
 /// Records estimated together once held back: from about 32 on, a record's
 /// estimate costs a third of one made alone (docs/BENCHMARKS.md). A fixed
@@ -171,6 +179,41 @@ pub fn place_records(
                     .map(|_| (first + i, true)),
             })
             .collect();
+        if hold_back {
+            // Only the first segments now: they fix the radius, and the
+            // paths from them are traced for many records at once below,
+            // where both threads have work (one record per thread here
+            // left a thread idle whenever a batch wanted an odd number).
+            let traced = wanted
+                .par_iter()
+                .map(|&(i, _)| {
+                    let mut stats = ShadingStats::default();
+                    let rng = point_rng(options.seed, i as u64);
+                    let target = &points[i];
+                    let traced = trace_record(transport, rule, target, &how, rng, &mut stats);
+                    (target, traced, stats)
+                })
+                .collect::<Vec<_>>();
+            cancel.check()?;
+            for ((target, traced, stats), &(_, for_variance)) in traced.into_iter().zip(&wanted) {
+                report.count(&stats, for_variance);
+                let record = awaiting_record(target, &traced.distances(), limits);
+                let slot = cache.insert_awaiting_values(record)?;
+                awaiting.push((slot, target, traced));
+            }
+            if awaiting.len() >= HELD_BACK {
+                fill_awaiting(
+                    cache,
+                    transport,
+                    rule,
+                    &mut awaiting,
+                    limits,
+                    &mut report,
+                    cancel,
+                )?;
+            }
+            continue;
+        }
         let (gathered, stats): (Vec<(&PlacementPoint, GatheredRecord)>, Vec<ShadingStats>) = wanted
             .par_iter()
             .map(|&(i, _)| {
@@ -188,22 +231,20 @@ pub fn place_records(
         for (stats, &(_, for_variance)) in stats.iter().zip(&wanted) {
             report.count(stats, for_variance);
         }
-        if hold_back {
-            for gathered in gathered {
-                let slot = cache.insert_awaiting_values(awaiting_record(&gathered, limits))?;
-                awaiting.push((slot, gathered));
-            }
-            if awaiting.len() >= HELD_BACK {
-                fill_awaiting(cache, rule, &mut awaiting, limits)?;
-            }
-        } else {
-            let per_thread = gathered.len().div_ceil(rayon::current_num_threads());
-            for record in estimate_records(rule, &gathered, limits, per_thread) {
-                cache.insert(record?)?;
-            }
+        let per_thread = gathered.len().div_ceil(rayon::current_num_threads());
+        for record in estimate_records(rule, &gathered, limits, per_thread) {
+            cache.insert(record?)?;
         }
     }
-    fill_awaiting(cache, rule, &mut awaiting, limits)?;
+    fill_awaiting(
+        cache,
+        transport,
+        rule,
+        &mut awaiting,
+        limits,
+        &mut report,
+        cancel,
+    )?;
     Ok(report)
 }
 
@@ -222,14 +263,35 @@ fn estimate_records(
         .collect()
 }
 
-/// Estimates the records inserted awaiting their values and fills them in.
-fn fill_awaiting(
+/// Traces the paths of the records inserted awaiting their values, all in
+/// parallel, then estimates them and fills them in. Continuation rays are
+/// added to `report`.
+fn fill_awaiting<'p>(
     cache: &IrradianceCache,
+    transport: &Transport,
     rule: &RecordRule,
-    awaiting: &mut Vec<(RecordSlot, (&PlacementPoint, GatheredRecord))>,
+    awaiting: &mut Vec<(RecordSlot, &'p PlacementPoint, TracedRecord)>,
     limits: RadiusLimits,
+    report: &mut PlacementReport,
+    cancel: &Cancel,
 ) -> Result<(), CacheError> {
-    let (slots, gathered): (Vec<RecordSlot>, Vec<_>) = awaiting.drain(..).unzip();
+    let (slots, gathered): (Vec<RecordSlot>, Vec<_>) = awaiting
+        .drain(..)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|(slot, target, traced)| {
+            cancel.check()?;
+            let mut stats = ShadingStats::default();
+            let gathered = traced.continue_paths(transport, &mut stats);
+            Ok((slot, ((target, gathered), stats.rays)))
+        })
+        .collect::<Result<Vec<_>, CacheError>>()?
+        .into_iter()
+        .map(|(slot, (gathered, rays))| {
+            report.rays += rays;
+            (slot, gathered)
+        })
+        .unzip();
     let records = estimate_records(rule, &gathered, limits, HELD_BATCH);
     for (slot, record) in slots.into_iter().zip(records) {
         cache.fill_values(slot, &record?)?;

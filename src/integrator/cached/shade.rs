@@ -45,6 +45,7 @@ use std::f64::consts::TAU;
 
 use glam::DVec3;
 use rand::{Rng, RngExt};
+use rand_pcg::Pcg64;
 
 use super::config::{
     AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, PlacementOptions,
@@ -59,8 +60,8 @@ use crate::cache::{
 use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::strata::{GridStrata, SharedStrata};
 use crate::render::{
-    AveragedPaths, Bsdf, Evaluation, PathDepth, PathLengths, PathLimits, PixelSample, QueryPoint,
-    RadianceSample, RenderError, Rgb, TraceStats, Transport, warp,
+    AveragedPaths, Bsdf, Evaluation, FirstSegment, PathDepth, PathLengths, PathLimits, PixelSample,
+    QueryPoint, RadianceSample, RenderError, Rgb, TraceStats, Transport, warp,
 };
 use crate::scene::SurfaceHit;
 use crate::sphere::Frame;
@@ -188,6 +189,14 @@ pub struct RecordGather<'a> {
 }
 
 impl RecordGather<'_> {
+    /// The paths each direction averages when gathering by paths.
+    fn averaged_paths(&self) -> AveragedPaths {
+        AveragedPaths {
+            limits: self.paths,
+            per_direction: self.per_direction,
+        }
+    }
+
     /// Incident radiance along each local direction of a record at `point`
     /// in `frame`, each the mean of `per_direction` estimates; rays and
     /// nested records are counted in `stats`.
@@ -202,10 +211,7 @@ impl RecordGather<'_> {
     ) -> Result<Vec<RadianceSample>, RenderError> {
         let Gather::Cache { integrator, bounce } = self.gather else {
             let mut trace = TraceStats::default();
-            let paths = AveragedPaths {
-                limits: self.paths,
-                per_direction: self.per_direction,
-            };
+            let paths = self.averaged_paths();
             let samples = transport
                 .hemisphere_samples_averaged(point, frame, local_dirs, paths, rng, &mut trace);
             stats.rays += trace.rays;
@@ -683,17 +689,79 @@ pub fn finish_records(
         .collect()
 }
 
-/// The record [`finish_records`] will make from `gathered`, its values
-/// still zero (`Record::awaiting_values`).
-pub fn awaiting_record(
-    (target, gathered): &(&PlacementPoint, GatheredRecord),
-    limits: RadiusLimits,
-) -> Record {
-    Record::awaiting_values(
-        &target.point,
-        &gathered.distances(),
-        record_limits(target, limits),
-    )
+/// A record's first segments only ([`trace_record`]): enough for its
+/// radius, which depends on the distances alone.
+pub struct TracedRecord {
+    frame: Frame,
+    segments: Vec<FirstSegment>,
+    paths: AveragedPaths,
+    /// The record's generator, as the first segments left it (they draw
+    /// nothing), for the paths that continue from them.
+    rng: Pcg64,
+}
+
+impl TracedRecord {
+    /// Distance to the first hit along each direction (∞ where none).
+    pub fn distances(&self) -> Vec<f64> {
+        self.segments.iter().map(FirstSegment::distance).collect()
+    }
+
+    /// The record's paths from its first segments: the same bits as
+    /// [`gather_record`] by paths with the same generator. Rays are
+    /// counted in `stats`.
+    pub fn continue_paths(
+        mut self,
+        transport: &Transport,
+        stats: &mut ShadingStats,
+    ) -> GatheredRecord {
+        let mut trace = TraceStats::default();
+        let samples =
+            transport.continue_hemisphere(&self.segments, self.paths, &mut self.rng, &mut trace);
+        stats.rays += trace.rays;
+        GatheredRecord {
+            frame: self.frame,
+            samples,
+        }
+    }
+}
+
+/// The first step of [`gather_record`] by paths: the frame turned by a
+/// random angle from `rng`, then each direction's first segment; the
+/// paths wait for [`TracedRecord::continue_paths`]. Rays are counted in
+/// `stats`.
+pub fn trace_record(
+    transport: &Transport,
+    rule: &RecordRule,
+    target: &PlacementPoint,
+    how: &RecordGather,
+    mut rng: Pcg64,
+    stats: &mut ShadingStats,
+) -> TracedRecord {
+    let point = &target.point;
+    let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
+    let paths = how.averaged_paths();
+    let mut trace = TraceStats::default();
+    let segments = transport.hemisphere_first_segments(
+        point,
+        &frame,
+        rule.directions(),
+        paths.limits,
+        &mut trace,
+    );
+    stats.rays += trace.rays;
+    TracedRecord {
+        frame,
+        segments,
+        paths,
+        rng,
+    }
+}
+
+/// The record [`finish_records`] will make at `target` from rays with
+/// these first-hit `distances`, its values still zero
+/// (`Record::awaiting_values`).
+pub fn awaiting_record(target: &PlacementPoint, distances: &[f64], limits: RadiusLimits) -> Record {
+    Record::awaiting_values(&target.point, distances, record_limits(target, limits))
 }
 
 /// The radius limits of a record at `target`: `limits` narrowed by the
