@@ -266,18 +266,16 @@ fn estimate_records(
 /// Traces the paths of the records inserted awaiting their values, all in
 /// parallel, then estimates them and fills them in. Continuation rays are
 /// added to `report`.
-fn fill_awaiting<'p>(
+fn fill_awaiting(
     cache: &IrradianceCache,
     transport: &Transport,
     rule: &RecordRule,
-    awaiting: &mut Vec<(RecordSlot, &'p PlacementPoint, TracedRecord)>,
+    awaiting: &mut Vec<(RecordSlot, &PlacementPoint, TracedRecord)>,
     limits: RadiusLimits,
     report: &mut PlacementReport,
     cancel: &Cancel,
 ) -> Result<(), CacheError> {
-    let (slots, gathered): (Vec<RecordSlot>, Vec<_>) = awaiting
-        .drain(..)
-        .collect::<Vec<_>>()
+    let (slots, gathered): (Vec<RecordSlot>, Vec<_>) = std::mem::take(awaiting)
         .into_par_iter()
         .map(|(slot, target, traced)| {
             cancel.check()?;
