@@ -164,6 +164,9 @@ pub fn place_records(
     };
     let mut report = PlacementReport::default();
     let mut awaiting = Vec::new();
+    let fill = |awaiting: &mut Vec<_>, report: &mut PlacementReport| {
+        fill_awaiting(cache, transport, rule, awaiting, limits, report, cancel)
+    };
     for (b, batch) in points.chunks(options.batch_size).enumerate() {
         cancel.check()?;
         let first = b * options.batch_size;
@@ -202,15 +205,7 @@ pub fn place_records(
                 awaiting.push((slot, target, traced));
             }
             if awaiting.len() >= HELD_BACK {
-                fill_awaiting(
-                    cache,
-                    transport,
-                    rule,
-                    &mut awaiting,
-                    limits,
-                    &mut report,
-                    cancel,
-                )?;
+                fill(&mut awaiting, &mut report)?;
             }
             continue;
         }
@@ -236,15 +231,7 @@ pub fn place_records(
             cache.insert(record?)?;
         }
     }
-    fill_awaiting(
-        cache,
-        transport,
-        rule,
-        &mut awaiting,
-        limits,
-        &mut report,
-        cancel,
-    )?;
+    fill(&mut awaiting, &mut report)?;
     Ok(report)
 }
 
