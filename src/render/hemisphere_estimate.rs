@@ -26,9 +26,6 @@
 //! [`HemisphereRule::indirect_part`] asks, the rule over each value less the
 //! emission its direction sees directly.
 
-use std::f64::consts::TAU;
-
-use rand::RngExt;
 use rayon::prelude::*;
 
 use super::cancel::Cancel;
@@ -41,7 +38,6 @@ use super::rgb::Rgb;
 use super::seed::point_rng;
 use super::transport::Transport;
 use crate::bmc::estimator::{HemisphereEstimator, irradiance_from_lambert};
-use crate::sphere::Frame;
 
 /// What [`Transport::irradiance_with_estimator`] runs for the hemisphere
 /// part.
@@ -136,8 +132,7 @@ impl Transport {
         let mut rng = point_rng(options.seed, index);
         let mut stats = TraceStats::default();
         let depth = options.effective_max_depth();
-        let frame =
-            Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
+        let frame = point.turned_frame(&mut rng);
         let lengths = match decomposition {
             Decomposition::Hemisphere => Some(PathLengths::All),
             Decomposition::Split => depth.has_reflections().then_some(PathLengths::Indirect),

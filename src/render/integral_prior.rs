@@ -78,9 +78,10 @@ pub fn combine(estimate: (Rgb, Rgb), prior: (Rgb, Rgb)) -> (Rgb, Rgb) {
 
 /// `estimate` under `prior`, a prior on its indirect part (an estimate that
 /// reports none is left as it is, and `false` returned): the part is
-/// combined by [`combine`] with its share of the estimate's variance ([`IndirectPart::variance_share`]), the total moves
-/// by what the part moved, and the rest of the variance stays beside the
-/// part's posterior variance. The share is of the estimate's variance as
+/// combined by [`combine`] with its share of the estimate's variance
+/// ([`IndirectPart::variance_share`]), the total moves by what the part
+/// moved, and the rest of the variance stays beside the part's posterior
+/// variance. The share is of the estimate's variance as
 /// stated (calibrated, §10.5, by default), since calibration is fitted on
 /// the total, not on its parts.
 pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> bool {

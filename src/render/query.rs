@@ -1,8 +1,12 @@
 //! Query points: where and facing which way irradiance is wanted.
 
+use std::f64::consts::TAU;
+
 use glam::DVec3;
+use rand::{Rng, RngExt};
 
 use super::error::RenderError;
+use crate::sphere::Frame;
 
 /// A position with a unit normal; the hemisphere of interest is the side the
 /// normal points to.
@@ -59,6 +63,14 @@ impl QueryPoint {
     /// Unit world-space normal.
     pub fn normal(&self) -> DVec3 {
         self.normal
+    }
+
+    /// The point's local frame (z = the normal) turned about the normal by
+    /// a uniform angle, one number drawn from `rng`: a hemisphere rule's
+    /// directions in it are a randomised rule, so its estimates are
+    /// unbiased.
+    pub fn turned_frame<R: Rng + ?Sized>(&self, rng: &mut R) -> Frame {
+        Frame::from_normal(self.normal).rotated_about_normal(TAU * rng.random::<f64>())
     }
 }
 

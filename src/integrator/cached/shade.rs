@@ -41,8 +41,6 @@
 
 use std::f64::consts::PI;
 
-use std::f64::consts::TAU;
-
 use glam::DVec3;
 use rand::{Rng, RngExt};
 use rand_pcg::Pcg64;
@@ -659,7 +657,7 @@ pub fn gather_record<R: Rng + ?Sized>(
     stats: &mut ShadingStats,
 ) -> Result<GatheredRecord, CacheError> {
     let point = &target.point;
-    let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
+    let frame = point.turned_frame(rng);
     let samples = how.samples(transport, point, &frame, rule.directions(), rng, stats)?;
     Ok(GatheredRecord { frame, samples })
 }
@@ -738,7 +736,7 @@ pub fn trace_record(
     stats: &mut ShadingStats,
 ) -> TracedRecord {
     let point = &target.point;
-    let frame = Frame::from_normal(point.normal()).rotated_about_normal(TAU * rng.random::<f64>());
+    let frame = point.turned_frame(&mut rng);
     let paths = how.averaged_paths();
     let mut trace = TraceStats::default();
     let segments = transport.hemisphere_first_segments(
