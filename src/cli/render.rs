@@ -79,6 +79,11 @@ pub struct CacheArgs {
     /// bounces; 0 = records trace full paths).
     #[arg(long, default_value_t = CacheShadingOptions::default().ambient_bounces)]
     pub ambient_bounces: u32,
+    /// Records' rays stop at their first hit, shaded there by light samples
+    /// (`--paths-per-direction` of them) and the scene's secondary cache of
+    /// indirect irradiance (tiles only; excludes `--ambient-bounces`).
+    #[arg(long)]
+    pub secondary_cache: bool,
     /// Light samples per camera ray (direct light).
     #[arg(long, default_value_t = CacheShadingOptions::default().light_samples)]
     pub light_samples: u32,
@@ -122,6 +127,7 @@ impl CacheArgs {
             light_samples: Some(self.light_samples),
             paths_per_direction: Some(self.paths_per_direction),
             ambient_bounces: Some(self.ambient_bounces),
+            secondary_cache: Some(self.secondary_cache),
             reproducible: Some(self.reproducible),
             min_pixels: Some(self.min_pixels),
             max_pixels: Some(self.max_pixels),
@@ -206,6 +212,9 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                         total.placement.records_created += r.placement.records_created;
                         total.placement.ambient_records += r.placement.ambient_records;
                         total.placement.rays += r.placement.rays;
+                        total.placement.fallbacks += r.placement.fallbacks;
+                        total.secondary.records_created += r.secondary.records_created;
+                        total.secondary.rays += r.secondary.rays;
                         total.shading += r.shading;
                         total.records_published += r.records_published;
                         progress
@@ -221,14 +230,17 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                     writeln!(
                         out,
                         "pass {pass}: {seconds:.2} s, {} rays; {} records created ({} at ambient \
-                         bounces; {} placement rays), \
-                         {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
+                         bounces; {} placement rays, {} records' rays fell back to a path), \
+                         {} in the secondary cache ({} rays), {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
                          {} glossy BMC ({} lobe-sampled by the negative-weight guard), \
                          {} glossy path-traced",
                         rendered.rays,
                         r.placement.records_created,
                         r.placement.ambient_records,
                         r.placement.rays,
+                        r.placement.fallbacks,
+                        r.secondary.records_created,
+                        r.secondary.rays,
                         stats.records,
                         r.shading.cache_hits,
                         r.shading.relaxed_hits,

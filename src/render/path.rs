@@ -34,7 +34,7 @@ use crate::sphere::Frame;
 const ROULETTE_START: u32 = 2;
 
 /// Which path lengths a radiance estimate includes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PathLengths {
     /// Lengths `1..=max_depth`: everything arriving along `ω`.
     All,
@@ -44,7 +44,7 @@ pub enum PathLengths {
 }
 
 /// Which paths an incident-radiance estimate sums.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PathLimits {
     /// Longest path counted, in segments from the query point.
     pub max_depth: PathDepth,
@@ -453,6 +453,16 @@ impl FirstSegment {
     /// Distance to the first hit (∞ when the ray escaped).
     pub fn distance(&self) -> f64 {
         self.sample.distance
+    }
+
+    /// What the segment sees directly (emission along it), and its length.
+    pub fn sample(&self) -> RadianceSample {
+        self.sample
+    }
+
+    /// The surface hit and the ray's unit world direction, if it hit one.
+    pub fn hit(&self) -> Option<(SurfaceHit, DVec3)> {
+        self.hit
     }
 }
 

@@ -41,12 +41,18 @@ pub struct IntegratorDoc {
     pub lengthscale: Option<f64>,
     /// Noise variance σ_n² relative to σ² = 1; default 1e-8.
     pub noise: Option<f64>,
-    /// Paths traced per record direction and averaged; default 1.
+    /// Paths traced per record direction and averaged (with
+    /// `secondary_cache`, light samples at each direction's first hit); default 1.
     pub paths_per_direction: Option<u32>,
     /// Levels of records whose rays gather through the cache (Radiance-style
     /// ambient bounces: direct light plus cached indirect irradiance at each
     /// ray's hit), 0..=8; 0 = records trace full paths. Default 0.
     pub ambient_bounces: Option<u32>,
+    /// Tiles: records' rays stop at their first hit, shaded there by light
+    /// samples and the scene's secondary cache of indirect irradiance (built
+    /// once per scene and configuration) instead of tracing paths on;
+    /// excludes `ambient_bounces`. Default false (true in the `final` preset).
+    pub secondary_cache: Option<bool>,
     /// Ward's accuracy a ∈ (0, 1]; smaller places more records. Default 0.5.
     pub accuracy: Option<f64>,
     /// Also place a record where the interpolated relative standard error
@@ -111,6 +117,7 @@ impl IntegratorDoc {
             light_samples: self.light_samples.or(base.light_samples),
             paths_per_direction: self.paths_per_direction.or(base.paths_per_direction),
             ambient_bounces: self.ambient_bounces.or(base.ambient_bounces),
+            secondary_cache: self.secondary_cache.or(base.secondary_cache),
             reproducible: self.reproducible.or(base.reproducible),
             ..base
         };

@@ -126,7 +126,7 @@ pub fn render_progressive(
         (Some(integrator), true) => {
             let tile_records = store.records_or(records_key, || {
                 let (records, report) = integrator.tile_records(&job.request, cancel)?;
-                rays += report.placement.rays;
+                rays += report.placement.rays + report.secondary.rays;
                 created.set(report.placement.records_created);
                 Ok::<_, ApiError>(TileRecords {
                     scene: *transport.scene().digest.as_bytes(),

@@ -396,6 +396,16 @@ fn cases() -> Vec<Case> {
             "estimator.ambient_bounces",
         ),
         unprocessable(
+            "tile: secondary cache with ambient bounces",
+            Method::POST,
+            tiles,
+            tile(|t| {
+                t["estimator"] =
+                    json!({"method": "cache", "secondary_cache": true, "ambient_bounces": 1})
+            }),
+            "estimator.secondary_cache",
+        ),
+        unprocessable(
             "tile: unknown estimator",
             Method::POST,
             tiles,

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::glossy::GlossyRule;
+use super::secondary::SecondaryCaches;
 use crate::bmc::cache::QuadratureCache;
 use crate::bmc::{Kernel, KernelKey, KernelKind, PriorMean};
 use crate::cache::{Accuracy, CacheError, PixelFootprint, RecordRule, RecordRuleSpec};
@@ -72,6 +73,12 @@ pub struct CacheShadingOptions {
     /// Levels of records whose rays gather through the cache ([`super::Gather`],
     /// Radiance's `-ab`): 0 = every record traces its rays' paths.
     pub ambient_bounces: u32,
+    /// Tile records' rays stop at their first hit, shaded there by
+    /// `paths_per_direction` light samples and the scene's secondary cache
+    /// of indirect irradiance (`secondary`, built once per scene and
+    /// configuration) instead of tracing paths on. Tiles only; excludes
+    /// `ambient_bounces`.
+    pub secondary_cache: bool,
 }
 
 impl Default for CacheShadingOptions {
@@ -87,6 +94,7 @@ impl Default for CacheShadingOptions {
             batch_size: 16,
             paths_per_direction: 1,
             ambient_bounces: 0,
+            secondary_cache: false,
         }
     }
 }
@@ -123,6 +131,13 @@ impl CacheShadingOptions {
                 ),
             ));
         }
+        if self.secondary_cache && self.ambient_bounces > 0 {
+            return Err(CacheError::invalid(
+                "secondary_cache",
+                "records gather either through the secondary cache or by ambient bounces; \
+                 set ambient_bounces to 0",
+            ));
+        }
         PixelFootprint::new(1.0, self.min_pixels, self.max_pixels)?;
         Accuracy::new(self.accuracy)
     }
@@ -139,6 +154,9 @@ pub struct CachedShading {
     pub options: CacheShadingOptions,
     /// `options.accuracy`, checked.
     accuracy: Accuracy,
+    /// Secondary caches for these rules, built on first use and shared by
+    /// clones ([`SecondaryCaches`]).
+    pub secondary: SecondaryCaches,
 }
 
 impl CachedShading {
@@ -167,6 +185,7 @@ impl CachedShading {
             glossy: Arc::new(GlossyRule::new(glossy, glossy_bins, quadratures)?),
             options,
             accuracy,
+            secondary: SecondaryCaches::default(),
         })
     }
 
@@ -270,6 +289,7 @@ pub struct CachedSpec {
     pub light_samples: Option<u32>,
     pub paths_per_direction: Option<u32>,
     pub ambient_bounces: Option<u32>,
+    pub secondary_cache: Option<bool>,
     pub reproducible: Option<bool>,
     pub min_pixels: Option<f64>,
     pub max_pixels: Option<f64>,
@@ -302,6 +322,7 @@ pub struct RecordsKey {
     prior_mean: PriorMean,
     paths_per_direction: u32,
     ambient_bounces: u32,
+    secondary_cache: bool,
     /// Path segments counted from the camera or viewer.
     max_depth: PathDepth,
     glossy_bins: usize,
@@ -348,6 +369,7 @@ impl CachedSpec {
             light_samples: self.light_samples.unwrap_or(d.light_samples),
             paths_per_direction: self.paths_per_direction.unwrap_or(d.paths_per_direction),
             ambient_bounces: self.ambient_bounces.unwrap_or(d.ambient_bounces),
+            secondary_cache: self.secondary_cache.unwrap_or(d.secondary_cache),
             min_pixels: self.min_pixels.unwrap_or(d.min_pixels),
             max_pixels: self.max_pixels.unwrap_or(d.max_pixels),
             ..d
@@ -393,6 +415,7 @@ impl CachedConfig {
             prior_mean: self.rule.prior_mean,
             paths_per_direction: self.options.paths_per_direction,
             ambient_bounces: self.options.ambient_bounces,
+            secondary_cache: self.options.secondary_cache,
             max_depth,
             glossy_bins: self.glossy_bins,
             glossy_samples: self.glossy_samples,
@@ -405,6 +428,7 @@ impl CachedConfig {
             "rule": self.rule,
             "paths_per_direction": self.options.paths_per_direction,
             "ambient_bounces": self.options.ambient_bounces,
+            "secondary_cache": self.options.secondary_cache,
             "max_depth": max_depth,
             "glossy_bins": self.glossy_bins,
             "glossy_samples": self.glossy_samples,

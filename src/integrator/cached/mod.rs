@@ -25,6 +25,7 @@ mod glossy;
 mod placement;
 mod radiance;
 mod record_view;
+mod secondary;
 mod shade;
 mod stats;
 mod tiles;
@@ -42,6 +43,7 @@ pub use radiance::{
     surface_at,
 };
 pub use record_view::{RecordView, record_overlay, record_views};
+pub use secondary::{SecondaryCache, SecondaryCaches};
 pub use shade::{
     Bounce, CachedIntegrator, Gather, OnMiss, PlacementPoint, RecordGather, ShadePoint,
     compute_record, lookup,

@@ -70,6 +70,10 @@ pub struct PlacementReport {
     pub records_for_variance: u64,
     /// Rays traced for records.
     pub rays: u64,
+    /// Records' rays whose hit no record of the cache they gather through
+    /// covered, so one path estimated its indirect light ([`Gather::Cache`],
+    /// [`Gather::Secondary`]).
+    pub fallbacks: u64,
 }
 
 impl PlacementReport {
@@ -79,6 +83,7 @@ impl PlacementReport {
         self.ambient_records += stats.ambient_records;
         self.records_for_variance += u64::from(for_variance);
         self.rays += stats.rays;
+        self.fallbacks += stats.fallbacks;
     }
 }
 
@@ -155,8 +160,9 @@ pub fn place_records(
     let limits = cache.radius_limits();
     // Held-back estimates are invisible only to a pass that asks whether a
     // point is covered, never for a value (module docs).
-    let hold_back =
-        private && matches!(gather, Gather::Paths) && options.relative_error_target.is_none();
+    let hold_back = private
+        && matches!(gather, Gather::Paths | Gather::Secondary { .. })
+        && options.relative_error_target.is_none();
     let how = RecordGather {
         paths: options.paths,
         per_direction: options.paths_per_direction,
@@ -164,9 +170,15 @@ pub fn place_records(
     };
     let mut report = PlacementReport::default();
     let mut awaiting = Vec::new();
-    let fill = |awaiting: &mut Vec<_>, report: &mut PlacementReport| {
-        fill_awaiting(cache, transport, rule, awaiting, limits, report, cancel)
+    let held = HeldBack {
+        cache,
+        transport,
+        rule,
+        how: &how,
+        limits,
+        cancel,
     };
+    let fill = |awaiting: &mut Vec<_>, report: &mut PlacementReport| held.fill(awaiting, report);
     for (b, batch) in points.chunks(options.batch_size).enumerate() {
         cancel.check()?;
         let first = b * options.batch_size;
@@ -250,38 +262,49 @@ fn estimate_records(
         .collect()
 }
 
-/// Traces the paths of the records inserted awaiting their values, all in
-/// parallel, then estimates them and fills them in. Continuation rays are
-/// added to `report`.
-fn fill_awaiting(
-    cache: &IrradianceCache,
-    transport: &Transport,
-    rule: &RecordRule,
-    awaiting: &mut Vec<(RecordSlot, &PlacementPoint, TracedRecord)>,
+/// What filling held-back records needs (module docs, "Estimates in
+/// batches"): the pass's cache, scene, rule, gathering, radius limits and
+/// cancellation.
+struct HeldBack<'a> {
+    cache: &'a IrradianceCache,
+    transport: &'a Transport,
+    rule: &'a RecordRule,
+    how: &'a RecordGather<'a>,
     limits: RadiusLimits,
-    report: &mut PlacementReport,
-    cancel: &Cancel,
-) -> Result<(), CacheError> {
-    let (slots, gathered): (Vec<RecordSlot>, Vec<_>) = std::mem::take(awaiting)
-        .into_par_iter()
-        .map(|(slot, target, traced)| {
-            cancel.check()?;
-            let mut stats = ShadingStats::default();
-            let gathered = traced.continue_paths(transport, &mut stats);
-            Ok((slot, ((target, gathered), stats.rays)))
-        })
-        .collect::<Result<Vec<_>, CacheError>>()?
-        .into_iter()
-        .map(|(slot, (gathered, rays))| {
-            report.rays += rays;
-            (slot, gathered)
-        })
-        .unzip();
-    let records = estimate_records(rule, &gathered, limits, HELD_BATCH);
-    for (slot, record) in slots.into_iter().zip(records) {
-        cache.fill_values(slot, &record?)?;
+    cancel: &'a Cancel,
+}
+
+impl HeldBack<'_> {
+    /// Gathers the rest of the rays of the records inserted awaiting their
+    /// values, all in parallel, then estimates them and fills them in.
+    /// Their rays and fallbacks are added to `report`.
+    fn fill(
+        &self,
+        awaiting: &mut Vec<(RecordSlot, &PlacementPoint, TracedRecord)>,
+        report: &mut PlacementReport,
+    ) -> Result<(), CacheError> {
+        let (slots, gathered): (Vec<RecordSlot>, Vec<_>) = std::mem::take(awaiting)
+            .into_par_iter()
+            .map(|(slot, target, traced)| {
+                self.cancel.check()?;
+                let mut stats = ShadingStats::default();
+                let gathered = traced.continue_paths(self.transport, self.how, &mut stats)?;
+                Ok((slot, ((target, gathered), stats)))
+            })
+            .collect::<Result<Vec<_>, CacheError>>()?
+            .into_iter()
+            .map(|(slot, (gathered, stats))| {
+                report.rays += stats.rays;
+                report.fallbacks += stats.fallbacks;
+                (slot, gathered)
+            })
+            .unzip();
+        let records = estimate_records(self.rule, &gathered, self.limits, HELD_BATCH);
+        for (slot, record) in slots.into_iter().zip(records) {
+            self.cache.fill_values(slot, &record?)?;
+        }
+        Ok(())
     }
-    Ok(())
 }
 
 /// Shading pass: read-only lookups, in parallel, results in point order.

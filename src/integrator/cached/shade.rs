@@ -140,6 +140,17 @@ pub enum Gather<'a> {
         integrator: CachedIntegrator<'a>,
         bounce: Bounce,
     },
+    /// Each ray traced to its first hit `y` once and `y` shaded through a
+    /// frozen cache, `integrator`'s (module docs, "A secondary cache"):
+    /// direct light by `light_samples` stratified light samples,
+    /// `(k_d/π) E_ind(y)` looked up at `accuracy`, glossy lobes by one
+    /// lobe-sampled path; where no record covers `y`, one path
+    /// ([`OnMiss::PathTrace`]). The cache is only read.
+    Secondary {
+        integrator: CachedIntegrator<'a>,
+        accuracy: Accuracy,
+        light_samples: u32,
+    },
 }
 
 impl<'a> Gather<'a> {
@@ -207,13 +218,23 @@ impl RecordGather<'_> {
         rng: &mut R,
         stats: &mut ShadingStats,
     ) -> Result<Vec<RadianceSample>, RenderError> {
-        let Gather::Cache { integrator, bounce } = self.gather else {
-            let mut trace = TraceStats::default();
-            let paths = self.averaged_paths();
-            let samples = transport
-                .hemisphere_samples_averaged(point, frame, local_dirs, paths, rng, &mut trace);
-            stats.rays += trace.rays;
-            return Ok(samples);
+        let (integrator, bounce) = match self.gather {
+            Gather::Cache { integrator, bounce } => (integrator, bounce),
+            Gather::Paths => {
+                let mut trace = TraceStats::default();
+                let paths = self.averaged_paths();
+                let samples = transport
+                    .hemisphere_samples_averaged(point, frame, local_dirs, paths, rng, &mut trace);
+                stats.rays += trace.rays;
+                return Ok(samples);
+            }
+            Gather::Secondary { .. } => {
+                let mut trace = TraceStats::default();
+                let segments = transport
+                    .hemisphere_first_segments(point, frame, local_dirs, self.paths, &mut trace);
+                stats.rays += trace.rays;
+                return self.continue_segments(transport, &segments, rng, stats);
+            }
         };
         let gather = |rng: &mut R, stats: &mut ShadingStats| {
             integrator.gather_through_cache(point, frame, local_dirs, bounce, rng, stats)
@@ -242,6 +263,60 @@ impl RecordGather<'_> {
             }
         }
         Ok(samples)
+    }
+}
+
+impl RecordGather<'_> {
+    /// The radiance along each of `segments` (traced by
+    /// [`Transport::hemisphere_first_segments`] with `self.paths`): their
+    /// paths continued, or their hits shaded through the secondary cache
+    /// ([`Gather::Secondary`]). An ambient bounce ([`Gather::Cache`])
+    /// retraces its rays and is not continued here: it is treated as paths.
+    fn continue_segments<R: Rng + ?Sized>(
+        &self,
+        transport: &Transport,
+        segments: &[FirstSegment],
+        rng: &mut R,
+        stats: &mut ShadingStats,
+    ) -> Result<Vec<RadianceSample>, RenderError> {
+        let Gather::Secondary {
+            integrator,
+            accuracy,
+            light_samples,
+        } = self.gather
+        else {
+            let mut trace = TraceStats::default();
+            let samples =
+                transport.continue_hemisphere(segments, self.averaged_paths(), rng, &mut trace);
+            stats.rays += trace.rays;
+            return Ok(samples);
+        };
+        let placement = PlacementOptions {
+            accuracy,
+            ..integrator.shading.placement(self.paths, 0)
+        };
+        let reflection = Reflection {
+            placement: &placement,
+            light_samples,
+            level: 1,
+            on_miss: OnMiss::PathTrace,
+            sample: None,
+            indirect: true,
+            glossy_bmc: false,
+        };
+        segments
+            .iter()
+            .map(|segment| {
+                let mut sample = segment.sample();
+                if let Some((hit, dir)) = segment.hit() {
+                    let reflected =
+                        integrator.reflected_radiance(&hit, -dir, &reflection, rng, stats)?;
+                    sample.radiance += reflected.value;
+                    sample.variance = reflected.variance;
+                }
+                Ok(sample)
+            })
+            .collect()
     }
 }
 
@@ -692,7 +767,6 @@ pub fn finish_records(
 pub struct TracedRecord {
     frame: Frame,
     segments: Vec<FirstSegment>,
-    paths: AveragedPaths,
     /// The record's generator, as the first segments left it (they draw
     /// nothing), for the paths that continue from them.
     rng: Pcg64,
@@ -704,29 +778,28 @@ impl TracedRecord {
         self.segments.iter().map(FirstSegment::distance).collect()
     }
 
-    /// The record's paths from its first segments: the same bits as
-    /// [`gather_record`] by paths with the same generator. Rays are
-    /// counted in `stats`.
+    /// The record's radiance samples from its first segments, gathered as
+    /// `how` says (the `how` it was traced with): the same bits as
+    /// [`gather_record`] with the same generator. Rays are counted in
+    /// `stats`.
     pub fn continue_paths(
         mut self,
         transport: &Transport,
+        how: &RecordGather,
         stats: &mut ShadingStats,
-    ) -> GatheredRecord {
-        let mut trace = TraceStats::default();
-        let samples =
-            transport.continue_hemisphere(&self.segments, self.paths, &mut self.rng, &mut trace);
-        stats.rays += trace.rays;
-        GatheredRecord {
+    ) -> Result<GatheredRecord, RenderError> {
+        let samples = how.continue_segments(transport, &self.segments, &mut self.rng, stats)?;
+        Ok(GatheredRecord {
             frame: self.frame,
             samples,
-        }
+        })
     }
 }
 
-/// The first step of [`gather_record`] by paths: the frame turned by a
-/// random angle from `rng`, then each direction's first segment; the
-/// paths wait for [`TracedRecord::continue_paths`]. Rays are counted in
-/// `stats`.
+/// The first step of [`gather_record`] by paths or through the secondary
+/// cache: the frame turned by a random angle from `rng`, then each
+/// direction's first segment; the rest waits for
+/// [`TracedRecord::continue_paths`]. Rays are counted in `stats`.
 pub fn trace_record(
     transport: &Transport,
     rule: &RecordRule,
@@ -737,20 +810,18 @@ pub fn trace_record(
 ) -> TracedRecord {
     let point = &target.point;
     let frame = point.turned_frame(&mut rng);
-    let paths = how.averaged_paths();
     let mut trace = TraceStats::default();
     let segments = transport.hemisphere_first_segments(
         point,
         &frame,
         rule.directions(),
-        paths.limits,
+        how.paths,
         &mut trace,
     );
     stats.rays += trace.rays;
     TracedRecord {
         frame,
         segments,
-        paths,
         rng,
     }
 }

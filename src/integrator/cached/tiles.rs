@@ -28,7 +28,7 @@ use rand::Rng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::config::indirect_paths;
+use super::config::{AMBIENT_MIN_DEPTH, indirect_paths};
 use super::placement::{PlacementCache, PlacementReport, place_records};
 use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint};
 use super::stats::ShadingStats;
@@ -47,6 +47,9 @@ pub struct CachedTileReport {
     pub placement_points: u64,
     /// Records placed (in the private cache when reproducible).
     pub placement: PlacementReport,
+    /// Records of the scene's secondary cache, if this request built it
+    /// (`secondary`).
+    pub secondary: PlacementReport,
     /// The shading pass's counters (camera rays included in `rays`).
     pub shading: ShadingStats,
     /// Records copied from the private cache into the shared one.
@@ -258,7 +261,30 @@ impl CachedIntegrator<'_> {
         // A private cache is only read at the bounces, so the batch stays
         // deterministic (see `placement`).
         let reproducible = shading.options.reproducible;
-        let gather = Gather::for_record(*self, options.paths, 0, !reproducible);
+        let secondary;
+        let gather =
+            if shading.options.secondary_cache && options.paths.max_depth >= AMBIENT_MIN_DEPTH {
+                let config = *self.cache.config();
+                let built;
+                (secondary, built) = shading.secondary.get_or_build(
+                    transport,
+                    shading,
+                    config,
+                    options.paths,
+                    cancel,
+                )?;
+                report.secondary = built.unwrap_or_default();
+                Gather::Secondary {
+                    integrator: CachedIntegrator {
+                        cache: &secondary.cache,
+                        ..*self
+                    },
+                    accuracy: secondary.accuracy,
+                    light_samples: options.paths_per_direction,
+                }
+            } else {
+                Gather::for_record(*self, options.paths, 0, !reproducible)
+            };
         report.placement = place_records(
             readers(self.cache),
             transport,
@@ -296,7 +322,7 @@ impl CachedIntegrator<'_> {
 
 /// The tile's rays with its placement's added.
 fn add_placement_rays(mut tile: RenderedTile, report: &CachedTileReport) -> RenderedTile {
-    tile.rays += report.placement.rays;
+    tile.rays += report.placement.rays + report.secondary.rays;
     tile
 }
 
@@ -455,11 +481,21 @@ mod tests {
             ..cached_request(0, 0, 16)
         };
         let (cached, _) = render_cached(&transport, &r, &cache(), &s).unwrap();
+        assert_agrees_with_path_tracing(&transport, &cached, &r);
+    }
+
+    /// Asserts that `cached`, rendered for `r`, agrees with a 256-spp path
+    /// traced tile (see [`cached_tiles_agree_with_path_tracing`]).
+    fn assert_agrees_with_path_tracing(
+        transport: &Transport,
+        cached: &RenderedTile,
+        r: &TileRequest,
+    ) {
         let traced = transport
             .render_tile(
                 &TileRequest {
                     samples_per_pixel: 256,
-                    ..r
+                    ..*r
                 },
                 &Cancel::never(),
             )
@@ -493,6 +529,53 @@ mod tests {
         };
         let ratio = mean(&cached.image) / mean(&traced.image);
         assert!((ratio - 1.0).abs() < 0.05, "{ratio}");
+    }
+
+    /// Records that read the scene's secondary cache: the request that
+    /// builds it reports its records, later ones find it built; a tile is
+    /// the same bytes whichever request built the cache and on however many
+    /// threads; its records differ from path-gathered ones, and its image
+    /// agrees with path tracing.
+    #[test]
+    fn secondary_cache_tiles_are_reproducible_and_agree_with_path_tracing() {
+        let transport = cornell(16);
+        let with_secondary = CacheShadingOptions {
+            secondary_cache: true,
+            light_samples: 16,
+            ..options(true)
+        };
+        let r = TileRequest {
+            samples_per_pixel: 4,
+            max_depth: PathDepth::constant(17),
+            ..cached_request(0, 0, 16)
+        };
+        let first = shading(with_secondary);
+        let (a, ra) = in_pool(1, || render_cached(&transport, &r, &cache(), &first)).unwrap();
+        assert!(ra.secondary.records_created > 0 && ra.secondary.rays > 0);
+        assert_eq!(
+            a.rays,
+            ra.shading.rays + ra.placement.rays + ra.secondary.rays
+        );
+        // Another tile builds the cache first, on two threads.
+        let second = shading(with_secondary);
+        let corner = TileRequest {
+            width: 4,
+            height: 4,
+            ..r
+        };
+        let (_, rc) = in_pool(2, || render_cached(&transport, &corner, &cache(), &second)).unwrap();
+        assert_eq!(rc.secondary, ra.secondary);
+        let (b, rb) = in_pool(2, || render_cached(&transport, &r, &cache(), &second)).unwrap();
+        assert_eq!(rb.secondary, PlacementReport::default());
+        assert_eq!(a.image, b.image);
+        assert_eq!(ra.placement, rb.placement);
+        let by_paths = shading(CacheShadingOptions {
+            secondary_cache: false,
+            ..with_secondary
+        });
+        let (c, _) = render_cached(&transport, &r, &cache(), &by_paths).unwrap();
+        assert_ne!(c.image, a.image);
+        assert_agrees_with_path_tracing(&transport, &a, &r);
     }
 
     #[test]
