@@ -81,7 +81,8 @@ curl -X POST "$BASE/v1/scenes/cornell-box/tiles" -H 'content-type: application/j
           "estimator": {"method": "path"}, "samples_per_pixel": 16}' -o tile.json
 # estimator: {"method": "cache"} (default: the Bayesian irradiance cache; options samples,
 #   glossy_samples, lengthscale, noise, accuracy, relative_error_target, occlusion_check,
-#   light_samples, paths_per_direction, ambient_bounces, reproducible (the presets' true:
+#   light_samples, paths_per_direction, ambient_bounces, secondary_cache (records' rays read
+#   a scene-wide cache at their first hits; the final preset's true), reproducible (the presets' true:
 #   records per tile, the same bytes whatever ran before; false: the scene's shared cache),
 #   cache: false) or {"method": "path"} (path tracing). Headers x-records-created and
 #   x-cache-hits tell what the cache did.

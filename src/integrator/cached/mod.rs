@@ -12,6 +12,8 @@
 //!   shading/record recursion, so no other file takes part in it;
 //! - `placement`: the reproducible placement and shading passes over many
 //!   points, and variance-driven placement;
+//! - `secondary`: the scene-wide cache that records' rays read at their
+//!   first hits instead of tracing paths on, built once per configuration;
 //! - `tiles`: camera tiles shaded through a shared or private cache;
 //! - `radiance`: outgoing radiance at surface points, by path tracing or
 //!   through a cache;

@@ -10,9 +10,11 @@
 //! hits of cosine-distributed rays from the camera-visible points of a
 //! coarse grid of pixel centres. Records' rays then shade `y` as a camera
 //! hit is shaded ([`Gather::Secondary`]): direct light by light samples and
-//! `(k_d/π) E_ind(y)` from the secondary cache, at the relaxed accuracy
-//! `min(1, 2a)` of Radiance's ambient bounces (the error of `E_ind(y)` is
-//! damped by the albedo and averaged over the record's directions).
+//! `(k_d/π) E_ind(y)` from the secondary cache, placed and looked up at the
+//! request's accuracy `a` (at Radiance's relaxed `2a` the Cornell box's
+//! error grew from 1.46 % to 2.19 %, docs/BENCHMARKS.md "The secondary
+//! cache"; the error of `E_ind(y)` is damped by the albedo and averaged
+//! over the record's directions).
 //!
 //! Everything here is a function of the scene and the configuration only:
 //! the candidates draw from [`point_rng`] with a fixed seed and the
