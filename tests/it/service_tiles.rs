@@ -230,6 +230,47 @@ async fn reproducible_bmc_tiles_ignore_what_ran_before() {
     assert_eq!(cold, warm);
 }
 
+/// Tiles whose records read the scene's secondary cache: the request that
+/// builds the cache traces its rays, and a tile is the same bytes whichever
+/// request built it; records that trace paths instead give another image.
+#[tokio::test]
+async fn secondary_cache_tiles_are_the_same_whichever_request_built_the_cache() {
+    let scene = small_cornell(16);
+    let scenes = [("box.json", scene.as_str())];
+    let tile = |x, y, secondary: bool| {
+        let extra = json!({"reproducible": true, "secondary_cache": secondary});
+        let mut t = bmc_tile(x, y, 8, extra);
+        // Long enough paths for a cached bounce (AMBIENT_MIN_DEPTH from the hit).
+        t["max_depth"] = json!(17);
+        t
+    };
+    let first_app = spawn_app_with_scenes(&scenes, |_| {}).await;
+    let building = first_app
+        .post_json("/v1/scenes/box/tiles", &tile(4, 4, true))
+        .await;
+    assert_eq!(building.status(), StatusCode::OK);
+    let rays_building = header(&building, "x-rays");
+    let building = building.bytes().await.unwrap();
+
+    let second_app = spawn_app_with_scenes(&scenes, |_| {}).await;
+    let other = second_app
+        .post_json("/v1/scenes/box/tiles", &tile(8, 8, true))
+        .await;
+    assert_eq!(other.status(), StatusCode::OK);
+    let reading = second_app
+        .post_json("/v1/scenes/box/tiles", &tile(4, 4, true))
+        .await;
+    assert_eq!(reading.status(), StatusCode::OK);
+    assert!(header(&reading, "x-rays") < rays_building);
+    assert_eq!(reading.bytes().await.unwrap(), building);
+
+    let by_paths = first_app
+        .post_json("/v1/scenes/box/tiles", &tile(4, 4, false))
+        .await;
+    assert_eq!(by_paths.status(), StatusCode::OK);
+    assert_ne!(by_paths.bytes().await.unwrap(), building);
+}
+
 #[tokio::test]
 async fn eight_concurrent_clients_leave_a_consistent_cache() {
     eight_concurrent_clients(json!({}), 3).await;

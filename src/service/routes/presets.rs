@@ -45,6 +45,7 @@ pub async fn presets() -> Json<Vec<PresetDoc>> {
                         "samples": c.samples,
                         "glossy_samples": c.glossy_samples,
                         "paths_per_direction": c.paths_per_direction,
+                        "secondary_cache": c.secondary_cache,
                         "accuracy": c.accuracy,
                         "min_pixels": c.min_pixels,
                         "light_samples": c.light_samples,
