@@ -6,7 +6,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::glossy::GlossyRule;
-use super::secondary::SecondaryCaches;
+use super::secondary_caches::SecondaryCaches;
 use crate::bmc::cache::QuadratureCache;
 use crate::bmc::{Kernel, KernelKey, KernelKind, PriorMean};
 use crate::cache::{Accuracy, CacheError, PixelFootprint, RecordRule, RecordRuleSpec};

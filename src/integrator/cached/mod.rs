@@ -13,7 +13,8 @@
 //! - `placement`: the reproducible placement and shading passes over many
 //!   points, and variance-driven placement;
 //! - `secondary`: the scene-wide cache that records' rays read at their
-//!   first hits instead of tracing paths on, built once per configuration;
+//!   first hits instead of tracing paths on, and how it is built;
+//! - `secondary_caches`: those caches held by a rule set, each built once;
 //! - `tiles`: camera tiles shaded through a shared or private cache;
 //! - `radiance`: outgoing radiance at surface points, by path tracing or
 //!   through a cache;
@@ -28,6 +29,7 @@ mod placement;
 mod radiance;
 mod record_view;
 mod secondary;
+mod secondary_caches;
 mod shade;
 mod stats;
 mod tiles;
@@ -45,7 +47,8 @@ pub use radiance::{
     surface_at,
 };
 pub use record_view::{RecordView, record_overlay, record_views};
-pub use secondary::{SecondaryCache, SecondaryCaches};
+pub use secondary::secondary_cache;
+pub use secondary_caches::{SecondaryCache, SecondaryCaches};
 pub use shade::{
     Bounce, CachedIntegrator, Gather, OnMiss, PlacementPoint, RecordGather, ShadePoint,
     compute_record, lookup,

@@ -21,16 +21,16 @@
 //! placement pass is deterministic, so every tile (whatever its request,
 //! thread count or replica) sees the same cache and stays reproducible.
 
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use rand::RngExt;
 use rayon::prelude::*;
 
 use super::config::{CachedShading, PlacementOptions};
 use super::placement::{PlacementCache, PlacementReport, place_records};
+use super::secondary_caches::{SecondaryCache, SecondaryKey};
 use super::shade::{Gather, PlacementPoint};
-use crate::cache::{Accuracy, CacheConfig, IrradianceCache, PixelFootprint};
+use crate::cache::{CacheConfig, IrradianceCache, PixelFootprint};
 use crate::render::seed::point_rng;
 use crate::render::{Cancel, PathLimits, QueryPoint, RenderError, Transport, warp};
 use crate::scene::{Ray, SurfaceHit};
@@ -44,90 +44,27 @@ const BOUNCES: u32 = 4;
 /// and paths (fixed: the cache is a function of scene and configuration).
 const SEED: u64 = 0x5eed_5ec0_dca5_e001;
 
-/// What identifies one secondary cache of a [`CachedShading`]: the paths
-/// its records sum and the options that place them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-struct SecondaryKey {
+/// The secondary cache of records summing `paths` for `shading`'s options
+/// in `transport`'s scene, its records in a cache configured as `config`:
+/// the one `shading` holds, or built now (module docs) with what building
+/// it did (`SecondaryCaches::get_or_build`).
+pub fn secondary_cache(
+    transport: &Transport,
+    shading: &CachedShading,
+    config: CacheConfig,
     paths: PathLimits,
-    /// Bits of the accuracy and of the radius bounds in pixels.
-    accuracy: u64,
-    min_pixels: u64,
-    max_pixels: u64,
-}
-
-/// A secondary cache being built by one caller, or built.
-enum Slot {
-    Building,
-    Built(Arc<SecondaryCache>),
-}
-
-/// The secondary caches of one scene, rule set and cache configuration,
-/// built on first use (module docs). Clones share them.
-#[derive(Clone, Default)]
-pub struct SecondaryCaches {
-    slots: Arc<Mutex<HashMap<SecondaryKey, Slot>>>,
-}
-
-/// One secondary cache, frozen, with the accuracy its lookups use.
-pub struct SecondaryCache {
-    pub cache: IrradianceCache,
-    pub accuracy: Accuracy,
-}
-
-impl SecondaryCaches {
-    /// The secondary cache of records summing `paths` for `shading`'s
-    /// options in `transport`'s scene, records in a cache configured as
-    /// `config`; built now if no one has, with what building it did.
-    ///
-    /// A caller that finds it being built runs other pool work meanwhile
-    /// (`rayon::yield_now`), so on a pool thread it helps the build's
-    /// parallel loops instead of idling. A build stopped by `cancel`
-    /// leaves nothing behind, and the next caller builds it.
-    pub fn get_or_build(
-        &self,
-        transport: &Transport,
-        shading: &CachedShading,
-        config: CacheConfig,
-        paths: PathLimits,
-        cancel: &Cancel,
-    ) -> Result<(Arc<SecondaryCache>, Option<PlacementReport>), RenderError> {
-        let o = &shading.options;
-        let key = SecondaryKey {
-            paths,
-            accuracy: o.accuracy.to_bits(),
-            min_pixels: o.min_pixels.to_bits(),
-            max_pixels: o.max_pixels.to_bits(),
-        };
-        let slots = || self.slots.lock().unwrap_or_else(|e| e.into_inner());
-        loop {
-            cancel.check()?;
-            {
-                let mut slots = slots();
-                match slots.get(&key) {
-                    Some(Slot::Built(found)) => return Ok((found.clone(), None)),
-                    Some(Slot::Building) => {}
-                    None => {
-                        slots.insert(key, Slot::Building);
-                        break;
-                    }
-                }
-            }
-            if rayon::yield_now() != Some(rayon::Yield::Executed) {
-                std::thread::sleep(std::time::Duration::from_millis(1));
-            }
-        }
-        match build(transport, shading, config, paths, cancel) {
-            Ok((built, report)) => {
-                let built = Arc::new(built);
-                slots().insert(key, Slot::Built(built.clone()));
-                Ok((built, Some(report)))
-            }
-            Err(e) => {
-                slots().remove(&key);
-                Err(e)
-            }
-        }
-    }
+    cancel: &Cancel,
+) -> Result<(Arc<SecondaryCache>, Option<PlacementReport>), RenderError> {
+    let o = &shading.options;
+    let key = SecondaryKey {
+        paths,
+        accuracy: o.accuracy.to_bits(),
+        min_pixels: o.min_pixels.to_bits(),
+        max_pixels: o.max_pixels.to_bits(),
+    };
+    shading.secondary.get_or_build(key, cancel, || {
+        build(transport, shading, config, paths, cancel)
+    })
 }
 
 /// Builds the secondary cache (module docs).
@@ -222,15 +159,12 @@ fn candidates(
 mod tests {
     use super::*;
     use crate::bmc::cache::QuadratureCache;
+    use crate::integrator::cached::shade::tests::assert_records_agree;
     use crate::integrator::cached::{
-        CacheShadingOptions, CachedIntegrator, RecordGather, ShadingStats, compute_record,
-        default_rule_spec, indirect_paths,
+        CacheShadingOptions, CachedIntegrator, default_rule_spec, indirect_paths,
     };
-    use crate::render::{MeanEstimate, PathDepth};
-    use crate::testing::{agrees, cornell, in_pool};
-    use glam::DVec3;
-    use rand::SeedableRng;
-    use rand_pcg::Pcg64;
+    use crate::render::PathDepth;
+    use crate::testing::{cornell, in_pool};
 
     fn shading() -> CachedShading {
         let mut spec = default_rule_spec();
@@ -241,7 +175,7 @@ mod tests {
 
     /// The cache is built once, the same records whatever the thread count;
     /// a cancelled build leaves nothing behind; records whose rays read it
-    /// agree with records whose rays trace paths.
+    /// agree with records whose rays trace paths, for fewer rays.
     #[test]
     fn secondary_records_agree_with_path_traced_records() {
         let transport = cornell(16);
@@ -249,8 +183,7 @@ mod tests {
         let config = CacheConfig::default();
         let build = |s: &CachedShading, threads, cancel: &Cancel| {
             in_pool(threads, || {
-                s.secondary
-                    .get_or_build(&transport, s, config, paths, cancel)
+                secondary_cache(&transport, s, config, paths, cancel)
             })
         };
         let cancelled = Cancel::new();
@@ -272,61 +205,20 @@ mod tests {
         let (single, _) = build(&alone, 1, &Cancel::never()).unwrap();
         assert_eq!(single.cache.records(), cache.cache.records());
 
-        let target = PlacementPoint {
-            // The back wall above the boxes.
-            point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
-            footprint: None,
-        };
-        let unused = IrradianceCache::new(config).unwrap();
         let integrator = CachedIntegrator {
             transport: &transport,
             cache: &cache.cache,
             shading: &shading,
-        };
-        let mut rng = Pcg64::seed_from_u64(5);
-        let mut record = |gather: Gather, stats: &mut ShadingStats| {
-            let how = RecordGather {
-                paths,
-                per_direction: 4,
-                gather,
-            };
-            let limits = unused.radius_limits();
-            compute_record(
-                &transport,
-                &shading.rule,
-                &target,
-                limits,
-                &how,
-                &mut rng,
-                stats,
-            )
-            .unwrap()
-            .irradiance
         };
         let secondary = Gather::Secondary {
             integrator,
             accuracy: cache.accuracy,
             light_samples: 4,
         };
-        let mut stats = ShadingStats::default();
-        let read = MeanEstimate::of((0..24).map(|_| record(secondary, &mut stats)));
+        // 3 %: the secondary cache interpolates its records.
+        let stats = assert_records_agree(&transport, &shading, paths, 4, secondary, 0.03);
         // 16 directions, each one segment and 4 shadow rays.
         assert!(stats.rays <= 24 * 16 * 5, "{stats:?}");
         assert!(stats.cache_hits > 0);
-        let traced =
-            MeanEstimate::of((0..24).map(|_| record(Gather::Paths, &mut ShadingStats::default())));
-        let (c, t) = (read.mean.to_array(), traced.mean.to_array());
-        let (vc, vt) = (
-            read.variance_of_mean.to_array(),
-            traced.variance_of_mean.to_array(),
-        );
-        for k in 0..3 {
-            let se = (vc[k] + vt[k]).sqrt();
-            assert!(
-                // 3 %: the secondary cache interpolates its records.
-                agrees(c[k], t[k], se, 4.0, 0.03),
-                "channel {k}: secondary {c:?} vs paths {t:?}"
-            );
-        }
     }
 }

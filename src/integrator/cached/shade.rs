@@ -863,11 +863,12 @@ pub fn lookup(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::bmc::cache::QuadratureCache;
     use crate::cache::RecordRuleSpec;
     use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
+    use crate::render::MeanEstimate;
     use crate::scene::Ray;
     use crate::testing::{agrees, cornell};
     use rand::SeedableRng;
@@ -886,6 +887,64 @@ mod tests {
         spec
     }
 
+    /// Asserts that 24 records on the Cornell box's back wall whose rays
+    /// gather as `gathered` says agree with 24 gathered by paths, per
+    /// channel within 4 standard errors plus `rel` of the paths' mean;
+    /// returns the counters of the former.
+    pub(crate) fn assert_records_agree(
+        transport: &Transport,
+        shading: &CachedShading,
+        paths: PathLimits,
+        per_direction: u32,
+        gathered: Gather,
+        rel: f64,
+    ) -> ShadingStats {
+        // The back wall above the boxes.
+        let target = PlacementPoint {
+            point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
+            footprint: None,
+        };
+        let limits = IrradianceCache::new(Default::default())
+            .unwrap()
+            .radius_limits();
+        let mut rng = Pcg64::seed_from_u64(21);
+        let mut record = |gather: Gather, stats: &mut ShadingStats| {
+            let how = RecordGather {
+                paths,
+                per_direction,
+                gather,
+            };
+            compute_record(
+                transport,
+                &shading.rule,
+                &target,
+                limits,
+                &how,
+                &mut rng,
+                stats,
+            )
+            .unwrap()
+            .irradiance
+        };
+        let mut stats = ShadingStats::default();
+        let other = MeanEstimate::of((0..24).map(|_| record(gathered, &mut stats)));
+        let traced =
+            MeanEstimate::of((0..24).map(|_| record(Gather::Paths, &mut ShadingStats::default())));
+        let (c, t) = (other.mean.to_array(), traced.mean.to_array());
+        let (vc, vt) = (
+            other.variance_of_mean.to_array(),
+            traced.variance_of_mean.to_array(),
+        );
+        for k in 0..3 {
+            let se = (vc[k] + vt[k]).sqrt();
+            assert!(
+                agrees(c[k], t[k], se, 4.0, rel),
+                "channel {k}: {c:?} vs paths {t:?}"
+            );
+        }
+        stats
+    }
+
     /// A record gathered through the cache (ambient bounces, nested records
     /// created on demand) agrees with records gathered by paths, and every
     /// nested record is counted and stored.
@@ -901,37 +960,11 @@ mod tests {
         );
         let cache = IrradianceCache::new(Default::default()).unwrap();
         let paths = indirect_paths(PathDepth::constant(32));
-        // The back wall above the boxes.
-        let target = PlacementPoint {
-            point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
-            footprint: None,
-        };
         let integrator = CachedIntegrator {
             transport: &transport,
             cache: &cache,
             shading: &shading,
         };
-        let mut rng = Pcg64::seed_from_u64(21);
-        let mut record = |gather: Gather, stats: &mut ShadingStats| {
-            let how = RecordGather {
-                paths,
-                per_direction: 1,
-                gather,
-            };
-            let limits = cache.radius_limits();
-            compute_record(
-                &transport,
-                &shading.rule,
-                &target,
-                limits,
-                &how,
-                &mut rng,
-                stats,
-            )
-            .unwrap()
-            .irradiance
-        };
-        let mut stats = ShadingStats::default();
         let gathered = Gather::for_record(integrator, paths, 0, true);
         assert!(matches!(
             gathered,
@@ -940,28 +973,13 @@ mod tests {
                 ..
             }
         ));
-        let cached = crate::render::MeanEstimate::of((0..24).map(|_| record(gathered, &mut stats)));
+        // 3 %: records from the cache see cached (interpolated) light at their bounces.
+        let stats = assert_records_agree(&transport, &shading, paths, 1, gathered, 0.03);
         assert!(
             stats.records_created > 0 && stats.ambient_records > 0,
             "{stats:?}"
         );
         assert_eq!(cache.stats().records, stats.records_created);
-        let traced = crate::render::MeanEstimate::of(
-            (0..24).map(|_| record(Gather::Paths, &mut ShadingStats::default())),
-        );
-        let (c, t) = (cached.mean.to_array(), traced.mean.to_array());
-        let (vc, vt) = (
-            cached.variance_of_mean.to_array(),
-            traced.variance_of_mean.to_array(),
-        );
-        for k in 0..3 {
-            let se = (vc[k] + vt[k]).sqrt();
-            assert!(
-                // 3 %: records from the cache see cached (interpolated) light at their bounces.
-                agrees(c[k], t[k], se, 4.0, 0.03),
-                "channel {k}: cache {c:?} vs paths {t:?}"
-            );
-        }
         // Short paths, or no ambient bounces, gather by paths.
         assert!(matches!(
             Gather::for_record(integrator, indirect_paths(PathDepth::constant(4)), 0, true),

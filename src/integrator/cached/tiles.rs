@@ -30,6 +30,7 @@ use rayon::prelude::*;
 
 use super::config::{AMBIENT_MIN_DEPTH, indirect_paths};
 use super::placement::{PlacementCache, PlacementReport, place_records};
+use super::secondary::secondary_cache;
 use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
@@ -266,13 +267,8 @@ impl CachedIntegrator<'_> {
             if shading.options.secondary_cache && options.paths.max_depth >= AMBIENT_MIN_DEPTH {
                 let config = *self.cache.config();
                 let built;
-                (secondary, built) = shading.secondary.get_or_build(
-                    transport,
-                    shading,
-                    config,
-                    options.paths,
-                    cancel,
-                )?;
+                (secondary, built) =
+                    secondary_cache(transport, shading, config, options.paths, cancel)?;
                 report.secondary = built.unwrap_or_default();
                 Gather::Secondary {
                     integrator: CachedIntegrator {

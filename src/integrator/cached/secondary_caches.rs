@@ -1,0 +1,85 @@
+//! The secondary caches a rule set holds (`secondary`): each built once,
+//! by the first caller that needs it, and shared by every clone.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use crate::cache::{Accuracy, IrradianceCache};
+use crate::render::{Cancel, PathLimits, RenderError};
+
+/// What identifies one secondary cache of a rule set: the paths its records
+/// sum and the options that place them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SecondaryKey {
+    pub paths: PathLimits,
+    /// Bits of the accuracy and of the radius bounds in pixels.
+    pub accuracy: u64,
+    pub min_pixels: u64,
+    pub max_pixels: u64,
+}
+
+/// One secondary cache, frozen, with the accuracy its lookups use.
+pub struct SecondaryCache {
+    pub cache: IrradianceCache,
+    pub accuracy: Accuracy,
+}
+
+/// A secondary cache being built by one caller, or built.
+enum Slot {
+    Building,
+    Built(Arc<SecondaryCache>),
+}
+
+/// The secondary caches of one scene, rule set and cache configuration,
+/// each built on first use. Clones share them.
+#[derive(Clone, Default)]
+pub struct SecondaryCaches {
+    slots: Arc<Mutex<HashMap<SecondaryKey, Slot>>>,
+}
+
+impl SecondaryCaches {
+    /// The cache under `key`, or the one `build` makes now if no one has,
+    /// with what `build` reported.
+    ///
+    /// A caller that finds it being built runs other pool work meanwhile
+    /// (`rayon::yield_now`), so on a pool thread it helps the build's
+    /// parallel loops instead of idling. A failed build (one stopped by
+    /// `cancel` among them) leaves nothing behind, and the next caller
+    /// builds it.
+    pub fn get_or_build<R>(
+        &self,
+        key: SecondaryKey,
+        cancel: &Cancel,
+        build: impl FnOnce() -> Result<(SecondaryCache, R), RenderError>,
+    ) -> Result<(Arc<SecondaryCache>, Option<R>), RenderError> {
+        let slots = || self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            cancel.check()?;
+            {
+                let mut slots = slots();
+                match slots.get(&key) {
+                    Some(Slot::Built(found)) => return Ok((found.clone(), None)),
+                    Some(Slot::Building) => {}
+                    None => {
+                        slots.insert(key, Slot::Building);
+                        break;
+                    }
+                }
+            }
+            if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
+        match build() {
+            Ok((built, report)) => {
+                let built = Arc::new(built);
+                slots().insert(key, Slot::Built(built.clone()));
+                Ok((built, Some(report)))
+            }
+            Err(e) => {
+                slots().remove(&key);
+                Err(e)
+            }
+        }
+    }
+}
