@@ -29,11 +29,11 @@ use rayon::prelude::*;
 use super::config::{CachedShading, PlacementOptions};
 use super::placement::{PlacementCache, PlacementReport, place_records};
 use super::secondary_caches::{SecondaryCache, SecondaryKey};
-use super::shade::{Gather, PlacementPoint};
+use super::shade::{Gather, PlacementPoint, diffuse_front};
 use crate::cache::{CacheConfig, IrradianceCache, PixelFootprint};
 use crate::render::seed::point_rng;
 use crate::render::{Cancel, PathLimits, QueryPoint, RenderError, Transport, warp};
-use crate::scene::{Ray, SurfaceHit};
+use crate::scene::Ray;
 use crate::sphere::Frame;
 
 /// Pixel-centre rays of the candidate grid across the image's longer side.
@@ -75,7 +75,6 @@ fn build(
     paths: PathLimits,
     cancel: &Cancel,
 ) -> Result<(SecondaryCache, PlacementReport), RenderError> {
-    let accuracy = shading.accuracy();
     let points = candidates(transport, shading)?;
     let cache = IrradianceCache::new(config)?;
     let options = PlacementOptions {
@@ -92,15 +91,7 @@ fn build(
         Gather::Paths,
         cancel,
     )?;
-    Ok((SecondaryCache { cache, accuracy }, report))
-}
-
-/// Whether `hit`, reached along `dir`, is a front face with a diffuse lobe.
-fn diffuse_front(transport: &Transport, hit: &SurfaceHit, dir: glam::DVec3) -> bool {
-    hit.shading_normal.dot(dir) < 0.0
-        && transport
-            .bsdf(hit.material)
-            .is_some_and(|b| !b.diffuse.is_black())
+    Ok((SecondaryCache { cache }, report))
 }
 
 /// The candidate points (module docs), grid point by grid point. Each
@@ -210,11 +201,7 @@ mod tests {
             cache: &cache.cache,
             shading: &shading,
         };
-        let secondary = Gather::Secondary {
-            integrator,
-            accuracy: cache.accuracy,
-            light_samples: 4,
-        };
+        let secondary = Gather::Secondary { integrator };
         // 3 %: the secondary cache interpolates its records.
         let stats = assert_records_agree(&transport, &shading, paths, 4, secondary, 0.03);
         // 16 directions, each one segment and 4 shadow rays.

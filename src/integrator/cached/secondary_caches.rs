@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use crate::cache::{Accuracy, IrradianceCache};
+use crate::cache::IrradianceCache;
 use crate::render::{Cancel, PathLimits, RenderError};
 
 /// What identifies one secondary cache of a rule set: the paths its records
@@ -18,10 +18,10 @@ pub struct SecondaryKey {
     pub max_pixels: u64,
 }
 
-/// One secondary cache, frozen, with the accuracy its lookups use.
+/// One secondary cache, frozen; looked up at the accuracy it was placed
+/// with (part of its key).
 pub struct SecondaryCache {
     pub cache: IrradianceCache,
-    pub accuracy: Accuracy,
 }
 
 /// A secondary cache being built by one caller, or built.

@@ -141,16 +141,12 @@ pub enum Gather<'a> {
         bounce: Bounce,
     },
     /// Each ray traced to its first hit `y` once and `y` shaded through a
-    /// frozen cache, `integrator`'s (module docs, "A secondary cache"):
-    /// direct light by `light_samples` stratified light samples,
-    /// `(k_d/π) E_ind(y)` looked up at `accuracy`, glossy lobes by one
-    /// lobe-sampled path; where no record covers `y`, one path
+    /// frozen cache, `integrator`'s (the `secondary` module): direct light
+    /// by [`RecordGather::per_direction`] stratified light samples,
+    /// `(k_d/π) E_ind(y)` looked up at the integrator's accuracy, glossy
+    /// lobes by one lobe-sampled path; where no record covers `y`, one path
     /// ([`OnMiss::PathTrace`]). The cache is only read.
-    Secondary {
-        integrator: CachedIntegrator<'a>,
-        accuracy: Accuracy,
-        light_samples: u32,
-    },
+    Secondary { integrator: CachedIntegrator<'a> },
 }
 
 impl<'a> Gather<'a> {
@@ -192,7 +188,7 @@ pub struct RecordGather<'a> {
     /// The paths the rays sum.
     pub paths: PathLimits,
     /// Estimates averaged per direction (≥ 1); by paths, those share their
-    /// first segment.
+    /// first segment; through the secondary cache, the light samples at it.
     pub per_direction: u32,
     pub gather: Gather<'a>,
 }
@@ -220,15 +216,7 @@ impl RecordGather<'_> {
     ) -> Result<Vec<RadianceSample>, RenderError> {
         let (integrator, bounce) = match self.gather {
             Gather::Cache { integrator, bounce } => (integrator, bounce),
-            Gather::Paths => {
-                let mut trace = TraceStats::default();
-                let paths = self.averaged_paths();
-                let samples = transport
-                    .hemisphere_samples_averaged(point, frame, local_dirs, paths, rng, &mut trace);
-                stats.rays += trace.rays;
-                return Ok(samples);
-            }
-            Gather::Secondary { .. } => {
+            Gather::Paths | Gather::Secondary { .. } => {
                 let mut trace = TraceStats::default();
                 let segments = transport
                     .hemisphere_first_segments(point, frame, local_dirs, self.paths, &mut trace);
@@ -279,25 +267,17 @@ impl RecordGather<'_> {
         rng: &mut R,
         stats: &mut ShadingStats,
     ) -> Result<Vec<RadianceSample>, RenderError> {
-        let Gather::Secondary {
-            integrator,
-            accuracy,
-            light_samples,
-        } = self.gather
-        else {
+        let Gather::Secondary { integrator } = self.gather else {
             let mut trace = TraceStats::default();
             let samples =
                 transport.continue_hemisphere(segments, self.averaged_paths(), rng, &mut trace);
             stats.rays += trace.rays;
             return Ok(samples);
         };
-        let placement = PlacementOptions {
-            accuracy,
-            ..integrator.shading.placement(self.paths, 0)
-        };
+        let placement = integrator.shading.placement(self.paths, 0);
         let reflection = Reflection {
             placement: &placement,
-            light_samples,
+            light_samples: self.per_direction,
             level: 1,
             on_miss: OnMiss::PathTrace,
             sample: None,
@@ -840,6 +820,15 @@ fn record_limits(target: &PlacementPoint, limits: RadiusLimits) -> RadiusLimits 
         Some(fp) => limits.with_footprint(fp),
         None => limits,
     }
+}
+
+/// Whether `hit`, reached along `dir`, is a front face with a diffuse lobe:
+/// where records may be placed.
+pub(super) fn diffuse_front(transport: &Transport, hit: &SurfaceHit, dir: DVec3) -> bool {
+    hit.shading_normal.dot(dir) < 0.0
+        && transport
+            .bsdf(hit.material)
+            .is_some_and(|b| !b.diffuse.is_black())
 }
 
 /// Cache lookup with the options' accuracy and optional occlusion test.

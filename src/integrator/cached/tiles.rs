@@ -31,7 +31,7 @@ use rayon::prelude::*;
 use super::config::{AMBIENT_MIN_DEPTH, indirect_paths};
 use super::placement::{PlacementCache, PlacementReport, place_records};
 use super::secondary::secondary_cache;
-use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint};
+use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint, diffuse_front};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
@@ -127,11 +127,7 @@ impl CachedIntegrator<'_> {
                 let Some(hit) = scene.intersect(&ray) else {
                     return Ok(None);
                 };
-                let diffuse = self
-                    .transport
-                    .bsdf(hit.material)
-                    .is_some_and(|b| !b.diffuse.is_black());
-                if !diffuse || hit.shading_normal.dot(ray.dir) >= 0.0 {
+                if !diffuse_front(self.transport, &hit, ray.dir) {
                     return Ok(None);
                 }
                 let next = camera.generate_ray(cx + 1.0, cy);
@@ -275,8 +271,6 @@ impl CachedIntegrator<'_> {
                         cache: &secondary.cache,
                         ..*self
                     },
-                    accuracy: secondary.accuracy,
-                    light_samples: options.paths_per_direction,
                 }
             } else {
                 Gather::for_record(*self, options.paths, 0, !reproducible)
