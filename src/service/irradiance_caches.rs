@@ -63,6 +63,9 @@ pub struct ConfigurationStats {
     pub stats: CacheStats,
     /// Bytes of the records' BMC rule (factor and tables), held beside the records.
     pub rule_bytes: usize,
+    /// Records of the scene's secondary caches for this configuration
+    /// (`secondary_cache`, docs/math.md §9.6), apart from `stats`.
+    pub secondary_records: u64,
 }
 
 /// One cache with the BMC rules its records are computed with (built once
@@ -254,20 +257,22 @@ impl IrradianceCaches {
                 configuration: entry.description.clone(),
                 stats: entry.cache.stats(),
                 rule_bytes: entry.shading.rule.size_bytes(),
+                secondary_records: entry.shading.secondary.records(),
             })
             .collect();
         all.sort_by_key(|c| c.configuration.to_string());
         all
     }
 
-    /// Empties every cache of this version of `scene`; returns the records dropped.
+    /// Empties every cache of this version of `scene`, secondary caches
+    /// included; returns the records dropped.
     pub fn clear(&self, scene: &LoadedScene) -> u64 {
         self.of_scene(scene)
             .map(|(_, entry)| {
                 let records = entry.cache.stats().records;
                 entry.cache.clear();
                 entry.direct.clear();
-                records
+                records + entry.shading.secondary.clear()
             })
             .sum()
     }

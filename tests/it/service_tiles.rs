@@ -257,12 +257,43 @@ async fn secondary_cache_tiles_are_the_same_whichever_request_built_the_cache() 
         .post_json("/v1/scenes/box/tiles", &tile(8, 8, true))
         .await;
     assert_eq!(other.status(), StatusCode::OK);
+    let rays_other = header(&other, "x-rays");
+    let other = other.bytes().await.unwrap();
     let reading = second_app
         .post_json("/v1/scenes/box/tiles", &tile(4, 4, true))
         .await;
     assert_eq!(reading.status(), StatusCode::OK);
     assert!(header(&reading, "x-rays") < rays_building);
     assert_eq!(reading.bytes().await.unwrap(), building);
+
+    // DELETE drops the secondary cache with the records; a request for a
+    // tile not rendered yet on this server builds both again, as the first
+    // request on the other server did.
+    let before = cache_stats(&first_app).await;
+    let (records, secondary) = (
+        &before["caches"][0]["stats"]["records"],
+        &before["caches"][0]["secondary_records"],
+    );
+    assert!(secondary.as_u64().unwrap() > 0, "{before}");
+    let cleared: Value = first_app
+        .client
+        .delete(first_app.url("/v1/scenes/box/cache"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(
+        cleared["cleared_records"].as_u64(),
+        Some(records.as_u64().unwrap() + secondary.as_u64().unwrap())
+    );
+    assert_eq!(cleared["caches"][0]["secondary_records"], 0);
+    let rebuilt = first_app
+        .post_json("/v1/scenes/box/tiles", &tile(8, 8, true))
+        .await;
+    assert_eq!(header(&rebuilt, "x-rays"), rays_other);
+    assert_eq!(rebuilt.bytes().await.unwrap(), other);
 
     let by_paths = first_app
         .post_json("/v1/scenes/box/tiles", &tile(4, 4, false))

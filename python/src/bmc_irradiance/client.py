@@ -272,7 +272,7 @@ class Client:
         return dict(self._http.get_json(f"/v1/scenes/{_segment(scene)}/cache"))
 
     def clear_cache(self, scene: str) -> Dict[str, Any]:
-        """``DELETE /v1/scenes/{id}/cache``: drops the scene's irradiance-cache records."""
+        """``DELETE /v1/scenes/{id}/cache``: drops the scene's cache records (secondary too)."""
         return dict(self._http.request("DELETE", f"/v1/scenes/{_segment(scene)}/cache").json())
 
     def export_records(self, scene: str) -> bytes:

@@ -30,6 +30,15 @@ enum Slot {
     Built(Arc<SecondaryCache>),
 }
 
+impl Slot {
+    fn records(&self) -> u64 {
+        match self {
+            Slot::Built(built) => built.cache.stats().records,
+            Slot::Building => 0,
+        }
+    }
+}
+
 /// The secondary caches of one scene, rule set and cache configuration,
 /// each built on first use. Clones share them.
 #[derive(Clone, Default)]
@@ -81,5 +90,22 @@ impl SecondaryCaches {
                 Err(e)
             }
         }
+    }
+
+    /// Records of the caches built so far.
+    pub fn records(&self) -> u64 {
+        let slots = self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        slots.values().map(Slot::records).sum()
+    }
+
+    /// Drops every cache built so far and returns its records; the next
+    /// caller that needs one builds it again (the same records: a build
+    /// depends on the scene and configuration alone). A build under way
+    /// is left to finish.
+    pub fn clear(&self) -> u64 {
+        let mut slots = self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        let records = slots.values().map(Slot::records).sum();
+        slots.retain(|_, slot| matches!(slot, Slot::Building));
+        records
     }
 }

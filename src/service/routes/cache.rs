@@ -53,8 +53,8 @@ pub async fn get_cache(
     Ok(Json(report(&state, &id, None).await?))
 }
 
-/// Drops every record of the scene's irradiance caches; later requests
-/// compute records afresh. Answers the stats after clearing.
+/// Drops every record of the scene's irradiance caches, secondary caches
+/// included; later requests compute records afresh. Answers the stats after clearing.
 #[utoipa::path(delete, path = "/v1/scenes/{id}/cache", tag = "scenes",
     params(("id" = String, Path, description = "Scene id")),
     responses((status = 200, body = SceneCacheReport),
