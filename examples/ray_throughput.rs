@@ -73,30 +73,13 @@ fn main() -> anyhow::Result<()> {
             let (cpu0, wall0) = (thread_cpu_seconds(), Instant::now());
             let mut hits = 0usize;
             let mut traced = 0usize;
-            let batch = std::env::var("BATCH")
-                .ok()
-                .and_then(|b| b.parse::<usize>().ok());
-            let mut found = vec![None; batch.unwrap_or(0)];
-            let mut blocked = vec![false; batch.unwrap_or(0)];
             while thread_cpu_seconds() - cpu0 < 3.0 {
-                if let Some(b) = batch {
-                    for chunk in rays.chunks(b) {
-                        if kind == "closest" {
-                            scene.intersect_many(chunk, &mut found[..chunk.len()]);
-                            hits += found[..chunk.len()].iter().filter(|h| h.is_some()).count();
-                        } else {
-                            scene.occluded_many(chunk, &mut blocked[..chunk.len()]);
-                            hits += blocked[..chunk.len()].iter().filter(|h| **h).count();
-                        }
-                    }
-                } else {
-                    for r in rays.iter() {
-                        hits += if kind == "closest" {
-                            scene.intersect(r).is_some() as usize
-                        } else {
-                            scene.occluded(r) as usize
-                        };
-                    }
+                for r in rays.iter() {
+                    hits += if kind == "closest" {
+                        scene.intersect(r).is_some() as usize
+                    } else {
+                        scene.occluded(r) as usize
+                    };
                 }
                 traced += rays.len();
             }

@@ -181,20 +181,6 @@ impl Scene {
                 Some(t)
             },
         );
-        self.finish_hit(ray, t_tri, tri_hit)
-    }
-
-    /// The closest hit of `ray` given its closest triangle hit (distance,
-    /// and position, barycentrics and tag): the analytic shapes are traced
-    /// up to it, and the nearer of the two becomes a [`SurfaceHit`].
-    #[inline(always)]
-    fn finish_hit(
-        &self,
-        ray: &Ray,
-        t_tri: Option<f64>,
-        tri_hit: Option<(usize, f64, f64, TriangleTag)>,
-    ) -> Option<SurfaceHit> {
-        let (o, d) = (ray.origin, ray.dir);
         let mut analytic_hit = 0usize;
         let t_analytic = self.analytic_bvh.closest(
             o,
@@ -243,56 +229,6 @@ impl Scene {
             shape: tag.shape as usize,
             primitive: tag.primitive,
         })
-    }
-
-    /// [`Scene::intersect`] of every ray of `rays`, into `hits`, with several
-    /// rays in flight at once (`Bvh::closest_many`).
-    pub fn intersect_many(&self, rays: &[Ray], hits: &mut [Option<SurfaceHit>]) {
-        let mut tri: Vec<Option<(usize, f64, f64, TriangleTag)>> = vec![None; rays.len()];
-        let mut t_tri: Vec<Option<f64>> = vec![None; rays.len()];
-        self.triangle_bvh.closest_many(
-            rays.len(),
-            |k| (rays[k].origin, rays[k].dir, rays[k].t_max),
-            &self.accel,
-            #[inline(always)]
-            |k, i, t_max| {
-                let (t, u, v) = self.accel[i].intersect(rays[k].origin, rays[k].dir, t_max)?;
-                tri[k] = Some((i, u, v, self.accel_tags[i]));
-                Some(t)
-            },
-            |k, t| t_tri[k] = t,
-        );
-        for (k, ray) in rays.iter().enumerate() {
-            hits[k] = self.finish_hit(ray, t_tri[k], tri[k]);
-        }
-    }
-
-    /// [`Scene::occluded`] of every ray of `rays`, into `blocked`.
-    pub fn occluded_many(&self, rays: &[Ray], blocked: &mut [bool]) {
-        self.triangle_bvh.any_many(
-            rays.len(),
-            |k| (rays[k].origin, rays[k].dir, rays[k].t_max),
-            &self.accel,
-            #[inline(always)]
-            |k, i, t_max| {
-                self.accel[i]
-                    .intersect(rays[k].origin, rays[k].dir, t_max)
-                    .is_some()
-            },
-            |k, hit| blocked[k] = hit,
-        );
-        for (k, ray) in rays.iter().enumerate() {
-            if !blocked[k] {
-                let (o, d) = (ray.origin, ray.dir);
-                blocked[k] =
-                    self.analytic_bvh
-                        .any(o, d, ray.t_max, &self.analytic_shapes, |i, t_max| {
-                            self.shapes[self.analytic_shapes[i] as usize]
-                                .intersect_analytic(o, d, t_max)
-                                .is_some()
-                        });
-            }
-        }
     }
 
     /// True if anything is hit with `0 < t < ray.t_max` (stops at the first).
