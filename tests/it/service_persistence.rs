@@ -191,12 +191,7 @@ async fn posted_scenes_survive_a_restart() {
         assert_eq!(&summary["digest"], digest, "{id}: {summary}");
         assert_eq!(summary["source"], "uploaded");
     }
-    let deleted = second
-        .client
-        .delete(second.url("/v1/scenes/posted-box"))
-        .send()
-        .await
-        .unwrap();
+    let deleted = second.delete("/v1/scenes/posted-box").await;
     assert_eq!(deleted.status(), 204);
     drop(second);
     released(data.path()).await;

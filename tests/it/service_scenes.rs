@@ -50,22 +50,12 @@ async fn posted_scene_can_be_read_replaced_and_deleted() {
     assert_eq!(again.status(), StatusCode::OK);
     assert_eq!(app.get("/v1/scenes/posted").await.status(), StatusCode::OK);
 
-    let deleted = app
-        .client
-        .delete(app.url("/v1/scenes/posted"))
-        .send()
-        .await
-        .unwrap();
+    let deleted = app.delete("/v1/scenes/posted").await;
     assert_eq!(deleted.status(), StatusCode::NO_CONTENT);
     let gone = app.get("/v1/scenes/posted").await;
     assert_eq!(gone.status(), StatusCode::NOT_FOUND);
     assert_eq!(error_of(gone).await.0, "not_found");
-    let again = app
-        .client
-        .delete(app.url("/v1/scenes/posted"))
-        .send()
-        .await
-        .unwrap();
+    let again = app.delete("/v1/scenes/posted").await;
     assert_eq!(again.status(), StatusCode::NOT_FOUND);
 }
 
