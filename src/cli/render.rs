@@ -200,11 +200,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                 let pass_start = Instant::now();
                 let report = Mutex::new(CachedTileReport::default());
                 let render = || {
-                    let integrator = CachedIntegrator {
-                        transport: &transport,
-                        cache: &cache,
-                        shading: &shading,
-                    };
+                    let integrator = CachedIntegrator::new(&transport, &cache, &shading);
                     transport.render_image_by(&settings, args.tile, &|request| {
                         let (tile, r) = integrator.render_tile(request, &Cancel::never())?;
                         let mut total = report.lock().unwrap_or_else(|e| e.into_inner());

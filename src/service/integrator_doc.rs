@@ -48,9 +48,11 @@ pub struct IntegratorDoc {
     /// ambient bounces: direct light plus cached indirect irradiance at each
     /// ray's hit), 0..=8; 0 = records trace full paths. Default 0.
     pub ambient_bounces: Option<u32>,
-    /// Tiles: records' rays stop at their first hit, shaded there by light
-    /// samples and the scene's secondary cache of indirect irradiance (built
-    /// once per scene and configuration) instead of tracing paths on;
+    /// Records' rays (of tiles and radiance queries) stop at their first
+    /// hit, shaded there by light samples and the scene's secondary cache of
+    /// indirect irradiance (built once per scene and configuration, by the
+    /// first request that needs it) instead of tracing paths on; used when
+    /// `max_depth` leaves at least 16 segments after the shading point;
     /// excludes `ambient_bounces`. Default false (true in the `final` preset).
     pub secondary_cache: Option<bool>,
     /// Ward's accuracy a ∈ (0, 1]; smaller places more records. Default 0.5.

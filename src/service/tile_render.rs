@@ -112,11 +112,9 @@ pub fn render_progressive(
         .cached
         .map(|c| cached_setup(state, scene, c, job.request.max_depth))
         .transpose()?;
-    let integrator = setup.as_ref().map(|s| CachedIntegrator {
-        transport,
-        cache: s.cache(),
-        shading: &s.shading,
-    });
+    let integrator = setup
+        .as_ref()
+        .map(|s| CachedIntegrator::new(transport, s.cache(), &s.shading));
     let (mut rays, mut cache_hits, mut passes_rendered) = (0, 0, 0);
     let reproducible = job.reproducible();
     let records_key = job.records_key(scene);

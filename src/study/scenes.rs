@@ -203,11 +203,7 @@ fn camera_records(
         .shading(Arc::new(QuadratureCache::new(256 << 20)))
         .map_err(RenderError::from)?;
     let cache = IrradianceCache::new(CacheConfig::default()).map_err(RenderError::from)?;
-    let integrator = CachedIntegrator {
-        transport,
-        cache: &cache,
-        shading: &shading,
-    };
+    let integrator = CachedIntegrator::new(transport, &cache, &shading);
     let settings = ImageSettings {
         samples_per_pixel: 1,
         max_depth: PathDepth::new(max_depth.get() + 1)?,

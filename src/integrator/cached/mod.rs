@@ -47,7 +47,7 @@ pub use radiance::{
     surface_at,
 };
 pub use record_view::{RecordView, record_overlay, record_views};
-pub use secondary::secondary_cache;
+pub use secondary::secondary_cache_of;
 pub use secondary_caches::{SecondaryCache, SecondaryCaches};
 pub use shade::{
     Bounce, CachedIntegrator, Gather, OnMiss, PlacementPoint, RecordGather, ShadePoint,

@@ -23,7 +23,9 @@ use std::f64::consts::PI;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::config::CachedShading;
+use super::config::{CachedShading, indirect_paths};
+use super::placement::PlacementReport;
+use super::secondary::secondary_cache_of;
 use super::shade::{CachedIntegrator, OnMiss, ShadePoint};
 use super::stats::ShadingStats;
 use crate::cache::IrradianceCache;
@@ -119,8 +121,10 @@ pub struct RadianceOptions {
 }
 
 /// Radiance leaving each `hits[i]` towards `queries[i].direction`, in
-/// parallel on the current rayon pool. Stops between points once `cancel`
-/// is set.
+/// parallel on the current rayon pool, and what building the scene's
+/// secondary cache took if this call built it (records created here read
+/// it when the options ask for `secondary_cache`, as a tile's do). Stops
+/// between points once `cancel` is set.
 pub fn radiance_at_points(
     transport: &Transport,
     queries: &[RadianceQuery],
@@ -128,7 +132,7 @@ pub fn radiance_at_points(
     shading: RadianceShading,
     options: RadianceOptions,
     cancel: &Cancel,
-) -> Result<Vec<RadianceEstimate>, RenderError> {
+) -> Result<(Vec<RadianceEstimate>, PlacementReport), RenderError> {
     let RadianceOptions {
         max_depth,
         repeats,
@@ -140,7 +144,14 @@ pub fn radiance_at_points(
             reason: "must be at least 1".into(),
         });
     }
-    queries
+    let (secondary, built) = match (shading, max_depth.after_first_segment()) {
+        (RadianceShading::Cached { cache, shading }, Some(from_point)) => {
+            let integrator = CachedIntegrator::new(transport, cache, shading);
+            secondary_cache_of(&integrator, indirect_paths(from_point), cancel)?
+        }
+        _ => (None, PlacementReport::default()),
+    };
+    let estimates = queries
         .par_iter()
         .zip(hits)
         .enumerate()
@@ -166,9 +177,8 @@ pub fn radiance_at_points(
                     }
                     RadianceShading::Cached { cache, shading } => {
                         let integrator = CachedIntegrator {
-                            transport,
-                            cache,
-                            shading,
+                            secondary: secondary.as_ref().map(|s| &s.cache),
+                            ..CachedIntegrator::new(transport, cache, shading)
                         };
                         let how = ShadePoint {
                             max_depth,
@@ -198,7 +208,8 @@ pub fn radiance_at_points(
                 rays: trace.rays + stats.rays,
             })
         })
-        .collect()
+        .collect::<Result<_, RenderError>>()?;
+    Ok((estimates, built))
 }
 
 /// `(k_d/π)² V` of the records interpolated at the hit (zero where the
@@ -236,52 +247,36 @@ mod tests {
         RadianceQuery::new(point, DVec3::new(0.2, -0.1, 1.0)).unwrap()
     }
 
-    #[test]
-    fn cached_radiance_agrees_with_path_tracing_within_noise() {
+    fn shading(options: CacheShadingOptions) -> CachedShading {
+        let mut spec = default_rule_spec();
+        spec.samples.count = 128;
+        CachedShading::new(spec, 4, Arc::new(QuadratureCache::new(1 << 24)), options).unwrap()
+    }
+
+    /// Radiance at the floor query through `cache` and `shading` (4
+    /// repeats) agrees with path tracing (4096 repeats) at `max_depth`;
+    /// returns what building a secondary cache took and the rays the
+    /// query traced besides.
+    fn assert_agrees_with_path_tracing(
+        cache: &IrradianceCache,
+        shading: &CachedShading,
+        max_depth: u32,
+    ) -> (PlacementReport, u64) {
         let transport = cornell(8);
         let query = floor_query();
         let hit = surface_at(&transport, &query).expect("on the wall");
-        let path = radiance_at_points(
-            &transport,
-            &[query],
-            &[hit],
-            RadianceShading::PathTracing,
-            RadianceOptions {
-                max_depth: PathDepth::constant(8),
-                repeats: 4096,
+        let radiance = |how, repeats| {
+            let options = RadianceOptions {
+                max_depth: PathDepth::constant(max_depth),
+                repeats,
                 seed: 1,
-            },
-            &Cancel::never(),
-        )
-        .unwrap()[0];
-        let mut spec = default_rule_spec();
-        spec.samples.count = 128;
-        let options = CacheShadingOptions {
-            light_samples: 64,
-            paths_per_direction: 4,
-            ..CacheShadingOptions::default()
+            };
+            radiance_at_points(&transport, &[query], &[hit], how, options, &Cancel::never())
+                .unwrap()
         };
-        let shading =
-            CachedShading::new(spec, 4, Arc::new(QuadratureCache::new(1 << 24)), options).unwrap();
-        let cache = IrradianceCache::new(Default::default()).unwrap();
-        let cached = RadianceShading::Cached {
-            cache: &cache,
-            shading: &shading,
-        };
-        let bmc = radiance_at_points(
-            &transport,
-            &[query],
-            &[hit],
-            cached,
-            RadianceOptions {
-                max_depth: PathDepth::constant(8),
-                repeats: 4,
-                seed: 1,
-            },
-            &Cancel::never(),
-        )
-        .unwrap()[0];
-        assert_eq!(cache.stats().records, 1);
+        let path = radiance(RadianceShading::PathTracing, 4096).0[0];
+        let (bmc, built) = radiance(RadianceShading::Cached { cache, shading }, 4);
+        let bmc = bmc[0];
         for (p, b, sp, sb) in [
             (
                 path.radiance.r,
@@ -299,13 +294,60 @@ mod tests {
             assert!(b > 0.0 && sb > 0.0, "path {p} ± {sp}, bmc {b} ± {sb}");
             // Records are not free of bias from interpolation, but at their own
             // position they estimate the same integral; 4σ of the combined error
-            // plus 3 % for the record's unmodelled path noise.
-            // 3 %: the records' unmodelled path noise.
+            // plus 3 % for the record's unmodelled path noise (and, through a
+            // secondary cache, its interpolation).
             assert!(
                 agrees(b, p, sp.hypot(sb), 4.0, 0.03),
                 "path {p} ± {sp}, bmc {b} ± {sb}"
             );
         }
+        (built, bmc.rays)
+    }
+
+    #[test]
+    fn cached_radiance_agrees_with_path_tracing_within_noise() {
+        let shading = shading(CacheShadingOptions {
+            light_samples: 64,
+            paths_per_direction: 4,
+            ..CacheShadingOptions::default()
+        });
+        let cache = IrradianceCache::new(Default::default()).unwrap();
+        let (built, _) = assert_agrees_with_path_tracing(&cache, &shading, 8);
+        assert_eq!(cache.stats().records, 1);
+        assert_eq!(built.records_created, 0);
+    }
+
+    /// A record a query creates reads the scene's secondary cache when the
+    /// options ask for it, for fewer rays than paths: the first query builds
+    /// the cache, the next finds it (held by the rule set, so tiles read the
+    /// same one).
+    #[test]
+    fn cached_radiance_through_the_secondary_cache_agrees_with_path_tracing() {
+        let options = CacheShadingOptions {
+            light_samples: 64,
+            paths_per_direction: 4,
+            ..CacheShadingOptions::default()
+        };
+        let by_paths = shading(options);
+        let cache = IrradianceCache::new(Default::default()).unwrap();
+        let (_, rays_by_paths) = assert_agrees_with_path_tracing(&cache, &by_paths, 20);
+
+        let shading = shading(CacheShadingOptions {
+            secondary_cache: true,
+            ..options
+        });
+        let cache = IrradianceCache::new(Default::default()).unwrap();
+        let (built, rays) = assert_agrees_with_path_tracing(&cache, &shading, 20);
+        assert!(built.records_created > 0 && built.rays > 0, "{built:?}");
+        assert_eq!(shading.secondary.records(), built.records_created);
+        assert_eq!(cache.stats().records, 1);
+        assert!(
+            rays < rays_by_paths,
+            "{rays} rays, {rays_by_paths} by paths"
+        );
+        let again = IrradianceCache::new(Default::default()).unwrap();
+        let (found, _) = assert_agrees_with_path_tracing(&again, &shading, 20);
+        assert_eq!(found.rays, 0);
     }
 
     #[test]

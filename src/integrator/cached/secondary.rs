@@ -1,6 +1,7 @@
 //! The secondary cache: indirect irradiance at the surfaces that records'
-//! rays reach, shared by every tile of a scene, so that a record's rays
-//! stop at their first hit instead of tracing paths on (docs/math.md §9.6).
+//! rays reach, shared by every tile and radiance query of a scene, so that a
+//! record's rays stop at their first hit instead of tracing paths on
+//! (docs/math.md §9.6).
 //!
 //! A record at `x` needs the radiance `L(y → x)` leaving each point `y` its
 //! rays hit. Paths from every `y` cost most of a record and leave their noise
@@ -26,10 +27,10 @@ use std::sync::Arc;
 use rand::RngExt;
 use rayon::prelude::*;
 
-use super::config::{CachedShading, PlacementOptions};
+use super::config::{AMBIENT_MIN_DEPTH, CachedShading, PlacementOptions};
 use super::placement::{PlacementCache, PlacementReport, place_records};
 use super::secondary_caches::{SecondaryCache, SecondaryKey};
-use super::shade::{Gather, PlacementPoint, diffuse_front};
+use super::shade::{CachedIntegrator, Gather, PlacementPoint, diffuse_front};
 use crate::cache::{CacheConfig, IrradianceCache, PixelFootprint};
 use crate::render::seed::point_rng;
 use crate::render::{Cancel, PathLimits, QueryPoint, RenderError, Transport, warp};
@@ -48,7 +49,7 @@ const SEED: u64 = 0x5eed_5ec0_dca5_e001;
 /// in `transport`'s scene, its records in a cache configured as `config`:
 /// the one `shading` holds, or built now (module docs) with what building
 /// it did (`SecondaryCaches::get_or_build`).
-pub fn secondary_cache(
+fn secondary_cache(
     transport: &Transport,
     shading: &CachedShading,
     config: CacheConfig,
@@ -65,6 +66,26 @@ pub fn secondary_cache(
     shading.secondary.get_or_build(key, cancel, || {
         build(transport, shading, config, paths, cancel)
     })
+}
+
+/// The secondary cache that records placed by `integrator` read when their
+/// rays sum `paths`: none unless its options ask for one
+/// (`secondary_cache`) and `paths` are long enough for a cached bounce
+/// ([`AMBIENT_MIN_DEPTH`]); otherwise [`secondary_cache`]'s for the
+/// integrator's cache configuration, with what building it took if this
+/// call built it (nothing otherwise).
+pub fn secondary_cache_of(
+    integrator: &CachedIntegrator,
+    paths: PathLimits,
+    cancel: &Cancel,
+) -> Result<(Option<Arc<SecondaryCache>>, PlacementReport), RenderError> {
+    let shading = integrator.shading;
+    if !shading.options.secondary_cache || paths.max_depth < AMBIENT_MIN_DEPTH {
+        return Ok((None, PlacementReport::default()));
+    }
+    let config = *integrator.cache.config();
+    let (cache, built) = secondary_cache(integrator.transport, shading, config, paths, cancel)?;
+    Ok((Some(cache), built.unwrap_or_default()))
 }
 
 /// Builds the secondary cache (module docs).
@@ -151,9 +172,7 @@ mod tests {
     use super::*;
     use crate::bmc::cache::QuadratureCache;
     use crate::integrator::cached::shade::tests::assert_records_agree;
-    use crate::integrator::cached::{
-        CacheShadingOptions, CachedIntegrator, default_rule_spec, indirect_paths,
-    };
+    use crate::integrator::cached::{CacheShadingOptions, default_rule_spec, indirect_paths};
     use crate::render::PathDepth;
     use crate::testing::{cornell, in_pool};
 
@@ -196,11 +215,7 @@ mod tests {
         let (single, _) = build(&alone, 1, &Cancel::never()).unwrap();
         assert_eq!(single.cache.records(), cache.cache.records());
 
-        let integrator = CachedIntegrator {
-            transport: &transport,
-            cache: &cache.cache,
-            shading: &shading,
-        };
+        let integrator = CachedIntegrator::new(&transport, &cache.cache, &shading);
         let secondary = Gather::Secondary { integrator };
         // 3 %: the secondary cache interpolates its records.
         let stats = assert_records_agree(&transport, &shading, paths, 4, secondary, 0.03);

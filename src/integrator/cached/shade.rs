@@ -101,6 +101,28 @@ pub struct CachedIntegrator<'a> {
     pub transport: &'a Transport,
     pub cache: &'a IrradianceCache,
     pub shading: &'a CachedShading,
+    /// The scene's secondary cache (`secondary`), if the records this
+    /// integrator places for shading points gather through it
+    /// ([`Gather::for_record`]); see `secondary::secondary_cache_of`.
+    pub secondary: Option<&'a IrradianceCache>,
+}
+
+impl<'a> CachedIntegrator<'a> {
+    /// Shading through `cache` with `shading`'s rules and options; records
+    /// it places gather by paths or ambient bounces until a secondary cache
+    /// is given.
+    pub fn new(
+        transport: &'a Transport,
+        cache: &'a IrradianceCache,
+        shading: &'a CachedShading,
+    ) -> Self {
+        CachedIntegrator {
+            transport,
+            cache,
+            shading,
+            secondary: None,
+        }
+    }
 }
 
 /// How a point seen along a camera ray or a query direction is shaded.
@@ -150,9 +172,11 @@ pub enum Gather<'a> {
 }
 
 impl<'a> Gather<'a> {
-    /// How a record at `level` gathers: through the integrator's cache while
-    /// `level < ambient_bounces` and `paths` reach [`AMBIENT_MIN_DEPTH`], by
-    /// paths otherwise. With `insert_nested` a miss at a bounce creates a
+    /// How a record at `level` gathers: through the integrator's secondary
+    /// cache if it has one and `paths` reach [`AMBIENT_MIN_DEPTH`] (the
+    /// options exclude ambient bounces then); through the integrator's cache
+    /// while `level < ambient_bounces` and `paths` reach it; by paths
+    /// otherwise. With `insert_nested` a miss at a bounce creates a
     /// record one level deeper; without it the cache is only read (a
     /// fallback path serves the miss), which keeps a placement batch
     /// deterministic.
@@ -162,8 +186,18 @@ impl<'a> Gather<'a> {
         level: u32,
         insert_nested: bool,
     ) -> Self {
-        let options = &integrator.shading.options;
-        if level >= options.ambient_bounces || paths.max_depth < AMBIENT_MIN_DEPTH {
+        if paths.max_depth < AMBIENT_MIN_DEPTH {
+            return Gather::Paths;
+        }
+        if let Some(cache) = integrator.secondary {
+            let integrator = CachedIntegrator {
+                cache,
+                secondary: None,
+                ..integrator
+            };
+            return Gather::Secondary { integrator };
+        }
+        if level >= integrator.shading.options.ambient_bounces {
             return Gather::Paths;
         }
         let on_miss = if insert_nested {
@@ -949,11 +983,7 @@ pub(crate) mod tests {
         );
         let cache = IrradianceCache::new(Default::default()).unwrap();
         let paths = indirect_paths(PathDepth::constant(32));
-        let integrator = CachedIntegrator {
-            transport: &transport,
-            cache: &cache,
-            shading: &shading,
-        };
+        let integrator = CachedIntegrator::new(&transport, &cache, &shading);
         let gathered = Gather::for_record(integrator, paths, 0, true);
         assert!(matches!(
             gathered,
@@ -994,11 +1024,7 @@ pub(crate) mod tests {
         let hit = transport.scene().intersect(&ray).unwrap();
         let mut rng = Pcg64::seed_from_u64(3);
         let mut stats = ShadingStats::default();
-        let integrator = CachedIntegrator {
-            transport: &transport,
-            cache: &cache,
-            shading: &shading,
-        };
+        let integrator = CachedIntegrator::new(&transport, &cache, &shading);
         // Depths counted from the viewer, whose segment reaches the floor.
         let mut shade = |max_depth: u32, stats: &mut ShadingStats| {
             let how = ShadePoint {
@@ -1060,11 +1086,7 @@ pub(crate) mod tests {
         let paths = indirect_paths(PathDepth::constant(4));
         let shading = test_shading(default_rule_spec(), CacheShadingOptions::default());
         let cache = IrradianceCache::new(Default::default()).unwrap();
-        let integrator = CachedIntegrator {
-            transport: &transport,
-            cache: &cache,
-            shading: &shading,
-        };
+        let integrator = CachedIntegrator::new(&transport, &cache, &shading);
         let surface = Surface {
             hit: &hit,
             frame,

@@ -28,9 +28,9 @@ use rand::Rng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::config::{AMBIENT_MIN_DEPTH, indirect_paths};
+use super::config::indirect_paths;
 use super::placement::{PlacementCache, PlacementReport, place_records};
-use super::secondary::secondary_cache;
+use super::secondary::secondary_cache_of;
 use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint, diffuse_front};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
@@ -259,22 +259,12 @@ impl CachedIntegrator<'_> {
         // deterministic (see `placement`).
         let reproducible = shading.options.reproducible;
         let secondary;
-        let gather =
-            if shading.options.secondary_cache && options.paths.max_depth >= AMBIENT_MIN_DEPTH {
-                let config = *self.cache.config();
-                let built;
-                (secondary, built) =
-                    secondary_cache(transport, shading, config, options.paths, cancel)?;
-                report.secondary = built.unwrap_or_default();
-                Gather::Secondary {
-                    integrator: CachedIntegrator {
-                        cache: &secondary.cache,
-                        ..*self
-                    },
-                }
-            } else {
-                Gather::for_record(*self, options.paths, 0, !reproducible)
-            };
+        (secondary, report.secondary) = secondary_cache_of(self, options.paths, cancel)?;
+        let integrator = CachedIntegrator {
+            secondary: secondary.as_ref().map(|s| &s.cache),
+            ..*self
+        };
+        let gather = Gather::for_record(integrator, options.paths, 0, !reproducible);
         report.placement = place_records(
             readers(self.cache),
             transport,
@@ -361,12 +351,7 @@ mod tests {
         cache: &IrradianceCache,
         shading: &CachedShading,
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
-        CachedIntegrator {
-            transport,
-            cache,
-            shading,
-        }
-        .render_tile(request, &Cancel::never())
+        CachedIntegrator::new(transport, cache, shading).render_tile(request, &Cancel::never())
     }
 
     #[test]

@@ -166,7 +166,8 @@ pub async fn radiance(
                 .at("estimator")
         })
         .await??;
-    let rays = estimates.iter().map(|e| e.rays).sum();
+    let (estimates, secondary) = estimates;
+    let rays = estimates.iter().map(|e| e.rays).sum::<u64>() + secondary.rays;
     ::metrics::counter!(RAYS_TRACED).increment(rays);
     let rgb = |c: Rgb| [c.r, c.g, c.b];
     Ok(Json(RadianceResponse {
