@@ -258,8 +258,8 @@ impl CachedIntegrator<'_> {
         // A private cache is only read at the bounces, so the batch stays
         // deterministic (see `placement`).
         let reproducible = shading.options.reproducible;
-        let secondary;
-        (secondary, report.secondary) = secondary_cache_of(self, options.paths, cancel)?;
+        let (secondary, built) = secondary_cache_of(self, options.paths, cancel)?;
+        report.secondary = built;
         let integrator = CachedIntegrator {
             secondary: secondary.as_ref().map(|s| &s.cache),
             ..*self
