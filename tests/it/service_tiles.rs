@@ -124,6 +124,15 @@ async fn cache_stats(app: &crate::common::TestApp) -> Value {
     report
 }
 
+/// `DELETE /v1/scenes/box/cache`: the stats after clearing.
+async fn clear_cache(app: &crate::common::TestApp) -> Value {
+    app.delete("/v1/scenes/box/cache")
+        .await
+        .json()
+        .await
+        .unwrap()
+}
+
 #[tokio::test]
 async fn bmc_tiles_fill_the_shared_cache_and_reuse_it() {
     let app = spawn_app_with_scenes(&[("box.json", &small_cornell(16))], |_| {}).await;
@@ -178,12 +187,7 @@ async fn bmc_tiles_fill_the_shared_cache_and_reuse_it() {
     );
 
     // DELETE empties it; replacing the scene retires its caches.
-    let cleared: Value = app
-        .delete("/v1/scenes/box/cache")
-        .await
-        .json()
-        .await
-        .unwrap();
+    let cleared = clear_cache(&app).await;
     assert_eq!(cleared["cleared_records"], created);
     assert_eq!(cleared["caches"][0]["stats"]["records"], 0);
     app.post_json("/v1/scenes/box/tiles", &bmc_tile(0, 0, 16, json!({})))
@@ -272,12 +276,7 @@ async fn secondary_cache_tiles_are_the_same_whichever_request_built_the_cache() 
         &before["caches"][0]["secondary_records"],
     );
     assert!(secondary.as_u64().unwrap() > 0, "{before}");
-    let cleared: Value = first_app
-        .delete("/v1/scenes/box/cache")
-        .await
-        .json()
-        .await
-        .unwrap();
+    let cleared = clear_cache(&first_app).await;
     assert_eq!(
         cleared["cleared_records"].as_u64(),
         Some(records.as_u64().unwrap() + secondary.as_u64().unwrap())

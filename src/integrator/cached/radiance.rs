@@ -144,13 +144,24 @@ pub fn radiance_at_points(
             reason: "must be at least 1".into(),
         });
     }
-    let (secondary, built) = match (shading, max_depth.after_first_segment()) {
-        (RadianceShading::Cached { cache, shading }, Some(from_point)) => {
-            let integrator = CachedIntegrator::new(transport, cache, shading);
-            secondary_cache_of(&integrator, indirect_paths(from_point), cancel)?
+    // The cached integrator, once for every point, with the scene's
+    // secondary cache if the options ask for one.
+    let cached = match shading {
+        RadianceShading::Cached { cache, shading } => {
+            Some(CachedIntegrator::new(transport, cache, shading))
+        }
+        RadianceShading::PathTracing => None,
+    };
+    let (secondary, built) = match (&cached, max_depth.after_first_segment()) {
+        (Some(integrator), Some(from_point)) => {
+            secondary_cache_of(integrator, indirect_paths(from_point), cancel)?
         }
         _ => (None, PlacementReport::default()),
     };
+    let cached = cached.map(|integrator| CachedIntegrator {
+        secondary: secondary.as_ref().map(|s| &s.cache),
+        ..integrator
+    });
     let estimates = queries
         .par_iter()
         .zip(hits)
@@ -163,8 +174,8 @@ pub fn radiance_at_points(
             // The camera ray of this query, for path tracing.
             let camera_ray = probe(transport, hit.position, query.direction);
             let values = (0..repeats)
-                .map(|_| match shading {
-                    RadianceShading::PathTracing => {
+                .map(|_| match cached {
+                    None => {
                         let limits = PathLimits {
                             max_depth,
                             lengths: PathLengths::All,
@@ -175,11 +186,7 @@ pub fn radiance_at_points(
                                 .radiance,
                         ))
                     }
-                    RadianceShading::Cached { cache, shading } => {
-                        let integrator = CachedIntegrator {
-                            secondary: secondary.as_ref().map(|s| &s.cache),
-                            ..CachedIntegrator::new(transport, cache, shading)
-                        };
+                    Some(integrator) => {
                         let how = ShadePoint {
                             max_depth,
                             on_miss: OnMiss::Insert,
@@ -199,8 +206,8 @@ pub fn radiance_at_points(
                 .collect::<Result<Vec<Evaluation>, RenderError>>()?;
             let mean = MeanEstimate::of_evaluations(values);
             let mut variance = mean.variance_of_mean;
-            if let RadianceShading::Cached { cache, shading } = shading {
-                variance += record_variance(transport, hit, cache, shading)?;
+            if let Some(integrator) = cached {
+                variance += record_variance(transport, hit, integrator.cache, integrator.shading)?;
             }
             Ok(RadianceEstimate {
                 radiance: mean.mean,

@@ -128,7 +128,7 @@ pub async fn radiance(
     limits.check_work((points * u64::from(request.repeats)).saturating_add(record_paths))?;
     let (repeats, seed) = (request.repeats, request.seed);
     let shared = state.clone();
-    let estimates = state
+    let (estimates, secondary) = state
         .pool
         .run(move |cancel| {
             // On the pool: a new configuration factorises its record rule.
@@ -166,7 +166,6 @@ pub async fn radiance(
                 .at("estimator")
         })
         .await??;
-    let (estimates, secondary) = estimates;
     let rays = estimates.iter().map(|e| e.rays).sum::<u64>() + secondary.rays;
     ::metrics::counter!(RAYS_TRACED).increment(rays);
     let rgb = |c: Rgb| [c.r, c.g, c.b];
