@@ -54,6 +54,7 @@ pub mod cache;
 pub mod cli;
 pub mod image;
 pub mod integrator;
+pub(crate) mod isolated;
 pub mod loadtest;
 pub mod render;
 pub mod scene;

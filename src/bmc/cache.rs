@@ -165,15 +165,13 @@ impl QuadratureCache {
             kernel: kernel.cache_key(),
         };
         let computed = AtomicBool::new(false);
-        let value = self
-            .factorisations
-            .try_get_with(key, || {
-                computed.store(true, Ordering::Relaxed);
-                let set = SampleSet::generate(spec)?;
-                let factorisation = Factorisation::new(&set, kernel)?;
-                Ok::<_, BmcError>(Arc::new(CachedFactorisation { set, factorisation }))
-            })
-            .map_err(unshare);
+        let value = crate::isolated::try_get_with(&self.factorisations, key, || {
+            computed.store(true, Ordering::Relaxed);
+            let set = SampleSet::generate(spec)?;
+            let factorisation = Factorisation::new(&set, kernel)?;
+            Ok::<_, BmcError>(Arc::new(CachedFactorisation { set, factorisation }))
+        })
+        .map_err(unshare);
         let cached = !computed.load(Ordering::Relaxed);
         count(cached, &self.factorisation_hits, &self.factorisation_misses);
         Ok((value?, cached))
@@ -202,26 +200,24 @@ impl QuadratureCache {
             method,
         };
         let computed = AtomicBool::new(false);
-        let value = self
-            .quadratures
-            .try_get_with(key, || {
-                computed.store(true, Ordering::Relaxed);
-                let (factorised, _) = self.factorisation(spec, kernel)?;
-                let quadrature = Quadrature::new(
-                    &factorised.set,
-                    kernel,
-                    &factorised.factorisation,
-                    density,
-                    prior_mean,
-                    method,
-                )?;
-                Ok::<_, BmcError>(Arc::new(CachedQuadrature {
-                    factorised,
-                    quadrature,
-                    density: *density,
-                }))
-            })
-            .map_err(unshare);
+        let value = crate::isolated::try_get_with(&self.quadratures, key, || {
+            computed.store(true, Ordering::Relaxed);
+            let (factorised, _) = self.factorisation(spec, kernel)?;
+            let quadrature = Quadrature::new(
+                &factorised.set,
+                kernel,
+                &factorised.factorisation,
+                density,
+                prior_mean,
+                method,
+            )?;
+            Ok::<_, BmcError>(Arc::new(CachedQuadrature {
+                factorised,
+                quadrature,
+                density: *density,
+            }))
+        })
+        .map_err(unshare);
         let cached = !computed.load(Ordering::Relaxed);
         count(cached, &self.quadrature_hits, &self.quadrature_misses);
         Ok((value?, cached))

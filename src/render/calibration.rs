@@ -379,10 +379,9 @@ impl Calibrations {
     pub fn get_or_calibrate<E: Clone + Send + Sync + 'static>(
         &self,
         key: String,
-        compute: impl FnOnce() -> Result<ErrorCalibration, E>,
+        compute: impl FnOnce() -> Result<ErrorCalibration, E> + Send,
     ) -> Result<ErrorCalibration, E> {
-        self.kept
-            .try_get_with(key, compute)
+        crate::isolated::try_get_with(&self.kept, key, compute)
             .map_err(|err: Arc<E>| (*err).clone())
     }
 
@@ -399,11 +398,10 @@ impl Calibrations {
             reference_samples(options),
             options.effective_max_depth()
         );
-        self.training
-            .try_get_with(key, || {
-                TrainingSet::new(transport, options, cancel).map(Arc::new)
-            })
-            .map_err(|err: Arc<RenderError>| (*err).clone())
+        crate::isolated::try_get_with(&self.training, key, || {
+            TrainingSet::new(transport, options, cancel).map(Arc::new)
+        })
+        .map_err(|err: Arc<RenderError>| (*err).clone())
     }
 }
 

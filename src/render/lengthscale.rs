@@ -186,7 +186,9 @@ impl FittedKernels {
             ..config
         };
         self.fits.get_with(config, || {
-            fit_lengthscale(transport, config).map_err(|e| e.to_string())
+            crate::isolated::isolated(|| {
+                fit_lengthscale(transport, config).map_err(|e| e.to_string())
+            })
         })
     }
 

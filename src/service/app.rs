@@ -15,9 +15,11 @@
 //!    the work and the client may retry with a smaller request;
 //! 6. body limit (`DefaultBodyLimit`): bodies over `limits.max_body_bytes` make
 //!    [`ApiJson`](super::extract::ApiJson) answer 413 with the JSON error body;
-//! 7. on matched routes only, authorisation: with `server.auth_token` set, the
-//!    routes that change state (`POST /v1/scenes`, every `DELETE`) need
-//!    `Authorization: Bearer <token>`, else 401.
+//! 7. on matched routes only, the guard of the routes that change state
+//!    (`POST /v1/scenes`, `POST …/records`, every `DELETE`): a browser page of
+//!    another origin than the service's own and `server.allowed_origins` gets
+//!    403 (browsers send simple cross-site POSTs without a preflight), and with
+//!    `server.auth_token` set they need `Authorization: Bearer <token>`, else 401.
 //!
 //! Connections (timeouts, the connection cap, the shutdown window) are
 //! handled below all of this, in [`super::server`].
@@ -253,22 +255,32 @@ pub fn router(state: Arc<AppState>) -> Router {
         .routes(routes!(routes::quadratures::post_quadrature))
         .split_for_parts();
     let limits = state.config.limits.clone();
-    let token = Arc::new(state.config.server.auth_token.clone());
+    let cors = cors(&state.config.server);
+    let guard = Arc::new(MutationGuard {
+        token: state.config.server.auth_token.clone(),
+        origins: state
+            .config
+            .server
+            .allowed_origins()
+            .map(str::to_owned)
+            .collect(),
+    });
     with_middleware(
         api_routes
-            .layer(middleware::from_fn_with_state(token, authorise))
+            .layer(middleware::from_fn_with_state(guard, guard_mutation))
             .layer(Extension(Arc::new(doc)))
             .with_state(state)
             .merge(super::viewer::routes()),
         &limits,
     )
-    .layer(cors())
+    .layer(cors)
 }
 
 /// Cross-origin reads: any page may GET tiles, scenes and statistics (and
-/// read the tile headers); changing state stays same-origin (and behind the
-/// bearer token when one is configured).
-fn cors() -> CorsLayer {
+/// read the tile headers). Pages may send state-changing requests only from
+/// `server.allowed_origins` (the guard refuses the others), so preflights
+/// allow those methods and headers only when such origins are configured.
+fn cors(server: &super::config::ServerConfig) -> CorsLayer {
     let exposed = [
         "etag",
         "server-timing",
@@ -283,11 +295,22 @@ fn cors() -> CorsLayer {
         "x-std-dev-scale",
     ]
     .map(HeaderName::from_static);
-    CorsLayer::new()
+    let layer = CorsLayer::new()
         .allow_origin(AllowOrigin::any())
-        .allow_methods([Method::GET, Method::HEAD])
-        .allow_headers([header::IF_NONE_MATCH])
-        .expose_headers(exposed)
+        .expose_headers(exposed);
+    if server.allowed_origins().next().is_some() {
+        layer
+            .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::DELETE])
+            .allow_headers([
+                header::IF_NONE_MATCH,
+                header::AUTHORIZATION,
+                header::CONTENT_TYPE,
+            ])
+    } else {
+        layer
+            .allow_methods([Method::GET, Method::HEAD])
+            .allow_headers([header::IF_NONE_MATCH])
+    }
 }
 
 /// Adds the JSON fallbacks and the middleware stack described in the module docs.
@@ -364,25 +387,84 @@ async fn check_head_size(request: Request, next: Next) -> Response {
     next.run(request).await
 }
 
-/// Requires the bearer token on the routes that change state (module docs).
-async fn authorise(State(token): State<Arc<String>>, request: Request, next: Next) -> Response {
+/// What a request that changes state must satisfy (module docs).
+struct MutationGuard {
+    /// `server.auth_token`; empty = none.
+    token: String,
+    /// `server.allowed_origins`, besides the service's own.
+    origins: Vec<String>,
+}
+
+impl MutationGuard {
+    /// Refuses a browser page of a foreign origin (`Origin` naming another
+    /// host than the one addressed, or `Sec-Fetch-Site` saying so), whatever
+    /// the token: such pages may send simple POSTs without a preflight.
+    /// Clients that are not browsers send neither header.
+    fn check_origin(&self, request: &Request) -> Result<(), ApiError> {
+        let headers = request.headers();
+        let origin = headers.get(header::ORIGIN).and_then(|v| v.to_str().ok());
+        let fetch_site = headers.get("sec-fetch-site").and_then(|v| v.to_str().ok());
+        let Some(origin) = origin else {
+            return match fetch_site {
+                Some("cross-site" | "same-site") => Err(ApiError::CrossOrigin {
+                    origin: "(not sent)".into(),
+                }),
+                _ => Ok(()),
+            };
+        };
+        let host = headers.get(header::HOST).and_then(|v| v.to_str().ok());
+        let same_origin = origin
+            .split_once("://")
+            .is_some_and(|(_, authority)| Some(authority) == host);
+        if same_origin || self.origins.iter().any(|o| o == origin) {
+            Ok(())
+        } else {
+            Err(ApiError::CrossOrigin {
+                origin: origin.chars().take(200).collect(),
+            })
+        }
+    }
+
+    /// The bearer token, when one is configured (scheme name case-insensitive).
+    fn check_token(&self, request: &Request) -> Result<(), ApiError> {
+        if self.token.is_empty() {
+            return Ok(());
+        }
+        let presented = request
+            .headers()
+            .get(header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.split_once(' '))
+            .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
+            .map_or("", |(_, token)| token.trim());
+        if constant_time_eq(presented.as_bytes(), self.token.as_bytes()) {
+            Ok(())
+        } else {
+            Err(ApiError::Unauthorized)
+        }
+    }
+}
+
+/// Guards the routes that change state: same-origin or allowed web origins
+/// only, and the bearer token when one is configured (module docs).
+async fn guard_mutation(
+    State(guard): State<Arc<MutationGuard>>,
+    request: Request,
+    next: Next,
+) -> Response {
     let path = request.uri().path();
     let mutating = request.method() == Method::DELETE
         || (request.method() == Method::POST
             && (path == "/v1/scenes" || path.ends_with("/records")));
-    if token.is_empty() || !mutating {
+    if !mutating {
         return next.run(request).await;
     }
-    let presented = request
-        .headers()
-        .get(axum::http::header::AUTHORIZATION)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "))
-        .unwrap_or("");
-    if constant_time_eq(presented.as_bytes(), token.as_bytes()) {
-        next.run(request).await
-    } else {
-        ApiError::Unauthorized.into_response()
+    match guard
+        .check_origin(&request)
+        .and_then(|()| guard.check_token(&request))
+    {
+        Ok(()) => next.run(request).await,
+        Err(refusal) => refusal.into_response(),
     }
 }
 

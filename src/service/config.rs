@@ -107,6 +107,12 @@ pub struct ServerConfig {
     /// Bearer token that mutating routes require (`Authorization: Bearer
     /// <token>`); empty = none (the default, meant for loopback binds).
     pub auth_token: String,
+    /// Web origins (`scheme://host[:port]`, comma-separated) whose pages may
+    /// send requests that change state; empty = none. Requests from other
+    /// origins (a browser's `Origin` header naming another site) are refused
+    /// with 403 whatever `auth_token` is, as browsers send simple cross-site
+    /// POSTs without asking first.
+    pub allowed_origins: String,
 }
 
 /// Byte budgets of the caches.
@@ -264,6 +270,18 @@ impl Config {
                 reason: "must be non-empty and without spaces".into(),
             });
         }
+        if let Some(bad) = self
+            .server
+            .allowed_origins()
+            .find(|origin| !is_origin(origin))
+        {
+            return Err(ConfigError::Invalid {
+                field: "server.allowed_origins",
+                reason: format!(
+                    "lists {bad:?}, which is not an origin of the form scheme://host[:port]"
+                ),
+            });
+        }
         if self.scenes.dir.as_os_str().is_empty() {
             return Err(ConfigError::Invalid {
                 field: "scenes.dir",
@@ -288,6 +306,14 @@ impl Config {
 }
 
 impl ServerConfig {
+    /// The origins of `allowed_origins`, trimmed, without a trailing `/`.
+    pub fn allowed_origins(&self) -> impl Iterator<Item = &str> {
+        self.allowed_origins
+            .split(',')
+            .map(|o| o.trim().trim_end_matches('/'))
+            .filter(|o| !o.is_empty())
+    }
+
     /// Runtime threads with 0 resolved to the number of cores.
     pub fn runtime_threads(&self) -> usize {
         resolve_threads(self.runtime_threads)
@@ -297,6 +323,17 @@ impl ServerConfig {
     pub fn worker_threads(&self) -> usize {
         resolve_threads(self.worker_threads)
     }
+}
+
+/// Whether `origin` is `scheme://host[:port]`, as browsers send it in `Origin`.
+fn is_origin(origin: &str) -> bool {
+    url::Url::parse(origin).is_ok_and(|u| {
+        u.has_host()
+            && u.path() == "/"
+            && u.query().is_none()
+            && u.username().is_empty()
+            && !origin.ends_with('/')
+    })
 }
 
 impl Limits {

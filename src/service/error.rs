@@ -76,6 +76,11 @@ pub enum ApiError {
         "this route changes the service's state and needs `Authorization: Bearer <token>` with the configured server.auth_token"
     )]
     Unauthorized,
+    /// A browser page of another origin asked to change state (403).
+    #[error(
+        "requests from the web origin {origin} may not change this service's state; add it to server.allowed_origins to allow it"
+    )]
+    CrossOrigin { origin: String },
     #[error("the request target is {len} bytes, above the limit of {limit}")]
     UriTooLong { len: usize, limit: usize },
     #[error("the request headers are {len} bytes, above the limit of {limit}")]
@@ -200,6 +205,7 @@ impl ApiError {
             ApiError::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::Overloaded { .. } | ApiError::Cancelled => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Unauthorized => StatusCode::UNAUTHORIZED,
+            ApiError::CrossOrigin { .. } => StatusCode::FORBIDDEN,
             ApiError::UriTooLong { .. } => StatusCode::URI_TOO_LONG,
             ApiError::HeadersTooLarge { .. } => StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
             ApiError::DeadlineExceeded { .. } => StatusCode::GATEWAY_TIMEOUT,
@@ -223,6 +229,7 @@ impl ApiError {
             ApiError::Internal { .. } => "internal",
             ApiError::Cancelled => "cancelled",
             ApiError::Unauthorized => "unauthorized",
+            ApiError::CrossOrigin { .. } => "cross_origin",
             ApiError::UriTooLong { .. } => "uri_too_long",
             ApiError::HeadersTooLarge { .. } => "headers_too_large",
             ApiError::InsufficientStorage { .. } => "insufficient_storage",
@@ -240,6 +247,7 @@ impl ApiError {
                 Some(field)
             }
             ApiError::InsufficientStorage { field, .. } => Some(field),
+            ApiError::CrossOrigin { .. } => Some("Origin"),
             _ => None,
         }
     }

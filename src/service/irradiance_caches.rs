@@ -176,9 +176,9 @@ impl IrradianceCaches {
         &self,
         scene: &LoadedScene,
         records: RecordsKey,
-        describe: impl FnOnce() -> serde_json::Value,
+        describe: impl FnOnce() -> serde_json::Value + Send,
         template: CacheConfig,
-        shading: impl FnOnce() -> Result<CachedShading, CacheError>,
+        shading: impl FnOnce() -> Result<CachedShading, CacheError> + Send,
     ) -> Result<Arc<SceneCache>, CacheError> {
         let key = CacheKey {
             scene: scene.id.clone(),
@@ -190,8 +190,7 @@ impl IrradianceCaches {
             ..template
         };
         let total = self.total_bytes;
-        self.caches
-            .try_get_with(key, || -> Result<_, CacheError> {
+        crate::isolated::try_get_with(&self.caches, key, || -> Result<_, CacheError> {
                 let shading = shading()?;
                 let bytes = shading.rule.size_bytes();
                 if bytes > total {

@@ -5,6 +5,8 @@
 //! What a reproducible tile keeps for the next request: `tile_store`.
 
 use std::sync::Arc;
+use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 
 use super::config::Limits;
 use super::error::ApiError;
@@ -118,14 +120,15 @@ pub fn render_progressive(
     let (mut rays, mut cache_hits, mut passes_rendered) = (0, 0, 0);
     let reproducible = job.reproducible();
     let records_key = job.records_key(scene);
-    let created = std::cell::Cell::new(0);
+    // Atomics, as the closures that set them may run on a pool of their own.
+    let created = AtomicU64::new(0);
     // The tile's records, once for every pass.
     let records = match (&integrator, reproducible) {
         (Some(integrator), true) => {
             let tile_records = store.records_or(records_key, || {
                 let (records, report) = integrator.tile_records(&job.request, cancel)?;
                 rays += report.placement.rays + report.secondary.rays;
-                created.set(report.placement.records_created);
+                created.store(report.placement.records_created, Relaxed);
                 Ok::<_, ApiError>(TileRecords {
                     scene: *transport.scene().digest.as_bytes(),
                     records,
@@ -142,9 +145,9 @@ pub fn render_progressive(
             pass,
             ..job.request
         };
-        let rendered = std::cell::Cell::new(false);
+        let rendered = AtomicBool::new(false);
         let render = || -> Result<RenderedPass, ApiError> {
-            rendered.set(true);
+            rendered.store(true, Relaxed);
             let (tile, cache_hits) = match (&integrator, &records) {
                 (None, _) => (transport.render_tile(&request, cancel)?, 0),
                 (Some(i), Some(records)) => {
@@ -154,7 +157,7 @@ pub fn render_progressive(
                 }
                 (Some(i), None) => {
                     let (tile, report) = i.render_tile(&request, cancel)?;
-                    created.set(created.get() + report.placement.records_created);
+                    created.fetch_add(report.placement.records_created, Relaxed);
                     (tile, report.shading.cache_hits)
                 }
             };
@@ -170,14 +173,14 @@ pub fn render_progressive(
         } else {
             Arc::new(render()?)
         };
-        if rendered.get() {
+        if rendered.load(Relaxed) {
             rays += pass_image.rays;
             passes_rendered += 1;
         }
         cache_hits += pass_image.cache_hits;
         passes.push(pass_image);
     }
-    let records_created = created.get();
+    let records_created = created.into_inner();
     if let (Some(integrator), Some(records), true) = (&integrator, &records, records_created > 0) {
         // Let the shared cache (and its statistics) know of new records.
         integrator.publish(&records.records)?;

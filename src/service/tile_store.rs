@@ -174,15 +174,14 @@ impl TileStore {
     pub fn records_or<E: Clone + Send + Sync + 'static>(
         &self,
         key: Key,
-        place: impl FnOnce() -> Result<TileRecords, E>,
+        place: impl FnOnce() -> Result<TileRecords, E> + Send,
     ) -> Result<Arc<TileRecords>, E> {
-        self.records
-            .try_get_with(key, || {
-                let records = place()?;
-                self.persist(RECORDS, &key, || Cow::Owned(encode_records(&records)), true);
-                Ok(Arc::new(records))
-            })
-            .map_err(|e: Arc<E>| (*e).clone())
+        crate::isolated::try_get_with(&self.records, key, || {
+            let records = place()?;
+            self.persist(RECORDS, &key, || Cow::Owned(encode_records(&records)), true);
+            Ok(Arc::new(records))
+        })
+        .map_err(|e: Arc<E>| (*e).clone())
     }
 
     /// The pass under `key`, rendered by `render` if absent (once for
@@ -190,15 +189,14 @@ impl TileStore {
     pub fn pass_or<E: Clone + Send + Sync + 'static>(
         &self,
         key: Key,
-        render: impl FnOnce() -> Result<RenderedPass, E>,
+        render: impl FnOnce() -> Result<RenderedPass, E> + Send,
     ) -> Result<Arc<RenderedPass>, E> {
-        self.passes
-            .try_get_with(key, || {
-                let pass = render()?;
-                self.persist(PASS, &key, || Cow::Owned(encode_pass(&pass)), true);
-                Ok(Arc::new(pass))
-            })
-            .map_err(|e: Arc<E>| (*e).clone())
+        crate::isolated::try_get_with(&self.passes, key, || {
+            let pass = render()?;
+            self.persist(PASS, &key, || Cow::Owned(encode_pass(&pass)), true);
+            Ok(Arc::new(pass))
+        })
+        .map_err(|e: Arc<E>| (*e).clone())
     }
 
     pub fn stats(&self) -> TileStoreStats {

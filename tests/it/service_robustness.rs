@@ -230,7 +230,12 @@ async fn mutating_routes_need_the_configured_token() {
         (Method::DELETE, "/v1/scenes/tiny/cache", None),
     ];
     for (method, path, body) in &attempts {
-        for token in [None, Some("Bearer wrong"), Some("s3cret")] {
+        for token in [
+            None,
+            Some("Bearer wrong"),
+            Some("s3cret"),
+            Some("Basic s3cret"),
+        ] {
             let mut request = app.client.request(method.clone(), app.url(path));
             if let Some(token) = token {
                 request = request.header("authorization", token);
@@ -254,11 +259,11 @@ async fn mutating_routes_need_the_configured_token() {
                        "estimator": {"method": "mc", "samples": 4}});
     let response = app.post_json("/v1/scenes/tiny/irradiance", &query).await;
     assert_eq!(response.status(), StatusCode::OK);
-    // With the token, they work.
+    // With the token, they work (the scheme's name in any case, RFC 9110 §11.1).
     let response = app
         .client
         .post(app.url("/v1/scenes"))
-        .bearer_auth("s3cret")
+        .header("authorization", "bearer s3cret")
         .json(&doc)
         .send()
         .await
@@ -272,6 +277,100 @@ async fn mutating_routes_need_the_configured_token() {
         .await
         .unwrap();
     assert!(response.status().is_success());
+    assert_eq!(health(&app).await["scenes"], 1);
+}
+
+/// Pages of other sites cannot change state, token or not: browsers send a
+/// multipart or `text/plain` POST cross-site without a preflight. Pages of
+/// the service's own origin and of `server.allowed_origins` can; clients
+/// that are not browsers send no `Origin` and are unaffected.
+#[tokio::test]
+async fn pages_of_other_origins_cannot_change_state() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |c| {
+        c.server.allowed_origins = "https://app.example, http://localhost:5173/".into();
+    })
+    .await;
+    let mut doc: Value = serde_json::from_str(TINY_SCENE).unwrap();
+    doc["name"] = json!("other");
+    let boundary = "x-boundary";
+    let multipart = format!(
+        "--{boundary}\r\ncontent-disposition: form-data; name=\"scene\"; filename=\"scene.json\"\r\ncontent-type: application/json\r\n\r\n{doc}\r\n--{boundary}--\r\n"
+    );
+    let forged = |method: Method, path: &str| app.client.request(method, app.url(path));
+    let attempts = [
+        forged(Method::POST, "/v1/scenes")
+            .header(
+                "content-type",
+                format!("multipart/form-data; boundary={boundary}"),
+            )
+            .body(multipart.clone()),
+        forged(Method::POST, "/v1/scenes/tiny/records")
+            .header("content-type", "text/plain")
+            .body("BMCR"),
+        forged(Method::DELETE, "/v1/scenes/tiny"),
+        forged(Method::DELETE, "/v1/scenes/tiny/cache"),
+    ];
+    for attempt in attempts {
+        for (name, value) in [
+            ("origin", "https://evil.example"),
+            ("origin", "null"),
+            ("origin", "https://app.example.evil.example"),
+            ("sec-fetch-site", "cross-site"),
+        ] {
+            let response = attempt
+                .try_clone()
+                .unwrap()
+                .header(name, value)
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(response.status(), StatusCode::FORBIDDEN, "{name}: {value}");
+            let (code, field) = error_of(response).await;
+            assert_eq!(code, "cross_origin");
+            assert_eq!(field.as_deref(), Some("Origin"));
+        }
+    }
+    assert_eq!(health(&app).await["scenes"], 1);
+    // Reads and queries from any page still work.
+    let query = json!({"points": [{"position": [0, 0, 0], "normal": [0, 0, 1]}],
+                       "estimator": {"method": "mc", "samples": 4}});
+    let response = app
+        .client
+        .post(app.url("/v1/scenes/tiny/irradiance"))
+        .header("origin", "https://evil.example")
+        .json(&query)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    // The service's own pages, the allowed origins and plain clients may.
+    let own = app.base.clone();
+    for origin in [
+        Some(own.as_str()),
+        Some("http://localhost:5173"),
+        Some("https://app.example"),
+        None,
+    ] {
+        let mut post = app
+            .client
+            .post(app.url("/v1/scenes"))
+            .header(
+                "content-type",
+                format!("multipart/form-data; boundary={boundary}"),
+            )
+            .body(multipart.clone());
+        let mut delete = app.client.delete(app.url("/v1/scenes/other"));
+        if let Some(origin) = origin {
+            post = post.header("origin", origin);
+            delete = delete.header("origin", origin);
+        }
+        let response = post.send().await.unwrap();
+        assert_eq!(response.status(), StatusCode::CREATED, "{origin:?}");
+        assert!(
+            delete.send().await.unwrap().status().is_success(),
+            "{origin:?}"
+        );
+    }
     assert_eq!(health(&app).await["scenes"], 1);
 }
 

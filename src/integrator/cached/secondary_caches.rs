@@ -2,7 +2,8 @@
 //! by the first caller that needs it, and shared by every clone.
 
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Duration;
 
 use crate::cache::IrradianceCache;
 use crate::render::{Cancel, PathLimits, RenderError};
@@ -43,58 +44,76 @@ impl Slot {
 /// each built on first use. Clones share them.
 #[derive(Clone, Default)]
 pub struct SecondaryCaches {
-    slots: Arc<Mutex<HashMap<SecondaryKey, Slot>>>,
+    slots: Arc<(Mutex<HashMap<SecondaryKey, Slot>>, Condvar)>,
 }
+
+/// How often a caller waiting for another's build looks at its own cancel flag.
+const CANCEL_POLL: Duration = Duration::from_millis(20);
 
 impl SecondaryCaches {
     /// The cache under `key`, or the one `build` makes now if no one has,
     /// with what `build` reported.
     ///
-    /// A caller that finds it being built runs other pool work meanwhile
-    /// (`rayon::yield_now`), so on a pool thread it helps the build's
-    /// parallel loops instead of idling. A failed build (one stopped by
-    /// `cancel` among them) leaves nothing behind, and the next caller
-    /// builds it.
-    pub fn get_or_build<R>(
+    /// The build runs on a pool of its own ([`crate::isolated`]), so a caller
+    /// that finds it under way simply blocks until it is done (or its own
+    /// `cancel` is set). A failed build (one stopped by `cancel` among them)
+    /// leaves nothing behind, and the next caller builds it.
+    pub fn get_or_build<R: Send>(
         &self,
         key: SecondaryKey,
         cancel: &Cancel,
-        build: impl FnOnce() -> Result<(SecondaryCache, R), RenderError>,
+        build: impl FnOnce() -> Result<(SecondaryCache, R), RenderError> + Send,
     ) -> Result<(Arc<SecondaryCache>, Option<R>), RenderError> {
-        let slots = || self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        let (lock, changed) = &*self.slots;
+        let mut slots = lock.lock().unwrap_or_else(|e| e.into_inner());
         loop {
             cancel.check()?;
-            {
-                let mut slots = slots();
-                match slots.get(&key) {
-                    Some(Slot::Built(found)) => return Ok((found.clone(), None)),
-                    Some(Slot::Building) => {}
-                    None => {
-                        slots.insert(key, Slot::Building);
-                        break;
-                    }
+            match slots.get(&key) {
+                Some(Slot::Built(found)) => return Ok((found.clone(), None)),
+                Some(Slot::Building) => {}
+                None => {
+                    slots.insert(key, Slot::Building);
+                    break;
                 }
             }
-            if rayon::yield_now() != Some(rayon::Yield::Executed) {
-                std::thread::sleep(std::time::Duration::from_millis(1));
-            }
+            slots = changed
+                .wait_timeout(slots, CANCEL_POLL)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
         }
-        match build() {
+        drop(slots);
+        // A panicking build must not leave its slot `Building` for ever.
+        let built = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            crate::isolated::isolated(build)
+        }));
+        let mut slots = lock.lock().unwrap_or_else(|e| e.into_inner());
+        let built = match built {
+            Ok(built) => built,
+            Err(panic) => {
+                slots.remove(&key);
+                changed.notify_all();
+                drop(slots);
+                std::panic::resume_unwind(panic);
+            }
+        };
+        let outcome = match built {
             Ok((built, report)) => {
                 let built = Arc::new(built);
-                slots().insert(key, Slot::Built(built.clone()));
+                slots.insert(key, Slot::Built(built.clone()));
                 Ok((built, Some(report)))
             }
             Err(e) => {
-                slots().remove(&key);
+                slots.remove(&key);
                 Err(e)
             }
-        }
+        };
+        changed.notify_all();
+        outcome
     }
 
     /// Records of the caches built so far.
     pub fn records(&self) -> u64 {
-        let slots = self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        let slots = self.slots.0.lock().unwrap_or_else(|e| e.into_inner());
         slots.values().map(Slot::records).sum()
     }
 
@@ -103,7 +122,7 @@ impl SecondaryCaches {
     /// depends on the scene and configuration alone). A build under way
     /// is left to finish.
     pub fn clear(&self) -> u64 {
-        let mut slots = self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        let mut slots = self.slots.0.lock().unwrap_or_else(|e| e.into_inner());
         let records = slots.values().map(Slot::records).sum();
         slots.retain(|_, slot| matches!(slot, Slot::Building));
         records
