@@ -13,7 +13,7 @@
 # error stops the script, printing the service's JSON error body.
 set -euo pipefail
 
-BASE="${1:-http://127.0.0.1:8080}"
+# The bundled scenes beside this script, wherever it is run from.
 SCENES="$(cd "$(dirname "${BASH_SOURCE[0]}")/../scenes" && pwd)"
 
 # Prints each command (arguments quoted where the shell needs it) before its
@@ -30,6 +30,9 @@ curl() {
 }
 
 # --- walkthrough (the README shows from here to the end) ---
+BASE="${1:-http://127.0.0.1:8080}" # where the service listens
+SCENES="${SCENES:-scenes}"         # the bundled scenes (pasted by hand: from the repository root)
+
 curl "$BASE/health"                # {"status":"ok","version":"0.1.0","scenes":5,"cpu":{...}}
 curl "$BASE/ready"                 # 200 when it should get work, 503 when wedged or saturated
 curl "$BASE/metrics" | grep '^http_requests_total' # Prometheus text: latency histograms, rays_traced_total, ...

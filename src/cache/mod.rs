@@ -32,6 +32,6 @@ pub use error::CacheError;
 pub use irradiance_cache::{
     Accuracy, CacheConfig, CacheStats, Interpolated, IrradianceCache, RECORD_BYTES, RecordSlot,
 };
-pub use record::{PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
+pub use record::{MAX_IRRADIANCE, PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
 pub use record_rule::{RecordEstimate, RecordRule, RecordRuleSpec};
 pub use records_prior::RecordsPrior;

@@ -84,6 +84,13 @@ pub fn harmonic_mean_distance(distances: &[f64]) -> Option<f64> {
     (inverse > 0.0).then(|| distances.len() as f64 / inverse)
 }
 
+/// Largest irradiance a record received from elsewhere may carry, W/m²
+/// ([`Record::validate_received`]): far above any scene's (the sun gives
+/// about 1e3), and small enough that what records are turned into (a few
+/// weighted records with their gradient terms, variances as squares) stays
+/// far inside the `f32` range (3.4e38) of the tiles' encodings.
+pub const MAX_IRRADIANCE: f64 = 1e15;
+
 /// One cached irradiance value with its uncertainty and validity region.
 ///
 /// Invariants: `normal` is unit length, `radius > 0`, every value finite.
@@ -240,6 +247,63 @@ impl Record {
         Ok(())
     }
 
+    /// Checks a record that did not come from this process's own
+    /// computation (an import, another replica, the log on disk) as strictly
+    /// as computed records hold: [`Self::validate`], irradiance and variance
+    /// non-negative (the negative-weight guard, docs/math.md §3.6) and at most
+    /// [`MAX_IRRADIANCE`] and its square, the radius within `limits`, the
+    /// translation gradient within the clamp of [`Self::from_estimate`]
+    /// (`|g_c| R ≤ E_c`) and the rotation gradient at most
+    /// [`MAX_IRRADIANCE`] per radian.
+    pub fn validate_received(&self, limits: RadiusLimits) -> Result<(), CacheError> {
+        self.validate()?;
+        let e = self.irradiance.to_array();
+        if e.iter().any(|&v| !(0.0..=MAX_IRRADIANCE).contains(&v)) {
+            return Err(CacheError::invalid(
+                "irradiance",
+                format!("must be within [0, {MAX_IRRADIANCE:e}] W/m², got {e:?}"),
+            ));
+        }
+        let max_variance = MAX_IRRADIANCE * MAX_IRRADIANCE;
+        let variance = self.variance.to_array();
+        if variance.iter().any(|&v| !(0.0..=max_variance).contains(&v)) {
+            return Err(CacheError::invalid(
+                "variance",
+                format!("must be within [0, {max_variance:e}] (W/m²)², got {variance:?}"),
+            ));
+        }
+        // The limits are checked as computed records meet them, not clamped.
+        if self.radius < limits.min * (1.0 - 1e-12) || self.radius > limits.max * (1.0 + 1e-12) {
+            return Err(CacheError::invalid(
+                "radius",
+                format!(
+                    "must be within [{}, {}], got {}",
+                    limits.min, limits.max, self.radius
+                ),
+            ));
+        }
+        for (c, g) in self.translation_gradient.iter().enumerate() {
+            // Rounding of the clamp's rescaling only.
+            if g.length() * self.radius > e[c] * (1.0 + 1e-9) + f64::MIN_POSITIVE {
+                return Err(CacheError::invalid(
+                    "translation_gradient",
+                    "must change irradiance by at most its own value within the radius",
+                ));
+            }
+        }
+        if self
+            .rotation_gradient
+            .iter()
+            .any(|g| g.length() > MAX_IRRADIANCE)
+        {
+            return Err(CacheError::invalid(
+                "rotation_gradient",
+                format!("must be at most {MAX_IRRADIANCE:e} W/m² per radian"),
+            ));
+        }
+        Ok(())
+    }
+
     /// Ward's weight `w_k(x) = 1/(|x − x_k|/R_k + sqrt(1 − n·n_k))`
     /// (docs/math.md §9); infinite at the record itself.
     pub fn weight(&self, x: DVec3, n: DVec3) -> f64 {
@@ -273,6 +337,156 @@ impl Record {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    mod received {
+        use super::*;
+        use crate::cache::{Accuracy, CacheConfig, IrradianceCache};
+        use proptest::prelude::*;
+
+        /// Values as a forger picks them: ordinary ones, and the edges of f64.
+        fn wild() -> impl Strategy<Value = f64> {
+            prop_oneof![
+                4 => -2.0..2.0f64,
+                1 => prop::sample::select(vec![
+                    0.0, -0.0, 1e-300, -1e4, 1e14, 1e15, 1e16, 1e300, -1e300,
+                    f64::MAX, f64::MIN, f64::INFINITY, f64::NEG_INFINITY, f64::NAN,
+                ]),
+                1 => any::<f64>(),
+            ]
+        }
+
+        fn received_record() -> impl Strategy<Value = Record> {
+            (
+                prop::array::uniform3(-1.0..1.0f64),
+                prop::array::uniform3(wild()),
+                prop::array::uniform3(wild()),
+                wild(),
+                prop::array::uniform9(wild()),
+                prop::array::uniform9(wild()),
+                prop::array::uniform3(-1.0..1.0f64),
+            )
+                .prop_map(|(p, e, v, radius, rot, trans, n)| {
+                    let n = DVec3::from_array(n);
+                    let g = |a: [f64; 9]| {
+                        [0, 1, 2].map(|c| DVec3::new(a[3 * c], a[3 * c + 1], a[3 * c + 2]))
+                    };
+                    Record {
+                        position: DVec3::from_array(p),
+                        normal: if n.length() > 1e-3 {
+                            n.normalize()
+                        } else {
+                            DVec3::Z
+                        },
+                        irradiance: Rgb::from_array(e),
+                        variance: Rgb::from_array(v),
+                        radius: radius.abs(),
+                        rotation_gradient: g(rot),
+                        translation_gradient: g(trans),
+                    }
+                })
+        }
+
+        proptest! {
+            #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+            /// Whatever records are received, those accepted never make a
+            /// lookup non-finite, nor too large for the tiles' `f32`s.
+            #[test]
+            fn accepted_records_give_finite_lookups(
+                records in prop::collection::vec(received_record(), 1..24),
+                points in prop::collection::vec(
+                    (prop::array::uniform3(-1.0..1.0f64), prop::array::uniform3(-1.0..1.0f64)), 1..16),
+            ) {
+                let config = CacheConfig::default();
+                let limits = config.validate().unwrap();
+                let cache = IrradianceCache::new(config).unwrap();
+                for r in &records {
+                    if r.validate_received(limits).is_ok() {
+                        cache.insert(*r).unwrap();
+                    }
+                }
+                for (x, n) in points {
+                    let n = DVec3::from_array(n);
+                    let Ok(point) = QueryPoint::new(DVec3::from_array(x), if n.length() > 1e-3 { n.normalize() } else { DVec3::Z }) else {
+                        continue;
+                    };
+                    if let Some(found) = cache.lookup(&point, Accuracy::new(1.0).unwrap()) {
+                        for v in found.irradiance.to_array().into_iter().chain(found.variance.to_array()) {
+                            prop_assert!((v as f32).is_finite() && v >= 0.0, "{found:?}");
+                        }
+                    }
+                }
+            }
+        }
+
+        #[test]
+        fn poisoned_records_are_refused() {
+            let limits = CacheConfig::default().validate().unwrap();
+            let good = record();
+            assert!(good.validate_received(limits).is_ok());
+            let e = |v: f64| Rgb::new(v, 2.0, 3.0);
+            for (bad, field) in [
+                (
+                    Record {
+                        irradiance: e(1e300),
+                        ..good
+                    },
+                    "irradiance",
+                ),
+                (
+                    Record {
+                        irradiance: e(-1e4),
+                        ..good
+                    },
+                    "irradiance",
+                ),
+                (
+                    Record {
+                        variance: Rgb::new(-1.0, 0.0, 0.0),
+                        ..good
+                    },
+                    "variance",
+                ),
+                (
+                    Record {
+                        radius: 1e9,
+                        ..good
+                    },
+                    "radius",
+                ),
+                (
+                    Record {
+                        radius: 1e-9,
+                        ..good
+                    },
+                    "radius",
+                ),
+                (
+                    Record {
+                        translation_gradient: [DVec3::X * 100.0, DVec3::ZERO, DVec3::ZERO],
+                        ..good
+                    },
+                    "translation_gradient",
+                ),
+                (
+                    Record {
+                        rotation_gradient: [DVec3::X * 1e20, DVec3::ZERO, DVec3::ZERO],
+                        ..good
+                    },
+                    "rotation_gradient",
+                ),
+                (
+                    Record {
+                        irradiance: e(f64::NAN),
+                        ..good
+                    },
+                    "irradiance",
+                ),
+            ] {
+                let err = bad.validate_received(limits).unwrap_err();
+                assert_eq!(err.field(), Some(field), "{err}");
+            }
+        }
+    }
 
     fn record() -> Record {
         Record {

@@ -81,12 +81,13 @@ async fn fetch(args: &FetchArgs) -> anyhow::Result<(Image, u64)> {
         .build()?;
     let base = args.url.trim_end_matches('/');
     let scene_url = format!("{base}/v1/scenes/{}", args.scene);
-    let info: SceneInfo = client
+    let response = client
         .get(&scene_url)
         .send()
         .await
-        .with_context(|| format!("cannot reach {scene_url}"))?
-        .error_for_status()?
+        .with_context(|| format!("cannot reach {scene_url}"))?;
+    let info: SceneInfo = ok_or_service_error(response, &scene_url)
+        .await?
         .json()
         .await?;
     let [width, height] = info.resolution;
@@ -120,6 +121,37 @@ async fn fetch(args: &FetchArgs) -> anyhow::Result<(Image, u64)> {
         rays += tile_rays;
     }
     Ok((image, rays))
+}
+
+/// `response` if it is a success, else [`service_error`].
+async fn ok_or_service_error(
+    response: reqwest::Response,
+    url: &str,
+) -> anyhow::Result<reqwest::Response> {
+    if response.status().is_success() {
+        Ok(response)
+    } else {
+        Err(service_error(response, url).await)
+    }
+}
+
+/// A failed answer as an error carrying the service's own message (its JSON
+/// error body: message and field) rather than the bare status line.
+async fn service_error(response: reqwest::Response, url: &str) -> anyhow::Error {
+    let status = response.status();
+    let text = response.text().await.unwrap_or_default();
+    let said = serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .and_then(|body| {
+            let error = body.get("error")?;
+            let message = error.get("message")?.as_str()?.to_owned();
+            Some(match error.get("field").and_then(|f| f.as_str()) {
+                Some(field) => format!("{message} (field `{field}`)"),
+                None => message,
+            })
+        })
+        .unwrap_or(text);
+    anyhow::anyhow!("GET {url}: the service answered {status}: {said}")
 }
 
 /// Most 503 answers taken for one tile (each waits its `Retry-After`).
@@ -160,9 +192,7 @@ async fn get_with_retries(
                 tokio::time::sleep(backoff).await;
             }
             Ok(response) => {
-                let status = response.status();
-                let body = response.text().await.unwrap_or_default();
-                bail!("GET {url}: {status}: {body}");
+                return Err(service_error(response, url).await);
             }
             Err(err) if !last => {
                 tracing::warn!(%url, %err, "retrying");

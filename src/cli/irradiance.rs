@@ -21,19 +21,13 @@ use crate::render::estimators::{
 use crate::render::lengthscale::FittedKernels;
 use crate::render::points_csv::{parse_points, write_irradiance};
 use crate::render::{Cancel, IrradianceMethod, IrradianceOptions, PathDepth, Transport};
-use crate::scene::Scene;
 use crate::service::Config;
 
 /// Command-line arguments of `bmc-irradiance irradiance`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct IrradianceArgs {
-    /// Scene file: JSON, or Mitsuba 3 XML when it ends in `.xml`.
-    #[arg(long)]
-    pub scene: PathBuf,
-    /// Directory that files referenced by the scene may not escape
-    /// (default: the scene file's directory).
-    #[arg(long)]
-    pub scenes_root: Option<PathBuf>,
+    #[command(flatten)]
+    pub scene: super::scene_args::SceneArgs,
     /// CSV of query points, rows `x,y,z,nx,ny,nz` (header optional).
     #[arg(long)]
     pub points: PathBuf,
@@ -151,15 +145,7 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     let text = std::fs::read_to_string(&args.points)
         .with_context(|| format!("reading points file {}", args.points.display()))?;
     let points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
-    let root = match &args.scenes_root {
-        Some(root) => root.clone(),
-        None => match args.scene.parent() {
-            Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
-            _ => PathBuf::from("."),
-        },
-    };
-    let scene = Scene::load(&args.scene, &root)
-        .with_context(|| format!("loading scene {}", args.scene.display()))?;
+    let scene = args.scene.load(&mut std::io::stderr())?;
     let transport = Transport::new(Arc::new(scene));
 
     let progress = ProgressBar::new(points.len() as u64);

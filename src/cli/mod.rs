@@ -4,6 +4,7 @@ pub mod fetch;
 pub mod irradiance;
 pub mod quadrature;
 pub mod render;
+pub mod scene_args;
 pub mod study;
 
 use crate::render::PathDepth;

@@ -10,6 +10,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::in_thread_pool;
+use super::scene_args::SceneArgs;
 use crate::bmc::cache::QuadratureCache;
 use crate::cache::{CacheConfig, IrradianceCache};
 use crate::image::exr_io::{read_exr, write_exr};
@@ -21,18 +22,12 @@ use crate::integrator::cached::{
     DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, default_rule_spec,
 };
 use crate::render::{Cancel, ImageSettings, PathDepth, Transport};
-use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance render`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct RenderArgs {
-    /// Scene file: JSON, or Mitsuba 3 XML when it ends in `.xml`.
-    #[arg(long)]
-    pub scene: PathBuf,
-    /// Directory that files referenced by the scene may not escape
-    /// (default: the scene file's directory).
-    #[arg(long)]
-    pub scenes_root: Option<PathBuf>,
+    #[command(flatten)]
+    pub scene: SceneArgs,
     #[command(flatten)]
     pub output: ImageOutput,
     /// How camera rays are shaded.
@@ -152,22 +147,10 @@ impl RenderArgs {
     }
 }
 
-/// Directory referenced files may not escape: `--scenes-root`, else the
-/// scene file's directory.
-fn scenes_root(scene: &Path, explicit: Option<&Path>) -> PathBuf {
-    match (explicit, scene.parent()) {
-        (Some(root), _) => root.to_path_buf(),
-        (None, Some(dir)) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
-        _ => PathBuf::from("."),
-    }
-}
-
 /// Runs `render`: progress on stderr (hidden when it is not a terminal),
 /// a one-line summary (time, rays, rays/s) on `out`.
 pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> {
-    let root = scenes_root(&args.scene, args.scenes_root.as_deref());
-    let scene = Scene::load(&args.scene, &root)
-        .with_context(|| format!("loading scene {}", args.scene.display()))?;
+    let scene = args.scene.load(&mut std::io::stderr())?;
     let (width, height) = scene.camera.resolution();
     let transport = Transport::new(Arc::new(scene));
     let settings = args.settings();
@@ -265,28 +248,56 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
     Ok(())
 }
 
-/// Where a rendered image goes: an EXR, and optionally a PNG.
+/// Where a rendered image goes: an EXR or a PNG (by `--out`'s extension),
+/// and optionally a PNG beside it.
 #[derive(Clone, Debug, clap::Args)]
 pub struct ImageOutput {
-    /// Output EXR (channels R, G, B and the per-pixel variance `variance`).
-    #[arg(long)]
+    /// Output image: `.exr` (channels R, G, B and the per-pixel variance
+    /// `variance`) or `.png` (tone-mapped sRGB); other extensions are refused.
+    #[arg(long, value_parser = image_path(&["exr", "png"]))]
     pub out: PathBuf,
     /// Also write a tone-mapped sRGB PNG here.
-    #[arg(long)]
+    #[arg(long, value_parser = image_path(&["png"]))]
     pub png: Option<PathBuf>,
     /// PNG exposure in stops (values scaled by 2^exposure, then clamped).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
 }
 
+/// Parses an output path whose extension is one of `allowed` (any case),
+/// so a wrong one is refused before any work rather than written wrongly.
+fn image_path(
+    allowed: &'static [&'static str],
+) -> impl clap::builder::TypedValueParser<Value = PathBuf> {
+    move |text: &str| -> Result<PathBuf, String> {
+        let path = PathBuf::from(text);
+        let extension = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match extension {
+            Some(e) if allowed.contains(&e.as_str()) => Ok(path),
+            _ => Err(format!(
+                "the file name must end in .{}",
+                allowed.join(" or .")
+            )),
+        }
+    }
+}
+
 impl ImageOutput {
-    /// Writes the EXR, and the PNG when one is asked for.
+    /// Writes `--out` in the format its extension names, and the PNG when one
+    /// is asked for.
     pub fn write(&self, image: &crate::image::Image) -> anyhow::Result<()> {
-        write_exr(image, &self.out)?;
+        let tone_map = ToneMap {
+            exposure: self.exposure,
+        };
+        let is_png = |p: &Path| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        if is_png(&self.out) {
+            write_png(image, tone_map, &self.out)?;
+        } else {
+            write_exr(image, &self.out)?;
+        }
         if let Some(png) = &self.png {
-            let tone_map = ToneMap {
-                exposure: self.exposure,
-            };
             write_png(image, tone_map, png)?;
         }
         Ok(())

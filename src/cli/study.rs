@@ -43,9 +43,8 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<String> {
 /// Arguments of `bmc-irradiance study-scene`.
 #[derive(Clone, Debug, Args)]
 pub struct SceneStudyArgs {
-    /// Scene file: JSON, or Mitsuba 3 XML when it ends in `.xml`.
-    #[arg(long)]
-    pub scene: std::path::PathBuf,
+    #[command(flatten)]
+    pub scene: super::scene_args::SceneArgs,
     /// Camera-visible query points.
     #[arg(long, default_value_t = 200)]
     pub points: usize,
@@ -108,12 +107,9 @@ pub struct SceneStudyArgs {
 /// Runs the scene study: the text to print on stdout.
 pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
     use crate::study::scenes::{self, SceneStudyOptions};
-    let root = match args.scene.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let scene = crate::scene::Scene::load(&args.scene, &root)?;
+    let scene = args.scene.load(&mut std::io::stderr())?;
     let name = args
+        .scene
         .scene
         .file_stem()
         .map_or_else(String::new, |s| s.to_string_lossy().into_owned());

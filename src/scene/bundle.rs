@@ -51,11 +51,29 @@ impl SceneBundle {
         let path = check_name(name).map_err(|reason| {
             SceneError::invalid(field, format!("asset name {name:?}: {reason}"))
         })?;
-        if self.assets.iter().any(|(p, _)| *p == path) {
-            return Err(SceneError::invalid(
-                field,
-                format!("asset {name:?} is named twice"),
-            ));
+        // Names are compared as a case-insensitive file system would: two
+        // names that differ only in case, or a name that is also another's
+        // folder, cannot both be files.
+        let folded = |p: &Path| PathBuf::from(p.to_string_lossy().to_lowercase());
+        let new = folded(&path);
+        if let Some((old, _)) = self.assets.iter().find(|(p, _)| {
+            let old = folded(p);
+            old.starts_with(&new) || new.starts_with(&old)
+        }) {
+            let reason = if *old == path {
+                format!("asset {name:?} is named twice")
+            } else if folded(old) == new {
+                format!(
+                    "asset {name:?} differs from asset {:?} only in case",
+                    old.display()
+                )
+            } else {
+                format!(
+                    "asset {name:?} and asset {:?} would make one name both a file and a folder",
+                    old.display()
+                )
+            };
+            return Err(SceneError::invalid(field, reason));
         }
         self.assets.push((path, bytes));
         Ok(())
@@ -160,6 +178,26 @@ fn check_name(name: &str) -> Result<PathBuf, &'static str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn names_that_would_collide_on_disk_are_refused() {
+        for (first, second, says) in [
+            ("tri.obj", "tri.obj", "twice"),
+            ("tri.obj", "TRI.obj", "only in case"),
+            ("a", "a/tri.obj", "file and a folder"),
+            ("meshes/a.obj", "Meshes", "file and a folder"),
+        ] {
+            let mut bundle = SceneBundle::default();
+            bundle.add(first, vec![1], "assets[0]").unwrap();
+            let err = bundle.add(second, vec![2], "assets[1]").unwrap_err();
+            assert_eq!(err.field(), Some("assets[1]"), "{first} {second}");
+            assert!(err.to_string().contains(says), "{err}");
+        }
+        let mut bundle = SceneBundle::default();
+        bundle.add("a/b.obj", vec![1], "assets[0]").unwrap();
+        bundle.add("a/c.obj", vec![1], "assets[1]").unwrap();
+        bundle.add("ab", vec![1], "assets[2]").unwrap();
+    }
 
     #[test]
     fn names_that_could_escape_are_refused() {

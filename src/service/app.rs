@@ -119,7 +119,7 @@ impl Application {
         );
         let quadratures = Arc::new(QuadratureCache::new(config.cache.factorisation_bytes));
         let shared = SharedStore::connect(&config.cluster).context("cluster.redis_url")?;
-        let mut tiles = open_tile_store(&config.cache)?;
+        let mut tiles = open_tile_store(&config.cache, config.limits.max_tile_area)?;
         if let Some(shared) = &shared {
             tiles = tiles.sharing_through(shared.outbox());
             tracing::info!(prefix = %config.cluster.redis_prefix, "sharing tiles and scenes with other replicas through Redis");
@@ -196,12 +196,15 @@ impl Application {
 
 /// The reproducible tiles' store: on `cache.data_dir/tiles.log` when a data
 /// directory is configured (loaded now), in memory otherwise.
-fn open_tile_store(cache: &super::config::CacheConfig) -> anyhow::Result<TileStore> {
+fn open_tile_store(
+    cache: &super::config::CacheConfig,
+    max_tile_area: usize,
+) -> anyhow::Result<TileStore> {
     if cache.data_dir.as_os_str().is_empty() {
-        return Ok(TileStore::new(cache.tile_bytes));
+        return Ok(TileStore::new(cache.tile_bytes, max_tile_area));
     }
     let path = cache.data_dir.join("tiles.log");
-    let store = TileStore::open(cache.tile_bytes, &path)
+    let store = TileStore::open(cache.tile_bytes, max_tile_area, &path)
         .with_context(|| format!("cannot open the tile log {}", path.display()))?;
     let stats = store.stats();
     tracing::info!(log = %path.display(), entries = stats.loaded_entries,

@@ -49,6 +49,10 @@ pub enum ApiError {
         value: u64,
         limit: u64,
     },
+    /// A body longer than the byte limit `field` (a config key) allows; its
+    /// full length is unknown, as reading stops at the limit.
+    #[error("the request body is larger than {limit} bytes, the limit `{field}` sets")]
+    BodyTooLarge { field: &'static str, limit: u64 },
     #[error("{what} `{id}` not found")]
     NotFound { what: &'static str, id: String },
     #[error("no route for {path}")]
@@ -146,9 +150,8 @@ impl ApiError {
 
     /// An upload or import body over `limits.max_upload_bytes` (422 naming it).
     pub fn upload_too_large(limit: u64) -> Self {
-        ApiError::LimitExceeded {
-            field: "limits.max_upload_bytes".into(),
-            value: limit.saturating_add(1),
+        ApiError::BodyTooLarge {
+            field: "limits.max_upload_bytes",
             limit,
         }
     }
@@ -196,9 +199,9 @@ impl ApiError {
     pub fn status(&self) -> StatusCode {
         match self {
             ApiError::MalformedJson { .. } => StatusCode::BAD_REQUEST,
-            ApiError::InvalidField { .. } | ApiError::LimitExceeded { .. } => {
-                StatusCode::UNPROCESSABLE_ENTITY
-            }
+            ApiError::InvalidField { .. }
+            | ApiError::LimitExceeded { .. }
+            | ApiError::BodyTooLarge { .. } => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::NotFound { .. } | ApiError::NoRoute { .. } => StatusCode::NOT_FOUND,
             ApiError::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::PayloadTooLarge => StatusCode::PAYLOAD_TOO_LARGE,
@@ -219,7 +222,7 @@ impl ApiError {
         match self {
             ApiError::MalformedJson { .. } => "malformed_json",
             ApiError::InvalidField { .. } => "invalid_field",
-            ApiError::LimitExceeded { .. } => "limit_exceeded",
+            ApiError::LimitExceeded { .. } | ApiError::BodyTooLarge { .. } => "limit_exceeded",
             ApiError::NotFound { .. } | ApiError::NoRoute { .. } => "not_found",
             ApiError::MethodNotAllowed { .. } => "method_not_allowed",
             ApiError::PayloadTooLarge => "payload_too_large",
@@ -247,6 +250,7 @@ impl ApiError {
                 Some(field)
             }
             ApiError::InsufficientStorage { field, .. } => Some(field),
+            ApiError::BodyTooLarge { field, .. } => Some(field),
             ApiError::CrossOrigin { .. } => Some("Origin"),
             _ => None,
         }
@@ -429,6 +433,9 @@ impl From<crate::service::tile_store::ImportError> for ApiError {
             | ImportError::NotRecords { entry, .. }
             | ImportError::Malformed { entry }
             | ImportError::OtherScene { entry, .. } => format!("entries[{entry}]"),
+            ImportError::InvalidRecord { entry, record, .. } => {
+                format!("entries[{entry}].records[{record}]")
+            }
         };
         ApiError::invalid(field, err.to_string())
     }

@@ -198,11 +198,13 @@ impl PostedScenes {
                 continue;
             }
             match load_one(&entry.path(), scenes_dir) {
-                Ok(mut scene) => {
+                Ok((mut scene, warnings)) => {
                     if scene.name.is_empty() {
                         scene.name = id.clone();
                     }
-                    loaded.push(LoadedScene::new(id, SceneSource::Uploaded, scene));
+                    loaded.push(
+                        LoadedScene::new(id, SceneSource::Uploaded, scene).approximating(&warnings),
+                    );
                 }
                 Err(err) => tracing::warn!(%id, %err, "posted scene not reloaded"),
             }
@@ -212,7 +214,7 @@ impl PostedScenes {
     }
 }
 
-fn load_one(dir: &Path, scenes_dir: &Path) -> anyhow::Result<Scene> {
+fn load_one(dir: &Path, scenes_dir: &Path) -> anyhow::Result<(Scene, Warnings)> {
     let record: PostRecord = serde_json::from_slice(&std::fs::read(dir.join("post.json"))?)?;
     let name = if record.xml {
         "scene.xml"
@@ -237,7 +239,7 @@ fn load_one(dir: &Path, scenes_dir: &Path) -> anyhow::Result<Scene> {
     };
     let (scene, warnings) = load_document(&document, kind, &options, &root)?;
     log_warnings(&dir.display().to_string(), &warnings);
-    Ok(scene)
+    Ok((scene, warnings))
 }
 
 #[cfg(test)]

@@ -59,6 +59,10 @@ pub struct LoadedScene {
     pub triangles: usize,
     /// Heap bytes of the scene, counted against `scenes.max_scene_bytes`.
     pub bytes: u64,
+    /// What loading approximated (lenient Mitsuba XML), the first
+    /// [`crate::scene::MAX_WARNINGS`] of them, and how many there were.
+    pub approximated: Vec<String>,
+    pub approximations: usize,
 }
 
 /// What `GET /v1/scenes[/{id}]` tells about a scene.
@@ -91,6 +95,11 @@ pub struct SceneSummary {
     /// `log_marginal_likelihood`, `at_bound`, `fit_samples`, `points`.
     #[schema(value_type = Vec<Object>)]
     pub fitted_kernels: Vec<FittedKernel>,
+    /// What a lenient load approximated, one line each (`line N: <element>:
+    /// what was done`), at most the first 100; empty for an exact load.
+    pub approximated: Vec<String>,
+    /// How many approximations there were in all.
+    pub approximations: usize,
 }
 
 impl LoadedScene {
@@ -106,7 +115,16 @@ impl LoadedScene {
             calibrations: Calibrations::default(),
             triangles,
             bytes,
+            approximated: Vec::new(),
+            approximations: 0,
         }
+    }
+
+    /// The same scene, with what loading it approximated.
+    pub fn approximating(mut self, warnings: &Warnings) -> LoadedScene {
+        self.approximated = warnings.iter().map(ToString::to_string).collect();
+        self.approximations = warnings.total();
+        self
     }
 
     pub fn summary(&self) -> SceneSummary {
@@ -127,6 +145,8 @@ impl LoadedScene {
             bounds_min: min.to_array(),
             bounds_max: max.to_array(),
             fitted_kernels: self.kernels.list(),
+            approximated: self.approximated.clone(),
+            approximations: self.approximations,
         }
     }
 }

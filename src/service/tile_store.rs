@@ -41,7 +41,7 @@ use moka::sync::Cache;
 
 use super::shared_store::Outbox;
 use crate::cache::log::{self, AppendLog, LogEntry, LogReport};
-use crate::cache::{RECORD_BYTES, Record};
+use crate::cache::{CacheConfig, MAX_IRRADIANCE, RECORD_BYTES, RadiusLimits, Record};
 use crate::image::Image;
 use crate::integrator::cached::CachedTileReport;
 
@@ -78,6 +78,10 @@ pub struct TileStore {
     /// Where parts computed here go to reach other replicas (framed log
     /// entries); `None` without a shared store.
     outbox: Option<Outbox>,
+    /// The largest tile, pixels (`limits.max_tile_area`): a tile places at
+    /// most one record per pixel, and a pass has one value per pixel, so
+    /// parts received with more are refused.
+    max_tile_area: usize,
 }
 
 /// Log entry kinds. Kind 1, records without their scene, is no longer
@@ -98,6 +102,12 @@ pub enum ImportError {
     Malformed { entry: usize },
     #[error("entry {entry} belongs to another scene content (digest {digest})")]
     OtherScene { entry: usize, digest: String },
+    #[error("entry {entry}, record {record}: {reason}")]
+    InvalidRecord {
+        entry: usize,
+        record: usize,
+        reason: String,
+    },
 }
 
 /// What an import added.
@@ -125,8 +135,9 @@ pub struct TileStoreStats {
 
 impl TileStore {
     /// A store of about `bytes` in memory, half for records and half for
-    /// passes, kept in this process only.
-    pub fn new(bytes: u64) -> Self {
+    /// passes, kept in this process only, of tiles of at most
+    /// `max_tile_area` pixels.
+    pub fn new(bytes: u64, max_tile_area: usize) -> Self {
         let half_kib = (bytes / 2).div_ceil(1024).max(1);
         let kib = |b: usize| u32::try_from(b.div_ceil(1024)).unwrap_or(u32::MAX);
         Self {
@@ -145,6 +156,7 @@ impl TileStore {
             budget: bytes,
             loaded: LogReport::default(),
             outbox: None,
+            max_tile_area,
         }
     }
 
@@ -158,8 +170,8 @@ impl TileStore {
     /// [`Self::new`] backed by the log at `path`: every intact entry is
     /// loaded now (a damaged tail is cut, `cache::log`), and every part
     /// computed later is appended.
-    pub fn open(bytes: u64, path: &Path) -> std::io::Result<Self> {
-        let mut store = Self::new(bytes);
+    pub fn open(bytes: u64, max_tile_area: usize, path: &Path) -> std::io::Result<Self> {
+        let mut store = Self::new(bytes, max_tile_area);
         let (log, entries, report) = AppendLog::open(path)?;
         for entry in &entries {
             store.insert_entry(entry);
@@ -237,24 +249,46 @@ impl TileStore {
         true
     }
 
-    /// The records of every tile of the scene content `scene` held here, as
-    /// a log image (`cache::log`: magic, then one records entry per tile).
-    pub fn export(&self, scene: &[u8; 32]) -> Vec<u8> {
+    /// The keys of the tiles of the scene content `scene` whose records are
+    /// held here, for an export ([`Self::export_entry`] each, after
+    /// [`log::MAGIC`]: a log image).
+    pub fn export_keys(&self, scene: &[u8; 32]) -> Vec<Key> {
         self.records.run_pending_tasks();
+        self.records
+            .iter()
+            .filter(|(_, t)| &t.scene == scene)
+            .map(|(key, _)| *key)
+            .collect()
+    }
+
+    /// The records entry of the tile `key`, framed as in the log; `None`
+    /// when it is no longer held (or over the format's size limit).
+    pub fn export_entry(&self, key: &Key) -> Option<Vec<u8>> {
+        let tile = self.records.get(key)?;
+        log::encode_entry(RECORDS, key, &encode_records(&tile)).ok()
+    }
+
+    /// The whole export of `scene` at once ([`Self::export_keys`]).
+    #[cfg(test)]
+    fn export(&self, scene: &[u8; 32]) -> Vec<u8> {
         let mut image = log::MAGIC.to_vec();
-        for (key, tile) in self.records.iter().filter(|(_, t)| &t.scene == scene) {
-            // An entry over the format's size limit cannot be exported.
-            if let Ok(framed) = log::encode_entry(RECORDS, &key, &encode_records(&tile)) {
-                image.extend(framed);
-            }
+        for key in self.export_keys(scene) {
+            image.extend(self.export_entry(&key).unwrap_or_default());
         }
         image
     }
 
     /// Adds the records entries of an export (`Self::export`) of the scene
-    /// content `scene`; all or nothing: any entry that is damaged, not
-    /// records, or of another scene content refuses the whole import.
-    pub fn import(&self, scene: &[u8; 32], image: &[u8]) -> Result<ImportReport, ImportError> {
+    /// content `scene`, whose bounding box is `bounds`; all or nothing: any
+    /// entry that is damaged, not records, of another scene content, or with
+    /// a record computed records could not be (outside `bounds`, or failing
+    /// [`Record::validate_received`]) refuses the whole import.
+    pub fn import(
+        &self,
+        scene: &[u8; 32],
+        bounds: (glam::DVec3, glam::DVec3),
+        image: &[u8],
+    ) -> Result<ImportReport, ImportError> {
         let entries = log::decode_log(image).map_err(|entry| {
             if entry == 0 && !image.starts_with(log::MAGIC) {
                 ImportError::NotALog
@@ -270,11 +304,38 @@ impl TileStore {
                     kind: entry.kind,
                 });
             }
-            let tile = decode_records(&entry.payload).ok_or(ImportError::Malformed { entry: i })?;
+            let tile = self
+                .decode_records(&entry.payload)
+                .map_err(|found| match found {
+                    Refusal::Malformed => ImportError::Malformed { entry: i },
+                    Refusal::Record { record, reason } => ImportError::InvalidRecord {
+                        entry: i,
+                        record,
+                        reason,
+                    },
+                })?;
             if &tile.scene != scene {
                 return Err(ImportError::OtherScene {
                     entry: i,
                     digest: tile.scene.iter().map(|b| format!("{b:02x}")).collect(),
+                });
+            }
+            // Records lie on the scene's surfaces; rounding aside, inside its box.
+            let slack = 1e-6 * (bounds.1 - bounds.0).length() + 1e-9;
+            let (low, high) = (bounds.0 - slack, bounds.1 + slack);
+            if let Some(record) = tile
+                .records
+                .iter()
+                .position(|r| r.position.cmplt(low).any() || r.position.cmpgt(high).any())
+            {
+                return Err(ImportError::InvalidRecord {
+                    entry: i,
+                    record,
+                    reason: format!(
+                        "position {:?} lies outside the scene's bounds {:?}",
+                        tile.records[record].position.to_array(),
+                        [bounds.0.to_array(), bounds.1.to_array()]
+                    ),
                 });
             }
             tiles.push((entry, tile));
@@ -293,13 +354,73 @@ impl TileStore {
         Ok(report)
     }
 
+    /// The records of an entry's payload (`encode_records`), each checked
+    /// as strictly as computed records hold ([`Record::validate_received`]
+    /// with the radius limits of the service's caches), at most one per
+    /// pixel of the largest tile and no two at one place.
+    fn decode_records(&self, bytes: &[u8]) -> Result<TileRecords, Refusal> {
+        let (scene, bytes) = bytes.split_first_chunk::<32>().ok_or(Refusal::Malformed)?;
+        if !bytes.len().is_multiple_of(Record::ENCODED_BYTES) {
+            return Err(Refusal::Malformed);
+        }
+        let count = bytes.len() / Record::ENCODED_BYTES;
+        if count > self.max_tile_area {
+            return Err(Refusal::Record {
+                record: self.max_tile_area,
+                reason: format!(
+                    "{count} records, more than one per pixel of the largest tile ({} pixels, limits.max_tile_area)",
+                    self.max_tile_area
+                ),
+            });
+        }
+        let limits = received_radius_limits();
+        let mut records = Vec::with_capacity(count);
+        for (i, chunk) in bytes.chunks_exact(Record::ENCODED_BYTES).enumerate() {
+            let refused = |reason: String| Refusal::Record { record: i, reason };
+            let record = Record::from_le_bytes(chunk).ok_or_else(|| {
+                refused("not a valid record (non-finite value, zero normal or radius)".into())
+            })?;
+            record
+                .validate_received(limits)
+                .map_err(|e| refused(e.to_string()))?;
+            records.push(record);
+        }
+        // Two records at one place (same position and normal) are never
+        // placed, and would make every lookup there scan them all.
+        let mut places: Vec<([u64; 6], usize)> = records
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let [a, b, c] = r.position.to_array().map(f64::to_bits);
+                let [d, e, f] = r.normal.to_array().map(f64::to_bits);
+                ([a, b, c, d, e, f], i)
+            })
+            .collect();
+        places.sort_unstable();
+        if let Some(pair) = places.windows(2).find(|w| w[0].0 == w[1].0) {
+            return Err(Refusal::Record {
+                record: pair[0].1.max(pair[1].1),
+                reason: format!(
+                    "repeats record {} (same position and normal)",
+                    pair[0].1.min(pair[1].1)
+                ),
+            });
+        }
+        Ok(TileRecords {
+            scene: *scene,
+            records,
+            report: CachedTileReport::default(),
+        })
+    }
+
     /// Decodes and inserts one entry; false when it does not decode.
     fn insert_entry(&self, entry: &LogEntry) -> bool {
         match entry.kind {
-            RECORDS => decode_records(&entry.payload)
+            RECORDS => self
+                .decode_records(&entry.payload)
                 .map(|records| self.records.insert(entry.key, Arc::new(records)))
-                .is_some(),
-            PASS => decode_pass(&entry.payload)
+                .is_ok(),
+            PASS => decode_pass(&entry.payload, self.max_tile_area)
                 .map(|pass| self.passes.insert(entry.key, Arc::new(pass)))
                 .is_some(),
             _ => false,
@@ -369,20 +490,21 @@ fn encode_records(tile: &TileRecords) -> Vec<u8> {
     out
 }
 
-fn decode_records(bytes: &[u8]) -> Option<TileRecords> {
-    let (scene, bytes) = bytes.split_first_chunk::<32>()?;
-    if !bytes.len().is_multiple_of(Record::ENCODED_BYTES) {
-        return None;
-    }
-    let records = bytes
-        .chunks_exact(Record::ENCODED_BYTES)
-        .map(Record::from_le_bytes)
-        .collect::<Option<Vec<_>>>()?;
-    Some(TileRecords {
-        scene: *scene,
-        records,
-        report: CachedTileReport::default(),
-    })
+/// Why a records payload was refused.
+enum Refusal {
+    /// Not a records payload at all.
+    Malformed,
+    /// Record `record` (or the count, as `record` = the limit) is not one
+    /// computed records could be.
+    Record { record: usize, reason: String },
+}
+
+/// The radius limits of the records the service computes: its irradiance
+/// caches are all made from [`CacheConfig::default`] (`service::integrator_doc`).
+fn received_radius_limits() -> RadiusLimits {
+    CacheConfig::default()
+        .validate()
+        .expect("the default cache configuration is valid")
 }
 
 /// `width, height: u32 | rays, cache_hits: u64 | has variance: u8 | rgb
@@ -406,13 +528,19 @@ fn encode_pass(pass: &RenderedPass) -> Vec<u8> {
     out
 }
 
-fn decode_pass(bytes: &[u8]) -> Option<RenderedPass> {
+/// The pass of an entry's payload (`encode_pass`): at most `max_area`
+/// pixels, every value finite, non-negative and at most [`MAX_IRRADIANCE`]
+/// (variances its square), as rendered passes are.
+fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
     let u32_at = |i: usize| Some(u32::from_le_bytes(bytes.get(i..i + 4)?.try_into().ok()?));
     let u64_at = |i: usize| Some(u64::from_le_bytes(bytes.get(i..i + 8)?.try_into().ok()?));
     let (width, height) = (u32_at(0)?, u32_at(4)?);
     let (rays, cache_hits) = (u64_at(8)?, u64_at(16)?);
     let has_variance = *bytes.get(24)? == 1;
     let pixels = (width as usize).checked_mul(height as usize)?;
+    if pixels > max_area {
+        return None;
+    }
     let floats: Vec<f32> = bytes
         .get(25..)?
         .chunks_exact(4)
@@ -420,6 +548,16 @@ fn decode_pass(bytes: &[u8]) -> Option<RenderedPass> {
         .collect();
     if floats.len() != pixels * (3 + usize::from(has_variance))
         || !bytes[25..].len().is_multiple_of(4)
+    {
+        return None;
+    }
+    let (max_value, max_variance) = (
+        MAX_IRRADIANCE as f32,
+        (MAX_IRRADIANCE * MAX_IRRADIANCE) as f32,
+    );
+    let (values, variances) = floats.split_at(3 * pixels);
+    if !values.iter().all(|v| (0.0..=max_value).contains(v))
+        || !variances.iter().all(|v| (0.0..=max_variance).contains(v))
     {
         return None;
     }
@@ -455,7 +593,7 @@ mod tests {
         let path = dir.path().join("tiles.log");
         let record = Record::from_le_bytes(&[0u8; Record::ENCODED_BYTES]);
         assert!(record.is_none(), "a zero normal is not a record");
-        let store = TileStore::open(1 << 20, &path).unwrap();
+        let store = TileStore::open(1 << 20, 4096, &path).unwrap();
         let p = store.pass_or::<()>([1; 32], || Ok(pass(1.5))).unwrap();
         // Cached: the closure is not called again.
         let again = store
@@ -463,7 +601,7 @@ mod tests {
             .unwrap();
         assert_eq!(again.image, p.image);
         drop(store);
-        let reopened = TileStore::open(1 << 20, &path).unwrap();
+        let reopened = TileStore::open(1 << 20, 4096, &path).unwrap();
         assert_eq!(reopened.stats().loaded_entries, 1);
         let back = reopened
             .pass_or::<()>([1; 32], || panic!("not loaded"))
@@ -472,8 +610,11 @@ mod tests {
             (back.image.clone(), back.rays, back.cache_hits),
             (p.image.clone(), 99, 7)
         );
-        assert!(decode_pass(&encode_pass(&p)[..30]).is_none());
+        assert!(decode_pass(&encode_pass(&p)[..30], 4096).is_none());
     }
+
+    /// A box around the records of [`tile`].
+    const BOUNDS: (glam::DVec3, glam::DVec3) = (glam::DVec3::splat(-1.0), glam::DVec3::splat(1.0));
 
     fn tile(scene: u8) -> TileRecords {
         use glam::DVec3;
@@ -488,14 +629,19 @@ mod tests {
         };
         TileRecords {
             scene: [scene; 32],
-            records: vec![valid; 3],
+            records: (0..3)
+                .map(|i| Record {
+                    position: DVec3::new(0.1 * f64::from(i), 0.0, 0.0),
+                    ..valid
+                })
+                .collect(),
             report: CachedTileReport::default(),
         }
     }
 
     #[test]
     fn a_scene_s_records_export_and_import_and_nothing_else() {
-        let store = TileStore::new(1 << 20);
+        let store = TileStore::new(1 << 20, 4096);
         store.records_or::<()>([1; 32], || Ok(tile(7))).unwrap();
         store.records_or::<()>([2; 32], || Ok(tile(7))).unwrap();
         store.records_or::<()>([3; 32], || Ok(tile(8))).unwrap();
@@ -503,8 +649,8 @@ mod tests {
         let export = store.export(&[7; 32]);
         assert_eq!(log::decode_log(&export).unwrap().len(), 2);
 
-        let other = TileStore::new(1 << 20);
-        let report = other.import(&[7; 32], &export).unwrap();
+        let other = TileStore::new(1 << 20, 4096);
+        let report = other.import(&[7; 32], BOUNDS, &export).unwrap();
         assert_eq!(
             (report.imported, report.already_held, report.records),
             (2, 0, 6)
@@ -513,19 +659,27 @@ mod tests {
             .records_or::<()>([2; 32], || panic!("not imported"))
             .unwrap();
         assert_eq!(back.records, tile(7).records);
-        assert_eq!(other.import(&[7; 32], &export).unwrap().already_held, 2);
+        assert_eq!(
+            other
+                .import(&[7; 32], BOUNDS, &export)
+                .unwrap()
+                .already_held,
+            2
+        );
         // Refused whole: another scene's content, damage, not an export.
-        let fresh = TileStore::new(1 << 20);
+        let fresh = TileStore::new(1 << 20, 4096);
         assert!(matches!(
-            fresh.import(&[8; 32], &export),
+            fresh.import(&[8; 32], BOUNDS, &export),
             Err(ImportError::OtherScene { entry: 0, .. })
         ));
         assert_eq!(
-            fresh.import(&[7; 32], &export[..export.len() - 3]).err(),
+            fresh
+                .import(&[7; 32], BOUNDS, &export[..export.len() - 3])
+                .err(),
             Some(ImportError::Damaged { entry: 1 })
         );
         assert_eq!(
-            fresh.import(&[7; 32], b"{}").err(),
+            fresh.import(&[7; 32], BOUNDS, b"{}").err(),
             Some(ImportError::NotALog)
         );
         assert_eq!(fresh.stats().tiles, 0);
@@ -533,7 +687,7 @@ mod tests {
 
     #[test]
     fn parts_from_another_replica_merge_once() {
-        let store = TileStore::new(1 << 20);
+        let store = TileStore::new(1 << 20, 4096);
         let framed = log::encode_entry(PASS, &[5; 32], &encode_pass(&pass(2.0))).unwrap();
         assert!(store.merge(&framed));
         assert!(!store.merge(&framed), "held already");
@@ -549,7 +703,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("tiles.log");
         // A budget of a few passes: the log is rewritten many times.
-        let store = TileStore::open(4096, &path).unwrap();
+        let store = TileStore::open(4096, 4096, &path).unwrap();
         for i in 0..200u8 {
             store
                 .pass_or::<()>([i; 32], || Ok(pass(f32::from(i))))
@@ -561,7 +715,7 @@ mod tests {
             store.stats()
         );
         drop(store);
-        let reopened = TileStore::open(4096, &path).unwrap();
+        let reopened = TileStore::open(4096, 4096, &path).unwrap();
         assert!(reopened.stats().loaded_entries > 0);
     }
 }

@@ -208,6 +208,18 @@ async fn xml_that_expands_or_repeats_is_refused_or_read_promptly() {
     let summary: Value = response.json().await.unwrap();
     // An XML document has no name of its own: the id names it.
     assert_eq!(summary["name"], "many");
+    // The answer says what was approximated (the first ones, and how many),
+    // and so does the scene's summary afterwards.
+    let total = summary["approximations"].as_u64().unwrap();
+    assert!(total >= 80_000, "{total}");
+    let approximated = summary["approximated"].as_array().unwrap();
+    assert!(!approximated.is_empty() && approximated.len() < 1000);
+    assert!(
+        approximated[0].as_str().unwrap().contains("<foo>"),
+        "{summary}"
+    );
+    let again: Value = app.get("/v1/scenes/many").await.json().await.unwrap();
+    assert_eq!(again["approximations"], total);
 
     still_serving(&app).await;
 }

@@ -104,3 +104,30 @@ async fn wrong_method_is_405_json() {
         ("method_not_allowed".into(), None)
     );
 }
+
+/// The viewer's files are never sniffed as another type, and its page may
+/// load nothing but this service's own script, style and API.
+#[tokio::test]
+async fn the_viewer_is_served_with_nosniff_and_a_content_security_policy() {
+    let app = spawn_app().await;
+    for path in ["/", "/viewer.js", "/viewer.css"] {
+        let response = app.get(path).await;
+        assert_eq!(response.status(), StatusCode::OK, "{path}");
+        assert_eq!(
+            response.headers()["x-content-type-options"],
+            "nosniff",
+            "{path}"
+        );
+        let policy = response.headers()["content-security-policy"]
+            .to_str()
+            .unwrap();
+        for directive in [
+            "default-src 'none'",
+            "script-src 'self'",
+            "connect-src 'self'",
+            "frame-ancestors 'none'",
+        ] {
+            assert!(policy.contains(directive), "{path}: {policy}");
+        }
+    }
+}

@@ -273,3 +273,112 @@ async fn records_export_from_one_service_and_import_into_another() {
     let response = post(&second, "missing", export).await.unwrap();
     assert_eq!(response.status(), 404);
 }
+
+/// An export with its first entry's records changed by `forge` and framed
+/// again with a valid checksum (the log format of `cache::log`: magic, then
+/// `length u32 | checksum 8 | kind 1 | key 32 | payload`, the checksum the
+/// first 8 bytes of BLAKE3 over kind, key and payload; a records payload is
+/// the scene digest, then 31 little-endian f64s per record).
+fn forged(export: &[u8], forge: impl FnOnce(&mut Vec<[f64; 31]>)) -> Vec<u8> {
+    let length = u32::from_le_bytes(export[8..12].try_into().unwrap()) as usize;
+    let body = &export[20..20 + length];
+    let (head, payload) = body.split_at(33 + 32);
+    let mut records: Vec<[f64; 31]> = payload
+        .chunks_exact(31 * 8)
+        .map(|r| {
+            std::array::from_fn(|i| f64::from_le_bytes(r[8 * i..8 * i + 8].try_into().unwrap()))
+        })
+        .collect();
+    forge(&mut records);
+    let mut body = head.to_vec();
+    body.extend(records.iter().flatten().flat_map(|v| v.to_le_bytes()));
+    let mut out = b"BMCLOG01".to_vec();
+    out.extend((body.len() as u32).to_le_bytes());
+    out.extend(&blake3::hash(&body).as_bytes()[..8]);
+    out.extend(&body);
+    out.extend(&export[20 + length..]);
+    out
+}
+
+/// Records that no computation could produce are refused whole, naming the
+/// entry and record, although their checksums are valid; nothing of them is
+/// kept, and the tiles stay finite.
+#[tokio::test]
+async fn poisoned_records_imports_are_refused() {
+    let first = spawn_app_in(scenes_dir(), |_| {}).await;
+    let (images, _, _) = render_all(&first).await;
+    let export = first
+        .get("/v1/scenes/box/records")
+        .await
+        .bytes()
+        .await
+        .unwrap()
+        .to_vec();
+    let second = spawn_app_in(scenes_dir(), |_| {}).await;
+    let post = |body: Vec<u8>| {
+        second
+            .client
+            .post(second.url("/v1/scenes/box/records"))
+            .header("content-type", "application/vnd.bmc-records")
+            .body(body)
+            .send()
+    };
+    // Field offsets within a record: position 0, irradiance 6, variance 9, radius 12.
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "huge",
+            forged(&export, |r| r[0][6] = 1e300),
+            "entries[0].records[0]",
+        ),
+        (
+            "negative",
+            forged(&export, |r| r[1][7] = -1e4),
+            "entries[0].records[1]",
+        ),
+        (
+            "not a number",
+            forged(&export, |r| r[0][8] = f64::NAN),
+            "entries[0].records[0]",
+        ),
+        (
+            "negative variance",
+            forged(&export, |r| r[0][9] = -1.0),
+            "entries[0].records[0]",
+        ),
+        (
+            "huge radius",
+            forged(&export, |r| r[0][12] = 1e6),
+            "entries[0].records[0]",
+        ),
+        (
+            "outside the scene",
+            forged(&export, |r| r[0][0] = 50.0),
+            "entries[0].records[0]",
+        ),
+        (
+            "duplicated",
+            forged(&export, |r| {
+                let copy = r[0];
+                r.extend(std::iter::repeat_n(copy, 3));
+            }),
+            "entries[0].records[",
+        ),
+    ];
+    for (what, body, field) in cases {
+        let response = post(body).await.unwrap();
+        assert_eq!(response.status(), 422, "{what}");
+        let (code, named) = crate::common::error_of(response).await;
+        assert_eq!(code, "invalid_field", "{what}");
+        assert!(
+            named.as_deref().unwrap_or("").starts_with(field),
+            "{what}: {named:?}"
+        );
+    }
+    let health: Value = second.get("/health").await.json().await.unwrap();
+    assert_eq!(health["tiles"]["tiles"], 0, "{health}");
+    // The genuine export still imports, and gives the first service's bytes.
+    let imported: Value = post(export).await.unwrap().json().await.unwrap();
+    assert_eq!(imported["imported"], 4, "{imported}");
+    let url = "/v1/scenes/box/tiles/0/0.png?size=32&preset=draft";
+    assert_eq!(second.get(url).await.bytes().await.unwrap(), images[0]);
+}

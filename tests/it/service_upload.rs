@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::common::{TestApp, error_of, spawn_app_with};
+use crate::common::{TestApp, spawn_app_with};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -187,8 +187,14 @@ async fn escaping_and_oversized_uploads_are_refused() {
             "{field}: {}",
             response.status()
         );
-        let (_, got) = error_of(response).await;
-        assert_eq!(got.as_deref(), Some(field));
+        let (body, _) = crate::common::error_json(response).await;
+        assert_eq!(body["error"]["field"].as_str(), Some(field), "{body}");
+        if field == "limits.max_upload_bytes" {
+            // The limit as configured, not a made-up length one above it.
+            let message = body["error"]["message"].as_str().unwrap();
+            assert!(message.contains(" 65536 bytes"), "{message}");
+            assert!(!message.contains("65537"), "{message}");
+        }
     }
     // Nothing was added, and the service is fine.
     let scenes: Value = app.get("/v1/scenes").await.json().await.unwrap();

@@ -199,7 +199,10 @@ impl CachedIntegrator<'_> {
         cancel: &Cancel,
     ) -> Result<(RenderedTile, ShadingStats), RenderError> {
         let private = self.private_cache()?;
-        for record in records {
+        for (i, record) in records.iter().enumerate() {
+            if i % 256 == 0 {
+                cancel.check()?;
+            }
             private.insert(*record)?;
         }
         CachedIntegrator {

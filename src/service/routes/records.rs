@@ -11,8 +11,13 @@
 
 use std::sync::Arc;
 
+use std::time::Duration;
+
 use axum::Json;
-use axum::body::Bytes;
+use axum::body::{Body, Bytes};
+use http_body_util::channel::Channel;
+
+use crate::cache::log;
 use axum::extract::{Request, State};
 use axum::http::header;
 use axum::response::IntoResponse;
@@ -22,11 +27,19 @@ use crate::service::extract::{SceneId, body_up_to};
 use crate::service::state::AppState;
 use crate::service::tile_store::ImportReport;
 
+/// Tile entries an export has encoded ahead of what the client has read.
+const EXPORT_ENTRIES_IN_FLIGHT: usize = 2;
+
 /// Media type of an export.
 const RECORDS_MEDIA_TYPE: &str = "application/vnd.bmc-records";
 
 /// The records of every reproducible tile of the scene held by this
 /// replica, as a log image (module docs); an empty export is the magic alone.
+///
+/// Streamed one tile's entry at a time through a channel of
+/// [`EXPORT_ENTRIES_IN_FLIGHT`] entries, so a client that reads slowly holds
+/// that much memory, not the whole export; one that reads nothing for
+/// `server.header_read_timeout_secs` has the response cut off.
 #[utoipa::path(get, path = "/v1/scenes/{id}/records", tag = "scenes",
     params(("id" = String, Path, description = "Scene id")),
     responses((status = 200, description = "The records (`BMCLOG01` log image)", content_type = "application/vnd.bmc-records"),
@@ -38,20 +51,48 @@ pub async fn export_records(
     let scene = state.scene(&id).await?;
     let digest = *scene.transport.scene().digest.as_bytes();
     let keeper = state.clone();
-    let image = tokio::task::spawn_blocking(move || keeper.tiles.export(&digest)).await?;
+    let keys = tokio::task::spawn_blocking(move || keeper.tiles.export_keys(&digest)).await?;
+    let stall = Duration::from_secs(state.config.server.header_read_timeout_secs);
+    let (mut sender, body) = Channel::<Bytes, std::io::Error>::new(EXPORT_ENTRIES_IN_FLIGHT);
+    let keeper = state.clone();
+    tokio::spawn(async move {
+        let mut next = Some(Bytes::from_static(log::MAGIC));
+        let mut keys = keys.into_iter();
+        while let Some(chunk) = next.take() {
+            match tokio::time::timeout(stall, sender.send_data(chunk)).await {
+                Ok(Ok(())) => {}
+                // The client is gone.
+                Ok(Err(_)) => return,
+                Err(_) => {
+                    sender.abort(std::io::Error::new(
+                        std::io::ErrorKind::TimedOut,
+                        "the client stopped reading the export",
+                    ));
+                    return;
+                }
+            }
+            // Encoding one tile's entry is cheap (a copy of its records).
+            next = keys
+                .by_ref()
+                .find_map(|key| keeper.tiles.export_entry(&key))
+                .map(Bytes::from);
+        }
+    });
     let name = format!("attachment; filename=\"{id}.records\"");
     Ok((
         [
             (header::CONTENT_TYPE, RECORDS_MEDIA_TYPE.to_owned()),
             (header::CONTENT_DISPOSITION, name),
         ],
-        Bytes::from(image),
+        Body::new(body),
     ))
 }
 
 /// Adds the records of an export of the same scene content (all or
 /// nothing: a damaged entry, or one of another scene content, refuses the
-/// whole body with 422 naming `entries[i]`); tiles already held are kept.
+/// whole body with 422 naming `entries[i]`, and a record that computed ones
+/// could not be (non-finite, negative, huge, outside the scene, repeated)
+/// with 422 naming `entries[i].records[j]`); tiles already held are kept.
 /// The body may be up to `limits.max_upload_bytes`.
 #[utoipa::path(post, path = "/v1/scenes/{id}/records", tag = "scenes",
     params(("id" = String, Path, description = "Scene id")),
@@ -67,8 +108,10 @@ pub async fn import_records(
     let scene = state.scene(&id).await?;
     let body = body_up_to(request, state.config.limits.max_upload_bytes).await?;
     let digest = *scene.transport.scene().digest.as_bytes();
+    let bounds = scene.transport.scene().bounds();
     let keeper = state.clone();
-    let report = tokio::task::spawn_blocking(move || keeper.tiles.import(&digest, &body)).await??;
+    let report =
+        tokio::task::spawn_blocking(move || keeper.tiles.import(&digest, bounds, &body)).await??;
     tracing::info!(%id, imported = report.imported, records = report.records, "records imported");
     Ok(Json(report))
 }

@@ -8,7 +8,7 @@ use axum::extract::{Query, Request, State};
 use axum::http::StatusCode;
 
 use crate::scene::bundle::{DocumentKind, SceneBundle};
-use crate::scene::{MitsubaOptions, Scene};
+use crate::scene::{MitsubaOptions, Scene, Warnings};
 use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{
     MediaType, SceneId, body_bytes, body_media_type, content_type_text, parse_json,
@@ -77,7 +77,7 @@ pub async fn post_scene(
 ) -> Result<(StatusCode, Json<SceneSummary>), ApiError> {
     let Query(query) = query?;
     let root = state.config.scenes.dir.clone();
-    let (id, scene, posted) = match body_media_type(&request) {
+    let (id, scene, posted, warnings) = match body_media_type(&request) {
         MediaType::Json => {
             if query.id.is_some() {
                 return Err(ApiError::invalid(
@@ -102,7 +102,7 @@ pub async fn post_scene(
                 .pool
                 .run(move |_| Scene::from_json_str(&text, &root, &root))
                 .await??;
-            (id, scene, posted)
+            (id, scene, posted, Warnings::default())
         }
         MediaType::Xml => {
             let id = query.id.ok_or_else(|| {
@@ -129,7 +129,7 @@ pub async fn post_scene(
             if scene.name.is_empty() {
                 scene.name = id.clone();
             }
-            (id, scene, posted)
+            (id, scene, posted, warnings)
         }
         MediaType::Multipart => {
             let limit = state.config.limits.max_upload_bytes;
@@ -175,7 +175,7 @@ pub async fn post_scene(
                 lenient: query.lenient,
                 bundle: Some(upload.bundle),
             };
-            (id, scene, posted)
+            (id, scene, posted, warnings)
         }
         MediaType::Other => {
             return Err(ApiError::UnsupportedSceneMediaType {
@@ -183,7 +183,7 @@ pub async fn post_scene(
             });
         }
     };
-    let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene);
+    let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene).approximating(&warnings);
     let summary = loaded.summary();
     let generation = loaded.generation;
     let replaced = state.scenes.insert(loaded)?;
