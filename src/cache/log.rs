@@ -11,13 +11,18 @@
 //! first 8 bytes of BLAKE3 over those same bytes. Entries are appended with
 //! one `write_all` each and never rewritten in place.
 //!
-//! # Torn and corrupt tails
-//! A crash can leave a partial last entry, and a disk can return garbage.
-//! [`AppendLog::open`] reads entries in order and stops at the first one
-//! that is incomplete, too long or fails its checksum; the file is cut back
-//! to the end of the last good entry, so every complete entry before the
-//! damage is kept and later appends follow valid data. Nothing in a bad
-//! file makes opening fail, except not being able to read or write it.
+//! # Damaged entries and torn tails
+//! A crash can leave a partial last entry, a full disk a partial entry
+//! anywhere, and a disk can return garbage. [`AppendLog::open`] reads
+//! entries in order; at one that is incomplete, too long or fails its
+//! checksum it looks for the next intact entry (the damaged entry's own
+//! length first, then byte by byte) and goes on from there, so damage costs
+//! only the entries it touches. Damage after the last intact entry is a torn
+//! tail: the file is cut back to that entry, so later appends follow valid
+//! data. A damaged magic is repaired when intact entries follow it. Nothing
+//! in a bad file makes opening fail, except not being able to read or write
+//! it. An append that fails (a full disk) is cut back off the file at once,
+//! so it cannot hide the appends that follow.
 //!
 //! # The same format elsewhere
 //! [`encode_entry`] and [`decode_entry`] frame one entry the same way for
@@ -31,7 +36,8 @@
 //! so the log can be brought back to what its owner still holds.
 
 use std::fs::{File, OpenOptions};
-use std::io::{self, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
+use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -41,6 +47,9 @@ pub const MAGIC: &[u8; 8] = b"BMCLOG01";
 /// Largest accepted entry (`kind + key + payload`), bytes: a longer length
 /// field is corruption, not an entry.
 pub const MAX_ENTRY_BYTES: u32 = 64 << 20;
+/// Largest entry kind: kinds are small numbers, so a larger kind byte marks
+/// bytes that are not an entry's start (what lets damage be skipped).
+pub const MAX_KIND: u8 = 15;
 /// Bytes of an entry's header before `kind`: length and checksum.
 const HEADER_BYTES: u64 = 12;
 
@@ -60,7 +69,8 @@ pub struct LogEntry {
 pub struct LogReport {
     /// Complete entries read.
     pub entries: u64,
-    /// Bytes cut from the end (a torn or corrupt tail); 0 for a clean log.
+    /// Bytes of damaged entries skipped and of a torn tail cut; 0 for a
+    /// clean log.
     pub dropped_bytes: u64,
 }
 
@@ -104,16 +114,39 @@ impl AppendLog {
         let len = file.metadata()?.len();
         let mut report = LogReport::default();
         let mut entries = Vec::new();
+        // End of the last intact entry; 0 while nothing shows this is a log.
         let mut good = 0;
         if len >= MAGIC.len() as u64 {
-            let mut reader = BufReader::new(&mut file);
             let mut magic = [0; 8];
-            reader.read_exact(&mut magic)?;
-            if &magic == MAGIC {
-                good = MAGIC.len() as u64;
-                while let Some(entry) = read_entry(&mut reader, len - good)? {
-                    good += HEADER_BYTES + 33 + entry.payload.len() as u64;
-                    entries.push(entry);
+            file.read_exact_at(&mut magic, 0)?;
+            let start = MAGIC.len() as u64;
+            let mut at = if &magic == MAGIC {
+                Some(start)
+            } else {
+                // Not our magic: a log all the same if intact entries follow.
+                let first = next_intact(&file, start, len)?;
+                if let Some(first) = first {
+                    file.write_all_at(MAGIC, 0)?;
+                    report.dropped_bytes += first - start;
+                }
+                first
+            };
+            if at.is_some() {
+                good = start;
+            }
+            while let Some(here) = at.filter(|&here| here < len) {
+                match entry_at(&file, here, len)? {
+                    Some((entry, size)) => {
+                        entries.push(entry);
+                        good = here + size;
+                        at = Some(good);
+                    }
+                    None => {
+                        at = next_intact(&file, here + 1, len)?;
+                        if let Some(next) = at {
+                            report.dropped_bytes += next - here;
+                        }
+                    }
                 }
             }
         }
@@ -126,7 +159,7 @@ impl AppendLog {
             report.dropped_bytes = len;
         } else if good < len {
             file.set_len(good)?;
-            report.dropped_bytes = len - good;
+            report.dropped_bytes += len - good;
         }
         file.sync_data()?;
         file.seek(SeekFrom::Start(good))?;
@@ -146,7 +179,14 @@ impl AppendLog {
     pub fn append(&self, kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<()> {
         let frame = encode_entry(kind, key, payload)?;
         let mut file = self.file.lock().unwrap_or_else(|p| p.into_inner());
-        file.write_all(&frame)?;
+        if let Err(err) = file.write_all(&frame) {
+            // Cut off whatever part was written (module docs); if even that
+            // fails, the next open skips it.
+            let good = self.bytes.load(Ordering::Relaxed);
+            let _ = file.set_len(good);
+            let _ = file.seek(SeekFrom::Start(good));
+            return Err(err);
+        }
         self.bytes.fetch_add(frame.len() as u64, Ordering::Relaxed);
         Ok(())
     }
@@ -210,6 +250,12 @@ pub fn decode_log(bytes: &[u8]) -> Result<Vec<LogEntry>, usize> {
 
 /// One entry framed as in the file: length, checksum, kind, key, payload.
 pub fn encode_entry(kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<Vec<u8>> {
+    if kind > MAX_KIND {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "log entry kind above MAX_KIND",
+        ));
+    }
     let length = u32::try_from(1 + key.len() + payload.len())
         .ok()
         .filter(|&l| l <= MAX_ENTRY_BYTES)
@@ -223,6 +269,86 @@ pub fn encode_entry(kind: u8, key: &LogKey, payload: &[u8]) -> io::Result<Vec<u8
     frame.extend_from_slice(&checksum(&body));
     frame.extend_from_slice(&body);
     Ok(frame)
+}
+
+/// The intact entry at byte `at` of a file of `len` bytes, with its framed
+/// size; `None` where no complete, intact entry starts there.
+fn entry_at(file: &File, at: u64, len: u64) -> io::Result<Option<(LogEntry, u64)>> {
+    let Some(remaining) = len.checked_sub(at) else {
+        return Ok(None);
+    };
+    if remaining < HEADER_BYTES + 33 {
+        return Ok(None);
+    }
+    let mut header = [0; HEADER_BYTES as usize + 1];
+    file.read_exact_at(&mut header, at)?;
+    let Some(size) = plausible(&header, remaining) else {
+        return Ok(None);
+    };
+    let mut framed = vec![0; size as usize];
+    file.read_exact_at(&mut framed, at)?;
+    let mut reader = &framed[..];
+    Ok(read_entry(&mut reader, size)?.map(|entry| (entry, size)))
+}
+
+/// The framed size an entry whose first 13 bytes (header and kind) are
+/// `head` would have, if it is plausible: a length within bounds that fits
+/// in `remaining` bytes, and a kind of at most [`MAX_KIND`].
+fn plausible(head: &[u8], remaining: u64) -> Option<u64> {
+    let length = u32::from_le_bytes(head.get(..4)?.try_into().ok()?);
+    let kind = *head.get(HEADER_BYTES as usize)?;
+    let size = HEADER_BYTES + u64::from(length);
+    ((33..=MAX_ENTRY_BYTES).contains(&length) && kind <= MAX_KIND && size <= remaining)
+        .then_some(size)
+}
+
+/// Where the first intact entry at or after byte `from` starts, if any:
+/// the place a damaged entry's own length points to first (damage inside an
+/// entry leaves its length intact), then every byte in order. A byte is
+/// checked in full only if its header is plausible and is followed, where
+/// its length says, by the end of the file or another plausible header, so
+/// random bytes almost never cost reading and hashing a made-up entry.
+fn next_intact(file: &File, from: u64, len: u64) -> io::Result<Option<u64>> {
+    const HEAD: u64 = HEADER_BYTES + 1;
+    let head_at = |at: u64| -> io::Result<Option<[u8; HEAD as usize]>> {
+        if at + HEAD > len {
+            return Ok(None);
+        }
+        let mut head = [0; HEAD as usize];
+        file.read_exact_at(&mut head, at)?;
+        Ok(Some(head))
+    };
+    if let Some(damaged) = from.checked_sub(1)
+        && let Some(head) = head_at(damaged)?
+    {
+        let length = u32::from_le_bytes(head[..4].try_into().expect("4 bytes"));
+        let after = damaged + HEADER_BYTES + u64::from(length);
+        if after < len && entry_at(file, after, len)?.is_some() {
+            return Ok(Some(after));
+        }
+    }
+    const WINDOW: u64 = 1 << 20;
+    let mut start = from;
+    while start + HEADER_BYTES + 33 <= len {
+        let n = (len - start).min(WINDOW);
+        let mut window = vec![0; n as usize];
+        file.read_exact_at(&mut window, start)?;
+        // Offsets whose whole head lies in this window.
+        for offset in 0..n.saturating_sub(HEAD - 1) {
+            let at = start + offset;
+            let Some(size) = plausible(&window[offset as usize..], len - at) else {
+                continue;
+            };
+            let next = at + size;
+            let chained = next == len
+                || head_at(next)?.is_some_and(|head| plausible(&head, len - next).is_some());
+            if chained && entry_at(file, at, len)?.is_some() {
+                return Ok(Some(at));
+            }
+        }
+        start += n.saturating_sub(HEAD - 1).max(1);
+    }
+    Ok(None)
 }
 
 /// The next complete, intact entry of at most `remaining` bytes, or `None`
@@ -333,30 +459,84 @@ mod tests {
         }
     }
 
+    /// Where each of `entries` starts in a log holding them in order.
+    fn starts(entries: &[LogEntry]) -> Vec<usize> {
+        let mut at = MAGIC.len();
+        entries
+            .iter()
+            .map(|e| {
+                let start = at;
+                at += HEADER_BYTES as usize + 33 + e.payload.len();
+                start
+            })
+            .collect()
+    }
+
+    /// A flipped bit anywhere in an entry (length, checksum, kind, key or
+    /// payload) or in the magic costs that entry at most: every other one
+    /// is read, and appends go on.
     #[test]
-    fn corrupt_bytes_end_the_log_at_the_last_good_entry() {
+    fn damage_costs_only_the_entries_it_touches() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("tiles.log");
-        let entries: Vec<_> = (0..4).map(entry).collect();
+        let entries: Vec<_> = (1..7).map(entry).collect();
         write(&path, &entries);
-        let mut bytes = std::fs::read(&path).unwrap();
-        // Flip one payload byte of the third entry.
-        let third = MAGIC.len()
-            + entries[..2]
-                .iter()
-                .map(|e| HEADER_BYTES as usize + 33 + e.payload.len())
-                .sum::<usize>();
-        bytes[third + HEADER_BYTES as usize + 40] ^= 0x55;
+        let clean = std::fs::read(&path).unwrap();
+        let starts = starts(&entries);
+        for (damaged, &start) in starts.iter().enumerate() {
+            let end = starts.get(damaged + 1).copied().unwrap_or(clean.len());
+            for byte in [start, start + 2, start + 5, start + 12, start + 20, end - 1] {
+                for bit in [0, 7] {
+                    let mut bytes = clean.clone();
+                    bytes[byte] ^= 1 << bit;
+                    std::fs::write(&path, &bytes).unwrap();
+                    let (log, read, report) = AppendLog::open(&path).unwrap();
+                    let mut expected = entries.clone();
+                    expected.remove(damaged);
+                    assert_eq!(read, expected, "entry {damaged}, byte {byte}, bit {bit}");
+                    assert!(report.dropped_bytes > 0);
+                    log.append(3, &[9; 32], b"after").unwrap();
+                    drop(log);
+                    let (_, again, _) = AppendLog::open(&path).unwrap();
+                    assert_eq!(again.len(), expected.len() + 1);
+                    assert_eq!(again.last().unwrap().payload, b"after");
+                }
+            }
+        }
+        // The magic.
+        let mut bytes = clean.clone();
+        bytes[3] ^= 0x10;
         std::fs::write(&path, &bytes).unwrap();
-        let (_, read, report) = AppendLog::open(&path).unwrap();
-        assert_eq!(read, entries[..2]);
-        assert!(report.dropped_bytes > 0);
+        let (_, read, _) = AppendLog::open(&path).unwrap();
+        assert_eq!(read, entries);
+        assert!(std::fs::read(&path).unwrap().starts_with(MAGIC));
         // A file that is not a log at all is started over.
         std::fs::write(&path, b"something else entirely").unwrap();
         let (log, read, report) = AppendLog::open(&path).unwrap();
         assert!(read.is_empty());
         assert_eq!(report.dropped_bytes, 23);
         assert_eq!(log.bytes(), MAGIC.len() as u64);
+    }
+
+    /// An entry torn in the middle of the log (a full disk that later had
+    /// room again) hides none of the entries appended after it.
+    #[test]
+    fn a_torn_entry_mid_log_hides_nothing_after_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tiles.log");
+        let entries: Vec<_> = (1..5).map(entry).collect();
+        write(&path, &entries[..2]);
+        let torn = encode_entry(entries[2].kind, &entries[2].key, &entries[2].payload).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        bytes.extend(&torn[..torn.len() / 2]);
+        bytes.extend(encode_entry(entries[3].kind, &entries[3].key, &entries[3].payload).unwrap());
+        std::fs::write(&path, &bytes).unwrap();
+        let (_, read, report) = AppendLog::open(&path).unwrap();
+        assert_eq!(
+            read,
+            [entries[0].clone(), entries[1].clone(), entries[3].clone()]
+        );
+        assert_eq!(report.dropped_bytes, (torn.len() / 2) as u64);
     }
 
     #[test]

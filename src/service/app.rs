@@ -211,7 +211,7 @@ fn open_tile_store(
         dropped_bytes = stats.dropped_bytes, "tile log loaded");
     if stats.dropped_bytes > 0 {
         tracing::warn!(log = %path.display(), bytes = stats.dropped_bytes,
-            "cut a torn or corrupt tail from the tile log");
+            "skipped damaged entries of the tile log (or cut its torn tail)");
     }
     Ok(store)
 }

@@ -148,6 +148,22 @@ impl ApiError {
         ApiError::check_limit(field, value, limit)
     }
 
+    /// A change the service could not write to `cache.data_dir`, so it was
+    /// not made: 507 naming `cache.data_dir` when the disk or quota is
+    /// full, else 500.
+    pub fn not_persisted(what: &str, err: &std::io::Error) -> Self {
+        use std::io::ErrorKind;
+        let message =
+            format!("{what} could not be written to cache.data_dir, so nothing changed: {err}");
+        match err.kind() {
+            ErrorKind::StorageFull | ErrorKind::QuotaExceeded => ApiError::InsufficientStorage {
+                field: "cache.data_dir".into(),
+                message,
+            },
+            _ => ApiError::Internal { message },
+        }
+    }
+
     /// An upload or import body over `limits.max_upload_bytes` (422 naming it).
     pub fn upload_too_large(limit: u64) -> Self {
         ApiError::BodyTooLarge {

@@ -169,16 +169,43 @@ impl PostedScenes {
             }
             std::fs::write(target, bytes)?;
         }
-        let kept = staging.keep();
+        // Swapped in by renames, so a crash leaves the old copy or the new
+        // one, never neither: the old one moves aside first.
         let final_dir = dir.join(id);
-        let _ = std::fs::remove_dir_all(&final_dir);
-        std::fs::rename(&kept, &final_dir)
+        let aside = tempfile::Builder::new()
+            .prefix(".replaced-")
+            .tempdir_in(dir)?;
+        let old = aside.path().join(id);
+        let had_old = match std::fs::rename(&final_dir, &old) {
+            Ok(()) => true,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+            Err(e) => return Err(e),
+        };
+        if let Err(e) = std::fs::rename(staging.path(), &final_dir) {
+            if had_old {
+                let _ = std::fs::rename(&old, &final_dir);
+            }
+            return Err(e);
+        }
+        // `staging` is gone (renamed); `aside` takes the old copy with it.
+        let _ = staging.keep();
+        Ok(())
     }
 
     /// Forgets scene `id`.
-    pub fn remove(&self, id: &str) {
-        if let Some(dir) = &self.dir {
-            let _ = std::fs::remove_dir_all(dir.join(id));
+    pub fn remove(&self, id: &str) -> std::io::Result<()> {
+        let Some(dir) = &self.dir else {
+            return Ok(());
+        };
+        // Moved aside in one rename, so the copy is either whole or gone for
+        // the next start (names starting with `.` are never loaded); only
+        // then is it removed, at leisure.
+        let aside = tempfile::Builder::new()
+            .prefix(".deleted-")
+            .tempdir_in(dir)?;
+        match std::fs::rename(dir.join(id), aside.path().join(id)) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+            _ => Ok(()),
         }
     }
 

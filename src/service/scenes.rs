@@ -200,10 +200,10 @@ impl SceneRegistry {
         self.read().get(id).cloned()
     }
 
-    /// Adds or replaces a scene; returns true if it replaced one. A scene
-    /// that would take the loaded scenes over the budget (counting them
-    /// without the scene it replaces) is refused and nothing changes.
-    pub fn insert(&self, scene: LoadedScene) -> Result<bool, OverBudget> {
+    /// Adds or replaces a scene; returns the one it replaced. A scene that
+    /// would take the loaded scenes over the budget (counting them without
+    /// the scene it replaces) is refused and nothing changes.
+    pub fn insert(&self, scene: LoadedScene) -> Result<Option<Arc<LoadedScene>>, OverBudget> {
         let mut scenes = self.scenes.write().unwrap_or_else(|p| p.into_inner());
         let others = scenes.values().filter(|s| s.id != scene.id);
         let (count, triangles, bytes) = others
@@ -227,7 +227,18 @@ impl SceneRegistry {
                 limit,
             });
         }
-        Ok(scenes.insert(scene.id.clone(), Arc::new(scene)).is_some())
+        Ok(scenes.insert(scene.id.clone(), Arc::new(scene)))
+    }
+
+    /// Undoes an [`Self::insert`] or [`Self::remove`] of `id` whose change
+    /// could not be persisted: `previous` (what it replaced or removed) goes
+    /// back, or `id` goes away if there was none.
+    pub fn restore(&self, id: &str, previous: Option<Arc<LoadedScene>>) {
+        let mut scenes = self.scenes.write().unwrap_or_else(|p| p.into_inner());
+        match previous {
+            Some(scene) => scenes.insert(id.to_owned(), scene),
+            None => scenes.remove(id),
+        };
     }
 
     /// Removes a scene; in-flight requests holding it finish with their `Arc`.
@@ -439,7 +450,7 @@ mod tests {
 
         let registry = SceneRegistry::new(&crate::service::Config::default_config().scenes);
         for scene in loaded {
-            assert!(!registry.insert(scene).unwrap());
+            assert!(registry.insert(scene).unwrap().is_none());
         }
         assert_eq!(registry.len(), 1);
         let summary = &registry.summaries()[0];
@@ -462,18 +473,22 @@ mod tests {
         budget.max_triangles = 4;
         budget.max_scenes = 2;
         let registry = SceneRegistry::new(&budget);
-        assert_eq!(registry.insert(tiny("a")), Ok(false));
-        assert_eq!(registry.insert(tiny("b")), Ok(false));
+        assert!(registry.insert(tiny("a")).unwrap().is_none());
+        assert!(registry.insert(tiny("b")).unwrap().is_none());
         // Replacing counts without the scene replaced.
-        assert_eq!(registry.insert(tiny("a")), Ok(true));
-        let over = registry.insert(tiny("c")).unwrap_err();
+        assert!(registry.insert(tiny("a")).unwrap().is_some());
+        let Err(over) = registry.insert(tiny("c")) else {
+            panic!("over the budget, yet inserted")
+        };
         assert_eq!(over.field, "scenes.max_scenes");
         assert_eq!((over.total, over.limit), (3, 2));
         budget.max_scenes = 10;
         let registry = SceneRegistry::new(&budget);
         registry.insert(tiny("a")).unwrap();
         registry.insert(tiny("b")).unwrap();
-        let over = registry.insert(tiny("c")).unwrap_err();
+        let Err(over) = registry.insert(tiny("c")) else {
+            panic!("over the budget, yet inserted")
+        };
         assert_eq!(over.field, "scenes.max_triangles");
         assert_eq!((over.total, over.limit), (6, 4));
         // Bytes: room for exactly the scenes already loaded.
@@ -483,7 +498,9 @@ mod tests {
         let registry = SceneRegistry::new(&budget);
         registry.insert(tiny("a")).unwrap();
         registry.insert(tiny("b")).unwrap();
-        let over = registry.insert(tiny("c")).unwrap_err();
+        let Err(over) = registry.insert(tiny("c")) else {
+            panic!("over the budget, yet inserted")
+        };
         assert_eq!(over.field, "scenes.max_scene_bytes");
         // Nothing was lost.
         assert_eq!(registry.len(), 2);

@@ -15,7 +15,8 @@
 //! With `cache.data_dir` set (the default `data/`), the store is also an
 //! append-only log on disk (`cache::log`, `tiles.log` there): every part
 //! computed is appended, and a restarted service loads the log first, so
-//! the same URLs cost nothing again. A torn or corrupt tail is cut on load.
+//! the same URLs cost nothing again. Damaged entries are skipped on load
+//! and a torn tail is cut (`cache::log`).
 //! Eviction: memory holds `cache.tile_bytes` by TinyLFU; the log is
 //! rewritten with what memory holds whenever it passes twice that.
 //!
@@ -128,7 +129,8 @@ pub struct TileStoreStats {
     pub passes: u64,
     /// Size of the on-disk log, bytes (0 without one).
     pub log_bytes: u64,
-    /// Entries read from the log at startup, and bytes of a damaged tail cut.
+    /// Entries read from the log at startup, and bytes of damaged entries
+    /// skipped or of a torn tail cut.
     pub loaded_entries: u64,
     pub dropped_bytes: u64,
 }
@@ -168,7 +170,7 @@ impl TileStore {
     }
 
     /// [`Self::new`] backed by the log at `path`: every intact entry is
-    /// loaded now (a damaged tail is cut, `cache::log`), and every part
+    /// loaded now (damaged entries skipped, a torn tail cut, `cache::log`), and every part
     /// computed later is appended.
     pub fn open(bytes: u64, max_tile_area: usize, path: &Path) -> std::io::Result<Self> {
         let mut store = Self::new(bytes, max_tile_area);

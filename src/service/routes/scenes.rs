@@ -186,14 +186,17 @@ pub async fn post_scene(
     let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene).approximating(&warnings);
     let summary = loaded.summary();
     let generation = loaded.generation;
-    let replaced = state.scenes.insert(loaded)?;
-    // Kept for the next start (with `cache.data_dir`); a failing disk costs
-    // only that, and says so.
+    let previous = state.scenes.insert(loaded)?;
+    let replaced = previous.is_some();
+    // Kept for the next start (with `cache.data_dir`): a change that would
+    // not survive a restart is not acknowledged, and not made.
     let blob = state.shared.is_some().then(|| posted.encode());
     let (keeper, id) = (state.posted.clone(), summary.id.clone());
     let kept = tokio::task::spawn_blocking(move || keeper.save(&id, &posted)).await;
     if let Ok(Err(err)) | Err(err) = kept.map_err(std::io::Error::other) {
-        tracing::warn!(id = %summary.id, %err, "posted scene not kept for restarts");
+        state.scenes.restore(&summary.id, previous);
+        tracing::error!(id = %summary.id, %err, "posted scene not kept; refused");
+        return Err(ApiError::not_persisted("the scene", &err));
     }
     // Shared with the other replicas, if any; unreachable Redis leaves the
     // scene on this replica only (and says so in /health).
@@ -328,13 +331,19 @@ pub async fn delete_scene(
     // A scene posted to another replica is known here through the shared
     // store; deleting it here deletes it everywhere.
     state.scene(&id).await?;
-    state.scenes.remove(&id).ok_or_else(|| ApiError::NotFound {
+    let removed = state.scenes.remove(&id).ok_or_else(|| ApiError::NotFound {
         what: "scene",
         id: id.clone(),
     })?;
-    state.irradiance_caches.retire(&id, None);
+    // A deletion that would be undone by a restart is not acknowledged.
     let (keeper, kept) = (state.posted.clone(), id.clone());
-    let _ = tokio::task::spawn_blocking(move || keeper.remove(&kept)).await;
+    let gone = tokio::task::spawn_blocking(move || keeper.remove(&kept)).await;
+    if let Ok(Err(err)) | Err(err) = gone.map_err(std::io::Error::other) {
+        state.scenes.restore(&id, Some(removed));
+        tracing::error!(%id, %err, "kept copy of the scene not removed; deletion refused");
+        return Err(ApiError::not_persisted("the deletion", &err));
+    }
+    state.irradiance_caches.retire(&id, None);
     if let Some(shared) = &state.shared
         && !shared.delete_scene(&id).await
     {
