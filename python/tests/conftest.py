@@ -135,9 +135,11 @@ def small_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
 
 @pytest.fixture(scope="session")
 def tiny_body_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
-    """A service that takes request bodies of at most 1024 bytes."""
+    """A service that takes request bodies of at most 1024 bytes, and uploads
+    of at most 64 KiB."""
     running = start_server(
-        tmp_path_factory.mktemp("tiny-body-server"), _LIMITS + "max_body_bytes = 1024\n"
+        tmp_path_factory.mktemp("tiny-body-server"),
+        _LIMITS + "max_body_bytes = 1024\nmax_upload_bytes = 65536\n",
     )
     yield running
     running.stop()

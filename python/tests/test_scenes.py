@@ -142,3 +142,21 @@ def test_upload_with_assets_found_in_the_document(client: Client, tmp_path: Path
     assert refused.value.status == 422
     assert refused.value.field == "assets[0]"
     client.delete("carried-mesh")
+
+
+def test_an_upload_refused_while_sending_raises_the_services_error(
+    tiny_body_server: Server, tmp_path: Path
+) -> None:
+    """The service refuses an upload over ``limits.max_upload_bytes`` (64 KiB
+    here) before reading all of it and closes the connection: the client,
+    still sending 16 MiB, reads the answer instead of failing on the broken
+    pipe."""
+    path = tmp_path / "tiny.json"
+    document = dict(TINY, shapes=[{"type": "obj", "filename": "big.obj", "material": "m"}])
+    path.write_text(json.dumps(document))
+    client = Client(tiny_body_server.url, timeout=60)
+    with pytest.raises(ServiceError) as refused:
+        client.upload(path, assets={"big.obj": b"v 0 0 0\n" * (2 << 20)})
+    assert refused.value.status == 422
+    assert refused.value.field == "limits.max_upload_bytes"
+    assert "65536 bytes" in str(refused.value)

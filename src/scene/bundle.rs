@@ -79,6 +79,17 @@ impl SceneBundle {
         Ok(())
     }
 
+    /// Keeps only the assets `scene` was built from (its [`Scene::files`],
+    /// as loaded by [`Self::load`]); returns the names of those dropped,
+    /// which no one needs and no one should have to store.
+    pub fn keep_used(&mut self, scene: &Scene) -> Vec<PathBuf> {
+        let (kept, dropped) = std::mem::take(&mut self.assets)
+            .into_iter()
+            .partition(|(name, _)| scene.files.contains(name));
+        self.assets = kept;
+        dropped.into_iter().map(|(name, _)| name).collect()
+    }
+
     /// The assets, `(relative name, bytes)`, in upload order.
     pub fn assets(&self) -> impl Iterator<Item = (&Path, &[u8])> {
         self.assets.iter().map(|(p, b)| (p.as_path(), b.as_slice()))
@@ -255,5 +266,18 @@ mod tests {
             .load(&doc("meshes/tri.obj"), DocumentKind::Json, &options)
             .unwrap();
         assert_eq!(again.digest, scene.digest);
+        // An asset the document does not name is not kept.
+        bundle
+            .add("notes/unused.txt", b"x".to_vec(), "assets[1]")
+            .unwrap();
+        let (scene, _) = bundle
+            .load(&doc("meshes/tri.obj"), DocumentKind::Json, &options)
+            .unwrap();
+        assert_eq!(scene.files, [PathBuf::from("meshes/tri.obj")]);
+        assert_eq!(
+            bundle.keep_used(&scene),
+            [PathBuf::from("notes/unused.txt")]
+        );
+        assert_eq!(bundle.len(), 1);
     }
 }

@@ -22,8 +22,10 @@ use super::error::SceneError;
 
 /// Largest accepted map width and height in texels.
 pub const MAX_ENVMAP_SIDE: usize = 16384;
-/// Largest accepted number of texels (keeps memory under ~1.6 GB).
-pub const MAX_ENVMAP_TEXELS: usize = 1 << 27;
+/// Largest accepted number of texels: 8192 × 4096, an "8K" HDR panorama.
+/// The decoded map takes 12 bytes a texel (384 MiB at most), and decoding
+/// peaks at a few times that, whatever the file's compressed size.
+pub const MAX_ENVMAP_TEXELS: usize = 1 << 25;
 
 /// Largest accepted EXR file, bytes: the largest accepted map
 /// ([`MAX_ENVMAP_TEXELS`]) stored uncompressed as f32 RGB.
@@ -189,6 +191,9 @@ pub fn read_exr(path: &Path, field: &str) -> Result<(usize, usize, Vec<[f32; 3]>
         )
         .first_valid_layer()
         .all_attributes()
+        // One block in flight rather than one per core: decoding's peak
+        // memory stays near the map's own size.
+        .non_parallel()
         .from_buffered(open()?)
         .map_err(|e| err(format!("cannot decode EXR: {e}")))?;
     let layer = image.layer_data;

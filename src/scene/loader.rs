@@ -118,6 +118,15 @@ impl Files {
         SceneDigest::of(&canonical, &opened, &self.root)
     }
 
+    /// The files resolved so far, relative to the scenes root.
+    fn relative_opened(&self) -> Vec<PathBuf> {
+        let opened = self.opened.lock().unwrap_or_else(|p| p.into_inner());
+        opened
+            .iter()
+            .filter_map(|p| p.strip_prefix(&self.root).ok().map(Path::to_path_buf))
+            .collect()
+    }
+
     pub(super) fn resolve(&self, name: &str, field: &str) -> Result<PathBuf, SceneError> {
         let escape = || SceneError::PathEscape {
             field: field.to_string(),
@@ -243,6 +252,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         .transpose()?;
     let camera = Camera::from_doc(&doc.camera, "camera")?;
     let digest = files.digest(&doc)?;
+    let read = files.relative_opened();
     let mut scene = builder.finish();
     scene.name = doc.name.unwrap_or_default();
     Ok(Scene {
@@ -252,6 +262,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         environment,
         camera,
         digest,
+        files: read,
         ..scene
     })
 }
@@ -511,6 +522,7 @@ impl GeometryBuilder {
         Scene {
             name: String::new(),
             digest: SceneDigest::default(),
+            files: Vec::new(),
             materials: Vec::new(),
             material_ids: Vec::new(),
             emitters: Vec::new(),

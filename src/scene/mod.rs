@@ -99,6 +99,10 @@ pub struct Scene {
     /// Content address of the document and its files (see [`SceneDigest`]);
     /// the same for the same scene in any process.
     pub digest: SceneDigest,
+    /// The files the scene was built from besides its document (meshes,
+    /// maps, textures), relative to the scenes root it was loaded under,
+    /// in the order they were read.
+    pub files: Vec<std::path::PathBuf>,
     pub materials: Vec<Material>,
     /// Material ids from the scene file, parallel to `materials`.
     pub material_ids: Vec<String>,

@@ -19,10 +19,17 @@ impl AppState {
         if let Some(scene) = self.scenes.get(id) {
             return Ok(scene);
         }
-        if self.shared.is_some()
-            && let Some(scene) = adopt(self, id, None).await?
-        {
-            return Ok(scene);
+        if self.shared.is_some() {
+            match adopt(self, id, None).await {
+                Ok(Some(scene)) => return Ok(scene),
+                Ok(None) => {}
+                // A shared copy this replica cannot load (damaged, or from a
+                // release that writes another format) is as good as none:
+                // the scene is not here, which says more than a 500 would.
+                Err(err) => {
+                    tracing::warn!(%id, %err, "the shared copy of the scene does not load; answering 404")
+                }
+            }
         }
         Err(ApiError::NotFound {
             what: "scene",

@@ -700,6 +700,36 @@ mod tests {
         assert_eq!(merged.image, pass(2.0).image);
     }
 
+    /// Another replica's part (or the log's) that no rendering could have
+    /// made is not taken: non-finite, negative or huge values, or more
+    /// pixels than the largest tile.
+    #[test]
+    fn poisoned_parts_are_not_merged() {
+        let store = TileStore::new(1 << 20, 4);
+        for (i, value) in [f32::NAN, f32::INFINITY, -1.0, 1e30]
+            .into_iter()
+            .enumerate()
+        {
+            let mut poisoned = pass(1.0);
+            let mut rgb = poisoned.image.rgb().to_vec();
+            rgb[1][2] = value;
+            poisoned.image =
+                Image::from_parts(3, 2, rgb, Some(vec![0.5; 6])).unwrap_or_else(|_| {
+                    // Images refuse some values themselves; forge the bytes then.
+                    pass(1.0).image
+                });
+            let mut payload = encode_pass(&poisoned);
+            // rgb starts after 25 bytes of header: pixel 1, channel 2.
+            payload[25 + 4 * 5..25 + 4 * 6].copy_from_slice(&value.to_le_bytes());
+            let framed = log::encode_entry(PASS, &[i as u8; 32], &payload).unwrap();
+            assert!(!store.merge(&framed), "{value}");
+        }
+        // Six pixels, more than a largest tile of four.
+        let framed = log::encode_entry(PASS, &[9; 32], &encode_pass(&pass(1.0))).unwrap();
+        assert!(!store.merge(&framed));
+        assert!(TileStore::new(1 << 20, 6).merge(&framed));
+    }
+
     #[test]
     fn the_log_is_compacted_to_what_memory_holds() {
         let dir = tempfile::tempdir().unwrap();

@@ -341,3 +341,54 @@ async fn replicas_share_scenes_and_records_and_survive_a_death() {
         .unwrap();
     assert_eq!(fresh.status(), 200);
 }
+
+/// Sends one command to the Redis at `url` (`redis://127.0.0.1:PORT/0`) and
+/// returns its first reply line.
+fn redis_command(url: &str, args: &[&[u8]]) -> String {
+    use std::io::Write;
+    let address = url
+        .trim_start_matches("redis://")
+        .split('/')
+        .next()
+        .unwrap();
+    let mut stream = std::net::TcpStream::connect(address).unwrap();
+    let mut request = format!("*{}\r\n", args.len()).into_bytes();
+    for arg in args {
+        request.extend(format!("${}\r\n", arg.len()).as_bytes());
+        request.extend(*arg);
+        request.extend(b"\r\n");
+    }
+    stream.write_all(&request).unwrap();
+    let mut line = String::new();
+    BufReader::new(stream).read_line(&mut line).unwrap();
+    line
+}
+
+/// A scene in Redis that does not load (damaged, or written by another
+/// release) is a scene this replica does not have: 404 naming it, not a 500
+/// on every request, and the replica stays healthy.
+#[tokio::test]
+async fn a_broken_shared_scene_is_not_found_rather_than_an_error() {
+    let (_redis, url) = redis_server();
+    let dir = tempfile::tempdir().unwrap();
+    let (_replica, addr) = replica(dir.path(), &url);
+    let reply = redis_command(&url, &[b"SET", b"bmc:scene:broken", b"not a posted scene"]);
+    assert_eq!(reply, "+OK\r\n");
+    let client = reqwest::Client::new();
+    for _ in 0..2 {
+        let response = client
+            .get(format!("http://{addr}/v1/scenes/broken"))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(response.status(), 404);
+        let body: serde_json::Value = response.json().await.unwrap();
+        assert_eq!(body["error"]["code"], "not_found", "{body}");
+    }
+    let health = client
+        .get(format!("http://{addr}/health"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(health.status(), 200);
+}

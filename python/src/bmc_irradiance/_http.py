@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
+import http.client
 import json
 import time
-import urllib.error
 import urllib.parse
-import urllib.request
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Optional
 
@@ -85,15 +84,8 @@ class Transport:
         url = self.url(path, query)
         attempt = 0
         while True:
-            request = urllib.request.Request(url, data=body, headers=sent, method=method)
-            try:
-                with urllib.request.urlopen(request, timeout=self.timeout) as answer:
-                    return Response(answer.status, _lower(answer.headers), answer.read())
-            except urllib.error.HTTPError as err:
-                status, answer_headers = err.code, _lower(err.headers)
-                answer_body = err.read()
-                err.close()
-            if status in accept:
+            status, answer_headers, answer_body = self._exchange(method, url, body, sent)
+            if 200 <= status < 300 or status in accept:
                 return Response(status, answer_headers, answer_body)
             wait = parse_retry_after(answer_headers.get("retry-after"))
             if status == 503 and wait is not None and attempt < self.retries:
@@ -101,6 +93,35 @@ class Transport:
                 self.sleep(min(wait, self.max_retry_wait))
                 continue
             raise ServiceError.from_body(status, answer_body, answer_headers)
+
+    def _exchange(
+        self, method: str, url: str, body: Optional[bytes], headers: Mapping[str, str]
+    ) -> tuple[int, dict[str, str], bytes]:
+        """One request and its answer: status, headers (lower-case), body.
+
+        A service that refuses a large body answers before reading all of it
+        and closes the connection, so sending may fail with a broken pipe or
+        a reset; its answer is read all the same (as curl does), and only
+        when there is none does the sending error propagate."""
+        parts = urllib.parse.urlsplit(url)
+        connection_class = (
+            http.client.HTTPSConnection if parts.scheme == "https" else http.client.HTTPConnection
+        )
+        connection = connection_class(parts.netloc, timeout=self.timeout)
+        target = parts.path + ("?" + parts.query if parts.query else "")
+        try:
+            try:
+                connection.request(method, target, body=body, headers=dict(headers))
+            except (BrokenPipeError, ConnectionResetError) as sending:
+                try:
+                    answer = connection.getresponse()
+                except (OSError, http.client.HTTPException):
+                    raise sending from None
+            else:
+                answer = connection.getresponse()
+            return answer.status, _lower(answer.headers), answer.read()
+        finally:
+            connection.close()
 
     def get_json(self, path: str, accept: tuple[int, ...] = ()) -> Any:
         return self.request("GET", path, accept=accept).json()

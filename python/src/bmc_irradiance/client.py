@@ -137,8 +137,9 @@ class Client:
     revalidation (``None`` on 304).
 
     Errors: any non-2xx answer raises :class:`ServiceError` with the
-    service's ``code``, ``message`` and ``field``; network failures raise
-    ``urllib.error.URLError`` (an ``OSError``).
+    service's ``code``, ``message`` and ``field`` (also when the service
+    refused a large upload before reading all of it); network failures
+    raise an ``OSError`` (``ConnectionRefusedError``, ``TimeoutError``, ...).
     """
 
     def __init__(

@@ -169,6 +169,12 @@ pub async fn post_scene(
             if scene.name.is_empty() {
                 scene.name = id.clone();
             }
+            // Only what the scene was built from is kept (and shared).
+            let mut upload = upload;
+            let unused = upload.bundle.keep_used(&scene);
+            if !unused.is_empty() {
+                tracing::info!(%id, ?unused, "assets the scene does not use were not kept");
+            }
             let posted = Posted {
                 document: upload.document,
                 kind: upload.kind,
