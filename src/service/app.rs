@@ -9,9 +9,10 @@
 //! 4. request head size: a target over [`MAX_URI_BYTES`] answers 414 and headers
 //!    over [`MAX_HEAD_BYTES`] 431, with the JSON error body (hyper itself cuts
 //!    heads off at [`super::server::HYPER_MAX_HEAD_BYTES`] with a bare 431);
-//! 5. request deadline: a request still running after `limits.request_deadline_secs`
-//!    is dropped and answered 504 `deadline_exceeded` (dropping it also cancels its
-//!    CPU job, see `pool.rs`). 504 rather than 503 because the service did accept
+//! 5. request deadline: a request still running `limits.request_deadline_secs`
+//!    after its body arrived is dropped and answered 504 `deadline_exceeded`
+//!    (dropping it also cancels its CPU job, see `pool.rs`); a body that pauses
+//!    for `server.header_read_timeout_secs` is cut off. 504 rather than 503 because the service did accept
 //!    the work and the client may retry with a smaller request;
 //! 6. body limit (`DefaultBodyLimit`): bodies over `limits.max_body_bytes` make
 //!    [`ApiJson`](super::extract::ApiJson) answer 413 with the JSON error body;
@@ -258,6 +259,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .routes(routes!(routes::quadratures::post_quadrature))
         .split_for_parts();
     let limits = state.config.limits.clone();
+    let body_stall = Duration::from_secs(state.config.server.header_read_timeout_secs);
     let cors = cors(&state.config.server);
     let guard = Arc::new(MutationGuard {
         token: state.config.server.auth_token.clone(),
@@ -275,6 +277,7 @@ pub fn router(state: Arc<AppState>) -> Router {
             .with_state(state)
             .merge(super::viewer::routes()),
         &limits,
+        body_stall,
     )
     .layer(cors)
 }
@@ -316,14 +319,18 @@ fn cors(server: &super::config::ServerConfig) -> CorsLayer {
     }
 }
 
-/// Adds the JSON fallbacks and the middleware stack described in the module docs.
-fn with_middleware(routes: Router, limits: &Limits) -> Router {
+/// Adds the JSON fallbacks and the middleware stack described in the module
+/// docs; a request body may pause for at most `body_stall`.
+fn with_middleware(routes: Router, limits: &Limits, body_stall: Duration) -> Router {
     routes
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(limits.max_body_bytes))
         .layer(middleware::from_fn_with_state(
-            limits.request_deadline(),
+            Deadlines {
+                request: limits.request_deadline(),
+                body_stall,
+            },
             enforce_deadline,
         ))
         .layer(middleware::from_fn(check_head_size))
@@ -348,15 +355,79 @@ async fn method_not_allowed(method: Method) -> ApiError {
     }
 }
 
+/// How long a request may take: [`Limits::request_deadline`] from the
+/// moment its body has arrived, and at most `body_stall` between two parts
+/// of the body.
+#[derive(Clone, Copy)]
+struct Deadlines {
+    request: Duration,
+    body_stall: Duration,
+}
+
+/// The request deadline (module docs), counted from the end of the body's
+/// arrival: a large upload over a slow link is not the service's work, and
+/// must not use up the time its processing gets. A body that pauses for
+/// longer than `body_stall` is cut off (the handler reading it fails, 4xx),
+/// so a client cannot hold a request open by trickling its body; a body
+/// nobody reads stops being waited for after that long too.
 async fn enforce_deadline(
-    State(deadline): State<Duration>,
+    State(deadlines): State<Deadlines>,
     request: Request,
     next: Next,
 ) -> Response {
-    match tokio::time::timeout(deadline, next.run(request)).await {
-        Ok(response) => response,
-        Err(_) => ApiError::DeadlineExceeded {
-            secs: deadline.as_secs(),
+    use axum::body::HttpBody;
+    let (parts, body) = request.into_parts();
+    let (arrived, body_arrived) = tokio::sync::oneshot::channel::<()>();
+    let body = if body.is_end_stream() {
+        let _ = arrived.send(());
+        body
+    } else {
+        let (mut sender, forwarded) =
+            http_body_util::channel::Channel::<axum::body::Bytes, axum::Error>::new(1);
+        tokio::spawn(async move {
+            use http_body_util::BodyExt;
+            let mut body = body;
+            loop {
+                match tokio::time::timeout(deadlines.body_stall, body.frame()).await {
+                    Ok(Some(Ok(frame))) => {
+                        let Ok(data) = frame.into_data() else {
+                            continue;
+                        };
+                        // Waiting for the handler to take it is a stall too.
+                        let taken =
+                            tokio::time::timeout(deadlines.body_stall, sender.send_data(data));
+                        if !matches!(taken.await, Ok(Ok(()))) {
+                            break;
+                        }
+                    }
+                    Ok(Some(Err(err))) => {
+                        sender.abort(err);
+                        break;
+                    }
+                    Ok(None) => break,
+                    Err(_) => {
+                        sender.abort(axum::Error::new(format!(
+                            "the request body paused for more than {} s",
+                            deadlines.body_stall.as_secs()
+                        )));
+                        break;
+                    }
+                }
+            }
+            let _ = arrived.send(());
+        });
+        axum::body::Body::new(forwarded)
+    };
+    let response = next.run(Request::from_parts(parts, body));
+    tokio::pin!(response);
+    let deadline = async {
+        let _ = body_arrived.await;
+        tokio::time::sleep(deadlines.request).await;
+    };
+    tokio::select! {
+        response = &mut response => response,
+        () = deadline => ApiError::DeadlineExceeded {
+            secs: deadlines.request.as_secs(),
         }
         .into_response(),
     }
@@ -542,7 +613,11 @@ mod tests {
 
     #[tokio::test]
     async fn oversized_body_is_413_with_json_error() {
-        let app = with_middleware(Router::new().route("/echo", post(echo)), &limits());
+        let app = with_middleware(
+            Router::new().route("/echo", post(echo)),
+            &limits(),
+            Duration::from_secs(10),
+        );
         let small = app.clone().oneshot(post_json(r#"{"a": 1}"#)).await.unwrap();
         assert_eq!(small.status(), StatusCode::OK);
 
@@ -554,7 +629,11 @@ mod tests {
 
     #[tokio::test]
     async fn malformed_json_and_wrong_content_type_get_json_errors() {
-        let app = with_middleware(Router::new().route("/echo", post(echo)), &limits());
+        let app = with_middleware(
+            Router::new().route("/echo", post(echo)),
+            &limits(),
+            Duration::from_secs(10),
+        );
         let (status, body) =
             error_body(app.clone().oneshot(post_json("{nope")).await.unwrap()).await;
         assert_eq!(status, StatusCode::BAD_REQUEST);
@@ -576,7 +655,11 @@ mod tests {
             tokio::time::sleep(Duration::from_secs(3600)).await;
             "done"
         };
-        let app = with_middleware(Router::new().route("/slow", get(slow)), &limits());
+        let app = with_middleware(
+            Router::new().route("/slow", get(slow)),
+            &limits(),
+            Duration::from_secs(10),
+        );
         let request = HttpRequest::get("/slow").body(Body::empty()).unwrap();
         let (status, body) = error_body(app.oneshot(request).await.unwrap()).await;
         assert_eq!(status, StatusCode::GATEWAY_TIMEOUT);
@@ -588,7 +671,11 @@ mod tests {
         async fn boom() -> &'static str {
             panic!("handler bug")
         }
-        let app = with_middleware(Router::new().route("/boom", get(boom)), &limits());
+        let app = with_middleware(
+            Router::new().route("/boom", get(boom)),
+            &limits(),
+            Duration::from_secs(10),
+        );
         let request = HttpRequest::get("/boom").body(Body::empty()).unwrap();
         let (status, body) = error_body(app.oneshot(request).await.unwrap()).await;
         assert_eq!(status, StatusCode::INTERNAL_SERVER_ERROR);
@@ -616,7 +703,11 @@ mod tests {
         let mut config = Config::default_config();
         config.server.bind = "127.0.0.1:0".parse().unwrap();
         let mut app = Application::build(config).await.unwrap();
-        app.router = with_middleware(Router::new().route("/slow", get(slow)), &limits());
+        app.router = with_middleware(
+            Router::new().route("/slow", get(slow)),
+            &limits(),
+            Duration::from_secs(10),
+        );
         let url = format!("http://{}/slow", app.local_addr());
 
         let (stop_tx, stop_rx) = oneshot::channel::<()>();

@@ -130,6 +130,42 @@ pub async fn adopt(
     Ok(state.scenes.get(id))
 }
 
+/// How often, and how many times, a deletion Redis did not take is sent
+/// again: replicas that never hear of it would serve the scene for ever.
+const DELETION_RETRY: std::time::Duration = std::time::Duration::from_secs(1);
+const DELETION_ATTEMPTS: u32 = 3600;
+
+/// Tells the other replicas, if any, that scene `id` was deleted here. If
+/// Redis does not take it now (down, or stalled past its timeout), it is
+/// sent again in the background until Redis does, unless the scene has been
+/// posted here again meanwhile.
+pub async fn announce_deletion(state: &Arc<AppState>, id: &str) {
+    let Some(shared) = &state.shared else {
+        return;
+    };
+    if shared.delete_scene(id).await {
+        return;
+    }
+    tracing::warn!(%id, "deletion not shared with other replicas yet; retrying in the background");
+    let (shared, state, id) = (shared.clone(), Arc::downgrade(state), id.to_owned());
+    tokio::spawn(async move {
+        for _ in 0..DELETION_ATTEMPTS {
+            tokio::time::sleep(DELETION_RETRY).await;
+            let Some(state) = state.upgrade() else {
+                return;
+            };
+            if state.scenes.get(&id).is_some() {
+                return;
+            }
+            if shared.delete_scene(&id).await {
+                tracing::info!(%id, "deletion shared with other replicas");
+                return;
+            }
+        }
+        tracing::error!(%id, "deletion never shared with other replicas");
+    });
+}
+
 /// Drops scene `id`, deleted on another replica.
 async fn forget(state: &AppState, id: &str) {
     if state.scenes.remove(id).is_some() {

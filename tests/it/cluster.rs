@@ -392,3 +392,54 @@ async fn a_broken_shared_scene_is_not_found_rather_than_an_error() {
         .unwrap();
     assert_eq!(health.status(), 200);
 }
+
+/// A scene deleted while Redis is stalled is deleted on the other replicas
+/// too once Redis answers again: the deletion is sent again until it is
+/// taken, instead of being lost with the command that timed out.
+#[tokio::test]
+async fn a_deletion_during_a_redis_stall_reaches_the_other_replicas() {
+    let (redis, url) = redis_server();
+    let (a_dir, b_dir) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (_a, a) = replica(a_dir.path(), &url);
+    let (_b, b) = replica(b_dir.path(), &url);
+    let client = reqwest::Client::new();
+    let mut doc: serde_json::Value =
+        serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
+    doc["name"] = serde_json::json!("extra");
+    let posted = client
+        .post(format!("http://{a}/v1/scenes"))
+        .json(&doc)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(posted.status(), 201);
+    let scene_on = |addr: &str| {
+        let (client, url) = (client.clone(), format!("http://{addr}/v1/scenes/extra"));
+        async move { client.get(url).send().await.unwrap().status().as_u16() }
+    };
+    assert_eq!(scene_on(&b).await, 200, "replica b adopts the scene");
+
+    let signal = |name: &str| {
+        let status = Command::new("kill")
+            .args([name, &redis.0.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+    };
+    signal("-STOP");
+    let deleted = client
+        .delete(format!("http://{a}/v1/scenes/extra"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(deleted.status(), 204);
+    assert_eq!(scene_on(&a).await, 404);
+    signal("-CONT");
+    for _ in 0..120 {
+        if scene_on(&b).await == 404 {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    }
+    panic!("replica b still serves the scene deleted on replica a");
+}

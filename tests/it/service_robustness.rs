@@ -457,3 +457,62 @@ async fn cache_stats_count_the_bytes_of_the_records_rule() {
     // The factor alone is 64² doubles.
     assert!(rule_bytes >= 64 * 64 * 8, "{stats}");
 }
+
+/// Sends `head` and then `body` in `chunks` parts, `pause` apart, over a
+/// raw connection; the status of the answer (0 when none came).
+async fn send_slowly(addr: &str, head: String, body: &[u8], chunks: usize, pause: Duration) -> u16 {
+    let mut stream = TcpStream::connect(addr).await.unwrap();
+    stream.write_all(head.as_bytes()).await.unwrap();
+    for part in body.chunks(body.len().div_ceil(chunks)) {
+        tokio::time::sleep(pause).await;
+        if stream.write_all(part).await.is_err() {
+            break;
+        }
+    }
+    let mut answer = Vec::new();
+    let _ = tokio::time::timeout(Duration::from_secs(20), stream.read_to_end(&mut answer)).await;
+    let text = String::from_utf8_lossy(&answer);
+    text.split_whitespace()
+        .nth(1)
+        .and_then(|code| code.parse().ok())
+        .unwrap_or(0)
+}
+
+/// The deadline counts from the end of the body's arrival: an upload that
+/// takes longer than the deadline to arrive is still served. A body that
+/// stops arriving is cut off after the pause allowed, with a 4xx.
+#[tokio::test]
+async fn a_slow_upload_keeps_its_deadline_and_a_stalled_one_is_cut_off() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |c| {
+        c.limits.request_deadline_secs = 1;
+        c.server.header_read_timeout_secs = 2;
+    })
+    .await;
+    let addr = app.base.trim_start_matches("http://").to_owned();
+    let mut doc: Value = serde_json::from_str(TINY_SCENE).unwrap();
+    doc["name"] = json!("slow");
+    // Padded with spaces to 200 kB, sent in 5 parts over 2.5 s.
+    let mut body = doc.to_string().into_bytes();
+    body.resize(200_000, b' ');
+    let head = |length: usize| {
+        format!(
+            "POST /v1/scenes HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: {length}\r\nConnection: close\r\n\r\n"
+        )
+    };
+    let status = send_slowly(
+        &addr,
+        head(body.len()),
+        &body,
+        5,
+        Duration::from_millis(500),
+    )
+    .await;
+    assert_eq!(status, 201);
+    // Half the body, then nothing: cut off once the pause passes 2 s.
+    let started = std::time::Instant::now();
+    let half = &body[..body.len() / 2];
+    let status = send_slowly(&addr, head(body.len()), half, 1, Duration::ZERO).await;
+    assert!((400..500).contains(&status), "{status}");
+    assert!(started.elapsed() < Duration::from_secs(10));
+    assert_eq!(health(&app).await["scenes"], 2);
+}

@@ -350,11 +350,7 @@ pub async fn delete_scene(
         return Err(ApiError::not_persisted("the deletion", &err));
     }
     state.irradiance_caches.retire(&id, None);
-    if let Some(shared) = &state.shared
-        && !shared.delete_scene(&id).await
-    {
-        tracing::warn!(%id, "deletion not shared with other replicas");
-    }
+    crate::service::replicas::announce_deletion(&state, &id).await;
     tracing::info!(%id, "scene deleted");
     Ok(StatusCode::NO_CONTENT)
 }
