@@ -145,6 +145,38 @@ impl XmlError {
     }
 }
 
+/// Problems named in one error, at most.
+const MAX_PROBLEMS_NAMED: usize = 20;
+
+/// The first of a strict document's problems (located, naming its field),
+/// its message followed by the others' (line, field and message each), or
+/// `None` when there are none.
+fn every_problem(problems: Vec<XmlError>) -> Option<XmlError> {
+    let mut problems = problems.into_iter();
+    let mut first = problems.next()?;
+    let others: Vec<XmlError> = problems.collect();
+    if !others.is_empty() {
+        let listed: Vec<String> = others
+            .iter()
+            .take(MAX_PROBLEMS_NAMED)
+            .map(|p| format!("line {}: {}: {}", p.line, p.field, p.message))
+            .collect();
+        let unlisted = others.len() - listed.len();
+        first.message = format!(
+            "{}; and {} more: {}{}",
+            first.message,
+            others.len(),
+            listed.join("; "),
+            if unlisted > 0 {
+                format!("; ({unlisted} not listed)")
+            } else {
+                String::new()
+            }
+        );
+    }
+    Some(first)
+}
+
 /// Where a part of the generated document came from, so that errors found
 /// by the shared loader (e.g. `shapes[2].to_world[1].scale[0]`) point back
 /// to the XML line.
@@ -173,6 +205,9 @@ pub(crate) struct Ctx<'a> {
     point_light_radius: f64,
     files: &'a Files,
     warnings: Warnings,
+    /// Unsupported features of a strict document, reported together once
+    /// it has been read through.
+    problems: Vec<XmlError>,
     materials: Vec<MaterialDoc>,
     /// Element (by position) → the material id it became.
     material_of: HashMap<(u32, u32), String>,
@@ -197,6 +232,7 @@ impl<'a> Ctx<'a> {
             point_light_radius: options.point_light_radius,
             files,
             warnings: Warnings::default(),
+            problems: Vec::new(),
             materials: Vec::new(),
             material_of: HashMap::new(),
             shapes: Vec::new(),
@@ -208,8 +244,9 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    /// An unsupported feature: an error, or with `lenient` a warning saying
-    /// what is done instead (`fallback`).
+    /// An unsupported feature: with `lenient` a warning saying what is done
+    /// instead (`fallback`), else a problem that fails the document once it
+    /// has been read through, so that every such problem is named at once.
     fn unsupported(
         &mut self,
         el: &Element,
@@ -219,13 +256,13 @@ impl<'a> Ctx<'a> {
     ) -> Result<(), XmlError> {
         if self.lenient {
             self.warn(el, format!("{what}; {fallback}"));
-            Ok(())
         } else {
-            Err(el.error(
+            self.problems.push(el.error(
                 attribute,
                 format!("{what} (pass lenient to approximate: {fallback})"),
-            ))
+            ));
         }
+        Ok(())
     }
 
     fn warn(&mut self, el: &Element, message: impl Into<String>) {
@@ -300,7 +337,13 @@ pub(crate) fn from_str(
     let scene_el = parse::parse(text, &options.parameters).map_err(|e| e.into_scene_error(file))?;
     let ids = parse::index_ids(&scene_el).map_err(|e| e.into_scene_error(file))?;
     let mut ctx = Ctx::new(ids, options, &files);
-    let doc = convert_scene(&mut ctx, &scene_el).map_err(|e| e.into_scene_error(file))?;
+    let converted = convert_scene(&mut ctx, &scene_el);
+    // A strict document's unsupported features come first: an error met
+    // afterwards may be one of their stand-ins failing.
+    if let Some(first) = every_problem(std::mem::take(&mut ctx.problems)) {
+        return Err(first.into_scene_error(file));
+    }
+    let doc = converted.map_err(|e| e.into_scene_error(file))?;
     let Ctx {
         origins, warnings, ..
     } = ctx;

@@ -884,3 +884,22 @@ fn a_mesh_file_is_read_once_per_document() {
     .unwrap();
     assert_eq!(reads, 2);
 }
+
+/// A strict document is read through, and every unsupported feature is
+/// named in one error: the first located, the others listed with their lines.
+#[test]
+fn strict_documents_name_every_unsupported_feature() {
+    let body = r#"<bsdf type="diffuse" id="t"><texture type="checkerboard" name="reflectance">
+        <rgb name="color0" value="0.8"/><rgb name="color1" value="0.2"/></texture></bsdf>
+<foo/>
+<bar/>"#;
+    let text = wrap(body);
+    let e = load_err(&text);
+    let message = e.to_string();
+    assert_eq!(syntax_line(&e), line_of(&text, "checkerboard"), "{message}");
+    assert!(message.contains("and 2 more"), "{message}");
+    for other in ["<foo/>", "<bar/>"] {
+        let line = format!("line {}", line_of(&text, other));
+        assert!(message.contains(&line), "{other}: {message}");
+    }
+}
