@@ -38,7 +38,7 @@ pub(super) fn load(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError>
 }
 
 /// Reads a scene file as text: a regular file of at most [`MAX_SCENE_BYTES`].
-pub(super) fn read_scene_file(path: &Path) -> Result<String, SceneError> {
+pub(crate) fn read_scene_file(path: &Path) -> Result<String, SceneError> {
     super::read::read_to_string(path, MAX_SCENE_BYTES).map_err(|source| SceneError::Io {
         file: path.to_path_buf(),
         source,

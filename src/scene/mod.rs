@@ -20,6 +20,8 @@ mod mesh;
 mod mitsuba;
 mod ray;
 mod read;
+
+pub(crate) use loader::read_scene_file;
 mod shape;
 mod transform;
 

@@ -242,13 +242,16 @@ impl PostedScenes {
 }
 
 fn load_one(dir: &Path, scenes_dir: &Path) -> anyhow::Result<(Scene, Warnings)> {
-    let record: PostRecord = serde_json::from_slice(&std::fs::read(dir.join("post.json"))?)?;
+    // Read as scene files are: regular files only (a FIFO would block the
+    // start for ever), with a byte cap.
+    let record: PostRecord =
+        serde_json::from_str(&crate::scene::read_scene_file(&dir.join("post.json"))?)?;
     let name = if record.xml {
         "scene.xml"
     } else {
         "scene.json"
     };
-    let document = std::fs::read_to_string(dir.join(name))?;
+    let document = crate::scene::read_scene_file(&dir.join(name))?;
     let root = if record.with_assets {
         dir.join("assets")
     } else {

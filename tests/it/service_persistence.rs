@@ -592,3 +592,51 @@ async fn a_flipped_bit_mid_log_costs_one_entry() {
     let (again, _, _) = render_all(&second).await;
     assert_eq!(again, images);
 }
+
+fn mkfifo(path: &Path) {
+    let name = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    assert_eq!(
+        unsafe { libc::mkfifo(name.as_ptr(), 0o600) },
+        0,
+        "mkfifo {}",
+        path.display()
+    );
+}
+
+/// Special files where the data directory keeps files never hang startup:
+/// a FIFO as a kept scene's document is skipped (the service starts and
+/// serves the rest), and a FIFO as the tile log is refused with an error.
+#[tokio::test]
+async fn special_files_in_the_data_directory_never_hang_startup() {
+    let data = tempfile::tempdir().unwrap();
+    let kept = data.path().join("scenes/fifo");
+    std::fs::create_dir_all(&kept).unwrap();
+    std::fs::write(
+        kept.join("post.json"),
+        r#"{"xml": false, "lenient": false, "with_assets": false}"#,
+    )
+    .unwrap();
+    mkfifo(&kept.join("scene.json"));
+    let started = tokio::time::timeout(std::time::Duration::from_secs(60), spawn(data.path()))
+        .await
+        .expect("startup hung on a FIFO");
+    assert_eq!(started.get("/v1/scenes/fifo").await.status(), 404);
+    assert_eq!(started.get("/v1/scenes/box").await.status(), 200);
+    drop(started);
+    released(data.path()).await;
+
+    let other = tempfile::tempdir().unwrap();
+    mkfifo(&other.path().join("tiles.log"));
+    let dir = scenes_dir();
+    let config = crate::common::test_config(&dir, |c| c.cache.data_dir = other.path().to_owned());
+    let built = tokio::time::timeout(
+        std::time::Duration::from_secs(60),
+        bmc_irradiance::service::Application::build(config),
+    )
+    .await
+    .expect("startup hung on a FIFO tile log");
+    let Err(err) = built else {
+        panic!("a FIFO tile log was opened");
+    };
+    assert!(format!("{err:#}").contains("not a regular file"), "{err:#}");
+}
