@@ -4,6 +4,7 @@
 //! loads without a crash, keeping what was complete before the cut.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use crate::common::{TestApp, spawn_app_in};
 use serde_json::{Value, json};
@@ -639,4 +640,90 @@ async fn special_files_in_the_data_directory_never_hang_startup() {
         panic!("a FIFO tile log was opened");
     };
     assert!(format!("{err:#}").contains("not a regular file"), "{err:#}");
+}
+
+/// The service as a process of its own (so it can be killed), on the data
+/// directory `data` with the scenes of [`scenes_dir`]; its address.
+fn serve_process(data: &Path, scenes: &Path) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
+        .args(["serve", "--bind", "127.0.0.1:0"])
+        .env("BMC_SCENES__DIR", scenes)
+        .env("BMC_CACHE__DATA_DIR", data)
+        .env("BMC_LIMITS__MAX_QUEUE_WAIT_SECS", "3600")
+        .env("NO_COLOR", "1")
+        .env("RUST_LOG", "info")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    let addr = loop {
+        let line = lines.next().expect("the service exited").unwrap();
+        if let Some(rest) = line.split("addr=").nth(1)
+            && line.contains("listening")
+        {
+            break rest.split_whitespace().next().unwrap().to_owned();
+        }
+    };
+    std::thread::spawn(move || for _ in lines {});
+    (child, addr)
+}
+
+/// Killed with SIGKILL while tiles are being computed and appended: after a
+/// restart every tile whose answer had been received is served from the log
+/// (no ray traced) with the same bytes.
+#[tokio::test]
+async fn a_kill_during_appends_loses_nothing_acknowledged() {
+    let data = tempfile::tempdir().unwrap();
+    let scenes = scenes_dir();
+    let (mut child, addr) = serve_process(data.path(), scenes.path());
+    let client = reqwest::Client::new();
+    let acknowledged = Arc::new(std::sync::Mutex::new(Vec::<(String, Vec<u8>)>::new()));
+    let mut clients = tokio::task::JoinSet::new();
+    for worker in 0..2u32 {
+        let (client, addr, acknowledged) = (client.clone(), addr.clone(), acknowledged.clone());
+        clients.spawn(async move {
+            for seed in 0..200u32 {
+                let (tx, ty) = TILES[(seed % 4) as usize];
+                let url = format!(
+                    "/v1/scenes/box/tiles/{tx}/{ty}.png?size=32&preset=draft&seed={}",
+                    2 * seed + worker
+                );
+                let Ok(response) = client.get(format!("http://{addr}{url}")).send().await else {
+                    return;
+                };
+                let Ok(bytes) = response.bytes().await else {
+                    return;
+                };
+                acknowledged.lock().unwrap().push((url, bytes.to_vec()));
+            }
+        });
+    }
+    // Kill it once a few tiles are in, mid-stream.
+    while acknowledged.lock().unwrap().len() < 6 {
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    clients.join_all().await;
+    let acknowledged = acknowledged.lock().unwrap().clone();
+    assert!(acknowledged.len() >= 6);
+    eprintln!("{} tiles acknowledged before the kill", acknowledged.len());
+
+    let again = spawn_app_in(scenes, {
+        let data = data.path().to_owned();
+        move |config| config.cache.data_dir = data
+    })
+    .await;
+    for (url, bytes) in &acknowledged {
+        let response = again.get(url).await;
+        assert_eq!(response.status(), 200, "{url}");
+        assert_eq!(
+            response.headers()["x-rays"],
+            "0",
+            "{url} was acknowledged but not kept"
+        );
+        assert_eq!(&response.bytes().await.unwrap().to_vec(), bytes, "{url}");
+    }
 }
