@@ -125,7 +125,11 @@ impl Application {
             tiles = tiles.sharing_through(shared.outbox());
             tracing::info!(prefix = %config.cluster.redis_prefix, "sharing tiles and scenes with other replicas through Redis");
         }
+        let uploads = Arc::new(tokio::sync::Semaphore::new(
+            config.limits.max_concurrent_uploads,
+        ));
         let state = Arc::new(AppState {
+            uploads,
             quadratures,
             config,
             pool,

@@ -130,6 +130,9 @@ pub struct CacheConfig {
     /// `service::tile_store`), relative to the working directory; empty
     /// keeps everything in memory only.
     pub data_dir: std::path::PathBuf,
+    /// Disk bytes the posted scenes kept under `data_dir/scenes` may take
+    /// together; a POST beyond gets 507 naming this key.
+    pub posted_scene_bytes: u64,
 }
 
 /// Per-request limits that keep one request from monopolising the service.
@@ -141,6 +144,9 @@ pub struct Limits {
     /// Largest scene upload with its assets (`multipart/form-data` on
     /// `POST /v1/scenes`), bytes (413 beyond).
     pub max_upload_bytes: u64,
+    /// Uploads and records imports read at once (each up to
+    /// `max_upload_bytes` in memory); more get 503 with `Retry-After`.
+    pub max_concurrent_uploads: usize,
     /// Most points in one point query.
     pub max_points: usize,
     /// Most hemisphere samples per estimate.
@@ -224,6 +230,11 @@ impl Config {
             ("limits.max_samples", self.limits.max_samples as u64),
             ("limits.max_tile_area", self.limits.max_tile_area as u64),
             ("limits.max_queued_jobs", self.limits.max_queued_jobs as u64),
+            (
+                "limits.max_concurrent_uploads",
+                self.limits.max_concurrent_uploads as u64,
+            ),
+            ("cache.posted_scene_bytes", self.cache.posted_scene_bytes),
             (
                 "limits.request_deadline_secs",
                 self.limits.request_deadline_secs,

@@ -70,6 +70,9 @@ pub enum ApiError {
         capacity: usize,
         retry_after_secs: u64,
     },
+    /// Every upload slot is taken (503, retry in a second).
+    #[error("{limit} uploads are being read (limits.max_concurrent_uploads); retry in a moment")]
+    UploadsBusy { limit: usize },
     #[error("request exceeded its deadline of {secs} s")]
     DeadlineExceeded { secs: u64 },
     #[error("internal error: {message}")]
@@ -222,7 +225,9 @@ impl ApiError {
             ApiError::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::PayloadTooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            ApiError::Overloaded { .. } | ApiError::Cancelled => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::Overloaded { .. } | ApiError::UploadsBusy { .. } | ApiError::Cancelled => {
+                StatusCode::SERVICE_UNAVAILABLE
+            }
             ApiError::Unauthorized => StatusCode::UNAUTHORIZED,
             ApiError::CrossOrigin { .. } => StatusCode::FORBIDDEN,
             ApiError::UriTooLong { .. } => StatusCode::URI_TOO_LONG,
@@ -243,7 +248,7 @@ impl ApiError {
             ApiError::MethodNotAllowed { .. } => "method_not_allowed",
             ApiError::PayloadTooLarge => "payload_too_large",
             ApiError::UnsupportedMediaType { .. } => "unsupported_media_type",
-            ApiError::Overloaded { .. } => "overloaded",
+            ApiError::Overloaded { .. } | ApiError::UploadsBusy { .. } => "overloaded",
             ApiError::DeadlineExceeded { .. } => "deadline_exceeded",
             ApiError::Internal { .. } => "internal",
             ApiError::Cancelled => "cancelled",
@@ -268,6 +273,7 @@ impl ApiError {
             ApiError::InsufficientStorage { field, .. } => Some(field),
             ApiError::BodyTooLarge { field, .. } => Some(field),
             ApiError::CrossOrigin { .. } => Some("Origin"),
+            ApiError::UploadsBusy { .. } => Some("limits.max_concurrent_uploads"),
             _ => None,
         }
     }
@@ -480,13 +486,17 @@ impl IntoResponse for ApiError {
                 .headers_mut()
                 .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
         }
-        if let ApiError::Overloaded {
-            retry_after_secs, ..
-        } = self
-        {
+        let retry_after = match self {
+            ApiError::Overloaded {
+                retry_after_secs, ..
+            } => Some(retry_after_secs),
+            ApiError::UploadsBusy { .. } => Some(1),
+            _ => None,
+        };
+        if let Some(secs) = retry_after {
             response
                 .headers_mut()
-                .insert(header::RETRY_AFTER, HeaderValue::from(retry_after_secs));
+                .insert(header::RETRY_AFTER, HeaderValue::from(secs));
         }
         response
     }

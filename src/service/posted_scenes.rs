@@ -141,6 +141,31 @@ impl PostedScenes {
         }
     }
 
+    /// Bytes the kept scenes would take on disk with `posted` kept as `id`
+    /// (replacing an earlier copy of `id`).
+    pub fn bytes_with(&self, id: &str, posted: &Posted) -> std::io::Result<u64> {
+        let Some(dir) = &self.dir else {
+            return Ok(0);
+        };
+        let new = posted.document.len() as u64
+            + posted
+                .bundle
+                .iter()
+                .flat_map(SceneBundle::assets)
+                .map(|(_, bytes)| bytes.len() as u64)
+                .sum::<u64>();
+        let mut others = 0;
+        if let Ok(entries) = std::fs::read_dir(dir) {
+            for entry in entries.filter_map(Result::ok) {
+                let name = entry.file_name();
+                if name.to_string_lossy() != id {
+                    others += tree_bytes(&entry.path());
+                }
+            }
+        }
+        Ok(new + others)
+    }
+
     /// Keeps `posted` as scene `id`, replacing an earlier copy.
     pub fn save(&self, id: &str, posted: &Posted) -> std::io::Result<()> {
         let Some(dir) = &self.dir else {
@@ -238,6 +263,22 @@ impl PostedScenes {
         }
         loaded.sort_by(|a, b| a.id.cmp(&b.id));
         loaded
+    }
+}
+
+/// Bytes of the regular files under `path` (links not followed).
+fn tree_bytes(path: &Path) -> u64 {
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) if meta.is_dir() => std::fs::read_dir(path)
+            .map(|entries| {
+                entries
+                    .filter_map(Result::ok)
+                    .map(|e| tree_bytes(&e.path()))
+                    .sum()
+            })
+            .unwrap_or(0),
+        Ok(meta) if meta.is_file() => meta.len(),
+        _ => 0,
     }
 }
 

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use crate::bmc::cache::QuadratureCache;
 
 use super::config::Config;
+use super::error::ApiError;
 use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
@@ -36,4 +37,20 @@ pub struct AppState {
     pub posted: PostedScenes,
     /// The Redis shared with other replicas (`cluster.redis_url`), if any.
     pub shared: Option<Arc<SharedStore>>,
+    /// One permit per upload or records import being read
+    /// (`limits.max_concurrent_uploads`).
+    pub uploads: Arc<tokio::sync::Semaphore>,
+}
+
+impl AppState {
+    /// A permit to read an upload or import body, or 503 (retry in a second)
+    /// when `limits.max_concurrent_uploads` are being read.
+    pub fn upload_permit(&self) -> Result<tokio::sync::OwnedSemaphorePermit, ApiError> {
+        self.uploads
+            .clone()
+            .try_acquire_owned()
+            .map_err(|_| ApiError::UploadsBusy {
+                limit: self.config.limits.max_concurrent_uploads,
+            })
+    }
 }

@@ -202,3 +202,73 @@ async fn escaping_and_oversized_uploads_are_refused() {
     let health: Value = app.get("/health").await.json().await.unwrap();
     assert_eq!(health["status"], "ok");
 }
+
+/// Uploads read at once are bounded (`limits.max_concurrent_uploads`): one
+/// more gets 503 with `Retry-After`, naming the limit, while the others are
+/// read; and the posted scenes kept on disk have a budget
+/// (`cache.posted_scene_bytes`): a POST beyond it gets 507 naming it and
+/// changes nothing.
+#[tokio::test]
+async fn uploads_at_once_and_the_disk_they_take_are_bounded() {
+    use tokio::io::AsyncWriteExt;
+    let data = tempfile::tempdir().unwrap();
+    let kept = data.path().to_owned();
+    let body = with_mesh_and_map();
+    // Room for the scene and a copy or two, not for ten.
+    let budget = 3 * body.len() as u64;
+    let app = spawn_app_with(move |config| {
+        config.limits.max_concurrent_uploads = 1;
+        config.server.header_read_timeout_secs = 5;
+        config.cache.data_dir = kept;
+        config.cache.posted_scene_bytes = budget;
+    })
+    .await;
+    // An upload that has sent its head and half its body holds the slot.
+    let addr = app.base.trim_start_matches("http://").to_owned();
+    let mut slow = tokio::net::TcpStream::connect(&addr).await.unwrap();
+    let head = format!(
+        "POST /v1/scenes HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary={BOUNDARY}\r\nContent-Length: {}\r\n\r\n",
+        body.len()
+    );
+    slow.write_all(head.as_bytes()).await.unwrap();
+    slow.write_all(&body[..body.len() / 2]).await.unwrap();
+    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    let busy = upload(&app, "", body.clone()).await;
+    assert_eq!(busy.status(), StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(busy.headers()["retry-after"], "1");
+    let (body_json, _) = crate::common::error_json(busy).await;
+    assert_eq!(body_json["error"]["field"], "limits.max_concurrent_uploads");
+    drop(slow);
+    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+
+    // The mesh scene with its map fits; copies under other names do not.
+    assert_eq!(
+        upload(&app, "", body.clone()).await.status(),
+        StatusCode::CREATED
+    );
+    let mut refused = None;
+    for i in 0..10 {
+        let name: &[u8] = b"\"uploaded\"";
+        let at = body.windows(name.len()).position(|w| w == name).unwrap();
+        let renamed = [
+            &body[..at],
+            format!("\"copy-{i}\"").as_bytes(),
+            &body[at + name.len()..],
+        ]
+        .concat();
+        let response = upload(&app, "", renamed).await;
+        if response.status() != StatusCode::CREATED {
+            refused = Some((i, response));
+            break;
+        }
+    }
+    let (i, response) = refused.expect("the disk budget never refused a copy");
+    assert_eq!(response.status(), StatusCode::INSUFFICIENT_STORAGE);
+    let (body_json, _) = crate::common::error_json(response).await;
+    assert_eq!(
+        body_json["error"]["field"], "cache.posted_scene_bytes",
+        "{body_json}"
+    );
+    assert_eq!(app.get(&format!("/v1/scenes/copy-{i}")).await.status(), 404);
+    assert_eq!(app.get("/v1/scenes/uploaded").await.status(), 200);
+}

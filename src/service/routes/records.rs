@@ -106,7 +106,9 @@ pub async fn import_records(
     request: Request,
 ) -> Result<Json<ImportReport>, ApiError> {
     let scene = state.scene(&id).await?;
+    let reading = state.upload_permit()?;
     let body = body_up_to(request, state.config.limits.max_upload_bytes).await?;
+    drop(reading);
     let digest = *scene.transport.scene().digest.as_bytes();
     let bounds = scene.transport.scene().bounds();
     let keeper = state.clone();

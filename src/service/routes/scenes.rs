@@ -133,7 +133,9 @@ pub async fn post_scene(
         }
         MediaType::Multipart => {
             let limit = state.config.limits.max_upload_bytes;
+            let reading = state.upload_permit()?;
             let upload = read_upload(request, limit).await?;
+            drop(reading);
             let options = MitsubaOptions {
                 lenient: query.lenient,
                 ..MitsubaOptions::default()
@@ -198,7 +200,25 @@ pub async fn post_scene(
     // not survive a restart is not acknowledged, and not made.
     let blob = state.shared.is_some().then(|| posted.encode());
     let (keeper, id) = (state.posted.clone(), summary.id.clone());
-    let kept = tokio::task::spawn_blocking(move || keeper.save(&id, &posted)).await;
+    let budget = state.config.cache.posted_scene_bytes;
+    let kept = tokio::task::spawn_blocking(move || {
+        let total = keeper.bytes_with(&id, &posted)?;
+        if total > budget {
+            return Ok(Some(total));
+        }
+        keeper.save(&id, &posted).map(|()| None)
+    })
+    .await;
+    if let Ok(Ok(Some(total))) = kept {
+        state.scenes.restore(&summary.id, previous);
+        return Err(ApiError::InsufficientStorage {
+            field: "cache.posted_scene_bytes".into(),
+            message: format!(
+                "the posted scenes kept on disk would take {total} bytes with this one, more than cache.posted_scene_bytes ({budget})"
+            ),
+        });
+    }
+    let kept = kept.map(|k| k.map(|_| ()));
     if let Ok(Err(err)) | Err(err) = kept.map_err(std::io::Error::other) {
         state.scenes.restore(&summary.id, previous);
         tracing::error!(id = %summary.id, %err, "posted scene not kept; refused");
