@@ -33,11 +33,14 @@ up() {
         >"$STATE/redis.log" 2>&1 &
     echo $! >"$STATE/redis.pid"
     local servers=""
+    # One secret for this cluster's replicas: they refuse what Redis holds unsigned.
+    local secret
+    secret="$(head -c 24 /dev/urandom | od -An -tx1 | tr -d ' \n')"
     for k in $(seq 1 "$n"); do
         local port=$((BASE_PORT + k - 1))
         mkdir -p "$STATE/replica-$k"
         BMC_CACHE__DATA_DIR="$STATE/replica-$k" NO_COLOR=1 \
-            BMC_CLUSTER__REDIS_URL="redis://127.0.0.1:$REDIS_PORT/0" \
+            BMC_CLUSTER__REDIS_URL="redis://127.0.0.1:$REDIS_PORT/0" BMC_CLUSTER__SECRET="$secret" \
             target/release/bmc-irradiance serve --bind "127.0.0.1:$port" \
             >"$STATE/replica-$k.log" 2>&1 &
         echo $! >"$STATE/replica-$k.pid"

@@ -123,6 +123,11 @@ impl Application {
         let mut tiles = open_tile_store(&config.cache, config.limits.max_tile_area)?;
         if let Some(shared) = &shared {
             tiles = tiles.sharing_through(shared.outbox());
+            if !shared.signs() {
+                tracing::warn!(
+                    "no cluster.secret: replicas take whatever Redis holds (tile parts, scenes, deletions); set one shared secret on every replica"
+                );
+            }
             tracing::info!(prefix = %config.cluster.redis_prefix, "sharing tiles and scenes with other replicas through Redis");
         }
         let uploads = Arc::new(tokio::sync::Semaphore::new(

@@ -85,6 +85,10 @@ pub struct ClusterConfig {
     /// Entries kept in the shared stream of tile parts; older ones are
     /// trimmed (approximately, as Redis's `MAXLEN ~` does).
     pub shared_parts: u64,
+    /// A secret the replicas share: what one sends through Redis carries a
+    /// keyed BLAKE3 hash of it, and what lacks a valid one is not taken.
+    /// Empty = whatever Redis holds is trusted (warned at startup).
+    pub secret: String,
 }
 
 /// Listener and thread counts.

@@ -15,6 +15,13 @@
 //!   stream `{prefix}:scenes` (`op` = `put` or `delete`, `id`, `digest`,
 //!   `o`).
 //!
+//! With `cluster.secret` set, each part, scene and scene event carries a
+//! BLAKE3 hash keyed by a key derived from the secret (field `m`; a scene's
+//! value is `hash \n blob`), and whatever lacks a valid one is refused and
+//! counted (`refused_unsigned`): writing to Redis is then not enough to make
+//! replicas serve a forged tile or forget a scene. Without it, Redis's
+//! content is trusted as it is.
+//!
 //! Each replica reads both streams from their start when it starts, then
 //! follows them with a blocking `XREAD` on a connection of its own (a
 //! blocked read would stall other commands on a shared one).
@@ -90,6 +97,9 @@ pub struct SharedStoreStatus {
     pub parts_dropped: u64,
     /// Scenes taken from other replicas.
     pub scenes_adopted: u64,
+    /// Parts, scenes and scene events refused for want of a valid
+    /// `cluster.secret` hash.
+    pub refused_unsigned: u64,
 }
 
 /// The queue of tile parts waiting to be shared ([`SharedStore::outbox`]).
@@ -109,6 +119,20 @@ impl Outbox {
     }
 }
 
+/// BLAKE3 keyed by `key` over `parts`, each prefixed by its length so that
+/// no part can be shifted into the next.
+fn keyed_hash(key: &[u8; 32], parts: &[&[u8]]) -> blake3::Hash {
+    let mut hasher = blake3::Hasher::new_keyed(key);
+    for part in parts {
+        hasher.update(&(part.len() as u64).to_le_bytes());
+        hasher.update(part);
+    }
+    hasher.finalize()
+}
+
+/// Derivation context of the key `cluster.secret` gives (BLAKE3 `derive_key`).
+const SECRET_CONTEXT: &str = "bmc-irradiance 2026-12 cluster items";
+
 /// A connection to the Redis the replicas share (module docs).
 pub struct SharedStore {
     client: Client,
@@ -126,6 +150,9 @@ pub struct SharedStore {
     merged: AtomicU64,
     dropped: AtomicU64,
     adopted: AtomicU64,
+    /// The key every item sent is hashed with (`cluster.secret`), if any.
+    key: Option<[u8; 32]>,
+    refused: AtomicU64,
 }
 
 impl SharedStore {
@@ -162,6 +189,9 @@ impl SharedStore {
             merged: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
             adopted: AtomicU64::new(0),
+            key: (!config.secret.is_empty())
+                .then(|| blake3::derive_key(SECRET_CONTEXT, config.secret.as_bytes())),
+            refused: AtomicU64::new(0),
         })))
     }
 
@@ -181,7 +211,38 @@ impl SharedStore {
             parts_merged: self.merged.load(Ordering::Relaxed),
             parts_dropped: self.dropped.load(Ordering::Relaxed),
             scenes_adopted: self.adopted.load(Ordering::Relaxed),
+            refused_unsigned: self.refused.load(Ordering::Relaxed),
         }
+    }
+
+    /// Whether what is sent is signed (`cluster.secret` is set).
+    pub fn signs(&self) -> bool {
+        self.key.is_some()
+    }
+
+    /// The keyed hash of `parts`, hex, or "" without a secret.
+    fn seal(&self, parts: &[&[u8]]) -> String {
+        self.key.as_ref().map_or_else(String::new, |key| {
+            keyed_hash(key, parts).to_hex().to_string()
+        })
+    }
+
+    /// Whether `seal` is the hash of `parts` (always, without a secret);
+    /// counts a refusal.
+    fn sealed(&self, seal: Option<&str>, parts: &[&[u8]]) -> bool {
+        let Some(key) = &self.key else {
+            return true;
+        };
+        let expected = keyed_hash(key, parts);
+        // `blake3::Hash` compares in constant time.
+        let valid = seal
+            .and_then(|s| blake3::Hash::from_hex(s).ok())
+            .is_some_and(|h| h == expected);
+        if !valid {
+            self.refused.fetch_add(1, Ordering::Relaxed);
+            tracing::warn!("refused an item from Redis without a valid cluster.secret hash");
+        }
+        valid
     }
 
     /// Counts parts merged from other replicas.
@@ -238,6 +299,7 @@ impl SharedStore {
             while let Some(framed) = receiver.recv().await {
                 let Some(store) = store.upgrade() else { break };
                 let mut cmd = redis::cmd("XADD");
+                let seal = store.seal(&[&framed]);
                 cmd.arg(&store.parts_key)
                     .arg("MAXLEN")
                     .arg("~")
@@ -246,7 +308,9 @@ impl SharedStore {
                     .arg("o")
                     .arg(&store.origin)
                     .arg("e")
-                    .arg(framed);
+                    .arg(framed)
+                    .arg("m")
+                    .arg(seal);
                 if store
                     .run::<String>("sending a tile part", &cmd)
                     .await
@@ -267,7 +331,9 @@ impl SharedStore {
     /// `digest`; false when Redis could not be reached.
     pub async fn put_scene(&self, id: &str, digest: &str, blob: Vec<u8>) -> bool {
         let mut set = redis::cmd("SET");
-        set.arg(self.scene_key(id)).arg(blob);
+        let seal = self.seal(&[id.as_bytes(), &blob]);
+        set.arg(self.scene_key(id))
+            .arg([seal.as_bytes(), b"\n", &blob].concat());
         if self.run::<()>("sharing a scene", &set).await.is_none() {
             return false;
         }
@@ -286,6 +352,7 @@ impl SharedStore {
 
     async fn scene_event(&self, op: &str, id: &str, digest: &str) -> bool {
         let mut cmd = redis::cmd("XADD");
+        let seal = self.seal(&[op.as_bytes(), id.as_bytes(), digest.as_bytes()]);
         cmd.arg(&self.scenes_key)
             .arg("MAXLEN")
             .arg("~")
@@ -298,7 +365,9 @@ impl SharedStore {
             .arg("id")
             .arg(id)
             .arg("digest")
-            .arg(digest);
+            .arg(digest)
+            .arg("m")
+            .arg(seal);
         self.run::<String>("announcing a scene", &cmd)
             .await
             .is_some()
@@ -308,9 +377,16 @@ impl SharedStore {
     pub async fn scene(&self, id: &str) -> Option<Vec<u8>> {
         let mut get = redis::cmd("GET");
         get.arg(self.scene_key(id));
-        self.run::<Option<Vec<u8>>>("reading a shared scene", &get)
+        let stored = self
+            .run::<Option<Vec<u8>>>("reading a shared scene", &get)
             .await
-            .flatten()
+            .flatten()?;
+        // `seal \n blob` (the seal empty without a secret).
+        let at = stored.iter().position(|&b| b == b'\n')?;
+        let (seal, blob) = (&stored[..at], &stored[at + 1..]);
+        let seal = std::str::from_utf8(seal).ok();
+        self.sealed(seal, &[id.as_bytes(), blob])
+            .then(|| blob.to_vec())
     }
 
     /// Follows both streams from their start (module docs), handing what
@@ -362,7 +438,7 @@ impl SharedStore {
                             if entry.get::<String>("o").as_deref() == Some(&store.origin) {
                                 continue;
                             }
-                            if let Some(event) = decode_event(which, &entry) {
+                            if let Some(event) = store.decode_event(which, &entry) {
                                 events.push(event);
                             }
                         }
@@ -377,18 +453,30 @@ impl SharedStore {
     }
 }
 
-/// A stream entry as an event: stream 0 holds parts, stream 1 scene events.
-fn decode_event(stream: usize, entry: &redis::streams::StreamId) -> Option<SharedEvent> {
-    if stream == 0 {
-        return entry.get::<Vec<u8>>("e").map(SharedEvent::Part);
-    }
-    let id = entry.get::<String>("id")?;
-    match entry.get::<String>("op")?.as_str() {
-        "put" => Some(SharedEvent::ScenePosted {
-            id,
-            digest: entry.get::<String>("digest")?,
-        }),
-        "delete" => Some(SharedEvent::SceneDeleted { id }),
-        _ => None,
+impl SharedStore {
+    /// A stream entry as an event (stream 0 holds parts, stream 1 scene
+    /// events), if it is well formed and sealed with this cluster's secret.
+    fn decode_event(&self, stream: usize, entry: &redis::streams::StreamId) -> Option<SharedEvent> {
+        let seal = entry.get::<String>("m");
+        if stream == 0 {
+            let framed = entry.get::<Vec<u8>>("e")?;
+            return self
+                .sealed(seal.as_deref(), &[&framed])
+                .then_some(SharedEvent::Part(framed));
+        }
+        let id = entry.get::<String>("id")?;
+        let op = entry.get::<String>("op")?;
+        let digest = entry.get::<String>("digest").unwrap_or_default();
+        if !self.sealed(
+            seal.as_deref(),
+            &[op.as_bytes(), id.as_bytes(), digest.as_bytes()],
+        ) {
+            return None;
+        }
+        match op.as_str() {
+            "put" => Some(SharedEvent::ScenePosted { id, digest }),
+            "delete" => Some(SharedEvent::SceneDeleted { id }),
+            _ => None,
+        }
     }
 }

@@ -42,6 +42,11 @@ fn root() -> &'static Path {
 
 /// A replica on an ephemeral port; its address from the `listening` log line.
 fn replica(dir: &Path, redis: &str) -> (Process, String) {
+    replica_with(dir, redis, &[])
+}
+
+/// [`replica`] with more environment variables.
+fn replica_with(dir: &Path, redis: &str, env: &[(&str, &str)]) -> (Process, String) {
     let scenes = dir.join("scenes");
     std::fs::create_dir_all(&scenes).unwrap();
     std::fs::copy(
@@ -55,6 +60,7 @@ fn replica(dir: &Path, redis: &str) -> (Process, String) {
         .env("BMC_CACHE__DATA_DIR", dir.join("data"))
         .env("BMC_SERVER__WORKER_THREADS", "1")
         .env("BMC_CLUSTER__REDIS_URL", redis)
+        .envs(env.iter().copied())
         .env("NO_COLOR", "1")
         .env("RUST_LOG", "info")
         .stdout(Stdio::null())
@@ -442,4 +448,80 @@ async fn a_deletion_during_a_redis_stall_reaches_the_other_replicas() {
         tokio::time::sleep(Duration::from_millis(250)).await;
     }
     panic!("replica b still serves the scene deleted on replica a");
+}
+
+/// With `cluster.secret`, replicas take only what carries its hash: a
+/// scene posted to one is served by the other, while a part and a deletion
+/// written to Redis by someone without the secret are refused (counted).
+#[tokio::test]
+async fn with_a_secret_replicas_refuse_what_redis_holds_unsigned() {
+    let (_redis, url) = redis_server();
+    let secret = [("BMC_CLUSTER__SECRET", "the replicas' secret")];
+    let (a_dir, b_dir) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (_a, a) = replica_with(a_dir.path(), &url, &secret);
+    let (_b, b) = replica_with(b_dir.path(), &url, &secret);
+    let client = reqwest::Client::new();
+    let mut doc: serde_json::Value =
+        serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
+    doc["name"] = serde_json::json!("signed");
+    let posted = client
+        .post(format!("http://{a}/v1/scenes"))
+        .json(&doc)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(posted.status(), 201);
+    let scene_on_b = || {
+        let (client, url) = (client.clone(), format!("http://{b}/v1/scenes/signed"));
+        async move { client.get(url).send().await.unwrap().status().as_u16() }
+    };
+    assert_eq!(scene_on_b().await, 200, "replica b adopts the signed scene");
+
+    let parts = format!("bmc:parts:{}", env!("CARGO_PKG_VERSION"));
+    let reply = redis_command(
+        &url,
+        &[
+            b"XADD",
+            parts.as_bytes(),
+            b"*",
+            b"o",
+            b"forger",
+            b"e",
+            b"forged part",
+        ],
+    );
+    assert!(reply.starts_with('$'), "{reply}");
+    let reply = redis_command(
+        &url,
+        &[
+            b"XADD",
+            b"bmc:scenes",
+            b"*",
+            b"o",
+            b"forger",
+            b"op",
+            b"delete",
+            b"id",
+            b"signed",
+            b"digest",
+            b"",
+        ],
+    );
+    assert!(reply.starts_with('$'), "{reply}");
+    let refused = || {
+        let (client, url) = (client.clone(), format!("http://{b}/health"));
+        async move {
+            let health: serde_json::Value =
+                client.get(url).send().await.unwrap().json().await.unwrap();
+            health["shared"]["refused_unsigned"].as_u64().unwrap()
+        }
+    };
+    for _ in 0..80 {
+        if refused().await >= 2 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    }
+    assert!(refused().await >= 2, "the forged items were not refused");
+    assert_eq!(scene_on_b().await, 200, "a forged deletion was taken");
 }
