@@ -8,12 +8,12 @@
 //!
 //! Everything inside one factorisation is sequential: faer with `Par::Seq`
 //! and a plain loop for the kernel matrix. The service already parallelises
-//! across requests and points with rayon, and, more importantly, factorisations
-//! run inside single-flight cache initialisers (`bmc::cache`, the record
-//! rules, the lengthscale fit) on rayon workers while identical requests wait
-//! for them: a rayon join in there would let the worker steal one of those
-//! waiting requests and deadlock on its own key. The explicit `Par` argument of
-//! faer's low-level routines keeps this independent of faer's global setting.
+//! across requests and points with rayon. Factorisations run inside
+//! single-flight cache initialisers (`bmc::cache`, the record rules, the
+//! lengthscale fit), which now run on a pool of their own (`crate::isolated`),
+//! so a join in there could no longer deadlock on its own key; whether one
+//! pays is for measurement. The explicit `Par` argument of faer's low-level
+//! routines keeps this independent of faer's global setting.
 //! Every call into faer is followed by `dense::clear_upper_vector_state`
 //! (that module says why).
 

@@ -2,10 +2,10 @@
 //! the assets it references (OBJ/PLY meshes, EXR maps, PNG textures), each
 //! under the relative path the document names it by.
 //!
-//! The assets are written into a fresh private directory, which is the
-//! scenes root of the load (so the document can reach nothing else), and
-//! removed after loading: a loaded scene holds everything it needs in
-//! memory. Asset names are checked before anything is written: relative
+//! The assets are written into a fresh private directory as they arrive,
+//! which is the scenes root of the load (so the document can reach nothing
+//! else), and removed with the bundle: a loaded scene holds everything it
+//! needs in memory. Asset names are checked before anything is written: relative
 //! paths of plain components only (no `..`, no root or drive, no `.`
 //! segments, no backslashes or NULs), each at most [`MAX_NAME_BYTES`] long
 //! and [`MAX_DEPTH`] deep, no name twice, at most [`MAX_ASSETS`] of them.
@@ -32,16 +32,33 @@ pub enum DocumentKind {
     MitsubaXml,
 }
 
-/// A document and its assets (module docs).
-#[derive(Clone, Debug, Default)]
+/// A document's assets (module docs), each a file in a private directory
+/// from the moment it is added: an upload is written to disk as it arrives,
+/// never held whole in memory.
+#[derive(Debug)]
 pub struct SceneBundle {
-    /// `(relative name, bytes)` in upload order.
-    assets: Vec<(PathBuf, Vec<u8>)>,
+    /// The scenes root of loads of this bundle, removed on drop.
+    dir: tempfile::TempDir,
+    /// Relative names in upload order.
+    assets: Vec<PathBuf>,
 }
 
 impl SceneBundle {
-    /// Adds an asset; `field` names it in errors (e.g. `assets[2]`).
-    pub fn add(&mut self, name: &str, bytes: Vec<u8>, field: &str) -> Result<(), SceneError> {
+    /// An empty bundle in a fresh private directory.
+    pub fn new() -> Result<SceneBundle, SceneError> {
+        let dir = tempfile::Builder::new()
+            .prefix("bmc-upload-")
+            .tempdir()
+            .map_err(|e| io_error(Path::new("<upload directory>"), e))?;
+        Ok(SceneBundle {
+            dir,
+            assets: Vec::new(),
+        })
+    }
+
+    /// Reserves asset `name` and creates its empty file, to which the caller
+    /// writes the asset's bytes; `field` names it in errors (e.g. `assets[2]`).
+    pub fn create(&mut self, name: &str, field: &str) -> Result<std::fs::File, SceneError> {
         if self.assets.len() >= MAX_ASSETS {
             return Err(SceneError::invalid(
                 field,
@@ -56,7 +73,7 @@ impl SceneBundle {
         // folder, cannot both be files.
         let folded = |p: &Path| PathBuf::from(p.to_string_lossy().to_lowercase());
         let new = folded(&path);
-        if let Some((old, _)) = self.assets.iter().find(|(p, _)| {
+        if let Some(old) = self.assets.iter().find(|p| {
             let old = folded(p);
             old.starts_with(&new) || new.starts_with(&old)
         }) {
@@ -75,24 +92,62 @@ impl SceneBundle {
             };
             return Err(SceneError::invalid(field, reason));
         }
-        self.assets.push((path, bytes));
-        Ok(())
+        let file = self.dir.path().join(&path);
+        if let Some(parent) = file.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| io_error(&path, e))?;
+        }
+        // `create_new`: a name cannot reuse a file written before it.
+        let created = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&file)
+            .map_err(|e| io_error(&path, e))?;
+        self.assets.push(path);
+        Ok(created)
+    }
+
+    /// Adds an asset whose bytes are at hand ([`Self::create`], then written).
+    pub fn add(&mut self, name: &str, bytes: &[u8], field: &str) -> Result<(), SceneError> {
+        let mut file = self.create(name, field)?;
+        std::io::Write::write_all(&mut file, bytes).map_err(|e| io_error(Path::new(name), e))
+    }
+
+    /// The assets' relative names, in upload order.
+    pub fn names(&self) -> impl Iterator<Item = &Path> {
+        self.assets.iter().map(PathBuf::as_path)
+    }
+
+    /// Where asset `name` (one of [`Self::names`]) is on disk.
+    pub fn path_of(&self, name: &Path) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    /// The bytes of every asset, read from disk: `(name, bytes)`.
+    pub fn contents(&self) -> impl Iterator<Item = std::io::Result<(&Path, Vec<u8>)>> {
+        self.names()
+            .map(|name| std::fs::read(self.path_of(name)).map(|bytes| (name, bytes)))
+    }
+
+    /// Bytes the assets take on disk.
+    pub fn bytes(&self) -> u64 {
+        self.names()
+            .filter_map(|name| std::fs::metadata(self.path_of(name)).ok())
+            .map(|m| m.len())
+            .sum()
     }
 
     /// Keeps only the assets `scene` was built from (its [`Scene::files`],
     /// as loaded by [`Self::load`]); returns the names of those dropped,
     /// which no one needs and no one should have to store.
     pub fn keep_used(&mut self, scene: &Scene) -> Vec<PathBuf> {
-        let (kept, dropped) = std::mem::take(&mut self.assets)
+        let (kept, dropped): (Vec<PathBuf>, Vec<PathBuf>) = std::mem::take(&mut self.assets)
             .into_iter()
-            .partition(|(name, _)| scene.files.contains(name));
+            .partition(|name| scene.files.contains(name));
+        for name in &dropped {
+            let _ = std::fs::remove_file(self.path_of(name));
+        }
         self.assets = kept;
-        dropped.into_iter().map(|(name, _)| name).collect()
-    }
-
-    /// The assets, `(relative name, bytes)`, in upload order.
-    pub fn assets(&self) -> impl Iterator<Item = (&Path, &[u8])> {
-        self.assets.iter().map(|(p, b)| (p.as_path(), b.as_slice()))
+        dropped
     }
 
     pub fn len(&self) -> usize {
@@ -103,32 +158,14 @@ impl SceneBundle {
         self.assets.is_empty()
     }
 
-    /// Writes the assets into a private directory and loads `document`
-    /// against it (module docs); the directory is gone when this returns.
+    /// Loads `document` against the bundle's directory (module docs).
     pub fn load(
         &self,
         document: &str,
         kind: DocumentKind,
         options: &MitsubaOptions,
     ) -> Result<(Scene, Warnings), SceneError> {
-        let dir = tempfile::Builder::new()
-            .prefix("bmc-upload-")
-            .tempdir()
-            .map_err(|e| io_error(Path::new("<upload directory>"), e))?;
-        for (name, bytes) in &self.assets {
-            let path = dir.path().join(name);
-            if let Some(parent) = path.parent() {
-                std::fs::create_dir_all(parent).map_err(|e| io_error(parent, e))?;
-            }
-            // `create_new`: a name cannot reuse a file written before it.
-            std::fs::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&path)
-                .and_then(|mut f| std::io::Write::write_all(&mut f, bytes))
-                .map_err(|e| io_error(&path, e))?;
-        }
-        load_document(document, kind, options, dir.path())
+        load_document(document, kind, options, self.dir.path())
     }
 }
 
@@ -198,16 +235,16 @@ mod tests {
             ("a", "a/tri.obj", "file and a folder"),
             ("meshes/a.obj", "Meshes", "file and a folder"),
         ] {
-            let mut bundle = SceneBundle::default();
-            bundle.add(first, vec![1], "assets[0]").unwrap();
-            let err = bundle.add(second, vec![2], "assets[1]").unwrap_err();
+            let mut bundle = SceneBundle::new().unwrap();
+            bundle.add(first, &[1], "assets[0]").unwrap();
+            let err = bundle.add(second, &[2], "assets[1]").unwrap_err();
             assert_eq!(err.field(), Some("assets[1]"), "{first} {second}");
             assert!(err.to_string().contains(says), "{err}");
         }
-        let mut bundle = SceneBundle::default();
-        bundle.add("a/b.obj", vec![1], "assets[0]").unwrap();
-        bundle.add("a/c.obj", vec![1], "assets[1]").unwrap();
-        bundle.add("ab", vec![1], "assets[2]").unwrap();
+        let mut bundle = SceneBundle::new().unwrap();
+        bundle.add("a/b.obj", &[1], "assets[0]").unwrap();
+        bundle.add("a/c.obj", &[1], "assets[1]").unwrap();
+        bundle.add("ab", &[1], "assets[2]").unwrap();
     }
 
     #[test]
@@ -230,9 +267,9 @@ mod tests {
         for good in ["blob.obj", "meshes/blob.obj", "a/b/c/d.exr", "x..y.png"] {
             assert_eq!(check_name(good).unwrap(), Path::new(good));
         }
-        let mut bundle = SceneBundle::default();
-        bundle.add("a.obj", vec![], "assets[0]").unwrap();
-        let err = bundle.add("a.obj", vec![], "assets[1]").unwrap_err();
+        let mut bundle = SceneBundle::new().unwrap();
+        bundle.add("a.obj", &[], "assets[0]").unwrap();
+        let err = bundle.add("a.obj", &[], "assets[1]").unwrap_err();
         assert_eq!(err.field(), Some("assets[1]"));
     }
 
@@ -247,9 +284,9 @@ mod tests {
                                 "origin": [0, 0, 3], "target": [0, 0, 0], "up": [0, 1, 0]}}}}"#
             )
         };
-        let mut bundle = SceneBundle::default();
+        let mut bundle = SceneBundle::new().unwrap();
         bundle
-            .add("meshes/tri.obj", obj.as_bytes().to_vec(), "assets[0]")
+            .add("meshes/tri.obj", obj.as_bytes(), "assets[0]")
             .unwrap();
         let options = MitsubaOptions::default();
         let (scene, _) = bundle
@@ -267,9 +304,7 @@ mod tests {
             .unwrap();
         assert_eq!(again.digest, scene.digest);
         // An asset the document does not name is not kept.
-        bundle
-            .add("notes/unused.txt", b"x".to_vec(), "assets[1]")
-            .unwrap();
+        bundle.add("notes/unused.txt", b"x", "assets[1]").unwrap();
         let (scene, _) = bundle
             .load(&doc("meshes/tri.obj"), DocumentKind::Json, &options)
             .unwrap();

@@ -41,14 +41,21 @@ struct BlobHeader {
 }
 
 impl Posted {
-    /// The blob replicas exchange (module docs).
-    pub fn encode(&self) -> Vec<u8> {
+    /// The blob replicas exchange (module docs); the assets are read from
+    /// the bundle's files.
+    pub fn encode(&self) -> std::io::Result<Vec<u8>> {
+        let contents: Vec<(&Path, Vec<u8>)> = self
+            .bundle
+            .iter()
+            .flat_map(SceneBundle::contents)
+            .collect::<std::io::Result<_>>()?;
         let header = BlobHeader {
             xml: self.kind == DocumentKind::MitsubaXml,
             lenient: self.lenient,
             document: self.document.clone(),
-            assets: self.bundle.as_ref().map(|b| {
-                b.assets()
+            assets: self.bundle.as_ref().map(|_| {
+                contents
+                    .iter()
                     .map(|(p, bytes)| (p.to_string_lossy().into_owned(), bytes.len() as u64))
                     .collect()
             }),
@@ -57,10 +64,10 @@ impl Posted {
         let mut out = BLOB_MAGIC.to_vec();
         out.extend((header.len() as u32).to_le_bytes());
         out.extend(header);
-        for (_, bytes) in self.bundle.iter().flat_map(SceneBundle::assets) {
+        for (_, bytes) in &contents {
             out.extend_from_slice(bytes);
         }
-        out
+        Ok(out)
     }
 
     /// A blob read back; asset names are checked again (`SceneBundle::add`).
@@ -78,12 +85,12 @@ impl Posted {
         let bundle = match header.assets {
             None => None,
             Some(assets) => {
-                let mut bundle = SceneBundle::default();
+                let mut bundle = SceneBundle::new()?;
                 for (i, (name, len)) in assets.into_iter().enumerate() {
                     let len = usize::try_from(len)?;
                     anyhow::ensure!(rest.len() >= len, "truncated asset {name:?}");
                     let (bytes, tail) = rest.split_at(len);
-                    bundle.add(&name, bytes.to_vec(), &format!("assets[{i}]"))?;
+                    bundle.add(&name, bytes, &format!("assets[{i}]"))?;
                     rest = tail;
                 }
                 Some(bundle)
@@ -147,13 +154,8 @@ impl PostedScenes {
         let Some(dir) = &self.dir else {
             return Ok(0);
         };
-        let new = posted.document.len() as u64
-            + posted
-                .bundle
-                .iter()
-                .flat_map(SceneBundle::assets)
-                .map(|(_, bytes)| bytes.len() as u64)
-                .sum::<u64>();
+        let new =
+            posted.document.len() as u64 + posted.bundle.as_ref().map_or(0, SceneBundle::bytes);
         let mut others = 0;
         if let Ok(entries) = std::fs::read_dir(dir) {
             for entry in entries.filter_map(Result::ok) {
@@ -187,12 +189,14 @@ impl PostedScenes {
             staging.path().join("post.json"),
             serde_json::to_vec(&record).map_err(std::io::Error::other)?,
         )?;
-        for (path, bytes) in posted.bundle.iter().flat_map(SceneBundle::assets) {
-            let target = staging.path().join("assets").join(path);
-            if let Some(parent) = target.parent() {
-                std::fs::create_dir_all(parent)?;
+        if let Some(bundle) = &posted.bundle {
+            for name in bundle.names() {
+                let target = staging.path().join("assets").join(name);
+                if let Some(parent) = target.parent() {
+                    std::fs::create_dir_all(parent)?;
+                }
+                std::fs::copy(bundle.path_of(name), target)?;
             }
-            std::fs::write(target, bytes)?;
         }
         // Swapped in by renames, so a crash leaves the old copy or the new
         // one, never neither: the old one moves aside first.
@@ -319,28 +323,34 @@ mod tests {
 
     #[test]
     fn a_posted_scene_travels_as_one_blob() {
-        let mut bundle = SceneBundle::default();
+        let mut bundle = SceneBundle::new().unwrap();
         bundle
-            .add("meshes/a.obj", b"v 0 0 0\n".to_vec(), "assets[0]")
+            .add("meshes/a.obj", b"v 0 0 0\n", "assets[0]")
             .unwrap();
-        bundle.add("sky.exr", vec![1, 2, 3], "assets[1]").unwrap();
+        bundle.add("sky.exr", &[1, 2, 3], "assets[1]").unwrap();
         let posted = Posted {
             document: "<scene/>".into(),
             kind: DocumentKind::MitsubaXml,
             lenient: true,
             bundle: Some(bundle),
         };
-        let blob = posted.encode();
+        let blob = posted.encode().unwrap();
         let back = Posted::decode(&blob).unwrap();
         assert_eq!(back.document, "<scene/>");
         assert_eq!(back.kind, DocumentKind::MitsubaXml);
         assert!(back.lenient);
-        let assets: Vec<_> = back.bundle.as_ref().unwrap().assets().collect();
+        let assets: Vec<_> = back
+            .bundle
+            .as_ref()
+            .unwrap()
+            .contents()
+            .map(Result::unwrap)
+            .collect();
         assert_eq!(
             assets,
             [
-                (Path::new("meshes/a.obj"), b"v 0 0 0\n".as_slice()),
-                (Path::new("sky.exr"), [1, 2, 3].as_slice())
+                (Path::new("meshes/a.obj"), b"v 0 0 0\n".to_vec()),
+                (Path::new("sky.exr"), vec![1, 2, 3])
             ]
         );
         assert!(Posted::decode(&blob[..blob.len() - 1]).is_err());

@@ -57,8 +57,8 @@ fn tolerance(kernel: &Kernel, density: &Density, rel: f64) -> Tolerance {
 
 /// Exact `z(ω) = ∫_H k(ω, ω') p(ω') dω'` for unit directions `ω` (local
 /// frame; they may lie anywhere on the sphere). Sequential, like the
-/// factorisation and for the same reason (see `bmc::factorisation`): this runs
-/// inside single-flight cache initialisers on rayon workers.
+/// factorisation (see `bmc::factorisation`): this runs inside single-flight
+/// cache initialisers, which parallelise across requests already.
 pub(crate) fn kernel_means(directions: &[DVec3], kernel: &Kernel, density: &Density) -> Vec<f64> {
     let tol = tolerance(kernel, density, REL_TOL);
     directions

@@ -6,6 +6,7 @@ use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, Request, State};
 use axum::http::StatusCode;
+use tokio::io::AsyncWriteExt;
 
 use crate::scene::bundle::{DocumentKind, SceneBundle};
 use crate::scene::{MitsubaOptions, Scene, Warnings};
@@ -198,32 +199,40 @@ pub async fn post_scene(
     let replaced = previous.is_some();
     // Kept for the next start (with `cache.data_dir`): a change that would
     // not survive a restart is not acknowledged, and not made.
-    let blob = state.shared.is_some().then(|| posted.encode());
     let (keeper, id) = (state.posted.clone(), summary.id.clone());
-    let budget = state.config.cache.posted_scene_bytes;
-    let kept = tokio::task::spawn_blocking(move || {
+    let (budget, share) = (
+        state.config.cache.posted_scene_bytes,
+        state.shared.is_some(),
+    );
+    let kept = tokio::task::spawn_blocking(move || -> std::io::Result<Kept> {
         let total = keeper.bytes_with(&id, &posted)?;
         if total > budget {
-            return Ok(Some(total));
+            return Ok(Kept::OverBudget(total));
         }
-        keeper.save(&id, &posted).map(|()| None)
+        keeper.save(&id, &posted)?;
+        // A blob that cannot be made only costs the sharing.
+        Ok(Kept::Saved(share.then(|| posted.encode().ok()).flatten()))
     })
-    .await;
-    if let Ok(Ok(Some(total))) = kept {
-        state.scenes.restore(&summary.id, previous);
-        return Err(ApiError::InsufficientStorage {
-            field: "cache.posted_scene_bytes".into(),
-            message: format!(
-                "the posted scenes kept on disk would take {total} bytes with this one, more than cache.posted_scene_bytes ({budget})"
-            ),
-        });
-    }
-    let kept = kept.map(|k| k.map(|_| ()));
-    if let Ok(Err(err)) | Err(err) = kept.map_err(std::io::Error::other) {
-        state.scenes.restore(&summary.id, previous);
-        tracing::error!(id = %summary.id, %err, "posted scene not kept; refused");
-        return Err(ApiError::not_persisted("the scene", &err));
-    }
+    .await
+    .map_err(std::io::Error::other)
+    .and_then(|kept| kept);
+    let blob = match kept {
+        Ok(Kept::Saved(blob)) => blob,
+        Ok(Kept::OverBudget(total)) => {
+            state.scenes.restore(&summary.id, previous);
+            return Err(ApiError::InsufficientStorage {
+                field: "cache.posted_scene_bytes".into(),
+                message: format!(
+                    "the posted scenes kept on disk would take {total} bytes with this one, more than cache.posted_scene_bytes ({budget})"
+                ),
+            });
+        }
+        Err(err) => {
+            state.scenes.restore(&summary.id, previous);
+            tracing::error!(id = %summary.id, %err, "posted scene not kept; refused");
+            return Err(ApiError::not_persisted("the scene", &err));
+        }
+    };
     // Shared with the other replicas, if any; unreachable Redis leaves the
     // scene on this replica only (and says so in /health).
     if let (Some(shared), Some(blob)) = (&state.shared, blob)
@@ -244,6 +253,29 @@ pub async fn post_scene(
     };
     tracing::info!(id = %summary.id, "scene posted");
     Ok((status, Json(summary)))
+}
+
+/// An asset the server could not write to its disk while receiving it:
+/// 507 naming the part when the disk is full, else 500.
+fn unwritable(field: &str, err: &std::io::Error) -> ApiError {
+    let message = format!("the server could not store {field} while receiving it: {err}");
+    match err.kind() {
+        std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => {
+            ApiError::InsufficientStorage {
+                field: field.to_owned(),
+                message,
+            }
+        }
+        _ => ApiError::Internal { message },
+    }
+}
+
+/// What keeping a posted scene came to.
+enum Kept {
+    /// Kept, with the blob to share with other replicas (if any).
+    Saved(Option<Vec<u8>>),
+    /// Not kept: the kept scenes would take this many bytes with it.
+    OverBudget(u64),
 }
 
 /// A scene uploaded with its assets.
@@ -267,7 +299,7 @@ async fn read_upload(request: Request, limit: u64) -> Result<Upload, ApiError> {
         boundary,
         constraints,
     );
-    let (mut document, mut bundle) = (None, SceneBundle::default());
+    let (mut document, mut bundle) = (None, SceneBundle::new()?);
     while let Some(part) = parts.next_field().await? {
         match part.name() {
             Some("scene") => {
@@ -290,8 +322,16 @@ async fn read_upload(request: Request, limit: u64) -> Result<Upload, ApiError> {
                 let name = part.file_name().map(str::to_owned).ok_or_else(|| {
                     ApiError::invalid(&field, "an asset part needs a filename (its relative path)")
                 })?;
-                let bytes = part.bytes().await?;
-                bundle.add(&name, bytes.to_vec(), &field)?;
+                // Written to the bundle's file chunk by chunk as it arrives.
+                let file = bundle.create(&name, &field)?;
+                let mut file = tokio::fs::File::from_std(file);
+                let mut part = part;
+                while let Some(chunk) = part.chunk().await? {
+                    file.write_all(&chunk)
+                        .await
+                        .map_err(|e| unwritable(&field, &e))?;
+                }
+                file.flush().await.map_err(|e| unwritable(&field, &e))?;
             }
             other => {
                 return Err(ApiError::invalid(
