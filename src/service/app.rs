@@ -8,12 +8,15 @@
 //! 3. panic catcher: a panicking handler answers 500 with the JSON error body;
 //! 4. request head size: a target over [`MAX_URI_BYTES`] answers 414 and headers
 //!    over [`MAX_HEAD_BYTES`] 431, with the JSON error body (hyper itself cuts
-//!    heads off at [`super::server::HYPER_MAX_HEAD_BYTES`] with a bare 431);
+//!    heads off at [`super::server::HYPER_MAX_HEAD_BYTES`] with a 431, and
+//!    answers what it cannot parse with a 400, both given the JSON body by
+//!    [`super::parse_errors`]);
 //! 5. request deadline: a request still running `limits.request_deadline_secs`
 //!    after its body arrived is dropped and answered 504 `deadline_exceeded`
-//!    (dropping it also cancels its CPU job, see `pool.rs`); a body that pauses
-//!    for `server.header_read_timeout_secs` is cut off. 504 rather than 503 because the service did accept
-//!    the work and the client may retry with a smaller request;
+//!    (dropping it also cancels its CPU job, see `pool.rs`); 504 rather than
+//!    503 because the service did accept the work and the client may retry
+//!    with a smaller request. A body that pauses for longer than
+//!    `server.header_read_timeout_secs` is cut off;
 //! 6. body limit (`DefaultBodyLimit`): bodies over `limits.max_body_bytes` make
 //!    [`ApiJson`](super::extract::ApiJson) answer 413 with the JSON error body;
 //! 7. on matched routes only, the guard of the routes that change state

@@ -30,6 +30,7 @@ mod extract;
 mod integrator_doc;
 mod irradiance_caches;
 mod metrics;
+mod parse_errors;
 mod pool;
 mod posted_scenes;
 mod replicas;

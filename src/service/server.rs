@@ -34,10 +34,11 @@ use tokio::sync::Semaphore;
 
 use super::config::ServerConfig;
 use super::metrics;
+use super::parse_errors::JsonParseErrors;
 
 /// Hard cap on a request head (request line and headers) that hyper enforces
-/// with a plain 431; heads below it but over `app::MAX_HEAD_BYTES`
-/// get the JSON error body from the middleware.
+/// with its own 431 (given the JSON body by `parse_errors`); heads below it
+/// but over `app::MAX_HEAD_BYTES` get 431 from the middleware.
 pub const HYPER_MAX_HEAD_BYTES: usize = 64 * 1024;
 /// Pause after a failed `accept` (e.g. out of descriptors) before the next,
 /// so the loop does not spin while the condition lasts.
@@ -76,8 +77,9 @@ pub async fn serve(
             drop(stream);
             continue;
         };
-        let connection =
-            graceful.watch(http.serve_connection(TokioIo::new(stream), service.clone()));
+        // hyper's own bare 4xx answers get the JSON error body too.
+        let stream = TokioIo::new(JsonParseErrors::new(stream));
+        let connection = graceful.watch(http.serve_connection(stream, service.clone()));
         tokio::spawn(async move {
             // Errors here are the client's (reset, timeout, bad request
             // line); hyper already answered what it could.

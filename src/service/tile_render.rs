@@ -5,8 +5,7 @@
 //! What a reproducible tile keeps for the next request: `tile_store`.
 
 use std::sync::Arc;
-use std::sync::atomic::AtomicU64;
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use super::config::Limits;
 use super::error::ApiError;

@@ -399,31 +399,56 @@ async fn a_broken_shared_scene_is_not_found_rather_than_an_error() {
     assert_eq!(health.status(), 200);
 }
 
+/// Two replicas on one Redis, a copy of the Cornell box posted to the first.
+struct Pair {
+    a: (Process, String),
+    b: (Process, String),
+    client: reqwest::Client,
+    _dirs: [tempfile::TempDir; 2],
+}
+
+impl Pair {
+    /// Replicas `a` and `b` on the Redis at `url` with the environment `env`,
+    /// and the Cornell box posted to `a` as `name`.
+    async fn with_posted_scene(url: &str, env: &[(&str, &str)], name: &str) -> Pair {
+        let dirs = [tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap()];
+        let a = replica_with(dirs[0].path(), url, env);
+        let b = replica_with(dirs[1].path(), url, env);
+        let client = reqwest::Client::new();
+        let mut doc: serde_json::Value =
+            serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
+        doc["name"] = serde_json::json!(name);
+        let posted = client
+            .post(format!("http://{}/v1/scenes", a.1))
+            .json(&doc)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(posted.status(), 201);
+        Pair {
+            a,
+            b,
+            client,
+            _dirs: dirs,
+        }
+    }
+}
+
+/// The status of a GET of `url`.
+async fn status(client: &reqwest::Client, url: String) -> u16 {
+    client.get(url).send().await.unwrap().status().as_u16()
+}
+
 /// A scene deleted while Redis is stalled is deleted on the other replicas
 /// too once Redis answers again: the deletion is sent again until it is
 /// taken, instead of being lost with the command that timed out.
 #[tokio::test]
 async fn a_deletion_during_a_redis_stall_reaches_the_other_replicas() {
     let (redis, url) = redis_server();
-    let (a_dir, b_dir) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
-    let (_a, a) = replica(a_dir.path(), &url);
-    let (_b, b) = replica(b_dir.path(), &url);
-    let client = reqwest::Client::new();
-    let mut doc: serde_json::Value =
-        serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
-    doc["name"] = serde_json::json!("extra");
-    let posted = client
-        .post(format!("http://{a}/v1/scenes"))
-        .json(&doc)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(posted.status(), 201);
-    let scene_on = |addr: &str| {
-        let (client, url) = (client.clone(), format!("http://{addr}/v1/scenes/extra"));
-        async move { client.get(url).send().await.unwrap().status().as_u16() }
-    };
-    assert_eq!(scene_on(&b).await, 200, "replica b adopts the scene");
+    let pair = Pair::with_posted_scene(&url, &[], "extra").await;
+    let (a, b, client) = (&pair.a.1, &pair.b.1, &pair.client);
+    let scene_on = |addr: &str| status(client, format!("http://{addr}/v1/scenes/extra"));
+    assert_eq!(scene_on(b).await, 200, "replica b adopts the scene");
 
     let signal = |name: &str| {
         let status = Command::new("kill")
@@ -439,10 +464,10 @@ async fn a_deletion_during_a_redis_stall_reaches_the_other_replicas() {
         .await
         .unwrap();
     assert_eq!(deleted.status(), 204);
-    assert_eq!(scene_on(&a).await, 404);
+    assert_eq!(scene_on(a).await, 404);
     signal("-CONT");
     for _ in 0..120 {
-        if scene_on(&b).await == 404 {
+        if scene_on(b).await == 404 {
             return;
         }
         tokio::time::sleep(Duration::from_millis(250)).await;
@@ -457,24 +482,9 @@ async fn a_deletion_during_a_redis_stall_reaches_the_other_replicas() {
 async fn with_a_secret_replicas_refuse_what_redis_holds_unsigned() {
     let (_redis, url) = redis_server();
     let secret = [("BMC_CLUSTER__SECRET", "the replicas' secret")];
-    let (a_dir, b_dir) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
-    let (_a, a) = replica_with(a_dir.path(), &url, &secret);
-    let (_b, b) = replica_with(b_dir.path(), &url, &secret);
-    let client = reqwest::Client::new();
-    let mut doc: serde_json::Value =
-        serde_json::from_str(include_str!("../../scenes/cornell-box.json")).unwrap();
-    doc["name"] = serde_json::json!("signed");
-    let posted = client
-        .post(format!("http://{a}/v1/scenes"))
-        .json(&doc)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(posted.status(), 201);
-    let scene_on_b = || {
-        let (client, url) = (client.clone(), format!("http://{b}/v1/scenes/signed"));
-        async move { client.get(url).send().await.unwrap().status().as_u16() }
-    };
+    let pair = Pair::with_posted_scene(&url, &secret, "signed").await;
+    let (b, client) = (&pair.b.1, &pair.client);
+    let scene_on_b = || status(client, format!("http://{b}/v1/scenes/signed"));
     assert_eq!(scene_on_b().await, 200, "replica b adopts the signed scene");
 
     let parts = format!("bmc:parts:{}", env!("CARGO_PKG_VERSION"));

@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use crate::common::{TestApp, spawn_app_in};
+use crate::common::{TestApp, copy_dir, spawn_app_in};
 use serde_json::{Value, json};
 
 /// The Cornell box with a 64×48 camera: four 32-pixel tiles (the bottom
@@ -403,20 +403,6 @@ fn mount_tmpfs(at: &Path, bytes: u64) {
     );
 }
 
-/// Copies the files of `from` into `to`, folders included.
-fn copy_tree(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let path = entry.unwrap().path();
-        let target = to.join(path.file_name().unwrap());
-        if path.is_dir() {
-            copy_tree(&path, &target);
-        } else {
-            std::fs::copy(&path, &target).unwrap();
-        }
-    }
-}
-
 impl SmallDisk {
     fn mount(bytes: u64) -> SmallDisk {
         let dir = tempfile::tempdir().unwrap();
@@ -530,9 +516,9 @@ async fn a_full_or_read_only_data_directory_loses_nothing_acknowledged() {
     // is refused and not made.
     let copy = data.join("scenes/posted");
     let saved = tempfile::tempdir().unwrap();
-    copy_tree(&copy, saved.path());
+    copy_dir(&copy, saved.path());
     let busy = SmallDisk::mount_at(&copy, 1 << 20);
-    copy_tree(saved.path(), &copy);
+    copy_dir(saved.path(), &copy);
     let refused = app.delete("/v1/scenes/posted").await;
     assert_eq!(refused.status(), 500);
     assert_eq!(app.get("/v1/scenes/posted").await.status(), 200);

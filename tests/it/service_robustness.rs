@@ -516,3 +516,30 @@ async fn a_slow_upload_keeps_its_deadline_and_a_stalled_one_is_cut_off() {
     assert!(started.elapsed() < Duration::from_secs(10));
     assert_eq!(health(&app).await["scenes"], 2);
 }
+
+/// A request hyper cannot parse (a `<` in the path) is answered by hyper
+/// itself; it still carries the JSON error body, and the service goes on.
+#[tokio::test]
+async fn an_unparsable_request_line_gets_a_json_error() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    let addr = app.base.trim_start_matches("http://").to_owned();
+    for target in ["/v1/scenes/<x>", "/v1/scenes/x>y"] {
+        let mut stream = TcpStream::connect(&addr).await.unwrap();
+        let request = format!("GET {target} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+        stream.write_all(request.as_bytes()).await.unwrap();
+        let mut answer = Vec::new();
+        tokio::time::timeout(Duration::from_secs(10), stream.read_to_end(&mut answer))
+            .await
+            .expect("the connection was not closed")
+            .unwrap();
+        let answer = String::from_utf8(answer).unwrap();
+        assert!(answer.starts_with("HTTP/1.1 400 "), "{target}: {answer}");
+        assert!(
+            answer.contains("content-type: application/json"),
+            "{answer}"
+        );
+        let body: Value = serde_json::from_str(answer.split("\r\n\r\n").nth(1).unwrap()).unwrap();
+        assert_eq!(body["error"]["code"], "malformed_request", "{body}");
+    }
+    assert_eq!(health(&app).await["scenes"], 1);
+}

@@ -4,25 +4,12 @@
 
 use std::path::Path;
 
-use crate::common::spawn_app_in;
+use crate::common::{copy_dir, spawn_app_in};
 
 const MARKER: &str = "# --- walkthrough";
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let path = entry.unwrap().path();
-        let target = to.join(path.file_name().unwrap());
-        if path.is_dir() {
-            copy_dir(&path, &target);
-        } else {
-            std::fs::copy(&path, &target).unwrap();
-        }
-    }
 }
 
 async fn scene_ids(app: &crate::common::TestApp) -> Vec<String> {

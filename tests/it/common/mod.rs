@@ -133,3 +133,17 @@ pub async fn error_of(response: reqwest::Response) -> (String, Option<String>) {
         error["field"].as_str().map(str::to_owned),
     )
 }
+
+/// Copies the files of `from` into `to`, folders included.
+pub fn copy_dir(from: &std::path::Path, to: &std::path::Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let path = entry.unwrap().path();
+        let target = to.join(path.file_name().unwrap());
+        if path.is_dir() {
+            copy_dir(&path, &target);
+        } else {
+            std::fs::copy(&path, &target).unwrap();
+        }
+    }
+}
