@@ -294,11 +294,89 @@ fn forged(export: &[u8], forge: impl FnOnce(&mut Vec<[f64; 31]>)) -> Vec<u8> {
     let mut body = head.to_vec();
     body.extend(records.iter().flatten().flat_map(|v| v.to_le_bytes()));
     let mut out = b"BMCLOG01".to_vec();
-    out.extend((body.len() as u32).to_le_bytes());
-    out.extend(&blake3::hash(&body).as_bytes()[..8]);
-    out.extend(&body);
+    out.extend(framed(&body));
     out.extend(&export[20 + length..]);
     out
+}
+
+/// One log entry as `cache::log` frames it: `length u32 | checksum 8 |
+/// body`, the body being kind, key and payload, the checksum the first 8
+/// bytes of BLAKE3 over it.
+fn framed(body: &[u8]) -> Vec<u8> {
+    let mut out = (body.len() as u32).to_le_bytes().to_vec();
+    out.extend(&blake3::hash(body).as_bytes()[..8]);
+    out.extend(body);
+    out
+}
+
+/// A records export is streamed entry by entry: a client that stops
+/// reading has it cut off once it has paused for
+/// `server.header_read_timeout_secs`, instead of the service holding the
+/// whole export for it.
+#[tokio::test]
+async fn an_export_nobody_reads_is_cut_off() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let app = spawn_app_in(scenes_dir(), |c| c.server.header_read_timeout_secs = 2).await;
+    let summary: Value = app.get("/v1/scenes/box").await.json().await.unwrap();
+    let hex = summary["digest"].as_str().unwrap();
+    let digest: Vec<u8> = (0..32)
+        .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).unwrap())
+        .collect();
+    // 40 tiles of 4000 records (about 40 MB): far more than a connection buffers.
+    let mut image = b"BMCLOG01".to_vec();
+    for tile in 0..40u32 {
+        let mut body = vec![3u8];
+        body.extend(blake3::hash(&tile.to_le_bytes()).as_bytes());
+        body.extend(&digest);
+        for i in 0..4000 {
+            let (x, y) = (f64::from(i % 100) / 100.0, f64::from(i / 100) / 40.0);
+            let mut record = [0.0; 31];
+            record[..6].copy_from_slice(&[1.8 * x - 0.9, 1.8 * y - 0.9, -0.999, 0.0, 0.0, 1.0]);
+            record[6..12].copy_from_slice(&[1.0, 1.0, 1.0, 0.01, 0.01, 0.01]);
+            record[12] = 0.1;
+            body.extend(record.iter().flat_map(|v| v.to_le_bytes()));
+        }
+        image.extend(framed(&body));
+    }
+    let imported = app
+        .client
+        .post(app.url("/v1/scenes/box/records"))
+        .body(image.clone())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(imported.status(), 200);
+    let imported: Value = imported.json().await.unwrap();
+    assert_eq!(imported["imported"], 40, "{imported}");
+
+    let addr = app.base.trim_start_matches("http://").to_owned();
+    let mut stalled = tokio::net::TcpStream::connect(&addr).await.unwrap();
+    stalled
+        .write_all(b"GET /v1/scenes/box/records HTTP/1.1\r\nHost: x\r\n\r\n")
+        .await
+        .unwrap();
+    tokio::time::sleep(std::time::Duration::from_secs(6)).await;
+    let mut received = 0;
+    let mut buffer = vec![0; 1 << 16];
+    loop {
+        let read = tokio::time::timeout(
+            std::time::Duration::from_secs(10),
+            stalled.read(&mut buffer),
+        )
+        .await
+        .expect("the stalled export was not cut off");
+        match read {
+            Ok(0) | Err(_) => break,
+            Ok(n) => received += n,
+        }
+    }
+    assert!(received > 0);
+    assert!(
+        received < image.len(),
+        "{received} bytes of a {} byte export arrived after the client stalled",
+        image.len()
+    );
+    assert_eq!(app.get("/health").await.status(), 200);
 }
 
 /// Records that no computation could produce are refused whole, naming the
