@@ -88,3 +88,64 @@ fn serve_without_scenes_warns_plainly() {
         "{warning}"
     );
 }
+
+/// `render --out` writes the format its extension names, and refuses any
+/// other extension before rendering anything.
+#[test]
+fn render_writes_the_format_out_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-box.json");
+    let render = |out: &str| {
+        Command::new(BIN)
+            .args([
+                "render",
+                "--scene",
+                scene,
+                "--spp",
+                "1",
+                "--max-depth",
+                "1",
+                "--threads",
+                "2",
+            ])
+            .arg("--out")
+            .arg(dir.path().join(out))
+            .output()
+            .unwrap()
+    };
+    let refused = render("box.txt");
+    assert!(!refused.status.success());
+    let said = String::from_utf8_lossy(&refused.stderr);
+    assert!(said.contains(".exr or .png"), "{said}");
+    assert!(!dir.path().join("box.txt").exists());
+    assert!(render("box.png").status.success());
+    let png = std::fs::read(dir.path().join("box.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    assert!(render("box.EXR").status.success());
+    let exr = std::fs::read(dir.path().join("box.EXR")).unwrap();
+    assert!(exr.starts_with(&[0x76, 0x2f, 0x31, 0x01]), "not an EXR");
+}
+
+/// `fetch` says what the service said when it refuses, not only the status.
+#[tokio::test]
+async fn fetch_reports_the_services_message() {
+    let app = crate::common::spawn_app().await;
+    let base = app.base.clone();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let output = tokio::task::spawn_blocking(move || {
+        Command::new(BIN)
+            .args([
+                "fetch", "--url", &base, "--scene", "missing", "--preset", "draft",
+            ])
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    })
+    .await
+    .unwrap();
+    assert!(!output.status.success());
+    let said = String::from_utf8_lossy(&output.stderr);
+    assert!(said.contains("scene `missing` not found"), "{said}");
+}
