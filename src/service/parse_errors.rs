@@ -2,7 +2,7 @@
 //! error body.
 //!
 //! hyper answers a request line or head it cannot parse (a `<` in a path, a
-//! header over [`super::server::HYPER_MAX_HEAD_BYTES`]) itself, before any
+//! head over the accept loop's `HYPER_MAX_HEAD_BYTES`) itself, before any
 //! handler or middleware sees the request, with a bare status line: `400`
 //! (or `431`), `connection: close`, `content-length: 0`, and no way to
 //! change it. Every other answer of the service has a JSON body naming what
