@@ -391,12 +391,7 @@ async fn a_broken_shared_scene_is_not_found_rather_than_an_error() {
         let body: serde_json::Value = response.json().await.unwrap();
         assert_eq!(body["error"]["code"], "not_found", "{body}");
     }
-    let health = client
-        .get(format!("http://{addr}/health"))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(health.status(), 200);
+    assert_eq!(status(&client, format!("http://{addr}/health")).await, 200);
 }
 
 /// Two replicas on one Redis, a copy of the Cornell box posted to the first.
