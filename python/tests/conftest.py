@@ -12,9 +12,10 @@ import subprocess
 import time
 import urllib.error
 import urllib.request
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Optional, Tuple
+from typing import Any
 
 import pytest
 
@@ -51,7 +52,7 @@ class Server:
 
     url: str
     scenes_dir: Path
-    process: "subprocess.Popen[bytes]"
+    process: subprocess.Popen[bytes]
     log: Path
 
     def stop(self) -> None:
@@ -83,9 +84,7 @@ def start_server(root: Path, extra_config: str = "") -> Server:
     )
     log = root / "server.log"
     # Each server its own data directory (the tile log is one process's).
-    env = dict(
-        os.environ, NO_COLOR="1", RUST_LOG="info", BMC_CACHE__DATA_DIR=str(root / "data")
-    )
+    env = dict(os.environ, NO_COLOR="1", RUST_LOG="info", BMC_CACHE__DATA_DIR=str(root / "data"))
     with open(log, "wb") as sink:
         process = subprocess.Popen(
             [str(binary()), "serve", "--config", str(config)],
@@ -125,9 +124,7 @@ def small_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
     ``limits.max_paths_per_request = 1000``."""
     running = start_server(
         tmp_path_factory.mktemp("small-server"),
-        f'auth_token = "{TOKEN}"\n'
-        + _LIMITS
-        + "max_points = 10\nmax_paths_per_request = 1000\n",
+        f'auth_token = "{TOKEN}"\n' + _LIMITS + "max_points = 10\nmax_paths_per_request = 1000\n",
     )
     yield running
     running.stop()
@@ -151,14 +148,15 @@ def client(server: Server) -> Client:
 
 
 def raw(
-    url: str, method: str = "GET", document: Any = None, token: Optional[str] = None
-) -> Tuple[int, Any, dict]:
+    url: str, method: str = "GET", document: Any = None, token: str | None = None
+) -> tuple[int, Any, dict[str, str]]:
     """One request without the package: status, JSON body (or bytes) and headers."""
     data = None if document is None else json.dumps(document).encode()
     headers = {"content-type": "application/json"} if data is not None else {}
     if token:
         headers["authorization"] = f"Bearer {token}"
     request = urllib.request.Request(url, data=data, headers=headers, method=method)
+    head: dict[str, str]
     try:
         with urllib.request.urlopen(request, timeout=60) as answer:
             status, body, head = answer.status, answer.read(), dict(answer.headers)

@@ -4,13 +4,12 @@ from reproducible JSON tiles, AOVs, ETags and 304, typed errors."""
 from __future__ import annotations
 
 import urllib.parse
-from typing import Any, Dict, List
+from typing import Any
 
 import numpy as np
 import pytest
 
 from bmc_irradiance import Client, Image, ServiceError, TileBytes
-
 from conftest import Server, raw
 
 SCENE = "cornell-box"
@@ -18,7 +17,9 @@ SIDE = 256  # the bundled Cornell box's camera resolution
 SIZE = 64
 
 
-def raw_get(server: Server, tx: int, ty: int, ext: str = "json", **query: Any):
+def raw_get(
+    server: Server, tx: int, ty: int, ext: str = "json", **query: Any
+) -> tuple[int, Any, dict[str, str]]:
     """One GET tile without the package: status, body (JSON or bytes), headers."""
     url = f"{server.url}/v1/scenes/{SCENE}/tiles/{tx}/{ty}.{ext}"
     if query:
@@ -73,6 +74,7 @@ def test_preview_image_equals_the_get_tiles_assembled_by_hand(
             etags.append(headers["etag"])
     assert np.array_equal(preview.rgb, rgb)
     assert np.array_equal(preview.variance, variance)
+    assert preview.std_dev is not None
     assert np.array_equal(preview.std_dev, np.sqrt(variance))
     assert [t.etag for t in preview.tiles] == etags and len(set(etags)) == 16
     assert [(t.tx, t.ty) for t in preview.tiles] == [(tx, ty) for ty in range(4) for tx in range(4)]
@@ -85,6 +87,7 @@ def test_the_same_call_gives_the_same_image(
 ) -> None:
     again = Client(server.url).image(SCENE, preset="preview", workers=2)
     assert np.array_equal(again.rgb, preview.rgb)
+    assert again.variance is not None and preview.variance is not None
     assert np.array_equal(again.variance, preview.variance)
     assert [t.etag for t in again.tiles] == [t.etag for t in preview.tiles]
     # Another process, nothing memoised: the same numbers and ETags.
@@ -94,20 +97,19 @@ def test_the_same_call_gives_the_same_image(
     assert [t.etag for t in other.tiles] == [t.etag for t in preview.tiles]
 
 
-def test_the_std_dev_aov_is_the_square_root_of_the_variance(
-    preview: Image, client: Client
-) -> None:
+def test_the_std_dev_aov_is_the_square_root_of_the_variance(preview: Image, client: Client) -> None:
     image = client.image(SCENE, preset="preview", aov="std_dev")
     assert image.aov == "std_dev" and image.variance is None
     assert image.rgb.shape == (SIDE, SIDE, 3)
     assert np.array_equal(image.rgb[:, :, 0], image.rgb[:, :, 2])
+    assert image.std_dev is not None and preview.std_dev is not None
     assert np.array_equal(image.std_dev, preview.std_dev)
     assert image.tiles[0].etag != preview.tiles[0].etag
 
 
 def test_the_records_aov_lists_every_tiles_records(client: Client, server: Server) -> None:
     records = client.image(SCENE, preset="preview", aov="records")
-    expected: List[Dict[str, Any]] = []
+    expected: list[dict[str, Any]] = []
     for ty in range(4):
         for tx in range(4):
             status, doc, _ = raw_get(server, tx, ty, preset="preview", aov="records")

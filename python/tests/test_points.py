@@ -3,11 +3,12 @@ answers of a real service, and the splitting of large point sets."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
 from bmc_irradiance import Chunk, Client, ErrorTarget, ServiceError, chunk_seed
-
 from conftest import Server, raw
 
 
@@ -23,7 +24,7 @@ def floor_points(count: int, seed: int = 0) -> np.ndarray:
     return np.column_stack([xz[:, 0], np.full(count, -0.999), xz[:, 1]])
 
 
-def point_docs(positions: np.ndarray, normals: np.ndarray) -> list:
+def point_docs(positions: np.ndarray, normals: np.ndarray) -> list[dict[str, Any]]:
     return [{"position": p, "normal": n} for p, n in zip(positions.tolist(), normals.tolist())]
 
 
@@ -64,7 +65,7 @@ def test_options_reach_the_service(client: Client) -> None:
     points = floor_points(3, seed=2)
     result = client.irradiance(
         "overcast",
-        points + [0, 1, 0],
+        points + UP,
         UP,
         method="bmc",
         samples=16,
@@ -130,7 +131,9 @@ def test_target_arrays_equal_the_raw_response(client: Client, server: Server) ->
 
 def test_bmc_with_a_target_is_refused_naming_the_field(client: Client) -> None:
     with pytest.raises(ServiceError) as caught:
-        client.irradiance("cornell-box", floor_points(2), UP, method="bmc", target=ErrorTarget(0.05))
+        client.irradiance(
+            "cornell-box", floor_points(2), UP, method="bmc", target=ErrorTarget(0.05)
+        )
     err = caught.value
     assert (err.status, err.code, err.field) == (422, "invalid_field", "target")
     assert "qmc" in err.message
@@ -144,7 +147,11 @@ def test_split_point_sets_keep_their_order(client: Client, server: Server) -> No
     small = Client(server.url, max_points=7)
     result = small.irradiance("cornell-box", positions, UP, method="mc", samples=16, seed=5)
     assert [(c.start, c.stop) for c in result.chunks] == [
-        (0, 7), (7, 14), (14, 21), (21, 28), (28, 30)
+        (0, 7),
+        (7, 14),
+        (14, 21),
+        (21, 28),
+        (28, 30),
     ]
     assert [c.seed for c in result.chunks] == [chunk_seed(5, i) for i in range(5)]
     assert result.chunks[0].seed == 5 and len({c.seed for c in result.chunks}) == 5
@@ -182,7 +189,9 @@ def test_split_results_are_equivalent_in_distribution(server: Server) -> None:
     positions = np.column_stack(
         [rng.uniform(-3, 3, 60), np.full(60, 0.001), rng.uniform(2.2, 3.5, 60)]
     )
-    options = dict(method="mc", samples=64, decomposition="hemisphere", max_depth=2, seed=11)
+    options: dict[str, Any] = dict(
+        method="mc", samples=64, decomposition="hemisphere", max_depth=2, seed=11
+    )
     whole = Client(server.url).irradiance("overcast", positions, UP, **options)
     split = Client(server.url, max_points=10).irradiance("overcast", positions, UP, **options)
     assert len(whole.chunks) == 1 and len(split.chunks) == 6
@@ -296,7 +305,7 @@ def test_radiance_equals_the_raw_response(client: Client, server: Server) -> Non
     positions = np.array([[0.0, -1.0, 0.0], [0.5, -1.0, -0.5], [0.0, 0.0, -1.0]])
     normals = np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     directions = np.array([[0.0, 1.0, 1.0], [0.0, 1.0, 1.0], [0.0, 0.2, 1.0]])
-    options = dict(estimator="path", repeats=8, max_depth=8, seed=2)
+    options: dict[str, Any] = dict(estimator="path", repeats=8, max_depth=8, seed=2)
     result = Client(server.url, max_points=2).radiance(
         "cornell-box", positions, normals, directions, **options
     )

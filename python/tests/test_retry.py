@@ -7,15 +7,16 @@ import email.utils
 import json
 import threading
 import time
+from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import Any, Iterator, List, Optional, Tuple
+from typing import Any
 
 import pytest
 
 from bmc_irradiance import Client, ServiceError
 from bmc_irradiance.errors import parse_retry_after
 
-Answer = Tuple[int, dict, bytes]
+Answer = tuple[int, dict[str, str], bytes]
 
 
 class Stub:
@@ -23,8 +24,8 @@ class Stub:
     and records each request's method, path, headers and body."""
 
     def __init__(self) -> None:
-        self.script: List[Answer] = []
-        self.requests: List[Tuple[str, str, dict, bytes, float]] = []
+        self.script: list[Answer] = []
+        self.requests: list[tuple[str, str, dict[str, str], bytes, float]] = []
         stub = self
 
         class Handler(BaseHTTPRequestHandler):
@@ -32,7 +33,13 @@ class Stub:
                 length = int(self.headers.get("content-length") or 0)
                 body = self.rfile.read(length)
                 stub.requests.append(
-                    (self.command, self.path, {k.lower(): v for k, v in self.headers.items()}, body, time.monotonic())
+                    (
+                        self.command,
+                        self.path,
+                        {k.lower(): v for k, v in self.headers.items()},
+                        body,
+                        time.monotonic(),
+                    )
                 )
                 index = min(len(stub.requests), len(stub.script)) - 1
                 status, headers, payload = stub.script[index]
@@ -70,8 +77,13 @@ def stub() -> Iterator[Stub]:
 JSON = {"content-type": "application/json"}
 
 
-def error(status: int, code: str, message: str, field: Optional[str] = None,
-          headers: Optional[dict] = None) -> Answer:
+def error(
+    status: int,
+    code: str,
+    message: str,
+    field: str | None = None,
+    headers: dict[str, str] | None = None,
+) -> Answer:
     body = json.dumps({"error": {"code": code, "message": message, "field": field}}).encode()
     return status, dict(JSON, **(headers or {})), body
 
@@ -107,7 +119,9 @@ def test_a_retried_post_resends_the_same_body(stub: Stub) -> None:
     assert result.value.tolist() == [[1.0, 2.0, 3.0]] and result.rays == 7
     (m1, p1, h1, b1, _), (m2, p2, h2, b2, _) = stub.requests
     assert (m1, p1) == (m2, p2) == ("POST", "/v1/scenes/s/irradiance")
-    assert b1 == b2 and json.loads(b1)["points"] == [{"position": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}]
+    assert b1 == b2 and json.loads(b1)["points"] == [
+        {"position": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}
+    ]
     assert h1.get("authorization") == h2.get("authorization") == "Bearer secret"
 
 
@@ -139,7 +153,9 @@ def test_retry_after_is_capped(stub: Stub) -> None:
 
 
 def test_error_bodies_become_typed_errors(stub: Stub) -> None:
-    stub.script = [error(422, "invalid_field", "normal must have non-zero length", "points[0].normal")]
+    stub.script = [
+        error(422, "invalid_field", "normal must have non-zero length", "points[0].normal")
+    ]
     with pytest.raises(ServiceError) as caught:
         Client(stub.url).scene("x")
     err = caught.value
@@ -158,7 +174,13 @@ def test_non_json_errors_keep_their_text(stub: Stub) -> None:
 
 
 def test_a_body_the_service_always_refuses_ends_in_an_error(stub: Stub) -> None:
-    stub.script = [error(413, "payload_too_large", "request body larger than the configured limits.max_body_bytes")]
+    stub.script = [
+        error(
+            413,
+            "payload_too_large",
+            "request body larger than the configured limits.max_body_bytes",
+        )
+    ]
     with pytest.raises(ServiceError) as caught:
         Client(stub.url).irradiance("s", [[0, 0, 0]] * 50, [0, 0, 1], method="mc")
     assert caught.value.status == 413
@@ -172,8 +194,8 @@ def test_retry_after_formats() -> None:
     assert parse_retry_after(" 0.5 ") == 0.5
     assert parse_retry_after(None) is None
     assert parse_retry_after("soon") is None
-    later = email.utils.formatdate(time.time() + 30, usegmt=True)
-    assert 25 <= parse_retry_after(later) <= 31
+    later = parse_retry_after(email.utils.formatdate(time.time() + 30, usegmt=True))
+    assert later is not None and 25 <= later <= 31
     assert parse_retry_after(email.utils.formatdate(time.time() - 30, usegmt=True)) == 0.0
 
 
@@ -197,6 +219,7 @@ def test_image_tiles_are_retried_after_retry_after(stub: Stub) -> None:
         "/v1/scenes/s/tiles/0/0.json" + query,
         "/v1/scenes/s/tiles/1/0.json" + query,
     ]
+    assert image.std_dev is not None
     assert image.rgb[:, :, 0].tolist() == [[1.0, 2.0]] and image.std_dev.tolist() == [[0.5, 0.5]]
     assert [t.etag for t in image.tiles] == ['"a"', '"b"'] and image.rays == 10
 

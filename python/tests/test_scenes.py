@@ -9,7 +9,6 @@ from pathlib import Path
 import pytest
 
 from bmc_irradiance import Client, ServiceError
-
 from conftest import SCENES, TOKEN, Server, raw
 
 # A scene that references no file, small enough for any body limit.

@@ -6,8 +6,9 @@ import http.client
 import json
 import time
 import urllib.parse
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Optional
+from typing import Any, Callable
 
 from .errors import ServiceError, parse_retry_after
 
@@ -38,7 +39,7 @@ class Transport:
         url: str,
         timeout: float,
         retries: int,
-        token: Optional[str],
+        token: str | None,
         max_retry_wait: float,
         sleep: Callable[[float], None] = time.sleep,
     ) -> None:
@@ -51,7 +52,7 @@ class Transport:
         self.max_retry_wait = max_retry_wait
         self.sleep = sleep
 
-    def url(self, path: str, query: Optional[Mapping[str, Any]] = None) -> str:
+    def url(self, path: str, query: Mapping[str, Any] | None = None) -> str:
         """Absolute URL of ``path`` (which starts with ``/``) with a query string."""
         url = self.base + path
         if query:
@@ -65,11 +66,11 @@ class Transport:
         method: str,
         path: str,
         *,
-        body: Optional[bytes] = None,
-        content_type: Optional[str] = None,
-        query: Optional[Mapping[str, Any]] = None,
+        body: bytes | None = None,
+        content_type: str | None = None,
+        query: Mapping[str, Any] | None = None,
         accept: tuple[int, ...] = (),
-        headers: Optional[Mapping[str, str]] = None,
+        headers: Mapping[str, str] | None = None,
     ) -> Response:
         """Sends one request, retrying 503 + ``Retry-After``; raises
         :class:`ServiceError` for any other non-2xx status unless it is in
@@ -95,7 +96,7 @@ class Transport:
             raise ServiceError.from_body(status, answer_body, answer_headers)
 
     def _exchange(
-        self, method: str, url: str, body: Optional[bytes], headers: Mapping[str, str]
+        self, method: str, url: str, body: bytes | None, headers: Mapping[str, str]
     ) -> tuple[int, dict[str, str], bytes]:
         """One request and its answer: status, headers (lower-case), body.
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 import threading
-from typing import Optional, TextIO
+from typing import TextIO
 
 
 class Progress:
@@ -18,8 +18,8 @@ class Progress:
         self,
         total: int,
         label: str,
-        enabled: Optional[bool] = None,
-        stream: Optional[TextIO] = None,
+        enabled: bool | None = None,
+        stream: TextIO | None = None,
         width: int = 30,
     ) -> None:
         self.stream = stream if stream is not None else sys.stderr

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import json
-from typing import Any, Mapping, Optional
+from collections.abc import Mapping
+from typing import Any
 
 
 class ServiceError(Exception):
@@ -28,10 +29,10 @@ class ServiceError(Exception):
     def __init__(
         self,
         status: int,
-        code: Optional[str],
+        code: str | None,
         message: str,
-        field: Optional[str] = None,
-        retry_after: Optional[float] = None,
+        field: str | None = None,
+        retry_after: float | None = None,
     ) -> None:
         self.status = status
         self.code = code
@@ -43,8 +44,8 @@ class ServiceError(Exception):
 
     @classmethod
     def from_body(
-        cls, status: int, body: bytes, headers: Optional[Mapping[str, str]] = None
-    ) -> "ServiceError":
+        cls, status: int, body: bytes, headers: Mapping[str, str] | None = None
+    ) -> ServiceError:
         """The error an answer with this status, body and headers stands for."""
         value = None
         for name, text in (headers or {}).items():
@@ -65,12 +66,12 @@ class ServiceError(Exception):
             text = body.decode("utf-8", errors="replace").strip()
             return cls(status, None, text[:2000] or f"HTTP {status}", None, retry_after)
 
-    def with_field(self, field: Optional[str]) -> "ServiceError":
+    def with_field(self, field: str | None) -> ServiceError:
         """The same error naming another field (used to map chunk indices back)."""
         return ServiceError(self.status, self.code, self.message, field, self.retry_after)
 
 
-def parse_retry_after(value: Optional[str]) -> Optional[float]:
+def parse_retry_after(value: str | None) -> float | None:
     """Seconds to wait from a ``Retry-After`` header: delay-seconds or an HTTP date."""
     if value is None:
         return None
@@ -79,8 +80,8 @@ def parse_retry_after(value: Optional[str]) -> Optional[float]:
         return max(0.0, float(value))
     except ValueError:
         pass
-    from email.utils import parsedate_to_datetime
     import datetime
+    from email.utils import parsedate_to_datetime
 
     try:
         when = parsedate_to_datetime(value)

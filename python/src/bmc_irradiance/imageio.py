@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import struct
 import zlib
-from typing import Optional, Union
+from typing import Union
 
 import numpy as np
 import numpy.typing as npt
@@ -102,9 +102,7 @@ def _exr_attribute(name: str, kind: str, value: bytes) -> bytes:
     return name.encode() + b"\0" + kind.encode() + b"\0" + struct.pack("<i", len(value)) + value
 
 
-def exr_bytes(
-    rgb: npt.ArrayLike, variance: Optional[npt.ArrayLike] = None
-) -> bytes:
+def exr_bytes(rgb: npt.ArrayLike, variance: npt.ArrayLike | None = None) -> bytes:
     """OpenEXR file bytes: one uncompressed scanline part with 32-bit float
     channels ``R``, ``G``, ``B`` and, when given, ``variance`` (``H×W``) —
     the channels of the service's EXR tiles."""
@@ -117,9 +115,9 @@ def exr_bytes(
             raise ValueError(f"variance must be {height}×{width}, got shape {v.shape}")
         channels["variance"] = v
     names = sorted(channels)  # EXR stores channels in alphabetical order
-    chlist = b"".join(
-        n.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1) for n in names
-    ) + b"\0"
+    chlist = (
+        b"".join(n.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1) for n in names) + b"\0"
+    )
     box = struct.pack("<iiii", 0, 0, width - 1, height - 1)
     header = (
         struct.pack("<ii", 20000630, 2)
@@ -142,15 +140,12 @@ def exr_bytes(
     prefix = np.empty((height, 2), dtype="<i4")
     prefix[:, 0] = np.arange(height)
     prefix[:, 1] = row_bytes
-    blocks = b"".join(
-        prefix[y].tobytes() + planes[y].tobytes() for y in range(height)
-    )
+    blocks = b"".join(prefix[y].tobytes() + planes[y].tobytes() for y in range(height))
     return header + offsets + blocks
 
 
-def write_exr(
-    path: PathLike, rgb: npt.ArrayLike, variance: Optional[npt.ArrayLike] = None
-) -> None:
-    """Writes linear radiance (and optionally the per-pixel variance) as OpenEXR (:func:`exr_bytes`)."""
+def write_exr(path: PathLike, rgb: npt.ArrayLike, variance: npt.ArrayLike | None = None) -> None:
+    """Writes linear radiance (and optionally the per-pixel variance) as
+    OpenEXR (:func:`exr_bytes`)."""
     with open(path, "wb") as out:
         out.write(exr_bytes(rgb, variance))

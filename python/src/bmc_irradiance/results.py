@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Optional, Tuple, Union
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -30,7 +31,7 @@ class ErrorTarget:
 
     relative_error: float
     confidence: float = 0.95
-    max_samples: Optional[int] = None
+    max_samples: int | None = None
 
     def to_json(self) -> dict[str, Any]:
         document: dict[str, Any] = {
@@ -76,15 +77,15 @@ class IrradianceResult:
     rays: int
     decomposition: str
     prior: str
-    calibration: Optional[dict[str, Any]] = None
-    lengthscale: Optional[float] = None
-    noise: Optional[float] = None
-    records_prior_points: Optional[int] = None
-    direct_records_points: Optional[int] = None
-    samples: Optional[npt.NDArray[np.int64]] = None
-    relative_error: Optional[FloatArray] = None
-    target_met: Optional[npt.NDArray[np.bool_]] = None
-    chunks: Tuple[Chunk, ...] = field(default=())
+    calibration: dict[str, Any] | None = None
+    lengthscale: float | None = None
+    noise: float | None = None
+    records_prior_points: int | None = None
+    direct_records_points: int | None = None
+    samples: npt.NDArray[np.int64] | None = None
+    relative_error: FloatArray | None = None
+    target_met: npt.NDArray[np.bool_] | None = None
+    chunks: tuple[Chunk, ...] = field(default=())
 
     def __len__(self) -> int:
         return int(self.value.shape[0])
@@ -99,7 +100,7 @@ class RadianceResult:
     value: FloatArray
     std_dev: FloatArray
     rays: int
-    chunks: Tuple[Chunk, ...] = field(default=())
+    chunks: tuple[Chunk, ...] = field(default=())
 
     def __len__(self) -> int:
         return int(self.value.shape[0])
@@ -152,13 +153,13 @@ class Tile:
     x: int
     y: int
     rgb: npt.NDArray[np.float32]
-    variance: Optional[npt.NDArray[np.float32]]
+    variance: npt.NDArray[np.float32] | None
     rays: int
-    etag: Optional[str] = None
+    etag: str | None = None
     aov: str = "radiance"
     records_created: int = 0
-    passes: Optional[int] = None
-    passes_rendered: Optional[int] = None
+    passes: int | None = None
+    passes_rendered: int | None = None
 
     @property
     def height(self) -> int:
@@ -169,7 +170,7 @@ class Tile:
         return int(self.rgb.shape[1])
 
     @property
-    def std_dev(self) -> Optional[npt.NDArray[np.float32]]:
+    def std_dev(self) -> npt.NDArray[np.float32] | None:
         """Per-pixel standard error (h×w, W/(m²·sr)), see :attr:`Image.std_dev`."""
         return _std_dev(self.aov, self.rgb, self.variance)
 
@@ -188,10 +189,10 @@ class TileInfo:
     y: int
     width: int
     height: int
-    etag: Optional[str]
+    etag: str | None
     rays: int
     records_created: int
-    passes_rendered: Optional[int] = None
+    passes_rendered: int | None = None
 
 
 class TileBytes(bytes):
@@ -202,13 +203,13 @@ class TileBytes(bytes):
 
     headers: Mapping[str, str]
 
-    def __new__(cls, data: bytes, headers: Mapping[str, str]) -> "TileBytes":
+    def __new__(cls, data: bytes, headers: Mapping[str, str]) -> TileBytes:
         obj = super().__new__(cls, data)
         obj.headers = dict(headers)
         return obj
 
     @property
-    def etag(self) -> Optional[str]:
+    def etag(self) -> str | None:
         """The strong ETag, quoted as the service sent it (``None`` for POST tiles)."""
         return self.headers.get("etag")
 
@@ -252,14 +253,14 @@ class Image:
     """
 
     rgb: npt.NDArray[np.float32]
-    variance: Optional[npt.NDArray[np.float32]]
+    variance: npt.NDArray[np.float32] | None
     rays: int
     aov: str = "radiance"
-    preset: Optional[str] = None
-    pass_index: Optional[int] = None
-    seed: Optional[int] = None
-    size: Optional[int] = None
-    tiles: Tuple[TileInfo, ...] = field(default=())
+    preset: str | None = None
+    pass_index: int | None = None
+    seed: int | None = None
+    size: int | None = None
+    tiles: tuple[TileInfo, ...] = field(default=())
 
     @property
     def height(self) -> int:
@@ -270,7 +271,7 @@ class Image:
         return int(self.rgb.shape[1])
 
     @property
-    def std_dev(self) -> Optional[npt.NDArray[np.float32]]:
+    def std_dev(self) -> npt.NDArray[np.float32] | None:
         """Per-pixel standard error (H×W, W/(m²·sr)): the square root of
         ``variance`` (negative rounding clamped to 0, as the service does),
         or for ``aov="std_dev"`` the first channel of ``rgb``; bit-identical
@@ -282,22 +283,22 @@ class Image:
         """Irradiance-cache records the tiles' requests placed."""
         return sum(t.records_created for t in self.tiles)
 
-    def save_png(self, path: Union[str, "os.PathLike[str]"], exposure: float = 0.0) -> None:
+    def save_png(self, path: str | os.PathLike[str], exposure: float = 0.0) -> None:
         """Tone-mapped 8-bit sRGB PNG, the service's mapping (:func:`imageio.srgb8`)."""
         imageio.write_png(path, self.rgb, exposure)
 
-    def save_exr(self, path: Union[str, "os.PathLike[str]"]) -> None:
+    def save_exr(self, path: str | os.PathLike[str]) -> None:
         """Linear float OpenEXR with channels R, G, B and ``variance`` (when known)."""
         imageio.write_exr(path, self.rgb, self.variance)
 
-    def save_pfm(self, path: Union[str, "os.PathLike[str]"]) -> None:
+    def save_pfm(self, path: str | os.PathLike[str]) -> None:
         """Linear float PFM (RGB only)."""
         imageio.write_pfm(path, self.rgb)
 
 
 def _std_dev(
-    aov: str, rgb: npt.NDArray[np.float32], variance: Optional[npt.NDArray[np.float32]]
-) -> Optional[npt.NDArray[np.float32]]:
+    aov: str, rgb: npt.NDArray[np.float32], variance: npt.NDArray[np.float32] | None
+) -> npt.NDArray[np.float32] | None:
     if aov == "std_dev":
         return rgb[:, :, 0]
     if variance is None:

@@ -1,0 +1,161 @@
+"""Scenes: list, show, upload (with their asset files) and delete."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from ._base import _Resource, _segment
+
+
+class _Scenes(_Resource):
+    """``/v1/scenes`` and ``/v1/scenes/{id}``."""
+
+    def scenes(self) -> list[dict[str, Any]]:
+        """``GET /v1/scenes``: summaries of the loaded scenes, sorted by id."""
+        return list(self._http.get_json("/v1/scenes"))
+
+    def scene(self, id: str) -> dict[str, Any]:
+        """``GET /v1/scenes/{id}``: ``shapes``, ``triangles``, ``emitters``,
+        ``resolution`` ([width, height] in pixels), bounds, fitted kernels..."""
+        return dict(self._http.get_json(f"/v1/scenes/{_segment(id)}"))
+
+    def upload(
+        self,
+        scene: str | bytes | os.PathLike[str],
+        id: str | None = None,
+        *,
+        lenient: bool = False,
+        assets: str | Sequence[str] | Mapping[str, bytes | os.PathLike[str]] | None = None,
+    ) -> dict[str, Any]:
+        """``POST /v1/scenes``: adds a scene, or replaces the one with the same id.
+
+        ``scene`` is a path to a JSON scene document or a Mitsuba 3 XML file,
+        or the document's text. A JSON document's id is its ``name``; ``id``
+        replaces that name. An XML scene's id is ``id``, by default the file's
+        stem; ``lenient`` approximates unsupported Mitsuba features instead of
+        refusing them. Returns the scene's summary.
+
+        Without ``assets``, files the scene references (meshes, environment
+        maps, textures) must already be in the service's scenes directory.
+        With ``assets`` they travel with it (``multipart/form-data``):
+
+        - ``"auto"``: every file the document names (``"filename"`` values
+          of a JSON document, ``<string name="filename" value=…>`` of XML),
+          read relative to the scene file's directory;
+        - a list of such relative names;
+        - a mapping from relative name to bytes or a local path.
+
+        The service refuses names that climb out (``..``), absolute names and
+        uploads over its ``limits.max_upload_bytes``, as a
+        :class:`ServiceError` naming the part (``assets[i]``).
+        """
+        text, path = _scene_text(scene)
+        first = text.lstrip()[:1]
+        if first not in ("{", "<"):
+            raise ValueError("the scene is neither a JSON document nor Mitsuba XML")
+        xml = first == "<"
+        query: dict[str, Any] = {}
+        if first == "{" and id is not None:
+            document = json.loads(text)
+            document["name"] = id
+            text = json.dumps(document)
+        if xml:
+            scene_id = id if id is not None else path.stem if path is not None else None
+            if scene_id is None:
+                raise ValueError("an XML scene given as text needs an id")
+            query = {"id": scene_id, "lenient": True if lenient else None}
+        if assets is None:
+            answer = self._http.request(
+                "POST",
+                "/v1/scenes",
+                body=text.encode("utf-8"),
+                content_type="application/xml" if xml else "application/json",
+                query=query,
+            )
+            return dict(answer.json())
+        # A scene given as a path: names resolve beside it.
+        files = _asset_files(text, xml, assets, None if path is None else path.parent)
+        boundary = "bmc-" + os.urandom(12).hex()
+        parts = [("scene", "scene.xml" if xml else "scene.json", text.encode("utf-8"))]
+        parts += [("asset", name, data) for name, data in files]
+        answer = self._http.request(
+            "POST",
+            "/v1/scenes",
+            body=_multipart(parts, boundary),
+            content_type=f"multipart/form-data; boundary={boundary}",
+            query=query,
+        )
+        return dict(answer.json())
+
+    def delete(self, id: str) -> None:
+        """``DELETE /v1/scenes/{id}``; requests already using the scene finish normally."""
+        self._http.request("DELETE", f"/v1/scenes/{_segment(id)}")
+
+
+def _referenced_files(text: str, xml: bool) -> list[str]:
+    """The files a scene document names, each once, in order."""
+    if xml:
+        names = re.findall(r'<string\s+name="filename"\s+value="([^"]*)"', text)
+    else:
+        names = []
+
+        def walk(value: Any) -> None:
+            if isinstance(value, dict):
+                for key, item in value.items():
+                    if key == "filename" and isinstance(item, str):
+                        names.append(item)
+                    else:
+                        walk(item)
+            elif isinstance(value, list):
+                for item in value:
+                    walk(item)
+
+        walk(json.loads(text))
+    return list(dict.fromkeys(names))
+
+
+def _asset_files(
+    text: str,
+    xml: bool,
+    assets: str | Sequence[str] | Mapping[str, bytes | os.PathLike[str]],
+    base: Path | None,
+) -> list[tuple[str, bytes]]:
+    """``(relative name, bytes)`` of the assets to upload (see ``upload``)."""
+    if isinstance(assets, Mapping):
+        return [
+            (name, data if isinstance(data, bytes) else Path(data).read_bytes())
+            for name, data in assets.items()
+        ]
+    names = _referenced_files(text, xml) if assets == "auto" else list(assets)
+    if names and base is None:
+        raise ValueError("assets by name need the scene as a file path (or pass a mapping)")
+    return [(name, (base / name).read_bytes()) for name in names] if base else []
+
+
+def _multipart(parts: Sequence[tuple[str, str, bytes]], boundary: str) -> bytes:
+    """A ``multipart/form-data`` body of ``(part name, filename, bytes)``."""
+    out = bytearray()
+    for name, filename, data in parts:
+        out += f"--{boundary}\r\n".encode()
+        out += (
+            f'Content-Disposition: form-data; name="{name}"; filename="{filename}"\r\n'
+            "Content-Type: application/octet-stream\r\n\r\n"
+        ).encode()
+        out += data + b"\r\n"
+    out += f"--{boundary}--\r\n".encode()
+    return bytes(out)
+
+
+def _scene_text(scene: str | bytes | os.PathLike[str]) -> tuple[str, Path | None]:
+    """The scene's text and, for a file, its path."""
+    if isinstance(scene, bytes):
+        return scene.decode("utf-8"), None
+    if isinstance(scene, str) and scene.lstrip()[:1] in ("{", "<"):
+        return scene, None
+    path = Path(scene)
+    return path.read_text(encoding="utf-8"), path
