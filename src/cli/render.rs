@@ -16,11 +16,8 @@ use crate::cache::{CacheConfig, IrradianceCache};
 use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
-use crate::integrator::Integrator;
-use crate::integrator::cached::{
-    CacheShadingOptions, CachedIntegrator, CachedShading, CachedSpec, CachedTileReport,
-    DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, default_rule_spec,
-};
+use crate::integrator::cached::{CachedSpec, CachedTileReport};
+use crate::integrator::{IntegratorSpec, Method};
 use crate::render::{Cancel, ImageSettings, PathDepth, Transport};
 
 /// Command-line arguments of `bmc-irradiance render`.
@@ -31,8 +28,8 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub output: ImageOutput,
     /// How camera rays are shaded.
-    #[arg(long, value_enum, default_value_t = Integrator::Path)]
-    pub method: Integrator,
+    #[arg(long, value_enum, default_value_t = Method::Path)]
+    pub method: Method,
     /// Camera rays per pixel.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
@@ -52,86 +49,11 @@ pub struct RenderArgs {
     pub tile: u32,
     /// Irradiance cache settings (`--method cache`).
     #[command(flatten)]
-    pub cache: CacheArgs,
-}
-
-/// Options of `--method cache`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct CacheArgs {
-    /// Ward's accuracy a in (0, 1]; smaller places more records.
-    #[arg(long, default_value_t = CacheShadingOptions::default().accuracy)]
-    pub accuracy: f64,
-    /// Directions per record and per glossy BMC estimate (spherical Fibonacci).
-    #[arg(long, default_value_t = DEFAULT_RECORD_SAMPLES)]
-    pub samples: usize,
-    /// SE kernel lengthscale of the records' and glossy BMC rule.
-    #[arg(long, default_value_t = default_rule_spec().kernel.lengthscale)]
-    pub lengthscale: f64,
-    /// Paths averaged per record direction.
-    #[arg(long, default_value_t = CacheShadingOptions::default().paths_per_direction)]
-    pub paths_per_direction: u32,
-    /// Levels of records whose rays gather through the cache (ambient
-    /// bounces; 0 = records trace full paths).
-    #[arg(long, default_value_t = CacheShadingOptions::default().ambient_bounces)]
-    pub ambient_bounces: u32,
-    /// Records' rays stop at their first hit, shaded there by light samples
-    /// (`--paths-per-direction` of them) and the scene's secondary cache of
-    /// indirect irradiance (tiles only; excludes `--ambient-bounces`).
-    #[arg(long)]
-    pub secondary_cache: bool,
-    /// Light samples per camera ray (direct light).
-    #[arg(long, default_value_t = CacheShadingOptions::default().light_samples)]
-    pub light_samples: u32,
-    /// Smallest record radius, in pixel footprints at the record.
-    #[arg(long, default_value_t = CacheShadingOptions::default().min_pixels)]
-    pub min_pixels: f64,
-    /// Largest record radius, in pixel footprints at the record.
-    #[arg(long, default_value_t = CacheShadingOptions::default().max_pixels)]
-    pub max_pixels: f64,
-    /// Mirror-angle nodes of the glossy BMC rule.
-    #[arg(long, default_value_t = DEFAULT_GLOSSY_BINS)]
-    pub glossy_bins: usize,
-    /// Directions of each glossy BMC estimate (default: `--samples`).
-    #[arg(long)]
-    pub glossy_samples: Option<usize>,
-    /// Also place records where the posterior relative error exceeds this.
-    #[arg(long)]
-    pub relative_error_target: Option<f64>,
-    /// Test a shadow ray between point and record against light leaks.
-    #[arg(long)]
-    pub occlusion_check: bool,
-    /// Each tile on a private cache (bit-identical whatever the thread count).
-    #[arg(long)]
-    pub reproducible: bool,
-    /// Render the image this many times on the same cache (2 times the warm
-    /// cache); the first pass's image is written.
+    pub cache: CachedSpec,
+    /// Render the image this many times on the same cache (2 times the
+    /// warm cache); the first pass's image is written.
     #[arg(long, default_value_t = 1)]
     pub passes: u32,
-}
-
-impl CacheArgs {
-    /// Rules and options for shading through the cache.
-    pub fn shading(&self) -> anyhow::Result<CachedShading> {
-        let spec = CachedSpec {
-            samples: Some(self.samples),
-            lengthscale: Some(self.lengthscale),
-            noise: None,
-            accuracy: Some(self.accuracy),
-            relative_error_target: self.relative_error_target,
-            occlusion_check: Some(self.occlusion_check),
-            light_samples: Some(self.light_samples),
-            paths_per_direction: Some(self.paths_per_direction),
-            ambient_bounces: Some(self.ambient_bounces),
-            secondary_cache: Some(self.secondary_cache),
-            reproducible: Some(self.reproducible),
-            min_pixels: Some(self.min_pixels),
-            max_pixels: Some(self.max_pixels),
-            glossy_bins: Some(self.glossy_bins),
-            glossy_samples: self.glossy_samples,
-        };
-        let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));
-        Ok(spec.resolve()?.shading(quadratures)?)
-    }
 }
 
 /// Byte bound of the CLI's glossy quadrature cache.
@@ -165,75 +87,60 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
             .context("progress bar template")?,
     );
     let start = Instant::now();
-    let rendered = match args.method {
-        Integrator::Path => {
-            let render = || {
-                transport.render_image(&settings, args.tile, &|tile| {
-                    progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
-                })
-            };
-            in_thread_pool(args.threads, render)??
+    let integrator = IntegratorSpec::with_knobs(args.method, args.cache)?.resolve()?;
+    let cache = IrradianceCache::new(CacheConfig::default())?;
+    let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));
+    let shading = integrator
+        .cached()
+        .map(|c| c.shading(quadratures))
+        .transpose()?;
+    let bound = integrator.bind(&transport, shading.as_ref().map(|s| (&cache, s)))?;
+    let mut first = None;
+    for pass in 1..=args.passes.max(1) {
+        progress.reset();
+        let pass_start = Instant::now();
+        let report = Mutex::new(CachedTileReport::default());
+        let render = || {
+            transport.render_image_by(&settings, args.tile, &|request| {
+                let (tile, r) = bound.render_tile(request, &Cancel::never())?;
+                report.lock().unwrap_or_else(|e| e.into_inner()).add(&r);
+                progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
+                Ok(tile)
+            })
+        };
+        let rendered = in_thread_pool(args.threads, render)??;
+        let seconds = pass_start.elapsed().as_secs_f64();
+        let r = report.into_inner().unwrap_or_else(|e| e.into_inner());
+        if bound.cached().is_some() {
+            let stats = cache.stats();
+            progress.suspend(|| {
+                writeln!(
+                    out,
+                    "pass {pass}: {seconds:.2} s, {} rays; {} records created ({} at ambient \
+                     bounces; {} placement rays, {} records' rays fell back to a path), \
+                     {} in the secondary cache ({} rays), {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
+                     {} glossy BMC ({} lobe-sampled by the negative-weight guard), \
+                     {} glossy path-traced",
+                    rendered.rays,
+                    r.placement.records_created,
+                    r.placement.ambient_records,
+                    r.placement.rays,
+                    r.placement.fallbacks,
+                    r.secondary.records_created,
+                    r.secondary.rays,
+                    stats.records,
+                    r.shading.cache_hits,
+                    r.shading.relaxed_hits,
+                    r.shading.fallbacks,
+                    r.shading.glossy_bmc,
+                    r.shading.glossy_fallbacks,
+                    r.shading.glossy_path_traced,
+                )
+            })?;
         }
-        Integrator::Cache => {
-            let shading = args.cache.shading()?;
-            let cache = IrradianceCache::new(CacheConfig::default())?;
-            let mut first = None;
-            for pass in 1..=args.cache.passes.max(1) {
-                progress.reset();
-                let pass_start = Instant::now();
-                let report = Mutex::new(CachedTileReport::default());
-                let render = || {
-                    let integrator = CachedIntegrator::new(&transport, &cache, &shading);
-                    transport.render_image_by(&settings, args.tile, &|request| {
-                        let (tile, r) = integrator.render_tile(request, &Cancel::never())?;
-                        let mut total = report.lock().unwrap_or_else(|e| e.into_inner());
-                        total.placement_points += r.placement_points;
-                        total.placement.records_created += r.placement.records_created;
-                        total.placement.ambient_records += r.placement.ambient_records;
-                        total.placement.rays += r.placement.rays;
-                        total.placement.fallbacks += r.placement.fallbacks;
-                        total.secondary.records_created += r.secondary.records_created;
-                        total.secondary.rays += r.secondary.rays;
-                        total.shading += r.shading;
-                        total.records_published += r.records_published;
-                        progress
-                            .inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
-                        Ok(tile)
-                    })
-                };
-                let rendered = in_thread_pool(args.threads, render)??;
-                let seconds = pass_start.elapsed().as_secs_f64();
-                let r = report.into_inner().unwrap_or_else(|e| e.into_inner());
-                let stats = cache.stats();
-                progress.suspend(|| {
-                    writeln!(
-                        out,
-                        "pass {pass}: {seconds:.2} s, {} rays; {} records created ({} at ambient \
-                         bounces; {} placement rays, {} records' rays fell back to a path), \
-                         {} in the secondary cache ({} rays), {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
-                         {} glossy BMC ({} lobe-sampled by the negative-weight guard), \
-                         {} glossy path-traced",
-                        rendered.rays,
-                        r.placement.records_created,
-                        r.placement.ambient_records,
-                        r.placement.rays,
-                        r.placement.fallbacks,
-                        r.secondary.records_created,
-                        r.secondary.rays,
-                        stats.records,
-                        r.shading.cache_hits,
-                        r.shading.relaxed_hits,
-                        r.shading.fallbacks,
-                        r.shading.glossy_bmc,
-                        r.shading.glossy_fallbacks,
-                        r.shading.glossy_path_traced,
-                    )
-                })?;
-                first.get_or_insert(rendered);
-            }
-            first.context("no pass rendered")?
-        }
-    };
+        first.get_or_insert(rendered);
+    }
+    let rendered = first.context("no pass rendered")?;
     let seconds = start.elapsed().as_secs_f64();
     progress.finish_and_clear();
 
@@ -524,7 +431,7 @@ mod tests {
         let Ok(Sub::Render(args)) = parse("render --scene s.json --out o.exr --accuracy 2") else {
             panic!("parses")
         };
-        assert!(args.cache.shading().is_err());
+        assert!(args.cache.resolve().is_err());
         assert!(parse("render --scene s.json").is_err());
         let Ok(Sub::Render(args)) = parse("render --scene /nonexistent.json --out o.exr --spp 0")
         else {

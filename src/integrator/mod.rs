@@ -1,38 +1,31 @@
-//! Integrators: how a camera ray or a query becomes a radiance estimate. Path
-//! tracing lives with the light-transport kernels in [`crate::render`]; the
-//! irradiance-cache integrator, which reads and extends the record store of
-//! [`crate::cache`], is [`cached`].
+//! Integrators: how a camera ray or a query becomes a radiance estimate.
+//!
+//! - `spec`: the integrator a request or the command line names, as data
+//!   ([`IntegratorSpec`]: the method and its knobs);
+//! - `resolved`: that spec checked ([`Integrator`]) and bound to a scene and
+//!   its cache ([`BoundIntegrator`]), the one place that matches on the method;
+//! - [`path`]: the path tracer, the unbiased reference;
+//! - [`cached`]: the irradiance-cache integrator, which reads and extends the
+//!   record store of [`crate::cache`];
+//! - `radiance`: outgoing radiance at surface points by either integrator;
+//! - `preset`: named quality levels of camera tiles.
+//!
+//! Adding an integrator: its module here, a variant of [`IntegratorSpec`]
+//! and of [`Integrator`] / [`BoundIntegrator`] (the compiler then lists every
+//! match to extend, all in `spec.rs` and `resolved.rs`).
 
 pub mod cached;
+pub mod path;
 mod preset;
+mod radiance;
+mod resolved;
+mod spec;
 
+pub use path::PathIntegrator;
 pub use preset::{Preset, TileSettings};
-
-/// How the radiance along a camera ray (or towards a query's viewer) is
-/// computed: the integrator a request or the command line names.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    serde::Deserialize,
-    serde::Serialize,
-    clap::ValueEnum,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum Integrator {
-    /// Unidirectional path tracing with next-event estimation, MIS and
-    /// Russian roulette (`Transport::render_tile`), emitters seen directly
-    /// included: the unbiased reference.
-    Path,
-    /// Direct light by light sampling, diffuse indirect light interpolated
-    /// from irradiance-cache records computed by BMC, glossy reflection by
-    /// BMC with the Phong density ([`cached`]). `"bmc"` is accepted as an
-    /// alias (the name this had before `"bmc"` came to mean one quadrature
-    /// per point, as it does for point queries).
-    #[default]
-    #[serde(alias = "bmc")]
-    Cache,
-}
+pub use radiance::{
+    PROBE_RELATIVE, RadianceEstimate, RadianceOptions, RadianceQuery, radiance_at_points,
+    surface_at,
+};
+pub use resolved::{BoundIntegrator, Integrator};
+pub use spec::{IntegratorSpec, Method, PathSpec};

@@ -15,8 +15,8 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
-use super::Integrator;
 use super::cached::CachedSpec;
+use super::spec::IntegratorSpec;
 use crate::render::PathDepth;
 
 /// A named quality level.
@@ -39,16 +39,16 @@ pub enum Preset {
 /// Everything a preset fixes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TileSettings {
-    pub integrator: Integrator,
+    /// The cache integrator with every knob a preset fixes set
+    /// (`reproducible` included: a preset's tiles are the same bytes
+    /// whatever ran before).
+    pub integrator: IntegratorSpec,
     /// Camera rays per pixel in each pass.
     pub samples_per_pixel: u32,
     /// Passes of the progressive render (≥ 1).
     pub passes: u32,
     /// Longest path in segments from the camera.
     pub max_depth: PathDepth,
-    /// The irradiance cache's options, every field set (`reproducible`
-    /// included: a preset's tiles are the same bytes whatever ran before).
-    pub cached: CachedSpec,
 }
 
 impl TileSettings {
@@ -89,11 +89,10 @@ impl Preset {
         // than 4 paths per direction (docs/BENCHMARKS.md "The secondary cache").
         let secondary_cache = self == Preset::Final;
         TileSettings {
-            integrator: Integrator::Cache,
             samples_per_pixel: spp,
             passes,
             max_depth: PathDepth::constant(max_depth),
-            cached: CachedSpec {
+            integrator: IntegratorSpec::Cache(CachedSpec {
                 samples: Some(samples),
                 glossy_samples: Some(glossy),
                 paths_per_direction: Some(paths),
@@ -103,7 +102,7 @@ impl Preset {
                 min_pixels: Some(min_pixels),
                 reproducible: Some(true),
                 ..CachedSpec::default()
-            },
+            }),
         }
     }
 }
@@ -137,8 +136,9 @@ mod tests {
         let mut last_cost = 0;
         for preset in Preset::ALL {
             let s = preset.settings();
-            let config = s.cached.resolve().expect("valid options");
-            assert!(config.options.reproducible);
+            let integrator = s.integrator.resolve().expect("valid options");
+            assert!(integrator.reproducible());
+            let config = integrator.cached().expect("the cache integrator");
             assert!(s.passes >= 1 && s.samples_per_pixel >= 1);
             let cost = u64::from(s.total_samples_per_pixel()) * config.paths_per_record();
             assert!(

@@ -1,17 +1,16 @@
-//! The whole camera image, rendered tile by tile through
-//! [`Transport::render_tile`] and assembled. Tiles are rendered one after
+//! The whole camera image, rendered tile by tile by an integrator and
+//! assembled. Tiles are rendered one after
 //! another (each in parallel over its pixels), so progress can be reported
 //! per tile; by the reproducibility rule of `tile`, the image does not
 //! depend on the tile size.
 
-use super::cancel::Cancel;
 use super::error::RenderError;
 use super::path::PathDepth;
 use super::tile::{RenderedTile, TileRequest};
 use super::transport::Transport;
 use crate::image::Image;
 
-/// Largest accepted tile side for [`Transport::render_image`].
+/// Largest accepted tile side for [`Transport::render_image_by`].
 pub const MAX_TILE_SIDE: u32 = 2048;
 
 /// The work per pixel of a whole-image render (see [`TileRequest`]).
@@ -47,23 +46,9 @@ pub struct RenderedImage {
 }
 
 impl Transport {
-    /// Renders the camera's whole image as square tiles of side `tile_side`
-    /// (smaller at the right and bottom edges). `on_tile` is called after each tile (e.g. to advance a progress bar).
-    pub fn render_image(
-        &self,
-        settings: &ImageSettings,
-        tile_side: u32,
-        on_tile: &dyn Fn(&RenderedTile),
-    ) -> Result<RenderedImage, RenderError> {
-        self.render_image_by(settings, tile_side, &|request| {
-            let tile = self.render_tile(request, &Cancel::never())?;
-            on_tile(&tile);
-            Ok(tile)
-        })
-    }
-
-    /// [`Self::render_image`] with each tile rendered by `render` (e.g.
-    /// through an irradiance cache), in row-major tile order.
+    /// The camera's whole image as square tiles of side `tile_side`
+    /// (smaller at the right and bottom edges), each rendered by `render`
+    /// (an integrator's tile), in row-major tile order.
     pub fn render_image_by(
         &self,
         settings: &ImageSettings,
@@ -97,38 +82,5 @@ impl Transport {
             }
         }
         Ok(RenderedImage { image, rays })
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::render::tile::tests::request;
-    use crate::testing::cornell;
-    use std::cell::Cell;
-
-    #[test]
-    fn any_tile_size_gives_the_same_image() {
-        let transport = cornell(12);
-        let whole = transport
-            .render_tile(&request(0, 0, 12, 12), &Cancel::never())
-            .expect("renders");
-        let r = request(0, 0, 1, 1);
-        let settings = ImageSettings {
-            samples_per_pixel: r.samples_per_pixel,
-            max_depth: r.max_depth,
-            seed: r.seed,
-        };
-        let tiles = Cell::new(0);
-        let rendered = transport
-            .render_image(&settings, 5, &|_| tiles.set(tiles.get() + 1))
-            .expect("renders");
-        assert_eq!(tiles.get(), 9);
-        assert_eq!(rendered.image, whole.image);
-        assert_eq!(rendered.rays, whole.rays);
-        assert!(matches!(
-            transport.render_image(&settings, 0, &|_| {}),
-            Err(RenderError::InvalidOption { field: "tile", .. })
-        ));
     }
 }

@@ -9,8 +9,10 @@
 //! Entry points: [`Transport`] (built once per scene) with
 //! `incident_radiance`, `hemisphere_samples`, `direct_irradiance`,
 //! `irradiance_with_estimator` (any MC/QMC/BMC estimator),
-//! `irradiance` and `irradiance_at_points`; `render_tile` and
-//! `render_image` for the camera's image (`tile`, `film`).
+//! `irradiance` and `irradiance_at_points`; the pixel loop every
+//! integrator's camera tiles go through (`tile`) and the whole image
+//! assembled from tiles (`film`). Integrators live in
+//! the `integrator` module.
 
 mod bsdf;
 pub mod calibration;
@@ -55,12 +57,13 @@ pub use irradiance::{
 };
 pub use mean::{Evaluation, MeanEstimate};
 pub use path::{
-    AveragedPaths, FirstSegment, PathDepth, PathLengths, PathLimits, RadianceSample, TraceStats,
+    AveragedPaths, FirstSegment, PathDepth, PathLengths, PathLimits, RadianceSample,
+    SharedFirstVertex, TraceStats,
 };
 pub use query::QueryPoint;
 pub use rgb::Rgb;
 pub use tile::{
-    CameraRayShader, MAX_SAMPLES_PER_PIXEL, MAX_TILE_PIXELS, PathTracer, PixelSample, RenderedTile,
+    CameraRayShader, MAX_SAMPLES_PER_PIXEL, MAX_TILE_PIXELS, PixelSample, RenderedTile,
     TileRequest, pass_seed, pixel_rng, render_tile_with,
 };
 pub use transport::Transport;

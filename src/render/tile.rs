@@ -33,9 +33,8 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::error::RenderError;
 use super::mean::{Evaluation, MeanEstimate};
-use super::path::{PathDepth, PathLengths, PathLimits, SharedFirstVertex, TraceStats};
+use super::path::{PathDepth, TraceStats};
 use super::seed::point_rng;
-use super::transport::Transport;
 use crate::image::Image;
 use crate::scene::{Camera, Ray};
 
@@ -170,59 +169,11 @@ pub trait CameraRayShader: Sync {
     ) -> Evaluation;
 }
 
-/// path tracing.
-pub struct PathTracer<'a> {
-    pub transport: &'a Transport,
-    /// Segments counted from the camera.
-    pub max_depth: PathDepth,
-}
-
-impl CameraRayShader for PathTracer<'_> {
-    fn radiance(
-        &self,
-        ray: Ray,
-        sample: PixelSample,
-        rng: &mut Pcg64,
-        stats: &mut TraceStats,
-    ) -> Evaluation {
-        // The camera ray is the path's first segment, so emitters it hits
-        // count at full weight (path.rs) — they are seen directly. The
-        // pixel's rays spread their first light and BSDF samples over
-        // shared patterns, as their positions over the pixel.
-        let limits = PathLimits {
-            max_depth: self.max_depth,
-            lengths: PathLengths::All,
-        };
-        let first = SharedFirstVertex::new(sample.index, sample.count, sample.pattern);
-        Evaluation::of(
-            self.transport
-                .incident_radiance_stratified(ray, limits, first, rng, stats)
-                .radiance,
-        )
-    }
-}
-
 /// Generator of pixel (px, py) for a request seeded with `seed`: a function
 /// of these three numbers only (the stream index packs px and py, so it
 /// does not depend on the image width either).
 pub fn pixel_rng(seed: u64, px: u32, py: u32) -> Pcg64 {
     point_rng(seed, (u64::from(py) << 32) | u64::from(px))
-}
-
-impl Transport {
-    /// Renders one tile of the scene camera's image, in parallel over its
-    /// pixels on the current rayon pool; stops between pixels once `cancel` is set.
-    pub fn render_tile(
-        &self,
-        request: &TileRequest,
-        cancel: &Cancel,
-    ) -> Result<RenderedTile, RenderError> {
-        let shader = PathTracer {
-            transport: self,
-            max_depth: request.max_depth,
-        };
-        render_tile_with(&self.scene().camera, &shader, request, cancel)
-    }
 }
 
 /// The camera/pixel loop shared by every [`CameraRayShader`]; validates
@@ -295,11 +246,6 @@ pub fn render_tile_with(
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use std::path::Path;
-    use std::sync::Arc;
-
-    use crate::scene::Scene;
-    use crate::testing::{cornell, in_pool};
 
     pub(crate) fn request(x: u32, y: u32, width: u32, height: u32) -> TileRequest {
         TileRequest {
@@ -311,115 +257,6 @@ pub(crate) mod tests {
             max_depth: PathDepth::constant(6),
             seed: 7,
             pass: 0,
-        }
-    }
-
-    #[test]
-    fn tiles_and_thread_counts_give_bit_identical_pixels() {
-        let transport = cornell(32);
-        let whole = in_pool(1, || {
-            transport.render_tile(&request(0, 0, 32, 32), &Cancel::never())
-        })
-        .expect("renders");
-        let mut assembled = Image::black(32, 32).expect("valid");
-        let mut rays = 0;
-        for (x, y) in [(0, 0), (16, 0), (0, 16), (16, 16)] {
-            let tile = in_pool(2, || {
-                transport.render_tile(&request(x, y, 16, 16), &Cancel::never())
-            })
-            .expect("renders");
-            assert_eq!((tile.x, tile.y), (x, y));
-            assembled.insert(&tile.image, x, y).expect("fits");
-            rays += tile.rays;
-        }
-        assert_eq!(assembled, whole.image);
-        assert_eq!(rays, whole.rays);
-        let again = in_pool(2, || {
-            transport.render_tile(&request(0, 0, 32, 32), &Cancel::never())
-        })
-        .expect("renders");
-        assert_eq!(again, whole);
-        // The image is not trivially uniform: the seed matters and light arrives.
-        let other_seed = TileRequest {
-            seed: 8,
-            ..request(0, 0, 32, 32)
-        };
-        assert_ne!(
-            transport
-                .render_tile(&other_seed, &Cancel::never())
-                .expect("renders")
-                .image,
-            whole.image
-        );
-        assert!(whole.image.rgb().iter().any(|p| p[0] > 0.0));
-        assert!(whole.rays >= 32 * 32 * 2);
-    }
-
-    #[test]
-    fn bad_requests_name_the_field() {
-        let transport = cornell(32);
-        let field = |r: TileRequest| match transport.render_tile(&r, &Cancel::never()) {
-            Err(RenderError::InvalidOption { field, .. }) => field,
-            other => panic!("{r:?} gave {other:?}"),
-        };
-        assert_eq!(field(request(32, 0, 1, 1)), "x");
-        assert_eq!(field(request(0, 40, 1, 1)), "y");
-        assert_eq!(field(request(20, 0, 13, 1)), "width");
-        assert_eq!(field(request(0, 31, 1, 2)), "height");
-        assert_eq!(field(request(0, 0, 0, 4)), "width");
-        assert_eq!(field(request(0, 0, 4, 0)), "height");
-        assert_eq!(field(request(1, 0, u32::MAX, 1)), "width");
-        let spp = |samples_per_pixel| TileRequest {
-            samples_per_pixel,
-            ..request(0, 0, 1, 1)
-        };
-        assert_eq!(field(spp(0)), "samples_per_pixel");
-        assert_eq!(field(spp(MAX_SAMPLES_PER_PIXEL + 1)), "samples_per_pixel");
-        // Inside a huge image but too large for one request.
-        let huge = TileRequest {
-            width: 4096,
-            height: 4096,
-            ..request(0, 0, 1, 1)
-        };
-        assert!(matches!(
-            huge.validate((16384, 16384)),
-            Err(RenderError::InvalidOption { field: "width", .. })
-        ));
-        assert!(request(0, 0, 2048, 2048).validate((4096, 4096)).is_ok());
-    }
-
-    #[test]
-    fn an_emitter_filling_the_view_renders_its_radiance_exactly() {
-        // A 20 × 20 emitting rectangle at z = 0 facing the camera at z = 5;
-        // the view spans ±1.9 there, and nothing else exists to reflect.
-        let text = r#"{
-            "materials": [{"id": "m", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
-            "shapes": [{"type": "rectangle", "material": "m",
-                        "to_world": {"scale": [10, 10, 1]},
-                        "emitter": {"type": "area", "radiance": [3.5, 0.25, 7.0]}}],
-            "camera": {"fov": 40, "width": 6, "height": 4,
-                       "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}
-        }"#;
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let scene = Scene::from_json_str(text, root, root).expect("loads");
-        let transport = Transport::new(Arc::new(scene));
-        let tile = transport
-            .render_tile(
-                &TileRequest {
-                    samples_per_pixel: 8,
-                    ..request(0, 0, 6, 4)
-                },
-                &Cancel::never(),
-            )
-            .expect("renders");
-        for (p, v) in tile
-            .image
-            .rgb()
-            .iter()
-            .zip(tile.image.variance().expect("set"))
-        {
-            assert_eq!(*p, [3.5, 0.25, 7.0]);
-            assert_eq!(*v, 0.0);
         }
     }
 

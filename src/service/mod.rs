@@ -27,7 +27,7 @@ mod app;
 pub mod config;
 mod error;
 mod extract;
-mod integrator_doc;
+mod integrator;
 mod irradiance_caches;
 mod metrics;
 mod parse_errors;

@@ -9,13 +9,12 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use super::config::Limits;
 use super::error::ApiError;
-use super::integrator_doc::{ResolvedCache, cached_setup};
+use super::integrator::{CachedSetup, cached_setup};
 use super::scenes::LoadedScene;
 use super::state::AppState;
 use super::tile_store::{Key, RenderedPass, TileRecords};
 use crate::image::Image;
 use crate::integrator::Integrator;
-use crate::integrator::cached::CachedIntegrator;
 use crate::render::{Cancel, TileRequest};
 
 /// One progressive tile request, resolved and checked.
@@ -25,8 +24,6 @@ pub struct TileJob {
     /// (`pass` is ignored: passes `0..=last_pass` are rendered).
     pub request: TileRequest,
     pub integrator: Integrator,
-    /// The cache integrator's configuration (`Some` iff `integrator` is `Cache`).
-    pub cached: Option<ResolvedCache>,
     /// The last pass averaged (0-based).
     pub last_pass: u32,
 }
@@ -34,8 +31,7 @@ pub struct TileJob {
 impl TileJob {
     /// Whether the output depends only on the scene's content and the job.
     pub fn reproducible(&self) -> bool {
-        self.cached
-            .is_none_or(|c| c.config.options.reproducible && c.shared)
+        self.integrator.reproducible()
     }
 
     /// Refuses a job whose estimated paths exceed the work budget: camera
@@ -46,10 +42,7 @@ impl TileJob {
         let camera = area
             .saturating_mul(u64::from(r.samples_per_pixel))
             .saturating_mul(u64::from(self.last_pass) + 1);
-        let records = self
-            .cached
-            .map_or(0, |c| area.saturating_mul(c.config.paths_per_record()));
-        limits.check_work(camera.saturating_add(records))
+        limits.check_work(self.integrator.estimated_paths(camera, area))
     }
 
     /// The content key of the tile's records: everything they depend on,
@@ -58,11 +51,10 @@ impl TileJob {
     fn records_key(&self, scene: &LoadedScene) -> Key {
         let r = &self.request;
         let text = format!(
-            "records\0{}\0{}\0{:?}\0{:?}\0{} {} {} {} {} {}",
+            "records\0{}\0{}\0{}\0{} {} {} {} {} {}",
             env!("CARGO_PKG_VERSION"),
             scene.transport.scene().digest,
-            self.integrator,
-            self.cached.map(|c| c.config),
+            self.integrator.content_key(),
             r.x,
             r.y,
             r.width,
@@ -109,20 +101,17 @@ pub fn render_progressive(
 ) -> Result<ProgressiveTile, ApiError> {
     let transport = &scene.transport;
     let store = &state.tiles;
-    let setup = job
-        .cached
-        .map(|c| cached_setup(state, scene, c, job.request.max_depth))
-        .transpose()?;
-    let integrator = setup
-        .as_ref()
-        .map(|s| CachedIntegrator::new(transport, s.cache(), &s.shading));
+    let setup = cached_setup(state, scene, &job.integrator, job.request.max_depth)?;
+    let bound = job
+        .integrator
+        .bind(transport, setup.as_ref().map(CachedSetup::binding))?;
     let (mut rays, mut cache_hits, mut passes_rendered) = (0, 0, 0);
     let reproducible = job.reproducible();
     let records_key = job.records_key(scene);
     // Atomics, as the closures that set them may run on a pool of their own.
     let created = AtomicU64::new(0);
     // The tile's records, once for every pass.
-    let records = match (&integrator, reproducible) {
+    let records = match (bound.cached(), reproducible) {
         (Some(integrator), true) => {
             let tile_records = store.records_or(records_key, || {
                 let (records, report) = integrator.tile_records(&job.request, cancel)?;
@@ -147,15 +136,14 @@ pub fn render_progressive(
         let rendered = AtomicBool::new(false);
         let render = || -> Result<RenderedPass, ApiError> {
             rendered.store(true, Relaxed);
-            let (tile, cache_hits) = match (&integrator, &records) {
-                (None, _) => (transport.render_tile(&request, cancel)?, 0),
+            let (tile, cache_hits) = match (bound.cached(), &records) {
                 (Some(i), Some(records)) => {
                     let (tile, stats) =
                         i.render_tile_from_records(&request, &records.records, cancel)?;
                     (tile, stats.cache_hits)
                 }
-                (Some(i), None) => {
-                    let (tile, report) = i.render_tile(&request, cancel)?;
+                _ => {
+                    let (tile, report) = bound.render_tile(&request, cancel)?;
                     created.fetch_add(report.placement.records_created, Relaxed);
                     (tile, report.shading.cache_hits)
                 }
@@ -180,7 +168,8 @@ pub fn render_progressive(
         passes.push(pass_image);
     }
     let records_created = created.into_inner();
-    if let (Some(integrator), Some(records), true) = (&integrator, &records, records_created > 0) {
+    if let (Some(integrator), Some(records), true) = (bound.cached(), &records, records_created > 0)
+    {
         // Let the shared cache (and its statistics) know of new records.
         integrator.publish(&records.records)?;
     }

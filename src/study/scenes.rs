@@ -194,10 +194,19 @@ fn camera_records(
     preset: Preset,
     max_depth: PathDepth,
 ) -> Result<(IrradianceCache, CachedShading), SceneStudyError> {
-    let spec = CachedSpec {
+    // The preset's knobs, on one cache shared by every tile.
+    let knobs = CachedSpec {
         reproducible: Some(false),
-        ..preset.settings().cached
+        ..CachedSpec::default()
     };
+    let spec = knobs.over(
+        preset
+            .settings()
+            .integrator
+            .cached()
+            .copied()
+            .unwrap_or_default(),
+    );
     let config = spec.resolve().map_err(RenderError::from)?;
     let shading = config
         .shading(Arc::new(QuadratureCache::new(256 << 20)))

@@ -12,8 +12,8 @@ use bmc_irradiance::cache::{
     RecordRuleSpec,
 };
 use bmc_irradiance::integrator::cached::{
-    Gather, PlacementCache, PlacementOptions, PlacementPoint, RecordGather, ShadingStats,
-    compute_record, lookup, place_and_shade, place_records,
+    CacheShadingOptions, Gather, PlacementCache, PlacementOptions, PlacementPoint, RecordGather,
+    ShadingStats, compute_record, lookup, place_and_shade, place_records,
 };
 use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::MeanEstimate;
@@ -212,12 +212,12 @@ fn a_variance_target_places_more_records() {
     assert!(more.records_for_variance > 0);
     assert!(more.records_created > base.records_created);
     assert!(values.iter().all(Option::is_some));
-    let bad = PlacementOptions {
+    // Options are checked once, where they are resolved; placement trusts them.
+    let bad = CacheShadingOptions {
         batch_size: 0,
-        ..plain
+        ..CacheShadingOptions::default()
     };
-    let err = place_and_shade(&transport, &rule, config(), &points, &bad).unwrap_err();
-    assert_eq!(err.field(), Some("batch_size"));
+    assert_eq!(bad.validate().unwrap_err().field(), Some("batch_size"));
 }
 
 /// The small box stands on the floor around (0.335, −1, 0.38); a record on

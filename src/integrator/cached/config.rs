@@ -7,8 +7,9 @@ use serde::{Deserialize, Serialize};
 
 use super::glossy::GlossyRule;
 use super::secondary_caches::SecondaryCaches;
+use super::spec::CachedConfig;
 use crate::bmc::cache::QuadratureCache;
-use crate::bmc::{Kernel, KernelKey, KernelKind, PriorMean};
+use crate::bmc::{Kernel, KernelKind, PriorMean};
 use crate::cache::{Accuracy, CacheError, PixelFootprint, RecordRule, RecordRuleSpec};
 use crate::render::{PathDepth, PathLengths, PathLimits};
 use crate::sphere::{SampleSetKind, SampleSetSpec};
@@ -138,6 +139,14 @@ impl CacheShadingOptions {
                  set ambient_bounces to 0",
             ));
         }
+        if let Some(t) = self.relative_error_target
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(CacheError::invalid(
+                "relative_error_target",
+                format!("must be finite and > 0, got {t}"),
+            ));
+        }
         PixelFootprint::new(1.0, self.min_pixels, self.max_pixels)?;
         Accuracy::new(self.accuracy)
     }
@@ -258,193 +267,11 @@ pub struct PlacementOptions {
     pub occlusion_check: bool,
     /// Seed of every random stream of the request.
     pub seed: u64,
-    /// Points decided per batch (≥ 1).
+    /// Points decided per batch (≥ 1; checked by
+    /// [`CacheShadingOptions::validate`], assumed by placement).
     pub batch_size: usize,
     /// Independent paths averaged per record direction (≥ 1): lowers the
     /// Monte Carlo noise of each value `L_i` without growing the `O(N²)`
     /// cost of the BMC estimate and its gradients.
     pub paths_per_direction: u32,
-}
-
-/// `θ_r` nodes of the glossy rule when none are named.
-pub const DEFAULT_GLOSSY_BINS: usize = 16;
-/// Directions per record when none are named.
-pub const DEFAULT_RECORD_SAMPLES: usize = 64;
-
-/// The irradiance-cache integrator as a request or the command line names
-/// it; `None` fields take the defaults of [`default_rule_spec`],
-/// [`CacheShadingOptions::default`] and [`DEFAULT_GLOSSY_BINS`], written
-/// once there. [`CachedSpec::resolve`] checks it.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct CachedSpec {
-    /// Directions per record and per glossy BMC estimate.
-    pub samples: Option<usize>,
-    /// SE lengthscale of the records' GP prior (chordal units).
-    pub lengthscale: Option<f64>,
-    /// Noise variance relative to `σ² = 1`.
-    pub noise: Option<f64>,
-    pub accuracy: Option<f64>,
-    pub relative_error_target: Option<f64>,
-    pub occlusion_check: Option<bool>,
-    pub light_samples: Option<u32>,
-    pub paths_per_direction: Option<u32>,
-    pub ambient_bounces: Option<u32>,
-    pub secondary_cache: Option<bool>,
-    pub reproducible: Option<bool>,
-    pub min_pixels: Option<f64>,
-    pub max_pixels: Option<f64>,
-    pub glossy_bins: Option<usize>,
-    /// Directions of each glossy BMC estimate (one per camera ray on a
-    /// glossy surface, so it sets the glossy shading cost); default the
-    /// records' `samples`.
-    pub glossy_samples: Option<usize>,
-}
-
-/// A checked configuration of the cache integrator.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CachedConfig {
-    /// The records' (and glossy BMC's) rule.
-    pub rule: RecordRuleSpec,
-    pub options: CacheShadingOptions,
-    pub glossy_bins: usize,
-    /// Directions of each glossy BMC estimate.
-    pub glossy_samples: usize,
-    /// `options.accuracy`, checked with the rest of `options` by [`CachedSpec::resolve`].
-    accuracy: Accuracy,
-}
-
-/// What the values of a cache's records depend on, and nothing else: the
-/// key under which records of one scene version are shared.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct RecordsKey {
-    samples: SampleSetSpec,
-    kernel: KernelKey,
-    prior_mean: PriorMean,
-    paths_per_direction: u32,
-    ambient_bounces: u32,
-    secondary_cache: bool,
-    /// Path segments counted from the camera or viewer.
-    max_depth: PathDepth,
-    glossy_bins: usize,
-    glossy_samples: usize,
-}
-
-impl RecordsKey {
-    /// Path segments counted from the camera or viewer.
-    pub fn max_depth(&self) -> PathDepth {
-        self.max_depth
-    }
-}
-
-impl CachedSpec {
-    /// The defaults filled in and every value checked (errors name the field).
-    pub fn resolve(&self) -> Result<CachedConfig, CacheError> {
-        let mut rule = default_rule_spec();
-        rule.samples.count = self.samples.unwrap_or(DEFAULT_RECORD_SAMPLES);
-        if let Some(lengthscale) = self.lengthscale {
-            rule.kernel.lengthscale = lengthscale;
-        }
-        if let Some(noise) = self.noise {
-            rule.kernel.noise = noise;
-        }
-        rule.kernel.validate()?;
-        let glossy_samples = self.glossy_samples.unwrap_or(rule.samples.count);
-        for (field, count) in [
-            ("samples", rule.samples.count),
-            ("glossy_samples", glossy_samples),
-        ] {
-            if !(1..=crate::sphere::MAX_SAMPLES).contains(&count) {
-                return Err(CacheError::invalid(
-                    field,
-                    format!("must be in 1..={}, got {count}", crate::sphere::MAX_SAMPLES),
-                ));
-            }
-        }
-        let d = CacheShadingOptions::default();
-        let options = CacheShadingOptions {
-            accuracy: self.accuracy.unwrap_or(d.accuracy),
-            relative_error_target: self.relative_error_target.or(d.relative_error_target),
-            occlusion_check: self.occlusion_check.unwrap_or(d.occlusion_check),
-            reproducible: self.reproducible.unwrap_or(d.reproducible),
-            light_samples: self.light_samples.unwrap_or(d.light_samples),
-            paths_per_direction: self.paths_per_direction.unwrap_or(d.paths_per_direction),
-            ambient_bounces: self.ambient_bounces.unwrap_or(d.ambient_bounces),
-            secondary_cache: self.secondary_cache.unwrap_or(d.secondary_cache),
-            min_pixels: self.min_pixels.unwrap_or(d.min_pixels),
-            max_pixels: self.max_pixels.unwrap_or(d.max_pixels),
-            ..d
-        };
-        let accuracy = options.validate()?;
-        let glossy_bins = self.glossy_bins.unwrap_or(DEFAULT_GLOSSY_BINS);
-        if !(2..=super::glossy::MAX_GLOSSY_BINS).contains(&glossy_bins) {
-            return Err(CacheError::invalid(
-                "glossy_bins",
-                format!(
-                    "must be in 2..={}, got {glossy_bins}",
-                    super::glossy::MAX_GLOSSY_BINS
-                ),
-            ));
-        }
-        Ok(CachedConfig {
-            rule,
-            options,
-            glossy_bins,
-            glossy_samples,
-            accuracy,
-        })
-    }
-}
-
-impl CachedConfig {
-    /// Paths one record may trace: its directions times the paths per
-    /// direction, once more per ambient level that re-gathers them. Records
-    /// that ambient levels place at secondary hits are not counted: how many
-    /// there are depends on what the cache already holds.
-    pub fn paths_per_record(&self) -> u64 {
-        self.rule.samples.count as u64
-            * u64::from(self.options.paths_per_direction)
-            * (1 + u64::from(self.options.ambient_bounces))
-    }
-
-    /// The key of the records this configuration computes for paths of up
-    /// to `max_depth` segments from the camera or viewer.
-    pub fn records_key(&self, max_depth: PathDepth) -> RecordsKey {
-        RecordsKey {
-            samples: self.rule.samples.canonical(),
-            kernel: self.rule.kernel.cache_key(),
-            prior_mean: self.rule.prior_mean,
-            paths_per_direction: self.options.paths_per_direction,
-            ambient_bounces: self.options.ambient_bounces,
-            secondary_cache: self.options.secondary_cache,
-            max_depth,
-            glossy_bins: self.glossy_bins,
-            glossy_samples: self.glossy_samples,
-        }
-    }
-
-    /// The same as JSON, for people reading cache statistics.
-    pub fn describe(&self, max_depth: PathDepth) -> serde_json::Value {
-        serde_json::json!({
-            "rule": self.rule,
-            "paths_per_direction": self.options.paths_per_direction,
-            "ambient_bounces": self.options.ambient_bounces,
-            "secondary_cache": self.options.secondary_cache,
-            "max_depth": max_depth,
-            "glossy_bins": self.glossy_bins,
-            "glossy_samples": self.glossy_samples,
-        })
-    }
-
-    /// The rules (factorised once per configuration) with these options.
-    pub fn shading(&self, quadratures: Arc<QuadratureCache>) -> Result<CachedShading, CacheError> {
-        let mut glossy = self.rule;
-        glossy.samples.count = self.glossy_samples;
-        CachedShading::with_glossy_spec(
-            self.rule,
-            glossy,
-            self.glossy_bins,
-            quadratures,
-            self.options,
-        )
-    }
 }

@@ -3,8 +3,9 @@
 //! §13), with records computed on demand.
 //!
 //! One concept per file:
-//! - `config`: the integrator's options and rules, defaults written once and
-//!   validated once;
+//! - `spec`: the integrator's knobs as requests and the command line name
+//!   them, resolved and checked once;
+//! - `config`: the checked options and the rules built from them;
 //! - `glossy`: BMC with the Phong density, tabulated over `θ_r`;
 //! - `shade`: outgoing radiance at a surface point (NEE direct light, cached
 //!   diffuse indirect, BMC glossy), records computed at points and gathering
@@ -16,8 +17,6 @@
 //!   first hits instead of tracing paths on, and how it is built;
 //! - `secondary_caches`: those caches held by a rule set, each built once;
 //! - `tiles`: camera tiles shaded through a shared or private cache;
-//! - `radiance`: outgoing radiance at surface points, by path tracing or
-//!   through a cache;
 //! - `record_view`: records as the camera sees them (positions, radii,
 //!   an overlay image);
 //! - `stats`: counters.
@@ -26,26 +25,21 @@ mod config;
 mod direct_records;
 mod glossy;
 mod placement;
-mod radiance;
 mod record_view;
 mod secondary;
 mod secondary_caches;
 mod shade;
+mod spec;
 mod stats;
 mod tiles;
 
 pub use config::{
-    AMBIENT_MIN_DEPTH, CacheShadingOptions, CachedConfig, CachedShading, CachedSpec,
-    DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, MAX_AMBIENT_BOUNCES, MAX_BMC_EXPONENT,
-    MAX_LIGHT_SAMPLES, PlacementOptions, RecordsKey, default_rule_spec, indirect_paths,
+    AMBIENT_MIN_DEPTH, CacheShadingOptions, CachedShading, MAX_AMBIENT_BOUNCES, MAX_BMC_EXPONENT,
+    MAX_LIGHT_SAMPLES, PlacementOptions, default_rule_spec, indirect_paths,
 };
 pub use direct_records::direct_records;
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
 pub use placement::{PlacementCache, PlacementReport, place_and_shade, place_records, shade};
-pub use radiance::{
-    RadianceEstimate, RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points,
-    surface_at,
-};
 pub use record_view::{RecordView, record_overlay, record_views};
 pub use secondary::secondary_cache_of;
 pub use secondary_caches::{SecondaryCache, SecondaryCaches};
@@ -53,5 +47,6 @@ pub use shade::{
     Bounce, CachedIntegrator, Gather, OnMiss, PlacementPoint, RecordGather, ShadePoint,
     compute_record, lookup,
 };
+pub use spec::{CachedConfig, CachedSpec, DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, RecordsKey};
 pub use stats::ShadingStats;
 pub use tiles::CachedTileReport;

@@ -97,27 +97,6 @@ fn too_uncertain(found: &Interpolated, target: f64) -> bool {
     lum > 0.0 && var.sqrt() > target * lum
 }
 
-fn validate(options: &PlacementOptions) -> Result<(), CacheError> {
-    if options.batch_size == 0 {
-        return Err(CacheError::invalid("batch_size", "must be at least 1"));
-    }
-    if options.paths_per_direction == 0 {
-        return Err(CacheError::invalid(
-            "paths_per_direction",
-            "must be at least 1",
-        ));
-    }
-    if let Some(t) = options.relative_error_target
-        && !(t.is_finite() && t > 0.0)
-    {
-        return Err(CacheError::invalid(
-            "relative_error_target",
-            format!("must be finite and > 0, got {t}"),
-        ));
-    }
-    Ok(())
-}
-
 /// The cache a placement pass fills, by who reads it meanwhile.
 #[derive(Clone, Copy)]
 pub enum PlacementCache<'a> {
@@ -152,7 +131,9 @@ pub fn place_records(
     gather: Gather,
     cancel: &Cancel,
 ) -> Result<PlacementReport, CacheError> {
-    validate(options)?;
+    // The options come checked (`CacheShadingOptions::validate`, through
+    // `CachedSpec::resolve`); a hand-built value must keep the same invariants.
+    debug_assert!(options.batch_size >= 1 && options.paths_per_direction >= 1);
     let (cache, private) = match into {
         PlacementCache::Private(cache) => (cache, true),
         PlacementCache::Shared(cache) => (cache, false),

@@ -1,5 +1,5 @@
 //! Tiles of the camera image shaded through the irradiance cache
-//! ([`crate::integrator::Integrator::Cache`]).
+//! (the `cache` method of an integrator spec).
 //!
 //! Two passes (see `placement`):
 //! 1. **Placement** at the first hits of the rays through the tile's pixel
@@ -55,6 +55,21 @@ pub struct CachedTileReport {
     pub shading: ShadingStats,
     /// Records copied from the private cache into the shared one.
     pub records_published: u64,
+}
+
+impl CachedTileReport {
+    /// Adds `other`'s counts (of another tile of the same image).
+    pub fn add(&mut self, other: &CachedTileReport) {
+        self.placement_points += other.placement_points;
+        self.placement.records_created += other.placement.records_created;
+        self.placement.ambient_records += other.placement.ambient_records;
+        self.placement.rays += other.placement.rays;
+        self.placement.fallbacks += other.placement.fallbacks;
+        self.secondary.records_created += other.secondary.records_created;
+        self.secondary.rays += other.secondary.rays;
+        self.shading += other.shading;
+        self.records_published += other.records_published;
+    }
 }
 
 /// Shades camera rays through a cache (module docs), collecting counters
@@ -469,7 +484,7 @@ mod tests {
         cached: &RenderedTile,
         r: &TileRequest,
     ) {
-        let traced = transport
+        let traced = crate::integrator::PathIntegrator::new(transport)
             .render_tile(
                 &TileRequest {
                     samples_per_pixel: 256,

@@ -5,7 +5,7 @@ use axum::Json;
 use serde::Serialize;
 use utoipa::ToSchema;
 
-use crate::integrator::Preset;
+use crate::integrator::{IntegratorSpec, Preset};
 
 /// One preset as the API reports it.
 #[derive(Debug, Serialize, ToSchema)]
@@ -19,9 +19,9 @@ pub struct PresetDoc {
     pub passes: u32,
     /// Longest path in segments.
     pub max_depth: u32,
-    /// The cache integrator's knobs (`estimator` of a tile request).
-    #[schema(value_type = Object)]
-    pub estimator: serde_json::Value,
+    /// The integrator and every knob the preset sets, as a tile request's
+    /// `estimator` names them (posting it back changes nothing).
+    pub estimator: IntegratorSpec,
 }
 
 /// The presets, cheapest first.
@@ -33,24 +33,13 @@ pub async fn presets() -> Json<Vec<PresetDoc>> {
             .iter()
             .map(|&p| {
                 let s = p.settings();
-                let c = &s.cached;
                 PresetDoc {
                     name: p.name().to_owned(),
                     default: p == Preset::default(),
                     samples_per_pixel: s.samples_per_pixel,
                     passes: s.passes,
                     max_depth: s.max_depth.get(),
-                    estimator: serde_json::json!({
-                        "method": s.integrator,
-                        "samples": c.samples,
-                        "glossy_samples": c.glossy_samples,
-                        "paths_per_direction": c.paths_per_direction,
-                        "secondary_cache": c.secondary_cache,
-                        "accuracy": c.accuracy,
-                        "min_pixels": c.min_pixels,
-                        "light_samples": c.light_samples,
-                        "reproducible": c.reproducible,
-                    }),
+                    estimator: s.integrator,
                 }
             })
             .collect(),

@@ -3,7 +3,7 @@
 //! arriving at the point from that direction would return. Shaded as tiles
 //! are (`estimator.method`: `bmc` through the scene's irradiance cache,
 //! sharing records with tiles of the same `max_depth`; `path` by path
-//! tracing); see `integrator::cached::radiance`.
+//! tracing); see `integrator::radiance`.
 
 use std::sync::Arc;
 
@@ -13,14 +13,13 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::integrator::Integrator;
-use crate::integrator::cached::{
-    RadianceOptions, RadianceQuery, RadianceShading, radiance_at_points, surface_at,
+use crate::integrator::{
+    IntegratorSpec, RadianceOptions, RadianceQuery, radiance_at_points, surface_at,
 };
 use crate::render::{PathDepth, QueryPoint, Rgb};
 use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
-use crate::service::integrator_doc::{IntegratorDoc, cached_setup};
+use crate::service::integrator::{CachedSetup, cached_setup, resolve_integrator};
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::state::AppState;
 
@@ -41,9 +40,10 @@ pub struct RadiancePointDoc {
 pub struct RadianceRequest {
     /// 1..=`limits.max_points` points.
     pub points: Vec<RadiancePointDoc>,
-    /// As for tiles: `{"method": "bmc" | "path", …}`; default `bmc`.
+    /// As for tiles: `{"method": "cache" | "path", …}`; default `cache`
+    /// with its default knobs.
     #[serde(default)]
-    pub estimator: IntegratorDoc,
+    pub estimator: IntegratorSpec,
     /// Independent evaluations averaged per point (their spread gives
     /// `std_dev`), 1..=`limits.max_samples`; default 16.
     #[serde(default = "default_repeats")]
@@ -117,24 +117,16 @@ pub async fn radiance(
         .collect::<Result<Vec<_>, _>>()?;
     // The work, bounded before it starts: the repeats' paths, plus for `bmc`
     // at most one record per point.
-    let cached = match request.estimator.method {
-        Integrator::Cache => Some(request.estimator.resolve(limits)?),
-        Integrator::Path => None,
-    };
+    let integrator = resolve_integrator(request.estimator, limits)?;
     let points = request.points.len() as u64;
-    let record_paths = cached
-        .as_ref()
-        .map_or(0, |c| points * c.config.paths_per_record());
-    limits.check_work((points * u64::from(request.repeats)).saturating_add(record_paths))?;
+    limits.check_work(integrator.estimated_paths(points * u64::from(request.repeats), points))?;
     let (repeats, seed) = (request.repeats, request.seed);
     let shared = state.clone();
     let (estimates, secondary) = state
         .pool
         .run(move |cancel| {
             // On the pool: a new configuration factorises its record rule.
-            let cached = cached
-                .map(|spec| cached_setup(&shared, &scene, spec, max_depth))
-                .transpose()?;
+            let setup = cached_setup(&shared, &scene, &integrator, max_depth)?;
             let transport = &scene.transport;
             let hits = queries
                 .iter()
@@ -148,13 +140,7 @@ pub async fn radiance(
                     })
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            let shading = match &cached {
-                Some(setup) => RadianceShading::Cached {
-                    cache: setup.cache(),
-                    shading: &setup.shading,
-                },
-                None => RadianceShading::PathTracing,
-            };
+            let bound = integrator.bind(transport, setup.as_ref().map(CachedSetup::binding))?;
             let options = RadianceOptions {
                 max_depth,
                 repeats,
@@ -162,7 +148,7 @@ pub async fn radiance(
             };
             // The points and options were checked above, so what fails here
             // is the shading the estimator asked for.
-            radiance_at_points(transport, &queries, &hits, shading, options, cancel)
+            radiance_at_points(&bound, &queries, &hits, options, cancel)
                 .at("estimator")
         })
         .await??;

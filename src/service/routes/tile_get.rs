@@ -40,7 +40,7 @@ use crate::integrator::cached::{record_overlay, record_views};
 use crate::render::TileRequest;
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::ApiQuery;
-use crate::service::integrator_doc::IntegratorDoc;
+use crate::service::integrator::resolve_integrator;
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::state::AppState;
 use crate::service::tile_render::{TileJob, render_progressive};
@@ -247,11 +247,9 @@ pub async fn get_tile(
     if if_none_match(&headers, &etag) {
         return Ok((StatusCode::NOT_MODIFIED, common).into_response());
     }
-    let cached = IntegratorDoc::default().resolve_over(settings.cached, limits)?;
     let job = TileJob {
         request,
-        integrator: settings.integrator,
-        cached: Some(cached),
+        integrator: resolve_integrator(settings.integrator, limits)?,
         last_pass: pass,
     };
     job.check_work(limits)?;

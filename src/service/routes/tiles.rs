@@ -16,11 +16,11 @@ use serde::Deserialize;
 use utoipa::ToSchema;
 
 use crate::image::{ImageEncoding, ToneMap};
-use crate::integrator::{Integrator, Preset};
+use crate::integrator::{IntegratorSpec, Preset};
 use crate::render::{PathDepth, TileRequest};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
-use crate::service::integrator_doc::IntegratorDoc;
+use crate::service::integrator::resolve_integrator;
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::state::AppState;
 use crate::service::tile_render::{TileJob, render_progressive};
@@ -47,8 +47,10 @@ pub struct TileRequestDoc {
     /// preset's last (its final image). With an explicit `samples_per_pixel`
     /// the tile is one pass of that many rays (so `pass` may only be 0).
     pub pass: Option<u32>,
+    /// The integrator and its knobs, over the preset's (`method` `cache`,
+    /// the default, or `path`).
     #[serde(default)]
-    pub estimator: IntegratorDoc,
+    pub estimator: IntegratorSpec,
     /// Camera rays per pixel in each pass, 1..=`limits.max_samples`;
     /// default the preset's.
     pub samples_per_pixel: Option<u32>,
@@ -137,15 +139,9 @@ pub async fn tile(
             .map_or(Ok(settings.max_depth), PathDepth::new)?,
         ..rectangle
     };
-    let integrator = doc.estimator.method;
-    let cached = match integrator {
-        Integrator::Cache => Some(doc.estimator.resolve_over(settings.cached, limits)?),
-        Integrator::Path => None,
-    };
     let job = TileJob {
         request,
-        integrator,
-        cached,
+        integrator: resolve_integrator(doc.estimator.over(settings.integrator), limits)?,
         last_pass: pass,
     };
     job.check_work(limits)?;

@@ -23,16 +23,17 @@ use std::f64::consts::PI;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::config::{CachedShading, indirect_paths};
-use super::placement::PlacementReport;
-use super::secondary::secondary_cache_of;
-use super::shade::{CachedIntegrator, OnMiss, ShadePoint};
-use super::stats::ShadingStats;
+use super::cached::{
+    CachedIntegrator, CachedShading, OnMiss, PlacementReport, ShadePoint, ShadingStats,
+    indirect_paths, secondary_cache_of,
+};
+use super::path::PathIntegrator;
+use super::resolved::BoundIntegrator;
 use crate::cache::IrradianceCache;
 use crate::render::seed::point_rng;
 use crate::render::{
-    Cancel, Evaluation, MeanEstimate, PathDepth, PathLengths, PathLimits, QueryPoint, RenderError,
-    Rgb, TraceStats, Transport,
+    Cancel, Evaluation, MeanEstimate, PathDepth, QueryPoint, RenderError, Rgb, TraceStats,
+    Transport,
 };
 use crate::scene::{Ray, SurfaceHit};
 
@@ -71,19 +72,6 @@ pub struct RadianceEstimate {
     pub std_error: Rgb,
     /// Rays traced for this query.
     pub rays: u64,
-}
-
-/// How the radiance is computed.
-#[derive(Clone, Copy)]
-pub enum RadianceShading<'a> {
-    /// Path tracing from the viewer's side (the unbiased reference).
-    PathTracing,
-    /// As the cached tile shader: emission, light sampling, records for
-    /// diffuse indirect light (created where missing), BMC for glossy lobes.
-    Cached {
-        cache: &'a IrradianceCache,
-        shading: &'a CachedShading,
-    },
 }
 
 /// The surface hit a query names, or `None` if no surface lies within the
@@ -126,10 +114,9 @@ pub struct RadianceOptions {
 /// it when the options ask for `secondary_cache`, as a tile's do). Stops
 /// between points once `cancel` is set.
 pub fn radiance_at_points(
-    transport: &Transport,
+    integrator: &BoundIntegrator,
     queries: &[RadianceQuery],
     hits: &[SurfaceHit],
-    shading: RadianceShading,
     options: RadianceOptions,
     cancel: &Cancel,
 ) -> Result<(Vec<RadianceEstimate>, PlacementReport), RenderError> {
@@ -144,14 +131,11 @@ pub fn radiance_at_points(
             reason: "must be at least 1".into(),
         });
     }
+    let transport = integrator.transport();
+    let path = PathIntegrator::new(transport);
     // The cached integrator, once for every point, with the scene's
     // secondary cache if the options ask for one.
-    let cached = match shading {
-        RadianceShading::Cached { cache, shading } => {
-            Some(CachedIntegrator::new(transport, cache, shading))
-        }
-        RadianceShading::PathTracing => None,
-    };
+    let cached = integrator.cached().copied();
     let (secondary, built) = match (&cached, max_depth.after_first_segment()) {
         (Some(integrator), Some(from_point)) => {
             secondary_cache_of(integrator, indirect_paths(from_point), cancel)?
@@ -175,17 +159,7 @@ pub fn radiance_at_points(
             let camera_ray = probe(transport, hit.position, query.direction);
             let values = (0..repeats)
                 .map(|_| match cached {
-                    None => {
-                        let limits = PathLimits {
-                            max_depth,
-                            lengths: PathLengths::All,
-                        };
-                        Ok(Evaluation::of(
-                            transport
-                                .incident_radiance(camera_ray, limits, &mut rng, &mut trace)
-                                .radiance,
-                        ))
-                    }
+                    None => Ok(path.radiance(camera_ray, max_depth, &mut rng, &mut trace)),
                     Some(integrator) => {
                         let how = ShadePoint {
                             max_depth,
@@ -272,17 +246,17 @@ mod tests {
         let transport = cornell(8);
         let query = floor_query();
         let hit = surface_at(&transport, &query).expect("on the wall");
-        let radiance = |how, repeats| {
+        let radiance = |how: BoundIntegrator, repeats| {
             let options = RadianceOptions {
                 max_depth: PathDepth::constant(max_depth),
                 repeats,
                 seed: 1,
             };
-            radiance_at_points(&transport, &[query], &[hit], how, options, &Cancel::never())
-                .unwrap()
+            radiance_at_points(&how, &[query], &[hit], options, &Cancel::never()).unwrap()
         };
-        let path = radiance(RadianceShading::PathTracing, 4096).0[0];
-        let (bmc, built) = radiance(RadianceShading::Cached { cache, shading }, 4);
+        let path = radiance(BoundIntegrator::Path(PathIntegrator::new(&transport)), 4096).0[0];
+        let cached = CachedIntegrator::new(&transport, cache, shading);
+        let (bmc, built) = radiance(BoundIntegrator::Cache(cached), 4);
         let bmc = bmc[0];
         for (p, b, sp, sb) in [
             (
