@@ -22,5 +22,6 @@ pub use density::{Density, DensityKey, MAX_PHONG_EXPONENT};
 pub use error::BmcError;
 pub use factorisation::Factorisation;
 pub use kernel::{Kernel, KernelKey, KernelKind, MAX_LENGTHSCALE, MIN_LENGTHSCALE};
+pub use kernel_mean::KernelMeanMethod;
 pub use kernel_mean::{kernel_means, prior_variance};
-pub use quadrature::{KernelMeanMethod, PriorMean, Quadrature};
+pub use quadrature::{PriorMean, Quadrature};

@@ -12,7 +12,7 @@ use super::error::BmcError;
 use super::factorisation::Factorisation;
 use super::gls::Gls;
 use super::kernel::Kernel;
-use super::kernel_mean::{kernel_means, prior_variance};
+use super::kernel_mean::{KernelMeanMethod, kernel_means, prior_variance};
 use crate::sphere::SampleSet;
 
 /// Prior mean of the GP over the integrand.
@@ -25,18 +25,6 @@ pub enum PriorMean {
     /// Unknown constant mean with a flat prior, estimated by generalised least
     /// squares; constants are then integrated exactly (`Σ w_i = ∫p`).
     Gls,
-}
-
-/// How kernel means and `V₀` are computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum KernelMeanMethod {
-    /// Deterministic adaptive quadrature, ~1e-12 relative (see `kernel_mean`).
-    #[default]
-    Exact,
-    /// Spherical-Gaussian closed form (Marques et al. 2013): SE kernel only,
-    /// approximate (errors in `docs/BENCHMARKS.md`).
-    SphericalGaussian,
 }
 
 /// A BMC quadrature rule for one (sample set, kernel, density, prior mean).

@@ -1,5 +1,6 @@
 //! Integrators: how a camera ray or a query becomes a radiance estimate.
 //!
+//! - `method`: the integrators by name;
 //! - `spec`: the integrator a request or the command line names, as data
 //!   ([`IntegratorSpec`]: the method and its knobs);
 //! - `resolved`: that spec checked ([`Integrator`]) and bound to a scene and
@@ -15,12 +16,14 @@
 //! match to extend, all in `spec.rs` and `resolved.rs`).
 
 pub mod cached;
+mod method;
 pub mod path;
 mod preset;
 mod radiance;
 mod resolved;
 mod spec;
 
+pub use method::Method;
 pub use path::PathIntegrator;
 pub use preset::{Preset, TileSettings};
 pub use radiance::{
@@ -28,4 +31,4 @@ pub use radiance::{
     surface_at,
 };
 pub use resolved::{BoundIntegrator, Integrator};
-pub use spec::{IntegratorSpec, Method, PathSpec};
+pub use spec::{IntegratorSpec, PathSpec};

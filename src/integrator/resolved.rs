@@ -4,8 +4,8 @@
 //! radiance queries with, matching on the method in this file only.
 
 use super::cached::{CachedConfig, CachedIntegrator, CachedShading, CachedTileReport};
+use super::method::Method;
 use super::path::PathIntegrator;
-use super::spec::Method;
 use crate::cache::IrradianceCache;
 use crate::render::{Cancel, RenderError, RenderedTile, TileRequest, Transport};
 

@@ -11,37 +11,9 @@ use serde::{Deserialize, Deserializer, Serialize};
 use utoipa::ToSchema;
 
 use super::cached::CachedSpec;
+use super::method::Method;
 use super::resolved::Integrator;
 use crate::cache::CacheError;
-
-/// The integrators by name.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    serde::Deserialize,
-    serde::Serialize,
-    clap::ValueEnum,
-    ToSchema,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// Unidirectional path tracing with next-event estimation, MIS and
-    /// Russian roulette ([`super::PathIntegrator`]), emitters seen directly
-    /// included: the unbiased reference.
-    Path,
-    /// Direct light by light sampling, diffuse indirect light interpolated
-    /// from irradiance-cache records computed by BMC, glossy reflection by
-    /// BMC with the Phong density ([`super::cached`]). `"bmc"` is accepted
-    /// as an alias (the name this had before `"bmc"` came to mean one
-    /// quadrature per point, as it does for point queries).
-    #[default]
-    #[serde(alias = "bmc")]
-    Cache,
-}
 
 /// The path tracer's knobs: none beyond the request's own (samples per
 /// pixel, `max_depth`, seed), so any other field is refused.

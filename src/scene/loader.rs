@@ -22,14 +22,8 @@ use super::{Camera, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, tr
 /// Largest accepted scene file (inline triangle lists can be big).
 const MAX_SCENE_BYTES: u64 = 1 << 30;
 
-pub(super) fn load(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError> {
-    if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("xml"))
-    {
-        let options = super::mitsuba::MitsubaOptions::default();
-        return super::mitsuba::load(path, scenes_root, &options).map(|(scene, _)| scene);
-    }
+/// Loads a JSON scene document from `path`.
+pub(super) fn load_json(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError> {
     let text = read_scene_file(path)?;
     let base = path.parent().unwrap_or(Path::new("."));
     let mut scene = from_json_str(&text, &path.display().to_string(), base, scenes_root)?;

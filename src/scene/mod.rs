@@ -12,6 +12,7 @@ mod emitter;
 mod environment;
 mod error;
 mod format;
+mod formats;
 #[doc(hidden)]
 pub mod generate;
 mod loader;
@@ -134,7 +135,7 @@ impl Scene {
         path: &std::path::Path,
         scenes_root: &std::path::Path,
     ) -> Result<Scene, SceneError> {
-        loader::load(path, scenes_root)
+        formats::load(path, scenes_root)
     }
 
     /// Parses a scene from text; relative file names resolve against

@@ -444,25 +444,6 @@ impl From<crate::image::ImageError> for ApiError {
     }
 }
 
-/// An import names the entry it refuses (422): `body` when the body is not
-/// an export at all, `entries[i]` otherwise.
-impl From<crate::service::tile_store::ImportError> for ApiError {
-    fn from(err: crate::service::tile_store::ImportError) -> Self {
-        use crate::service::tile_store::ImportError;
-        let field = match &err {
-            ImportError::NotALog => "body".to_owned(),
-            ImportError::Damaged { entry }
-            | ImportError::NotRecords { entry, .. }
-            | ImportError::Malformed { entry }
-            | ImportError::OtherScene { entry, .. } => format!("entries[{entry}]"),
-            ImportError::InvalidRecord { entry, record, .. } => {
-                format!("entries[{entry}].records[{record}]")
-            }
-        };
-        ApiError::invalid(field, err.to_string())
-    }
-}
-
 /// A blocking task that panicked or was cancelled is ours (500).
 impl From<tokio::task::JoinError> for ApiError {
     fn from(err: tokio::task::JoinError) -> Self {

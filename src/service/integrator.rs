@@ -80,7 +80,7 @@ pub fn cached_setup(
             || config.shading(quadratures),
         )
         .at("estimator")?;
-    let shading = entry.shading.with_options(config);
+    let shading = config.apply_to(&entry.shading);
     let private = if config.shared {
         None
     } else {

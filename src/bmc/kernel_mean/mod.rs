@@ -10,11 +10,23 @@ mod exact;
 mod spherical_gaussian;
 
 use glam::DVec3;
+use serde::{Deserialize, Serialize};
 
 use super::density::Density;
 use super::error::BmcError;
 use super::kernel::Kernel;
-use super::quadrature::KernelMeanMethod;
+
+/// How kernel means and `V₀` are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KernelMeanMethod {
+    /// Deterministic adaptive quadrature, ~1e-12 relative (see `exact`).
+    #[default]
+    Exact,
+    /// Spherical-Gaussian closed form (Marques et al. 2013): SE kernel only,
+    /// approximate (errors in `docs/BENCHMARKS.md`).
+    SphericalGaussian,
+}
 
 /// Kernel means at each direction (local frame), in order.
 pub fn kernel_means(

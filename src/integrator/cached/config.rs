@@ -7,7 +7,6 @@ use serde::{Deserialize, Serialize};
 
 use super::glossy::GlossyRule;
 use super::secondary_caches::SecondaryCaches;
-use super::spec::CachedConfig;
 use crate::bmc::cache::QuadratureCache;
 use crate::bmc::{Kernel, KernelKind, PriorMean};
 use crate::cache::{Accuracy, CacheError, PixelFootprint, RecordRule, RecordRuleSpec};
@@ -162,7 +161,7 @@ pub struct CachedShading {
     /// Validated when this value is built, never again per shading point.
     pub options: CacheShadingOptions,
     /// `options.accuracy`, checked.
-    accuracy: Accuracy,
+    pub(super) accuracy: Accuracy,
     /// Secondary caches for these rules, built on first use and shared by
     /// clones ([`SecondaryCaches`]).
     pub secondary: SecondaryCaches,
@@ -196,16 +195,6 @@ impl CachedShading {
             accuracy,
             secondary: SecondaryCaches::default(),
         })
-    }
-
-    /// The same rules with the per-request options of `config` (already
-    /// checked when it was resolved).
-    pub fn with_options(&self, config: &CachedConfig) -> Self {
-        Self {
-            options: config.options,
-            accuracy: config.accuracy,
-            ..self.clone()
-        }
     }
 
     /// Ward's accuracy of lookups, checked.

@@ -7,10 +7,16 @@
 //!   them, resolved and checked once;
 //! - `config`: the checked options and the rules built from them;
 //! - `glossy`: BMC with the Phong density, tabulated over `θ_r`;
-//! - `shade`: outgoing radiance at a surface point (NEE direct light, cached
-//!   diffuse indirect, BMC glossy), records computed at points and gathering
-//!   through the cache, and cache lookups with the occlusion check: the whole
-//!   shading/record recursion, so no other file takes part in it;
+//! - `shade`: outgoing radiance at a surface point (direct light, cached
+//!   diffuse indirect, BMC glossy) and records computed at points, gathering
+//!   through the cache: the whole shading/record recursion, so no other file
+//!   takes part in it;
+//! - `shade_point`: how a point is shaded (what a miss does, the ray that
+//!   reaches it, an ambient bounce);
+//! - `direct_light`: direct light by stratified light samples;
+//! - `record_estimate`: records from gathered rays (estimates, radii), where
+//!   they may be placed, and cache lookups with the occlusion check;
+//! - `error`: cache errors as render errors;
 //! - `placement`: the reproducible placement and shading passes over many
 //!   points, and variance-driven placement;
 //! - `secondary`: the scene-wide cache that records' rays read at their
@@ -22,13 +28,17 @@
 //! - `stats`: counters.
 
 mod config;
+mod direct_light;
 mod direct_records;
+mod error;
 mod glossy;
 mod placement;
+mod record_estimate;
 mod record_view;
 mod secondary;
 mod secondary_caches;
 mod shade;
+mod shade_point;
 mod spec;
 mod stats;
 mod tiles;
@@ -40,13 +50,12 @@ pub use config::{
 pub use direct_records::direct_records;
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
 pub use placement::{PlacementCache, PlacementReport, place_and_shade, place_records, shade};
+pub use record_estimate::{PlacementPoint, lookup};
 pub use record_view::{RecordView, record_overlay, record_views};
 pub use secondary::secondary_cache_of;
 pub use secondary_caches::{SecondaryCache, SecondaryCaches};
-pub use shade::{
-    Bounce, CachedIntegrator, Gather, OnMiss, PlacementPoint, RecordGather, ShadePoint,
-    compute_record, lookup,
-};
+pub use shade::{CachedIntegrator, Gather, RecordGather, compute_record};
+pub use shade_point::{Bounce, OnMiss, ShadePoint};
 pub use spec::{CachedConfig, CachedSpec, DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, RecordsKey};
 pub use stats::ShadingStats;
 pub use tiles::CachedTileReport;

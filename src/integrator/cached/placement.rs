@@ -47,10 +47,10 @@
 use rayon::prelude::*;
 
 use super::config::PlacementOptions;
-use super::shade::{
-    Gather, GatheredRecord, PlacementPoint, RecordGather, TracedRecord, awaiting_record,
-    finish_records, gather_record, lookup, trace_record,
+use super::record_estimate::{
+    GatheredRecord, PlacementPoint, awaiting_record, finish_records, lookup,
 };
+use super::shade::{Gather, RecordGather, TracedRecord, gather_record, trace_record};
 use super::stats::ShadingStats;
 use crate::cache::{
     CacheConfig, CacheError, Interpolated, IrradianceCache, RadiusLimits, Record, RecordRule,

@@ -29,8 +29,9 @@ use rayon::prelude::*;
 
 use super::config::{AMBIENT_MIN_DEPTH, CachedShading, PlacementOptions};
 use super::placement::{PlacementCache, PlacementReport, place_records};
+use super::record_estimate::{PlacementPoint, diffuse_front};
 use super::secondary_caches::{SecondaryCache, SecondaryKey};
-use super::shade::{CachedIntegrator, Gather, PlacementPoint, diffuse_front};
+use super::shade::{CachedIntegrator, Gather};
 use crate::cache::{CacheConfig, IrradianceCache, PixelFootprint};
 use crate::render::seed::point_rng;
 use crate::render::{Cancel, PathLimits, QueryPoint, RenderError, Transport, warp};

@@ -49,47 +49,20 @@ use super::config::{
     AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, PlacementOptions,
     indirect_paths,
 };
+use super::direct_light::{Surface, direct_radiance};
 use super::glossy::lobe_sampled;
+use super::record_estimate::{GatheredRecord, PlacementPoint, finish_records, lookup};
+use super::shade_point::{Bounce, OnMiss, ShadePoint};
 use super::stats::ShadingStats;
-use crate::cache::{
-    Accuracy, CacheError, Interpolated, IrradianceCache, PixelFootprint, RadiusLimits, Record,
-    RecordRule,
-};
+use crate::cache::{Accuracy, CacheError, IrradianceCache, RadiusLimits, Record, RecordRule};
 use crate::render::lights::{emitted_radiance, environment_radiance};
-use crate::render::strata::{GridStrata, SharedStrata};
 use crate::render::{
-    AveragedPaths, Bsdf, Evaluation, FirstSegment, PathDepth, PathLengths, PathLimits, PixelSample,
-    QueryPoint, RadianceSample, RenderError, Rgb, TraceStats, Transport, warp,
+    AveragedPaths, Evaluation, FirstSegment, PathLengths, PathLimits, PixelSample, QueryPoint,
+    RadianceSample, RenderError, Rgb, TraceStats, Transport, warp,
 };
 use crate::scene::SurfaceHit;
 use crate::sphere::Frame;
 use crate::stats::RunningMean;
-
-/// What to do where no record covers a shading point.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum OnMiss {
-    /// Compute a record there and insert it (Ward's lazy evaluation).
-    Insert,
-    /// Leave the cache alone: retry at accuracy 1, else estimate the
-    /// indirect irradiance by one cosine-sampled path (a read-only pass).
-    PathTrace,
-}
-
-/// The integrator is where the record store meets the pixel loop: a cache
-/// error becomes the render API's typed error, keeping the field name (a
-/// failed record rule names the `quadrature`).
-impl From<CacheError> for RenderError {
-    fn from(e: CacheError) -> Self {
-        match e {
-            CacheError::Invalid { field, reason } => RenderError::InvalidOption { field, reason },
-            CacheError::Bmc(b) => RenderError::InvalidOption {
-                field: "quadrature",
-                reason: b.to_string(),
-            },
-            CacheError::Render(r) => r,
-        }
-    }
-}
 
 /// Shading through one irradiance cache: the scene's transport, the cache
 /// that is read and extended, and its rules and options. The methods carry
@@ -123,31 +96,6 @@ impl<'a> CachedIntegrator<'a> {
             secondary: None,
         }
     }
-}
-
-/// How a point seen along a camera ray or a query direction is shaded.
-#[derive(Clone, Copy, Debug)]
-pub struct ShadePoint {
-    /// The depth of the camera ray or view direction that reaches the
-    /// point, counted from the camera or viewer (the segment arriving here
-    /// is the first): 1 = the point's emission only, 2 = plus direct light,
-    /// ≥ 3 adds indirect light. The cache's records must have been made for
-    /// the same depth ([`super::config::CachedConfig::records_key`]).
-    pub max_depth: PathDepth,
-    pub on_miss: OnMiss,
-    /// The camera ray of a pixel this point is, if it is one: its light
-    /// samples then take their share of one pattern over the pixel's rays.
-    pub sample: Option<PixelSample>,
-}
-
-/// An ambient bounce of a record's rays through the cache (module docs).
-#[derive(Clone, Copy, Debug)]
-pub struct Bounce {
-    /// The paths the record's rays sum.
-    pub paths: PathLimits,
-    /// Level of the record being computed (0 = placed for a shading point).
-    pub level: u32,
-    pub on_miss: OnMiss,
 }
 
 /// Where a record's rays get their incident radiance.
@@ -351,15 +299,6 @@ struct Reflection<'a> {
     glossy_bmc: bool,
 }
 
-/// A surface point about to reflect light towards `wo`: its hit, shading
-/// frame, BSDF and the outgoing direction in that frame.
-struct Surface<'h> {
-    hit: &'h SurfaceHit,
-    frame: Frame,
-    bsdf: &'h Bsdf,
-    wo_local: DVec3,
-}
-
 impl CachedIntegrator<'_> {
     /// Radiance leaving the surface at `hit` towards the unit world direction
     /// `wo` (pointing away from the surface), W/(m²·sr), shaded as in the
@@ -427,8 +366,14 @@ impl CachedIntegrator<'_> {
             wo_local,
         };
         let mut trace = TraceStats::default();
-        let mut radiance =
-            self.direct_radiance(&surface, r.light_samples, r.sample, rng, &mut trace);
+        let mut radiance = direct_radiance(
+            self.transport,
+            &surface,
+            r.light_samples,
+            r.sample,
+            rng,
+            &mut trace,
+        );
         let mut variance = Rgb::BLACK;
         if r.indirect {
             let point = QueryPoint::new(hit.position, hit.shading_normal)?;
@@ -503,55 +448,6 @@ impl CachedIntegrator<'_> {
                 Ok(sample)
             })
             .collect()
-    }
-
-    /// `∫ f_r L_direct cos θ dω` by `n` light samples whose area/direction
-    /// numbers are stratified: on the shared pattern of `sample` (see
-    /// [`Self::outgoing_radiance`]), else on a near-square grid of `n`
-    /// cells. Either way every sample is uniform on its own, so the mean is
-    /// unbiased; stratification keeps penumbrae smooth.
-    fn direct_radiance<R: Rng + ?Sized>(
-        &self,
-        s: &Surface,
-        n: u32,
-        sample: Option<PixelSample>,
-        rng: &mut R,
-        stats: &mut TraceStats,
-    ) -> Rgb {
-        let scene = self.transport.scene();
-        let hit = s.hit;
-        let shared = sample.map(|p| {
-            let count = u64::from(p.count) * u64::from(n);
-            (
-                SharedStrata::new(count, p.pattern),
-                u64::from(p.index) * u64::from(n),
-            )
-        });
-        let own = GridStrata::new(n);
-        let mut sum = Rgb::BLACK;
-        for k in 0..n {
-            let jitter = [rng.random(), rng.random()];
-            let u = match &shared {
-                Some((strata, first)) => strata.sample(first + u64::from(k), jitter),
-                None => own.sample(k, jitter),
-            };
-            let Some(light) = self
-                .transport
-                .lights()
-                .sample(scene, hit.position, rng.random(), u)
-            else {
-                continue;
-            };
-            let wi = s.frame.to_local(light.wi);
-            let f = s.bsdf.eval(s.wo_local, wi);
-            if f.is_black() || light.radiance.is_black() {
-                continue;
-            }
-            if light.visible_from(scene, hit.position, hit.normal, stats) {
-                sum += f * light.radiance * (wi.z / light.pdf);
-            }
-        }
-        sum * (1.0 / f64::from(n))
     }
 
     /// Indirect irradiance at `point` from the cache (module docs, [`OnMiss`]).
@@ -666,17 +562,6 @@ impl CachedIntegrator<'_> {
     }
 }
 
-/// Relative lift of the occlusion-test ray ends off their surfaces.
-const OCCLUSION_LIFT: f64 = 1e-3;
-
-/// A point where irradiance is wanted, with the optional pixel footprint
-/// that bounds a record's radius there.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlacementPoint {
-    pub point: QueryPoint,
-    pub footprint: Option<PixelFootprint>,
-}
-
 impl CachedIntegrator<'_> {
     /// Record at the point of `target`, its rays gathered by `how` (see
     /// [`compute_record`]), with this integrator's rule and cache limits.
@@ -720,21 +605,6 @@ pub fn compute_record<R: Rng + ?Sized>(
     one.pop().expect("one record per gathered record")
 }
 
-/// A record's rays, gathered but not yet estimated ([`gather_record`]).
-pub struct GatheredRecord {
-    /// The record's local frame, turned about the normal.
-    frame: Frame,
-    /// One radiance sample per direction of the rule, in its order.
-    samples: Vec<RadianceSample>,
-}
-
-impl GatheredRecord {
-    /// Distance to the first hit along each direction (∞ where none).
-    fn distances(&self) -> Vec<f64> {
-        self.samples.iter().map(|s| s.distance).collect()
-    }
-}
-
 /// The rays of [`compute_record`]: the frame turned by a random angle from
 /// `rng`, then the samples.
 pub fn gather_record<R: Rng + ?Sized>(
@@ -749,31 +619,6 @@ pub fn gather_record<R: Rng + ?Sized>(
     let frame = point.turned_frame(rng);
     let samples = how.samples(transport, point, &frame, rule.directions(), rng, stats)?;
     Ok(GatheredRecord { frame, samples })
-}
-
-/// The records of [`compute_record`] from gathered rays, in order, estimated
-/// together ([`RecordRule::estimate_batch`]).
-pub fn finish_records(
-    rule: &RecordRule,
-    gathered: &[(&PlacementPoint, GatheredRecord)],
-    limits: RadiusLimits,
-) -> Vec<Result<Record, CacheError>> {
-    let samples: Vec<&[RadianceSample]> =
-        gathered.iter().map(|(_, g)| g.samples.as_slice()).collect();
-    let estimates = rule.estimate_batch(&samples);
-    gathered
-        .iter()
-        .zip(estimates)
-        .map(|((target, g), estimate)| {
-            Ok(Record::from_estimate(
-                &target.point,
-                &g.frame,
-                &estimate?,
-                &g.distances(),
-                record_limits(target, limits),
-            ))
-        })
-        .collect()
 }
 
 /// A record's first segments only ([`trace_record`]): enough for its
@@ -840,341 +685,5 @@ pub fn trace_record(
     }
 }
 
-/// The record [`finish_records`] will make at `target` from rays with
-/// these first-hit `distances`, its values still zero
-/// (`Record::awaiting_values`).
-pub fn awaiting_record(target: &PlacementPoint, distances: &[f64], limits: RadiusLimits) -> Record {
-    Record::awaiting_values(&target.point, distances, record_limits(target, limits))
-}
-
-/// The radius limits of a record at `target`: `limits` narrowed by the
-/// pixel footprint where there is one.
-fn record_limits(target: &PlacementPoint, limits: RadiusLimits) -> RadiusLimits {
-    match &target.footprint {
-        Some(fp) => limits.with_footprint(fp),
-        None => limits,
-    }
-}
-
-/// Whether `hit`, reached along `dir`, is a front face with a diffuse lobe:
-/// where records may be placed.
-pub(super) fn diffuse_front(transport: &Transport, hit: &SurfaceHit, dir: DVec3) -> bool {
-    hit.shading_normal.dot(dir) < 0.0
-        && transport
-            .bsdf(hit.material)
-            .is_some_and(|b| !b.diffuse.is_black())
-}
-
-/// Cache lookup with the options' accuracy and optional occlusion test.
-pub fn lookup(
-    cache: &IrradianceCache,
-    transport: &Transport,
-    point: &QueryPoint,
-    options: &PlacementOptions,
-) -> Option<Interpolated> {
-    if !options.occlusion_check {
-        return cache.lookup(point, options.accuracy);
-    }
-    let scene = transport.scene();
-    let (x, n) = (point.position(), point.normal());
-    cache.lookup_filtered(point, options.accuracy, |r| {
-        let lift = OCCLUSION_LIFT * r.radius;
-        let from = x + n * lift;
-        let ray = scene.spawn_ray_to(from, n, r.position + r.normal * lift, None);
-        !scene.occluded(&ray)
-    })
-}
-
 #[cfg(test)]
-pub(crate) mod tests {
-    use super::*;
-    use crate::bmc::cache::QuadratureCache;
-    use crate::cache::RecordRuleSpec;
-    use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
-    use crate::render::MeanEstimate;
-    use crate::scene::Ray;
-    use crate::testing::{agrees, cornell};
-    use rand::SeedableRng;
-    use rand_pcg::Pcg64;
-    use std::sync::Arc;
-
-    /// Rules for `spec` with 4 glossy nodes and a private quadrature cache.
-    fn test_shading(spec: RecordRuleSpec, options: CacheShadingOptions) -> CachedShading {
-        let quadratures = Arc::new(QuadratureCache::new(1 << 24));
-        CachedShading::new(spec, 4, quadratures, options).unwrap()
-    }
-
-    fn small_spec() -> RecordRuleSpec {
-        let mut spec = default_rule_spec();
-        spec.samples.count = 16;
-        spec
-    }
-
-    /// Asserts that 24 records on the Cornell box's back wall whose rays
-    /// gather as `gathered` says agree with 24 gathered by paths, per
-    /// channel within 4 standard errors plus `rel` of the paths' mean;
-    /// returns the counters of the former.
-    pub(crate) fn assert_records_agree(
-        transport: &Transport,
-        shading: &CachedShading,
-        paths: PathLimits,
-        per_direction: u32,
-        gathered: Gather,
-        rel: f64,
-    ) -> ShadingStats {
-        // The back wall above the boxes.
-        let target = PlacementPoint {
-            point: QueryPoint::new(DVec3::new(0.2, 0.3, -1.0), DVec3::Z).unwrap(),
-            footprint: None,
-        };
-        let limits = IrradianceCache::new(Default::default())
-            .unwrap()
-            .radius_limits();
-        let mut rng = Pcg64::seed_from_u64(21);
-        let mut record = |gather: Gather, stats: &mut ShadingStats| {
-            let how = RecordGather {
-                paths,
-                per_direction,
-                gather,
-            };
-            compute_record(
-                transport,
-                &shading.rule,
-                &target,
-                limits,
-                &how,
-                &mut rng,
-                stats,
-            )
-            .unwrap()
-            .irradiance
-        };
-        let mut stats = ShadingStats::default();
-        let other = MeanEstimate::of((0..24).map(|_| record(gathered, &mut stats)));
-        let traced =
-            MeanEstimate::of((0..24).map(|_| record(Gather::Paths, &mut ShadingStats::default())));
-        let (c, t) = (other.mean.to_array(), traced.mean.to_array());
-        let (vc, vt) = (
-            other.variance_of_mean.to_array(),
-            traced.variance_of_mean.to_array(),
-        );
-        for k in 0..3 {
-            let se = (vc[k] + vt[k]).sqrt();
-            assert!(
-                agrees(c[k], t[k], se, 4.0, rel),
-                "channel {k}: {c:?} vs paths {t:?}"
-            );
-        }
-        stats
-    }
-
-    /// A record gathered through the cache (ambient bounces, nested records
-    /// created on demand) agrees with records gathered by paths, and every
-    /// nested record is counted and stored.
-    #[test]
-    fn records_gathered_through_the_cache_agree_with_path_traced_records() {
-        let transport = cornell(8);
-        let shading = test_shading(
-            small_spec(),
-            CacheShadingOptions {
-                ambient_bounces: 2,
-                ..Default::default()
-            },
-        );
-        let cache = IrradianceCache::new(Default::default()).unwrap();
-        let paths = indirect_paths(PathDepth::constant(32));
-        let integrator = CachedIntegrator::new(&transport, &cache, &shading);
-        let gathered = Gather::for_record(integrator, paths, 0, true);
-        assert!(matches!(
-            gathered,
-            Gather::Cache {
-                bounce: Bounce { level: 0, .. },
-                ..
-            }
-        ));
-        // 3 %: records from the cache see cached (interpolated) light at their bounces.
-        let stats = assert_records_agree(&transport, &shading, paths, 1, gathered, 0.03);
-        assert!(
-            stats.records_created > 0 && stats.ambient_records > 0,
-            "{stats:?}"
-        );
-        assert_eq!(cache.stats().records, stats.records_created);
-        // Short paths, or no ambient bounces, gather by paths.
-        assert!(matches!(
-            Gather::for_record(integrator, indirect_paths(PathDepth::constant(4)), 0, true),
-            Gather::Paths
-        ));
-        assert!(matches!(
-            Gather::for_record(integrator, paths, 2, true),
-            Gather::Paths
-        ));
-    }
-
-    #[test]
-    fn radiance_queries_insert_records_on_a_miss_and_reuse_them() {
-        let transport = cornell(8);
-        let shading = test_shading(small_spec(), CacheShadingOptions::default());
-        let cache = IrradianceCache::new(Default::default()).unwrap();
-        // The floor's centre seen from above.
-        let ray = Ray {
-            origin: DVec3::new(0.0, 0.5, 0.3),
-            dir: DVec3::new(0.0, -1.0, 0.0),
-            t_max: f64::INFINITY,
-        };
-        let hit = transport.scene().intersect(&ray).unwrap();
-        let mut rng = Pcg64::seed_from_u64(3);
-        let mut stats = ShadingStats::default();
-        let integrator = CachedIntegrator::new(&transport, &cache, &shading);
-        // Depths counted from the viewer, whose segment reaches the floor.
-        let mut shade = |max_depth: u32, stats: &mut ShadingStats| {
-            let how = ShadePoint {
-                max_depth: PathDepth::constant(max_depth),
-                on_miss: OnMiss::Insert,
-                sample: None,
-            };
-            integrator
-                .outgoing_radiance(&hit, -ray.dir, how, &mut rng, stats)
-                .unwrap()
-                .value
-        };
-        let full = shade(9, &mut stats);
-        assert_eq!((stats.cache_misses, stats.records_created), (1, 1));
-        assert_eq!(cache.stats().records, 1);
-        let again = shade(9, &mut stats);
-        assert_eq!((stats.cache_hits, stats.records_created), (1, 1));
-        let direct = shade(2, &mut ShadingStats::default());
-        // Indirect light adds to direct light; nothing is emitted here.
-        assert!(full.g > direct.g && again.g > direct.g && direct.g > 0.0);
-        assert_eq!(shade(1, &mut ShadingStats::default()), Rgb::BLACK);
-    }
-
-    /// The glossy BMC lobe is turned towards the mirror direction: on a
-    /// glossy floor next to the red wall, seen from the green side, BMC
-    /// agrees with a lobe-sampled Monte Carlo estimate of the same
-    /// integral `∫ L_ind p dω`, reddish as the wall it mirrors.
-    #[test]
-    fn glossy_bmc_agrees_with_lobe_sampling() {
-        use crate::scene::Scene;
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-        let text = std::fs::read_to_string(root.join("cornell-box.json")).unwrap();
-        let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
-        let m = 30.0;
-        doc["materials"]
-            .as_array_mut()
-            .unwrap()
-            .push(serde_json::json!({
-                "id": "shiny", "type": "glossy", "diffuse": [0.1, 0.1, 0.1],
-                "specular": [0.8, 0.8, 0.8], "exponent": m
-            }));
-        assert_eq!(doc["shapes"][0]["id"], "floor");
-        doc["shapes"][0]["material"] = "shiny".into();
-        let scene = Scene::from_json_str(&doc.to_string(), &root, &root).unwrap();
-        let transport = Transport::new(Arc::new(scene));
-        let down = Ray {
-            origin: DVec3::new(-0.75, -0.5, 0.6),
-            dir: -DVec3::Y,
-            t_max: f64::INFINITY,
-        };
-        let hit = transport.scene().intersect(&down).unwrap();
-        assert!((hit.position.y + 1.0).abs() < 1e-6, "{hit:?}");
-        let bsdf = *transport.bsdf(hit.material).unwrap();
-        assert_eq!(bsdf.exponent, m);
-        let frame = Frame::from_normal(hit.shading_normal);
-        // Viewed from +x above: the mirror direction points at the red wall.
-        let wo_local = frame.to_local(DVec3::new(1.0, 1.0, 0.0).normalize());
-        let point = QueryPoint::new(hit.position, hit.shading_normal).unwrap();
-        let paths = indirect_paths(PathDepth::constant(4));
-        let shading = test_shading(default_rule_spec(), CacheShadingOptions::default());
-        let cache = IrradianceCache::new(Default::default()).unwrap();
-        let integrator = CachedIntegrator::new(&transport, &cache, &shading);
-        let surface = Surface {
-            hit: &hit,
-            frame,
-            bsdf: &bsdf,
-            wo_local,
-        };
-        let placement = shading.placement(paths, 0);
-        let reflection = Reflection {
-            placement: &placement,
-            light_samples: 1,
-            level: 0,
-            on_miss: OnMiss::PathTrace,
-            sample: None,
-            indirect: true,
-            glossy_bmc: true,
-        };
-        let mut rng = Pcg64::seed_from_u64(5);
-        let (mut trace, mut stats) = (TraceStats::default(), ShadingStats::default());
-        let bmc: Rgb = (0..16)
-            .map(|_| {
-                integrator
-                    .glossy_indirect(
-                        &surface,
-                        &point,
-                        &reflection,
-                        &mut rng,
-                        &mut trace,
-                        &mut stats,
-                    )
-                    .unwrap()
-                    .value
-            })
-            .sum::<Rgb>()
-            * (1.0 / 16.0);
-        assert_eq!(stats.glossy_bmc, 16);
-        let lobe = Frame::from_normal(DVec3::new(-wo_local.x, -wo_local.y, wo_local.z));
-        let mc = crate::render::MeanEstimate::of((0..6000).map(|_| {
-            let wi = lobe.to_world(warp::power_cosine([rng.random(), rng.random()], m));
-            if wi.z <= 0.0 {
-                return Rgb::BLACK;
-            }
-            let l =
-                transport.hemisphere_samples(&point, &frame, &[wi], paths, &mut rng, &mut trace)[0]
-                    .radiance;
-            l * ((m + 2.0) / (m + 1.0) * wi.z)
-        }));
-        let (b, e, se) = (
-            bmc.to_array(),
-            mc.mean.to_array(),
-            mc.variance_of_mean.to_array(),
-        );
-        for c in 0..3 {
-            assert!(
-                // 15 %: the θ_r interpolation of the glossy weights (module docs).
-                agrees(b[c], e[c], se[c].sqrt(), 4.0, 0.15),
-                "channel {c}: BMC {b:?} vs MC {e:?} ± {se:?}"
-            );
-        }
-        assert!(e[0] > 1.5 * e[1] && b[0] > 1.5 * b[1], "{b:?} {e:?}");
-    }
-
-    #[test]
-    fn bad_options_name_the_field() {
-        let bad = |o: CacheShadingOptions| o.validate().unwrap_err().field().map(String::from);
-        let d = CacheShadingOptions::default();
-        assert_eq!(
-            bad(CacheShadingOptions { accuracy: 0.0, ..d }).as_deref(),
-            Some("accuracy")
-        );
-        assert_eq!(
-            bad(CacheShadingOptions {
-                light_samples: 0,
-                ..d
-            })
-            .as_deref(),
-            Some("light_samples")
-        );
-        assert_eq!(
-            bad(CacheShadingOptions {
-                min_pixels: f64::NAN,
-                ..d
-            })
-            .as_deref(),
-            Some("min_pixels")
-        );
-        let parsed: CacheShadingOptions =
-            serde_json::from_str(r#"{"accuracy": 0.3, "reproducible": true}"#).unwrap();
-        assert_eq!((parsed.accuracy, parsed.reproducible), (0.3, true));
-        assert!(serde_json::from_str::<CacheShadingOptions>(r#"{"acuracy": 1}"#).is_err());
-    }
-}
+pub(crate) mod tests;

@@ -281,6 +281,16 @@ impl CachedConfig {
         })
     }
 
+    /// `rules` (built for a configuration with the same records key) with
+    /// this configuration's per-request options, already checked.
+    pub fn apply_to(&self, rules: &CachedShading) -> CachedShading {
+        CachedShading {
+            options: self.options,
+            accuracy: self.accuracy,
+            ..rules.clone()
+        }
+    }
+
     /// The rules (factorised once per configuration) with these options.
     pub fn shading(&self, quadratures: Arc<QuadratureCache>) -> Result<CachedShading, CacheError> {
         let mut glossy = self.rule;

@@ -30,8 +30,10 @@ use rayon::prelude::*;
 
 use super::config::indirect_paths;
 use super::placement::{PlacementCache, PlacementReport, place_records};
+use super::record_estimate::{PlacementPoint, diffuse_front};
 use super::secondary::secondary_cache_of;
-use super::shade::{CachedIntegrator, Gather, OnMiss, PlacementPoint, ShadePoint, diffuse_front};
+use super::shade::{CachedIntegrator, Gather};
+use super::shade_point::{OnMiss, ShadePoint};
 use super::stats::ShadingStats;
 use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
