@@ -22,8 +22,9 @@ use bmc_irradiance::bmc::cache::QuadratureCache;
 use bmc_irradiance::bmc::estimator::{BayesianEstimator, BmcVariance};
 use bmc_irradiance::bmc::report::QuadratureSpec;
 use bmc_irradiance::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
+use bmc_irradiance::estimators::HemisphereRule;
+use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::environment_prior::PriorChoice;
-use bmc_irradiance::render::{Cancel, HemisphereRule};
 use bmc_irradiance::render::{
     IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Transport,
 };

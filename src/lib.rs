@@ -28,10 +28,10 @@
 //! - [`render`]: light transport — incident radiance and irradiance at
 //!   points, the camera's pixel loop ([`render::render_tile_with`] with a
 //!   [`render::CameraRayShader`]), and the point estimators
-//!   ([`render::estimators`]) with their prior means
+//!   ([`estimators`]) with their prior means
 //!   ([`render::environment_prior`]), fitted lengthscales
-//!   ([`render::lengthscale`]), calibrated error bars
-//!   ([`render::calibration`]) and error targets ([`render::error_target`]);
+//!   ([`estimators::lengthscale`]), calibrated error bars
+//!   ([`estimators::calibration`]) and error targets ([`estimators::error_target`]);
 //!   [`render::seed`] holds the random streams every result is reproducible by.
 //! - [`scene`]: JSON and Mitsuba 3 XML scenes, the camera, rays and the BVH.
 //! - [`bmc`] and [`sphere`]: the math — kernels, densities, kernel means,
@@ -52,6 +52,7 @@
 pub mod bmc;
 pub mod cache;
 pub mod cli;
+pub mod estimators;
 pub mod image;
 pub mod integrator;
 pub(crate) mod isolated;
@@ -65,10 +66,10 @@ pub mod study;
 #[doc(hidden)]
 pub mod testing;
 
+pub use estimators::{EstimatorError, EstimatorMethod, EstimatorSpec, PointEstimator};
 pub use image::{Image, ImageEncoding};
 pub use integrator::cached::{CachedIntegrator, CachedSpec};
 pub use integrator::{Integrator, Preset};
-pub use render::estimators::{EstimatorError, EstimatorMethod, EstimatorSpec, PointEstimator};
 pub use render::{
     Cancel, IrradianceEstimate, IrradianceOptions, PathDepth, QueryPoint, RenderError,
     RenderedTile, Rgb, TileRequest, Transport,

@@ -5,7 +5,8 @@
 //! the prior's mean and variance.
 
 use super::irradiance_cache::{Accuracy, IrradianceCache};
-use crate::render::{IntegralPrior, QueryPoint, Rgb};
+use crate::estimators::IntegralPrior;
+use crate::render::{QueryPoint, Rgb};
 
 /// Records of one or more caches, each looked up with its own accuracy and
 /// its own measured relative prediction error.

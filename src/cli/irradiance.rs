@@ -13,13 +13,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use super::in_thread_pool;
 use super::quadrature::{KernelArg, SetArg};
 use crate::bmc::cache::QuadratureCache;
-use crate::render::calibration::Calibrations;
+use crate::estimators::calibration::Calibrations;
+use crate::estimators::lengthscale::FittedKernels;
+use crate::estimators::points_csv::{parse_points, write_irradiance};
+use crate::estimators::{EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale};
 use crate::render::environment_prior::PriorChoice;
-use crate::render::estimators::{
-    EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
-};
-use crate::render::lengthscale::FittedKernels;
-use crate::render::points_csv::{parse_points, write_irradiance};
 use crate::render::{Cancel, IrradianceMethod, IrradianceOptions, PathDepth, Transport};
 use crate::service::Config;
 

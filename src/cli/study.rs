@@ -71,7 +71,7 @@ pub struct SceneStudyArgs {
     pub kernel: Option<super::quadrature::KernelArg>,
     /// `bmc` rows: the lengthscale, a number or `auto` (default).
     #[arg(long)]
-    pub lengthscale: Option<crate::render::estimators::Lengthscale>,
+    pub lengthscale: Option<crate::estimators::Lengthscale>,
     /// `bmc` rows: the kernel noise σ_n² (default: fitted with `auto`).
     #[arg(long)]
     pub noise: Option<f64>,
@@ -123,7 +123,7 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
         reference_samples: args.reference_samples,
         seed: args.seed,
         bmc_kernel: (args.kernel.is_some() || args.lengthscale.is_some() || args.noise.is_some())
-            .then(|| crate::render::estimators::KernelSpec {
+            .then(|| crate::estimators::KernelSpec {
                 kind: args.kernel.map(Into::into),
                 lengthscale: args.lengthscale.unwrap_or_default(),
                 variance: None,
@@ -134,14 +134,14 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
     };
     if let Some(path) = &args.points_out {
         let mut out = Vec::new();
-        crate::render::points_csv::write_points(
+        crate::estimators::points_csv::write_points(
             &mut out,
             &scenes::study_points(&transport, &options),
         )?;
         std::fs::write(path, out).with_context(|| format!("writing {}", path.display()))?;
     }
     if let Some(relative_error) = args.target {
-        let target = crate::render::error_target::ErrorTarget {
+        let target = crate::estimators::error_target::ErrorTarget {
             relative_error,
             confidence: args.confidence,
             max_samples: args.max_samples,

@@ -15,28 +15,20 @@
 //! the `integrator` module.
 
 mod bsdf;
-pub mod calibration;
 mod cancel;
 mod distribution;
 pub mod environment_prior;
 pub(crate) mod environment_sampling;
 mod error;
-pub mod error_target;
-pub mod estimators;
 mod film;
-mod hemisphere_estimate;
-mod integral_prior;
 mod irradiance;
-pub mod lengthscale;
 pub(crate) mod lights;
 mod mean;
 mod path;
-pub(crate) mod points_csv;
 #[doc(hidden)]
 pub mod polygon;
 mod query;
 mod rgb;
-pub(crate) mod sample_points;
 pub mod seed;
 pub(crate) mod strata;
 pub(crate) mod tile;
@@ -49,10 +41,8 @@ pub use bsdf::{Bsdf, BsdfSample};
 pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
-pub use hemisphere_estimate::HemisphereRule;
-pub use integral_prior::IntegralPrior;
 pub use irradiance::{
-    Decomposition, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
+    Decomposition, IndirectPart, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
     SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE,
 };
 pub use mean::{Evaluation, MeanEstimate};

@@ -320,9 +320,9 @@ impl<T, E: Into<ApiError>> AtField<T> for Result<T, E> {
 /// Estimator errors name the option below `estimator` and target errors the
 /// field below `target`, where requests carry them (422); a failed
 /// lengthscale fit is ours (500).
-impl From<crate::render::estimators::EstimatorError> for ApiError {
-    fn from(err: crate::render::estimators::EstimatorError) -> Self {
-        use crate::render::estimators::EstimatorError;
+impl From<crate::estimators::EstimatorError> for ApiError {
+    fn from(err: crate::estimators::EstimatorError) -> Self {
+        use crate::estimators::EstimatorError;
         match err {
             EstimatorError::Invalid { field, message } => {
                 ApiError::invalid(field, message).within("estimator")

@@ -17,9 +17,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use utoipa::ToSchema;
 
+use crate::estimators::calibration::Calibrations;
+use crate::estimators::lengthscale::{FittedKernel, FittedKernels};
 use crate::render::Transport;
-use crate::render::calibration::Calibrations;
-use crate::render::lengthscale::{FittedKernel, FittedKernels};
 use crate::scene::{Scene, SceneError, Warnings};
 use crate::service::config::ScenesConfig;
 use crate::service::error::ApiError;
@@ -90,7 +90,7 @@ pub struct SceneSummary {
     /// Axis-aligned bounds of the geometry, world units.
     pub bounds_min: [f64; 3],
     pub bounds_max: [f64; 3],
-    /// Kernels fitted so far for `"lengthscale": "auto"` (`render::lengthscale`):
+    /// Kernels fitted so far for `"lengthscale": "auto"` (`estimators::lengthscale`):
     /// `kernel`, `sample_set`, `decomposition`, `lengthscale`, `noise_ratio`,
     /// `log_marginal_likelihood`, `at_bound`, `fit_samples`, `points`.
     #[schema(value_type = Vec<Object>)]

@@ -18,19 +18,20 @@ use serde::Serialize;
 use crate::bmc::Kernel;
 use crate::bmc::cache::QuadratureCache;
 use crate::cache::{CacheConfig, IrradianceCache, RecordsPrior};
-use crate::integrator::Preset;
-use crate::integrator::cached::{CachedIntegrator, CachedShading, CachedSpec, direct_records};
-use crate::render::calibration::Calibrations;
-use crate::render::environment_prior::PriorChoice;
-use crate::render::error_target::ErrorTarget;
-use crate::render::estimators::{
+use crate::estimators::IntegralPrior;
+use crate::estimators::calibration::Calibrations;
+use crate::estimators::error_target::ErrorTarget;
+use crate::estimators::lengthscale::FittedKernels;
+use crate::estimators::sample_points::camera_points;
+use crate::estimators::{
     EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec,
 };
-use crate::render::lengthscale::FittedKernels;
-use crate::render::sample_points::camera_points;
+use crate::integrator::Preset;
+use crate::integrator::cached::{CachedIntegrator, CachedShading, CachedSpec, direct_records};
+use crate::render::environment_prior::PriorChoice;
 use crate::render::{
-    Cancel, Decomposition, ImageSettings, IntegralPrior, IrradianceEstimate, IrradianceMethod,
-    IrradianceOptions, PathDepth, QueryPoint, RenderError, Transport,
+    Cancel, Decomposition, ImageSettings, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
+    PathDepth, QueryPoint, RenderError, Transport,
 };
 use crate::stats::standard_score;
 

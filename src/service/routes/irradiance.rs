@@ -2,7 +2,7 @@
 //!
 //! The estimator (`mc`, `qmc` or `bmc`, split or hemisphere decomposition)
 //! is the library's [`EstimatorSpec`]; its behaviour and defaults are
-//! documented in `render::estimators`. This route translates the request
+//! documented in `estimators::estimators`. This route translates the request
 //! into that spec and the scene's fitted kernels and the service's
 //! quadrature cache, and records the cache's metrics.
 
@@ -16,12 +16,12 @@ use utoipa::ToSchema;
 
 use crate::bmc::KernelKind;
 use crate::cache::RecordsPrior;
-use crate::render::calibration::ErrorCalibration;
-use crate::render::environment_prior::PriorChoice;
-use crate::render::error_target::ErrorTarget;
-use crate::render::estimators::{
+use crate::estimators::calibration::ErrorCalibration;
+use crate::estimators::error_target::ErrorTarget;
+use crate::estimators::{
     Estimates, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
+use crate::render::environment_prior::PriorChoice;
 use crate::render::{
     Decomposition, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Rgb,
 };
@@ -99,7 +99,7 @@ pub struct EstimatorSampleSetDoc {
 }
 
 fn default_set_kind() -> SampleSetKind {
-    crate::render::estimators::DEFAULT_SAMPLE_SET
+    crate::estimators::DEFAULT_SAMPLE_SET
 }
 
 /// The kernel of a `bmc` estimator.

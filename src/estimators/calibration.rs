@@ -22,13 +22,13 @@
 
 use std::sync::Arc;
 
-use super::cancel::Cancel;
-use super::error::RenderError;
 use super::integral_prior::PriorScales;
-use super::irradiance::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
-use super::query::QueryPoint;
 use super::sample_points::{camera_points, training_points};
-use super::transport::Transport;
+use crate::render::Cancel;
+use crate::render::QueryPoint;
+use crate::render::RenderError;
+use crate::render::Transport;
+use crate::render::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
 use crate::stats::standard_score;
 
 /// Training points per calibration.
@@ -125,7 +125,7 @@ impl ErrorCalibration {
         let value = estimate.irradiance;
         let sigma = estimate.std_error.to_array();
         let value = value.to_array();
-        estimate.std_error = super::rgb::Rgb::from_array(std::array::from_fn(|c| {
+        estimate.std_error = crate::render::Rgb::from_array(std::array::from_fn(|c| {
             let magnitude = floor_magnitude(value[c], self.level[c]);
             // The unseen term is not scaled by κ; written inside the root
             // so that without it (QMC, BMC) the result is `κ sqrt(…)` bit for bit.
@@ -452,8 +452,8 @@ mod tests {
         let fit = ErrorCalibration::fit(&training(&errors), [1.0, 1.0, 0.0], 0.0);
         assert!(fit.floor > 0.0, "{fit:?}");
         let mut estimate = IrradianceEstimate {
-            irradiance: super::super::rgb::Rgb::from_array([1.0, 2.0, 0.0]),
-            std_error: super::super::rgb::Rgb::BLACK,
+            irradiance: crate::render::Rgb::from_array([1.0, 2.0, 0.0]),
+            std_error: crate::render::Rgb::BLACK,
             rays: 0,
             indirect: None,
         };
@@ -484,8 +484,8 @@ mod tests {
         let fit = ErrorCalibration::fit(&training(&errors), [1.0; 3], unseen);
         assert_eq!(fit.unseen, unseen);
         let mut nothing = IrradianceEstimate {
-            irradiance: super::super::rgb::Rgb::BLACK,
-            std_error: super::super::rgb::Rgb::BLACK,
+            irradiance: crate::render::Rgb::BLACK,
+            std_error: crate::render::Rgb::BLACK,
             rays: 0,
             indirect: None,
         };

@@ -14,12 +14,13 @@
 //! when another batch would pass `max_samples`. `bmc` takes no target: its
 //! batches share the bias of their fixed rings of directions (§10.6).
 
-use super::cancel::Cancel;
-use super::estimators::{Estimates, EstimatorCaches, EstimatorError, PointEstimator, PointRule};
-use super::irradiance::{IrradianceEstimate, IrradianceOptions};
-use super::query::QueryPoint;
-use super::rgb::Rgb;
-use super::transport::Transport;
+use super::error::EstimatorError;
+use super::point_estimator::{Estimates, EstimatorCaches, PointEstimator, PointRule};
+use crate::render::Cancel;
+use crate::render::QueryPoint;
+use crate::render::Rgb;
+use crate::render::Transport;
+use crate::render::{IrradianceEstimate, IrradianceOptions};
 use crate::stats::two_sided_normal_quantile;
 
 /// What a caller asks of every point's estimate.

@@ -4,8 +4,8 @@
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
-use super::query::QueryPoint;
-use super::transport::Transport;
+use crate::render::QueryPoint;
+use crate::render::Transport;
 
 /// Up to `count` points on non-emitting surfaces, shape chosen by area, then
 /// uniform on it; deterministic in `seed`.

@@ -22,14 +22,14 @@
 use rand::RngExt;
 use serde::Serialize;
 
-use super::environment_prior::PriorChoice;
-use super::irradiance::Decomposition;
-use super::path::{PathDepth, PathLengths, PathLimits, TraceStats};
 use super::sample_points::training_points;
-use super::seed::point_rng;
-use super::transport::Transport;
 use crate::bmc::KernelKind;
 use crate::bmc::hyperparameters::{self, FitError, FitOptions};
+use crate::render::Decomposition;
+use crate::render::Transport;
+use crate::render::environment_prior::PriorChoice;
+use crate::render::seed::point_rng;
+use crate::render::{PathDepth, PathLengths, PathLimits, TraceStats};
 use crate::sphere::{Frame, SampleSet, SampleSetSpec};
 
 /// Training points per fit.

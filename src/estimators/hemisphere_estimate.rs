@@ -28,16 +28,16 @@
 
 use rayon::prelude::*;
 
-use super::cancel::Cancel;
-use super::environment_prior::{EnvironmentPrior, PriorChoice};
-use super::error::RenderError;
-use super::irradiance::{Decomposition, IndirectPart, IrradianceEstimate, IrradianceOptions};
-use super::path::{PathLengths, PathLimits, TraceStats};
-use super::query::QueryPoint;
-use super::rgb::Rgb;
-use super::seed::point_rng;
-use super::transport::Transport;
 use crate::bmc::estimator::{HemisphereEstimator, irradiance_from_lambert};
+use crate::render::Cancel;
+use crate::render::QueryPoint;
+use crate::render::RenderError;
+use crate::render::Rgb;
+use crate::render::Transport;
+use crate::render::environment_prior::{EnvironmentPrior, PriorChoice};
+use crate::render::seed::point_rng;
+use crate::render::{Decomposition, IndirectPart, IrradianceEstimate, IrradianceOptions};
+use crate::render::{PathLengths, PathLimits, TraceStats};
 
 /// What [`Transport::irradiance_with_estimator`] runs for the hemisphere
 /// part.

@@ -10,9 +10,9 @@
 //! As samples grow, `s² → 0` and the posterior mean tends to `Ĥ`: the prior
 //! moves a finite-sample estimate, never the limit.
 
-use super::irradiance::{IndirectPart, IrradianceEstimate};
-use super::query::QueryPoint;
-use super::rgb::Rgb;
+use crate::render::QueryPoint;
+use crate::render::Rgb;
+use crate::render::{IndirectPart, IrradianceEstimate};
 
 /// A prior on a part of the irradiance at a point (indirect or direct),
 /// W/m², when one is known.

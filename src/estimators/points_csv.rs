@@ -10,9 +10,9 @@ use std::io::{self, Write};
 
 use glam::DVec3;
 
-use super::error::RenderError;
-use super::irradiance::IrradianceEstimate;
-use super::query::QueryPoint;
+use crate::render::IrradianceEstimate;
+use crate::render::QueryPoint;
+use crate::render::RenderError;
 
 /// Parses a points file; see the module docs for the accepted format.
 pub fn parse_points(text: &str) -> Result<Vec<QueryPoint>, RenderError> {

@@ -1,0 +1,216 @@
+use super::*;
+use crate::estimators::{KernelSpec, Lengthscale};
+
+fn spec(method: EstimatorMethod) -> EstimatorSpec {
+    EstimatorSpec {
+        method,
+        samples: 16,
+        sample_set: None,
+        kernel: None,
+        prior: None,
+        calibrate: None,
+        records_prior: false,
+    }
+}
+
+fn field(result: Result<PointEstimator, EstimatorError>) -> String {
+    match result {
+        Err(EstimatorError::Invalid { field, .. }) => field,
+        other => panic!("expected an invalid field, got {other:?}"),
+    }
+}
+
+#[test]
+fn options_are_checked_against_the_method() {
+    assert!(matches!(
+        spec(EstimatorMethod::Mc).resolve(),
+        Ok(PointEstimator {
+            rule: PointRule::Mc { count: 16 },
+            prior: PriorChoice::None,
+            calibrate: true,
+            ..
+        })
+    ));
+    let mc_with_set = EstimatorSpec {
+        sample_set: Some((SampleSetKind::Fibonacci, 0)),
+        ..spec(EstimatorMethod::Mc)
+    };
+    assert_eq!(field(mc_with_set.resolve()), "sample_set");
+    let qmc_random = EstimatorSpec {
+        sample_set: Some((SampleSetKind::Uniform, 3)),
+        ..spec(EstimatorMethod::Qmc)
+    };
+    assert_eq!(field(qmc_random.resolve()), "sample_set.kind");
+    let qmc_kernel = EstimatorSpec {
+        kernel: Some(KernelSpec::default()),
+        ..spec(EstimatorMethod::Qmc)
+    };
+    assert_eq!(field(qmc_kernel.resolve()), "kernel");
+    let zero = EstimatorSpec {
+        samples: 0,
+        ..spec(EstimatorMethod::Bmc)
+    };
+    assert_eq!(field(zero.resolve()), "samples");
+}
+
+#[test]
+fn lengthscales_parse_from_text_and_json() {
+    assert_eq!("auto".parse(), Ok(Lengthscale::Auto));
+    assert_eq!("0.5".parse(), Ok(Lengthscale::Value(0.5)));
+    assert!("short".parse::<Lengthscale>().is_err());
+    let json: Lengthscale = serde_json::from_str("0.25").unwrap();
+    assert_eq!(json, Lengthscale::Value(0.25));
+    let json: Lengthscale = serde_json::from_str("\"auto\"").unwrap();
+    assert_eq!(json, Lengthscale::Auto);
+    assert!(serde_json::from_str::<Lengthscale>("\"long\"").is_err());
+}
+
+#[test]
+fn bmc_kernel_numbers_are_checked_before_any_work() {
+    let overflow = EstimatorSpec {
+        kernel: Some(KernelSpec {
+            variance: Some(1e308),
+            noise: Some(1e308),
+            ..KernelSpec::default()
+        }),
+        ..spec(EstimatorMethod::Bmc)
+    };
+    assert_eq!(field(overflow.resolve()), "kernel.variance");
+    let Ok(PointEstimator {
+        rule: PointRule::Bmc(setup),
+        prior: PriorChoice::Environment,
+        ..
+    }) = spec(EstimatorMethod::Bmc).resolve()
+    else {
+        panic!("bmc resolves, with the environment prior by default");
+    };
+    // Defaults: Fibonacci-cosine set, the kernel family selected with
+    // the "auto" lengthscale.
+    assert_eq!(setup.sample_set.kind, DEFAULT_SAMPLE_SET);
+    assert_eq!(setup.kind, None);
+    assert_eq!(setup.lengthscale, None);
+    assert_eq!(setup.variance, DEFAULT_VARIANCE);
+}
+
+/// A prior on the direct part that knows each point's irradiance (a
+/// Monte Carlo reference of many samples), scaled by `bias`, and states
+/// a relative standard deviation `stated`; on the half `x > 0` of the
+/// scene only, if `half`.
+struct ReferencePrior<'a> {
+    transport: &'a Transport,
+    bias: f64,
+    stated: f64,
+    half: bool,
+}
+
+impl IntegralPrior for ReferencePrior<'_> {
+    fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)> {
+        if self.half && point.position().x <= 0.0 {
+            return None;
+        }
+        let options = IrradianceOptions {
+            samples: 4096,
+            max_depth: crate::render::PathDepth::new(1).unwrap(),
+            method: crate::render::IrradianceMethod::Split,
+            seed: 99,
+            ..IrradianceOptions::default()
+        };
+        let reference = self
+            .transport
+            .irradiance_at_points(&[*point], &options, &|| {}, &Cancel::never())
+            .unwrap();
+        let e = reference[0].irradiance;
+        Some((e * self.bias, e * e * (self.stated * self.stated)))
+    }
+
+    fn state(&self) -> u64 {
+        0
+    }
+}
+
+/// A ground under a constant sky, partly shaded by a square above it:
+/// 16 directions see the square's edges badly, a prior that knows the
+/// answer and says it knows it poorly is trusted more than it says, and
+/// a wrong prior that says it is sure is trusted less (docs/math.md
+/// §10.9); where the prior says nothing, the estimate and its error bar
+/// are the rule's.
+#[test]
+fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
+    let doc = r#"{
+        "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+        "shapes": [
+            {"type": "rectangle", "material": "grey",
+             "to_world": [{"scale": [3, 3, 1]}]},
+            {"type": "rectangle", "material": "grey",
+             "to_world": [{"scale": [0.6, 0.6, 1]}, {"translate": [0, 0, 0.4]}]}
+        ],
+        "environment": {"type": "constant", "radiance": [1, 1, 1]},
+        "camera": {"type": "perspective", "fov": 50, "origin": [0.3, -0.2, 4],
+                   "target": [0, 0, 0], "up": [0, 1, 0], "width": 16, "height": 16}
+    }"#;
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
+    let transport = Transport::new(Arc::new(scene));
+    let (kernels, quadratures) = (FittedKernels::default(), QuadratureCache::new(16 << 20));
+    let options = IrradianceOptions {
+        samples: 16,
+        max_depth: crate::render::PathDepth::new(1).unwrap(),
+        method: crate::render::IrradianceMethod::Hemisphere,
+        seed: 5,
+        ..IrradianceOptions::default()
+    };
+    let points = super::super::sample_points::camera_points(&transport, 12, 3);
+    let run = |records_prior: bool, prior: Option<&ReferencePrior>| {
+        // Each prior is fitted apart (its state says nothing of it).
+        let calibrations = Calibrations::default();
+        let caches = EstimatorCaches {
+            kernels: &kernels,
+            quadratures: &quadratures,
+            calibrations: &calibrations,
+            records: None,
+            direct: prior.map(|p| p as &dyn IntegralPrior),
+        };
+        EstimatorSpec {
+            records_prior,
+            ..spec(EstimatorMethod::Qmc)
+        }
+        .resolve()
+        .unwrap()
+        .estimate(
+            &transport,
+            caches,
+            &points,
+            &options,
+            &|| {},
+            &Cancel::never(),
+        )
+        .unwrap()
+    };
+    let prior = |bias, stated, half| ReferencePrior {
+        transport: &transport,
+        bias,
+        stated,
+        half,
+    };
+    let scales = |estimates: &Estimates| estimates.calibration.unwrap().prior_scales.unwrap();
+    let trusted = scales(&run(true, Some(&prior(1.0, 0.5, false))));
+    assert!(trusted.direct <= 1.0 / 16.0, "{trusted:?}");
+    assert_eq!(trusted.records, 1.0, "no records prior");
+    let wrong = scales(&run(true, Some(&prior(0.7, 0.01, false))));
+    assert!(wrong.direct >= 1.0, "{wrong:?}");
+    let rule = run(false, None);
+    let half = run(true, Some(&prior(1.0, 0.5, true)));
+    let (mut moved, mut kept) = (0, 0);
+    for ((with, without), point) in half.estimates.iter().zip(&rule.estimates).zip(&points) {
+        if point.position().x <= 0.0 {
+            kept += 1;
+            assert_eq!(
+                (with.irradiance, with.std_error),
+                (without.irradiance, without.std_error)
+            );
+        } else {
+            moved += usize::from(with.irradiance != without.irradiance);
+        }
+    }
+    assert!(moved > 0 && kept > 0, "{moved} moved, {kept} kept");
+}
