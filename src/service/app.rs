@@ -240,39 +240,11 @@ fn open_tile_store(
 )]
 struct ApiDoc;
 
-/// The full router: documented routes, fallbacks and middleware.
+/// The full router: documented routes, fallbacks and middleware. Routes
+/// that change state are declared apart, under the guard's `route_layer`;
+/// reads and queries (computations that change nothing a client can name)
+/// are open.
 pub fn router(state: Arc<AppState>) -> Router {
-    let (api_routes, doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
-        .routes(routes!(routes::health::health))
-        .routes(routes!(routes::health::ready))
-        .routes(routes!(routes::metrics::metrics))
-        .routes(routes!(routes::openapi::openapi))
-        .routes(routes!(
-            routes::scenes::list_scenes,
-            routes::scenes::post_scene
-        ))
-        .routes(routes!(
-            routes::scenes::get_scene,
-            routes::scenes::delete_scene
-        ))
-        .routes(routes!(routes::irradiance::irradiance))
-        .routes(routes!(routes::tiles::tile))
-        .routes(routes!(routes::tile_get::get_tile))
-        .routes(routes!(routes::presets::presets))
-        .routes(routes!(routes::radiance::radiance))
-        .routes(routes!(
-            routes::cache::get_cache,
-            routes::cache::delete_cache
-        ))
-        .routes(routes!(
-            routes::records::export_records,
-            routes::records::import_records
-        ))
-        .routes(routes!(routes::quadratures::post_quadrature))
-        .split_for_parts();
-    let limits = state.config.limits.clone();
-    let body_stall = Duration::from_secs(state.config.server.header_read_timeout_secs);
-    let cors = cors(&state.config.server);
     let guard = Arc::new(MutationGuard {
         token: state.config.server.auth_token.clone(),
         origins: state
@@ -282,9 +254,34 @@ pub fn router(state: Arc<AppState>) -> Router {
             .map(str::to_owned)
             .collect(),
     });
+    let state_changing = OpenApiRouter::new()
+        .routes(routes!(routes::scenes::post_scene))
+        .routes(routes!(routes::scenes::delete_scene))
+        .routes(routes!(routes::cache::delete_cache))
+        .routes(routes!(routes::records::import_records))
+        .route_layer(middleware::from_fn_with_state(guard, guard_mutation));
+    let (api_routes, doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .routes(routes!(routes::health::health))
+        .routes(routes!(routes::health::ready))
+        .routes(routes!(routes::metrics::metrics))
+        .routes(routes!(routes::openapi::openapi))
+        .routes(routes!(routes::scenes::list_scenes))
+        .routes(routes!(routes::scenes::get_scene))
+        .routes(routes!(routes::irradiance::irradiance))
+        .routes(routes!(routes::tiles::tile))
+        .routes(routes!(routes::tile_get::get_tile))
+        .routes(routes!(routes::presets::presets))
+        .routes(routes!(routes::radiance::radiance))
+        .routes(routes!(routes::cache::get_cache))
+        .routes(routes!(routes::records::export_records))
+        .routes(routes!(routes::quadratures::post_quadrature))
+        .merge(state_changing)
+        .split_for_parts();
+    let limits = state.config.limits.clone();
+    let body_stall = Duration::from_secs(state.config.server.header_read_timeout_secs);
+    let cors = cors(&state.config.server);
     with_middleware(
         api_routes
-            .layer(middleware::from_fn_with_state(guard, guard_mutation))
             .layer(Extension(Arc::new(doc)))
             .with_state(state)
             .merge(super::viewer::routes()),
@@ -531,20 +528,14 @@ impl MutationGuard {
     }
 }
 
-/// Guards the routes that change state: same-origin or allowed web origins
-/// only, and the bearer token when one is configured (module docs).
+/// Guards a route that changes state (the `route_layer` of those routes):
+/// same-origin or allowed web origins only, and the bearer token when one
+/// is configured (module docs).
 async fn guard_mutation(
     State(guard): State<Arc<MutationGuard>>,
     request: Request,
     next: Next,
 ) -> Response {
-    let path = request.uri().path();
-    let mutating = request.method() == Method::DELETE
-        || (request.method() == Method::POST
-            && (path == "/v1/scenes" || path.ends_with("/records")));
-    if !mutating {
-        return next.run(request).await;
-    }
     match guard
         .check_origin(&request)
         .and_then(|()| guard.check_token(&request))

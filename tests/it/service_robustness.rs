@@ -280,6 +280,69 @@ async fn mutating_routes_need_the_configured_token() {
     assert_eq!(health(&app).await["scenes"], 1);
 }
 
+/// The queries: POST routes that compute and change nothing a client can
+/// name, open to every caller. Any other route with a method that may
+/// change state must sit under the guard, so a route added without it
+/// fails here.
+const QUERIES: [&str; 4] = [
+    "POST /v1/scenes/{id}/irradiance",
+    "POST /v1/scenes/{id}/tiles",
+    "POST /v1/scenes/{id}/radiance",
+    "POST /v1/quadratures",
+];
+
+#[tokio::test]
+async fn every_route_with_a_mutating_method_refuses_a_missing_token() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |c| {
+        c.server.auth_token = "s3cret".into();
+    })
+    .await;
+    let doc: Value = app
+        .client
+        .get(app.url("/openapi.json"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let mut guarded = Vec::new();
+    for (path, operations) in doc["paths"].as_object().expect("paths") {
+        for method in ["post", "put", "patch", "delete"] {
+            if operations.get(method).is_none() {
+                continue;
+            }
+            let route = format!("{} {path}", method.to_uppercase());
+            if QUERIES.contains(&route.as_str()) {
+                continue;
+            }
+            let concrete = path.replace("{id}", "tiny");
+            let method = Method::from_bytes(method.to_uppercase().as_bytes()).unwrap();
+            let response = app
+                .client
+                .request(method, app.url(&concrete))
+                .json(&json!({}))
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(response.status(), StatusCode::UNAUTHORIZED, "{route}");
+            assert_eq!(error_of(response).await.0, "unauthorized", "{route}");
+            guarded.push(route);
+        }
+    }
+    guarded.sort();
+    assert_eq!(
+        guarded,
+        [
+            "DELETE /v1/scenes/{id}",
+            "DELETE /v1/scenes/{id}/cache",
+            "POST /v1/scenes",
+            "POST /v1/scenes/{id}/records",
+        ]
+    );
+    assert_eq!(health(&app).await["scenes"], 1);
+}
+
 /// Pages of other sites cannot change state, token or not: browsers send a
 /// multipart or `text/plain` POST cross-site without a preflight. Pages of
 /// the service's own origin and of `server.allowed_origins` can; clients
