@@ -320,7 +320,7 @@ mod tests {
 
     #[derive(clap::Subcommand)]
     enum Sub {
-        Render(RenderArgs),
+        Render(Box<RenderArgs>),
         Compare(CompareArgs),
     }
 

@@ -272,7 +272,10 @@ impl PointEstimator {
             let scales = calibration
                 .and_then(|c| c.prior_scales)
                 .unwrap_or(PriorScales::ONE);
-            self.with_priors(transport, caches, points, options, scales, on_done, cancel)?
+            let estimates = self
+                .rule()
+                .estimate(transport, caches, points, options, on_done, cancel)?;
+            self.with_priors(estimates, caches, points, scales)
         } else {
             let estimates = self
                 .estimate_with_model_errors(transport, caches, points, options, on_done, cancel)?;
@@ -388,31 +391,24 @@ impl PointEstimator {
         self.records(caches).is_some() || self.direct(caches).is_some()
     }
 
-    /// With the records prior: the rule's estimates (with the rule's
-    /// calibrated error bars, if the spec calibrates) combined with the
+    /// With the records prior: `estimates`, the [`Self::rule`]'s (with the
+    /// rule's calibrated error bars, if the spec calibrates), combined with the
     /// records where they cover a point (§10.7), then, under the hemisphere
     /// decomposition, their direct part with the direct-light records
     /// (§10.8), the priors' variances scaled by `scales` (§10.9); and for
     /// each estimate whether a prior moved it (the others keep the rule's
     /// error bars, the moved ones are calibrated again).
-    #[allow(clippy::too_many_arguments)]
     fn with_priors(
         &self,
-        transport: &Transport,
+        mut estimates: Estimates,
         caches: EstimatorCaches,
         points: &[QueryPoint],
-        options: &IrradianceOptions,
         scales: PriorScales,
-        on_done: &(dyn Fn() + Sync),
-        cancel: &Cancel,
-    ) -> Result<(Estimates, Vec<bool>), EstimatorError> {
-        let mut estimates = self
-            .rule()
-            .estimate(transport, caches, points, options, on_done, cancel)?;
+    ) -> (Estimates, Vec<bool>) {
         let known = self.priors_at(&caches, points, estimates.decomposition);
         let moved = combine_priors(&mut estimates.estimates, &known, scales);
         estimates.calibration = None;
-        Ok((estimates, moved))
+        (estimates, moved)
     }
 
     /// The rule under the records prior: the same spec without it, which

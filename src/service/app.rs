@@ -38,7 +38,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use axum::extract::{DefaultBodyLimit, Request, State};
-use axum::http::{HeaderName, Method, Uri, header};
+use axum::http::{Method, Uri, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::{Extension, Router};
@@ -296,23 +296,9 @@ pub fn router(state: Arc<AppState>) -> Router {
 /// `server.allowed_origins` (the guard refuses the others), so preflights
 /// allow those methods and headers only when such origins are configured.
 fn cors(server: &super::config::ServerConfig) -> CorsLayer {
-    let exposed = [
-        "etag",
-        "server-timing",
-        "x-tile-x",
-        "x-tile-y",
-        "x-rays",
-        "x-records-created",
-        "x-records",
-        "x-cache-hits",
-        "x-passes",
-        "x-passes-rendered",
-        "x-std-dev-scale",
-    ]
-    .map(HeaderName::from_static);
     let layer = CorsLayer::new()
         .allow_origin(AllowOrigin::any())
-        .expose_headers(exposed);
+        .expose_headers(super::tile_response::EXPOSED);
     if server.allowed_origins().next().is_some() {
         layer
             .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::DELETE])

@@ -29,8 +29,8 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::scenes::LoadedScene;
-use crate::cache::{CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
-use crate::integrator::cached::{CachedShading, RecordsKey, direct_records};
+use crate::cache::{Accuracy, CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
+use crate::integrator::cached::{CachedShading, RecordSource, RecordsKey, direct_records};
 use crate::render::{Cancel, PathDepth, RenderError, Transport};
 
 /// Each cache may use `1/SHARE` of the total budget.
@@ -136,6 +136,32 @@ impl DirectTwins {
     }
 }
 
+/// One cache of a scene version as a prior source: its records sum paths
+/// of up to `max_depth` segments counted from the camera, so one segment
+/// fewer from their own point.
+pub struct PriorSource {
+    max_depth: PathDepth,
+    entry: Arc<SceneCache>,
+}
+
+impl RecordSource for PriorSource {
+    fn records(&self) -> (&IrradianceCache, Accuracy) {
+        (&self.entry.cache, self.entry.shading.accuracy())
+    }
+
+    fn depth_from_point(&self) -> Option<PathDepth> {
+        self.max_depth.after_first_segment()
+    }
+
+    fn direct_twins(
+        &self,
+        transport: &Transport,
+        cancel: &Cancel,
+    ) -> Result<Option<(&IrradianceCache, u64)>, RenderError> {
+        self.entry.direct_twins(transport, cancel).map(Some)
+    }
+}
+
 /// All irradiance caches of the service.
 pub struct IrradianceCaches {
     caches: Cache<CacheKey, Arc<SceneCache>>,
@@ -228,23 +254,14 @@ impl IrradianceCaches {
             .filter(|(key, _)| key.scene == scene.id && key.generation == scene.generation)
     }
 
-    /// Every cache of this version of `scene`.
-    pub fn all(&self, scene: &LoadedScene) -> Vec<Arc<SceneCache>> {
-        self.of_scene(scene).map(|(_, entry)| entry).collect()
-    }
-
-    /// The caches of this version of `scene` whose records sum paths of at
-    /// least `depth` segments from their point: camera depths beyond
-    /// `depth`, since a camera path's first segment ends where records sit.
-    pub fn at_least_as_deep(&self, scene: &LoadedScene, depth: PathDepth) -> Vec<Arc<SceneCache>> {
+    /// Every cache of this version of `scene`, as sources of point
+    /// queries' priors (`integrator::cached::point_priors` picks among them).
+    pub fn prior_sources(&self, scene: &LoadedScene) -> Vec<PriorSource> {
         self.of_scene(scene)
-            .filter(|(key, _)| {
-                key.records
-                    .max_depth()
-                    .after_first_segment()
-                    .is_some_and(|d| d.get() >= depth.get())
+            .map(|(key, entry)| PriorSource {
+                max_depth: key.records.max_depth(),
+                entry,
             })
-            .map(|(_, entry)| entry)
             .collect()
     }
 

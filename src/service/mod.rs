@@ -35,11 +35,13 @@ mod pool;
 mod posted_scenes;
 mod replicas;
 mod routes;
+mod scene_changes;
 mod scenes;
 mod server;
 mod shared_store;
 mod state;
 mod tile_render;
+mod tile_response;
 mod tile_store;
 mod viewer;
 

@@ -9,13 +9,87 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use super::config::Limits;
 use super::error::ApiError;
-use super::integrator::{CachedSetup, cached_setup};
+use super::integrator::{CachedSetup, cached_setup, resolve_integrator};
 use super::scenes::LoadedScene;
 use super::state::AppState;
 use super::tile_store::{Key, RenderedPass, TileRecords};
 use crate::image::Image;
-use crate::integrator::Integrator;
-use crate::render::{Cancel, TileRequest};
+use crate::integrator::{Integrator, IntegratorSpec, Preset};
+use crate::render::{Cancel, PathDepth, TileRequest};
+
+/// A tile as either route names it, before any check: the rectangle, the
+/// preset and the knobs that override it.
+#[derive(Clone, Copy, Debug)]
+pub struct TileParams {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+    pub preset: Preset,
+    /// Camera rays per pixel of one pass; `None`: the preset's passes.
+    pub samples_per_pixel: Option<u32>,
+    /// The last pass averaged; `None`: the last of them.
+    pub pass: Option<u32>,
+    /// Longest path in segments; `None`: the preset's.
+    pub max_depth: Option<u32>,
+    pub seed: u64,
+    /// The integrator's knobs over the preset's.
+    pub estimator: IntegratorSpec,
+}
+
+impl TileParams {
+    /// The job, every field checked against the camera's `resolution` and
+    /// the limits (errors name the field), all before any work; the work
+    /// budget is [`TileJob::check_work`].
+    pub fn job(&self, resolution: (u32, u32), limits: &Limits) -> Result<TileJob, ApiError> {
+        let area = u64::from(self.width) * u64::from(self.height);
+        ApiError::check_limit("width*height", area, limits.max_tile_area as u64)?;
+        let settings = self.preset.settings();
+        let samples_per_pixel = self.samples_per_pixel.unwrap_or(settings.samples_per_pixel);
+        ApiError::check_limit(
+            "samples_per_pixel",
+            u64::from(samples_per_pixel),
+            limits.max_samples as u64,
+        )?;
+        // An explicit sample count is one pass of that many rays; otherwise
+        // the preset's passes, up to `pass`.
+        let passes = match self.samples_per_pixel {
+            Some(_) => 1,
+            None => settings.passes,
+        };
+        let last_pass = self.pass.unwrap_or(passes - 1);
+        if last_pass >= passes {
+            return Err(ApiError::invalid(
+                "pass",
+                format!("{last_pass} is not in 0..{passes} ({passes} passes)"),
+            ));
+        }
+        let rectangle = TileRequest {
+            x: self.x,
+            y: self.y,
+            width: self.width,
+            height: self.height,
+            samples_per_pixel,
+            max_depth: settings.max_depth,
+            seed: self.seed,
+            pass: 0,
+        };
+        // The rectangle first, so a request with several bad fields is told of it.
+        rectangle.validate(resolution)?;
+        let request = TileRequest {
+            max_depth: self
+                .max_depth
+                .map_or(Ok(settings.max_depth), PathDepth::new)?,
+            ..rectangle
+        };
+        Ok(TileJob {
+            request,
+            integrator: resolve_integrator(self.estimator.over(settings.integrator), limits)?,
+            last_pass,
+            passes,
+        })
+    }
+}
 
 /// One progressive tile request, resolved and checked.
 #[derive(Clone, Copy, Debug)]
@@ -26,6 +100,8 @@ pub struct TileJob {
     pub integrator: Integrator,
     /// The last pass averaged (0-based).
     pub last_pass: u32,
+    /// Passes of the tile's preset (1 with explicit samples per pixel).
+    pub passes: u32,
 }
 
 impl TileJob {

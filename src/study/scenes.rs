@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use crate::bmc::Kernel;
 use crate::bmc::cache::QuadratureCache;
-use crate::cache::{CacheConfig, IrradianceCache, RecordsPrior};
+use crate::cache::{Accuracy, CacheConfig, IrradianceCache};
 use crate::estimators::IntegralPrior;
 use crate::estimators::calibration::Calibrations;
 use crate::estimators::error_target::ErrorTarget;
@@ -27,7 +27,9 @@ use crate::estimators::{
     EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec,
 };
 use crate::integrator::Preset;
-use crate::integrator::cached::{CachedIntegrator, CachedShading, CachedSpec, direct_records};
+use crate::integrator::cached::{
+    CachedIntegrator, CachedShading, CachedSpec, RecordSource, direct_records, point_priors,
+};
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{
     Cancel, Decomposition, ImageSettings, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
@@ -255,6 +257,35 @@ fn camera_direct_records(
     Ok(twins)
 }
 
+/// The study's records as a prior source: made by a camera render one
+/// segment deeper than the points' paths, so they sum paths as long as the
+/// points' from their own point, with their direct-light twins if the study
+/// asks for them.
+struct StudyRecords {
+    cache: IrradianceCache,
+    shading: CachedShading,
+    depth_from_point: PathDepth,
+    twins: Option<IrradianceCache>,
+}
+
+impl RecordSource for StudyRecords {
+    fn records(&self) -> (&IrradianceCache, Accuracy) {
+        (&self.cache, self.shading.accuracy())
+    }
+
+    fn depth_from_point(&self) -> Option<PathDepth> {
+        Some(self.depth_from_point)
+    }
+
+    fn direct_twins(
+        &self,
+        _: &Transport,
+        _: &Cancel,
+    ) -> Result<Option<(&IrradianceCache, u64)>, RenderError> {
+        Ok(self.twins.as_ref().map(|twins| (twins, 0)))
+    }
+}
+
 /// Seed of the records of [`camera_records`] (shared with no request).
 const RECORDS_SEED: u64 = 0x05EC_04D5;
 
@@ -265,29 +296,36 @@ pub fn run(
     options: &SceneStudyOptions,
 ) -> Result<Vec<SceneStudyRow>, SceneStudyError> {
     let setup = Setup::new(transport, options)?;
-    let records = options
-        .records_from
-        .map(|preset| camera_records(transport, preset, options.max_depth))
-        .transpose()?;
-    let records_prior = records
-        .as_ref()
-        .map(|(cache, shading)| RecordsPrior::new([(cache, shading.accuracy())]));
     let decomposition = transport.decomposition(options.decomposition);
-    let direct = match (options.records_from, &records) {
-        (Some(preset), Some(records))
-            if options.direct_records && decomposition == Decomposition::Hemisphere =>
-        {
-            let twins = camera_direct_records(transport, preset, options.max_depth, records)?;
-            Some((twins, records.1.accuracy()))
+    let sources = match options.records_from {
+        Some(preset) => {
+            let records = camera_records(transport, preset, options.max_depth)?;
+            let twins = (options.direct_records && decomposition == Decomposition::Hemisphere)
+                .then(|| camera_direct_records(transport, preset, options.max_depth, &records))
+                .transpose()?;
+            let (cache, shading) = records;
+            vec![StudyRecords {
+                cache,
+                shading,
+                depth_from_point: options.max_depth,
+                twins,
+            }]
         }
-        _ => None,
+        None => Vec::new(),
     };
-    let direct_prior = direct
-        .as_ref()
-        .map(|(twins, accuracy)| RecordsPrior::new([(twins, *accuracy)]));
+    let priors = point_priors(
+        &sources,
+        transport,
+        options.max_depth,
+        options.decomposition,
+        &Cancel::never(),
+    )?;
     let (points, reference, base) = (&setup.points, &setup.reference, setup.base);
-    let records_known = records_prior.as_ref().map(|r| r as &dyn IntegralPrior);
-    let direct_known = direct_prior.as_ref().map(|r| r as &dyn IntegralPrior);
+    let records_known = (!sources.is_empty()).then_some(&priors.records as &dyn IntegralPrior);
+    let direct_known = sources
+        .iter()
+        .any(|s| s.twins.is_some())
+        .then_some(&priors.direct as &dyn IntegralPrior);
     let never = Cancel::never();
     let estimators = [
         ("mc", EstimatorMethod::Mc, None, false),
@@ -313,7 +351,7 @@ pub fn run(
             if prior.is_some() && !prior_applies {
                 continue; // The control variate would be plain QMC again.
             }
-            if records_prior && records.is_none() {
+            if records_prior && records_known.is_none() {
                 continue;
             }
             let direct_row = name.ends_with("+direct");

@@ -480,3 +480,42 @@ async fn glossy_objects_of_the_sky_scene_have_no_negative_or_black_pixels() {
     }
     assert!(fell_back > 0);
 }
+
+/// Each preset's `estimator` from `GET /v1/presets` posts back as a tile
+/// request's estimator unchanged: accepted, and resolved to the very
+/// configuration the preset names (the second tile is the first one's
+/// memoised passes, the same bytes with nothing rendered).
+#[tokio::test]
+async fn every_preset_estimator_posts_back_unchanged() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    let presets: Value = app
+        .client
+        .get(app.url("/v1/presets"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let presets = presets.as_array().expect("a list");
+    assert_eq!(presets.len(), 3);
+    for preset in presets {
+        let name = preset["name"].as_str().unwrap();
+        let estimator = &preset["estimator"];
+        assert_eq!(estimator["method"], "cache", "{name}");
+        assert!(estimator["min_pixels"].is_number(), "{name}: {estimator}");
+        let body = json!({"x": 0, "y": 0, "width": 4, "height": 4,
+                          "format": "json", "preset": name});
+        let mut with_estimator = body.clone();
+        with_estimator["estimator"] = estimator.clone();
+        let named = app.post_json("/v1/scenes/tiny/tiles", &body).await;
+        assert_eq!(named.status(), StatusCode::OK, "{name}");
+        let named = named.bytes().await.unwrap();
+        let posted_back = app
+            .post_json("/v1/scenes/tiny/tiles", &with_estimator)
+            .await;
+        assert_eq!(posted_back.status(), StatusCode::OK, "{name}: {estimator}");
+        assert_eq!(posted_back.headers()["x-passes-rendered"], "0", "{name}");
+        assert_eq!(posted_back.bytes().await.unwrap(), named, "{name}");
+    }
+}

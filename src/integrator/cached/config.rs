@@ -73,11 +73,11 @@ pub struct CacheShadingOptions {
     /// Levels of records whose rays gather through the cache ([`super::Gather`],
     /// Radiance's `-ab`): 0 = every record traces its rays' paths.
     pub ambient_bounces: u32,
-    /// Tile records' rays stop at their first hit, shaded there by
-    /// `paths_per_direction` light samples and the scene's secondary cache
-    /// of indirect irradiance (`secondary`, built once per scene and
-    /// configuration) instead of tracing paths on. Tiles only; excludes
-    /// `ambient_bounces`.
+    /// Records' rays (of tiles and radiance queries) stop at their first
+    /// hit, shaded there by `paths_per_direction` light samples and the
+    /// scene's secondary cache of indirect irradiance (`secondary`, built
+    /// once per scene and configuration) instead of tracing paths on;
+    /// excludes `ambient_bounces`.
     pub secondary_cache: bool,
 }
 

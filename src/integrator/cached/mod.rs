@@ -23,6 +23,7 @@
 //!   first hits instead of tracing paths on, and how it is built;
 //! - `secondary_caches`: those caches held by a rule set, each built once;
 //! - `tiles`: camera tiles shaded through a shared or private cache;
+//! - `point_priors`: which caches' records serve point queries as priors;
 //! - `record_view`: records as the camera sees them (positions, radii,
 //!   an overlay image);
 //! - `stats`: counters.
@@ -33,6 +34,7 @@ mod direct_records;
 mod error;
 mod glossy;
 mod placement;
+mod point_priors;
 mod record_estimate;
 mod record_view;
 mod secondary;
@@ -50,6 +52,7 @@ pub use config::{
 pub use direct_records::direct_records;
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
 pub use placement::{PlacementCache, PlacementReport, place_and_shade, place_records, shade};
+pub use point_priors::{PointPriors, RecordSource, point_priors};
 pub use record_estimate::{PlacementPoint, lookup};
 pub use record_view::{RecordView, record_overlay, record_views};
 pub use secondary::secondary_cache_of;

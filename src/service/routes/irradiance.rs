@@ -21,6 +21,7 @@ use crate::estimators::error_target::ErrorTarget;
 use crate::estimators::{
     Estimates, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
 };
+use crate::integrator::cached::point_priors;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{
     Decomposition, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Rgb,
@@ -292,45 +293,28 @@ pub async fn irradiance(
         .pool
         .run(move |cancel| {
             let transport = &scene.transport;
-            // Records whose paths from the hit are at least as long as the
-            // query's (a camera path's depth counts the segment to the hit).
-            let record_caches = if records_prior {
-                worker
-                    .irradiance_caches
-                    .at_least_as_deep(&scene, options.max_depth)
+            // The scene's caches serve as priors only when the spec asks.
+            let sources = if records_prior {
+                worker.irradiance_caches.prior_sources(&scene)
             } else {
                 Vec::new()
             };
-            let records = RecordsPrior::new(
-                record_caches
-                    .iter()
-                    .map(|entry| (&entry.cache, entry.shading.accuracy())),
-            );
-            // Under the hemisphere decomposition the direct part has a prior
-            // too: the twins of every cache's records, at any depth, since
-            // they hold the direct light alone (docs/math.md §10.8).
-            let twin_caches = if records_prior
-                && transport.decomposition(options.method) == Decomposition::Hemisphere
-            {
-                worker.irradiance_caches.all(&scene)
-            } else {
-                Vec::new()
-            };
-            let twins = twin_caches
-                .iter()
-                .map(|entry| {
-                    let (cache, rays) = entry.direct_twins(transport, cancel)?;
-                    ::metrics::counter!(RAYS_TRACED).increment(rays);
-                    Ok((cache, entry.shading.accuracy()))
-                })
-                .collect::<Result<Vec<_>, crate::render::RenderError>>()?;
-            let direct = RecordsPrior::new(twins);
+            let priors = point_priors(
+                &sources,
+                transport,
+                options.max_depth,
+                options.method,
+                cancel,
+            )?;
+            ::metrics::counter!(RAYS_TRACED).increment(priors.rays);
+            let (records, direct): (&RecordsPrior, &RecordsPrior) =
+                (&priors.records, &priors.direct);
             let caches = EstimatorCaches {
                 kernels: &scene.kernels,
                 quadratures: &worker.quadratures,
                 calibrations: &scene.calibrations,
-                records: Some(&records),
-                direct: Some(&direct),
+                records: Some(records),
+                direct: Some(direct),
             };
             let estimates = match &target {
                 None => point_estimator

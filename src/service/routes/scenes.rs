@@ -9,13 +9,13 @@ use axum::http::StatusCode;
 use tokio::io::AsyncWriteExt;
 
 use crate::scene::bundle::{DocumentKind, SceneBundle};
-use crate::scene::{MitsubaOptions, Scene, Warnings};
 use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{
     MediaType, SceneId, body_bytes, body_media_type, content_type_text, parse_json,
 };
 use crate::service::posted_scenes::Posted;
-use crate::service::scenes::{LoadedScene, SceneSource, SceneSummary, log_warnings, validate_id};
+use crate::service::scene_changes;
+use crate::service::scenes::{SceneSummary, validate_id};
 use crate::service::state::AppState;
 
 /// Every loaded scene, sorted by id.
@@ -77,114 +77,29 @@ pub async fn post_scene(
     request: Request,
 ) -> Result<(StatusCode, Json<SceneSummary>), ApiError> {
     let Query(query) = query?;
-    let root = state.config.scenes.dir.clone();
-    let (id, scene, posted, warnings) = match body_media_type(&request) {
+    let (id, document, kind, bundle) = match body_media_type(&request) {
         MediaType::Json => {
-            if query.id.is_some() {
-                return Err(ApiError::invalid(
-                    "id",
-                    "the `id` query parameter is for XML scenes; a JSON scene's id is its `name`",
-                ));
-            }
             let bytes = body_bytes(request, &()).await?;
-            // Syntax errors (400) and a duplicate or non-string `name` are
-            // found here; the scene parser then reads the text itself, so
-            // duplicate keys anywhere are refused as on every other route.
-            let PostedName { name } = parse_json(&bytes)?;
-            let id = document_id(name)?;
-            let text = body_text(&bytes, "JSON")?;
-            let posted = Posted {
-                document: text.clone(),
-                kind: DocumentKind::Json,
-                lenient: false,
-                bundle: None,
-            };
-            let scene = state
-                .pool
-                .run(move |_| Scene::from_json_str(&text, &root, &root))
-                .await??;
-            (id, scene, posted, Warnings::default())
+            let id = posted_id(DocumentKind::Json, query.id, &bytes)?;
+            (id, body_text(&bytes, "JSON")?, DocumentKind::Json, None)
         }
         MediaType::Xml => {
-            let id = query.id.ok_or_else(|| {
-                ApiError::invalid("id", "an XML scene needs an `id` query parameter")
-            })?;
-            validate_id(&id).at("id")?;
             let bytes = body_bytes(request, &()).await?;
-            let text = body_text(&bytes, "XML")?;
-            let options = MitsubaOptions {
-                lenient: query.lenient,
-                ..MitsubaOptions::default()
-            };
-            let posted = Posted {
-                document: text.clone(),
-                kind: DocumentKind::MitsubaXml,
-                lenient: query.lenient,
-                bundle: None,
-            };
-            let (mut scene, warnings) = state
-                .pool
-                .run(move |_| Scene::from_mitsuba_xml_str(&text, &root, &root, &options))
-                .await??;
-            log_warnings(&id, &warnings);
-            if scene.name.is_empty() {
-                scene.name = id.clone();
-            }
-            (id, scene, posted, warnings)
+            let id = posted_id(DocumentKind::MitsubaXml, query.id, &bytes)?;
+            (
+                id,
+                body_text(&bytes, "XML")?,
+                DocumentKind::MitsubaXml,
+                None,
+            )
         }
         MediaType::Multipart => {
             let limit = state.config.limits.max_upload_bytes;
             let reading = state.upload_permit()?;
             let upload = read_upload(request, limit).await?;
             drop(reading);
-            let options = MitsubaOptions {
-                lenient: query.lenient,
-                ..MitsubaOptions::default()
-            };
-            let id = match upload.kind {
-                DocumentKind::Json => {
-                    if query.id.is_some() {
-                        return Err(ApiError::invalid(
-                            "id",
-                            "the `id` query parameter is for XML scenes; a JSON scene's id is its `name`",
-                        ));
-                    }
-                    let PostedName { name } = parse_json(upload.document.as_bytes())?;
-                    document_id(name)?
-                }
-                DocumentKind::MitsubaXml => {
-                    let id = query.id.ok_or_else(|| {
-                        ApiError::invalid("id", "an XML scene needs an `id` query parameter")
-                    })?;
-                    validate_id(&id).at("id")?;
-                    id
-                }
-            };
-            let (loaded, upload) = state
-                .pool
-                .run(move |_| {
-                    let loaded = upload.bundle.load(&upload.document, upload.kind, &options);
-                    (loaded, upload)
-                })
-                .await?;
-            let (mut scene, warnings) = loaded?;
-            log_warnings(&id, &warnings);
-            if scene.name.is_empty() {
-                scene.name = id.clone();
-            }
-            // Only what the scene was built from is kept (and shared).
-            let mut upload = upload;
-            let unused = upload.bundle.keep_used(&scene);
-            if !unused.is_empty() {
-                tracing::info!(%id, ?unused, "assets the scene does not use were not kept");
-            }
-            let posted = Posted {
-                document: upload.document,
-                kind: upload.kind,
-                lenient: query.lenient,
-                bundle: Some(upload.bundle),
-            };
-            (id, scene, posted, warnings)
+            let id = posted_id(upload.kind, query.id, upload.document.as_bytes())?;
+            (id, upload.document, upload.kind, Some(upload.bundle))
         }
         MediaType::Other => {
             return Err(ApiError::UnsupportedSceneMediaType {
@@ -192,67 +107,51 @@ pub async fn post_scene(
             });
         }
     };
-    let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene).approximating(&warnings);
-    let summary = loaded.summary();
-    let generation = loaded.generation;
-    let previous = state.scenes.insert(loaded)?;
-    let replaced = previous.is_some();
-    // Kept for the next start (with `cache.data_dir`): a change that would
-    // not survive a restart is not acknowledged, and not made.
-    let (keeper, id) = (state.posted.clone(), summary.id.clone());
-    let (budget, share) = (
-        state.config.cache.posted_scene_bytes,
-        state.shared.is_some(),
-    );
-    let kept = tokio::task::spawn_blocking(move || -> std::io::Result<Kept> {
-        let total = keeper.bytes_with(&id, &posted)?;
-        if total > budget {
-            return Ok(Kept::OverBudget(total));
-        }
-        keeper.save(&id, &posted)?;
-        // A blob that cannot be made only costs the sharing.
-        Ok(Kept::Saved(share.then(|| posted.encode().ok()).flatten()))
-    })
-    .await
-    .map_err(std::io::Error::other)
-    .and_then(|kept| kept);
-    let blob = match kept {
-        Ok(Kept::Saved(blob)) => blob,
-        Ok(Kept::OverBudget(total)) => {
-            state.scenes.restore(&summary.id, previous);
-            return Err(ApiError::InsufficientStorage {
-                field: "cache.posted_scene_bytes".into(),
-                message: format!(
-                    "the posted scenes kept on disk would take {total} bytes with this one, more than cache.posted_scene_bytes ({budget})"
-                ),
-            });
-        }
-        Err(err) => {
-            state.scenes.restore(&summary.id, previous);
-            tracing::error!(id = %summary.id, %err, "posted scene not kept; refused");
-            return Err(ApiError::not_persisted("the scene", &err));
-        }
+    let posted = Posted {
+        document,
+        kind,
+        lenient: query.lenient,
+        bundle,
     };
-    // Shared with the other replicas, if any; unreachable Redis leaves the
-    // scene on this replica only (and says so in /health).
-    if let (Some(shared), Some(blob)) = (&state.shared, blob)
-        && !shared
-            .put_scene(&summary.id, &summary.digest.to_string(), blob)
-            .await
-    {
-        tracing::warn!(id = %summary.id, "posted scene not shared with other replicas");
-    }
-    // The previous version's records are useless now; free them.
-    state
-        .irradiance_caches
-        .retire(&summary.id, Some(generation));
+    let (replaced, summary) = scene_changes::post(&state, id, posted).await?;
     let status = if replaced {
         StatusCode::OK
     } else {
         StatusCode::CREATED
     };
-    tracing::info!(id = %summary.id, "scene posted");
     Ok((status, Json(summary)))
+}
+
+/// The id of a posted scene, by one rule for every body: a JSON document's
+/// `name` (an `id` query parameter with it is refused), an XML document's
+/// `id` query parameter (required).
+fn posted_id(
+    kind: DocumentKind,
+    query_id: Option<String>,
+    bytes: &[u8],
+) -> Result<String, ApiError> {
+    match kind {
+        DocumentKind::Json => {
+            if query_id.is_some() {
+                return Err(ApiError::invalid(
+                    "id",
+                    "the `id` query parameter is for XML scenes; a JSON scene's id is its `name`",
+                ));
+            }
+            // Syntax errors (400) and a duplicate or non-string `name` are
+            // found here; the scene parser then reads the text itself, so
+            // duplicate keys anywhere are refused as on every other route.
+            let PostedName { name } = parse_json(bytes)?;
+            document_id(name)
+        }
+        DocumentKind::MitsubaXml => {
+            let id = query_id.ok_or_else(|| {
+                ApiError::invalid("id", "an XML scene needs an `id` query parameter")
+            })?;
+            validate_id(&id).at("id")?;
+            Ok(id)
+        }
+    }
 }
 
 /// An asset the server could not write to its disk while receiving it:
@@ -268,14 +167,6 @@ fn unwritable(field: &str, err: &std::io::Error) -> ApiError {
         }
         _ => ApiError::Internal { message },
     }
-}
-
-/// What keeping a posted scene came to.
-enum Kept {
-    /// Kept, with the blob to share with other replicas (if any).
-    Saved(Option<Vec<u8>>),
-    /// Not kept: the kept scenes would take this many bytes with it.
-    OverBudget(u64),
 }
 
 /// A scene uploaded with its assets.
@@ -394,23 +285,6 @@ pub async fn delete_scene(
     State(state): State<Arc<AppState>>,
     SceneId(id): SceneId,
 ) -> Result<StatusCode, ApiError> {
-    // A scene posted to another replica is known here through the shared
-    // store; deleting it here deletes it everywhere.
-    state.scene(&id).await?;
-    let removed = state.scenes.remove(&id).ok_or_else(|| ApiError::NotFound {
-        what: "scene",
-        id: id.clone(),
-    })?;
-    // A deletion that would be undone by a restart is not acknowledged.
-    let (keeper, kept) = (state.posted.clone(), id.clone());
-    let gone = tokio::task::spawn_blocking(move || keeper.remove(&kept)).await;
-    if let Ok(Err(err)) | Err(err) = gone.map_err(std::io::Error::other) {
-        state.scenes.restore(&id, Some(removed));
-        tracing::error!(%id, %err, "kept copy of the scene not removed; deletion refused");
-        return Err(ApiError::not_persisted("the deletion", &err));
-    }
-    state.irradiance_caches.retire(&id, None);
-    crate::service::replicas::announce_deletion(&state, &id).await;
-    tracing::info!(%id, "scene deleted");
+    scene_changes::delete(&state, &id).await?;
     Ok(StatusCode::NO_CONTENT)
 }

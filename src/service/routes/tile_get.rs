@@ -29,21 +29,20 @@ use std::time::Instant;
 
 use axum::extract::{FromRequestParts, Path, State};
 use axum::http::request::Parts;
-use axum::http::{HeaderMap, HeaderName, HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use utoipa::{IntoParams, ToSchema};
 
 use crate::image::{ImageEncoding, ToneMap, png_io};
-use crate::integrator::Preset;
 use crate::integrator::cached::{record_overlay, record_views};
-use crate::render::TileRequest;
+use crate::integrator::{IntegratorSpec, Preset};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::ApiQuery;
-use crate::service::integrator::resolve_integrator;
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::state::AppState;
-use crate::service::tile_render::{TileJob, render_progressive};
+use crate::service::tile_render::{TileParams, render_progressive};
+use crate::service::tile_response::{SERVER_TIMING, X_RECORDS, X_STD_DEV_SCALE, tile_headers};
 
 /// Tile side when `size` is not given, pixels.
 pub const DEFAULT_TILE_SIZE: u32 = 64;
@@ -179,18 +178,6 @@ pub async fn get_tile(
             ));
         }
     }
-    let preset = query.preset.unwrap_or_default();
-    let settings = preset.settings();
-    let pass = query.pass.unwrap_or(settings.passes - 1);
-    if pass >= settings.passes {
-        return Err(ApiError::invalid(
-            "pass",
-            format!(
-                "{pass} is not in 0..{} ({preset} has {} passes)",
-                settings.passes, settings.passes
-            ),
-        ));
-    }
     let aov = query.aov.unwrap_or_default();
     let format = path.format;
     // Only the parameters that change the bytes are normalised into the ETag.
@@ -219,24 +206,26 @@ pub async fn get_tile(
             "the records AOV is a PNG overlay or JSON, not EXR",
         ));
     }
-    let seed = query.seed.unwrap_or(1);
     let (x, y) = (path.tx * size, path.ty * size);
-    let request = TileRequest {
+    let params = TileParams {
         x,
         y,
         width: size.min(width - x),
         height: size.min(height - y),
-        samples_per_pixel: settings.samples_per_pixel,
-        max_depth: settings.max_depth,
-        seed,
-        pass: 0,
+        preset: query.preset.unwrap_or_default(),
+        samples_per_pixel: None,
+        pass: query.pass,
+        max_depth: None,
+        seed: query.seed.unwrap_or(1),
+        estimator: IntegratorSpec::default(),
     };
+    let job = params.job((width, height), limits)?;
     let etag = entity_tag(&[
         env!("CARGO_PKG_VERSION"),
         &scene.transport.scene().digest.to_string(),
-        &format!("{settings:?}"),
-        &format!("{request:?}"),
-        &format!("{pass} {aov:?} {format:?} {exposure} {scale}"),
+        &job.integrator.content_key(),
+        &format!("{:?} {} {}", job.request, job.last_pass, job.passes),
+        &format!("{aov:?} {format:?} {exposure} {scale}"),
     ]);
     let mut common = HeaderMap::new();
     common.insert(header::ETAG, etag.clone());
@@ -247,11 +236,6 @@ pub async fn get_tile(
     if if_none_match(&headers, &etag) {
         return Ok((StatusCode::NOT_MODIFIED, common).into_response());
     }
-    let job = TileJob {
-        request,
-        integrator: resolve_integrator(settings.integrator, limits)?,
-        last_pass: pass,
-    };
     job.check_work(limits)?;
     let shared = state.clone();
     let (tile, body, views_count) = state
@@ -301,32 +285,19 @@ pub async fn get_tile(
     ::metrics::counter!(RAYS_TRACED).increment(tile.rays);
     let mut response = (common, body).into_response();
     let h = response.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static(format.content_type()),
-    );
-    let mut number = |name: &'static str, n: u64| {
-        h.insert(HeaderName::from_static(name), HeaderValue::from(n));
-    };
-    number("x-tile-x", u64::from(x));
-    number("x-tile-y", u64::from(y));
-    number("x-rays", tile.rays);
-    number("x-records-created", tile.records_created);
-    number("x-cache-hits", tile.cache_hits);
-    number("x-passes", u64::from(settings.passes));
-    number("x-passes-rendered", u64::from(tile.passes_rendered));
+    tile_headers(h, format, &job, &tile);
     if aov == Aov::Records {
-        number("x-records", views_count as u64);
+        h.insert(X_RECORDS, HeaderValue::from(views_count as u64));
     }
     if (aov, format) == (Aov::StdDev, ImageEncoding::Png) {
         h.insert(
-            HeaderName::from_static("x-std-dev-scale"),
+            X_STD_DEV_SCALE,
             HeaderValue::from_str(&scale.to_string()).expect("a number is a valid header"),
         );
     }
     let millis = started.elapsed().as_secs_f64() * 1e3;
     if let Ok(timing) = HeaderValue::from_str(&format!("render;dur={millis:.1}")) {
-        h.insert(HeaderName::from_static("server-timing"), timing);
+        h.insert(SERVER_TIMING, timing);
     }
     Ok(response)
 }

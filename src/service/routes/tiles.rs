@@ -10,20 +10,18 @@
 use std::sync::Arc;
 
 use axum::extract::State;
-use axum::http::{HeaderName, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use utoipa::ToSchema;
 
 use crate::image::{ImageEncoding, ToneMap};
 use crate::integrator::{IntegratorSpec, Preset};
-use crate::render::{PathDepth, TileRequest};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
-use crate::service::integrator::resolve_integrator;
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::state::AppState;
-use crate::service::tile_render::{TileJob, render_progressive};
+use crate::service::tile_render::{TileParams, render_progressive};
+use crate::service::tile_response::tile_headers;
 
 #[derive(Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -80,7 +78,8 @@ fn default_seed() -> u64 {
     params(("id" = String, Path, description = "Scene id")),
     request_body = TileRequestDoc,
     responses((status = 200, description = "The tile: EXR, PNG or JSON (`{width, height, rgb, variance}`); \
-                headers x-tile-x, x-tile-y, x-rays, x-records-created, x-cache-hits",
+                headers x-tile-x, x-tile-y, x-rays, x-records-created, x-cache-hits, x-passes, \
+                x-passes-rendered",
                content((Vec<u8> = "image/x-exr"), (Vec<u8> = "image/png"), (Object = "application/json"))),
                (status = 404, description = "Unknown scene", body = ErrorBody),
                (status = 422, description = "Invalid request", body = ErrorBody),
@@ -92,58 +91,25 @@ pub async fn tile(
 ) -> Result<Response, ApiError> {
     let scene = state.scene(&id).await?;
     let limits = &state.config.limits;
-    let area = u64::from(doc.width) * u64::from(doc.height);
-    ApiError::check_limit("width*height", area, limits.max_tile_area as u64)?;
-    let settings = doc.preset.unwrap_or_default().settings();
-    let samples_per_pixel = doc.samples_per_pixel.unwrap_or(settings.samples_per_pixel);
-    ApiError::check_limit(
-        "samples_per_pixel",
-        u64::from(samples_per_pixel),
-        limits.max_samples as u64,
-    )?;
     if !doc.exposure.is_finite() {
         return Err(ApiError::invalid("exposure", "must be a finite number"));
     }
     let tone_map = ToneMap {
         exposure: doc.exposure,
     };
-    // An explicit sample count is one pass of that many rays; otherwise the
-    // preset's passes, up to `pass`.
-    let passes = match doc.samples_per_pixel {
-        Some(_) => 1,
-        None => settings.passes,
-    };
-    let pass = doc.pass.unwrap_or(passes - 1);
-    if pass >= passes {
-        return Err(ApiError::invalid(
-            "pass",
-            format!("{pass} is not in 0..{passes}"),
-        ));
-    }
-    let rectangle = TileRequest {
+    let params = TileParams {
         x: doc.x,
         y: doc.y,
         width: doc.width,
         height: doc.height,
-        samples_per_pixel,
-        max_depth: settings.max_depth,
+        preset: doc.preset.unwrap_or_default(),
+        samples_per_pixel: doc.samples_per_pixel,
+        pass: doc.pass,
+        max_depth: doc.max_depth,
         seed: doc.seed,
-        pass: 0,
+        estimator: doc.estimator,
     };
-    // Checked here too, so a bad rectangle never takes a CPU slot; then the
-    // depth, so a request with several bad fields is told of the rectangle.
-    rectangle.validate(scene.transport.scene().camera.resolution())?;
-    let request = TileRequest {
-        max_depth: doc
-            .max_depth
-            .map_or(Ok(settings.max_depth), PathDepth::new)?,
-        ..rectangle
-    };
-    let job = TileJob {
-        request,
-        integrator: resolve_integrator(doc.estimator.over(settings.integrator), limits)?,
-        last_pass: pass,
-    };
+    let job = params.job(scene.transport.scene().camera.resolution(), limits)?;
     job.check_work(limits)?;
     let format = doc.format;
     let shared = state.clone();
@@ -156,32 +122,7 @@ pub async fn tile(
         })
         .await??;
     ::metrics::counter!(RAYS_TRACED).increment(tile.rays);
-    let number = |n: u64| HeaderValue::from(n);
-    Ok((
-        [
-            (
-                header::CONTENT_TYPE,
-                HeaderValue::from_static(format.content_type()),
-            ),
-            (
-                HeaderName::from_static("x-tile-x"),
-                number(u64::from(doc.x)),
-            ),
-            (
-                HeaderName::from_static("x-tile-y"),
-                number(u64::from(doc.y)),
-            ),
-            (HeaderName::from_static("x-rays"), number(tile.rays)),
-            (
-                HeaderName::from_static("x-records-created"),
-                number(tile.records_created),
-            ),
-            (
-                HeaderName::from_static("x-cache-hits"),
-                number(tile.cache_hits),
-            ),
-        ],
-        body,
-    )
-        .into_response())
+    let mut response = body.into_response();
+    tile_headers(response.headers_mut(), format, &job, &tile);
+    Ok(response)
 }
