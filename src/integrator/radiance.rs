@@ -134,8 +134,11 @@ pub fn radiance_at_points(
     let transport = integrator.transport();
     let path = PathIntegrator::new(transport);
     // The cached integrator, once for every point, with the scene's
-    // secondary cache if the options ask for one.
-    let cached = integrator.cached().copied();
+    // secondary cache if the options ask for one; `None`: path tracing.
+    let cached = match integrator {
+        BoundIntegrator::Cache(cached) => Some(*cached),
+        BoundIntegrator::Path(_) => None,
+    };
     let (secondary, built) = match (&cached, max_depth.after_first_segment()) {
         (Some(integrator), Some(from_point)) => {
             secondary_cache_of(integrator, indirect_paths(from_point), cancel)?
