@@ -2,7 +2,7 @@
 //!
 //! The estimator (`mc`, `qmc` or `bmc`, split or hemisphere decomposition)
 //! is the library's [`EstimatorSpec`]; its behaviour and defaults are
-//! documented in `estimators::estimators`. This route translates the request
+//! documented in `estimators`. This route translates the request
 //! into that spec and the scene's fitted kernels and the service's
 //! quadrature cache, and records the cache's metrics.
 
