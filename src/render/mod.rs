@@ -21,9 +21,11 @@ pub mod environment_prior;
 pub(crate) mod environment_sampling;
 mod error;
 mod film;
+pub mod fresnel;
 mod irradiance;
 pub(crate) mod lights;
 mod mean;
+pub mod microfacet;
 mod path;
 #[doc(hidden)]
 pub mod polygon;
