@@ -15,6 +15,7 @@
 //! the `integrator` module.
 
 mod bsdf;
+pub mod bsdfs;
 mod cancel;
 mod distribution;
 pub mod environment_prior;
