@@ -6,6 +6,7 @@
 //! solid-angle density its `sample` draws with) and `sample`.
 
 pub mod rough_conductor;
+pub mod rough_dielectric;
 
 use glam::DVec3;
 
