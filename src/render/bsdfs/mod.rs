@@ -5,6 +5,7 @@
 //! offers `eval` (the BSDF value, sr⁻¹, without the cosine), `pdf` (the
 //! solid-angle density its `sample` draws with) and `sample`.
 
+pub mod ior;
 pub mod rough_conductor;
 pub mod rough_dielectric;
 
