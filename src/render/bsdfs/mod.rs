@@ -5,6 +5,8 @@
 //! offers `eval` (the BSDF value, sr⁻¹, without the cosine), `pdf` (the
 //! solid-angle density its `sample` draws with) and `sample`.
 
+pub mod conductor;
+pub mod dielectric;
 pub mod ior;
 pub mod rough_conductor;
 pub mod rough_dielectric;
@@ -14,14 +16,23 @@ use glam::DVec3;
 use super::rgb::Rgb;
 
 /// A direction drawn by a lobe's `sample`, with its BSDF value and density.
+///
+/// For a delta lobe (a smooth mirror or interface) `value` and `pdf` are
+/// the weights of the Dirac deltas they share, so `value · |cos θ_i| / pdf`
+/// is the sample's throughput as for any other lobe, while `eval` and `pdf`
+/// of a delta lobe are zero for every pair of directions.
 #[derive(Clone, Copy, Debug)]
 pub struct LobeSample {
     /// Incident direction, local frame.
     pub wi: DVec3,
     /// `f(ω_o, ω_i)`, sr⁻¹ (not multiplied by the cosine).
     pub value: Rgb,
-    /// Solid-angle density of `wi`, sr⁻¹.
+    /// Solid-angle density of `wi`, sr⁻¹ (a discrete probability for a
+    /// delta lobe).
     pub pdf: f64,
+    /// Whether `wi` was chosen by a Dirac delta (no light sample can hit
+    /// it, so MIS gives it full weight).
+    pub delta: bool,
 }
 
 /// `v` reflected about the unit normal `n`: `2 (v·n) n − v`.

@@ -94,6 +94,7 @@ impl RoughConductor {
             wi,
             value: self.eval(wo, wi),
             pdf,
+            delta: false,
         })
     }
 }

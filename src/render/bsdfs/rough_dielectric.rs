@@ -161,6 +161,7 @@ impl RoughDielectric {
             wi,
             value: self.eval(wo, wi),
             pdf,
+            delta: false,
         })
     }
 }

@@ -1,0 +1,69 @@
+//! `conductor`: a smooth metal, a perfect mirror weighted by the
+//! conductor's complex Fresnel reflectance (`fresnel::conductor`): all light
+//! from `ω_o` leaves along its mirror direction `(−ω_{o,x}, −ω_{o,y}, ω_{o,z})`.
+//!
+//! Parameters (Mitsuba 3's names): `eta`, `k` (the complex index per RGB
+//! channel, relative to the outside), `specular_reflectance` (a factor,
+//! default 1).
+
+use glam::DVec3;
+
+use super::LobeSample;
+use crate::render::fresnel;
+use crate::render::rgb::Rgb;
+
+/// A smooth conductor; see the module docs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Conductor {
+    pub eta: Rgb,
+    pub k: Rgb,
+    pub specular_reflectance: Rgb,
+}
+
+impl Conductor {
+    /// Fresnel reflectance per channel at `cos_i`, times `specular_reflectance`.
+    pub fn reflectance(&self, cos_i: f64) -> Rgb {
+        let f = |eta: f64, k: f64| fresnel::conductor(cos_i, eta, k);
+        Rgb::new(
+            f(self.eta.r, self.k.r),
+            f(self.eta.g, self.k.g),
+            f(self.eta.b, self.k.b),
+        ) * self.specular_reflectance
+    }
+
+    /// The mirror direction with the delta's weight: `value · cos θ_i /
+    /// pdf` is the Fresnel reflectance. `None` from below the surface.
+    pub fn sample(&self, wo: DVec3) -> Option<LobeSample> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        Some(LobeSample {
+            wi: DVec3::new(-wo.x, -wo.y, wo.z),
+            value: self.reflectance(wo.z) * (1.0 / wo.z),
+            pdf: 1.0,
+            delta: true,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_mirror_returns_the_fresnel_reflectance() {
+        let gold = Conductor {
+            eta: Rgb::new(0.18, 0.42, 1.37),
+            k: Rgb::new(3.42, 2.35, 1.77),
+            specular_reflectance: Rgb::WHITE,
+        };
+        let wo = DVec3::new(0.6, 0.0, 0.8);
+        let s = gold.sample(wo).unwrap();
+        assert_eq!(s.wi, DVec3::new(-0.6, 0.0, 0.8));
+        let throughput = s.value * (s.wi.z / s.pdf);
+        let expected = gold.reflectance(0.8);
+        assert!((throughput - expected).max_component().abs() < 1e-12);
+        assert!(s.delta && expected.r > expected.b && expected.r < 1.0);
+        assert!(gold.sample(DVec3::new(0.6, 0.0, -0.8)).is_none());
+    }
+}
