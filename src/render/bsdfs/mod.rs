@@ -11,6 +11,9 @@ pub mod ior;
 pub mod rough_conductor;
 pub mod rough_dielectric;
 
+#[cfg(test)]
+mod mitsuba_agreement;
+
 use glam::DVec3;
 
 use super::rgb::Rgb;

@@ -5,7 +5,7 @@
 //! `f(ω_o, ω_i) = F(ω_i·m) D(m) G(ω_i, ω_o, m) / (4 cos θ_i cos θ_o)`,
 //! `m = (ω_i + ω_o)/|ω_i + ω_o|`,
 //!
-//! with `G` the height-correlated Smith term. Sampling draws `m` from the
+//! with `G` the separable Smith term (`microfacet`). Sampling draws `m` from the
 //! distribution's own strategy (`microfacet`: GGX visible normals) and
 //! reflects `ω_o` about it; the density of `ω_i` is that of `m` times the
 //! Jacobian `1/(4 |ω_o·m|)` of the reflection (Walter et al. 2007, eq. 14).

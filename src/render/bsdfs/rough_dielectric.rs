@@ -8,8 +8,8 @@
 //!   (ω_i·m + ω_o·m / η')²) / η'²`, with `η'` the index of `ω_i`'s side over
 //!   `ω_o`'s and `m ∝ η' ω_i + ω_o` the generalised half vector;
 //!
-//! `F` the dielectric Fresnel reflectance at `ω_o·m` and `G` the
-//! height-correlated Smith term. The `1/η'²` makes radiance, not importance,
+//! `F` the dielectric Fresnel reflectance at `ω_o·m` and `G` the separable
+//! Smith term (`microfacet`). The `1/η'²` makes radiance, not importance,
 //! cross the interface: `f(a, b) / n(a)² = f(b, a) / n(b)²` (generalised
 //! reciprocity, Veach 1997 §5.2), which the tests check.
 //!
@@ -66,10 +66,12 @@ impl RoughDielectric {
         }
     }
 
-    /// Smith's height-correlated masking-shadowing for any sides (Λ
-    /// depends on the slope of a direction only).
+    /// Smith's separable masking-shadowing (`microfacet`) for directions
+    /// on either side: Λ depends on a direction's slope only, and the side
+    /// conditions are checked with the half vector.
     fn g(&self, a: DVec3, b: DVec3) -> f64 {
-        1.0 / (1.0 + self.distribution.lambda(a) + self.distribution.lambda(b))
+        let g1 = |w: DVec3| 1.0 / (1.0 + self.distribution.lambda(w));
+        g1(a) * g1(b)
     }
 
     /// The generalised half vector of a refraction, facing up, if both
