@@ -8,6 +8,7 @@
 pub mod conductor;
 pub mod dielectric;
 pub mod ior;
+pub mod metals;
 pub mod rough_conductor;
 pub mod rough_dielectric;
 
