@@ -11,6 +11,7 @@ pub mod ior;
 pub mod metals;
 pub mod rough_conductor;
 pub mod rough_dielectric;
+pub mod thin_dielectric;
 
 #[cfg(test)]
 mod mitsuba_agreement;
