@@ -89,6 +89,24 @@ mod tests {
     }
 
     #[test]
+    fn events_agree_with_mitsuba() {
+        // Mitsuba 3.9.1's `dielectric` (int_ior 1.5) sampled from
+        // ω_o = (0.6, 0, 0.8): reflection with probability 0.0438947,
+        // refraction along (−0.4, 0, −0.916515) with throughput 1/2.25.
+        let wo = DVec3::new(0.6, 0.0, 0.8);
+        let r = glass().sample(wo, 0.0).unwrap();
+        assert!((r.pdf - 0.043_894_73).abs() < 1e-7, "{}", r.pdf);
+        let t = glass().sample(wo, 0.99).unwrap();
+        assert!((t.wi - DVec3::new(-0.4, 0.0, -0.916_515_1)).length() < 1e-6);
+        // From inside, (0.3, −0.2, −0.932738): refraction out with throughput 2.25.
+        let inside = DVec3::new(0.3, -0.2, -(0.87f64.sqrt()));
+        let out = glass().sample(inside, 0.99).unwrap();
+        assert!((out.wi - DVec3::new(-0.45, 0.3, 0.841_130_1)).length() < 1e-6);
+        assert!((out.value.g * out.wi.z.abs() / out.pdf - 2.25).abs() < 1e-9);
+        assert!((out.pdf - 0.957_746_1).abs() < 1e-6, "{}", out.pdf);
+    }
+
+    #[test]
     fn light_inside_past_the_critical_angle_is_always_reflected() {
         let theta = PI - 1.0; // 57° from the inward normal, past 41.8°
         let wo = DVec3::new(theta.sin(), 0.0, theta.cos());

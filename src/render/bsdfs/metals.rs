@@ -197,5 +197,12 @@ mod tests {
         assert!(silver.iter().all(|&r| r > 0.9), "{silver:?}");
         assert_eq!(normal_reflectance("none"), [1.0; 3]);
         assert!(named_metal("au").is_none() && named_metal("Unobtainium").is_none());
+        // Mitsuba 3.9.1's `conductor` with material Au reflects
+        // (0.966069, 0.801277, 0.329045) at cos θ = 0.8.
+        let (eta, k) = named_metal("Au").unwrap();
+        let at_08 = [0, 1, 2].map(|c| fresnel::conductor(0.8, eta[c], k[c]));
+        for (ours, theirs) in at_08.iter().zip([0.966_069, 0.801_277, 0.329_045]) {
+            assert!((ours - theirs).abs() < 2e-5, "{at_08:?}");
+        }
     }
 }

@@ -82,6 +82,10 @@ mod tests {
         assert!((through.value.g * through.wi.z.abs() / through.pdf - 1.0).abs() < 1e-12);
         let back = slab.sample(wo, 0.0).unwrap();
         assert_eq!(back.wi, DVec3::new(-0.6, 0.0, 0.8));
+        // Mitsuba 3.9.1's `thindielectric` (int_ior 1.5) reflects with
+        // probability 0.0840980 from (0.6, 0, 0.8) and 0.0775437 from (0.3, −0.2, −0.932738).
+        assert!((slab.reflectance(0.8) - 0.084_098).abs() < 1e-6);
+        assert!((slab.reflectance(-(0.87f64.sqrt())) - 0.077_543_7).abs() < 1e-6);
         // Seen from either side alike.
         assert_eq!(slab.reflectance(-0.8), slab.reflectance(0.8));
     }
