@@ -9,6 +9,7 @@ pub mod conductor;
 pub mod dielectric;
 pub mod ior;
 pub mod metals;
+pub mod plastic;
 pub mod rough_conductor;
 pub mod rough_dielectric;
 pub mod thin_dielectric;
