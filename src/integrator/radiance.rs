@@ -36,6 +36,7 @@ use crate::render::{
     Transport,
 };
 use crate::scene::{Ray, SurfaceHit};
+use crate::sphere::Frame;
 
 /// Probe distance relative to the scene's bounding-box diagonal.
 pub const PROBE_RELATIVE: f64 = 1e-4;
@@ -184,7 +185,13 @@ pub fn radiance_at_points(
             let mean = MeanEstimate::of_evaluations(values);
             let mut variance = mean.variance_of_mean;
             if let Some(integrator) = cached {
-                variance += record_variance(transport, hit, integrator.cache, integrator.shading)?;
+                variance += record_variance(
+                    transport,
+                    hit,
+                    query.direction,
+                    integrator.cache,
+                    integrator.shading,
+                )?;
             }
             Ok(RadianceEstimate {
                 radiance: mean.mean,
@@ -196,25 +203,30 @@ pub fn radiance_at_points(
     Ok((estimates, built))
 }
 
-/// `(k_d/π)² V` of the records interpolated at the hit (zero where the
-/// material has no diffuse part or no record covers the point).
+/// `(ρ/π)² V` of the records interpolated at the hit seen from the world
+/// direction `wo`, `ρ` the BSDF's Lambertian part there (zero where it has
+/// none or no record covers the point).
 fn record_variance(
     transport: &Transport,
     hit: &SurfaceHit,
+    wo: DVec3,
     cache: &IrradianceCache,
     shading: &CachedShading,
 ) -> Result<Rgb, RenderError> {
     let Some(bsdf) = transport.bsdf(hit.material) else {
         return Ok(Rgb::BLACK);
     };
-    if bsdf.diffuse.is_black() {
+    let wo_local = Frame::from_normal(hit.shading_normal).to_local(wo);
+    let rho = bsdf.lambertian(wo_local);
+    if rho.is_black() {
         return Ok(Rgb::BLACK);
     }
     let accuracy = shading.accuracy();
-    let point = QueryPoint::new(hit.position, hit.shading_normal)?;
-    Ok(cache.lookup(&point, accuracy).map_or(Rgb::BLACK, |i| {
-        i.variance * (bsdf.diffuse / PI) * (bsdf.diffuse / PI)
-    }))
+    let normal = hit.shading_normal * wo_local.z.signum();
+    let point = QueryPoint::new(hit.position, normal)?;
+    Ok(cache
+        .lookup(&point, accuracy)
+        .map_or(Rgb::BLACK, |i| i.variance * (rho / PI) * (rho / PI)))
 }
 
 #[cfg(test)]

@@ -1,224 +1,327 @@
-//! Reflection models: Lambert plus an optional normalised modified-Phong lobe.
+//! The BSDF interface: every scene material as one value with `eval`,
+//! `pdf`, `sample`, its flags and the Lambertian part the irradiance cache
+//! multiplies irradiance with. Each model lives in its own file of
+//! `render::bsdfs` (Mitsuba 3's plugin names); this enum only dispatches.
 //!
-//! `f_r(ω_o, ω_i) = k_d/π + k_s (m+2)/(2π) cos^m α`, with `α` the angle
-//! between `ω_i` and the mirror direction of `ω_o` (docs/math.md §1;
-//! Lafortune & Willems 1994). A purely diffuse material has `k_s = 0`.
+//! All directions are unit vectors in the **local frame** (z = the shading
+//! normal as authored) and point away from the surface; `ω_i` below the
+//! surface (`z < 0`) is transmission. Values are `f(ω_o, ω_i)` in sr⁻¹,
+//! without the cosine, in the radiance convention (Veach 1997 §5.2: light
+//! refracted into a denser medium is concentrated by `1/η²`).
 //!
-//! All directions are unit vectors in the **local frame** (z = the geometric
-//! normal as authored) and both point away from the surface.
-//!
-//! **One-sided**, like Mitsuba 3's `diffuse` and `phong`-style BSDFs: when
-//! `ω_o` or `ω_i` lies below the surface (`z ≤ 0`) the BSDF is zero, so the
-//! back of a surface is black. Matching this convention is what makes our
-//! numbers comparable with Mitsuba's (docs/VALIDATION.md).
+//! Surfaces are **one-sided** unless the material transmits or is
+//! `twosided`, like Mitsuba 3's: seen from below, a plain BSDF is black.
 
 use glam::DVec3;
 
+use super::bsdfs::conductor::Conductor;
+use super::bsdfs::dielectric::Dielectric;
+use super::bsdfs::phong::Phong;
+use super::bsdfs::plastic::Plastic;
+use super::bsdfs::rough_conductor::RoughConductor;
+use super::bsdfs::rough_dielectric::RoughDielectric;
+use super::bsdfs::rough_plastic::RoughPlastic;
+use super::bsdfs::thin_dielectric::ThinDielectric;
+pub use super::bsdfs::LobeSample;
+use super::microfacet::{Microfacet, MicrofacetKind};
 use super::rgb::Rgb;
-use super::warp;
+use crate::scene::material::{Distribution, Roughness};
 use crate::scene::Material;
-use crate::sphere::Frame;
-use std::f64::consts::{FRAC_1_PI, TAU};
 
-/// Lambert + normalised Phong reflection; see the module docs.
-///
-/// Invariant (checked by [`Bsdf::new`] callers through the scene loader):
-/// reflectances are finite and non-negative and `exponent ≥ 0`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Bsdf {
-    /// Diffuse reflectance `k_d` (the diffuse albedo).
-    pub diffuse: Rgb,
-    /// Specular reflectance `k_s`: the lobe's albedo when it lies entirely
-    /// above the surface.
-    pub specular: Rgb,
-    /// Phong exponent `m`; larger is shinier.
-    pub exponent: f64,
-    /// Probability of sampling the Phong lobe rather than the cosine lobe,
-    /// proportional to the lobes' luminance-weighted albedos.
-    specular_probability: f64,
+/// What kinds of scattering a BSDF has.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BsdfFlags {
+    /// A Lambertian part (the irradiance cache serves it).
+    pub diffuse: bool,
+    /// A part spread over directions but not Lambertian (microfacets, Phong).
+    pub glossy: bool,
+    /// Dirac deltas (mirrors, smooth interfaces): no light sample reaches them.
+    pub delta: bool,
+    /// Light passes through the surface.
+    pub transmission: bool,
 }
 
-/// A direction drawn by [`Bsdf::sample`] with its BSDF value and density.
-#[derive(Clone, Copy, Debug)]
-pub struct BsdfSample {
-    /// Sampled incident direction, local frame, `z > 0`.
-    pub wi: DVec3,
-    /// `f_r(ω_o, ω_i)` in sr⁻¹ (not multiplied by the cosine).
-    pub value: Rgb,
-    /// Solid-angle density of the combined sampling strategy, sr⁻¹.
-    pub pdf: f64,
+impl BsdfFlags {
+    fn union(self, other: Self) -> Self {
+        Self {
+            diffuse: self.diffuse || other.diffuse,
+            glossy: self.glossy || other.glossy,
+            delta: self.delta || other.delta,
+            transmission: self.transmission || other.transmission,
+        }
+    }
+}
+
+/// A surface's BSDF; see the module docs.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Bsdf {
+    /// Lambert plus a normalised Phong lobe (the JSON `diffuse` and `glossy`).
+    Phong(Phong),
+    Conductor(Conductor),
+    RoughConductor(RoughConductor),
+    Dielectric(Dielectric),
+    ThinDielectric(ThinDielectric),
+    RoughDielectric(RoughDielectric),
+    Plastic(Plastic),
+    RoughPlastic(RoughPlastic),
+    /// `[front, back]`: the back BSDF sees the surface turned around.
+    TwoSided(Box<[Bsdf; 2]>),
+}
+
+/// `w` seen from the other side of the surface.
+fn flip(w: DVec3) -> DVec3 {
+    DVec3::new(w.x, w.y, -w.z)
 }
 
 impl Bsdf {
-    pub fn new(diffuse: Rgb, specular: Rgb, exponent: f64) -> Self {
-        let (d, s) = (diffuse.luminance().max(0.0), specular.luminance().max(0.0));
-        let specular_probability = if d + s > 0.0 { s / (d + s) } else { 0.0 };
-        Self {
-            diffuse,
-            specular,
-            exponent,
-            specular_probability,
+    /// For a two-sided BSDF, the side `wo` sees and whether directions
+    /// must be turned around for it; the BSDF itself otherwise.
+    fn side(&self, wo: DVec3) -> (&Bsdf, bool) {
+        match self {
+            Bsdf::TwoSided(sides) if wo.z < 0.0 => (&sides[1], true),
+            Bsdf::TwoSided(sides) => (&sides[0], false),
+            other => (other, false),
         }
     }
 
-    pub fn lambert(reflectance: Rgb) -> Self {
-        Self::new(reflectance, Rgb::BLACK, 0.0)
+    /// `f(ω_o, ω_i)`, sr⁻¹; zero for pairs only a Dirac delta connects.
+    pub fn eval(&self, wo: DVec3, wi: DVec3) -> Rgb {
+        match self.side(wo) {
+            (side, true) => side.eval(flip(wo), flip(wi)),
+            (Bsdf::Phong(b), _) => b.eval(wo, wi),
+            (Bsdf::RoughConductor(b), _) => b.eval(wo, wi),
+            (Bsdf::RoughDielectric(b), _) => b.eval(wo, wi),
+            (Bsdf::Plastic(b), _) => b.eval(wo, wi),
+            (Bsdf::RoughPlastic(b), _) => b.eval(wo, wi),
+            (Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_), _) => {
+                Rgb::BLACK
+            }
+            (Bsdf::TwoSided(_), _) => unreachable!("side() resolves two-sided BSDFs"),
+        }
+    }
+
+    /// Solid-angle density (sr⁻¹) with which [`Self::sample`] draws `ω_i`
+    /// by its non-delta parts.
+    pub fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
+        match self.side(wo) {
+            (side, true) => side.pdf(flip(wo), flip(wi)),
+            (Bsdf::Phong(b), _) => b.pdf(wo, wi),
+            (Bsdf::RoughConductor(b), _) => b.pdf(wo, wi),
+            (Bsdf::RoughDielectric(b), _) => b.pdf(wo, wi),
+            (Bsdf::Plastic(b), _) => b.pdf(wo, wi),
+            (Bsdf::RoughPlastic(b), _) => b.pdf(wo, wi),
+            (Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_), _) => 0.0,
+            (Bsdf::TwoSided(_), _) => unreachable!("side() resolves two-sided BSDFs"),
+        }
+    }
+
+    /// Draws `ω_i`: `u_lobe` picks a lobe or event, `u` drives the warp.
+    /// `None` where nothing scatters (from below a one-sided surface, or a
+    /// direction the lobe's warp put where `f = 0`, which keeps estimates
+    /// unbiased).
+    pub fn sample(&self, wo: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<LobeSample> {
+        match self.side(wo) {
+            (side, true) => side.sample(flip(wo), u_lobe, u).map(|s| LobeSample {
+                wi: flip(s.wi),
+                ..s
+            }),
+            (Bsdf::Phong(b), _) => b.sample(wo, u_lobe, u),
+            (Bsdf::Conductor(b), _) => b.sample(wo),
+            (Bsdf::RoughConductor(b), _) => b.sample(wo, u),
+            (Bsdf::Dielectric(b), _) => b.sample(wo, u_lobe),
+            (Bsdf::ThinDielectric(b), _) => b.sample(wo, u_lobe),
+            (Bsdf::RoughDielectric(b), _) => b.sample(wo, u_lobe, u),
+            (Bsdf::Plastic(b), _) => b.sample(wo, u_lobe, u),
+            (Bsdf::RoughPlastic(b), _) => b.sample(wo, u_lobe, u),
+            (Bsdf::TwoSided(_), _) => unreachable!("side() resolves two-sided BSDFs"),
+        }
+    }
+
+    /// The kinds of scattering of either side.
+    pub fn flags(&self) -> BsdfFlags {
+        let none = BsdfFlags::default();
+        match self {
+            Bsdf::Phong(b) => BsdfFlags {
+                diffuse: !b.diffuse.is_black(),
+                glossy: !b.specular.is_black(),
+                ..none
+            },
+            Bsdf::Conductor(_) => BsdfFlags {
+                delta: true,
+                ..none
+            },
+            Bsdf::RoughConductor(_) => BsdfFlags {
+                glossy: true,
+                ..none
+            },
+            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => BsdfFlags {
+                delta: true,
+                transmission: true,
+                ..none
+            },
+            Bsdf::RoughDielectric(_) => BsdfFlags {
+                glossy: true,
+                transmission: true,
+                ..none
+            },
+            Bsdf::Plastic(_) => BsdfFlags {
+                diffuse: true,
+                delta: true,
+                ..none
+            },
+            Bsdf::RoughPlastic(_) => BsdfFlags {
+                diffuse: true,
+                glossy: true,
+                ..none
+            },
+            Bsdf::TwoSided(sides) => sides[0].flags().union(sides[1].flags()),
+        }
     }
 
     /// True when the material reflects nothing, so paths can stop here.
     pub fn is_black(&self) -> bool {
-        self.diffuse.is_black() && self.specular.is_black()
+        matches!(self, Bsdf::Phong(b) if b.is_black())
     }
 
-    /// `f_r(ω_o, ω_i)`, sr⁻¹; zero unless both directions are above the surface.
-    pub fn eval(&self, wo: DVec3, wi: DVec3) -> Rgb {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Rgb::BLACK;
+    /// Whether `ω_o` sees a side that scatters light at all (a one-sided
+    /// BSDF seen from below does not).
+    pub fn scatters_towards(&self, wo: DVec3) -> bool {
+        match self.side(wo) {
+            (_, true) => true,
+            (side, _) => side.flags().transmission || wo.z > 0.0,
         }
-        let mut f = self.diffuse * FRAC_1_PI;
-        if self.specular_probability > 0.0 {
-            let cos_alpha = wi.dot(mirror(wo));
-            if cos_alpha > 0.0 {
-                let lobe = (self.exponent + 2.0) / TAU * cos_alpha.powf(self.exponent);
-                f += self.specular * lobe;
-            }
-        }
-        f
     }
 
-    /// Density (sr⁻¹) with which [`Bsdf::sample`] draws `wi`; zero below the
-    /// surface, where the sampler returns no direction.
-    pub fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        let ps = self.specular_probability;
-        let mut pdf = (1.0 - ps) * warp::cosine_hemisphere_pdf(wi);
-        if ps > 0.0 {
-            pdf += ps * warp::power_cosine_pdf(wi.dot(mirror(wo)), self.exponent);
-        }
-        pdf
-    }
-
-    /// Draws `wi` from the mixture of a cosine lobe and the Phong lobe.
+    /// The Lambertian part `ρ(ω_o)` of the BSDF seen from `ω_o`: for every
+    /// `ω_i` on `ω_o`'s side, `f(ω_o, ω_i) = ρ(ω_o)/π + r(ω_o, ω_i)`, and the
+    /// irradiance cache estimates `ρ E/π` from its records while the rest
+    /// `r` (possibly negative) is sampled (docs/math.md §18.3).
     ///
-    /// `u_lobe` picks the lobe, `u` drives the warp. Returns `None` when `ω_o`
-    /// is below the surface or the Phong lobe produced a direction below it
-    /// (that mass has `f_r = 0`, so dropping it keeps the estimate unbiased).
-    pub fn sample(&self, wo: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<BsdfSample> {
-        if wo.z <= 0.0 || self.is_black() {
-            return None;
+    /// - Phong: its diffuse albedo; `r` is the Phong lobe.
+    /// - Plastic: `(1 − F(θ_o))(1 − F(0)) ρ'/η²` (the base with the
+    ///   coating's transmission at normal incidence, its largest): `r =
+    ///   −(1 − F(θ_o))(F(θ_i) − F(0)) ρ'/(π η²) ≤ 0` is small except at grazing `θ_i`.
+    /// - Rough plastic: likewise with the rough coating's transmittance
+    ///   `T(θ_o) max T`; `r` is the coating's lobe plus the base's loss
+    ///   towards grazing.
+    /// - Everything else: zero.
+    pub fn lambertian(&self, wo: DVec3) -> Rgb {
+        match self.side(wo) {
+            (side, true) => side.lambertian(flip(wo)),
+            (Bsdf::Phong(b), _) if wo.z > 0.0 => b.diffuse,
+            (Bsdf::Plastic(b), _) if wo.z > 0.0 => b.lambertian(wo.z),
+            (Bsdf::RoughPlastic(b), _) if wo.z > 0.0 => b.lambertian(wo.z),
+            _ => Rgb::BLACK,
         }
-        let wi = if u_lobe < self.specular_probability {
-            let r = mirror(wo);
-            Frame::from_normal(r).to_world(warp::power_cosine(u, self.exponent))
-        } else {
-            warp::cosine_hemisphere(u)
-        };
-        if wi.z <= 0.0 {
-            return None;
-        }
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| BsdfSample {
-            wi,
-            value: self.eval(wo, wi),
-            pdf,
-        })
     }
+
+    /// The Phong model behind this BSDF, which the cache integrates by
+    /// BMC with its lobe as the density.
+    pub fn phong(&self) -> Option<&Phong> {
+        match self {
+            Bsdf::Phong(b) => Some(b),
+            _ => None,
+        }
+    }
+}
+
+/// The distribution of `r`, or `None` when the roughness is below what
+/// the microfacet models resolve (the smooth model is used instead).
+fn microfacet(r: Roughness) -> Option<Microfacet> {
+    let kind = match r.distribution {
+        Distribution::Beckmann => MicrofacetKind::Beckmann,
+        Distribution::Ggx => MicrofacetKind::Ggx,
+    };
+    Microfacet::new(kind, r.alpha_u, r.alpha_v)
 }
 
 impl From<&Material> for Bsdf {
     fn from(material: &Material) -> Self {
+        let rgb = |c: &[f64; 3]| Rgb::from_array(*c);
         match material {
-            Material::Diffuse { reflectance } => Bsdf::lambert(Rgb::from_array(*reflectance)),
+            Material::Diffuse { reflectance } => Bsdf::Phong(Phong::lambert(rgb(reflectance))),
             Material::Glossy {
                 diffuse,
                 specular,
                 exponent,
-            } => Bsdf::new(
-                Rgb::from_array(*diffuse),
-                Rgb::from_array(*specular),
-                *exponent,
-            ),
+            } => Bsdf::Phong(Phong::new(rgb(diffuse), rgb(specular), *exponent)),
+            Material::Conductor {
+                eta,
+                k,
+                specular_reflectance,
+                roughness,
+            } => {
+                let (eta, k, specular_reflectance) = (rgb(eta), rgb(k), rgb(specular_reflectance));
+                match roughness.and_then(microfacet) {
+                    Some(distribution) => Bsdf::RoughConductor(RoughConductor {
+                        distribution,
+                        eta,
+                        k,
+                        specular_reflectance,
+                    }),
+                    None => Bsdf::Conductor(Conductor {
+                        eta,
+                        k,
+                        specular_reflectance,
+                    }),
+                }
+            }
+            Material::Dielectric {
+                eta,
+                specular_reflectance,
+                specular_transmittance,
+                roughness,
+                thin,
+            } => {
+                let (eta, specular_reflectance, specular_transmittance) = (
+                    *eta,
+                    rgb(specular_reflectance),
+                    rgb(specular_transmittance),
+                );
+                match (thin, roughness.and_then(microfacet)) {
+                    (true, _) => Bsdf::ThinDielectric(ThinDielectric {
+                        eta,
+                        specular_reflectance,
+                        specular_transmittance,
+                    }),
+                    (false, Some(distribution)) => Bsdf::RoughDielectric(RoughDielectric {
+                        distribution,
+                        eta,
+                        specular_reflectance,
+                        specular_transmittance,
+                    }),
+                    (false, None) => Bsdf::Dielectric(Dielectric {
+                        eta,
+                        specular_reflectance,
+                        specular_transmittance,
+                    }),
+                }
+            }
+            Material::Plastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                eta,
+                nonlinear,
+                roughness,
+            } => {
+                let (diffuse, specular) = (rgb(diffuse_reflectance), rgb(specular_reflectance));
+                match roughness.and_then(microfacet) {
+                    Some(distribution) => Bsdf::RoughPlastic(RoughPlastic::new(
+                        distribution,
+                        diffuse,
+                        specular,
+                        *eta,
+                        *nonlinear,
+                    )),
+                    None => Bsdf::Plastic(Plastic::new(diffuse, specular, *eta, *nonlinear)),
+                }
+            }
+            Material::TwoSided { front, back } => {
+                Bsdf::TwoSided(Box::new([Bsdf::from(&**front), Bsdf::from(&**back)]))
+            }
         }
     }
-}
-
-/// Mirror direction of `wo` about the local normal z.
-fn mirror(wo: DVec3) -> DVec3 {
-    DVec3::new(-wo.x, -wo.y, wo.z)
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use rand::{RngExt, SeedableRng};
-    use rand_pcg::Pcg64;
-
-    fn integrate_hemisphere(f: impl Fn(DVec3) -> f64) -> f64 {
-        warp::integrate_directions(f, 0.0, 2000, 256)
-    }
-
-    fn glossy() -> Bsdf {
-        Bsdf::new(Rgb::new(0.3, 0.2, 0.1), Rgb::new(0.4, 0.5, 0.6), 20.0)
-    }
-
-    #[test]
-    fn albedo_at_normal_incidence_is_kd_plus_ks() {
-        // ∫ f cos dω with ω_o = n: the Phong lobe is centred on n, and
-        // (m+2)/(2π) ∫ cos^{m+1} θ dω = 1 exactly.
-        for bsdf in [Bsdf::lambert(Rgb::new(0.8, 0.5, 0.2)), glossy()] {
-            let expected = bsdf.diffuse + bsdf.specular;
-            let got = [0, 1, 2]
-                .map(|c| integrate_hemisphere(|wi| bsdf.eval(DVec3::Z, wi).to_array()[c] * wi.z));
-            for c in 0..3 {
-                assert!(
-                    (got[c] - expected.to_array()[c]).abs() < 1e-4,
-                    "{got:?} vs {expected:?}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn sampling_density_integrates_to_one_at_normal_incidence() {
-        let total = integrate_hemisphere(|wi| glossy().pdf(DVec3::Z, wi));
-        assert!((total - 1.0).abs() < 1e-4, "{total}");
-        // At grazing incidence part of the lobe falls below the surface.
-        let wo = DVec3::new(0.9, 0.0, 0.1f64).normalize();
-        let total = integrate_hemisphere(|wi| glossy().pdf(wo, wi));
-        assert!(total < 1.0 && total > 0.5, "{total}");
-    }
-
-    #[test]
-    fn importance_sampling_reproduces_the_albedo() {
-        let bsdf = glossy();
-        let wo = DVec3::new(0.5, -0.2, 0.8).normalize();
-        let reference = integrate_hemisphere(|wi| bsdf.eval(wo, wi).g * wi.z);
-        let mut rng = Pcg64::seed_from_u64(7);
-        let n = 200_000;
-        let mut sum = 0.0;
-        for _ in 0..n {
-            if let Some(s) = bsdf.sample(wo, rng.random(), [rng.random(), rng.random()]) {
-                assert!((s.pdf - bsdf.pdf(wo, s.wi)).abs() < 1e-9 * s.pdf);
-                sum += s.value.g * s.wi.z / s.pdf;
-            }
-        }
-        let estimate = sum / n as f64;
-        assert!(
-            (estimate - reference).abs() < 0.01 * reference,
-            "{estimate} vs {reference}"
-        );
-    }
-
-    #[test]
-    fn back_side_is_black() {
-        let below = DVec3::new(0.0, 0.6, -0.8);
-        let above = DVec3::new(0.0, 0.6, 0.8);
-        let bsdf = glossy();
-        assert!(bsdf.eval(below, above).is_black());
-        assert!(bsdf.eval(above, below).is_black());
-        assert_eq!(bsdf.pdf(above, below), 0.0);
-        assert!(bsdf.sample(below, 0.5, [0.3, 0.3]).is_none());
-    }
-}
+mod tests;

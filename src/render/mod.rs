@@ -40,7 +40,7 @@ mod transport;
 #[doc(hidden)]
 pub mod warp;
 
-pub use bsdf::{Bsdf, BsdfSample};
+pub use bsdf::{Bsdf, BsdfFlags, LobeSample};
 pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};

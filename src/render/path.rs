@@ -363,26 +363,31 @@ impl Transport {
             };
             // Reflection happens in the shading frame (interpolated mesh
             // normals where present), as in Mitsuba 3; rays still leave
-            // from the geometric surface.
+            // from the geometric surface, on the side of their direction.
             let frame = Frame::from_normal(hit.shading_normal);
             let wo = frame.to_local(-dir);
-            if wo.z <= 0.0 || bsdf.is_black() {
-                // Back faces are black (one-sided BSDFs, as in Mitsuba 3).
+            if !bsdf.scatters_towards(wo) || bsdf.is_black() {
+                // Back faces of one-sided BSDFs are black, as in Mitsuba 3.
                 break;
             }
+            let flags = bsdf.flags();
 
-            // Next-event estimation: a path of length depth + 1 ending on a light.
-            let u_select = rng.random();
-            let mut u = [rng.random(), rng.random()];
-            if depth == 1 {
-                u = first.light(u);
-            }
-            if let Some(light) = self.lights().sample(scene, hit.position, u_select, u) {
-                let wi = frame.to_local(light.wi);
-                let f = bsdf.eval(wo, wi);
-                if !f.is_black() && light.visible_from(scene, hit.position, hit.normal, stats) {
-                    let weight = power_heuristic(light.pdf, bsdf.pdf(wo, wi));
-                    radiance += beta * f * light.radiance * (wi.z * weight / light.pdf);
+            // Next-event estimation: a path of length depth + 1 ending on a
+            // light, for the parts a light sample can reach (not deltas).
+            if flags.diffuse || flags.glossy {
+                let u_select = rng.random();
+                let mut u = [rng.random(), rng.random()];
+                if depth == 1 {
+                    u = first.light(u);
+                }
+                if let Some(light) = self.lights().sample(scene, hit.position, u_select, u) {
+                    let wi = frame.to_local(light.wi);
+                    let f = bsdf.eval(wo, wi);
+                    if !f.is_black() && light.visible_from(scene, hit.position, hit.normal, stats)
+                    {
+                        let weight = power_heuristic(light.pdf, bsdf.pdf(wo, wi));
+                        radiance += beta * f * light.radiance * (wi.z.abs() * weight / light.pdf);
+                    }
                 }
             }
 
@@ -395,7 +400,7 @@ impl Transport {
             let Some(sample) = bsdf.sample(wo, lobe, u) else {
                 break;
             };
-            beta *= sample.value * (sample.wi.z / sample.pdf);
+            beta *= sample.value * (sample.wi.z.abs() / sample.pdf);
             if depth >= ROULETTE_START {
                 let max = beta.max_component();
                 if max < 1.0 {
@@ -410,21 +415,27 @@ impl Transport {
             let ray = scene.spawn_ray(origin, hit.normal, frame.to_world(sample.wi));
             dir = ray.dir;
             // Segment depth + 1: light it finds was also reachable by the
-            // light sample above, so both are weighted by the power heuristic.
+            // light sample above, so both are weighted by the power
+            // heuristic, unless a delta chose it, which no light sample can.
+            let mis = |light_pdf: f64| {
+                if sample.delta {
+                    1.0
+                } else {
+                    power_heuristic(sample.pdf, light_pdf)
+                }
+            };
             stats.rays += 1;
             let Some(next) = scene.intersect(&ray) else {
                 let le = environment_radiance(scene, dir);
                 if !le.is_black() {
-                    let weight =
-                        power_heuristic(sample.pdf, self.lights().pdf_environment(scene, dir));
+                    let weight = mis(self.lights().pdf_environment(scene, dir));
                     radiance += beta * le * weight;
                 }
                 break;
             };
             let le = emitted_radiance(scene, &next, dir);
             if !le.is_black() {
-                let weight =
-                    power_heuristic(sample.pdf, self.lights().pdf_area_hit(scene, origin, &next));
+                let weight = mis(self.lights().pdf_area_hit(scene, origin, &next));
                 radiance += beta * le * weight;
             }
             hit = next;

@@ -45,6 +45,14 @@ impl Rgb {
         self.r.max(self.g).max(self.b)
     }
 
+    pub fn min_component(self) -> f64 {
+        self.r.min(self.g).min(self.b)
+    }
+
+    pub fn is_finite(self) -> bool {
+        self.r.is_finite() && self.g.is_finite() && self.b.is_finite()
+    }
+
     pub fn is_black(self) -> bool {
         self.r == 0.0 && self.g == 0.0 && self.b == 0.0
     }

@@ -29,27 +29,17 @@ pub struct SceneDoc {
     pub camera: CameraDoc,
 }
 
-#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum MaterialKind {
-    Diffuse,
-    Glossy,
-}
 
-#[derive(Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A material: its plugin `type` and that plugin's parameters, which
+/// `scene::material` parses and validates (unknown ones are refused there,
+/// naming the field).
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct MaterialDoc {
     pub id: String,
     #[serde(rename = "type")]
-    pub kind: MaterialKind,
-    /// diffuse: albedo in [0, 1] per channel.
-    pub reflectance: Option<Rgb>,
-    /// glossy: diffuse albedo.
-    pub diffuse: Option<Rgb>,
-    /// glossy: albedo of the normalised Phong lobe at normal incidence.
-    pub specular: Option<Rgb>,
-    /// glossy: Phong exponent.
-    pub exponent: Option<f64>,
+    pub kind: String,
+    #[serde(flatten)]
+    pub params: serde_json::Map<String, serde_json::Value>,
 }
 
 #[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]

@@ -1,97 +1,143 @@
-//! Surface materials (BSDFs as data; evaluation and sampling live with the
-//! light transport code).
+//! Surface materials as data: what a scene file says about a surface's
+//! BSDF, validated once here (evaluation and sampling live with the light
+//! transport, `render::bsdf`).
 //!
-//! - `Diffuse`: Lambertian, `f = ρ/π`.
-//! - `Glossy`: diffuse plus a normalised Phong lobe (Lafortune & Willems,
-//!   "Using the modified Phong reflectance model for physically based
-//!   rendering", 1994): `f = ρ_d/π + ρ_s·(n+2)/(2π)·max(0, cos α)ⁿ`, where α is
-//!   the angle between the outgoing direction and the mirror direction of the
-//!   incoming one. With `ρ_d + ρ_s ≤ 1` per channel the BSDF conserves energy,
-//!   which the loader enforces.
+//! A material document is `{"id": …, "type": PLUGIN, PARAMETER: value, …}`
+//! with Mitsuba 3's plugin and parameter names, so a Mitsuba `<bsdf>`
+//! translates into one by copying its properties. Each plugin parses its
+//! own parameters in its own file below (`diffuse.rs`, `conductor.rs`, …),
+//! opening with their docs; [`PLUGINS`] is the registry. Parameters take:
+//! - colours: a number (grey) or `[r, g, b]`, linear RGB;
+//! - indices of refraction: a number or a named medium ([`ior`]);
+//! - metals: `eta` and `k` as colours, or `material`, a named metal ([`metals`]).
+
+mod conductor;
+mod dielectric;
+mod diffuse;
+mod glossy;
+pub mod ior;
+pub mod metals;
+mod params;
+mod plastic;
+mod twosided;
 
 use super::error::SceneError;
-use super::format::{MaterialDoc, MaterialKind, Rgb};
+use super::format::MaterialDoc;
+pub(crate) use params::Params;
 
 /// Largest accepted Phong exponent; beyond it the lobe is a mirror for all
 /// practical purposes and sampling it in f64 loses precision.
 pub const MAX_PHONG_EXPONENT: f64 = 1e6;
 
+/// A linear RGB triple.
+pub type Rgb = [f64; 3];
+
+/// Microfacet normal distributions (Walter et al. 2007).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Distribution {
+    Beckmann,
+    Ggx,
+}
+
+/// A microfacet surface's roughness: distribution and the RMS slopes
+/// along the tangent (`alpha_u`) and bitangent (`alpha_v`), both > 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Roughness {
+    pub distribution: Distribution,
+    pub alpha_u: f64,
+    pub alpha_v: f64,
+}
+
+/// A surface's BSDF with its parameters validated (see each plugin's file
+/// for the meaning of its fields).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Material {
     /// Lambertian reflector; `reflectance` is the albedo in [0, 1] per channel.
-    Diffuse { reflectance: [f64; 3] },
+    Diffuse { reflectance: Rgb },
     /// Diffuse albedo plus a normalised Phong lobe with albedo `specular`
     /// (at normal incidence) and exponent `exponent ≥ 0`.
     Glossy {
-        diffuse: [f64; 3],
-        specular: [f64; 3],
+        diffuse: Rgb,
+        specular: Rgb,
         exponent: f64,
+    },
+    /// A metal: smooth (`roughness: None`, a mirror) or microfacet.
+    Conductor {
+        eta: Rgb,
+        k: Rgb,
+        specular_reflectance: Rgb,
+        roughness: Option<Roughness>,
+    },
+    /// An interface between dielectrics of relative index `eta =
+    /// int_ior / ext_ior`: smooth, microfacet, or a thin slab.
+    Dielectric {
+        eta: f64,
+        specular_reflectance: Rgb,
+        specular_transmittance: Rgb,
+        roughness: Option<Roughness>,
+        thin: bool,
+    },
+    /// A diffuse base under a dielectric coating of relative index `eta`,
+    /// smooth (`roughness: None`) or microfacet (isotropic).
+    Plastic {
+        diffuse_reflectance: Rgb,
+        specular_reflectance: Rgb,
+        eta: f64,
+        nonlinear: bool,
+        roughness: Option<Roughness>,
+    },
+    /// `front` on the side the normal points to, `back` on the other.
+    TwoSided {
+        front: Box<Material>,
+        back: Box<Material>,
     },
 }
 
-fn albedo(value: Option<Rgb>, field: &str, name: &str) -> Result<[f64; 3], SceneError> {
-    let value =
-        value.ok_or_else(|| SceneError::invalid(field, format!("missing field `{name}`")))?;
-    for (i, x) in value.iter().enumerate() {
-        if !(0.0..=1.0).contains(x) {
-            return Err(SceneError::invalid(
-                format!("{field}.{name}[{i}]"),
-                format!("{x} is not an albedo in [0, 1]"),
-            ));
-        }
-    }
-    Ok(value)
-}
+/// A plugin's parser: its parameters to a material.
+type Parse = fn(&mut Params) -> Result<Material, SceneError>;
 
-fn reject(present: bool, field: &str, name: &str, kind: &str) -> Result<(), SceneError> {
-    if present {
-        return Err(SceneError::invalid(
-            format!("{field}.{name}"),
-            format!("not a field of a {kind} material"),
-        ));
-    }
-    Ok(())
+/// Every material plugin, by its `type`: one line per plugin.
+const PLUGINS: &[(&str, Parse)] = &[
+    ("diffuse", diffuse::parse),
+    ("glossy", glossy::parse),
+    ("conductor", conductor::parse_smooth),
+    ("roughconductor", conductor::parse_rough),
+    ("dielectric", dielectric::parse_smooth),
+    ("thindielectric", dielectric::parse_thin),
+    ("roughdielectric", dielectric::parse_rough),
+    ("plastic", plastic::parse_smooth),
+    ("roughplastic", plastic::parse_rough),
+    ("twosided", twosided::parse),
+];
+
+/// The plugin names [`Material::from_doc`] accepts, for messages and docs.
+pub fn plugin_names() -> Vec<&'static str> {
+    PLUGINS.iter().map(|(name, _)| *name).collect()
 }
 
 impl Material {
     /// Validates one `materials[i]` entry; `field` is its path.
     pub(crate) fn from_doc(doc: &MaterialDoc, field: &str) -> Result<Self, SceneError> {
-        match doc.kind {
-            MaterialKind::Diffuse => {
-                reject(doc.diffuse.is_some(), field, "diffuse", "diffuse")?;
-                reject(doc.specular.is_some(), field, "specular", "diffuse")?;
-                reject(doc.exponent.is_some(), field, "exponent", "diffuse")?;
-                Ok(Material::Diffuse {
-                    reflectance: albedo(doc.reflectance, field, "reflectance")?,
-                })
-            }
-            MaterialKind::Glossy => {
-                reject(doc.reflectance.is_some(), field, "reflectance", "glossy")?;
-                let diffuse = albedo(doc.diffuse, field, "diffuse")?;
-                let specular = albedo(doc.specular, field, "specular")?;
-                for i in 0..3 {
-                    if diffuse[i] + specular[i] > 1.0 {
-                        return Err(SceneError::invalid(
-                            format!("{field}.specular[{i}]"),
-                            "diffuse + specular exceeds 1: the material would create energy",
-                        ));
-                    }
-                }
-                let exponent = doc
-                    .exponent
-                    .ok_or_else(|| SceneError::invalid(field, "missing field `exponent`"))?;
-                if !(0.0..=MAX_PHONG_EXPONENT).contains(&exponent) {
-                    return Err(SceneError::invalid(
-                        format!("{field}.exponent"),
-                        format!("{exponent} is outside [0, {MAX_PHONG_EXPONENT:e}]"),
-                    ));
-                }
-                Ok(Material::Glossy {
-                    diffuse,
-                    specular,
-                    exponent,
-                })
-            }
-        }
+        let mut params = Params::new(field, doc.params.clone());
+        let material = Self::parse(&doc.kind, &mut params, field)?;
+        params.finish()?;
+        Ok(material)
+    }
+
+    /// The material of plugin `kind` from `params` (a nested BSDF's too).
+    fn parse(kind: &str, params: &mut Params, field: &str) -> Result<Self, SceneError> {
+        let Some((_, parse)) = PLUGINS.iter().find(|(name, _)| *name == kind) else {
+            return Err(SceneError::invalid(
+                format!("{field}.type"),
+                format!(
+                    "unknown material type {kind:?} (known: {})",
+                    plugin_names().join(", ")
+                ),
+            ));
+        };
+        parse(params)
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -16,7 +16,7 @@ mod formats;
 #[doc(hidden)]
 pub mod generate;
 mod loader;
-mod material;
+pub mod material;
 mod mesh;
 mod mitsuba;
 mod ray;

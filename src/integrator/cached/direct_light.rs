@@ -61,7 +61,7 @@ pub(super) fn direct_radiance<R: Rng + ?Sized>(
             continue;
         }
         if light.visible_from(scene, hit.position, hit.normal, stats) {
-            sum += f * light.radiance * (wi.z / light.pdf);
+            sum += f * light.radiance * (wi.z.abs() / light.pdf);
         }
     }
     sum * (1.0 / f64::from(n))

@@ -83,7 +83,7 @@ pub fn diffuse_front(transport: &Transport, hit: &SurfaceHit, dir: DVec3) -> boo
     hit.shading_normal.dot(dir) < 0.0
         && transport
             .bsdf(hit.material)
-            .is_some_and(|b| !b.diffuse.is_black())
+            .is_some_and(|b| b.flags().diffuse)
 }
 
 /// Relative lift of the occlusion-test ray ends off their surfaces.

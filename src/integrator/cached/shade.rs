@@ -356,7 +356,7 @@ impl CachedIntegrator<'_> {
         };
         let frame = Frame::from_normal(hit.shading_normal);
         let wo_local = frame.to_local(wo);
-        if wo_local.z <= 0.0 || bsdf.is_black() {
+        if !bsdf.scatters_towards(wo_local) || bsdf.is_black() {
             return Ok(Evaluation::of(Rgb::BLACK));
         }
         let surface = Surface {
@@ -366,32 +366,91 @@ impl CachedIntegrator<'_> {
             wo_local,
         };
         let mut trace = TraceStats::default();
-        let mut radiance = direct_radiance(
-            self.transport,
-            &surface,
-            r.light_samples,
-            r.sample,
-            rng,
-            &mut trace,
-        );
+        let flags = bsdf.flags();
+        let mut radiance = Rgb::BLACK;
+        if flags.diffuse || flags.glossy {
+            radiance += direct_radiance(
+                self.transport,
+                &surface,
+                r.light_samples,
+                r.sample,
+                rng,
+                &mut trace,
+            );
+        }
         let mut variance = Rgb::BLACK;
-        if r.indirect {
-            let point = QueryPoint::new(hit.position, hit.shading_normal)?;
-            if !bsdf.diffuse.is_black() {
-                let e = self.indirect_irradiance(&point, r, rng, &mut trace, stats)?;
-                radiance += bsdf.diffuse * e * (1.0 / PI);
+        match bsdf.phong() {
+            Some(phong) if r.indirect => {
+                let point = QueryPoint::new(hit.position, hit.shading_normal)?;
+                if !phong.diffuse.is_black() {
+                    let e = self.indirect_irradiance(&point, r, rng, &mut trace, stats)?;
+                    radiance += phong.diffuse * e * (1.0 / PI);
+                }
+                if !phong.specular.is_black() {
+                    let i = self.glossy_indirect(&surface, &point, r, rng, &mut trace, stats)?;
+                    radiance += phong.specular * i.value;
+                    variance += phong.specular * phong.specular * i.variance;
+                }
             }
-            if !bsdf.specular.is_black() {
-                let i = self.glossy_indirect(&surface, &point, r, rng, &mut trace, stats)?;
-                radiance += bsdf.specular * i.value;
-                variance += bsdf.specular * bsdf.specular * i.variance;
-            }
+            Some(_) => {}
+            None => radiance += self.lambertian_and_rest(&surface, r, rng, &mut trace, stats)?,
         }
         stats.rays += trace.rays;
         Ok(Evaluation {
             value: radiance,
             variance,
         })
+    }
+
+    /// The reflection of a BSDF other than Phong, direct light aside
+    /// (docs/math.md §18.3): its Lambertian part `ρ(ω_o)` times the cached
+    /// indirect irradiance `E/π` (on the side `ω_o` sees), plus the rest
+    /// `f − ρ/π` by one BSDF sample whose incident radiance is path traced:
+    /// all of it through a Dirac delta (which no light sample reaches),
+    /// only its indirect part otherwise (light samples took the direct).
+    fn lambertian_and_rest<R: Rng + ?Sized>(
+        &self,
+        s: &Surface,
+        r: &Reflection,
+        rng: &mut R,
+        trace: &mut TraceStats,
+        stats: &mut ShadingStats,
+    ) -> Result<Rgb, RenderError> {
+        let mut radiance = Rgb::BLACK;
+        let rho = s.bsdf.lambertian(s.wo_local);
+        if r.indirect && !rho.is_black() {
+            let side = s.wo_local.z.signum();
+            let point = QueryPoint::new(s.hit.position, s.hit.shading_normal * side)?;
+            let e = self.indirect_irradiance(&point, r, rng, trace, stats)?;
+            radiance += rho * e * (1.0 / PI);
+        }
+        let u = [rng.random(), rng.random()];
+        let Some(sample) = s.bsdf.sample(s.wo_local, rng.random(), u) else {
+            return Ok(radiance);
+        };
+        if !sample.delta && !r.indirect {
+            return Ok(radiance);
+        }
+        let mut f = sample.value;
+        if !sample.delta && sample.wi.z * s.wo_local.z > 0.0 {
+            f = f - rho * (1.0 / PI);
+        }
+        let throughput = f * (sample.wi.z.abs() / sample.pdf);
+        if throughput.is_black() {
+            return Ok(radiance);
+        }
+        let limits = PathLimits {
+            max_depth: r.placement.paths.max_depth,
+            lengths: if sample.delta {
+                PathLengths::All
+            } else {
+                PathLengths::Indirect
+            },
+        };
+        let scene = self.transport.scene();
+        let ray = scene.spawn_ray(s.hit.position, s.hit.normal, s.frame.to_world(sample.wi));
+        let incident = self.transport.incident_radiance(ray, limits, rng, trace);
+        Ok(radiance + throughput * incident.radiance)
     }
 
     /// One estimate per direction by an ambient bounce ([`Gather::Cache`]).
@@ -532,7 +591,7 @@ impl CachedIntegrator<'_> {
     ) -> Result<Evaluation, RenderError> {
         let paths = r.placement.paths;
         let mirror = DVec3::new(-s.wo_local.x, -s.wo_local.y, s.wo_local.z);
-        let m = s.bsdf.exponent;
+        let m = s.bsdf.phong().map_or(0.0, |p| p.exponent);
         // Radiance of one path along a local direction of the surface's frame.
         let transport = self.transport;
         let path = |wi: DVec3, rng: &mut R, trace: &mut TraceStats| {

@@ -66,4 +66,15 @@ mod tests {
         assert!(s.delta && expected.r > expected.b && expected.r < 1.0);
         assert!(gold.sample(DVec3::new(0.6, 0.0, -0.8)).is_none());
     }
+
+    #[test]
+    fn named_gold_reflects_as_in_mitsuba() {
+        // Mitsuba 3.9.1's `conductor` with material Au reflects
+        // (0.966069, 0.801277, 0.329045) at cos θ = 0.8.
+        let (eta, k) = crate::scene::material::metals::named_metal("Au").unwrap();
+        let at_08 = [0, 1, 2].map(|c| fresnel::conductor(0.8, eta[c], k[c]));
+        for (ours, theirs) in at_08.iter().zip([0.966_069, 0.801_277, 0.329_045]) {
+            assert!((ours - theirs).abs() < 2e-5, "{at_08:?}");
+        }
+    }
 }

@@ -1,17 +1,16 @@
-//! BSDF plugins as Mitsuba 3 names them, one per file, each opening with
-//! its parameters' docs; this module grows into the scene model's BSDFs
-//! (issue: real materials). Every lobe works in the **local frame** (z =
+//! BSDF models as Mitsuba 3 names them, one per file, each opening with
+//! its parameters' docs; `render::bsdf::Bsdf` dispatches to them. Every lobe works in the **local frame** (z =
 //! the shading normal), both directions pointing away from the surface, and
 //! offers `eval` (the BSDF value, sr⁻¹, without the cosine), `pdf` (the
 //! solid-angle density its `sample` draws with) and `sample`.
 
 pub mod conductor;
 pub mod dielectric;
-pub mod ior;
-pub mod metals;
+pub mod phong;
 pub mod plastic;
 pub mod rough_conductor;
 pub mod rough_dielectric;
+pub mod rough_plastic;
 pub mod thin_dielectric;
 
 #[cfg(test)]

@@ -142,6 +142,13 @@ impl Plastic {
         })
     }
 
+    /// `ρ(ω_o)` with `ρ/π = f_d(ω_o, ω_i)` at normal `ω_i`, the base's
+    /// largest value for a given `ω_o` (`F` grows towards grazing), for an
+    /// `ω_o` at `cos_o > 0` (see `render::bsdf::Bsdf::lambertian`).
+    pub fn lambertian(&self, cos_o: f64) -> Rgb {
+        self.diffuse * (std::f64::consts::PI * (1.0 - self.fresnel(cos_o)) * (1.0 - self.fresnel(1.0)))
+    }
+
     pub fn diffuse_reflectance(&self) -> Rgb {
         self.diffuse_reflectance
     }

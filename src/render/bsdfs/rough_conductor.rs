@@ -11,7 +11,7 @@
 //! Jacobian `1/(4 |ω_o·m|)` of the reflection (Walter et al. 2007, eq. 14).
 //!
 //! Parameters (Mitsuba 3's names):
-//! - `distribution`: `ggx` (default) or `beckmann`;
+//! - `distribution`: `beckmann` (default, as Mitsuba 3) or `ggx`;
 //! - `alpha`, or `alpha_u` and `alpha_v` (anisotropic): roughness, default 0.1;
 //! - `eta`, `k`: the conductor's complex index of refraction per RGB
 //!   channel, relative to the outside;

@@ -19,8 +19,8 @@
 //! A view from inside (`cos θ_o < 0`) is the same interface seen from
 //! outside with `η` inverted, so every formula runs with `ω_o` above.
 //!
-//! Parameters (Mitsuba 3's names): `distribution` (`ggx` default,
-//! `beckmann`); `alpha` or `alpha_u`/`alpha_v`, default 0.1; `int_ior`,
+//! Parameters (Mitsuba 3's names): `distribution` (`beckmann` default,
+//! or `ggx`); `alpha` or `alpha_u`/`alpha_v`, default 0.1; `int_ior`,
 //! `ext_ior` (numbers or named media), whose ratio is `eta`;
 //! `specular_reflectance`, `specular_transmittance`, default 1.
 

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use proptest::prelude::*;
 
+use crate::scene::material::Distribution;
 use crate::scene::{Emitter, Environment, Material, Scene, SceneError};
 
 use super::{MitsubaOptions, Warnings};
@@ -210,55 +211,104 @@ fn bsdf_mappings() {
       <bsdf type="plastic" id="plastic">
         <rgb name="diffuse_reflectance" value="0.6 0.4 0.2"/><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/>
       </bsdf>
-      <bsdf type="roughplastic" id="rough"><float name="alpha" value="0.1"/><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf>
+      <bsdf type="roughplastic" id="rough"><float name="alpha" value="0.1"/><string name="distribution" value="GGX"/></bsdf>
       <bsdf type="conductor" id="mirror"/>
       <bsdf type="roughconductor" id="metal">
-        <float name="alpha" value="0.5"/><rgb name="eta" value="0.2 0.2 0.2"/><rgb name="k" value="3 3 3"/>
-      </bsdf>"#);
+        <float name="alpha_u" value="0.5"/><float name="alpha_v" value="0.2"/><rgb name="eta" value="0.2 0.2 0.2"/><rgb name="k" value="3 3 3"/>
+      </bsdf>
+      <bsdf type="conductor" id="gold"><string name="material" value="Au"/></bsdf>
+      <bsdf type="dielectric" id="water"><string name="int_ior" value="water"/></bsdf>
+      <bsdf type="thindielectric" id="pane"/>
+      <bsdf type="roughdielectric" id="frosted"><float name="alpha" value="0.3"/></bsdf>"#);
     let by_id = |id: &str| {
         let i = scene.material_ids.iter().position(|m| m == id).unwrap();
         scene.materials[i].clone()
     };
+    let grey = Material::Diffuse {
+        reflectance: [0.25; 3],
+    };
     assert_eq!(
         by_id("two"),
-        Material::Diffuse {
-            reflectance: [0.25; 3]
+        Material::TwoSided {
+            front: Box::new(grey.clone()),
+            back: Box::new(grey)
         }
     );
-    let Material::Glossy {
-        diffuse,
-        specular,
-        exponent,
-    } = by_id("plastic")
-    else {
-        panic!("plastic must be glossy");
-    };
-    assert!((specular[0] - 0.04).abs() < 1e-12);
-    assert!((diffuse[0] - 0.6 * 0.96).abs() < 1e-12);
-    assert_eq!(exponent, crate::scene::material::MAX_PHONG_EXPONENT);
-    let Material::Glossy { exponent, .. } = by_id("rough") else {
-        panic!()
-    };
-    assert!((exponent - 198.0).abs() < 1e-9);
-    assert!(matches!(
-        by_id("mirror"),
-        Material::Glossy {
-            specular: [1.0, 1.0, 1.0],
-            ..
+    assert_eq!(
+        by_id("plastic"),
+        Material::Plastic {
+            diffuse_reflectance: [0.6, 0.4, 0.2],
+            specular_reflectance: [1.0; 3],
+            eta: 1.5,
+            nonlinear: false,
+            roughness: None,
         }
-    ));
-    let Material::Glossy {
-        diffuse,
-        specular,
-        exponent,
+    );
+    let Material::Plastic {
+        eta,
+        roughness: Some(roughness),
+        ..
+    } = by_id("rough")
+    else {
+        panic!("{:?}", by_id("rough"))
+    };
+    assert!((eta - 1.49 / 1.000277).abs() < 1e-12, "Mitsuba's defaults");
+    assert_eq!(roughness.distribution, Distribution::Ggx);
+    assert_eq!((roughness.alpha_u, roughness.alpha_v), (0.1, 0.1));
+    assert_eq!(
+        by_id("mirror"),
+        Material::Conductor {
+            eta: [0.0; 3],
+            k: [1.0; 3],
+            specular_reflectance: [1.0; 3],
+            roughness: None,
+        }
+    );
+    let Material::Conductor {
+        eta,
+        k,
+        roughness: Some(roughness),
+        ..
     } = by_id("metal")
     else {
         panic!()
     };
-    let f0 = (0.64 + 9.0) / (1.44 + 9.0);
-    assert_eq!(diffuse, [0.0; 3]);
-    assert!((specular[1] - f0).abs() < 1e-12);
-    assert!((exponent - 6.0).abs() < 1e-12);
+    assert_eq!((eta, k), ([0.2; 3], [3.0; 3]));
+    assert_eq!(roughness.distribution, Distribution::Beckmann, "Mitsuba's default");
+    assert_eq!((roughness.alpha_u, roughness.alpha_v), (0.5, 0.2));
+    let Material::Conductor { eta, .. } = by_id("gold") else {
+        panic!()
+    };
+    assert!(eta[0] < eta[2], "gold: {eta:?}");
+    let Material::Dielectric { eta, thin, .. } = by_id("water") else {
+        panic!()
+    };
+    assert!((eta - 1.333 / 1.000277).abs() < 1e-12 && !thin);
+    assert!(matches!(by_id("pane"), Material::Dielectric { thin: true, .. }));
+    assert!(matches!(
+        by_id("frosted"),
+        Material::Dielectric {
+            roughness: Some(_),
+            thin: false,
+            ..
+        }
+    ));
+}
+
+#[test]
+fn bad_bsdf_parameters_point_at_their_element() {
+    for (body, needle, words) in [
+        (r#"<bsdf type="dielectric"><string name="int_ior" value="unobtainium"/></bsdf>"#, "unobtainium", "unknown medium"),
+        (r#"<bsdf type="conductor"><string name="material" value="Xx"/></bsdf>"#, "Xx", "unknown metal"),
+        (r#"<bsdf type="roughconductor"><float name="alpha" value="-1"/></bsdf>"#, "alpha", "not a roughness"),
+        (r#"<bsdf type="plastic"><rgb name="diffuse_reflectance" value="2"/></bsdf>"#, "diffuse_reflectance", "not an albedo"),
+        (r#"<bsdf type="twosided"><bsdf type="dielectric"/></bsdf>"#, "\"dielectric\"/></bsdf>", "cannot be one side"),
+    ] {
+        let text = wrap(body);
+        let e = load_err(&text);
+        assert_eq!(syntax_line(&e), line_of(&text, needle), "{e}");
+        assert!(e.to_string().contains(words), "{e}");
+    }
 }
 
 #[test]
@@ -462,12 +512,12 @@ fn textures_are_errors_or_lenient_means() {
 
 #[test]
 fn unknown_plugin_names_plugin_and_line() {
-    let text = wrap(r#"<bsdf type="dielectric" id="glass"/>"#);
+    let text = wrap(r#"<bsdf type="principled" id="fancy"/>"#);
     let e = load_err(&text);
-    assert_eq!(syntax_line(&e), line_of(&text, "dielectric"));
-    assert!(e.to_string().contains("\"dielectric\""), "{e}");
+    assert_eq!(syntax_line(&e), line_of(&text, "principled"));
+    assert!(e.to_string().contains("\"principled\""), "{e}");
     let (_, warnings) = load_in(&text, &scenes_dir(), true).unwrap();
-    assert!(warnings[0].message.contains("dielectric"));
+    assert!(warnings[0].message.contains("principled"));
 
     let e = err(r#"<shape type="cylinder"/>"#);
     assert!(e.contains("cylinder"), "{e}");

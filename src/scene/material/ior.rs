@@ -3,12 +3,15 @@
 //! 589 nm and 0–20 °C, from E. Hecht, "Optics", 4th edition, the source
 //! Mitsuba cites; scenes that name a medium get the same number as there.
 
+/// The index of air, Mitsuba's default exterior medium.
+pub const AIR: f64 = 1.000277;
+
 /// `(name, index)`, the names lower case.
 pub const NAMED_MEDIA: [(&str, f64); 23] = [
     ("vacuum", 1.0),
     ("helium", 1.000036),
     ("hydrogen", 1.000132),
-    ("air", 1.000277),
+    ("air", AIR),
     ("carbon dioxide", 1.00045),
     ("water", 1.3330),
     ("acetone", 1.36),

@@ -1,0 +1,268 @@
+//! A material document's parameters, taken one by one by the plugin that
+//! parses them; whatever no plugin took is refused by [`Params::finish`],
+//! naming its field.
+
+use serde_json::{Map, Value};
+
+use super::{Distribution, Rgb, Roughness, ior, metals};
+use crate::scene::error::SceneError;
+
+/// Mitsuba's default `alpha` of rough BSDFs.
+const DEFAULT_ALPHA: f64 = 0.1;
+
+/// The parameters of one material document (or of a BSDF nested in one),
+/// `field` its path for messages.
+#[derive(Debug)]
+pub(crate) struct Params {
+    field: String,
+    map: Map<String, Value>,
+}
+
+impl Params {
+    pub fn new(field: &str, map: Map<String, Value>) -> Self {
+        Self {
+            field: field.to_string(),
+            map,
+        }
+    }
+
+    /// The path of parameter `name`.
+    pub fn field(&self, name: &str) -> String {
+        format!("{}.{name}", self.field)
+    }
+
+    fn invalid(&self, name: &str, reason: impl Into<String>) -> SceneError {
+        SceneError::invalid(self.field(name), reason)
+    }
+
+    /// Refuses every parameter no plugin took.
+    pub fn finish(self) -> Result<(), SceneError> {
+        match self.map.keys().next() {
+            Some(name) => Err(self.invalid(name, "not a parameter of this material type")),
+            None => Ok(()),
+        }
+    }
+
+    fn take(&mut self, name: &str) -> Option<Value> {
+        self.map.remove(name)
+    }
+
+    /// A finite number, if given.
+    pub fn number(&mut self, name: &str) -> Result<Option<f64>, SceneError> {
+        match self.take(name) {
+            None => Ok(None),
+            Some(v) => match v.as_f64() {
+                Some(x) if x.is_finite() => Ok(Some(x)),
+                _ => Err(self.invalid(name, format!("{v} is not a finite number"))),
+            },
+        }
+    }
+
+    /// A colour: a number (grey) or `[r, g, b]`, each finite and ≥ 0.
+    pub fn color(&mut self, name: &str) -> Result<Option<Rgb>, SceneError> {
+        let Some(v) = self.take(name) else {
+            return Ok(None);
+        };
+        let rgb = match &v {
+            Value::Number(n) => n.as_f64().map(|x| [x; 3]),
+            Value::Array(a) if a.len() == 3 => {
+                let c: Vec<f64> = a.iter().filter_map(Value::as_f64).collect();
+                (c.len() == 3).then(|| [c[0], c[1], c[2]])
+            }
+            _ => None,
+        };
+        let Some(rgb) = rgb else {
+            return Err(self.invalid(name, format!("{v} is not a number or [r, g, b]")));
+        };
+        for (i, x) in rgb.iter().enumerate() {
+            if !x.is_finite() || *x < 0.0 {
+                return Err(SceneError::invalid(
+                    format!("{}[{i}]", self.field(name)),
+                    format!("{x} is not a finite non-negative value"),
+                ));
+            }
+        }
+        Ok(Some(rgb))
+    }
+
+    /// A colour that scales reflected or transmitted light: in [0, 1] per
+    /// channel, `default` when absent.
+    pub fn albedo(&mut self, name: &str, default: Rgb) -> Result<Rgb, SceneError> {
+        let Some(rgb) = self.color(name)? else {
+            return Ok(default);
+        };
+        match rgb.iter().position(|x| *x > 1.0) {
+            Some(i) => Err(SceneError::invalid(
+                format!("{}[{i}]", self.field(name)),
+                format!("{} is not an albedo in [0, 1]", rgb[i]),
+            )),
+            None => Ok(rgb),
+        }
+    }
+
+    /// The error of a required parameter `name` that is absent.
+    pub fn missing(&self, name: &str) -> SceneError {
+        SceneError::invalid(&self.field, format!("missing field `{name}`"))
+    }
+
+    /// [`Self::albedo`] that must be given.
+    pub fn required_albedo(&mut self, name: &str) -> Result<Rgb, SceneError> {
+        if !self.map.contains_key(name) {
+            return Err(self.missing(name));
+        }
+        self.albedo(name, [0.0; 3])
+    }
+
+    /// A boolean, `default` when absent.
+    pub fn boolean(&mut self, name: &str, default: bool) -> Result<bool, SceneError> {
+        match self.take(name) {
+            None => Ok(default),
+            Some(Value::Bool(b)) => Ok(b),
+            Some(v) => Err(self.invalid(name, format!("{v} is not true or false"))),
+        }
+    }
+
+    /// A string, if given.
+    pub fn string(&mut self, name: &str) -> Result<Option<String>, SceneError> {
+        match self.take(name) {
+            None => Ok(None),
+            Some(Value::String(s)) => Ok(Some(s)),
+            Some(v) => Err(self.invalid(name, format!("{v} is not a string"))),
+        }
+    }
+
+    /// An index of refraction: a positive number or a named medium
+    /// ([`ior::named_ior`]), `default` when absent.
+    pub fn ior(&mut self, name: &str, default: f64) -> Result<f64, SceneError> {
+        match self.map.get(name) {
+            None => Ok(default),
+            Some(Value::String(_)) => {
+                let medium = self.string(name)?.unwrap_or_default();
+                ior::named_ior(&medium).ok_or_else(|| {
+                    self.invalid(
+                        name,
+                        format!(
+                            "unknown medium {medium:?} (known: {})",
+                            ior::media_names()
+                        ),
+                    )
+                })
+            }
+            Some(_) => match self.number(name)? {
+                Some(x) if x > 0.0 => Ok(x),
+                x => Err(self.invalid(
+                    name,
+                    format!("{x:?} is not a positive index of refraction"),
+                )),
+            },
+        }
+    }
+
+    /// `int_ior / ext_ior` with Mitsuba's defaults `int_default` and air;
+    /// refuses the ratio 1, an interface that is not one.
+    pub fn relative_ior(&mut self, int_default: f64) -> Result<f64, SceneError> {
+        let int_ior = self.ior("int_ior", int_default)?;
+        let ext_ior = self.ior("ext_ior", ior::AIR)?;
+        if int_ior == ext_ior {
+            return Err(self.invalid(
+                "int_ior",
+                "equals ext_ior: the interface would not refract or reflect",
+            ));
+        }
+        Ok(int_ior / ext_ior)
+    }
+
+    /// A conductor's complex index `(eta, k)`: both as colours, or a named
+    /// metal `material` ([`metals::named_metal`]); Mitsuba's default is
+    /// the perfect mirror `none`.
+    pub fn metal(&mut self) -> Result<(Rgb, Rgb), SceneError> {
+        let eta = self.color("eta")?;
+        let k = self.color("k")?;
+        let named = self.string("material")?;
+        match (eta, k, named) {
+            (Some(eta), Some(k), None) => Ok((eta, k)),
+            (None, None, name) => {
+                let name = name.unwrap_or_else(|| "none".to_string());
+                metals::named_metal(&name).ok_or_else(|| {
+                    let known: Vec<&str> = metals::NAMED_METALS.iter().map(|m| m.0).collect();
+                    self.invalid(
+                        "material",
+                        format!("unknown metal {name:?} (known: {})", known.join(", ")),
+                    )
+                })
+            }
+            _ => Err(self.invalid(
+                "eta",
+                "give both `eta` and `k`, or `material`, not a mix",
+            )),
+        }
+    }
+
+    /// A microfacet roughness: `distribution` (`beckmann`, the default, or
+    /// `ggx`), and `alpha` or both `alpha_u` and `alpha_v` (default 0.1),
+    /// each in `(0, 4]`. `sample_visible` is accepted and always on.
+    pub fn roughness(&mut self) -> Result<Roughness, SceneError> {
+        let name = self.string("distribution")?.map(|d| d.to_ascii_lowercase());
+        let distribution = match name.as_deref() {
+            None | Some("beckmann") => Distribution::Beckmann,
+            Some("ggx") => Distribution::Ggx,
+            Some(other) => {
+                return Err(self.invalid(
+                    "distribution",
+                    format!("unknown distribution {other:?} (known: beckmann, ggx)"),
+                ));
+            }
+        };
+        self.boolean("sample_visible", true)?;
+        let (alpha_u, alpha_v) = match (
+            self.number("alpha")?,
+            self.number("alpha_u")?,
+            self.number("alpha_v")?,
+        ) {
+            (Some(a), None, None) => (a, a),
+            (None, None, None) => (DEFAULT_ALPHA, DEFAULT_ALPHA),
+            (None, Some(u), Some(v)) => (u, v),
+            _ => {
+                return Err(self.invalid(
+                    "alpha",
+                    "give either `alpha` or both `alpha_u` and `alpha_v`",
+                ));
+            }
+        };
+        for (name, a) in [("alpha_u", alpha_u), ("alpha_v", alpha_v)] {
+            if !(a > 0.0 && a <= 4.0) {
+                return Err(self.invalid(name, format!("{a} is not a roughness in (0, 4]")));
+            }
+        }
+        Ok(Roughness {
+            distribution,
+            alpha_u,
+            alpha_v,
+        })
+    }
+
+    /// The BSDFs nested under `name` (an object or a list of objects, each
+    /// with its own `type`), with their paths.
+    pub fn nested(&mut self, name: &str) -> Result<Vec<(String, String, Params)>, SceneError> {
+        let items = match self.take(name) {
+            None => Vec::new(),
+            Some(Value::Array(items)) => items,
+            Some(item) => vec![item],
+        };
+        items
+            .into_iter()
+            .enumerate()
+            .map(|(i, item)| {
+                let field = format!("{}[{i}]", self.field(name));
+                let Value::Object(mut map) = item else {
+                    return Err(SceneError::invalid(field, "not a material object"));
+                };
+                let kind = match map.remove("type") {
+                    Some(Value::String(kind)) => kind,
+                    _ => return Err(SceneError::invalid(field, "missing field `type`")),
+                };
+                Ok((kind, field.clone(), Params::new(&field, map)))
+            })
+            .collect()
+    }
+}

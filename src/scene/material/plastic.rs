@@ -1,0 +1,46 @@
+//! `plastic` and `roughplastic`: a diffuse base under a smooth or rough
+//! dielectric coating, Mitsuba 3's coated-diffuse models
+//! (`render::bsdfs::{plastic, rough_plastic}`).
+//!
+//! Parameters (Mitsuba 3's): `diffuse_reflectance` (default 0.5),
+//! `specular_reflectance` (default 1), both in [0, 1]; `int_ior` (default
+//! polypropylene, 1.49) and `ext_ior` (default air); `nonlinear` (default
+//! false: whether inner bounces darken and saturate the base's colour);
+//! rough only: `distribution` and `alpha` ([`Params::roughness`]; isotropic,
+//! as Mitsuba's).
+
+use super::{Material, Params};
+use crate::scene::error::SceneError;
+
+/// Mitsuba's default coating: polypropylene.
+const POLYPROPYLENE: f64 = 1.49;
+
+pub(super) fn parse_smooth(params: &mut Params) -> Result<Material, SceneError> {
+    parse(params, false)
+}
+
+pub(super) fn parse_rough(params: &mut Params) -> Result<Material, SceneError> {
+    parse(params, true)
+}
+
+fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
+    let roughness = if rough {
+        let r = params.roughness()?;
+        if r.alpha_u != r.alpha_v {
+            return Err(SceneError::invalid(
+                params.field("alpha_u"),
+                "roughplastic is isotropic (as Mitsuba's): give one `alpha`",
+            ));
+        }
+        Some(r)
+    } else {
+        None
+    };
+    Ok(Material::Plastic {
+        roughness,
+        diffuse_reflectance: params.albedo("diffuse_reflectance", [0.5; 3])?,
+        specular_reflectance: params.albedo("specular_reflectance", [1.0; 3])?,
+        eta: params.relative_ior(POLYPROPYLENE)?,
+        nonlinear: params.boolean("nonlinear", false)?,
+    })
+}

@@ -1,0 +1,99 @@
+use serde_json::json;
+
+use super::*;
+
+fn parse(doc: serde_json::Value) -> Result<Material, SceneError> {
+    let doc: MaterialDoc = serde_json::from_value(doc).unwrap();
+    Material::from_doc(&doc, "materials[3]")
+}
+
+fn field_of(doc: serde_json::Value) -> String {
+    match parse(doc) {
+        Err(SceneError::Invalid { field, .. }) => field,
+        other => panic!("expected an invalid field, got {other:?}"),
+    }
+}
+
+#[test]
+fn every_plugin_parses_with_mitsubas_defaults() {
+    let gold = parse(json!({"id": "g", "type": "roughconductor", "material": "Au", "distribution": "ggx"}));
+    let Ok(Material::Conductor {
+        eta,
+        roughness: Some(r),
+        specular_reflectance,
+        ..
+    }) = gold
+    else {
+        panic!("{gold:?}")
+    };
+    assert_eq!(eta, metals::named_metal("Au").unwrap().0);
+    assert_eq!((r.distribution, r.alpha_u, r.alpha_v), (Distribution::Ggx, 0.1, 0.1));
+    assert_eq!(specular_reflectance, [1.0; 3]);
+    assert_eq!(
+        parse(json!({"id": "m", "type": "conductor"})).unwrap(),
+        Material::Conductor {
+            eta: [0.0; 3],
+            k: [1.0; 3],
+            specular_reflectance: [1.0; 3],
+            roughness: None
+        },
+        "Mitsuba's default conductor is the perfect mirror `none`"
+    );
+    let Ok(Material::Dielectric { eta, thin, .. }) =
+        parse(json!({"id": "w", "type": "thindielectric", "int_ior": "water", "ext_ior": 1.0}))
+    else {
+        panic!()
+    };
+    assert!((eta - 1.333).abs() < 1e-12 && thin);
+    let Ok(Material::Dielectric { eta, .. }) = parse(json!({"id": "d", "type": "dielectric"}))
+    else {
+        panic!()
+    };
+    assert!((eta - 1.5046 / ior::AIR).abs() < 1e-12, "BK7 in air");
+    let Ok(Material::Plastic {
+        diffuse_reflectance,
+        roughness: Some(r),
+        ..
+    }) = parse(json!({"id": "p", "type": "roughplastic", "diffuse_reflectance": 0.3, "alpha": 0.2}))
+    else {
+        panic!()
+    };
+    assert_eq!(diffuse_reflectance, [0.3; 3]);
+    assert_eq!((r.distribution, r.alpha_u), (Distribution::Beckmann, 0.2));
+    let two = parse(json!({"id": "t", "type": "twosided", "bsdf": [
+        {"type": "diffuse", "reflectance": [0.1, 0.2, 0.3]},
+        {"type": "plastic"}
+    ]}))
+    .unwrap();
+    let Material::TwoSided { front, back } = two else {
+        panic!()
+    };
+    assert!(matches!(*front, Material::Diffuse { .. }) && matches!(*back, Material::Plastic { .. }));
+}
+
+#[test]
+fn bad_parameters_are_named_by_their_field() {
+    let cases = [
+        (json!({"id": "x", "type": "velvet"}), "materials[3].type"),
+        (json!({"id": "x", "type": "diffuse"}), "materials[3]"),
+        (json!({"id": "x", "type": "diffuse", "reflectance": 1, "alpha": 2}), "materials[3].alpha"),
+        (json!({"id": "x", "type": "diffuse", "reflectance": [0.5, 1.5, 0.5]}), "materials[3].reflectance[1]"),
+        (json!({"id": "x", "type": "dielectric", "int_ior": "glassy"}), "materials[3].int_ior"),
+        (json!({"id": "x", "type": "dielectric", "int_ior": 1.0, "ext_ior": 1.0}), "materials[3].int_ior"),
+        (json!({"id": "x", "type": "conductor", "eta": 0.2}), "materials[3].eta"),
+        (json!({"id": "x", "type": "conductor", "material": "Mithril"}), "materials[3].material"),
+        (json!({"id": "x", "type": "roughconductor", "alpha": 0}), "materials[3].alpha_u"),
+        (json!({"id": "x", "type": "roughconductor", "alpha_u": 0.1}), "materials[3].alpha"),
+        (json!({"id": "x", "type": "roughconductor", "distribution": "phong"}), "materials[3].distribution"),
+        (json!({"id": "x", "type": "roughplastic", "alpha_u": 0.1, "alpha_v": 0.3}), "materials[3].alpha_u"),
+        (json!({"id": "x", "type": "plastic", "nonlinear": "yes"}), "materials[3].nonlinear"),
+        (json!({"id": "x", "type": "glossy", "diffuse": 0.6, "specular": 0.6, "exponent": 5}), "materials[3].specular[0]"),
+        (json!({"id": "x", "type": "twosided", "bsdf": []}), "materials[3].bsdf"),
+        (json!({"id": "x", "type": "twosided", "bsdf": {"type": "dielectric"}}), "materials[3].bsdf[0].type"),
+        (json!({"id": "x", "type": "twosided", "bsdf": {"type": "diffuse", "reflectance": 2}}), "materials[3].bsdf[0].reflectance[0]"),
+        (json!({"id": "x", "type": "twosided", "bsdf": {"type": "diffuse", "reflectance": 0.5, "k": 1}}), "materials[3].bsdf[0].k"),
+    ];
+    for (doc, field) in cases {
+        assert_eq!(field_of(doc.clone()), field, "{doc}");
+    }
+}
