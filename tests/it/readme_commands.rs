@@ -98,10 +98,14 @@ struct Service(Child);
 
 impl Drop for Service {
     fn drop(&mut self) {
-        // `sh -c` runs cargo, which runs the binary: end the whole group.
-        let _ = Command::new("kill")
-            .args(["-TERM", &format!("-{}", self.0.id())])
-            .status();
+        // `sh -c` runs cargo, which runs the binary: end the whole group,
+        // by the system call itself. Debian's `kill -TERM -<pgid>` (procps-ng
+        // 4.0.2) reads `-<pgid>` as an option and signals the group of its
+        // first digit: `kill(-1)`, every process, for a pgid starting with 1.
+        if let Ok(group) = libc::pid_t::try_from(self.0.id()) {
+            // SAFETY: killpg only sends a signal; the group is the child's own.
+            unsafe { libc::killpg(group, libc::SIGTERM) };
+        }
         let _ = self.0.kill();
         let _ = self.0.wait();
     }

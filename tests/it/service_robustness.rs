@@ -297,15 +297,7 @@ async fn every_route_with_a_mutating_method_refuses_a_missing_token() {
         c.server.auth_token = "s3cret".into();
     })
     .await;
-    let doc: Value = app
-        .client
-        .get(app.url("/openapi.json"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let doc: Value = app.get("/openapi.json").await.json().await.unwrap();
     let mut guarded = Vec::new();
     for (path, operations) in doc["paths"].as_object().expect("paths") {
         for method in ["post", "put", "patch", "delete"] {

@@ -488,15 +488,7 @@ async fn glossy_objects_of_the_sky_scene_have_no_negative_or_black_pixels() {
 #[tokio::test]
 async fn every_preset_estimator_posts_back_unchanged() {
     let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
-    let presets: Value = app
-        .client
-        .get(app.url("/v1/presets"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let presets: Value = app.get("/v1/presets").await.json().await.unwrap();
     let presets = presets.as_array().expect("a list");
     assert_eq!(presets.len(), 3);
     for preset in presets {
