@@ -124,6 +124,20 @@ impl Material {
         Ok(material)
     }
 
+    /// The parameters of a `kind` document that its plugin does not take,
+    /// when the others parse (none otherwise: the loader then reports the
+    /// error), so that a translator can drop them with a warning.
+    pub(crate) fn unknown_parameters(
+        kind: &str,
+        params: &serde_json::Map<String, serde_json::Value>,
+    ) -> Vec<String> {
+        let mut params = Params::new("", params.clone());
+        match Self::parse(kind, &mut params, "") {
+            Ok(_) => params.remaining(),
+            Err(_) => Vec::new(),
+        }
+    }
+
     /// The material of plugin `kind` from `params` (a nested BSDF's too).
     fn parse(kind: &str, params: &mut Params, field: &str) -> Result<Self, SceneError> {
         let Some((_, parse)) = PLUGINS.iter().find(|(name, _)| *name == kind) else {

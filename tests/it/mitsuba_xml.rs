@@ -58,8 +58,9 @@ fn every_supported_element_reads_as_mitsuba_does() {
     let (scene, warnings) =
         Scene::load_mitsuba_xml(&dir.join("all.xml"), &dir, &MitsubaOptions::default())
             .unwrap_or_else(|e| panic!("{e}"));
-    // twosided, plastic, roughplastic, conductor, roughconductor, point.
-    assert_eq!(warnings.len(), 6, "{warnings:?}");
+    // Every BSDF is now exact; the point light is still approximated.
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings.iter().all(|w| w.element.contains("point")), "{warnings:?}");
     let (lo, hi) = scene.bounds();
     assert!(
         (lo - DVec3::new(-2.0, -2.0, -5.0)).abs().max_element() < 1e-6,

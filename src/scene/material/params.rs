@@ -43,6 +43,11 @@ impl Params {
         }
     }
 
+    /// The names of the parameters no plugin took yet.
+    pub fn remaining(&self) -> Vec<String> {
+        self.map.keys().cloned().collect()
+    }
+
     fn take(&mut self, name: &str) -> Option<Value> {
         self.map.remove(name)
     }

@@ -9,7 +9,7 @@
 use serde_json::{Map, Value};
 
 use crate::scene::format::{MaterialDoc, Rgb};
-use crate::scene::material::plugin_names;
+use crate::scene::material::{Material, plugin_names};
 
 use super::parse::{Element, quote};
 use super::texture::value;
@@ -100,6 +100,7 @@ fn describe<'a>(
         params.insert("reflectance".into(), Value::from(vec![0.5; 3]));
     }
     let mut nested = Vec::new();
+    let mut elements = Vec::new();
     for child in &el.children {
         let target = ctx.deref(child)?;
         if target.tag == "bsdf" {
@@ -141,9 +142,21 @@ fn describe<'a>(
         };
         ctx.origin(format!("{field}.{name}"), child);
         params.insert(name.to_string(), value);
+        elements.push((name, child));
     }
     if !nested.is_empty() {
         params.insert("bsdf".into(), Value::Array(nested));
+    }
+    for name in Material::unknown_parameters(kind, &params) {
+        if let Some((_, child)) = elements.iter().find(|(n, _)| *n == name) {
+            ctx.unsupported(
+                child,
+                "name",
+                &format!("{} has no supported property {}", el.label(), quote(&name)),
+                "ignoring it",
+            )?;
+        }
+        params.remove(&name);
     }
     ctx.leave();
     Ok((kind.to_string(), params))

@@ -523,8 +523,11 @@ fn unknown_plugin_names_plugin_and_line() {
     assert!(e.contains("cylinder"), "{e}");
     let e = err(r#"<emitter type="spot"/>"#);
     assert!(e.contains("spot"), "{e}");
-    let e = err(r#"<bsdf type="diffuse"><float name="roughness" value="1"/></bsdf>"#);
+    let text = wrap(r#"<bsdf type="diffuse"><float name="roughness" value="1"/></bsdf>"#);
+    let e = load_err(&text).to_string();
     assert!(e.contains("roughness"), "{e}");
+    let (_, warnings) = load_in(&text, &scenes_dir(), true).unwrap();
+    assert!(warnings.iter().any(|w| w.message.contains("roughness")), "{warnings:?}");
     let e = err(r#"<shape type="rectangle"><emitter type="envmap"/></shape>"#);
     assert!(e.contains("only `area`"), "{e}");
 }
