@@ -14,6 +14,7 @@
 
 use glam::DVec3;
 
+pub use super::bsdfs::LobeSample;
 use super::bsdfs::conductor::Conductor;
 use super::bsdfs::dielectric::Dielectric;
 use super::bsdfs::phong::Phong;
@@ -22,11 +23,10 @@ use super::bsdfs::rough_conductor::RoughConductor;
 use super::bsdfs::rough_dielectric::RoughDielectric;
 use super::bsdfs::rough_plastic::RoughPlastic;
 use super::bsdfs::thin_dielectric::ThinDielectric;
-pub use super::bsdfs::LobeSample;
 use super::microfacet::{Microfacet, MicrofacetKind};
 use super::rgb::Rgb;
-use crate::scene::material::{Distribution, Roughness};
 use crate::scene::Material;
+use crate::scene::material::{Distribution, Roughness};
 
 /// What kinds of scattering a BSDF has.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -93,9 +93,7 @@ impl Bsdf {
             (Bsdf::RoughDielectric(b), _) => b.eval(wo, wi),
             (Bsdf::Plastic(b), _) => b.eval(wo, wi),
             (Bsdf::RoughPlastic(b), _) => b.eval(wo, wi),
-            (Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_), _) => {
-                Rgb::BLACK
-            }
+            (Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_), _) => Rgb::BLACK,
             (Bsdf::TwoSided(_), _) => unreachable!("side() resolves two-sided BSDFs"),
         }
     }
@@ -273,11 +271,8 @@ impl From<&Material> for Bsdf {
                 roughness,
                 thin,
             } => {
-                let (eta, specular_reflectance, specular_transmittance) = (
-                    *eta,
-                    rgb(specular_reflectance),
-                    rgb(specular_transmittance),
-                );
+                let (eta, specular_reflectance, specular_transmittance) =
+                    (*eta, rgb(specular_reflectance), rgb(specular_transmittance));
                 match (thin, roughness.and_then(microfacet)) {
                     (true, _) => Bsdf::ThinDielectric(ThinDielectric {
                         eta,

@@ -383,8 +383,7 @@ impl Transport {
                 if let Some(light) = self.lights().sample(scene, hit.position, u_select, u) {
                     let wi = frame.to_local(light.wi);
                     let f = bsdf.eval(wo, wi);
-                    if !f.is_black() && light.visible_from(scene, hit.position, hit.normal, stats)
-                    {
+                    if !f.is_black() && light.visible_from(scene, hit.position, hit.normal, stats) {
                         let weight = power_heuristic(light.pdf, bsdf.pdf(wo, wi));
                         radiance += beta * f * light.radiance * (wi.z.abs() * weight / light.pdf);
                     }

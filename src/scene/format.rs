@@ -29,7 +29,6 @@ pub struct SceneDoc {
     pub camera: CameraDoc,
 }
 
-
 /// A material: its plugin `type` and that plugin's parameters, which
 /// `scene::material` parses and validates (unknown ones are refused there,
 /// naming the field).

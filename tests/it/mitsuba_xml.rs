@@ -60,7 +60,10 @@ fn every_supported_element_reads_as_mitsuba_does() {
             .unwrap_or_else(|e| panic!("{e}"));
     // Every BSDF is now exact; the point light is still approximated.
     assert_eq!(warnings.len(), 1, "{warnings:?}");
-    assert!(warnings.iter().all(|w| w.element.contains("point")), "{warnings:?}");
+    assert!(
+        warnings.iter().all(|w| w.element.contains("point")),
+        "{warnings:?}"
+    );
     let (lo, hi) = scene.bounds();
     assert!(
         (lo - DVec3::new(-2.0, -2.0, -5.0)).abs().max_element() < 1e-6,

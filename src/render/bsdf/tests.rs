@@ -123,9 +123,16 @@ fn samples_agree_with_eval_and_pdf() {
                     continue;
                 }
                 let (f, pdf) = (bsdf.eval(wo, s.wi), bsdf.pdf(wo, s.wi));
-                assert!((pdf - s.pdf).abs() <= 1e-6 * pdf, "{name}: {pdf} vs {}", s.pdf);
+                assert!(
+                    (pdf - s.pdf).abs() <= 1e-6 * pdf,
+                    "{name}: {pdf} vs {}",
+                    s.pdf
+                );
                 for (a, b) in f.to_array().iter().zip(s.value.to_array()) {
-                    assert!((a - b).abs() <= 1e-6 * a.abs().max(1e-9), "{name}: {f:?} vs {s:?}");
+                    assert!(
+                        (a - b).abs() <= 1e-6 * a.abs().max(1e-9),
+                        "{name}: {f:?} vs {s:?}"
+                    );
                 }
             }
         }
@@ -163,7 +170,12 @@ fn white_furnace_conserves_energy() {
             // side is concentrated by 1/η², so only the throughput from the
             // denser side may exceed 1 (by up to η²).
             let limit = match (&material, wo.z < 0.0) {
-                (Material::Dielectric { eta, thin: false, .. }, true) => eta * eta,
+                (
+                    Material::Dielectric {
+                        eta, thin: false, ..
+                    },
+                    true,
+                ) => eta * eta,
                 _ => 1.0,
             };
             assert!(
@@ -200,11 +212,17 @@ fn two_sided_materials_see_the_surface_turned_around() {
         back: Box::new(back.clone()),
     });
     let (front, back) = (Bsdf::from(&front), Bsdf::from(&back));
-    let (wo, wi) = (DVec3::new(0.3, 0.1, 0.9).normalize(), DVec3::new(-0.5, 0.2, 0.7).normalize());
+    let (wo, wi) = (
+        DVec3::new(0.3, 0.1, 0.9).normalize(),
+        DVec3::new(-0.5, 0.2, 0.7).normalize(),
+    );
     assert_eq!(both.eval(wo, wi), front.eval(wo, wi));
     assert_eq!(both.eval(flip(wo), flip(wi)), back.eval(wo, wi));
     assert_eq!(both.pdf(flip(wo), flip(wi)), back.pdf(wo, wi));
-    assert!(both.eval(wo, flip(wi)).is_black(), "no light passes through");
+    assert!(
+        both.eval(wo, flip(wi)).is_black(),
+        "no light passes through"
+    );
     let s = both.sample(flip(wo), 0.9, [0.3, 0.6]).unwrap();
     assert!(s.wi.z < 0.0, "the back reflects to its own side");
     assert_eq!(both.lambertian(flip(wo)), back.lambertian(wo));

@@ -146,7 +146,8 @@ impl Plastic {
     /// largest value for a given `ω_o` (`F` grows towards grazing), for an
     /// `ω_o` at `cos_o > 0` (see `render::bsdf::Bsdf::lambertian`).
     pub fn lambertian(&self, cos_o: f64) -> Rgb {
-        self.diffuse * (std::f64::consts::PI * (1.0 - self.fresnel(cos_o)) * (1.0 - self.fresnel(1.0)))
+        self.diffuse
+            * (std::f64::consts::PI * (1.0 - self.fresnel(cos_o)) * (1.0 - self.fresnel(1.0)))
     }
 
     pub fn diffuse_reflectance(&self) -> Rgb {

@@ -73,8 +73,7 @@ fn visible_mean(distribution: &Microfacet, w: DVec3, n: usize, g: impl Fn(DVec3)
             if s.pdf <= 0.0 {
                 continue;
             }
-            let visible =
-                distribution.g1(w, s.m) * w.dot(s.m).max(0.0) * distribution.d(s.m) / w.z;
+            let visible = distribution.g1(w, s.m) * w.dot(s.m).max(0.0) * distribution.d(s.m) / w.z;
             sum += wu * wv * g(s.m) * visible / s.pdf;
         }
     }
@@ -246,7 +245,13 @@ mod tests {
         // For a nearly smooth coating, T(μ) ≈ 1 − F(μ) and the internal
         // reflectance approaches the smooth plastic's F_dr.
         let distribution = Microfacet::new(MicrofacetKind::Ggx, 0.01, 0.01).unwrap();
-        let plastic = RoughPlastic::new(distribution, Rgb::new(0.5, 0.5, 0.5), Rgb::WHITE, 1.5, false);
+        let plastic = RoughPlastic::new(
+            distribution,
+            Rgb::new(0.5, 0.5, 0.5),
+            Rgb::WHITE,
+            1.5,
+            false,
+        );
         for mu in [0.2, 0.5, 0.9] {
             let smooth = 1.0 - fresnel::dielectric(mu, 1.5).reflectance;
             let t = plastic.transmittance_at(mu);
@@ -289,8 +294,13 @@ mod tests {
         ];
         for (kind, alpha, expected) in cases {
             let distribution = Microfacet::new(kind, alpha, alpha).unwrap();
-            let plastic =
-                RoughPlastic::new(distribution, Rgb::new(0.2, 0.5, 0.8), Rgb::WHITE, 1.5, false);
+            let plastic = RoughPlastic::new(
+                distribution,
+                Rgb::new(0.2, 0.5, 0.8),
+                Rgb::WHITE,
+                1.5,
+                false,
+            );
             for ((wo, wi), theirs) in pairs.iter().zip(expected) {
                 let ours = plastic.eval(*wo, *wi).to_array();
                 for c in 0..3 {

@@ -146,19 +146,15 @@ impl Params {
                 ior::named_ior(&medium).ok_or_else(|| {
                     self.invalid(
                         name,
-                        format!(
-                            "unknown medium {medium:?} (known: {})",
-                            ior::media_names()
-                        ),
+                        format!("unknown medium {medium:?} (known: {})", ior::media_names()),
                     )
                 })
             }
             Some(_) => match self.number(name)? {
                 Some(x) if x > 0.0 => Ok(x),
-                x => Err(self.invalid(
-                    name,
-                    format!("{x:?} is not a positive index of refraction"),
-                )),
+                x => {
+                    Err(self.invalid(name, format!("{x:?} is not a positive index of refraction")))
+                }
             },
         }
     }
@@ -196,10 +192,7 @@ impl Params {
                     )
                 })
             }
-            _ => Err(self.invalid(
-                "eta",
-                "give both `eta` and `k`, or `material`, not a mix",
-            )),
+            _ => Err(self.invalid("eta", "give both `eta` and `k`, or `material`, not a mix")),
         }
     }
 

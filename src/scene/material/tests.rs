@@ -16,7 +16,9 @@ fn field_of(doc: serde_json::Value) -> String {
 
 #[test]
 fn every_plugin_parses_with_mitsubas_defaults() {
-    let gold = parse(json!({"id": "g", "type": "roughconductor", "material": "Au", "distribution": "ggx"}));
+    let gold = parse(
+        json!({"id": "g", "type": "roughconductor", "material": "Au", "distribution": "ggx"}),
+    );
     let Ok(Material::Conductor {
         eta,
         roughness: Some(r),
@@ -27,7 +29,10 @@ fn every_plugin_parses_with_mitsubas_defaults() {
         panic!("{gold:?}")
     };
     assert_eq!(eta, metals::named_metal("Au").unwrap().0);
-    assert_eq!((r.distribution, r.alpha_u, r.alpha_v), (Distribution::Ggx, 0.1, 0.1));
+    assert_eq!(
+        (r.distribution, r.alpha_u, r.alpha_v),
+        (Distribution::Ggx, 0.1, 0.1)
+    );
     assert_eq!(specular_reflectance, [1.0; 3]);
     assert_eq!(
         parse(json!({"id": "m", "type": "conductor"})).unwrap(),
@@ -54,7 +59,8 @@ fn every_plugin_parses_with_mitsubas_defaults() {
         diffuse_reflectance,
         roughness: Some(r),
         ..
-    }) = parse(json!({"id": "p", "type": "roughplastic", "diffuse_reflectance": 0.3, "alpha": 0.2}))
+    }) =
+        parse(json!({"id": "p", "type": "roughplastic", "diffuse_reflectance": 0.3, "alpha": 0.2}))
     else {
         panic!()
     };
@@ -68,7 +74,9 @@ fn every_plugin_parses_with_mitsubas_defaults() {
     let Material::TwoSided { front, back } = two else {
         panic!()
     };
-    assert!(matches!(*front, Material::Diffuse { .. }) && matches!(*back, Material::Plastic { .. }));
+    assert!(
+        matches!(*front, Material::Diffuse { .. }) && matches!(*back, Material::Plastic { .. })
+    );
 }
 
 #[test]
@@ -76,22 +84,70 @@ fn bad_parameters_are_named_by_their_field() {
     let cases = [
         (json!({"id": "x", "type": "velvet"}), "materials[3].type"),
         (json!({"id": "x", "type": "diffuse"}), "materials[3]"),
-        (json!({"id": "x", "type": "diffuse", "reflectance": 1, "alpha": 2}), "materials[3].alpha"),
-        (json!({"id": "x", "type": "diffuse", "reflectance": [0.5, 1.5, 0.5]}), "materials[3].reflectance[1]"),
-        (json!({"id": "x", "type": "dielectric", "int_ior": "glassy"}), "materials[3].int_ior"),
-        (json!({"id": "x", "type": "dielectric", "int_ior": 1.0, "ext_ior": 1.0}), "materials[3].int_ior"),
-        (json!({"id": "x", "type": "conductor", "eta": 0.2}), "materials[3].eta"),
-        (json!({"id": "x", "type": "conductor", "material": "Mithril"}), "materials[3].material"),
-        (json!({"id": "x", "type": "roughconductor", "alpha": 0}), "materials[3].alpha_u"),
-        (json!({"id": "x", "type": "roughconductor", "alpha_u": 0.1}), "materials[3].alpha"),
-        (json!({"id": "x", "type": "roughconductor", "distribution": "phong"}), "materials[3].distribution"),
-        (json!({"id": "x", "type": "roughplastic", "alpha_u": 0.1, "alpha_v": 0.3}), "materials[3].alpha_u"),
-        (json!({"id": "x", "type": "plastic", "nonlinear": "yes"}), "materials[3].nonlinear"),
-        (json!({"id": "x", "type": "glossy", "diffuse": 0.6, "specular": 0.6, "exponent": 5}), "materials[3].specular[0]"),
-        (json!({"id": "x", "type": "twosided", "bsdf": []}), "materials[3].bsdf"),
-        (json!({"id": "x", "type": "twosided", "bsdf": {"type": "dielectric"}}), "materials[3].bsdf[0].type"),
-        (json!({"id": "x", "type": "twosided", "bsdf": {"type": "diffuse", "reflectance": 2}}), "materials[3].bsdf[0].reflectance[0]"),
-        (json!({"id": "x", "type": "twosided", "bsdf": {"type": "diffuse", "reflectance": 0.5, "k": 1}}), "materials[3].bsdf[0].k"),
+        (
+            json!({"id": "x", "type": "diffuse", "reflectance": 1, "alpha": 2}),
+            "materials[3].alpha",
+        ),
+        (
+            json!({"id": "x", "type": "diffuse", "reflectance": [0.5, 1.5, 0.5]}),
+            "materials[3].reflectance[1]",
+        ),
+        (
+            json!({"id": "x", "type": "dielectric", "int_ior": "glassy"}),
+            "materials[3].int_ior",
+        ),
+        (
+            json!({"id": "x", "type": "dielectric", "int_ior": 1.0, "ext_ior": 1.0}),
+            "materials[3].int_ior",
+        ),
+        (
+            json!({"id": "x", "type": "conductor", "eta": 0.2}),
+            "materials[3].eta",
+        ),
+        (
+            json!({"id": "x", "type": "conductor", "material": "Mithril"}),
+            "materials[3].material",
+        ),
+        (
+            json!({"id": "x", "type": "roughconductor", "alpha": 0}),
+            "materials[3].alpha_u",
+        ),
+        (
+            json!({"id": "x", "type": "roughconductor", "alpha_u": 0.1}),
+            "materials[3].alpha",
+        ),
+        (
+            json!({"id": "x", "type": "roughconductor", "distribution": "phong"}),
+            "materials[3].distribution",
+        ),
+        (
+            json!({"id": "x", "type": "roughplastic", "alpha_u": 0.1, "alpha_v": 0.3}),
+            "materials[3].alpha_u",
+        ),
+        (
+            json!({"id": "x", "type": "plastic", "nonlinear": "yes"}),
+            "materials[3].nonlinear",
+        ),
+        (
+            json!({"id": "x", "type": "glossy", "diffuse": 0.6, "specular": 0.6, "exponent": 5}),
+            "materials[3].specular[0]",
+        ),
+        (
+            json!({"id": "x", "type": "twosided", "bsdf": []}),
+            "materials[3].bsdf",
+        ),
+        (
+            json!({"id": "x", "type": "twosided", "bsdf": {"type": "dielectric"}}),
+            "materials[3].bsdf[0].type",
+        ),
+        (
+            json!({"id": "x", "type": "twosided", "bsdf": {"type": "diffuse", "reflectance": 2}}),
+            "materials[3].bsdf[0].reflectance[0]",
+        ),
+        (
+            json!({"id": "x", "type": "twosided", "bsdf": {"type": "diffuse", "reflectance": 0.5, "k": 1}}),
+            "materials[3].bsdf[0].k",
+        ),
     ];
     for (doc, field) in cases {
         assert_eq!(field_of(doc.clone()), field, "{doc}");

@@ -13,7 +13,10 @@ pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
     for (kind, field, mut nested) in params.nested("bsdf")? {
         let material = Material::parse(&kind, &mut nested, &field)?;
         nested.finish()?;
-        if matches!(material, Material::TwoSided { .. } | Material::Dielectric { .. }) {
+        if matches!(
+            material,
+            Material::TwoSided { .. } | Material::Dielectric { .. }
+        ) {
             return Err(SceneError::invalid(
                 format!("{field}.type"),
                 format!("a {kind:?} material cannot be one side of a twosided one"),

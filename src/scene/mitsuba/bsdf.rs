@@ -134,10 +134,7 @@ fn describe<'a>(
                 }
             },
             other => {
-                return Err(target.error(
-                    "",
-                    format!("<{other}> is not a BSDF property"),
-                ));
+                return Err(target.error("", format!("<{other}> is not a BSDF property")));
             }
         };
         ctx.origin(format!("{field}.{name}"), child);

@@ -274,7 +274,11 @@ fn bsdf_mappings() {
         panic!()
     };
     assert_eq!((eta, k), ([0.2; 3], [3.0; 3]));
-    assert_eq!(roughness.distribution, Distribution::Beckmann, "Mitsuba's default");
+    assert_eq!(
+        roughness.distribution,
+        Distribution::Beckmann,
+        "Mitsuba's default"
+    );
     assert_eq!((roughness.alpha_u, roughness.alpha_v), (0.5, 0.2));
     let Material::Conductor { eta, .. } = by_id("gold") else {
         panic!()
@@ -284,7 +288,10 @@ fn bsdf_mappings() {
         panic!()
     };
     assert!((eta - 1.333 / 1.000277).abs() < 1e-12 && !thin);
-    assert!(matches!(by_id("pane"), Material::Dielectric { thin: true, .. }));
+    assert!(matches!(
+        by_id("pane"),
+        Material::Dielectric { thin: true, .. }
+    ));
     assert!(matches!(
         by_id("frosted"),
         Material::Dielectric {
@@ -298,11 +305,31 @@ fn bsdf_mappings() {
 #[test]
 fn bad_bsdf_parameters_point_at_their_element() {
     for (body, needle, words) in [
-        (r#"<bsdf type="dielectric"><string name="int_ior" value="unobtainium"/></bsdf>"#, "unobtainium", "unknown medium"),
-        (r#"<bsdf type="conductor"><string name="material" value="Xx"/></bsdf>"#, "Xx", "unknown metal"),
-        (r#"<bsdf type="roughconductor"><float name="alpha" value="-1"/></bsdf>"#, "alpha", "not a roughness"),
-        (r#"<bsdf type="plastic"><rgb name="diffuse_reflectance" value="2"/></bsdf>"#, "diffuse_reflectance", "not an albedo"),
-        (r#"<bsdf type="twosided"><bsdf type="dielectric"/></bsdf>"#, "\"dielectric\"/></bsdf>", "cannot be one side"),
+        (
+            r#"<bsdf type="dielectric"><string name="int_ior" value="unobtainium"/></bsdf>"#,
+            "unobtainium",
+            "unknown medium",
+        ),
+        (
+            r#"<bsdf type="conductor"><string name="material" value="Xx"/></bsdf>"#,
+            "Xx",
+            "unknown metal",
+        ),
+        (
+            r#"<bsdf type="roughconductor"><float name="alpha" value="-1"/></bsdf>"#,
+            "alpha",
+            "not a roughness",
+        ),
+        (
+            r#"<bsdf type="plastic"><rgb name="diffuse_reflectance" value="2"/></bsdf>"#,
+            "diffuse_reflectance",
+            "not an albedo",
+        ),
+        (
+            r#"<bsdf type="twosided"><bsdf type="dielectric"/></bsdf>"#,
+            "\"dielectric\"/></bsdf>",
+            "cannot be one side",
+        ),
     ] {
         let text = wrap(body);
         let e = load_err(&text);
@@ -527,7 +554,10 @@ fn unknown_plugin_names_plugin_and_line() {
     let e = load_err(&text).to_string();
     assert!(e.contains("roughness"), "{e}");
     let (_, warnings) = load_in(&text, &scenes_dir(), true).unwrap();
-    assert!(warnings.iter().any(|w| w.message.contains("roughness")), "{warnings:?}");
+    assert!(
+        warnings.iter().any(|w| w.message.contains("roughness")),
+        "{warnings:?}"
+    );
     let e = err(r#"<shape type="rectangle"><emitter type="envmap"/></shape>"#);
     assert!(e.contains("only `area`"), "{e}");
 }
