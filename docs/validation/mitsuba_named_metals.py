@@ -5,7 +5,7 @@ Mitsuba stores each metal as measured spectra (`data/ior/<name>.eta.spd`,
 `.k.spd`) and, in an RGB variant, turns each into linear sRGB by
 integrating against the CIE 1931 matching functions (`spectrum_to_rgb`),
 clamping out-of-gamut negatives to zero. This prints those values as the
-rows of `NAMED_METALS` in `src/render/bsdfs/metals.rs`, so a scene naming a
+rows of `NAMED_METALS` in `src/scene/material/metals.rs`, so a scene naming a
 metal gets the numbers Mitsuba renders it with.
 
 Run in a throwaway venv (`pip install mitsuba`):
