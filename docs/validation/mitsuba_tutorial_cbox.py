@@ -32,6 +32,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--spp", type=int, default=16384)
     ap.add_argument("--res", type=int, default=64)
+    ap.add_argument("--max-depth", type=int, help="overrides the file's max_depth (6)")
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
     path = pathlib.Path("tests/data/mitsuba-tutorials/cbox.xml")
@@ -39,7 +40,10 @@ def main():
     assert 'type="box"' in text
     # Load from the scene's folder so its relative mesh paths resolve.
     mi.file_resolver().prepend(str(path.parent.resolve()))
-    scene = mi.load_string(text, res=args.res, spp=args.spp // 2)
+    params = {"res": args.res, "spp": args.spp // 2}
+    if args.max_depth is not None:
+        params["max_depth"] = args.max_depth
+    scene = mi.load_string(text, **params)
     started = time.time()
     halves = [np.array(mi.render(scene, seed=seed, spp=args.spp // 2)) for seed in (0, 1)]
     seconds = time.time() - started
