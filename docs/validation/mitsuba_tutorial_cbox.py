@@ -2,7 +2,7 @@
 """Mitsuba 3's render of the tutorials' Cornell box with a glass and a
 mirror sphere (`tests/data/mitsuba-tutorials/cbox.xml`, the file of
 mitsuba-renderer/mitsuba-tutorials `scenes/cbox.xml`), the reference of the
-Rust test `mitsuba_tutorials::cbox_with_glass_and_mirror_agrees_with_mitsuba`.
+Rust test `mitsuba_images::cbox_with_glass_and_mirror_agrees_with_mitsuba`.
 
 The file is loaded as it is, with its own `max_depth` (6), at a resolution
 of 64x64 and with one change: the film's reconstruction filter is `box`

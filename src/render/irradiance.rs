@@ -89,11 +89,17 @@ impl Transport {
     /// The decomposition `method` stands for in this scene: itself, or for
     /// `auto` `hemisphere` when the scene has no emitting surface and an
     /// environment whose relative variance is at most
-    /// [`SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE`], else `split`.
+    /// [`SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE`], else `split`. A scene with
+    /// point, spot or directional lights is always split, whatever is asked:
+    /// no hemisphere direction can find a delta light, only light samples
+    /// can (the response says which decomposition ran).
     pub fn decomposition(&self, method: IrradianceMethod) -> Decomposition {
+        if self.scene().emitters.iter().any(|e| e.is_delta()) {
+            return Decomposition::Split;
+        }
         match method {
             IrradianceMethod::Auto => {
-                let smooth_environment_only = !self.lights().has_area_lights()
+                let smooth_environment_only = !self.lights().has_finite_lights()
                     && self
                         .environment_relative_variance()
                         .is_some_and(|v| v <= SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE);
@@ -315,7 +321,7 @@ impl Transport {
                 if cos > 0.0 && !light.radiance.is_black() && light.visible_from(scene, x, n, stats)
                 {
                     // Only environment light is also reachable by the cosine strategy.
-                    let weight = if light.target.is_none() {
+                    let weight = if light.is_environment() {
                         power_heuristic(light.pdf, cos / PI)
                     } else {
                         1.0

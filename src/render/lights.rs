@@ -3,10 +3,19 @@
 //! BSDF-sampled ray happened to find on a light (needed for MIS).
 //!
 //! Strategy (pbrt-v4 §12.6 "Light Sampling" and §12.5 "Infinite Lights"):
-//! - Area emitters are chosen in proportion to their power `π · A · lum(L_e)`;
-//!   a point is drawn uniformly by area with `Scene::sample_shape_area` and
-//!   converted to solid angle, `p_ω = p_A · d² / |cos θ_l|`. Emitters radiate on
-//!   their front side only (as in Mitsuba 3).
+//! - Area emitters and delta lights are chosen together in proportion to
+//!   their power: `π A lum(L_e)` for an area light, `4π lum(I)` for a point
+//!   light, `2π (1 − cos θ_m) lum(I)` for a spot light (`θ_m` halfway between
+//!   its beam width and cutoff angle), `π R² lum(E)` for a directional light
+//!   (`R` the scene's bounding radius: the power crossing the scene).
+//! - On an area light a point is drawn uniformly by area with
+//!   `Scene::sample_shape_area` and converted to solid angle,
+//!   `p_ω = p_A · d² / |cos θ_l|`. Emitters radiate on their front side only
+//!   (as in Mitsuba 3).
+//! - A delta light has one direction to offer: the sample's `pdf` is the
+//!   probability of choosing it and its `radiance` is what arrives, so that
+//!   `radiance / pdf` is the light's contribution over that choice
+//!   (`I f(θ)/d²` for point and spot lights, `E` for a directional light).
 //! - The environment, when present, is one more light. Its power cannot be
 //!   compared with finite emitters without a scene radius, so it gets a fixed
 //!   selection probability of ½ when area emitters exist (1 otherwise).
@@ -36,9 +45,13 @@ pub struct LightSample {
     pub radiance: Rgb,
     /// Solid-angle density including light selection, sr⁻¹.
     pub pdf: f64,
-    /// Point on an area light and its normal, for the shadow ray; `None` for
-    /// the environment (the shadow ray is then unbounded).
-    pub target: Option<(DVec3, DVec3)>,
+    /// The light's point (with its surface normal on an area light), for
+    /// the shadow ray; `None` for light from infinitely far (the environment,
+    /// a directional light), whose shadow ray is unbounded.
+    pub target: Option<(DVec3, Option<DVec3>)>,
+    /// Whether the light is a Dirac delta (point, spot, directional): no
+    /// BSDF-sampled ray can find it, so it needs no MIS weight.
+    pub delta: bool,
 }
 
 impl LightSample {
@@ -48,11 +61,47 @@ impl LightSample {
     /// traces its shadow rays.
     pub fn visible_from(&self, scene: &Scene, x: DVec3, n: DVec3, stats: &mut TraceStats) -> bool {
         let shadow = match self.target {
-            Some((p, pn)) => scene.spawn_ray_to(x, n, p, Some(pn)),
+            Some((p, pn)) => scene.spawn_ray_to(x, n, p, pn),
             None => scene.spawn_ray(x, n, self.wi),
         };
         stats.rays += 1;
         !scene.occluded(&shadow)
+    }
+
+    /// Whether the sample came from the environment (which a ray that
+    /// escapes the scene also finds).
+    pub fn is_environment(&self) -> bool {
+        self.target.is_none() && !self.delta
+    }
+}
+
+/// Mitsuba 3's spot falloff for a direction at angle `theta` from the
+/// axis: 1 within `beam_width`, linear in angle down to 0 at `cutoff_angle`.
+pub fn spot_falloff(theta: f64, cutoff_angle: f64, beam_width: f64) -> f64 {
+    if theta >= cutoff_angle {
+        0.0
+    } else if theta <= beam_width {
+        1.0
+    } else {
+        (cutoff_angle - theta) / (cutoff_angle - beam_width)
+    }
+}
+
+/// The power by which a light is chosen (module docs); `radius` is the
+/// scene's bounding radius.
+fn selection_power(scene: &Scene, emitter: &Emitter, radius: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let lum = |c: &[f64; 3]| Rgb::from_array(*c).luminance();
+    match emitter {
+        Emitter::Area { shape, radiance } => PI * scene.shape_area(*shape) * lum(radiance),
+        Emitter::Point { intensity, .. } => 2.0 * TAU * lum(intensity),
+        Emitter::Spot {
+            intensity,
+            cutoff_angle,
+            beam_width,
+            ..
+        } => TAU * (1.0 - (0.5 * (cutoff_angle + beam_width)).cos()) * lum(intensity),
+        Emitter::Directional { irradiance, .. } => PI * radius * radius * lum(irradiance),
     }
 }
 
@@ -60,12 +109,12 @@ impl LightSample {
 #[derive(Clone, Debug)]
 pub struct LightSampler {
     /// Indices into `scene.emitters` of emitters with positive power.
-    area_emitters: Vec<usize>,
-    /// Selection among `area_emitters` by power.
-    area_distribution: Option<Distribution1D>,
+    emitters: Vec<usize>,
+    /// Selection among `emitters` by power.
+    distribution: Option<Distribution1D>,
     /// Selection probability of each `scene.emitters` entry (0 for dark ones),
-    /// conditional on choosing an area light.
-    area_probability: Vec<f64>,
+    /// conditional on choosing an emitter rather than the environment.
+    probability: Vec<f64>,
     environment: Option<EnvironmentSampler>,
     /// Probability of sampling the environment rather than an area emitter.
     environment_probability: f64,
@@ -73,35 +122,38 @@ pub struct LightSampler {
 
 impl LightSampler {
     pub fn new(scene: &Scene) -> Self {
-        let mut area_emitters = Vec::new();
+        let (lo, hi) = scene.bounds();
+        let radius = if lo.is_finite() && hi.is_finite() {
+            0.5 * (hi - lo).length()
+        } else {
+            0.0
+        };
+        let mut emitters = Vec::new();
         let mut powers = Vec::new();
         for (i, emitter) in scene.emitters.iter().enumerate() {
-            let Emitter::Area { shape, radiance } = emitter;
-            let power = std::f64::consts::PI
-                * scene.shape_area(*shape)
-                * Rgb::from_array(*radiance).luminance();
+            let power = selection_power(scene, emitter, radius);
             if power > 0.0 && power.is_finite() {
-                area_emitters.push(i);
+                emitters.push(i);
                 powers.push(power);
             }
         }
-        let area_distribution = (!powers.is_empty()).then(|| Distribution1D::new(&powers));
-        let mut area_probability = vec![0.0; scene.emitters.len()];
-        if let Some(d) = &area_distribution {
-            for (k, &i) in area_emitters.iter().enumerate() {
-                area_probability[i] = d.probability(k);
+        let distribution = (!powers.is_empty()).then(|| Distribution1D::new(&powers));
+        let mut probability = vec![0.0; scene.emitters.len()];
+        if let Some(d) = &distribution {
+            for (k, &i) in emitters.iter().enumerate() {
+                probability[i] = d.probability(k);
             }
         }
         let environment = scene.environment.as_ref().map(EnvironmentSampler::new);
-        let environment_probability = match (&environment, &area_distribution) {
+        let environment_probability = match (&environment, &distribution) {
             (None, _) => 0.0,
             (Some(_), None) => 1.0,
             (Some(_), Some(_)) => ENVIRONMENT_SELECTION,
         };
         Self {
-            area_emitters,
-            area_distribution,
-            area_probability,
+            emitters,
+            distribution,
+            probability,
             environment,
             environment_probability,
         }
@@ -126,34 +178,82 @@ impl LightSampler {
                 radiance,
                 pdf: pdf * pe,
                 target: None,
+                delta: false,
             });
         }
-        let dist = self.area_distribution.as_ref()?;
+        let dist = self.distribution.as_ref()?;
         let (k, p_select, _) = dist.sample_discrete(((u_select - pe) / (1.0 - pe)).min(1.0));
-        let emitter = self.area_emitters[k];
-        let Emitter::Area { shape, radiance } = &scene.emitters[emitter];
-        let (point, normal, pdf_area) = scene.sample_shape_area(*shape, u);
-        let d = point - x;
-        let dist2 = d.length_squared();
-        if dist2 <= 0.0 || pdf_area <= 0.0 {
-            return None;
+        let p_select = (1.0 - pe) * p_select;
+        let point_light = |position: &[f64; 3], intensity: Rgb| {
+            let p = DVec3::from_array(*position);
+            let d = p - x;
+            let dist2 = d.length_squared();
+            (dist2 > 0.0).then(|| LightSample {
+                wi: d / dist2.sqrt(),
+                radiance: intensity * (1.0 / dist2),
+                pdf: p_select,
+                target: Some((p, None)),
+                delta: true,
+            })
+        };
+        match &scene.emitters[self.emitters[k]] {
+            Emitter::Area { shape, radiance } => {
+                let (point, normal, pdf_area) = scene.sample_shape_area(*shape, u);
+                let d = point - x;
+                let dist2 = d.length_squared();
+                if dist2 <= 0.0 || pdf_area <= 0.0 {
+                    return None;
+                }
+                let wi = d / dist2.sqrt();
+                let cos_light = -normal.dot(wi);
+                if cos_light <= 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    radiance: Rgb::from_array(*radiance),
+                    pdf: p_select * pdf_area * dist2 / cos_light,
+                    target: Some((point, Some(normal))),
+                    delta: false,
+                })
+            }
+            Emitter::Point {
+                position,
+                intensity,
+            } => point_light(position, Rgb::from_array(*intensity)),
+            Emitter::Spot {
+                position,
+                direction,
+                intensity,
+                cutoff_angle,
+                beam_width,
+            } => {
+                let axis = DVec3::from_array(*direction);
+                let towards_x = (x - DVec3::from_array(*position)).normalize_or_zero();
+                let theta = axis.dot(towards_x).clamp(-1.0, 1.0).acos();
+                let falloff = spot_falloff(theta, *cutoff_angle, *beam_width);
+                if falloff <= 0.0 {
+                    return None;
+                }
+                point_light(position, Rgb::from_array(*intensity) * falloff)
+            }
+            Emitter::Directional {
+                direction,
+                irradiance,
+            } => Some(LightSample {
+                wi: -DVec3::from_array(*direction),
+                radiance: Rgb::from_array(*irradiance),
+                pdf: p_select,
+                target: None,
+                delta: true,
+            }),
         }
-        let wi = d / dist2.sqrt();
-        let cos_light = -normal.dot(wi);
-        if cos_light <= 0.0 {
-            return None;
-        }
-        Some(LightSample {
-            wi,
-            radiance: Rgb::from_array(*radiance),
-            pdf: (1.0 - pe) * p_select * pdf_area * dist2 / cos_light,
-            target: Some((point, normal)),
-        })
     }
 
-    /// Whether any emitting surface has positive power.
-    pub fn has_area_lights(&self) -> bool {
-        self.area_distribution.is_some()
+    /// Whether the scene has a light other than the environment (an
+    /// emitting surface or a delta light) with positive power.
+    pub fn has_finite_lights(&self) -> bool {
+        self.distribution.is_some()
     }
 
     /// Whether the scene has an environment to sample.
@@ -167,7 +267,7 @@ impl LightSampler {
         let Some(emitter) = hit.emitter else {
             return 0.0;
         };
-        let p_select = self.area_probability.get(emitter).copied().unwrap_or(0.0);
+        let p_select = self.probability.get(emitter).copied().unwrap_or(0.0);
         if p_select == 0.0 {
             return 0.0;
         }
@@ -208,3 +308,6 @@ pub fn emitted_radiance(scene: &Scene, hit: &SurfaceHit, dir: DVec3) -> Rgb {
         _ => Rgb::BLACK,
     }
 }
+
+#[cfg(test)]
+mod tests;

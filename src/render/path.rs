@@ -384,7 +384,12 @@ impl Transport {
                     let wi = frame.to_local(light.wi);
                     let f = bsdf.eval(wo, wi);
                     if !f.is_black() && light.visible_from(scene, hit.position, hit.normal, stats) {
-                        let weight = power_heuristic(light.pdf, bsdf.pdf(wo, wi));
+                        // A delta light is out of the BSDF sample's reach.
+                        let weight = if light.delta {
+                            1.0
+                        } else {
+                            power_heuristic(light.pdf, bsdf.pdf(wo, wi))
+                        };
                         radiance += beta * f * light.radiance * (wi.z.abs() * weight / light.pdf);
                     }
                 }

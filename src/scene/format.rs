@@ -25,6 +25,10 @@ pub struct SceneDoc {
     #[serde(default)]
     pub materials: Vec<MaterialDoc>,
     pub shapes: Vec<ShapeDoc>,
+    /// Point, spot and directional lights (`scene::emitter`), each a
+    /// plugin document parsed there.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<serde_json::Map<String, serde_json::Value>>,
     pub environment: Option<EnvironmentDoc>,
     pub camera: CameraDoc,
 }

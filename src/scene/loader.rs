@@ -238,6 +238,9 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         };
         builder.add_shape(s, &field, material, emitter, files, &meshes)?;
     }
+    for (i, light) in doc.lights.iter().enumerate() {
+        emitters.push(Emitter::from_light_doc(light, &format!("lights[{i}]"))?);
+    }
 
     let environment = doc
         .environment

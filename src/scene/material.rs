@@ -17,13 +17,12 @@ mod diffuse;
 mod glossy;
 pub mod ior;
 pub mod metals;
-mod params;
 mod plastic;
 mod twosided;
 
 use super::error::SceneError;
 use super::format::MaterialDoc;
-pub(crate) use params::Params;
+pub(crate) use super::params::Params;
 
 /// Largest accepted Phong exponent; beyond it the lobe is a mirror for all
 /// practical purposes and sampling it in f64 loses precision.

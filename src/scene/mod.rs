@@ -19,6 +19,7 @@ mod loader;
 pub mod material;
 mod mesh;
 mod mitsuba;
+mod params;
 mod ray;
 mod read;
 

@@ -117,7 +117,9 @@ fn cornell_box_matches_the_mitsuba_reference() {
     assert!((green.normal + DVec3::X).length() < 1e-6);
     // The light: centre (0, 0.99, 0.01), 0.46 × 0.38, facing -y, white BSDF.
     assert_eq!(scene.emitters.len(), 1);
-    let Emitter::Area { shape, radiance } = scene.emitters[0].clone();
+    let Emitter::Area { shape, radiance } = scene.emitters[0].clone() else {
+        panic!("{:?}", scene.emitters[0])
+    };
     assert_eq!(radiance, [18.387, 13.9873, 6.75357]);
     assert!((scene.shape_area(shape) - 0.46 * 0.38).abs() < 1e-6);
     let hit = scene
@@ -320,7 +322,7 @@ fn secondary_rays_do_not_hit_their_own_surface() {
         }
     }
     // Upper back wall points see the whole light.
-    let light = scene.emitters[0].shape();
+    let light = scene.emitters[0].shape().expect("an area light");
     for _ in 0..500 {
         let p = DVec3::new(
             rng.random::<f64>() * 1.8 - 0.9,

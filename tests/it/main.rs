@@ -17,7 +17,7 @@ mod irradiance_cli;
 mod layering;
 mod light_transport;
 mod loadtest;
-mod mitsuba_tutorials;
+mod mitsuba_images;
 mod mitsuba_xml;
 mod readme_commands;
 mod regression;

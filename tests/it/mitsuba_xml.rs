@@ -58,12 +58,8 @@ fn every_supported_element_reads_as_mitsuba_does() {
     let (scene, warnings) =
         Scene::load_mitsuba_xml(&dir.join("all.xml"), &dir, &MitsubaOptions::default())
             .unwrap_or_else(|e| panic!("{e}"));
-    // Every BSDF is now exact; the point light is still approximated.
-    assert_eq!(warnings.len(), 1, "{warnings:?}");
-    assert!(
-        warnings.iter().all(|w| w.element.contains("point")),
-        "{warnings:?}"
-    );
+    // Every element is now exact.
+    assert!(warnings.is_empty(), "{warnings:?}");
     let (lo, hi) = scene.bounds();
     assert!(
         (lo - DVec3::new(-2.0, -2.0, -5.0)).abs().max_element() < 1e-6,
@@ -73,8 +69,8 @@ fn every_supported_element_reads_as_mitsuba_does() {
         (hi - DVec3::new(3.5, 2.5, 3.5)).abs().max_element() < 1e-6,
         "{hi}"
     );
-    // Mitsuba's 8 shapes plus the sphere standing in for the point light.
-    assert_eq!(scene.shape_count(), 9);
+    // Mitsuba's 8 shapes; the area light and the point light.
+    assert_eq!(scene.shape_count(), 8);
     assert_eq!(scene.emitters.len(), 2);
     assert!(scene.environment.is_some());
     let (w, _) = scene.camera.resolution();

@@ -1,21 +1,18 @@
 //! Top-level Mitsuba emitters: `envmap` and `constant` become the scene's
-//! environment; `point` (the scene model has no point lights) becomes a
-//! small black sphere emitting uniformly with the same radiant intensity.
-//! Area emitters live on shapes (`shape.rs`).
+//! environment; `point`, `spot` and `directional` its delta lights. Area
+//! emitters live on shapes (`shape.rs`).
 
-use crate::scene::format::{EmitterDoc, EmitterKind, EnvironmentDoc, EnvironmentKind, ShapeKind};
+use glam::DVec3;
+use serde_json::{Map, Value};
+
+use crate::scene::format::{EnvironmentDoc, EnvironmentKind};
 use crate::scene::transform;
 
 use super::parse::{Element, quote};
 use super::props::Props;
-use super::shape::shape_doc;
-use super::texture::color;
+use super::texture::{color, value};
 use super::transform::Ops;
 use super::{Ctx, XmlError};
-
-/// Material of the spheres standing in for point lights (they reflect
-/// nothing, like a point).
-const POINT_MATERIAL_ID: &str = "point-light@mitsuba";
 
 pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<(), XmlError> {
     let kind = el.attr("type").unwrap_or("");
@@ -46,7 +43,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<(), XmlError
                 to_world: to_world.into_doc(ctx, "environment.to_world"),
             }
         }
-        "point" => return point(ctx, el, props),
+        "point" | "spot" | "directional" => return light(ctx, el, kind, props),
         "area" => {
             return Err(el.error(
                 "type",
@@ -76,44 +73,74 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<(), XmlError
     Ok(())
 }
 
-/// A point light of intensity `I` (W/sr) at `p` → a sphere of radius `r`
-/// at `p` with radiance `L = I / (π r²)`, which has the same intensity
-/// `L · π r²` (projected area) in every direction.
-fn point<'a>(ctx: &mut Ctx<'a>, el: &'a Element, mut props: Props<'a>) -> Result<(), XmlError> {
-    let intensity = color(ctx, &mut props, "intensity", [1.0; 3])?;
-    let position = match (props.point("position")?, props.get("to_world")?) {
-        (Some(p), None) => p,
-        (None, Some(t)) => match Ops::read(t)?.doc() {
-            Some(doc) => transform::build(&doc, "to_world")
-                .map_err(|e| t.error("", e.to_string()))?
-                .translation
-                .to_array(),
-            None => [0.0; 3],
-        },
-        (None, None) => [0.0; 3],
-        (Some(_), Some(_)) => {
-            return Err(el.error("position", "give `position` or `to_world`, not both"));
-        }
+/// `to_world` of a light: its translation (the position) and where it
+/// sends +z (the axis), or `None` without one.
+fn placement(t: Option<&Element>) -> Result<Option<(DVec3, DVec3)>, XmlError> {
+    let Some(t) = t else {
+        return Ok(None);
     };
-    props.finish(ctx)?;
-    let r = ctx.point_light_radius;
-    if !(r > 0.0 && r.is_finite()) {
-        return Err(el.error("", format!("point light radius {r} must be positive")));
+    let Some(doc) = Ops::read(t)?.doc() else {
+        return Ok(Some((DVec3::ZERO, DVec3::Z)));
+    };
+    let affine = transform::build(&doc, "to_world").map_err(|e| t.error("", e.to_string()))?;
+    Ok(Some((
+        affine.translation,
+        affine.transform_vector3(DVec3::Z),
+    )))
+}
+
+/// `point`, `spot` and `directional` become the scene's `lights`, with
+/// Mitsuba's parameter names; `to_world` gives a point or spot light its
+/// position and a spot or directional light its axis.
+fn light<'a>(
+    ctx: &mut Ctx<'a>,
+    el: &'a Element,
+    kind: &str,
+    mut props: Props<'a>,
+) -> Result<(), XmlError> {
+    let mut doc = Map::new();
+    doc.insert("type".into(), Value::from(kind));
+    let field = format!("lights[{}]", ctx.lights.len());
+    ctx.origin(field.clone(), el);
+    let (position, direction) = (props.point("position")?, props.point("direction")?);
+    let placed = placement(props.get("to_world")?)?;
+    if placed.is_some() && (position.is_some() || direction.is_some()) {
+        return Err(el.error(
+            "to_world",
+            "give `to_world`, or `position`/`direction`, not both",
+        ));
     }
-    ctx.warn(
-        el,
-        format!("point light approximated by an emitting sphere of radius {r}"),
-    );
-    let material = super::bsdf::builtin_diffuse(ctx, POINT_MATERIAL_ID, [0.0; 3]);
-    let mut doc = shape_doc(ShapeKind::Sphere, material);
-    doc.center = Some(position);
-    doc.radius = Some(r);
-    let area = std::f64::consts::PI * r * r;
-    doc.emitter = Some(EmitterDoc {
-        kind: EmitterKind::Area,
-        radiance: intensity.map(|i| i / area),
-    });
-    ctx.origin(format!("shapes[{}]", ctx.shapes.len()), el);
-    ctx.shapes.push(doc);
+    let (position, direction) = match placed {
+        Some((p, d)) => (Some(p.to_array()), Some(d.to_array())),
+        None => (position, direction),
+    };
+    if kind != "directional" {
+        if let Some(p) = position {
+            doc.insert("position".into(), Value::from(p.to_vec()));
+        }
+    }
+    if kind != "point" {
+        if let Some(d) = direction {
+            doc.insert("direction".into(), Value::from(d.to_vec()));
+        }
+    }
+    let emitted = if kind == "directional" {
+        "irradiance"
+    } else {
+        "intensity"
+    };
+    if let Some(c) = props.get(emitted)? {
+        doc.insert(emitted.into(), Value::from(value(ctx, c)?.to_vec()));
+        ctx.origin(format!("{field}.{emitted}"), c);
+    }
+    if kind == "spot" {
+        for name in ["cutoff_angle", "beam_width"] {
+            if let Some(x) = props.opt_float(name)? {
+                doc.insert(name.into(), Value::from(x));
+            }
+        }
+    }
+    props.finish(ctx)?;
+    ctx.lights.push(doc);
     Ok(())
 }

@@ -41,9 +41,6 @@ pub struct MitsubaOptions {
     /// Values for `$name` parameters; they override the file's `<default>`s
     /// (like keyword arguments to Mitsuba's `load_file`).
     pub parameters: BTreeMap<String, String>,
-    /// Radius, in scene units, of the small spherical emitter that stands in
-    /// for a `point` light (the scene model has no point lights).
-    pub point_light_radius: f64,
 }
 
 impl Default for MitsubaOptions {
@@ -51,7 +48,6 @@ impl Default for MitsubaOptions {
         Self {
             lenient: false,
             parameters: BTreeMap::new(),
-            point_light_radius: 1e-3,
         }
     }
 }
@@ -202,7 +198,6 @@ impl Origin {
 pub(crate) struct Ctx<'a> {
     ids: HashMap<String, &'a Element>,
     lenient: bool,
-    point_light_radius: f64,
     files: &'a Files,
     warnings: Warnings,
     /// Unsupported features of a strict document, reported together once
@@ -212,6 +207,7 @@ pub(crate) struct Ctx<'a> {
     /// Element (by position) → the material id it became.
     material_of: HashMap<(u32, u32), String>,
     shapes: Vec<ShapeDoc>,
+    lights: Vec<serde_json::Map<String, serde_json::Value>>,
     environment: Option<EnvironmentDoc>,
     camera: Option<CameraDoc>,
     /// Document field path → XML element, most specific last.
@@ -229,13 +225,13 @@ impl<'a> Ctx<'a> {
         Ctx {
             ids,
             lenient: options.lenient,
-            point_light_radius: options.point_light_radius,
             files,
             warnings: Warnings::default(),
             problems: Vec::new(),
             materials: Vec::new(),
             material_of: HashMap::new(),
             shapes: Vec::new(),
+            lights: Vec::new(),
             environment: None,
             camera: None,
             origins: Vec::new(),
@@ -437,6 +433,7 @@ fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, 
         description: None,
         materials: std::mem::take(&mut ctx.materials),
         shapes: std::mem::take(&mut ctx.shapes),
+        lights: std::mem::take(&mut ctx.lights),
         environment: ctx.environment.take(),
         camera,
     })

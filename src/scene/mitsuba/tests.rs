@@ -378,21 +378,32 @@ fn emitters_area_constant_envmap_and_point() {
     assert_eq!(format!("{map:?}"), format!("{expected:?}"));
 
     let (scene, warnings) = load(&wrap(
-        r#"<emitter type="point"><point name="position" value="0 1 0"/><rgb name="intensity" value="2"/></emitter>"#,
+        r#"<emitter type="point"><point name="position" value="0 1 0"/><rgb name="intensity" value="2"/></emitter>
+           <emitter type="spot"><transform name="to_world"><lookat origin="0 2 0" target="0 0 0" up="0 0 1"/></transform>
+             <float name="cutoff_angle" value="30"/></emitter>
+           <emitter type="directional"><vector name="direction" value="0 -2 0"/><rgb name="irradiance" value="3"/></emitter>"#,
     ))
     .unwrap();
-    assert_eq!(warnings.len(), 1, "{warnings:?}");
-    let r = MitsubaOptions::default().point_light_radius;
-    let Emitter::Area { shape, radiance } = scene.emitters[0];
-    // Intensity = radiance × projected area of the sphere.
-    assert!((radiance[0] * std::f64::consts::PI * r * r - 2.0).abs() < 1e-9);
-    let (lo, hi) = scene.bounds();
-    assert!(((lo + hi) * 0.5 - DVec3::Y).length() < 1e-12);
+    assert!(warnings.is_empty(), "{warnings:?}");
     assert_eq!(
-        scene.materials[scene.shape_material(shape)],
-        Material::Diffuse {
-            reflectance: [0.0; 3]
-        }
+        scene.emitters,
+        vec![
+            Emitter::Point {
+                position: [0.0, 1.0, 0.0],
+                intensity: [2.0; 3]
+            },
+            Emitter::Spot {
+                position: [0.0, 2.0, 0.0],
+                direction: [0.0, -1.0, 0.0],
+                intensity: [1.0; 3],
+                cutoff_angle: 30f64.to_radians(),
+                beam_width: 22.5f64.to_radians(),
+            },
+            Emitter::Directional {
+                direction: [0.0, -1.0, 0.0],
+                irradiance: [3.0; 3]
+            },
+        ]
     );
 }
 
@@ -548,8 +559,8 @@ fn unknown_plugin_names_plugin_and_line() {
 
     let e = err(r#"<shape type="cylinder"/>"#);
     assert!(e.contains("cylinder"), "{e}");
-    let e = err(r#"<emitter type="spot"/>"#);
-    assert!(e.contains("spot"), "{e}");
+    let e = err(r#"<emitter type="projector"/>"#);
+    assert!(e.contains("projector"), "{e}");
     let text = wrap(r#"<bsdf type="diffuse"><float name="roughness" value="1"/></bsdf>"#);
     let e = load_err(&text).to_string();
     assert!(e.contains("roughness"), "{e}");

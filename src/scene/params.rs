@@ -1,16 +1,16 @@
-//! A material document's parameters, taken one by one by the plugin that
-//! parses them; whatever no plugin took is refused by [`Params::finish`],
-//! naming its field.
+//! A plugin document's parameters (a material's, a light's), taken one by
+//! one by the plugin that parses them; whatever no plugin took is refused
+//! by [`Params::finish`], naming its field.
 
 use serde_json::{Map, Value};
 
-use super::{Distribution, Rgb, Roughness, ior, metals};
-use crate::scene::error::SceneError;
+use super::error::SceneError;
+use super::material::{Distribution, Rgb, Roughness, ior, metals};
 
 /// Mitsuba's default `alpha` of rough BSDFs.
 const DEFAULT_ALPHA: f64 = 0.1;
 
-/// The parameters of one material document (or of a BSDF nested in one),
+/// The parameters of one plugin document (or of a BSDF nested in one),
 /// `field` its path for messages.
 #[derive(Debug)]
 pub(crate) struct Params {
@@ -38,7 +38,7 @@ impl Params {
     /// Refuses every parameter no plugin took.
     pub fn finish(self) -> Result<(), SceneError> {
         match self.map.keys().next() {
-            Some(name) => Err(self.invalid(name, "not a parameter of this material type")),
+            Some(name) => Err(self.invalid(name, "not a parameter of this type")),
             None => Ok(()),
         }
     }
@@ -61,6 +61,35 @@ impl Params {
                 _ => Err(self.invalid(name, format!("{v} is not a finite number"))),
             },
         }
+    }
+
+    /// A finite vector `[x, y, z]`, if given.
+    pub fn vector(&mut self, name: &str) -> Result<Option<[f64; 3]>, SceneError> {
+        let Some(v) = self.take(name) else {
+            return Ok(None);
+        };
+        let xyz: Option<Vec<f64>> = v
+            .as_array()
+            .filter(|a| a.len() == 3)
+            .map(|a| a.iter().filter_map(Value::as_f64).collect());
+        match xyz {
+            Some(c) if c.len() == 3 && c.iter().all(|x| x.is_finite()) => {
+                Ok(Some([c[0], c[1], c[2]]))
+            }
+            _ => Err(self.invalid(name, format!("{v} is not a finite [x, y, z]"))),
+        }
+    }
+
+    /// A unit direction from a non-zero finite vector, if given.
+    pub fn direction(&mut self, name: &str) -> Result<Option<[f64; 3]>, SceneError> {
+        let Some(v) = self.vector(name)? else {
+            return Ok(None);
+        };
+        let length = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if !(length > 0.0 && length.is_finite()) {
+            return Err(self.invalid(name, "is not a direction (zero length)"));
+        }
+        Ok(Some(v.map(|x| x / length)))
     }
 
     /// A colour: a number (grey) or `[r, g, b]`, each finite and ≥ 0.
