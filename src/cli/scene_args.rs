@@ -70,7 +70,6 @@ impl SceneArgs {
         let options = MitsubaOptions {
             lenient: self.lenient,
             parameters: self.params.iter().cloned().collect(),
-            ..MitsubaOptions::default()
         };
         let (scene, approximated) =
             Scene::load_mitsuba_xml(&self.scene, &root, &options).with_context(context)?;

@@ -114,15 +114,11 @@ fn light<'a>(
         Some((p, d)) => (Some(p.to_array()), Some(d.to_array())),
         None => (position, direction),
     };
-    if kind != "directional" {
-        if let Some(p) = position {
-            doc.insert("position".into(), Value::from(p.to_vec()));
-        }
+    if let (Some(p), false) = (position, kind == "directional") {
+        doc.insert("position".into(), Value::from(p.to_vec()));
     }
-    if kind != "point" {
-        if let Some(d) = direction {
-            doc.insert("direction".into(), Value::from(d.to_vec()));
-        }
+    if let (Some(d), false) = (direction, kind == "point") {
+        doc.insert("direction".into(), Value::from(d.to_vec()));
     }
     let emitted = if kind == "directional" {
         "irradiance"

@@ -33,7 +33,7 @@ pub use parse::MAX_DEPTH;
 use parse::{Element, quote};
 
 /// How to treat what the project's scene model cannot represent.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct MitsubaOptions {
     /// false (default): anything unsupported is an error. true: it is
     /// approximated as documented and listed in the returned warnings.
@@ -41,15 +41,6 @@ pub struct MitsubaOptions {
     /// Values for `$name` parameters; they override the file's `<default>`s
     /// (like keyword arguments to Mitsuba's `load_file`).
     pub parameters: BTreeMap<String, String>,
-}
-
-impl Default for MitsubaOptions {
-    fn default() -> Self {
-        Self {
-            lenient: false,
-            parameters: BTreeMap::new(),
-        }
-    }
 }
 
 /// Something approximated while reading the XML.
