@@ -60,7 +60,7 @@ use crate::render::{
     AveragedPaths, Evaluation, FirstSegment, PathLengths, PathLimits, PixelSample, QueryPoint,
     RadianceSample, RenderError, Rgb, TraceStats, Transport, warp,
 };
-use crate::scene::SurfaceHit;
+use crate::scene::{Ray, SurfaceHit};
 use crate::sphere::Frame;
 use crate::stats::RunningMean;
 
@@ -265,6 +265,7 @@ impl RecordGather<'_> {
             sample: None,
             indirect: true,
             glossy_bmc: false,
+            delta_chain: 0,
         };
         segments
             .iter()
@@ -297,7 +298,15 @@ struct Reflection<'a> {
     indirect: bool,
     /// Glossy lobes by BMC; otherwise by one lobe-sampled path.
     glossy_bmc: bool,
+    /// Dirac-delta bounces (mirrors, glass) a camera path has followed
+    /// through the cache to reach this point.
+    delta_chain: u32,
 }
+
+/// Longest chain of delta bounces a camera path follows through the cache
+/// before it is path traced (two mirrors facing each other would otherwise
+/// never end it).
+const MAX_DELTA_CHAIN: u32 = 8;
 
 impl CachedIntegrator<'_> {
     /// Radiance leaving the surface at `hit` towards the unit world direction
@@ -332,6 +341,7 @@ impl CachedIntegrator<'_> {
             sample: how.sample,
             indirect: from_point.has_reflections(),
             glossy_bmc: true,
+            delta_chain: 0,
         };
         let reflected = self.reflected_radiance(hit, wo, &reflection, rng, stats)?;
         Ok(Evaluation {
@@ -393,7 +403,11 @@ impl CachedIntegrator<'_> {
                 }
             }
             Some(_) => {}
-            None => radiance += self.lambertian_and_rest(&surface, r, rng, &mut trace, stats)?,
+            None => {
+                let rest = self.lambertian_and_rest(&surface, r, rng, &mut trace, stats)?;
+                radiance += rest.value;
+                variance += rest.variance;
+            }
         }
         stats.rays += trace.rays;
         Ok(Evaluation {
@@ -405,9 +419,11 @@ impl CachedIntegrator<'_> {
     /// The reflection of a BSDF other than Phong, direct light aside
     /// (docs/math.md §18.3): its Lambertian part `ρ(ω_o)` times the cached
     /// indirect irradiance `E/π` (on the side `ω_o` sees), plus the rest
-    /// `f − ρ/π` by one BSDF sample whose incident radiance is path traced:
-    /// all of it through a Dirac delta (which no light sample reaches),
-    /// only its indirect part otherwise (light samples took the direct).
+    /// `f − ρ/π` by one BSDF sample: all the light arriving through a Dirac
+    /// delta (which no light sample reaches), only its indirect part
+    /// otherwise (light samples took the direct). A camera path
+    /// ([`Self::through_delta`]) follows deltas through the cache; every
+    /// other sample's incident radiance is path traced.
     fn lambertian_and_rest<R: Rng + ?Sized>(
         &self,
         s: &Surface,
@@ -415,7 +431,7 @@ impl CachedIntegrator<'_> {
         rng: &mut R,
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
-    ) -> Result<Rgb, RenderError> {
+    ) -> Result<Evaluation, RenderError> {
         let mut radiance = Rgb::BLACK;
         let rho = s.bsdf.lambertian(s.wo_local);
         if r.indirect && !rho.is_black() {
@@ -426,10 +442,10 @@ impl CachedIntegrator<'_> {
         }
         let u = [rng.random(), rng.random()];
         let Some(sample) = s.bsdf.sample(s.wo_local, rng.random(), u) else {
-            return Ok(radiance);
+            return Ok(Evaluation::of(radiance));
         };
         if !sample.delta && !r.indirect {
-            return Ok(radiance);
+            return Ok(Evaluation::of(radiance));
         }
         let mut f = sample.value;
         if !sample.delta && sample.wi.z * s.wo_local.z > 0.0 {
@@ -437,7 +453,16 @@ impl CachedIntegrator<'_> {
         }
         let throughput = f * (sample.wi.z.abs() / sample.pdf);
         if throughput.is_black() {
-            return Ok(radiance);
+            return Ok(Evaluation::of(radiance));
+        }
+        let scene = self.transport.scene();
+        let ray = scene.spawn_ray(s.hit.position, s.hit.normal, s.frame.to_world(sample.wi));
+        if sample.delta && self.through_delta(r) {
+            let arriving = self.arriving_through_delta(ray, r, rng, trace, stats)?;
+            return Ok(Evaluation {
+                value: radiance + throughput * arriving.value,
+                variance: throughput * throughput * arriving.variance,
+            });
         }
         let limits = PathLimits {
             max_depth: r.placement.paths.max_depth,
@@ -447,10 +472,50 @@ impl CachedIntegrator<'_> {
                 PathLengths::Indirect
             },
         };
-        let scene = self.transport.scene();
-        let ray = scene.spawn_ray(s.hit.position, s.hit.normal, s.frame.to_world(sample.wi));
         let incident = self.transport.incident_radiance(ray, limits, rng, trace);
-        Ok(radiance + throughput * incident.radiance)
+        Ok(Evaluation::of(radiance + throughput * incident.radiance))
+    }
+
+    /// Whether a delta bounce at a point shaded as `r` is followed through
+    /// the cache: on camera paths (level 0), for at most
+    /// [`MAX_DELTA_CHAIN`] bounces, and where paths may be at least
+    /// [`AMBIENT_MIN_DEPTH`] long. The surface the chain reaches is shaded
+    /// with the records of the camera's depth, so the chain's bounces are
+    /// not counted against `max_depth`: the same approximation as a bounce
+    /// through the cache (module docs), negligible where the truncated tail
+    /// is.
+    fn through_delta(&self, r: &Reflection) -> bool {
+        r.level == 0
+            && r.delta_chain < MAX_DELTA_CHAIN
+            && r.placement.paths.max_depth >= AMBIENT_MIN_DEPTH
+    }
+
+    /// Radiance arriving along `ray` from the surface it hits, shaded as a
+    /// camera hit is (emission, direct light, the cache), or from the
+    /// environment if it escapes.
+    fn arriving_through_delta<R: Rng + ?Sized>(
+        &self,
+        ray: Ray,
+        r: &Reflection,
+        rng: &mut R,
+        trace: &mut TraceStats,
+        stats: &mut ShadingStats,
+    ) -> Result<Evaluation, RenderError> {
+        let scene = self.transport.scene();
+        trace.rays += 1;
+        let Some(next) = scene.intersect(&ray) else {
+            return Ok(Evaluation::of(environment_radiance(scene, ray.dir)));
+        };
+        let emitted = emitted_radiance(scene, &next, ray.dir);
+        let chained = Reflection {
+            delta_chain: r.delta_chain + 1,
+            ..*r
+        };
+        let reflected = self.reflected_radiance(&next, -ray.dir, &chained, rng, stats)?;
+        Ok(Evaluation {
+            value: emitted + reflected.value,
+            variance: reflected.variance,
+        })
     }
 
     /// One estimate per direction by an ambient bounce ([`Gather::Cache`]).
@@ -476,6 +541,7 @@ impl CachedIntegrator<'_> {
             sample: None,
             indirect: true,
             glossy_bmc: false,
+            delta_chain: 0,
         };
         let all = bounce.paths.lengths == PathLengths::All;
         let scene = self.transport.scene();

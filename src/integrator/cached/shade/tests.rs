@@ -213,6 +213,7 @@ fn glossy_bmc_agrees_with_lobe_sampling() {
         sample: None,
         indirect: true,
         glossy_bmc: true,
+        delta_chain: 0,
     };
     let mut rng = Pcg64::seed_from_u64(5);
     let (mut trace, mut stats) = (TraceStats::default(), ShadingStats::default());
