@@ -6,6 +6,8 @@
 
 use num_complex::Complex64;
 
+use super::rgb::Rgb;
+
 /// Reflectance at a dielectric interface, with what refraction needs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DielectricFresnel {
@@ -47,6 +49,15 @@ pub fn dielectric(cos_i: f64, eta: f64) -> DielectricFresnel {
         cos_t: if cos_i >= 0.0 { -cos_t } else { cos_t },
         eta: eta_seen,
     }
+}
+
+/// [`conductor`] per RGB channel.
+pub fn conductor_rgb(cos_i: f64, eta: Rgb, k: Rgb) -> Rgb {
+    Rgb::new(
+        conductor(cos_i, eta.r, k.r),
+        conductor(cos_i, eta.g, k.g),
+        conductor(cos_i, eta.b, k.b),
+    )
 }
 
 /// Fresnel reflectance of a conductor with complex relative index

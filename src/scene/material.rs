@@ -17,6 +17,7 @@ mod diffuse;
 mod glossy;
 pub mod ior;
 pub mod metals;
+mod optics;
 mod plastic;
 mod twosided;
 

@@ -5,10 +5,9 @@
 use serde_json::{Map, Value};
 
 use super::error::SceneError;
-use super::material::{Distribution, Rgb, Roughness, ior, metals};
 
-/// Mitsuba's default `alpha` of rough BSDFs.
-const DEFAULT_ALPHA: f64 = 0.1;
+/// A linear RGB triple.
+type Rgb = [f64; 3];
 
 /// The parameters of one plugin document (or of a BSDF nested in one),
 /// `field` its path for messages.
@@ -31,7 +30,7 @@ impl Params {
         format!("{}.{name}", self.field)
     }
 
-    fn invalid(&self, name: &str, reason: impl Into<String>) -> SceneError {
+    pub fn invalid(&self, name: &str, reason: impl Into<String>) -> SceneError {
         SceneError::invalid(self.field(name), reason)
     }
 
@@ -46,6 +45,11 @@ impl Params {
     /// The names of the parameters no plugin took yet.
     pub fn remaining(&self) -> Vec<String> {
         self.map.keys().cloned().collect()
+    }
+
+    /// Parameter `name` as given, left in place.
+    pub fn peek(&self, name: &str) -> Option<&Value> {
+        self.map.get(name)
     }
 
     fn take(&mut self, name: &str) -> Option<Value> {
@@ -163,109 +167,6 @@ impl Params {
             Some(Value::String(s)) => Ok(Some(s)),
             Some(v) => Err(self.invalid(name, format!("{v} is not a string"))),
         }
-    }
-
-    /// An index of refraction: a positive number or a named medium
-    /// ([`ior::named_ior`]), `default` when absent.
-    pub fn ior(&mut self, name: &str, default: f64) -> Result<f64, SceneError> {
-        match self.map.get(name) {
-            None => Ok(default),
-            Some(Value::String(_)) => {
-                let medium = self.string(name)?.unwrap_or_default();
-                ior::named_ior(&medium).ok_or_else(|| {
-                    self.invalid(
-                        name,
-                        format!("unknown medium {medium:?} (known: {})", ior::media_names()),
-                    )
-                })
-            }
-            Some(_) => match self.number(name)? {
-                Some(x) if x > 0.0 => Ok(x),
-                x => {
-                    Err(self.invalid(name, format!("{x:?} is not a positive index of refraction")))
-                }
-            },
-        }
-    }
-
-    /// `int_ior / ext_ior` with Mitsuba's defaults `int_default` and air;
-    /// refuses the ratio 1, an interface that is not one.
-    pub fn relative_ior(&mut self, int_default: f64) -> Result<f64, SceneError> {
-        let int_ior = self.ior("int_ior", int_default)?;
-        let ext_ior = self.ior("ext_ior", ior::AIR)?;
-        if int_ior == ext_ior {
-            return Err(self.invalid(
-                "int_ior",
-                "equals ext_ior: the interface would not refract or reflect",
-            ));
-        }
-        Ok(int_ior / ext_ior)
-    }
-
-    /// A conductor's complex index `(eta, k)`: both as colours, or a named
-    /// metal `material` ([`metals::named_metal`]); Mitsuba's default is
-    /// the perfect mirror `none`.
-    pub fn metal(&mut self) -> Result<(Rgb, Rgb), SceneError> {
-        let eta = self.color("eta")?;
-        let k = self.color("k")?;
-        let named = self.string("material")?;
-        match (eta, k, named) {
-            (Some(eta), Some(k), None) => Ok((eta, k)),
-            (None, None, name) => {
-                let name = name.unwrap_or_else(|| "none".to_string());
-                metals::named_metal(&name).ok_or_else(|| {
-                    let known: Vec<&str> = metals::NAMED_METALS.iter().map(|m| m.0).collect();
-                    self.invalid(
-                        "material",
-                        format!("unknown metal {name:?} (known: {})", known.join(", ")),
-                    )
-                })
-            }
-            _ => Err(self.invalid("eta", "give both `eta` and `k`, or `material`, not a mix")),
-        }
-    }
-
-    /// A microfacet roughness: `distribution` (`beckmann`, the default, or
-    /// `ggx`), and `alpha` or both `alpha_u` and `alpha_v` (default 0.1),
-    /// each in `(0, 4]`. `sample_visible` is accepted and always on.
-    pub fn roughness(&mut self) -> Result<Roughness, SceneError> {
-        let name = self.string("distribution")?.map(|d| d.to_ascii_lowercase());
-        let distribution = match name.as_deref() {
-            None | Some("beckmann") => Distribution::Beckmann,
-            Some("ggx") => Distribution::Ggx,
-            Some(other) => {
-                return Err(self.invalid(
-                    "distribution",
-                    format!("unknown distribution {other:?} (known: beckmann, ggx)"),
-                ));
-            }
-        };
-        self.boolean("sample_visible", true)?;
-        let (alpha_u, alpha_v) = match (
-            self.number("alpha")?,
-            self.number("alpha_u")?,
-            self.number("alpha_v")?,
-        ) {
-            (Some(a), None, None) => (a, a),
-            (None, None, None) => (DEFAULT_ALPHA, DEFAULT_ALPHA),
-            (None, Some(u), Some(v)) => (u, v),
-            _ => {
-                return Err(self.invalid(
-                    "alpha",
-                    "give either `alpha` or both `alpha_u` and `alpha_v`",
-                ));
-            }
-        };
-        for (name, a) in [("alpha_u", alpha_u), ("alpha_v", alpha_v)] {
-            if !(a > 0.0 && a <= 4.0) {
-                return Err(self.invalid(name, format!("{a} is not a roughness in (0, 4]")));
-            }
-        }
-        Ok(Roughness {
-            distribution,
-            alpha_u,
-            alpha_v,
-        })
     }
 
     /// The BSDFs nested under `name` (an object or a list of objects, each

@@ -23,12 +23,7 @@ pub struct Conductor {
 impl Conductor {
     /// Fresnel reflectance per channel at `cos_i`, times `specular_reflectance`.
     pub fn reflectance(&self, cos_i: f64) -> Rgb {
-        let f = |eta: f64, k: f64| fresnel::conductor(cos_i, eta, k);
-        Rgb::new(
-            f(self.eta.r, self.k.r),
-            f(self.eta.g, self.k.g),
-            f(self.eta.b, self.k.b),
-        ) * self.specular_reflectance
+        fresnel::conductor_rgb(cos_i, self.eta, self.k) * self.specular_reflectance
     }
 
     /// The mirror direction with the delta's weight: `value · cos θ_i /

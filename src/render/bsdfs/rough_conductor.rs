@@ -42,12 +42,7 @@ pub struct RoughConductor {
 impl RoughConductor {
     /// Fresnel reflectance per channel at `cos_i`, times `specular_reflectance`.
     fn fresnel(&self, cos_i: f64) -> Rgb {
-        let f = |eta: f64, k: f64| fresnel::conductor(cos_i, eta, k);
-        Rgb::new(
-            f(self.eta.r, self.k.r),
-            f(self.eta.g, self.k.g),
-            f(self.eta.b, self.k.b),
-        ) * self.specular_reflectance
+        fresnel::conductor_rgb(cos_i, self.eta, self.k) * self.specular_reflectance
     }
 
     /// `f(ω_o, ω_i)`, sr⁻¹; zero unless both are above the surface.

@@ -6,9 +6,9 @@
 //! the outside) or `material` (a named metal, [`super::metals`]; default
 //! `none`, a perfect mirror); `specular_reflectance` (a factor in [0, 1],
 //! default 1); rough only: `distribution`, `alpha` or `alpha_u`/`alpha_v`
-//! ([`Params::roughness`]).
+//! ([`super::optics::roughness`]).
 
-use super::{Material, Params};
+use super::{Material, Params, optics};
 use crate::scene::error::SceneError;
 
 pub(super) fn parse_smooth(params: &mut Params) -> Result<Material, SceneError> {
@@ -20,13 +20,13 @@ pub(super) fn parse_rough(params: &mut Params) -> Result<Material, SceneError> {
 }
 
 fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
-    let (eta, k) = params.metal()?;
+    let (eta, k) = optics::metal(params)?;
     Ok(Material::Conductor {
         eta,
         k,
         specular_reflectance: params.albedo("specular_reflectance", [1.0; 3])?,
         roughness: if rough {
-            Some(params.roughness()?)
+            Some(optics::roughness(params)?)
         } else {
             None
         },

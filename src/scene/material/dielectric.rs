@@ -6,9 +6,9 @@
 //! (default air), numbers or named media ([`super::ior`]);
 //! `specular_reflectance` and `specular_transmittance` (factors in [0, 1],
 //! default 1); rough only: `distribution`, `alpha` or `alpha_u`/`alpha_v`
-//! ([`Params::roughness`]).
+//! ([`super::optics::roughness`]).
 
-use super::{Material, Params};
+use super::{Material, Params, optics};
 use crate::scene::error::SceneError;
 
 /// Mitsuba's default interior: BK7 glass.
@@ -28,11 +28,11 @@ pub(super) fn parse_rough(params: &mut Params) -> Result<Material, SceneError> {
 
 fn parse(params: &mut Params, rough: bool, thin: bool) -> Result<Material, SceneError> {
     Ok(Material::Dielectric {
-        eta: params.relative_ior(BK7)?,
+        eta: optics::relative_ior(params, BK7)?,
         specular_reflectance: params.albedo("specular_reflectance", [1.0; 3])?,
         specular_transmittance: params.albedo("specular_transmittance", [1.0; 3])?,
         roughness: if rough {
-            Some(params.roughness()?)
+            Some(optics::roughness(params)?)
         } else {
             None
         },

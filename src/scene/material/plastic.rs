@@ -6,10 +6,10 @@
 //! `specular_reflectance` (default 1), both in [0, 1]; `int_ior` (default
 //! polypropylene, 1.49) and `ext_ior` (default air); `nonlinear` (default
 //! false: whether inner bounces darken and saturate the base's colour);
-//! rough only: `distribution` and `alpha` ([`Params::roughness`]; isotropic,
+//! rough only: `distribution` and `alpha` ([`super::optics::roughness`]; isotropic,
 //! as Mitsuba's).
 
-use super::{Material, Params};
+use super::{Material, Params, optics};
 use crate::scene::error::SceneError;
 
 /// Mitsuba's default coating: polypropylene.
@@ -25,7 +25,7 @@ pub(super) fn parse_rough(params: &mut Params) -> Result<Material, SceneError> {
 
 fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
     let roughness = if rough {
-        let r = params.roughness()?;
+        let r = optics::roughness(params)?;
         if r.alpha_u != r.alpha_v {
             return Err(SceneError::invalid(
                 params.field("alpha_u"),
@@ -40,7 +40,7 @@ fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
         roughness,
         diffuse_reflectance: params.albedo("diffuse_reflectance", [0.5; 3])?,
         specular_reflectance: params.albedo("specular_reflectance", [1.0; 3])?,
-        eta: params.relative_ior(POLYPROPYLENE)?,
+        eta: optics::relative_ior(params, POLYPROPYLENE)?,
         nonlinear: params.boolean("nonlinear", false)?,
     })
 }

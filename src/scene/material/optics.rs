@@ -1,0 +1,118 @@
+//! Parameters that only materials have: indices of refraction (numbers or
+//! named media), conductors' complex indices (or named metals) and
+//! microfacet roughness, each read from a plugin's [`Params`] with
+//! Mitsuba's defaults.
+
+use serde_json::Value;
+
+use super::{Distribution, Params, Rgb, Roughness, ior as media, metals};
+use crate::scene::error::SceneError;
+
+/// Mitsuba's default `alpha` of rough BSDFs.
+const DEFAULT_ALPHA: f64 = 0.1;
+
+/// An index of refraction: a positive number or a named medium
+/// ([`media::named_ior`]), `default` when absent.
+pub(super) fn ior(params: &mut Params, name: &str, default: f64) -> Result<f64, SceneError> {
+    match params.peek(name) {
+        None => Ok(default),
+        Some(Value::String(_)) => {
+            let medium = params.string(name)?.unwrap_or_default();
+            media::named_ior(&medium).ok_or_else(|| {
+                params.invalid(
+                    name,
+                    format!(
+                        "unknown medium {medium:?} (known: {})",
+                        media::media_names()
+                    ),
+                )
+            })
+        }
+        Some(_) => match params.number(name)? {
+            Some(x) if x > 0.0 => Ok(x),
+            x => Err(params.invalid(name, format!("{x:?} is not a positive index of refraction"))),
+        },
+    }
+}
+
+/// `int_ior / ext_ior` with Mitsuba's defaults `int_default` and air;
+/// refuses the ratio 1, an interface that is not one.
+pub(super) fn relative_ior(params: &mut Params, int_default: f64) -> Result<f64, SceneError> {
+    let int_ior = ior(params, "int_ior", int_default)?;
+    let ext_ior = ior(params, "ext_ior", media::AIR)?;
+    if int_ior == ext_ior {
+        return Err(params.invalid(
+            "int_ior",
+            "equals ext_ior: the interface would not refract or reflect",
+        ));
+    }
+    Ok(int_ior / ext_ior)
+}
+
+/// A conductor's complex index `(eta, k)`: both as colours, or a named
+/// metal `material` ([`metals::named_metal`]); Mitsuba's default is
+/// the perfect mirror `none`.
+pub(super) fn metal(params: &mut Params) -> Result<(Rgb, Rgb), SceneError> {
+    let eta = params.color("eta")?;
+    let k = params.color("k")?;
+    let named = params.string("material")?;
+    match (eta, k, named) {
+        (Some(eta), Some(k), None) => Ok((eta, k)),
+        (None, None, name) => {
+            let name = name.unwrap_or_else(|| "none".to_string());
+            metals::named_metal(&name).ok_or_else(|| {
+                let known: Vec<&str> = metals::NAMED_METALS.iter().map(|m| m.0).collect();
+                params.invalid(
+                    "material",
+                    format!("unknown metal {name:?} (known: {})", known.join(", ")),
+                )
+            })
+        }
+        _ => Err(params.invalid("eta", "give both `eta` and `k`, or `material`, not a mix")),
+    }
+}
+
+/// A microfacet roughness: `distribution` (`beckmann`, the default, or
+/// `ggx`), and `alpha` or both `alpha_u` and `alpha_v` (default 0.1),
+/// each in `(0, 4]`. `sample_visible` is accepted and always on.
+pub(super) fn roughness(params: &mut Params) -> Result<Roughness, SceneError> {
+    let name = params
+        .string("distribution")?
+        .map(|d| d.to_ascii_lowercase());
+    let distribution = match name.as_deref() {
+        None | Some("beckmann") => Distribution::Beckmann,
+        Some("ggx") => Distribution::Ggx,
+        Some(other) => {
+            return Err(params.invalid(
+                "distribution",
+                format!("unknown distribution {other:?} (known: beckmann, ggx)"),
+            ));
+        }
+    };
+    params.boolean("sample_visible", true)?;
+    let (alpha_u, alpha_v) = match (
+        params.number("alpha")?,
+        params.number("alpha_u")?,
+        params.number("alpha_v")?,
+    ) {
+        (Some(a), None, None) => (a, a),
+        (None, None, None) => (DEFAULT_ALPHA, DEFAULT_ALPHA),
+        (None, Some(u), Some(v)) => (u, v),
+        _ => {
+            return Err(params.invalid(
+                "alpha",
+                "give either `alpha` or both `alpha_u` and `alpha_v`",
+            ));
+        }
+    };
+    for (name, a) in [("alpha_u", alpha_u), ("alpha_v", alpha_v)] {
+        if !(a > 0.0 && a <= 4.0) {
+            return Err(params.invalid(name, format!("{a} is not a roughness in (0, 4]")));
+        }
+    }
+    Ok(Roughness {
+        distribution,
+        alpha_u,
+        alpha_v,
+    })
+}
