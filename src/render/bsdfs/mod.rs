@@ -40,6 +40,21 @@ pub struct LobeSample {
     pub delta: bool,
 }
 
+impl LobeSample {
+    /// A direction drawn from a lobe spread over directions (no delta),
+    /// with the density `pdf` it was drawn with and its BSDF value
+    /// (evaluated only when the density is positive); `None` where the
+    /// density is zero, as for a direction the lobe's warp put where `f = 0`.
+    pub fn spread(wi: DVec3, pdf: f64, value: impl FnOnce() -> Rgb) -> Option<Self> {
+        (pdf > 0.0).then(|| LobeSample {
+            wi,
+            value: value(),
+            pdf,
+            delta: false,
+        })
+    }
+}
+
 /// `v` reflected about the unit normal `n`: `2 (v·n) n − v`.
 pub fn reflect(v: DVec3, n: DVec3) -> DVec3 {
     2.0 * v.dot(n) * n - v

@@ -133,13 +133,7 @@ impl Plastic {
             });
         }
         let wi = warp::cosine_hemisphere(u);
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample {
-            wi,
-            value: self.eval(wo, wi),
-            pdf,
-            delta: false,
-        })
+        LobeSample::spread(wi, self.pdf(wo, wi), || self.eval(wo, wi))
     }
 
     /// `ρ(ω_o)` with `ρ/π = f_d(ω_o, ω_i)` at normal `ω_i`, the base's

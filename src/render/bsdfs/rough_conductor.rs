@@ -84,13 +84,7 @@ impl RoughConductor {
         if wi.z <= 0.0 {
             return None;
         }
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample {
-            wi,
-            value: self.eval(wo, wi),
-            pdf,
-            delta: false,
-        })
+        LobeSample::spread(wi, self.pdf(wo, wi), || self.eval(wo, wi))
     }
 }
 

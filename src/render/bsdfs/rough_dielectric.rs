@@ -158,13 +158,7 @@ impl RoughDielectric {
             (wi.z < 0.0).then_some(wi.normalize())?
         };
         let wi = if flip { -wi } else { wi };
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample {
-            wi,
-            value: self.eval(wo, wi),
-            pdf,
-            delta: false,
-        })
+        LobeSample::spread(wi, self.pdf(wo, wi), || self.eval(wo, wi))
     }
 }
 

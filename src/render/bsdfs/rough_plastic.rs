@@ -218,13 +218,7 @@ impl RoughPlastic {
         if wi.z <= 0.0 {
             return None;
         }
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample {
-            wi,
-            value: self.eval(wo, wi),
-            pdf,
-            delta: false,
-        })
+        LobeSample::spread(wi, self.pdf(wo, wi), || self.eval(wo, wi))
     }
 
     /// `ρ(ω_o)` with `ρ/π` the base's largest value for this `ω_o` over

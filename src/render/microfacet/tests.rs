@@ -5,6 +5,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::*;
+use crate::render::chi_square::ChiSquare;
 
 /// `θ = (π/2) t²`: resolution where sharp lobes peak, at the normal.
 fn theta_of(t: f64) -> f64 {
@@ -105,12 +106,6 @@ fn masking_is_symmetric_and_bounded() {
     assert!(Microfacet::new(MicrofacetKind::Ggx, 0.1, f64::NAN).is_none());
 }
 
-/// χ² quantile by the Wilson–Hilferty approximation at `z` standard deviations.
-fn chi2_quantile(df: f64, z: f64) -> f64 {
-    let h = 2.0 / (9.0 * df);
-    df * (1.0 - h + z * h.sqrt()).powi(3)
-}
-
 #[test]
 fn sampled_normals_follow_the_reported_density() {
     const T_BINS: usize = 16;
@@ -148,29 +143,10 @@ fn sampled_normals_follow_the_reported_density() {
                         SAMPLES as f64 * integrate(&|m| d.pdf(w, m), t, p, 24);
                 }
             }
-            // Cells expecting fewer than 5 samples are pooled into one.
-            let (mut chi2, mut df) = (0.0, 0.0);
-            let (mut pooled_observed, mut pooled_expected) = (0.0, 0.0);
-            for (o, e) in counts.iter().zip(&expected) {
-                if *e < 5.0 {
-                    pooled_observed += o;
-                    pooled_expected += e;
-                } else {
-                    chi2 += (o - e) * (o - e) / e;
-                    df += 1.0;
-                }
-            }
-            if pooled_expected >= 5.0 {
-                chi2 += (pooled_observed - pooled_expected).powi(2) / pooled_expected;
-                df += 1.0;
-            } else {
-                assert!(pooled_observed <= 5.0 + 5.0 * pooled_expected, "{d:?}");
-            }
-            let limit = chi2_quantile(df - 1.0, 3.719);
-            assert!(
-                chi2 < limit,
-                "{d:?} from {w}: χ² = {chi2} over {df} cells (limit {limit})"
-            );
+            let test = ChiSquare::of(&counts, &expected);
+            let (observed, expected) = test.left_out;
+            assert!(observed <= 5.0 + 5.0 * expected, "{d:?}");
+            assert!(test.passes(), "{d:?} from {w}: {test}");
         }
     }
 }

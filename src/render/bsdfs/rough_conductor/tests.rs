@@ -5,6 +5,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::*;
+use crate::render::chi_square::ChiSquare;
 use crate::render::microfacet::MicrofacetKind;
 
 fn direction(theta: f64, phi: f64) -> DVec3 {
@@ -101,12 +102,6 @@ fn white_furnace_albedo_is_at_most_one_and_near_one_when_smooth() {
     );
 }
 
-/// χ² quantile by the Wilson–Hilferty approximation at `z` standard deviations.
-fn chi2_quantile(df: f64, z: f64) -> f64 {
-    let h = 2.0 / (9.0 * df);
-    df * (1.0 - h + z * h.sqrt()).powi(3)
-}
-
 #[test]
 fn sampled_directions_follow_the_reported_density() {
     const T_BINS: usize = 16;
@@ -130,7 +125,7 @@ fn sampled_directions_follow_the_reported_density() {
                 counts[i * P_BINS + j] += 1.0;
             }
             assert!(kept > SAMPLES / 2, "{lobe:?}: {kept}");
-            let (mut chi2, mut df, mut pooled_o, mut pooled_e) = (0.0, 0.0, 0.0, 0.0);
+            let mut expected = vec![0.0f64; T_BINS * P_BINS];
             let sub = 16;
             for i in 0..T_BINS {
                 for j in 0..P_BINS {
@@ -147,25 +142,11 @@ fn sampled_directions_follow_the_reported_density() {
                             e += lobe.pdf(wo, wi) * theta.sin() * PI * t * dt * dp;
                         }
                     }
-                    let (o, e) = (counts[i * P_BINS + j], e * SAMPLES as f64);
-                    if e < 5.0 {
-                        pooled_o += o;
-                        pooled_e += e;
-                    } else {
-                        chi2 += (o - e) * (o - e) / e;
-                        df += 1.0;
-                    }
+                    expected[i * P_BINS + j] = e * SAMPLES as f64;
                 }
             }
-            if pooled_e >= 5.0 {
-                chi2 += (pooled_o - pooled_e).powi(2) / pooled_e;
-                df += 1.0;
-            }
-            let limit = chi2_quantile(df - 1.0, 3.719);
-            assert!(
-                chi2 < limit,
-                "{lobe:?} from {wo}: χ² = {chi2} over {df} (limit {limit})"
-            );
+            let test = ChiSquare::of(&counts, &expected);
+            assert!(test.passes(), "{lobe:?} from {wo}: {test}");
         }
     }
 }

@@ -5,6 +5,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::*;
+use crate::render::chi_square::ChiSquare;
 use crate::render::microfacet::MicrofacetKind;
 
 fn direction(theta: f64, phi: f64) -> DVec3 {
@@ -124,12 +125,6 @@ fn light_inside_beyond_the_critical_angle_is_reflected() {
     }
 }
 
-/// χ² quantile by the Wilson–Hilferty approximation at `z` standard deviations.
-fn chi2_quantile(df: f64, z: f64) -> f64 {
-    let h = 2.0 / (9.0 * df);
-    df * (1.0 - h + z * h.sqrt()).powi(3)
-}
-
 #[test]
 fn sampled_directions_follow_the_reported_density() {
     // Bins: each hemisphere in t = √(θ'/(π/2)) from its pole, and φ.
@@ -181,25 +176,8 @@ fn sampled_directions_follow_the_reported_density() {
                     }
                 }
             }
-            let (mut chi2, mut df, mut pooled_o, mut pooled_e) = (0.0, 0.0, 0.0, 0.0);
-            for (o, e) in counts.iter().zip(&expected) {
-                if *e < 5.0 {
-                    pooled_o += o;
-                    pooled_e += e;
-                } else {
-                    chi2 += (o - e) * (o - e) / e;
-                    df += 1.0;
-                }
-            }
-            if pooled_e >= 5.0 {
-                chi2 += (pooled_o - pooled_e).powi(2) / pooled_e;
-                df += 1.0;
-            }
-            let limit = chi2_quantile(df - 1.0, 3.719);
-            assert!(
-                chi2 < limit,
-                "{lobe:?} from {wo}: χ² = {chi2} over {df} (limit {limit})"
-            );
+            let test = ChiSquare::of(&counts, &expected);
+            assert!(test.passes(), "{lobe:?} from {wo}: {test}");
         }
     }
 }
