@@ -213,7 +213,7 @@ fn record_variance(
     cache: &IrradianceCache,
     shading: &CachedShading,
 ) -> Result<Rgb, RenderError> {
-    let Some(bsdf) = transport.bsdf(hit.material) else {
+    let Some(bsdf) = transport.bsdf_at(hit) else {
         return Ok(Rgb::BLACK);
     };
     let wo_local = Frame::from_normal(hit.shading_normal).to_local(wo);

@@ -12,7 +12,7 @@
 //! Surfaces are **one-sided** unless the material transmits or is
 //! `twosided`, like Mitsuba 3's: seen from below, a plain BSDF is black.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 pub use super::bsdfs::LobeSample;
 use super::bsdfs::conductor::Conductor;
@@ -27,6 +27,7 @@ use super::microfacet::{Microfacet, MicrofacetKind};
 use super::rgb::Rgb;
 use crate::scene::Material;
 use crate::scene::material::{Distribution, Roughness};
+use crate::scene::texture::Texture;
 
 /// What kinds of scattering a BSDF has.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -234,86 +235,122 @@ fn microfacet(r: Roughness) -> Option<Microfacet> {
 }
 
 impl From<&Material> for Bsdf {
+    /// The material's BSDF with each texture at its mean: what stands for
+    /// the material where no surface point is at hand, and the template
+    /// that [`Bsdf::textured`] takes its precomputed tables from.
     fn from(material: &Material) -> Self {
-        let rgb = |c: &[f64; 3]| Rgb::from_array(*c);
-        match material {
-            Material::Diffuse { reflectance } => Bsdf::Phong(Phong::lambert(rgb(reflectance))),
-            Material::Glossy {
-                diffuse,
-                specular,
-                exponent,
-            } => Bsdf::Phong(Phong::new(rgb(diffuse), rgb(specular), *exponent)),
-            Material::Conductor {
-                eta,
-                k,
-                specular_reflectance,
-                roughness,
-            } => {
-                let (eta, k, specular_reflectance) = (rgb(eta), rgb(k), rgb(specular_reflectance));
-                match roughness.and_then(microfacet) {
-                    Some(distribution) => Bsdf::RoughConductor(RoughConductor {
-                        distribution,
-                        eta,
-                        k,
-                        specular_reflectance,
-                    }),
-                    None => Bsdf::Conductor(Conductor {
-                        eta,
-                        k,
-                        specular_reflectance,
-                    }),
+        build(material, &Texture::mean, None)
+    }
+}
+
+impl Bsdf {
+    /// The BSDF of a textured `material` at texture coordinates `uv`;
+    /// `template` is `Bsdf::from(material)`, whose precomputed tables (the
+    /// plastics' coatings) are reused.
+    pub fn textured(material: &Material, uv: DVec2, template: &Bsdf) -> Bsdf {
+        build(material, &|t: &Texture| t.eval(uv), Some(template))
+    }
+}
+
+/// The BSDF of `material` with its textures valued by `colour`, reusing
+/// the precomputations of `template` (a BSDF of the same material).
+fn build(
+    material: &Material,
+    colour: &dyn Fn(&Texture) -> [f64; 3],
+    template: Option<&Bsdf>,
+) -> Bsdf {
+    let rgb = |c: &[f64; 3]| Rgb::from_array(*c);
+    let tex = |t: &Texture| Rgb::from_array(colour(t));
+    match material {
+        Material::Diffuse { reflectance } => Bsdf::Phong(Phong::lambert(tex(reflectance))),
+        Material::Glossy {
+            diffuse,
+            specular,
+            exponent,
+        } => Bsdf::Phong(Phong::new(rgb(diffuse), rgb(specular), *exponent)),
+        Material::Conductor {
+            eta,
+            k,
+            specular_reflectance,
+            roughness,
+        } => {
+            let (eta, k, specular_reflectance) = (rgb(eta), rgb(k), tex(specular_reflectance));
+            match roughness.and_then(microfacet) {
+                Some(distribution) => Bsdf::RoughConductor(RoughConductor {
+                    distribution,
+                    eta,
+                    k,
+                    specular_reflectance,
+                }),
+                None => Bsdf::Conductor(Conductor {
+                    eta,
+                    k,
+                    specular_reflectance,
+                }),
+            }
+        }
+        Material::Dielectric {
+            eta,
+            specular_reflectance,
+            specular_transmittance,
+            roughness,
+            thin,
+        } => {
+            let (eta, specular_reflectance, specular_transmittance) =
+                (*eta, tex(specular_reflectance), tex(specular_transmittance));
+            match (thin, roughness.and_then(microfacet)) {
+                (true, _) => Bsdf::ThinDielectric(ThinDielectric {
+                    eta,
+                    specular_reflectance,
+                    specular_transmittance,
+                }),
+                (false, Some(distribution)) => Bsdf::RoughDielectric(RoughDielectric {
+                    distribution,
+                    eta,
+                    specular_reflectance,
+                    specular_transmittance,
+                }),
+                (false, None) => Bsdf::Dielectric(Dielectric {
+                    eta,
+                    specular_reflectance,
+                    specular_transmittance,
+                }),
+            }
+        }
+        Material::Plastic {
+            diffuse_reflectance,
+            specular_reflectance,
+            eta,
+            nonlinear,
+            roughness,
+        } => {
+            let (diffuse, specular) = (tex(diffuse_reflectance), tex(specular_reflectance));
+            match (roughness.and_then(microfacet), template) {
+                (Some(_), Some(Bsdf::RoughPlastic(t))) => {
+                    Bsdf::RoughPlastic(t.retinted(diffuse, specular, *nonlinear))
                 }
-            }
-            Material::Dielectric {
-                eta,
-                specular_reflectance,
-                specular_transmittance,
-                roughness,
-                thin,
-            } => {
-                let (eta, specular_reflectance, specular_transmittance) =
-                    (*eta, rgb(specular_reflectance), rgb(specular_transmittance));
-                match (thin, roughness.and_then(microfacet)) {
-                    (true, _) => Bsdf::ThinDielectric(ThinDielectric {
-                        eta,
-                        specular_reflectance,
-                        specular_transmittance,
-                    }),
-                    (false, Some(distribution)) => Bsdf::RoughDielectric(RoughDielectric {
-                        distribution,
-                        eta,
-                        specular_reflectance,
-                        specular_transmittance,
-                    }),
-                    (false, None) => Bsdf::Dielectric(Dielectric {
-                        eta,
-                        specular_reflectance,
-                        specular_transmittance,
-                    }),
+                (Some(distribution), _) => Bsdf::RoughPlastic(RoughPlastic::new(
+                    distribution,
+                    diffuse,
+                    specular,
+                    *eta,
+                    *nonlinear,
+                )),
+                (None, Some(Bsdf::Plastic(t))) => {
+                    Bsdf::Plastic(t.retinted(diffuse, specular, *nonlinear))
                 }
+                (None, _) => Bsdf::Plastic(Plastic::new(diffuse, specular, *eta, *nonlinear)),
             }
-            Material::Plastic {
-                diffuse_reflectance,
-                specular_reflectance,
-                eta,
-                nonlinear,
-                roughness,
-            } => {
-                let (diffuse, specular) = (rgb(diffuse_reflectance), rgb(specular_reflectance));
-                match roughness.and_then(microfacet) {
-                    Some(distribution) => Bsdf::RoughPlastic(RoughPlastic::new(
-                        distribution,
-                        diffuse,
-                        specular,
-                        *eta,
-                        *nonlinear,
-                    )),
-                    None => Bsdf::Plastic(Plastic::new(diffuse, specular, *eta, *nonlinear)),
-                }
-            }
-            Material::TwoSided { front, back } => {
-                Bsdf::TwoSided(Box::new([Bsdf::from(&**front), Bsdf::from(&**back)]))
-            }
+        }
+        Material::TwoSided { front, back } => {
+            let sides = match template {
+                Some(Bsdf::TwoSided(sides)) => [Some(&sides[0]), Some(&sides[1])],
+                _ => [None, None],
+            };
+            Bsdf::TwoSided(Box::new([
+                build(front, colour, sides[0]),
+                build(back, colour, sides[1]),
+            ]))
         }
     }
 }

@@ -358,7 +358,7 @@ impl Transport {
         let (mut hit, mut dir) = (hit, dir);
         // `hit` was reached by segment `depth`.
         for depth in 1..max_depth.get() {
-            let Some(bsdf) = self.bsdf(hit.material) else {
+            let Some(bsdf) = self.bsdf_at(&hit) else {
                 break;
             };
             // Reflection happens in the shading frame (interpolated mesh

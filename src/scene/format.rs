@@ -82,6 +82,14 @@ pub struct ShapeDoc {
     pub indices: Option<Vec<[u64; 3]>>,
     /// triangles: optional per-vertex shading normals.
     pub normals: Option<Vec<Vec3>>,
+    /// triangles: optional per-vertex texture coordinates `[u, v]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uvs: Option<Vec<[f64; 2]>>,
+    /// obj and triangles: replace each texture coordinate `v` by `1 − v`
+    /// (default true for obj, whose files put `v = 0` at an image's
+    /// bottom, false for triangles; Mitsuba 3's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flip_tex_coords: Option<bool>,
 }
 
 #[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]

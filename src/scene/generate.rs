@@ -146,6 +146,7 @@ pub fn displaced_sphere(segments: usize, rings: usize) -> MeshData {
         positions,
         indices,
         normals: None,
+        uvs: None,
     }
 }
 

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{DAffine3, DMat3, DVec3};
+use glam::{DAffine3, DMat3, DVec2, DVec3};
 
 use super::bvh::{Aabb, Bvh};
 use super::digest::SceneDigest;
@@ -17,6 +17,7 @@ use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKi
 use super::material::Material;
 use super::mesh::{self, MeshData};
 use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
+use super::texture::Bitmaps;
 use super::{Camera, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
 
 /// Largest accepted scene file (inline triangle lists can be big).
@@ -81,7 +82,7 @@ pub(super) fn from_json_str(
 
 /// Resolves referenced file names: relative to the scene file, never outside
 /// the scenes directory (checked lexically and again after following links).
-pub(super) struct Files {
+pub(crate) struct Files {
     base: PathBuf,
     root: PathBuf,
     /// Every file resolved so far, in order, each once: what the scene's
@@ -168,6 +169,7 @@ fn reject_fields(field: &str, kind: &str, present: &[(&str, bool)]) -> Result<()
 }
 
 pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
+    let bitmaps = Bitmaps::new(files);
     let mut materials = Vec::new();
     let mut material_ids = Vec::new();
     let mut by_id = HashMap::new();
@@ -179,7 +181,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
                 format!("duplicate material id {:?}", m.id),
             ));
         }
-        materials.push(Material::from_doc(m, &field)?);
+        materials.push(Material::from_doc(m, &field, &bitmaps)?);
         material_ids.push(m.id.clone());
     }
 
@@ -325,6 +327,15 @@ struct GeometryBuilder {
     shapes: Vec<Shape>,
     triangles: Vec<Triangle>,
     vertex_normals: Vec<[DVec3; 3]>,
+    vertex_uvs: Vec<[DVec2; 3]>,
+}
+
+/// How a shape places a local mesh.
+struct Placement {
+    to_world: DAffine3,
+    flip_normals: bool,
+    /// Replace each texture coordinate `v` by `1 − v`.
+    flip_tex_coords: bool,
 }
 
 impl GeometryBuilder {
@@ -350,29 +361,36 @@ impl GeometryBuilder {
             ("positions", s.positions.is_some()),
             ("indices", s.indices.is_some()),
             ("normals", s.normals.is_some()),
+            ("uvs", s.uvs.is_some()),
         ];
         let file_field = [("filename", s.filename.is_some())];
+        let mesh_field = [("flip_tex_coords", s.flip_tex_coords.is_some())];
         let (reject_sphere, reject_inline, reject_file) = match s.kind {
             ShapeKind::Sphere => (false, true, true),
             ShapeKind::Triangles => (true, false, true),
             ShapeKind::Obj => (true, true, false),
             _ => (true, true, true),
         };
+        let reject_mesh = reject_inline && reject_file;
         for (reject, fields) in [
             (reject_sphere, &sphere_fields[..]),
             (reject_inline, &inline_fields[..]),
             (reject_file, &file_field[..]),
+            (reject_mesh, &mesh_field[..]),
         ] {
             if reject {
                 reject_fields(field, &kind, fields)?;
             }
         }
         let remaining = MAX_TRIANGLES - self.triangles.len();
+        let placement = Placement {
+            to_world,
+            flip_normals: s.flip_normals,
+            flip_tex_coords: s.flip_tex_coords.unwrap_or(s.kind == ShapeKind::Obj),
+        };
         let (geometry, area) = match s.kind {
-            ShapeKind::Rectangle => {
-                self.add_mesh(&mesh::rectangle(), &to_world, s.flip_normals, field)?
-            }
-            ShapeKind::Cube => self.add_mesh(&mesh::cube(), &to_world, s.flip_normals, field)?,
+            ShapeKind::Rectangle => self.add_mesh(&mesh::rectangle(), &placement, field)?,
+            ShapeKind::Cube => self.add_mesh(&mesh::cube(), &placement, field)?,
             ShapeKind::Obj => {
                 let name_field = format!("{field}.filename");
                 let name = s
@@ -385,11 +403,11 @@ impl GeometryBuilder {
                     Some(data) => data,
                     None => Arc::new(mesh::load_obj(&path, &name_field, remaining)?),
                 };
-                self.add_mesh(&data, &to_world, s.flip_normals, field)?
+                self.add_mesh(&data, &placement, field)?
             }
             ShapeKind::Triangles => {
                 let data = inline_mesh(s, field, remaining)?;
-                self.add_mesh(&data, &to_world, s.flip_normals, field)?
+                self.add_mesh(&data, &placement, field)?
             }
             ShapeKind::Sphere => sphere(s, &to_world, field)?,
             ShapeKind::Disk => {
@@ -427,11 +445,19 @@ impl GeometryBuilder {
     fn add_mesh(
         &mut self,
         data: &MeshData,
-        to_world: &DAffine3,
-        flip: bool,
+        placement: &Placement,
         field: &str,
     ) -> Result<(Geometry, f64), SceneError> {
+        let (to_world, flip) = (&placement.to_world, placement.flip_normals);
         let shape_index = self.shapes.len() as u32;
+        let uvs: Option<Vec<DVec2>> = data.uvs.as_ref().map(|uvs| {
+            uvs.iter()
+                .map(|uv| match placement.flip_tex_coords {
+                    true => DVec2::new(uv.x, 1.0 - uv.y),
+                    false => *uv,
+                })
+                .collect()
+        });
         let positions: Vec<DVec3> = data
             .positions
             .iter()
@@ -454,14 +480,21 @@ impl GeometryBuilder {
             }
             let mut p = idx.map(|i| positions[i]);
             let mut ns = normals.as_ref().map(|ns| idx.map(|i| ns[i]));
+            let mut ts = uvs.as_ref().map(|ts| idx.map(|i| ts[i]));
+            let rewind = |p: &mut [DVec3; 3], ts: &mut Option<[DVec2; 3]>| {
+                p.swap(1, 2);
+                if let Some(t) = ts {
+                    t.swap(1, 2);
+                }
+            };
             if let Some(n) = ns
                 && (p[1] - p[0]).cross(p[2] - p[0]).dot(n[0] + n[1] + n[2]) < 0.0
             {
-                p.swap(1, 2);
+                rewind(&mut p, &mut ts);
                 ns = Some([n[0], n[2], n[1]]);
             }
             if flip {
-                p.swap(1, 2);
+                rewind(&mut p, &mut ts);
                 ns = ns.map(|n| [-n[0], -n[2], -n[1]]);
             }
             if !p.iter().all(|v| v.is_finite()) {
@@ -477,11 +510,19 @@ impl GeometryBuilder {
                 }
                 None => u32::MAX,
             };
+            let uvs_index = match ts {
+                Some(t) => {
+                    self.vertex_uvs.push(t);
+                    (self.vertex_uvs.len() - 1) as u32
+                }
+                None => u32::MAX,
+            };
             let tri = Triangle {
                 p,
                 shape: shape_index,
                 primitive: k as u32,
                 normals: normals_index,
+                uvs: uvs_index,
             };
             total += tri.area();
             cdf.push(total);
@@ -528,6 +569,7 @@ impl GeometryBuilder {
             shapes: self.shapes,
             triangles: self.triangles,
             vertex_normals: self.vertex_normals,
+            vertex_uvs: self.vertex_uvs,
             accel,
             accel_tags,
             triangle_bvh,
@@ -585,10 +627,27 @@ fn inline_mesh(s: &ShapeDoc, field: &str, max_triangles: usize) -> Result<MeshDa
             Some(out)
         }
     };
+    let uvs = match &s.uvs {
+        None => None,
+        Some(uvs) => {
+            let f = format!("{field}.uvs");
+            if uvs.len() != positions.len() {
+                return Err(SceneError::invalid(
+                    f,
+                    format!("{} uvs for {} positions", uvs.len(), positions.len()),
+                ));
+            }
+            if let Some(i) = uvs.iter().position(|uv| !uv.iter().all(|x| x.is_finite())) {
+                return Err(SceneError::invalid(format!("{f}[{i}]"), "not finite"));
+            }
+            Some(uvs.iter().map(|&uv| DVec2::from(uv)).collect())
+        }
+    };
     Ok(MeshData {
         positions,
         indices: out,
         normals,
+        uvs,
     })
 }
 
@@ -611,6 +670,7 @@ fn sphere(s: &ShapeDoc, to_world: &DAffine3, field: &str) -> Result<(Geometry, f
     let geometry = Geometry::Sphere {
         center: to_world.transform_point3(center),
         radius,
+        to_local: (to_world.matrix3 / scale).transpose(),
     };
     Ok((geometry, 4.0 * std::f64::consts::PI * radius * radius))
 }

@@ -7,7 +7,9 @@
 //! translates into one by copying its properties. Each plugin parses its
 //! own parameters in its own file below (`diffuse.rs`, `conductor.rs`, …),
 //! opening with their docs; [`PLUGINS`] is the registry. Parameters take:
-//! - colours: a number (grey) or `[r, g, b]`, linear RGB;
+//! - colours: a number (grey) or `[r, g, b]`, linear RGB; the reflectances
+//!   and transmittances Mitsuba textures also take a texture document
+//!   ([`Texture`], `scene::texture`);
 //! - indices of refraction: a number or a named medium ([`ior`]);
 //! - metals: `eta` and `k` as colours, or `material`, a named metal ([`metals`]).
 
@@ -24,6 +26,7 @@ mod twosided;
 use super::error::SceneError;
 use super::format::MaterialDoc;
 pub(crate) use super::params::Params;
+use super::texture::{Bitmaps, Texture};
 
 /// Largest accepted Phong exponent; beyond it the lobe is a mirror for all
 /// practical purposes and sampling it in f64 loses precision.
@@ -53,7 +56,7 @@ pub struct Roughness {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Material {
     /// Lambertian reflector; `reflectance` is the albedo in [0, 1] per channel.
-    Diffuse { reflectance: Rgb },
+    Diffuse { reflectance: Texture },
     /// Diffuse albedo plus a normalised Phong lobe with albedo `specular`
     /// (at normal incidence) and exponent `exponent ≥ 0`.
     Glossy {
@@ -65,23 +68,23 @@ pub enum Material {
     Conductor {
         eta: Rgb,
         k: Rgb,
-        specular_reflectance: Rgb,
+        specular_reflectance: Texture,
         roughness: Option<Roughness>,
     },
     /// An interface between dielectrics of relative index `eta =
     /// int_ior / ext_ior`: smooth, microfacet, or a thin slab.
     Dielectric {
         eta: f64,
-        specular_reflectance: Rgb,
-        specular_transmittance: Rgb,
+        specular_reflectance: Texture,
+        specular_transmittance: Texture,
         roughness: Option<Roughness>,
         thin: bool,
     },
     /// A diffuse base under a dielectric coating of relative index `eta`,
     /// smooth (`roughness: None`) or microfacet (isotropic).
     Plastic {
-        diffuse_reflectance: Rgb,
-        specular_reflectance: Rgb,
+        diffuse_reflectance: Texture,
+        specular_reflectance: Texture,
         eta: f64,
         nonlinear: bool,
         roughness: Option<Roughness>,
@@ -116,9 +119,14 @@ pub fn plugin_names() -> Vec<&'static str> {
 }
 
 impl Material {
-    /// Validates one `materials[i]` entry; `field` is its path.
-    pub(crate) fn from_doc(doc: &MaterialDoc, field: &str) -> Result<Self, SceneError> {
-        let mut params = Params::new(field, doc.params.clone());
+    /// Validates one `materials[i]` entry; `field` is its path. Bitmap
+    /// textures are read through `bitmaps`.
+    pub(crate) fn from_doc(
+        doc: &MaterialDoc,
+        field: &str,
+        bitmaps: &Bitmaps,
+    ) -> Result<Self, SceneError> {
+        let mut params = Params::new(field, doc.params.clone()).with_bitmaps(bitmaps);
         let material = Self::parse(&doc.kind, &mut params, field)?;
         params.finish()?;
         Ok(material)
@@ -135,6 +143,62 @@ impl Material {
         match Self::parse(kind, &mut params, "") {
             Ok(_) => params.remaining(),
             Err(_) => Vec::new(),
+        }
+    }
+
+    /// The textures of the material's parameters (nested materials' too).
+    pub fn textures(&self) -> Vec<&Texture> {
+        match self {
+            Material::Diffuse { reflectance } => vec![reflectance],
+            Material::Glossy { .. } => Vec::new(),
+            Material::Conductor {
+                specular_reflectance,
+                ..
+            } => vec![specular_reflectance],
+            Material::Dielectric {
+                specular_reflectance,
+                specular_transmittance,
+                ..
+            } => vec![specular_reflectance, specular_transmittance],
+            Material::Plastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ..
+            } => vec![diffuse_reflectance, specular_reflectance],
+            Material::TwoSided { front, back } => {
+                let mut all = front.textures();
+                all.extend(back.textures());
+                all
+            }
+        }
+    }
+
+    /// True if a parameter varies over the surface (a texture).
+    pub fn is_textured(&self) -> bool {
+        self.textures().iter().any(|t| t.constant().is_none())
+    }
+
+    /// The parameters of a `kind` document that hold a texture document
+    /// where the plugin takes a constant (a translator may replace them by
+    /// the texture's mean): found by parsing, each such error naming one.
+    pub(crate) fn constant_parameters_given_textures(
+        kind: &str,
+        params: &serde_json::Map<String, serde_json::Value>,
+    ) -> Vec<String> {
+        let mut params = params.clone();
+        let mut found = Vec::new();
+        loop {
+            let Err(e) = Self::parse(kind, &mut Params::new("", params.clone()), "") else {
+                return found;
+            };
+            let name = e.field().and_then(|f| f.strip_prefix('.'));
+            match name.filter(|n| params.get(*n).is_some_and(|v| v.is_object())) {
+                Some(name) if !found.iter().any(|f| f == name) => {
+                    found.push(name.to_string());
+                    params.insert(name.to_string(), serde_json::Value::from(0.5));
+                }
+                _ => return found,
+            }
         }
     }
 

@@ -7,7 +7,7 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 use super::error::SceneError;
 
@@ -21,6 +21,10 @@ pub struct MeshData {
     pub indices: Vec<[u32; 3]>,
     /// Optional per-vertex shading normals (same length as `positions`).
     pub normals: Option<Vec<DVec3>>,
+    /// Optional per-vertex texture coordinates (same length as `positions`)
+    /// as the file stores them; a shape may flip `v` when placing the mesh
+    /// (`flip_tex_coords`, `docs/scene-format.md`).
+    pub uvs: Option<Vec<DVec2>>,
 }
 
 /// `[-1, 1]²` in the xy plane, normal +z (Mitsuba's `rectangle`).
@@ -34,32 +38,47 @@ pub fn rectangle() -> MeshData {
         ],
         indices: vec![[0, 1, 2], [0, 2, 3]],
         normals: None,
+        // Mitsuba's: (u, v) = ((x + 1)/2, (y + 1)/2).
+        uvs: Some(vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(1.0, 1.0),
+            DVec2::new(0.0, 1.0),
+        ]),
     }
 }
 
-/// `[-1, 1]³` with outward normals, two triangles per face (Mitsuba's `cube`).
+/// `[-1, 1]³` with outward normals, two triangles per face, laid out as
+/// Mitsuba 3's `cube` so that its texture coordinates agree: each face's
+/// four corners take `(0, 1), (1, 1), (1, 0), (0, 0)` in the order below.
 pub fn cube() -> MeshData {
-    let mut mesh = MeshData::default();
-    for axis in 0..3 {
-        // (axis, u, v) is a cyclic permutation of (x, y, z), so û × v̂ = +axis.
-        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-        for side in [-1.0, 1.0] {
-            let base = mesh.positions.len() as u32;
-            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                let mut p = DVec3::ZERO;
-                p[axis] = side;
-                p[u] = a;
-                p[v] = b;
-                mesh.positions.push(p);
-            }
-            if side > 0.0 {
-                mesh.indices.push([base, base + 1, base + 2]);
-                mesh.indices.push([base, base + 2, base + 3]);
-            } else {
-                mesh.indices.push([base, base + 2, base + 1]);
-                mesh.indices.push([base, base + 3, base + 2]);
-            }
+    // Corner c is (±1, ±1, ±1) with bit k of c giving the sign of axis k;
+    // faces −y, +y, +x, +z, −x, −z.
+    const FACES: [[u32; 4]; 6] = [
+        [1, 5, 4, 0],
+        [3, 2, 6, 7],
+        [1, 3, 7, 5],
+        [5, 7, 6, 4],
+        [4, 6, 2, 0],
+        [3, 1, 0, 2],
+    ];
+    const UVS: [[f64; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+    let corner = |c: u32| {
+        let sign = |bit: u32| if c & bit != 0 { 1.0 } else { -1.0 };
+        DVec3::new(sign(1), sign(2), sign(4))
+    };
+    let mut mesh = MeshData {
+        uvs: Some(Vec::new()),
+        ..MeshData::default()
+    };
+    for face in FACES {
+        let v = mesh.positions.len() as u32;
+        for (c, uv) in face.into_iter().zip(UVS) {
+            mesh.positions.push(corner(c));
+            mesh.uvs.as_mut().expect("set above").push(DVec2::from(uv));
         }
+        mesh.indices.push([v, v + 1, v + 2]);
+        mesh.indices.push([v + 3, v, v + 2]);
     }
     mesh
 }
@@ -95,7 +114,7 @@ impl<R: BufRead> BufRead for LineCounter<R> {
 /// Loads all objects of an OBJ file as one triangulated mesh. Material
 /// libraries (`mtllib`) are ignored and never opened: materials come from
 /// the scene file, and opening them could read outside the scenes directory.
-/// Normals are kept only if every vertex has one.
+/// Normals and texture coordinates are kept only if every vertex has them.
 pub fn load_obj(path: &Path, field: &str, max_triangles: usize) -> Result<MeshData, SceneError> {
     let err = |message: String| SceneError::file(field, path, message);
     let file = super::read::open_capped(path, MAX_OBJ_BYTES)
@@ -124,6 +143,8 @@ pub fn load_obj(path: &Path, field: &str, max_triangles: usize) -> Result<MeshDa
     let mut mesh = MeshData::default();
     let mut normals = Vec::new();
     let mut all_normals = true;
+    let mut uvs = Vec::new();
+    let mut all_uvs = true;
     for model in &models {
         let m = &model.mesh;
         let base = mesh.positions.len();
@@ -141,6 +162,15 @@ pub fn load_obj(path: &Path, field: &str, max_triangles: usize) -> Result<MeshDa
             );
         } else {
             all_normals = false;
+        }
+        if m.texcoords.len() == 2 * count {
+            uvs.extend(
+                m.texcoords
+                    .chunks_exact(2)
+                    .map(|c| DVec2::new(c[0] as f64, c[1] as f64)),
+            );
+        } else {
+            all_uvs = false;
         }
         for tri in m.indices.chunks_exact(3) {
             if tri.iter().any(|&i| i as usize >= count) {
@@ -166,6 +196,12 @@ pub fn load_obj(path: &Path, field: &str, max_triangles: usize) -> Result<MeshDa
     }
     if all_normals && !normals.is_empty() {
         mesh.normals = Some(normals);
+    }
+    if all_uvs && !uvs.is_empty() {
+        if let Some(i) = uvs.iter().position(|uv| !uv.is_finite()) {
+            return Err(err(format!("texture coordinate {} is not finite", i + 1)));
+        }
+        mesh.uvs = Some(uvs);
     }
     Ok(mesh)
 }

@@ -25,9 +25,10 @@ mod read;
 
 pub(crate) use loader::read_scene_file;
 mod shape;
+pub mod texture;
 mod transform;
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 pub use camera::Camera;
 pub use digest::SceneDigest;
@@ -57,7 +58,8 @@ pub const MAX_TRIANGLES: usize = 10_000_000;
 pub const MAX_SCENE_MEMORY_BYTES: u64 = 1 << 30;
 /// Upper bound of the bytes one triangle retains in a built scene: the
 /// world-space triangle, its intersection form and hit tag, its
-/// entry in its shape's area CDF, vertex normals (if it has them) and at
+/// entry in its shape's area CDF, vertex normals and texture coordinates
+/// (if it has them) and at
 /// two thirds of a BVH node (the 4-wide tree over N primitives has fewer
 /// than 2N/3 nodes, `bvh::Bvh::build`).
 pub const TRIANGLE_BYTES: u64 = (std::mem::size_of::<Triangle>()
@@ -65,6 +67,7 @@ pub const TRIANGLE_BYTES: u64 = (std::mem::size_of::<Triangle>()
     + std::mem::size_of::<TriangleTag>()
     + std::mem::size_of::<f64>()
     + std::mem::size_of::<[DVec3; 3]>()
+    + std::mem::size_of::<[DVec2; 3]>()
     + (2 * bvh::NODE_BYTES).div_ceil(3)) as u64;
 
 /// Estimated bytes retained by `triangles` triangles ([`TRIANGLE_BYTES`]).
@@ -87,6 +90,10 @@ pub struct SurfaceHit {
     /// Unit shading normal: interpolated vertex normals where a mesh has
     /// them (on the front side), otherwise equal to `normal`.
     pub shading_normal: DVec3,
+    /// Texture coordinates (Mitsuba 3's per shape: interpolated vertex
+    /// `uvs` on meshes that have them, the barycentrics `(b1, b2)` on
+    /// those that do not; see `docs/scene-format.md`).
+    pub uv: DVec2,
     /// Index into [`Scene::materials`].
     pub material: usize,
     /// Index into [`Scene::emitters`] if the shape is an area light.
@@ -118,6 +125,8 @@ pub struct Scene {
     triangles: Vec<Triangle>,
     /// Per-vertex shading normals of triangles that have them.
     vertex_normals: Vec<[DVec3; 3]>,
+    /// Per-vertex texture coordinates of triangles that have them.
+    vertex_uvs: Vec<[DVec2; 3]>,
     /// Triangles in BVH order, and what a hit on each reports.
     accel: Vec<TriangleAccel>,
     accel_tags: Vec<TriangleTag>,
@@ -204,12 +213,13 @@ impl Scene {
         );
         if let Some(t) = t_analytic {
             let shape = &self.shapes[analytic_hit];
-            let (position, normal) = shape.analytic_hit(o, d, t);
+            let (position, normal, uv) = shape.analytic_hit(o, d, t);
             return Some(SurfaceHit {
                 t,
                 position,
                 normal,
                 shading_normal: normal,
+                uv,
                 material: shape.material,
                 emitter: shape.emitter,
                 shape: analytic_hit,
@@ -227,11 +237,16 @@ impl Scene {
                 .unwrap_or(normal),
             None => normal,
         };
+        let uv = match self.vertex_uvs.get(tag.uvs as usize) {
+            Some(t) => t[0] * (1.0 - u - v) + t[1] * u + t[2] * v,
+            None => DVec2::new(u, v),
+        };
         Some(SurfaceHit {
             t,
             position: tri.point(u, v),
             normal,
             shading_normal,
+            uv,
             material: shape.material,
             emitter: shape.emitter,
             shape: tag.shape as usize,
@@ -374,6 +389,19 @@ impl Scene {
                 _ => 0,
             })
             .sum();
+        // Each image once, however many textures share it.
+        let mut seen = std::collections::HashSet::new();
+        let textures: u64 = self
+            .materials
+            .iter()
+            .flat_map(Material::textures)
+            .filter_map(|t| match t {
+                texture::Texture::Bitmap(b) => Some(b),
+                _ => None,
+            })
+            .filter(|b| seen.insert(std::sync::Arc::as_ptr(&b.bitmap)))
+            .map(|b| b.bitmap.heap_bytes())
+            .sum();
         let environment = match &self.environment {
             Some(Environment::Map(map)) => map.heap_bytes(),
             _ => 0,
@@ -382,6 +410,8 @@ impl Scene {
             + cdfs
             + bytes(&self.triangles)
             + bytes(&self.vertex_normals)
+            + bytes(&self.vertex_uvs)
+            + textures
             + bytes(&self.accel)
             + bytes(&self.accel_tags)
             + bytes(&self.analytic_shapes)

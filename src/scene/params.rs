@@ -5,24 +5,47 @@
 use serde_json::{Map, Value};
 
 use super::error::SceneError;
+use super::texture::{Bitmaps, Texture};
 
 /// A linear RGB triple.
 type Rgb = [f64; 3];
 
 /// The parameters of one plugin document (or of a BSDF nested in one),
 /// `field` its path for messages.
-#[derive(Debug)]
-pub(crate) struct Params {
+pub(crate) struct Params<'a> {
     field: String,
     map: Map<String, Value>,
+    /// Where bitmap textures are read; `None` when only the parameters'
+    /// names are wanted.
+    bitmaps: Option<&'a Bitmaps<'a>>,
 }
 
-impl Params {
+impl<'a> Params<'a> {
     pub fn new(field: &str, map: Map<String, Value>) -> Self {
         Self {
             field: field.to_string(),
             map,
+            bitmaps: None,
         }
+    }
+
+    /// Parameters whose bitmap textures are read through `bitmaps`.
+    pub fn with_bitmaps(mut self, bitmaps: &'a Bitmaps<'a>) -> Self {
+        self.bitmaps = Some(bitmaps);
+        self
+    }
+
+    /// The parameters of a document nested in this one, at `field`.
+    pub fn nested_params(&self, field: &str, map: Map<String, Value>) -> Params<'a> {
+        Params {
+            field: field.to_string(),
+            map,
+            bitmaps: self.bitmaps,
+        }
+    }
+
+    pub fn bitmaps(&self) -> Option<&'a Bitmaps<'a>> {
+        self.bitmaps
     }
 
     /// The path of parameter `name`.
@@ -54,6 +77,11 @@ impl Params {
 
     fn take(&mut self, name: &str) -> Option<Value> {
         self.map.remove(name)
+    }
+
+    /// Parameter `name` as given, taken (for a parser of its own).
+    pub fn take_value(&mut self, name: &str) -> Option<Value> {
+        self.take(name)
     }
 
     /// A finite number, if given.
@@ -138,6 +166,34 @@ impl Params {
         }
     }
 
+    /// A colour that scales reflected or transmitted light, constant or a
+    /// texture (`scene::texture`): in [0, 1] everywhere, `default` when
+    /// absent.
+    pub fn albedo_texture(&mut self, name: &str, default: Rgb) -> Result<Texture, SceneError> {
+        match self.map.get(name) {
+            Some(Value::Object(_)) => {
+                let doc = self.take(name).expect("present");
+                let texture = Texture::parse(self, name, doc)?;
+                match texture.max() {
+                    m if m > 1.0 => Err(self.invalid(
+                        name,
+                        format!("the texture reaches {m}, not an albedo in [0, 1]"),
+                    )),
+                    _ => Ok(texture),
+                }
+            }
+            _ => Ok(Texture::Constant(self.albedo(name, default)?)),
+        }
+    }
+
+    /// [`Self::albedo_texture`] that must be given.
+    pub fn required_albedo_texture(&mut self, name: &str) -> Result<Texture, SceneError> {
+        if !self.map.contains_key(name) {
+            return Err(self.missing(name));
+        }
+        self.albedo_texture(name, [0.0; 3])
+    }
+
     /// The error of a required parameter `name` that is absent.
     pub fn missing(&self, name: &str) -> SceneError {
         SceneError::invalid(&self.field, format!("missing field `{name}`"))
@@ -171,7 +227,7 @@ impl Params {
 
     /// The BSDFs nested under `name` (an object or a list of objects, each
     /// with its own `type`), with their paths.
-    pub fn nested(&mut self, name: &str) -> Result<Vec<(String, String, Params)>, SceneError> {
+    pub fn nested(&mut self, name: &str) -> Result<Vec<(String, String, Params<'a>)>, SceneError> {
         let items = match self.take(name) {
             None => Vec::new(),
             Some(Value::Array(items)) => items,
@@ -189,7 +245,7 @@ impl Params {
                     Some(Value::String(kind)) => kind,
                     _ => return Err(SceneError::invalid(field, "missing field `type`")),
                 };
-                Ok((kind, field.clone(), Params::new(&field, map)))
+                Ok((kind, field.clone(), self.nested_params(&field, map)))
             })
             .collect()
     }

@@ -8,7 +8,7 @@
 
 use std::f64::consts::PI;
 
-use glam::{DAffine3, DVec2, DVec3};
+use glam::{DAffine3, DMat3, DVec2, DVec3};
 
 use super::bvh::Aabb;
 
@@ -21,9 +21,12 @@ pub(crate) enum Geometry {
         count: usize,
         cdf: Vec<f64>,
     },
+    /// `to_local` is the rotation from world to the sphere's own frame,
+    /// whose z axis is the texture's pole (Mitsuba 3's parametrisation).
     Sphere {
         center: DVec3,
         radius: f64,
+        to_local: DMat3,
     },
     /// Image of the unit disk in local xy under `to_world`.
     Disk {
@@ -54,6 +57,9 @@ pub(crate) struct Triangle {
     pub primitive: u32,
     /// Index into the scene's vertex normal triples, or `u32::MAX` if none.
     pub normals: u32,
+    /// Index into the scene's texture coordinate triples, or `u32::MAX`
+    /// if none.
+    pub uvs: u32,
 }
 
 impl Triangle {
@@ -94,6 +100,8 @@ pub(crate) struct TriangleTag {
     pub primitive: u32,
     /// Index into the scene's vertex normal triples, or `u32::MAX` if none.
     pub normals: u32,
+    /// Index into the scene's texture coordinate triples, or `u32::MAX`.
+    pub uvs: u32,
 }
 
 impl TriangleTag {
@@ -102,6 +110,7 @@ impl TriangleTag {
             shape: t.shape,
             primitive: t.primitive,
             normals: t.normals,
+            uvs: t.uvs,
         }
     }
 }
@@ -159,7 +168,7 @@ impl Shape {
     /// World bounds of an analytic shape (meshes are bounded per triangle).
     pub fn analytic_bounds(&self) -> Aabb {
         match &self.geometry {
-            Geometry::Sphere { center, radius } => Aabb {
+            Geometry::Sphere { center, radius, .. } => Aabb {
                 min: center - DVec3::splat(*radius),
                 max: center + DVec3::splat(*radius),
             },
@@ -179,7 +188,7 @@ impl Shape {
     #[inline]
     pub fn intersect_analytic(&self, o: DVec3, d: DVec3, t_max: f64) -> Option<f64> {
         match &self.geometry {
-            Geometry::Sphere { center, radius } => {
+            Geometry::Sphere { center, radius, .. } => {
                 // Hearn & Baker's form of the discriminant, which stays
                 // accurate for distant spheres (Ray Tracing Gems ch. 7).
                 let oc = o - *center;
@@ -213,14 +222,24 @@ impl Shape {
         }
     }
 
-    /// Surface point and front normal of an analytic hit at `t`, projected
-    /// back onto the surface so the error is a few ulps.
-    pub fn analytic_hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3) {
+    /// Surface point, front normal and texture coordinates of an analytic
+    /// hit at `t`, the point projected back onto the surface so the error
+    /// is a few ulps. Texture coordinates follow Mitsuba 3: on a sphere
+    /// `(φ/2π, θ/π)` of the local direction (θ from the local +z pole, φ
+    /// from +x towards +y); on a disk `(r, φ/2π)` of the local point.
+    pub fn analytic_hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2) {
         let p = o + d * t;
-        let (p, n) = match &self.geometry {
-            Geometry::Sphere { center, radius } => {
+        let azimuth = |y: f64, x: f64| y.atan2(x).rem_euclid(2.0 * PI) / (2.0 * PI);
+        let (p, n, uv) = match &self.geometry {
+            Geometry::Sphere {
+                center,
+                radius,
+                to_local,
+            } => {
                 let n = (p - *center).normalize();
-                (*center + n * *radius, n)
+                let l = *to_local * n;
+                let uv = DVec2::new(azimuth(l.y, l.x), l.z.clamp(-1.0, 1.0).acos() / PI);
+                (*center + n * *radius, n, uv)
             }
             Geometry::Disk {
                 to_world,
@@ -231,17 +250,18 @@ impl Shape {
                 (
                     to_world.transform_point3(DVec3::new(l.x, l.y, 0.0)),
                     *normal,
+                    DVec2::new(l.truncate().length(), azimuth(l.y, l.x)),
                 )
             }
-            Geometry::Mesh { .. } => (p, DVec3::Z),
+            Geometry::Mesh { .. } => (p, DVec3::Z, DVec2::ZERO),
         };
-        (p, if self.flip { -n } else { n })
+        (p, if self.flip { -n } else { n }, uv)
     }
 
     /// Uniform point by area on an analytic shape: (point, front normal).
     pub fn sample_analytic(&self, u: [f64; 2]) -> (DVec3, DVec3) {
         let (p, n) = match &self.geometry {
-            Geometry::Sphere { center, radius } => {
+            Geometry::Sphere { center, radius, .. } => {
                 let z = 1.0 - 2.0 * u[0];
                 let r = (1.0 - z * z).max(0.0).sqrt();
                 let (s, c) = (2.0 * PI * u[1]).sin_cos();
@@ -308,6 +328,7 @@ mod tests {
             geometry: Geometry::Sphere {
                 center: DVec3::new(0.0, 0.0, 5.0),
                 radius: 1.0,
+                to_local: DMat3::IDENTITY,
             },
             material: 0,
             emitter: None,
@@ -318,7 +339,7 @@ mod tests {
             .intersect_analytic(DVec3::ZERO, DVec3::Z, f64::INFINITY)
             .unwrap();
         assert!((t - 4.0).abs() < 1e-12);
-        let (p, n) = s.analytic_hit(DVec3::ZERO, DVec3::Z, t);
+        let (p, n, _) = s.analytic_hit(DVec3::ZERO, DVec3::Z, t);
         assert!((p - DVec3::new(0.0, 0.0, 4.0)).length() < 1e-12);
         assert_eq!(n, -DVec3::Z); // outward normal, not flipped toward the ray
         let t = s
@@ -368,6 +389,7 @@ mod tests {
             shape: 0,
             primitive: 0,
             normals: u32::MAX,
+            uvs: u32::MAX,
         };
         let a = TriangleAccel::new(&t);
         let o = DVec3::new(0.25, 0.5, 1.0);

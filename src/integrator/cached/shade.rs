@@ -361,7 +361,7 @@ impl CachedIntegrator<'_> {
         rng: &mut R,
         stats: &mut ShadingStats,
     ) -> Result<Evaluation, RenderError> {
-        let Some(bsdf) = self.transport.bsdf(hit.material) else {
+        let Some(bsdf) = self.transport.bsdf_at(hit) else {
             return Ok(Evaluation::of(Rgb::BLACK));
         };
         let frame = Frame::from_normal(hit.shading_normal);
@@ -372,7 +372,7 @@ impl CachedIntegrator<'_> {
         let surface = Surface {
             hit,
             frame,
-            bsdf,
+            bsdf: &bsdf,
             wo_local,
         };
         let mut trace = TraceStats::default();

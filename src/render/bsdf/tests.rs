@@ -4,6 +4,7 @@
 //! irradiance cache assumes. The models' own files test reciprocity,
 //! chi-square sampling and agreement with Mitsuba 3.
 
+use crate::scene::texture::Texture;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
@@ -24,21 +25,21 @@ fn materials() -> Vec<(&'static str, Material)> {
     let white = [1.0; 3];
     let dielectric = |roughness, thin| Material::Dielectric {
         eta: 1.5,
-        specular_reflectance: white,
-        specular_transmittance: white,
+        specular_reflectance: Texture::from(white),
+        specular_transmittance: Texture::from(white),
         roughness,
         thin,
     };
     let plastic = Material::Plastic {
-        diffuse_reflectance: [0.2, 0.5, 0.8],
-        specular_reflectance: white,
+        diffuse_reflectance: Texture::from([0.2, 0.5, 0.8]),
+        specular_reflectance: Texture::from(white),
         eta: 1.49,
         nonlinear: false,
         roughness: None,
     };
     let rough_plastic = Material::Plastic {
-        diffuse_reflectance: [0.2, 0.5, 0.8],
-        specular_reflectance: white,
+        diffuse_reflectance: Texture::from([0.2, 0.5, 0.8]),
+        specular_reflectance: Texture::from(white),
         eta: 1.49,
         nonlinear: false,
         roughness: Some(Roughness {
@@ -48,7 +49,12 @@ fn materials() -> Vec<(&'static str, Material)> {
         }),
     };
     vec![
-        ("diffuse", Material::Diffuse { reflectance: white }),
+        (
+            "diffuse",
+            Material::Diffuse {
+                reflectance: Texture::from(white),
+            },
+        ),
         (
             "glossy",
             Material::Glossy {
@@ -62,7 +68,7 @@ fn materials() -> Vec<(&'static str, Material)> {
             Material::Conductor {
                 eta: [0.0; 3],
                 k: [1.0; 3],
-                specular_reflectance: white,
+                specular_reflectance: Texture::from(white),
                 roughness: None,
             },
         ),
@@ -71,7 +77,7 @@ fn materials() -> Vec<(&'static str, Material)> {
             Material::Conductor {
                 eta,
                 k,
-                specular_reflectance: white,
+                specular_reflectance: Texture::from(white),
                 roughness: Some(ggx(0.3)),
             },
         ),
@@ -84,7 +90,9 @@ fn materials() -> Vec<(&'static str, Material)> {
             "two-sided",
             Material::TwoSided {
                 front: Box::new(plastic),
-                back: Box::new(Material::Diffuse { reflectance: white }),
+                back: Box::new(Material::Diffuse {
+                    reflectance: Texture::from(white),
+                }),
             },
         ),
     ]
@@ -198,14 +206,14 @@ fn white_furnace_conserves_energy() {
 #[test]
 fn two_sided_materials_see_the_surface_turned_around() {
     let front = Material::Plastic {
-        diffuse_reflectance: [0.2, 0.5, 0.8],
-        specular_reflectance: [1.0; 3],
+        diffuse_reflectance: Texture::from([0.2, 0.5, 0.8]),
+        specular_reflectance: Texture::from([1.0; 3]),
         eta: 1.49,
         nonlinear: false,
         roughness: None,
     };
     let back = Material::Diffuse {
-        reflectance: [0.7, 0.1, 0.1],
+        reflectance: Texture::from([0.7, 0.1, 0.1]),
     };
     let both = Bsdf::from(&Material::TwoSided {
         front: Box::new(front.clone()),

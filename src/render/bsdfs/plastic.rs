@@ -40,6 +40,9 @@ pub struct Plastic {
     diffuse: Rgb,
     /// `w` of the module docs.
     specular_weight: f64,
+    /// The coating's diffuse Fresnel reflectance seen from inside (an
+    /// integral computed once per material, reused by [`Self::retinted`]).
+    internal: f64,
 }
 
 /// `2 ∫₀¹ F(μ, η) μ dμ`: the Fresnel reflectance of an interface of
@@ -69,9 +72,42 @@ impl Plastic {
         eta: f64,
         nonlinear: bool,
     ) -> Self {
-        let fdr = diffuse_fresnel_reflectance(1.0 / eta);
+        let internal = diffuse_fresnel_reflectance(1.0 / eta);
+        Self::coated(
+            diffuse_reflectance,
+            specular_reflectance,
+            eta,
+            nonlinear,
+            internal,
+        )
+    }
+
+    /// The same coating over other reflectances (a texture's values at a
+    /// surface point), without integrating the Fresnel term again.
+    pub fn retinted(
+        &self,
+        diffuse_reflectance: Rgb,
+        specular_reflectance: Rgb,
+        nonlinear: bool,
+    ) -> Self {
+        Self::coated(
+            diffuse_reflectance,
+            specular_reflectance,
+            self.eta,
+            nonlinear,
+            self.internal,
+        )
+    }
+
+    fn coated(
+        diffuse_reflectance: Rgb,
+        specular_reflectance: Rgb,
+        eta: f64,
+        nonlinear: bool,
+        internal: f64,
+    ) -> Self {
         let kept = diffuse_reflectance.map(|rho| {
-            let lost = if nonlinear { rho * fdr } else { fdr };
+            let lost = if nonlinear { rho * internal } else { internal };
             rho / (1.0 - lost)
         });
         let mean = |c: Rgb| (c.r + c.g + c.b) / 3.0;
@@ -82,6 +118,7 @@ impl Plastic {
             eta,
             diffuse: kept * (FRAC_1_PI / (eta * eta)),
             specular_weight: if d + s > 0.0 { s / (d + s) } else { 0.0 },
+            internal,
         }
     }
 

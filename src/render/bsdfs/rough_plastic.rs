@@ -28,6 +28,7 @@
 
 use std::f64::consts::FRAC_1_PI;
 use std::num::NonZeroUsize;
+use std::sync::Arc;
 
 use gauss_quad::legendre::GaussLegendre;
 use glam::DVec3;
@@ -52,8 +53,11 @@ pub struct RoughPlastic {
     diffuse: Rgb,
     /// `w` of the module docs.
     specular_weight: f64,
-    /// `T(μ)` at `μ = k/(TABLE − 1)`.
-    transmittance: Box<[f64; TABLE]>,
+    /// `T(μ)` at `μ = k/(TABLE − 1)`, shared by the BSDFs a texture
+    /// derives from one material ([`Self::retinted`]).
+    transmittance: Arc<[f64; TABLE]>,
+    /// The coating's diffuse reflectance seen from inside.
+    internal: f64,
 }
 
 /// `E[g(m)]` over the normals `m` visible from `w` (density `G1(w, m)
@@ -140,6 +144,46 @@ impl RoughPlastic {
                 })
                 .sum::<f64>()
             / TABLE as f64;
+        let transmittance = Arc::new(table.try_into().expect("TABLE entries"));
+        Self::coated(
+            distribution,
+            transmittance,
+            internal,
+            diffuse_reflectance,
+            specular_reflectance,
+            eta,
+            nonlinear,
+        )
+    }
+
+    /// The same coating over other reflectances (a texture's values at a
+    /// surface point), without integrating its tables again.
+    pub fn retinted(
+        &self,
+        diffuse_reflectance: Rgb,
+        specular_reflectance: Rgb,
+        nonlinear: bool,
+    ) -> Self {
+        Self::coated(
+            self.distribution,
+            self.transmittance.clone(),
+            self.internal,
+            diffuse_reflectance,
+            specular_reflectance,
+            self.eta,
+            nonlinear,
+        )
+    }
+
+    fn coated(
+        distribution: Microfacet,
+        transmittance: Arc<[f64; TABLE]>,
+        internal: f64,
+        diffuse_reflectance: Rgb,
+        specular_reflectance: Rgb,
+        eta: f64,
+        nonlinear: bool,
+    ) -> Self {
         let kept = diffuse_reflectance.map(|rho| {
             let lost = if nonlinear { rho * internal } else { internal };
             rho / (1.0 - lost)
@@ -152,7 +196,8 @@ impl RoughPlastic {
             eta,
             diffuse: kept * (FRAC_1_PI / (eta * eta)),
             specular_weight: if d + s > 0.0 { s / (d + s) } else { 0.0 },
-            transmittance: Box::new(table.try_into().expect("TABLE entries")),
+            transmittance,
+            internal,
         }
     }
 

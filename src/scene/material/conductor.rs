@@ -24,7 +24,7 @@ fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
     Ok(Material::Conductor {
         eta,
         k,
-        specular_reflectance: params.albedo("specular_reflectance", [1.0; 3])?,
+        specular_reflectance: params.albedo_texture("specular_reflectance", [1.0; 3])?,
         roughness: if rough {
             Some(optics::roughness(params)?)
         } else {

@@ -38,8 +38,8 @@ fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
     };
     Ok(Material::Plastic {
         roughness,
-        diffuse_reflectance: params.albedo("diffuse_reflectance", [0.5; 3])?,
-        specular_reflectance: params.albedo("specular_reflectance", [1.0; 3])?,
+        diffuse_reflectance: params.albedo_texture("diffuse_reflectance", [0.5; 3])?,
+        specular_reflectance: params.albedo_texture("specular_reflectance", [1.0; 3])?,
         eta: optics::relative_ior(params, POLYPROPYLENE)?,
         nonlinear: params.boolean("nonlinear", false)?,
     })

@@ -1,10 +1,13 @@
+use crate::scene::texture::{Bitmaps, Texture};
 use serde_json::json;
 
 use super::*;
 
 fn parse(doc: serde_json::Value) -> Result<Material, SceneError> {
     let doc: MaterialDoc = serde_json::from_value(doc).unwrap();
-    Material::from_doc(&doc, "materials[3]")
+    let dir = std::env::temp_dir();
+    let files = crate::scene::loader::Files::new(&dir, &dir).unwrap();
+    Material::from_doc(&doc, "materials[3]", &Bitmaps::new(&files))
 }
 
 fn field_of(doc: serde_json::Value) -> String {
@@ -33,13 +36,13 @@ fn every_plugin_parses_with_mitsubas_defaults() {
         (r.distribution, r.alpha_u, r.alpha_v),
         (Distribution::Ggx, 0.1, 0.1)
     );
-    assert_eq!(specular_reflectance, [1.0; 3]);
+    assert_eq!(specular_reflectance, Texture::from([1.0; 3]));
     assert_eq!(
         parse(json!({"id": "m", "type": "conductor"})).unwrap(),
         Material::Conductor {
             eta: [0.0; 3],
             k: [1.0; 3],
-            specular_reflectance: [1.0; 3],
+            specular_reflectance: Texture::from([1.0; 3]),
             roughness: None
         },
         "Mitsuba's default conductor is the perfect mirror `none`"
@@ -64,7 +67,7 @@ fn every_plugin_parses_with_mitsubas_defaults() {
     else {
         panic!()
     };
-    assert_eq!(diffuse_reflectance, [0.3; 3]);
+    assert_eq!(diffuse_reflectance, Texture::from([0.3; 3]));
     assert_eq!((r.distribution, r.alpha_u), (Distribution::Beckmann, 0.2));
     let two = parse(json!({"id": "t", "type": "twosided", "bsdf": [
         {"type": "diffuse", "reflectance": [0.1, 0.2, 0.3]},

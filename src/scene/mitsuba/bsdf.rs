@@ -12,7 +12,7 @@ use crate::scene::format::{MaterialDoc, Rgb};
 use crate::scene::material::{Material, plugin_names};
 
 use super::parse::{Element, quote};
-use super::texture::value;
+use super::texture::{mean, parameter};
 use super::{Ctx, XmlError};
 
 /// The material a shape without a BSDF gets (Mitsuba: diffuse, 0.5).
@@ -120,7 +120,7 @@ fn describe<'a>(
             continue;
         };
         let value = match target.tag.as_str() {
-            "rgb" | "spectrum" | "texture" => Value::from(value(ctx, child)?.to_vec()),
+            "rgb" | "spectrum" | "texture" => parameter(ctx, child)?,
             "float" | "integer" => Value::from(super::props::number(target, "value")?),
             "string" => Value::from(target.attr("value").unwrap_or_default()),
             "boolean" => match target.attr("value").map(str::trim) {
@@ -143,6 +143,28 @@ fn describe<'a>(
     }
     if !nested.is_empty() {
         params.insert("bsdf".into(), Value::Array(nested));
+    }
+    for name in Material::constant_parameters_given_textures(kind, &params) {
+        if let Some((_, child)) = elements.iter().find(|(n, _)| *n == name) {
+            ctx.unsupported(
+                child,
+                "name",
+                &format!(
+                    "{} takes {} as a constant, not a texture",
+                    el.label(),
+                    quote(&name)
+                ),
+                "using the texture's mean",
+            )?;
+            let texture = ctx.deref(child)?;
+            let mean = mean(ctx, texture)?;
+            // A grey mean as a number, which scalar parameters take too.
+            let value = match mean {
+                [r, g, b] if r == g && g == b => Value::from(r),
+                rgb => Value::from(rgb.to_vec()),
+            };
+            params.insert(name, value);
+        }
     }
     for name in Material::unknown_parameters(kind, &params) {
         if let Some((_, child)) = elements.iter().find(|(n, _)| *n == name) {

@@ -27,6 +27,8 @@ const MAX_PLY_BYTES: u64 = 1 << 30;
 /// A document shape with only the required fields set.
 pub(crate) fn shape_doc(kind: ShapeKind, material: String) -> ShapeDoc {
     ShapeDoc {
+        uvs: None,
+        flip_tex_coords: None,
         kind,
         id: None,
         material,
@@ -94,7 +96,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
         Some("obj") => {
             let name = filename(&mut props)?;
             let face_normals = props.boolean("face_normals", false)?;
-            props.ignore(&["flip_tex_coords"]);
+            doc.flip_tex_coords = Some(props.boolean("flip_tex_coords", true)?);
             if face_normals {
                 let path = ctx.resolve(el, "filename", name)?;
                 let data = mesh_file(ctx, &path, MeshFormat::Obj, |budget| {
@@ -111,7 +113,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
         Some("ply") => {
             let name = filename(&mut props)?;
             let face_normals = props.boolean("face_normals", false)?;
-            props.ignore(&["flip_tex_coords"]);
+            doc.flip_tex_coords = Some(props.boolean("flip_tex_coords", false)?);
             let path = ctx.resolve(el, "filename", name)?;
             let data = mesh_file(ctx, &path, MeshFormat::Ply, |budget| {
                 read_ply(&path, budget).map_err(|m| SceneError::file("filename", &path, m))
@@ -202,6 +204,10 @@ fn set_triangles(doc: &mut ShapeDoc, data: &MeshData, keep_normals: bool) {
         .as_ref()
         .filter(|_| keep_normals)
         .map(|ns| ns.iter().map(|n| n.to_array()).collect());
+    doc.uvs = data
+        .uvs
+        .as_ref()
+        .map(|uvs| uvs.iter().map(|uv| uv.to_array()).collect());
 }
 
 /// `<emitter type="area">` inside a shape.
@@ -271,9 +277,10 @@ fn index_list(p: &Property) -> Option<Vec<i64>> {
     })
 }
 
-/// Reads a PLY mesh (ASCII or binary): `vertex` x/y/z (and nx/ny/nz if all
-/// present), `face` `vertex_indices` (or `vertex_index`) polygons fanned
-/// into triangles.
+/// Reads a PLY mesh (ASCII or binary): `vertex` x/y/z (and nx/ny/nz, and
+/// texture coordinates u/v, texture_u/texture_v or s/t, each if every
+/// vertex has them), `face` `vertex_indices` (or `vertex_index`) polygons
+/// fanned into triangles.
 fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, String> {
     let file = crate::scene::read::open_capped(path, MAX_PLY_BYTES)
         .map_err(|e| format!("cannot open: {e}"))?;
@@ -295,6 +302,7 @@ fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, String> {
     let faces = payload.get("face").map(Vec::as_slice).unwrap_or(&[]);
     let mut mesh = MeshData::default();
     let mut normals = Vec::with_capacity(vertices.len());
+    let mut uvs = Vec::with_capacity(vertices.len());
     for (i, v) in vertices.iter().enumerate() {
         let get = |k: &str| v.get(k).and_then(scalar);
         let (Some(x), Some(y), Some(z)) = (get("x"), get("y"), get("z")) else {
@@ -303,6 +311,12 @@ fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, String> {
         mesh.positions.push(glam::DVec3::new(x, y, z));
         if let (Some(nx), Some(ny), Some(nz)) = (get("nx"), get("ny"), get("nz")) {
             normals.push(glam::DVec3::new(nx, ny, nz));
+        }
+        let uv = [("u", "v"), ("texture_u", "texture_v"), ("s", "t")]
+            .into_iter()
+            .find_map(|(a, b)| Some((get(a)?, get(b)?)));
+        if let Some((s, t)) = uv.filter(|(s, t)| s.is_finite() && t.is_finite()) {
+            uvs.push(glam::DVec2::new(s, t));
         }
     }
     for (f, face) in faces.iter().enumerate() {
@@ -333,6 +347,9 @@ fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, String> {
     }
     if normals.len() == mesh.positions.len() {
         mesh.normals = Some(normals);
+    }
+    if uvs.len() == mesh.positions.len() {
+        mesh.uvs = Some(uvs);
     }
     Ok(mesh)
 }

@@ -2,6 +2,7 @@
 //! supported element, every error path, and a property test that random and
 //! mutated input never panics.
 
+use crate::scene::texture::Texture;
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
@@ -198,7 +199,7 @@ fn shapes_without_bsdf_get_mitsubas_default_diffuse() {
     assert_eq!(
         scene.materials[m],
         Material::Diffuse {
-            reflectance: [0.5; 3]
+            reflectance: Texture::from([0.5; 3])
         }
     );
     assert_eq!(scene.material_ids[m], "default-diffuse@mitsuba");
@@ -225,7 +226,7 @@ fn bsdf_mappings() {
         scene.materials[i].clone()
     };
     let grey = Material::Diffuse {
-        reflectance: [0.25; 3],
+        reflectance: Texture::from([0.25; 3]),
     };
     assert_eq!(
         by_id("two"),
@@ -237,8 +238,8 @@ fn bsdf_mappings() {
     assert_eq!(
         by_id("plastic"),
         Material::Plastic {
-            diffuse_reflectance: [0.6, 0.4, 0.2],
-            specular_reflectance: [1.0; 3],
+            diffuse_reflectance: Texture::from([0.6, 0.4, 0.2]),
+            specular_reflectance: Texture::from([1.0; 3]),
             eta: 1.5,
             nonlinear: false,
             roughness: None,
@@ -260,7 +261,7 @@ fn bsdf_mappings() {
         Material::Conductor {
             eta: [0.0; 3],
             k: [1.0; 3],
-            specular_reflectance: [1.0; 3],
+            specular_reflectance: Texture::from([1.0; 3]),
             roughness: None,
         }
     );
@@ -514,19 +515,54 @@ fn instances_of_a_shapegroup() {
 }
 
 #[test]
-fn textures_are_errors_or_lenient_means() {
-    let body = r#"<bsdf type="diffuse" id="t"><texture type="checkerboard" name="reflectance">
-        <rgb name="color0" value="0.8"/><rgb name="color1" value="0.2"/></texture></bsdf>"#;
-    let e = err(body);
-    assert!(e.contains("checkerboard") && e.contains("lenient"), "{e}");
-    let (scene, warnings) = load_in(&wrap(body), &scenes_dir(), true).unwrap();
-    assert!(
-        warnings.iter().any(|w| w.message.contains("checkerboard")),
-        "{warnings:?}"
+fn textures_become_texture_documents_or_lenient_means() {
+    // A checkerboard on a reflectance is the scene model's checkerboard.
+    let scene = ok(
+        r#"<bsdf type="diffuse" id="t"><texture type="checkerboard" name="reflectance">
+        <rgb name="color0" value="0.8"/><rgb name="color1" value="0.2"/>
+        <transform name="to_uv"><scale x="4" y="2"/></transform></texture></bsdf>"#,
     );
-    assert!(scene.materials.contains(&Material::Diffuse {
-        reflectance: [0.5; 3]
-    }));
+    let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
+    let Material::Diffuse {
+        reflectance: Texture::Checkerboard(board),
+    } = &scene.materials[i]
+    else {
+        panic!("{:?}", scene.materials[i])
+    };
+    assert_eq!((board.color0, board.color1), ([0.8; 3], [0.2; 3]));
+    assert_eq!(board.to_uv.matrix2.x_axis.x, 4.0);
+
+    // A texture where the model takes a constant (a metal's roughness),
+    // and a texture type it lacks: errors, or with lenient their means.
+    for (body, what) in [
+        (
+            r#"<bsdf type="roughconductor" id="t"><texture type="checkerboard" name="alpha">
+            <float name="color0" value="0.3"/><float name="color1" value="0.1"/></texture></bsdf>"#,
+            "alpha",
+        ),
+        (
+            r#"<bsdf type="diffuse" id="t"><texture type="gridvolume" name="reflectance"/></bsdf>"#,
+            "gridvolume",
+        ),
+    ] {
+        let e = err(body);
+        assert!(e.contains(what) && e.contains("lenient"), "{e}");
+        let (scene, warnings) = load_in(&wrap(body), &scenes_dir(), true).unwrap();
+        assert!(
+            warnings.iter().any(|w| w.message.contains(what)),
+            "{warnings:?}"
+        );
+        let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
+        match &scene.materials[i] {
+            Material::Conductor {
+                roughness: Some(r), ..
+            } => assert!((r.alpha_u - 0.2).abs() < 1e-12, "{r:?}"),
+            Material::Diffuse { reflectance } => {
+                assert_eq!(*reflectance, Texture::from([0.5; 3]))
+            }
+            other => panic!("{other:?}"),
+        }
+    }
 
     // sRGB 255 and 0 are linear 1 and 0; sRGB 188 is linear ≈ 0.5029.
     let dir = Scratch::new("bitmap");
@@ -535,17 +571,21 @@ fn textures_are_errors_or_lenient_means() {
         .save(dir.0.join("tex.png"))
         .unwrap();
     let bitmap = r#"<bsdf type="diffuse" id="t"><texture type="bitmap" name="reflectance">
-        <string name="filename" value="tex.png"/></texture></bsdf>"#;
-    let e = load_in(&wrap(bitmap), &dir.0, false).err().unwrap();
-    assert!(e.to_string().contains("bitmap"), "{e}");
-    let (scene, warnings) = load_in(&wrap(bitmap), &dir.0, true).unwrap();
-    assert_eq!(warnings.len(), 1);
+        <string name="filename" value="tex.png"/>
+        <string name="filter_type" value="nearest"/></texture></bsdf>"#;
+    let (scene, warnings) = load_in(&wrap(bitmap), &dir.0, false).unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
     let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
-    let Material::Diffuse { reflectance } = scene.materials[i] else {
+    let Material::Diffuse { reflectance } = &scene.materials[i] else {
         panic!()
     };
-    assert!((reflectance[0] - 0.5).abs() < 1e-6, "{reflectance:?}");
-    assert!((reflectance[2] - 0.502886).abs() < 1e-5, "{reflectance:?}");
+    let left = reflectance.eval(glam::DVec2::new(0.25, 0.5));
+    let right = reflectance.eval(glam::DVec2::new(0.75, 0.5));
+    assert!(
+        (left[0] - 1.0).abs() < 1e-6 && (right[0]).abs() < 1e-6,
+        "{left:?} {right:?}"
+    );
+    assert!((left[2] - 0.502886).abs() < 1e-5, "{left:?}");
 }
 
 #[test]
@@ -747,10 +787,10 @@ fn bitmap_reflectance(dir: &Path, file: &str) -> Result<[f64; 3], SceneError> {
     );
     let (scene, _) = load_in(&wrap(&bitmap), dir, true)?;
     let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
-    let Material::Diffuse { reflectance } = scene.materials[i] else {
+    let Material::Diffuse { reflectance } = &scene.materials[i] else {
         panic!()
     };
-    Ok(reflectance)
+    Ok(reflectance.mean())
 }
 
 #[test]
@@ -761,7 +801,8 @@ fn png_means_of_every_pixel_format() {
         write_png(&dir.0.join(name), 8, 3, color, depth, pixel);
         let got = bitmap_reflectance(&dir.0, name).unwrap();
         for c in 0..3 {
-            assert!((got[c] - expected[c]).abs() < 1e-9, "{name}: {got:?}");
+            // Texels are stored as f32.
+            assert!((got[c] - expected[c]).abs() < 1e-6, "{name}: {got:?}");
         }
     };
     check(
@@ -983,14 +1024,14 @@ fn a_mesh_file_is_read_once_per_document() {
 /// named in one error: the first located, the others listed with their lines.
 #[test]
 fn strict_documents_name_every_unsupported_feature() {
-    let body = r#"<bsdf type="diffuse" id="t"><texture type="checkerboard" name="reflectance">
-        <rgb name="color0" value="0.8"/><rgb name="color1" value="0.2"/></texture></bsdf>
+    let body = r#"<bsdf type="diffuse" id="t"><texture type="gridvolume" name="reflectance">
+        </texture></bsdf>
 <foo/>
 <bar/>"#;
     let text = wrap(body);
     let e = load_err(&text);
     let message = e.to_string();
-    assert_eq!(syntax_line(&e), line_of(&text, "checkerboard"), "{message}");
+    assert_eq!(syntax_line(&e), line_of(&text, "gridvolume"), "{message}");
     assert!(message.contains("and 2 more"), "{message}");
     for other in ["<foo/>", "<bar/>"] {
         let line = format!("line {}", line_of(&text, other));

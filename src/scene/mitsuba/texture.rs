@@ -1,35 +1,28 @@
-//! Colour-valued properties (`reflectance`, `radiance`, ...) → one RGB
-//! triple. The scene model has no textures: constant `<rgb>`, `<float>` and
-//! single-valued `<spectrum>` are exact; with `lenient`, a `bitmap` becomes
-//! its mean linear colour, a `checkerboard` the mean of its two colours, a
-//! sampled spectrum the mean of its values, anything else mid grey.
+//! Colour-valued properties. A BSDF's textured parameters become texture
+//! documents (`scene::texture`: `bitmap` and `checkerboard` with their
+//! Mitsuba parameters) through [`parameter`]; everything else that takes a
+//! colour (emitters' radiance) becomes one RGB triple through [`value`].
+//! Constant `<rgb>`, `<float>` and single-valued `<spectrum>` are exact;
+//! with `lenient`, a texture where only a constant is supported becomes
+//! its mean linear colour, a sampled spectrum the mean of its values,
+//! anything else mid grey.
 
-use std::io::BufReader;
-use std::path::Path;
+use serde_json::{Map, Value};
 
 use crate::scene::format::Rgb;
-use crate::scene::{environment, read};
+use crate::scene::texture::read_bitmap;
 
 use super::parse::{Element, quote};
 use super::props::{Props, numbers};
+use super::transform::Ops;
 use super::{Ctx, XmlError};
-
-/// Largest width or height of a PNG bitmap texture, pixels.
-pub const MAX_BITMAP_SIDE: u32 = 16384;
-/// Most pixels of a PNG bitmap texture (4096²). Only the mean colour is kept
-/// and rows are streamed, so memory stays at one row, but decoding time grows
-/// with the pixel count: a 16384² grey PNG compresses to ~260 KB and would
-/// take seconds of CPU (and, decoded whole, 6 GiB).
-pub const MAX_BITMAP_PIXELS: u64 = 4096 * 4096;
-/// Largest PNG file read, bytes (a 4096² RGBA 16-bit image stored
-/// uncompressed is 128 MiB).
-pub const MAX_BITMAP_FILE_BYTES: u64 = 160 << 20;
-/// Bytes the PNG decoder may allocate (row buffers, metadata chunks).
-const MAX_BITMAP_DECODER_BYTES: usize = 16 << 20;
 
 /// Mitsuba's default for unspecified reflectances, used as the lenient
 /// stand-in for textures that have no sensible mean.
 const GREY: Rgb = [0.5; 3];
+
+/// The texture plugins the scene model has (`scene::texture`).
+const TEXTURES: &[&str] = &["bitmap", "checkerboard"];
 
 /// The RGB value of property `name` of `props`, or `default` if absent.
 pub(crate) fn color<'a>(
@@ -42,6 +35,49 @@ pub(crate) fn color<'a>(
         Some(el) => value(ctx, el),
         None => Ok(default),
     }
+}
+
+/// The document value of a BSDF's colour property `el` (following
+/// `<ref>`s): `[r, g, b]`, or a texture document for a supported texture.
+pub(crate) fn parameter<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Value, XmlError> {
+    let target = ctx.deref(el)?;
+    let kind = target.attr("type").unwrap_or("");
+    if target.tag != "texture" || !TEXTURES.contains(&kind) {
+        return Ok(Value::from(value(ctx, el)?.to_vec()));
+    }
+    ctx.enter(target)?;
+    let mut props = Props::new(target);
+    let mut doc = Map::new();
+    doc.insert("type".into(), Value::from(kind));
+    if kind == "bitmap" {
+        let name = props
+            .string("filename")?
+            .ok_or_else(|| target.error("filename", "a bitmap needs a `filename`"))?;
+        doc.insert("filename".into(), Value::from(name));
+        doc.insert("raw".into(), Value::from(props.boolean("raw", false)?));
+        for name in ["filter_type", "wrap_mode"] {
+            if let Some(v) = props.string(name)? {
+                doc.insert(name.into(), Value::from(v));
+            }
+        }
+        // The storage format changes precision, not the picture.
+        props.ignore(&["format"]);
+    } else {
+        for (name, default) in [("color0", [0.4; 3]), ("color1", [0.2; 3])] {
+            let c = color(ctx, &mut props, name, default)?;
+            doc.insert(name.into(), Value::from(c.to_vec()));
+        }
+    }
+    if let Some(t) = props.get("to_uv")? {
+        if let Some(transform) = Ops::read(t)?.doc() {
+            let ops = serde_json::to_value(&transform.ops)
+                .map_err(|e| t.error("", format!("cannot translate: {e}")))?;
+            doc.insert("to_uv".into(), ops);
+        }
+    }
+    props.finish(ctx)?;
+    ctx.leave();
+    Ok(Value::Object(doc))
 }
 
 /// The RGB value of a colour element (following `<ref>`s).
@@ -59,7 +95,25 @@ pub(crate) fn value<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlEr
         },
         "float" => Ok([super::props::number(target, "value")?; 3]),
         "spectrum" => spectrum(ctx, target),
-        "texture" => texture(ctx, target),
+        "texture" => {
+            let kind = target.attr("type").unwrap_or("");
+            let supported = TEXTURES.contains(&kind);
+            ctx.unsupported(
+                target,
+                "type",
+                &if supported {
+                    format!("a {} texture is not supported here", quote(kind))
+                } else {
+                    format!("texture type {} is not supported", quote(kind))
+                },
+                if supported {
+                    "using its mean linear colour"
+                } else {
+                    "using mid grey"
+                },
+            )?;
+            mean(ctx, target)
+        }
         other => Err(target.error(
             "",
             format!("<{other}> is not a colour (rgb, float, spectrum or texture)"),
@@ -110,146 +164,33 @@ fn spectrum(ctx: &mut Ctx, el: &Element) -> Result<Rgb, XmlError> {
     Ok([mean; 3])
 }
 
-fn texture<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlError> {
-    let kind = el.attr("type").unwrap_or("");
+/// The mean linear colour of texture element `el`: a bitmap's texels, a
+/// checkerboard's two colours; mid grey for other types.
+pub(crate) fn mean<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlError> {
     let mut props = Props::new(el);
-    let out = match kind {
+    let out = match el.attr("type").unwrap_or("") {
         "bitmap" => {
             let name = props
                 .string("filename")?
                 .ok_or_else(|| el.error("filename", "a bitmap needs a `filename`"))?;
             let raw = props.boolean("raw", false)?;
-            props.ignore(&["filter_type", "wrap_mode", "format"]);
-            ctx.unsupported(
-                el,
-                "",
-                "bitmap textures are not supported (the scene model has no textures)",
-                "using the image's mean linear colour",
-            )?;
             let path = ctx.resolve(el, "filename", name)?;
-            bitmap_mean(&path, raw).map_err(|m| el.error("filename", m))?
+            read_bitmap(&path, raw, "filename")
+                .map_err(|e| XmlError {
+                    source: Some(Box::new(e)),
+                    ..el.error("filename", "")
+                })?
+                .mean()
         }
         "checkerboard" => {
             let a = color(ctx, &mut props, "color0", [0.4; 3])?;
             let b = color(ctx, &mut props, "color1", [0.2; 3])?;
-            ctx.unsupported(
-                el,
-                "",
-                "checkerboard textures are not supported",
-                "using the mean of color0 and color1",
-            )?;
             std::array::from_fn(|i| 0.5 * (a[i] + b[i]))
         }
-        other => {
-            ctx.unsupported(
-                el,
-                "type",
-                &format!("texture type {} is not supported", quote(other)),
-                "using mid grey",
-            )?;
-            return Ok(GREY);
-        }
+        _ => return Ok(GREY),
     };
-    props.ignore(&["to_uv"]);
+    // Whatever else it holds does not change its mean.
+    props.ignore(&["filter_type", "wrap_mode", "format", "to_uv"]);
     props.finish(ctx)?;
     Ok(out)
-}
-
-/// Mean linear RGB of an image: EXR as stored; PNG decoded from sRGB
-/// unless `raw` (Mitsuba's bitmap convention).
-fn bitmap_mean(path: &Path, raw: bool) -> Result<Rgb, String> {
-    let is_exr = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    if !is_exr {
-        return png_mean(path, raw).map_err(|e| format!("{}: {e}", path.display()));
-    }
-    let (_, _, texels) = environment::read_exr(path, "filename").map_err(|e| e.to_string())?;
-    if texels.is_empty() {
-        return Err(format!("{}: empty image", path.display()));
-    }
-    let n = texels.len() as f64;
-    Ok(std::array::from_fn(|i| {
-        texels.iter().map(|t| f64::from(t[i])).sum::<f64>() / n
-    }))
-}
-
-/// Mean linear RGB of a PNG, streamed row by row (alpha ignored). Refuses
-/// images over [`MAX_BITMAP_SIDE`] or [`MAX_BITMAP_PIXELS`] before decoding.
-fn png_mean(path: &Path, raw: bool) -> Result<Rgb, String> {
-    let file =
-        read::open_capped(path, MAX_BITMAP_FILE_BYTES).map_err(|e| format!("cannot open: {e}"))?;
-    let limits = png::Limits {
-        bytes: MAX_BITMAP_DECODER_BYTES,
-    };
-    let mut decoder = png::Decoder::new_with_limits(BufReader::new(file), limits);
-    // Palettes and low bit depths become 8-bit grey or RGB (with alpha).
-    decoder.set_transformations(png::Transformations::EXPAND);
-    let mut reader = decoder
-        .read_info()
-        .map_err(|e| format!("not a readable PNG: {e}"))?;
-    let (width, height) = (reader.info().width, reader.info().height);
-    if width > MAX_BITMAP_SIDE
-        || height > MAX_BITMAP_SIDE
-        || u64::from(width) * u64::from(height) > MAX_BITMAP_PIXELS
-    {
-        return Err(format!(
-            "image is {width}×{height}; each side must be at most {MAX_BITMAP_SIDE} and the area at most {MAX_BITMAP_PIXELS} pixels"
-        ));
-    }
-    let (color, depth) = reader.output_color_type();
-    let channels = color.samples();
-    let sample_bytes = if depth == png::BitDepth::Sixteen {
-        2
-    } else {
-        1
-    };
-    let lut: Vec<f64> = (0..256)
-        .map(|v| {
-            let c = f64::from(v) / 255.0;
-            if raw { c } else { srgb_to_linear(c) }
-        })
-        .collect();
-    let decode = |bytes: &[u8]| -> f64 {
-        if sample_bytes == 2 {
-            let c = f64::from(u16::from_be_bytes([bytes[0], bytes[1]])) / 65535.0;
-            if raw { c } else { srgb_to_linear(c) }
-        } else {
-            lut[usize::from(bytes[0])]
-        }
-    };
-    let mut sum = [0.0f64; 3];
-    let mut pixels = 0u64;
-    // Interlaced images come as the rows of each pass; every pixel appears
-    // in exactly one, so sums and counts are still over the whole image.
-    while let Some(row) = reader
-        .next_row()
-        .map_err(|e| format!("cannot decode PNG: {e}"))?
-    {
-        for pixel in row.data().chunks_exact(channels * sample_bytes) {
-            let sample = |c: usize| decode(&pixel[c * sample_bytes..]);
-            let rgb = if channels >= 3 {
-                [sample(0), sample(1), sample(2)]
-            } else {
-                [sample(0); 3]
-            };
-            for (s, c) in sum.iter_mut().zip(rgb) {
-                *s += c;
-            }
-            pixels += 1;
-        }
-    }
-    if pixels == 0 {
-        return Err("empty image".into());
-    }
-    Ok(sum.map(|s| s / pixels as f64))
-}
-
-/// The sRGB electro-optical transfer function (IEC 61966-2-1).
-fn srgb_to_linear(c: f64) -> f64 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
 }

@@ -1,0 +1,148 @@
+//! Textures: colours that vary over a surface with its texture coordinates
+//! `(u, v)` (`SurfaceHit::uv`, Mitsuba 3's conventions per shape, see
+//! `docs/scene-format.md`, "Texture coordinates").
+//!
+//! A textured parameter is written as a constant (a number or `[r, g, b]`)
+//! or as a texture document `{"type": PLUGIN, PARAMETER: value, …}` with
+//! Mitsuba 3's plugin and parameter names; each plugin parses its own
+//! parameters in its own file (`bitmap.rs`, `checkerboard.rs`) and
+//! [`PLUGINS`] is the registry. Every plugin takes `to_uv`, an affine
+//! transform of the texture coordinates written like a `to_world` (its
+//! x and y rows act on `(u, v)`; Mitsuba's `to_uv`).
+
+mod bitmap;
+mod checkerboard;
+
+use std::sync::Arc;
+
+use glam::{DAffine2, DVec2};
+use serde_json::Value;
+
+pub use bitmap::{Bitmap, BitmapTexture, Filter, Wrap};
+pub(crate) use bitmap::{Bitmaps, read_bitmap};
+pub use checkerboard::Checkerboard;
+
+use super::error::SceneError;
+use super::format::TransformDoc;
+use super::params::Params;
+
+/// A linear RGB triple.
+type Rgb = [f64; 3];
+
+/// A colour over a surface: linear RGB as a function of `(u, v)`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Texture {
+    Constant(Rgb),
+    Bitmap(BitmapTexture),
+    Checkerboard(Checkerboard),
+}
+
+impl From<Rgb> for Texture {
+    fn from(rgb: Rgb) -> Self {
+        Texture::Constant(rgb)
+    }
+}
+
+impl Texture {
+    /// The colour at texture coordinates `uv`.
+    pub fn eval(&self, uv: DVec2) -> Rgb {
+        match self {
+            Texture::Constant(c) => *c,
+            Texture::Bitmap(b) => b.eval(uv),
+            Texture::Checkerboard(c) => c.eval(uv),
+        }
+    }
+
+    /// The mean colour over the unit square of texture coordinates (what
+    /// stands for the texture where no surface point is at hand).
+    pub fn mean(&self) -> Rgb {
+        match self {
+            Texture::Constant(c) => *c,
+            Texture::Bitmap(b) => b.mean(),
+            Texture::Checkerboard(c) => c.mean(),
+        }
+    }
+
+    /// The largest channel value anywhere.
+    pub fn max(&self) -> f64 {
+        let max = |c: Rgb| c.into_iter().fold(0.0, f64::max);
+        match self {
+            Texture::Constant(c) => max(*c),
+            Texture::Bitmap(b) => b.max(),
+            Texture::Checkerboard(c) => max(c.color0).max(max(c.color1)),
+        }
+    }
+
+    /// The value if it does not vary.
+    pub fn constant(&self) -> Option<Rgb> {
+        match self {
+            Texture::Constant(c) => Some(*c),
+            _ => None,
+        }
+    }
+
+    /// Parses a texture document given to parameter `params.field(name)`:
+    /// `doc` must be an object with a `type` among [`PLUGINS`].
+    pub(crate) fn parse(params: &Params, name: &str, doc: Value) -> Result<Self, SceneError> {
+        let field = params.field(name);
+        let Value::Object(map) = doc else {
+            return Err(SceneError::invalid(field, "is not a colour or a texture"));
+        };
+        let mut inner = params.nested_params(&field, map);
+        let kind = match inner.string("type")? {
+            Some(kind) => kind,
+            None => return Err(inner.missing("type")),
+        };
+        let Some((_, parse)) = PLUGINS.iter().find(|(n, _)| *n == kind) else {
+            return Err(SceneError::invalid(
+                format!("{field}.type"),
+                format!(
+                    "unknown texture type {kind:?} (known: {})",
+                    PLUGINS
+                        .iter()
+                        .map(|(n, _)| *n)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        };
+        let texture = parse(&mut inner)?;
+        inner.finish()?;
+        Ok(texture)
+    }
+}
+
+/// A plugin's parser: its parameters to a texture.
+type Parse = fn(&mut Params) -> Result<Texture, SceneError>;
+
+/// Every texture plugin, by its `type`: one line per plugin.
+const PLUGINS: &[(&str, Parse)] = &[
+    ("bitmap", bitmap::parse),
+    ("checkerboard", checkerboard::parse),
+];
+
+/// The `to_uv` parameter: the identity if absent.
+fn to_uv(params: &mut Params) -> Result<DAffine2, SceneError> {
+    let Some(value) = params.take_value("to_uv") else {
+        return Ok(DAffine2::IDENTITY);
+    };
+    let field = params.field("to_uv");
+    let doc: TransformDoc = serde_json::from_value(value)
+        .map_err(|e| SceneError::invalid(field.clone(), e.to_string()))?;
+    let t = super::transform::build(&doc, &field)?;
+    let affine = DAffine2::from_cols(
+        t.matrix3.x_axis.truncate(),
+        t.matrix3.y_axis.truncate(),
+        t.translation.truncate(),
+    );
+    if affine.matrix2.determinant() == 0.0 {
+        return Err(SceneError::invalid(field, "maps (u, v) onto a line"));
+    }
+    Ok(affine)
+}
+
+/// An image shared by every texture that reads it.
+pub(crate) type SharedBitmap = Arc<Bitmap>;
+
+#[cfg(test)]
+mod tests;
