@@ -101,3 +101,20 @@ fn delta_lights_and_rough_materials_agree_with_mitsuba() {
         "lights_mitsuba_64.exr",
     );
 }
+
+/// Bitmaps (8-bit sRGB PNG, linear EXR; nearest and bilinear; repeat,
+/// mirror and clamp; `to_uv`) and checkerboards on rectangles, a rotated
+/// cube, a rotated sphere, a disk, an OBJ quad and a PLY quad
+/// (`tests/data/mitsuba/textures.xml`, reference and texture images by
+/// `docs/validation/mitsuba_textures.py`): every shape's texture
+/// coordinates as Mitsuba 3 defines them.
+#[test]
+fn textures_and_texture_coordinates_agree_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "textures.xml",
+        &[],
+        3,
+        "textures_mitsuba.exr",
+    );
+}
