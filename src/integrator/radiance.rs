@@ -378,6 +378,61 @@ mod tests {
         }
     }
 
+    /// On a checkerboard floor (`tests/data/mitsuba/textures.xml`), one
+    /// point on each colour: the cache multiplies its records' irradiance by
+    /// the texture at the point, not by the texture's mean (which is 0.6× the
+    /// light square's and 2× the dark square's), agreeing with path tracing.
+    #[test]
+    fn cached_radiance_takes_the_texture_at_the_point() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba");
+        let (scene, _) = crate::scene::Scene::load_mitsuba_xml(
+            &dir.join("textures.xml"),
+            &dir,
+            &Default::default(),
+        )
+        .unwrap();
+        let transport = Transport::new(Arc::new(scene));
+        let shading = shading(CacheShadingOptions {
+            light_samples: 16,
+            ..CacheShadingOptions::default()
+        });
+        let camera = DVec3::new(0.0, 1.2, 4.2);
+        let mut values = Vec::new();
+        // The floor is (3x, −1, −3y) for local (x, y): these two points lie
+        // on squares of color0 (light) and color1 (dark).
+        for x in [DVec3::new(0.9, -1.0, 1.5), DVec3::new(0.3, -1.0, 1.5)] {
+            let query = RadianceQuery::new(
+                QueryPoint::new(x, DVec3::Y).unwrap(),
+                (camera - x).normalize(),
+            )
+            .unwrap();
+            let hit = surface_at(&transport, &query).expect("on the floor");
+            let options = RadianceOptions {
+                max_depth: PathDepth::constant(3),
+                repeats: 4096,
+                seed: 3,
+            };
+            let estimate = |how: BoundIntegrator| {
+                let e = radiance_at_points(&how, &[query], &[hit], options, &Cancel::never())
+                    .unwrap()
+                    .0[0];
+                (e.radiance.luminance(), e.std_error.luminance())
+            };
+            let (path, path_se) = estimate(BoundIntegrator::Path(PathIntegrator::new(&transport)));
+            let cache = IrradianceCache::new(Default::default()).unwrap();
+            let (cached, cached_se) = estimate(BoundIntegrator::Cache(CachedIntegrator::new(
+                &transport, &cache, &shading,
+            )));
+            assert!(
+                agrees(cached, path, cached_se.hypot(path_se), 4.0, 0.02),
+                "{x}: path {path} ± {path_se}, cache {cached} ± {cached_se}"
+            );
+            values.push(path);
+        }
+        // Luminances of color0 and color1 are 0.655 and 0.194: a ratio of 3.4.
+        assert!(values[0] / values[1] > 2.5, "{values:?}");
+    }
+
     #[test]
     fn cached_radiance_agrees_with_path_tracing_within_noise() {
         let shading = shading(CacheShadingOptions {

@@ -97,8 +97,13 @@ impl Files {
                 SceneError::file("scenes_root", p, format!("cannot resolve directory: {e}"))
             })
         };
+        // The parent of a bare file name is empty: the current directory.
+        let here = |p: &Path| match p.as_os_str().is_empty() {
+            true => Path::new(".").to_path_buf(),
+            false => p.to_path_buf(),
+        };
         Ok(Self {
-            base: canon(base_dir)?,
+            base: canon(&here(base_dir))?,
             root: canon(scenes_root)?,
             opened: std::sync::Mutex::new(Vec::new()),
         })

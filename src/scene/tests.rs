@@ -200,6 +200,63 @@ fn every_shape_kind_hits_with_its_authored_normal() {
     assert!((inside.normal - DVec3::Y).length() < 1e-12 && (inside.t - 1.0).abs() < 1e-12);
 }
 
+/// Texture coordinates as `docs/scene-format.md` states them (checked
+/// against Mitsuba 3 image to image in `tests/it/mitsuba_images.rs`).
+#[test]
+fn hits_report_each_shape_kinds_texture_coordinates() {
+    let dir = TempDir::new("uvs");
+    std::fs::write(
+        dir.0.join("quad.obj"),
+        "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n",
+    )
+    .unwrap();
+    let shapes = r#"
+        {"type": "rectangle", "material": "m", "to_world": [{"translate": [0, 0, -3]}]},
+        {"type": "obj", "material": "m", "filename": "quad.obj", "to_world": {"translate": [4, 0, 0]}},
+        {"type": "obj", "material": "m", "filename": "quad.obj", "flip_tex_coords": false,
+         "to_world": {"translate": [-4, 0, 0]}},
+        {"type": "triangles", "material": "m", "positions": [[-1, 8, 0], [1, 8, 0], [0, 9, 0]],
+         "indices": [[0, 1, 2]], "uvs": [[0, 0], [1, 0], [0.5, 1]]},
+        {"type": "triangles", "material": "m", "positions": [[-1, -8, 0], [1, -8, 0], [0, -7, 0]],
+         "indices": [[0, 1, 2]]},
+        {"type": "sphere", "material": "m",
+         "to_world": [{"rotate": {"axis": [1, 0, 0], "angle": -90}}, {"translate": [0, 20, 0]}]},
+        {"type": "disk", "material": "m", "to_world": [{"scale": [2, 2, 2]}, {"translate": [10, 0, 0]}]}"#;
+    let scene = from_str(&scene_json(shapes, ""), &dir.0).unwrap();
+    let uv_at = |origin: DVec3| {
+        let hit = scene
+            .intersect(&ray(origin + 50.0 * DVec3::Z, -DVec3::Z))
+            .unwrap();
+        hit.uv
+    };
+    let near = |a: glam::DVec2, b: [f64; 2]| (a - glam::DVec2::from(b)).length() < 1e-9;
+    // Rectangle: ((x + 1)/2, (y + 1)/2).
+    assert!(near(uv_at(DVec3::new(0.5, -0.5, 0.0)), [0.75, 0.25]));
+    // OBJ: v flipped by default (OBJ's v = 0 is an image's bottom row).
+    assert!(near(uv_at(DVec3::new(4.5, -0.5, 0.0)), [0.75, 0.75]));
+    assert!(near(uv_at(DVec3::new(-3.5, -0.5, 0.0)), [0.75, 0.25]));
+    // Inline uvs interpolated; without them, the barycentrics (b1, b2).
+    assert!(near(uv_at(DVec3::new(0.0, 8.5, 0.0)), [0.5, 0.5]));
+    assert!(near(uv_at(DVec3::new(0.0, -7.5, 0.0)), [0.25, 0.5]));
+    // Disk: (r, φ/2π); the point (1, 1) of the scaled disk is at r = 1/√2, φ = 45°.
+    assert!(near(
+        uv_at(DVec3::new(11.0, 1.0, 0.0)),
+        [0.5f64.sqrt(), 0.125]
+    ));
+    // Sphere rotated by −90° about x: its local +z pole points to world +y,
+    // so the point facing +z (world) is local −y: θ = 90°, φ = 270°.
+    assert!(near(uv_at(DVec3::new(0.0, 20.0, 0.0)), [0.75, 0.5]));
+
+    // Per-vertex uvs must match the positions; only meshes take them.
+    let bad = r#"{"type": "triangles", "material": "m", "positions": [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+        "indices": [[0, 1, 2]], "uvs": [[0, 0]]}"#;
+    let e = from_str(&scene_json(bad, ""), &dir.0).err().unwrap();
+    assert_eq!(e.field(), Some("shapes[0].uvs"), "{e}");
+    let bad = r#"{"type": "sphere", "material": "m", "flip_tex_coords": true}"#;
+    let e = from_str(&scene_json(bad, ""), &dir.0).err().unwrap();
+    assert_eq!(e.field(), Some("shapes[0].flip_tex_coords"), "{e}");
+}
+
 #[test]
 fn mirroring_transforms_keep_the_authored_front() {
     let dir = TempDir::new("mirror");
