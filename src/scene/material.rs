@@ -23,10 +23,11 @@ mod optics;
 mod plastic;
 mod twosided;
 
+use super::bitmap::Bitmaps;
 use super::error::SceneError;
 use super::format::MaterialDoc;
 pub(crate) use super::params::Params;
-use super::texture::{Bitmaps, Texture};
+use super::texture::Texture;
 
 /// Largest accepted Phong exponent; beyond it the lobe is a mirror for all
 /// practical purposes and sampling it in f64 loses precision.

@@ -4,6 +4,7 @@
 //! All geometry is f64 at the API. Everything is immutable after loading, so
 //! a [`Scene`] is `Send + Sync` and callers trace rays in parallel (rayon).
 
+mod bitmap;
 pub(crate) mod bundle;
 mod bvh;
 mod camera;
@@ -11,6 +12,7 @@ mod digest;
 mod emitter;
 mod environment;
 mod error;
+mod files;
 mod format;
 mod formats;
 #[doc(hidden)]

@@ -4,8 +4,8 @@
 
 use serde_json::{Map, Value};
 
+use super::bitmap::Bitmaps;
 use super::error::SceneError;
-use super::texture::{Bitmaps, Texture};
 
 /// A linear RGB triple.
 type Rgb = [f64; 3];
@@ -164,34 +164,6 @@ impl<'a> Params<'a> {
             )),
             None => Ok(rgb),
         }
-    }
-
-    /// A colour that scales reflected or transmitted light, constant or a
-    /// texture (`scene::texture`): in [0, 1] everywhere, `default` when
-    /// absent.
-    pub fn albedo_texture(&mut self, name: &str, default: Rgb) -> Result<Texture, SceneError> {
-        match self.map.get(name) {
-            Some(Value::Object(_)) => {
-                let doc = self.take(name).expect("present");
-                let texture = Texture::parse(self, name, doc)?;
-                match texture.max() {
-                    m if m > 1.0 => Err(self.invalid(
-                        name,
-                        format!("the texture reaches {m}, not an albedo in [0, 1]"),
-                    )),
-                    _ => Ok(texture),
-                }
-            }
-            _ => Ok(Texture::Constant(self.albedo(name, default)?)),
-        }
-    }
-
-    /// [`Self::albedo_texture`] that must be given.
-    pub fn required_albedo_texture(&mut self, name: &str) -> Result<Texture, SceneError> {
-        if !self.map.contains_key(name) {
-            return Err(self.missing(name));
-        }
-        self.albedo_texture(name, [0.0; 3])
     }
 
     /// The error of a required parameter `name` that is absent.

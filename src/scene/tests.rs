@@ -686,7 +686,7 @@ fn a_mesh_file_is_read_once_per_scene_and_sized_before_building() {
 #[test]
 fn mesh_files_are_shared_by_canonical_path() {
     let root = scenes_dir().canonicalize().unwrap();
-    let files = loader::Files::new(&root, &root).unwrap();
+    let files = files::Files::new(&root, &root).unwrap();
     let mut meshes = loader::MeshFiles::default();
     let a = files.resolve("meshes/blob.obj", "f").unwrap();
     let b = files.resolve("./meshes/../meshes/blob.obj", "f").unwrap();

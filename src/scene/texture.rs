@@ -18,8 +18,8 @@ use std::sync::Arc;
 use glam::{DAffine2, DVec2};
 use serde_json::Value;
 
-pub use bitmap::{Bitmap, BitmapTexture, Filter, Wrap};
-pub(crate) use bitmap::{Bitmaps, read_bitmap};
+pub use super::bitmap::Bitmap;
+pub use bitmap::{BitmapTexture, Filter, Wrap};
 pub use checkerboard::Checkerboard;
 
 use super::error::SceneError;
@@ -110,6 +110,32 @@ impl Texture {
         inner.finish()?;
         Ok(texture)
     }
+}
+
+/// Parameter `name` of `params` as a colour that scales reflected or
+/// transmitted light, constant or a texture: in [0, 1] everywhere,
+/// `default` when absent.
+pub(crate) fn albedo(params: &mut Params, name: &str, default: Rgb) -> Result<Texture, SceneError> {
+    if !params.peek(name).is_some_and(Value::is_object) {
+        return Ok(Texture::Constant(params.albedo(name, default)?));
+    }
+    let doc = params.take_value(name).expect("present");
+    let texture = Texture::parse(params, name, doc)?;
+    match texture.max() {
+        m if m > 1.0 => Err(params.invalid(
+            name,
+            format!("the texture reaches {m}, not an albedo in [0, 1]"),
+        )),
+        _ => Ok(texture),
+    }
+}
+
+/// [`albedo`] that must be given.
+pub(crate) fn required_albedo(params: &mut Params, name: &str) -> Result<Texture, SceneError> {
+    if params.peek(name).is_none() {
+        return Err(params.missing(name));
+    }
+    albedo(params, name, [0.0; 3])
 }
 
 /// A plugin's parser: its parameters to a texture.

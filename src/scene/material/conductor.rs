@@ -10,6 +10,7 @@
 
 use super::{Material, Params, optics};
 use crate::scene::error::SceneError;
+use crate::scene::texture;
 
 pub(super) fn parse_smooth(params: &mut Params) -> Result<Material, SceneError> {
     parse(params, false)
@@ -24,7 +25,7 @@ fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
     Ok(Material::Conductor {
         eta,
         k,
-        specular_reflectance: params.albedo_texture("specular_reflectance", [1.0; 3])?,
+        specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
         roughness: if rough {
             Some(optics::roughness(params)?)
         } else {

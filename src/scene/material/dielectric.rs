@@ -10,6 +10,7 @@
 
 use super::{Material, Params, optics};
 use crate::scene::error::SceneError;
+use crate::scene::texture;
 
 /// Mitsuba's default interior: BK7 glass.
 const BK7: f64 = 1.5046;
@@ -29,8 +30,8 @@ pub(super) fn parse_rough(params: &mut Params) -> Result<Material, SceneError> {
 fn parse(params: &mut Params, rough: bool, thin: bool) -> Result<Material, SceneError> {
     Ok(Material::Dielectric {
         eta: optics::relative_ior(params, BK7)?,
-        specular_reflectance: params.albedo_texture("specular_reflectance", [1.0; 3])?,
-        specular_transmittance: params.albedo_texture("specular_transmittance", [1.0; 3])?,
+        specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
+        specular_transmittance: texture::albedo(params, "specular_transmittance", [1.0; 3])?,
         roughness: if rough {
             Some(optics::roughness(params)?)
         } else {

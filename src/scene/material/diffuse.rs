@@ -6,9 +6,10 @@
 
 use super::{Material, Params};
 use crate::scene::error::SceneError;
+use crate::scene::texture;
 
 pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
     Ok(Material::Diffuse {
-        reflectance: params.required_albedo_texture("reflectance")?,
+        reflectance: texture::required_albedo(params, "reflectance")?,
     })
 }

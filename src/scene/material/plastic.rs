@@ -11,6 +11,7 @@
 
 use super::{Material, Params, optics};
 use crate::scene::error::SceneError;
+use crate::scene::texture;
 
 /// Mitsuba's default coating: polypropylene.
 const POLYPROPYLENE: f64 = 1.49;
@@ -38,8 +39,8 @@ fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
     };
     Ok(Material::Plastic {
         roughness,
-        diffuse_reflectance: params.albedo_texture("diffuse_reflectance", [0.5; 3])?,
-        specular_reflectance: params.albedo_texture("specular_reflectance", [1.0; 3])?,
+        diffuse_reflectance: texture::albedo(params, "diffuse_reflectance", [0.5; 3])?,
+        specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
         eta: optics::relative_ior(params, POLYPROPYLENE)?,
         nonlinear: params.boolean("nonlinear", false)?,
     })

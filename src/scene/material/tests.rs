@@ -1,4 +1,5 @@
-use crate::scene::texture::{Bitmaps, Texture};
+use crate::scene::bitmap::Bitmaps;
+use crate::scene::texture::Texture;
 use serde_json::json;
 
 use super::*;
@@ -6,7 +7,7 @@ use super::*;
 fn parse(doc: serde_json::Value) -> Result<Material, SceneError> {
     let doc: MaterialDoc = serde_json::from_value(doc).unwrap();
     let dir = std::env::temp_dir();
-    let files = crate::scene::loader::Files::new(&dir, &dir).unwrap();
+    let files = crate::scene::files::Files::new(&dir, &dir).unwrap();
     Material::from_doc(&doc, "materials[3]", &Bitmaps::new(&files))
 }
 

@@ -26,8 +26,9 @@ use std::sync::Arc;
 
 use super::Scene;
 use super::error::SceneError;
+use super::files::Files;
 use super::format::{CameraDoc, EnvironmentDoc, MaterialDoc, SceneDoc, ShapeDoc};
-use super::loader::{self, Files};
+use super::loader;
 
 pub use parse::MAX_DEPTH;
 use parse::{Element, quote};

@@ -1000,7 +1000,7 @@ fn a_mesh_file_is_read_once_per_document() {
 
     use super::shape::{MeshFormat, mesh_file};
     let dir = scenes_dir();
-    let files = crate::scene::loader::Files::new(&dir, &dir).unwrap();
+    let files = crate::scene::files::Files::new(&dir, &dir).unwrap();
     let mut ctx = super::Ctx::new(HashMap::new(), &MitsubaOptions::default(), &files);
     let path = dir.join("meshes/blob.obj");
     let mut reads = 0;

@@ -9,8 +9,8 @@
 
 use serde_json::{Map, Value};
 
+use crate::scene::bitmap::read_bitmap;
 use crate::scene::format::Rgb;
-use crate::scene::texture::read_bitmap;
 
 use super::parse::{Element, quote};
 use super::props::{Props, numbers};
@@ -68,12 +68,12 @@ pub(crate) fn parameter<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Value,
             doc.insert(name.into(), Value::from(c.to_vec()));
         }
     }
-    if let Some(t) = props.get("to_uv")? {
-        if let Some(transform) = Ops::read(t)?.doc() {
-            let ops = serde_json::to_value(&transform.ops)
-                .map_err(|e| t.error("", format!("cannot translate: {e}")))?;
-            doc.insert("to_uv".into(), ops);
-        }
+    if let Some(t) = props.get("to_uv")?
+        && let Some(transform) = Ops::read(t)?.doc()
+    {
+        let ops = serde_json::to_value(&transform.ops)
+            .map_err(|e| t.error("", format!("cannot translate: {e}")))?;
+        doc.insert("to_uv".into(), ops);
     }
     props.finish(ctx)?;
     ctx.leave();

@@ -4,7 +4,8 @@ use glam::{DAffine2, DVec2};
 use serde_json::json;
 
 use super::*;
-use crate::scene::loader::Files;
+use crate::scene::bitmap::{self, Bitmaps, read_bitmap};
+use crate::scene::files::Files;
 
 /// A 2 × 2 bitmap: red, green on the top row; blue, white below.
 fn quad(filter: Filter, wrap: Wrap) -> BitmapTexture {
@@ -174,7 +175,7 @@ fn texture_documents_are_validated_naming_the_field() {
             unreachable!()
         };
         let mut params = Params::new("materials[2]", map).with_bitmaps(&bitmaps);
-        params.albedo_texture("reflectance", [0.5; 3])
+        albedo(&mut params, "reflectance", [0.5; 3])
     };
     let field = |doc| parse(doc).unwrap_err().field().unwrap().to_string();
     let t = parse(
