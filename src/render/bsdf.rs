@@ -14,6 +14,9 @@
 
 use glam::{DVec2, DVec3};
 
+mod blend;
+mod mask;
+
 pub use super::bsdfs::LobeSample;
 use super::bsdfs::conductor::Conductor;
 use super::bsdfs::dielectric::Dielectric;
@@ -28,6 +31,8 @@ use super::rgb::Rgb;
 use crate::scene::Material;
 use crate::scene::material::{Distribution, Roughness};
 use crate::scene::texture::Texture;
+pub use blend::Blend;
+pub use mask::Mask;
 
 /// What kinds of scattering a BSDF has.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -43,7 +48,7 @@ pub struct BsdfFlags {
 }
 
 impl BsdfFlags {
-    fn union(self, other: Self) -> Self {
+    pub(crate) fn union(self, other: Self) -> Self {
         Self {
             diffuse: self.diffuse || other.diffuse,
             glossy: self.glossy || other.glossy,
@@ -67,6 +72,8 @@ pub enum Bsdf {
     RoughPlastic(RoughPlastic),
     /// `[front, back]`: the back BSDF sees the surface turned around.
     TwoSided(Box<[Bsdf; 2]>),
+    Blend(Box<Blend>),
+    Mask(Box<Mask>),
 }
 
 /// `w` seen from the other side of the surface.
@@ -94,6 +101,8 @@ impl Bsdf {
             (Bsdf::RoughDielectric(b), _) => b.eval(wo, wi),
             (Bsdf::Plastic(b), _) => b.eval(wo, wi),
             (Bsdf::RoughPlastic(b), _) => b.eval(wo, wi),
+            (Bsdf::Blend(b), _) => b.eval(wo, wi),
+            (Bsdf::Mask(b), _) => b.eval(wo, wi),
             (Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_), _) => Rgb::BLACK,
             (Bsdf::TwoSided(_), _) => unreachable!("side() resolves two-sided BSDFs"),
         }
@@ -109,6 +118,8 @@ impl Bsdf {
             (Bsdf::RoughDielectric(b), _) => b.pdf(wo, wi),
             (Bsdf::Plastic(b), _) => b.pdf(wo, wi),
             (Bsdf::RoughPlastic(b), _) => b.pdf(wo, wi),
+            (Bsdf::Blend(b), _) => b.pdf(wo, wi),
+            (Bsdf::Mask(b), _) => b.pdf(wo, wi),
             (Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_), _) => 0.0,
             (Bsdf::TwoSided(_), _) => unreachable!("side() resolves two-sided BSDFs"),
         }
@@ -132,6 +143,8 @@ impl Bsdf {
             (Bsdf::RoughDielectric(b), _) => b.sample(wo, u_lobe, u),
             (Bsdf::Plastic(b), _) => b.sample(wo, u_lobe, u),
             (Bsdf::RoughPlastic(b), _) => b.sample(wo, u_lobe, u),
+            (Bsdf::Blend(b), _) => b.sample(wo, u_lobe, u),
+            (Bsdf::Mask(b), _) => b.sample(wo, u_lobe, u),
             (Bsdf::TwoSided(_), _) => unreachable!("side() resolves two-sided BSDFs"),
         }
     }
@@ -174,12 +187,18 @@ impl Bsdf {
                 ..none
             },
             Bsdf::TwoSided(sides) => sides[0].flags().union(sides[1].flags()),
+            Bsdf::Blend(b) => b.flags(),
+            Bsdf::Mask(b) => b.flags(),
         }
     }
 
     /// True when the material reflects nothing, so paths can stop here.
     pub fn is_black(&self) -> bool {
-        matches!(self, Bsdf::Phong(b) if b.is_black())
+        match self {
+            Bsdf::Phong(b) => b.is_black(),
+            Bsdf::Blend(b) => b.bsdfs.iter().all(Bsdf::is_black),
+            _ => false,
+        }
     }
 
     /// Whether `ω_o` sees a side that scatters light at all (a one-sided
@@ -187,6 +206,8 @@ impl Bsdf {
     pub fn scatters_towards(&self, wo: DVec3) -> bool {
         match self.side(wo) {
             (_, true) => true,
+            (Bsdf::Blend(b), _) => b.scatters_towards(wo),
+            (Bsdf::Mask(b), _) => b.scatters_towards(wo),
             (side, _) => side.flags().transmission || wo.z > 0.0,
         }
     }
@@ -203,6 +224,7 @@ impl Bsdf {
     /// - Rough plastic: likewise with the rough coating's transmittance
     ///   `T(θ_o) max T`; `r` is the coating's lobe plus the base's loss
     ///   towards grazing.
+    /// - Blend and mask: their components' parts, weighted as they are.
     /// - Everything else: zero.
     pub fn lambertian(&self, wo: DVec3) -> Rgb {
         match self.side(wo) {
@@ -210,6 +232,8 @@ impl Bsdf {
             (Bsdf::Phong(b), _) if wo.z > 0.0 => b.diffuse,
             (Bsdf::Plastic(b), _) if wo.z > 0.0 => b.lambertian(wo.z),
             (Bsdf::RoughPlastic(b), _) if wo.z > 0.0 => b.lambertian(wo.z),
+            (Bsdf::Blend(b), _) => b.lambertian(wo),
+            (Bsdf::Mask(b), _) => b.lambertian(wo),
             _ => Rgb::BLACK,
         }
     }
@@ -239,7 +263,7 @@ impl From<&Material> for Bsdf {
     /// the material where no surface point is at hand, and the template
     /// that [`Bsdf::textured`] takes its precomputed tables from.
     fn from(material: &Material) -> Self {
-        build(material, &Texture::mean, None)
+        build(material, Lookup::Mean, None)
     }
 }
 
@@ -248,19 +272,31 @@ impl Bsdf {
     /// `template` is `Bsdf::from(material)`, whose precomputed tables (the
     /// plastics' coatings) are reused.
     pub fn textured(material: &Material, uv: DVec2, template: &Bsdf) -> Bsdf {
-        build(material, &|t: &Texture| t.eval(uv), Some(template))
+        build(material, Lookup::At(uv), Some(template))
     }
 }
 
-/// The BSDF of `material` with its textures valued by `colour`, reusing
+/// Where a material's textures are read.
+#[derive(Clone, Copy)]
+enum Lookup {
+    /// At texture coordinates `(u, v)`.
+    At(DVec2),
+    /// Their means.
+    Mean,
+}
+
+/// The BSDF of `material` with its textures valued by `lookup`, reusing
 /// the precomputations of `template` (a BSDF of the same material).
-fn build(
-    material: &Material,
-    colour: &dyn Fn(&Texture) -> [f64; 3],
-    template: Option<&Bsdf>,
-) -> Bsdf {
+fn build(material: &Material, lookup: Lookup, template: Option<&Bsdf>) -> Bsdf {
     let rgb = |c: &[f64; 3]| Rgb::from_array(*c);
-    let tex = |t: &Texture| Rgb::from_array(colour(t));
+    let tex = |t: &Texture| match lookup {
+        Lookup::At(uv) => Rgb::from_array(t.eval(uv)),
+        Lookup::Mean => Rgb::from_array(t.mean()),
+    };
+    let scalar = |t: &Texture| match lookup {
+        Lookup::At(uv) => t.eval_scalar(uv),
+        Lookup::Mean => t.mean_scalar(),
+    };
     match material {
         Material::Diffuse { reflectance } => Bsdf::Phong(Phong::lambert(tex(reflectance))),
         Material::Glossy {
@@ -348,9 +384,32 @@ fn build(
                 _ => [None, None],
             };
             Bsdf::TwoSided(Box::new([
-                build(front, colour, sides[0]),
-                build(back, colour, sides[1]),
+                build(front, lookup, sides[0]),
+                build(back, lookup, sides[1]),
             ]))
+        }
+        Material::Blend { weight, bsdfs } => {
+            let parts = match template {
+                Some(Bsdf::Blend(b)) => [Some(&b.bsdfs[0]), Some(&b.bsdfs[1])],
+                _ => [None, None],
+            };
+            Bsdf::Blend(Box::new(Blend {
+                weight: scalar(weight).clamp(0.0, 1.0),
+                bsdfs: [
+                    build(&bsdfs[0], lookup, parts[0]),
+                    build(&bsdfs[1], lookup, parts[1]),
+                ],
+            }))
+        }
+        Material::Mask { opacity, bsdf } => {
+            let inner = match template {
+                Some(Bsdf::Mask(m)) => Some(&m.bsdf),
+                _ => None,
+            };
+            Bsdf::Mask(Box::new(Mask {
+                opacity: scalar(opacity).clamp(0.0, 1.0),
+                bsdf: build(bsdf, lookup, inner),
+            }))
         }
     }
 }

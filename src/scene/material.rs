@@ -13,11 +13,13 @@
 //! - indices of refraction: a number or a named medium ([`ior`]);
 //! - metals: `eta` and `k` as colours, or `material`, a named metal ([`metals`]).
 
+mod blend;
 mod conductor;
 mod dielectric;
 mod diffuse;
 mod glossy;
 pub mod ior;
+mod mask;
 pub mod metals;
 mod optics;
 mod plastic;
@@ -95,6 +97,17 @@ pub enum Material {
         front: Box<Material>,
         back: Box<Material>,
     },
+    /// `(1 − w) f₀ + w f₁` with `w` the luminance of `weight`.
+    Blend {
+        weight: Texture,
+        bsdfs: Box<[Material; 2]>,
+    },
+    /// `bsdf` where the surface is present (probability: the luminance of
+    /// `opacity`), straight through elsewhere.
+    Mask {
+        opacity: Texture,
+        bsdf: Box<Material>,
+    },
 }
 
 /// A plugin's parser: its parameters to a material.
@@ -112,6 +125,8 @@ const PLUGINS: &[(&str, Parse)] = &[
     ("plastic", plastic::parse_smooth),
     ("roughplastic", plastic::parse_rough),
     ("twosided", twosided::parse),
+    ("blendbsdf", blend::parse),
+    ("mask", mask::parse),
 ];
 
 /// The plugin names [`Material::from_doc`] accepts, for messages and docs.
@@ -169,6 +184,17 @@ impl Material {
             Material::TwoSided { front, back } => {
                 let mut all = front.textures();
                 all.extend(back.textures());
+                all
+            }
+            Material::Blend { weight, bsdfs } => {
+                let mut all = vec![weight];
+                all.extend(bsdfs[0].textures());
+                all.extend(bsdfs[1].textures());
+                all
+            }
+            Material::Mask { opacity, bsdf } => {
+                let mut all = vec![opacity];
+                all.extend(bsdf.textures());
                 all
             }
         }

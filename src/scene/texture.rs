@@ -53,6 +53,22 @@ impl Texture {
         }
     }
 
+    /// The texture as a number at `uv` (a blend weight, an opacity), as
+    /// Mitsuba 3's `eval_1` gives it: the luminance of the colour, except
+    /// that a checkerboard's scalar lookup swaps its two colours (Mitsuba's
+    /// `checkerboard` does, and scenes are authored against it).
+    pub fn eval_scalar(&self, uv: DVec2) -> f64 {
+        match self {
+            Texture::Checkerboard(c) => luminance(c.eval_swapped(uv)),
+            other => luminance(other.eval(uv)),
+        }
+    }
+
+    /// [`Self::eval_scalar`]'s mean.
+    pub fn mean_scalar(&self) -> f64 {
+        luminance(self.mean())
+    }
+
     /// The mean colour over the unit square of texture coordinates (what
     /// stands for the texture where no surface point is at hand).
     pub fn mean(&self) -> Rgb {
@@ -136,6 +152,12 @@ pub(crate) fn required_albedo(params: &mut Params, name: &str) -> Result<Texture
         return Err(params.missing(name));
     }
     albedo(params, name, [0.0; 3])
+}
+
+/// The luminance of linear sRGB as Mitsuba 3 computes it (the CIE Y of
+/// the sRGB primaries).
+fn luminance(c: Rgb) -> f64 {
+    0.212671 * c[0] + 0.715160 * c[1] + 0.072169 * c[2]
 }
 
 /// A plugin's parser: its parameters to a texture.

@@ -1,6 +1,7 @@
 //! Mitsuba 3 scene files path traced by us and by Mitsuba 3.9.1, compared
-//! image to image: the mean ratio within 1 % and the relative RMSE over
-//! 8×8-pixel blocks within 2 % (the noise of both images included). The
+//! image to image: the mean ratio within 1 %, the relative RMSE over
+//! 8×8-pixel blocks within 2 % (the noise of both images included), and
+//! per pixel within 1.25× what our image's own variance explains. The
 //! references are Mitsuba's renders at 16,384 spp with a box filter (what
 //! our film computes), made by the scripts named beside each test.
 
@@ -67,6 +68,11 @@ fn assert_agrees_with_mitsuba(
     assert!((whole.mean_ratio - 1.0).abs() < 0.01, "{file}: {whole:?}");
     let by_block = relative_rmse(&blocks(&ours), &blocks(&theirs), None).unwrap();
     assert!(by_block.overall < 0.02, "{file}: {by_block:?}");
+    // Pixel by pixel, the images differ by their noise alone.
+    let noise = whole
+        .expected_from_variance
+        .expect("our image has its variance");
+    assert!(whole.overall < 1.25 * noise, "{file}: {whole:?}");
 }
 
 /// The tutorials' Cornell box with a glass sphere (`dielectric`, BK7 in
@@ -116,5 +122,21 @@ fn textures_and_texture_coordinates_agree_with_mitsuba() {
         &[],
         3,
         "textures_mitsuba.exr",
+    );
+}
+
+/// `blendbsdf` (a checkerboard weight between rough gold and diffuse),
+/// `mask` (a bitmap opacity over a two-sided diffuse, and a constant one),
+/// `thindielectric`, `roughdielectric` and `plastic`
+/// (`tests/data/mitsuba/materials.xml`, reference by
+/// `docs/validation/mitsuba_materials.py`).
+#[test]
+fn blend_mask_and_other_materials_agree_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "materials.xml",
+        &[],
+        8,
+        "materials_mitsuba.exr",
     );
 }

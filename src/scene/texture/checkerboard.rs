@@ -30,6 +30,16 @@ impl Checkerboard {
         }
     }
 
+    /// The pattern with its colours swapped (Mitsuba's scalar lookup).
+    pub fn eval_swapped(&self, uv: DVec2) -> Rgb {
+        let c = self.eval(uv);
+        if c == self.color0 {
+            self.color1
+        } else {
+            self.color0
+        }
+    }
+
     /// Both colours cover half of every period.
     pub fn mean(&self) -> Rgb {
         std::array::from_fn(|i| 0.5 * (self.color0[i] + self.color1[i]))
