@@ -2,7 +2,7 @@
 //! Radiance HDR or OpenEXR to linear RGB texels, each file once per scene.
 
 use std::collections::HashMap;
-use std::io::BufReader;
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -74,6 +74,11 @@ impl Bitmap {
         self.height
     }
 
+    /// `(width, height, texels)`, row-major from the top.
+    pub fn into_parts(self) -> (usize, usize, Vec<[f32; 3]>) {
+        (self.width, self.height, self.texels)
+    }
+
     /// Texel `(x, y)`, row `y = 0` at the top.
     pub fn texel(&self, x: usize, y: usize) -> Rgb {
         self.texels[y * self.width + x].map(f64::from)
@@ -139,32 +144,36 @@ pub(crate) fn read_bitmap(path: &Path, raw: bool, field: &str) -> Result<Bitmap,
     }
     let file = read::open_capped(path, MAX_BITMAP_FILE_BYTES)
         .map_err(|e| err(format!("cannot open: {e}")))?;
-    let reader = image::ImageReader::new(BufReader::new(file))
-        .with_guessed_format()
-        .map_err(|e| err(format!("cannot read: {e}")))?;
-    let Some(format) = reader.format() else {
-        return Err(err("not a PNG, JPEG, Radiance HDR or OpenEXR image".into()));
+    let mut file = BufReader::new(file);
+    let radiance = file
+        .fill_buf()
+        .map_err(|e| err(format!("cannot read: {e}")))?
+        .starts_with(b"#?");
+    let decoded = if radiance {
+        // A Radiance file opens with `#?` and the writing program's name;
+        // the decoder wants `#?RADIANCE` (Mitsuba, for one, writes `#?RGBE`).
+        let mut first = Vec::new();
+        (&mut file)
+            .take(256)
+            .read_until(b'\n', &mut first)
+            .map_err(|e| err(format!("cannot read: {e}")))?;
+        let reader = BufReader::new(std::io::Cursor::new(&b"#?RADIANCE\n"[..]).chain(file));
+        let decoder = image::codecs::hdr::HdrDecoder::new(reader)
+            .map_err(|e| err(format!("not a readable Radiance HDR image: {e}")))?;
+        decode(decoder).map_err(err)?
+    } else {
+        let reader = image::ImageReader::new(file)
+            .with_guessed_format()
+            .map_err(|e| err(format!("cannot read: {e}")))?;
+        if reader.format().is_none() {
+            return Err(err("not a PNG, JPEG, Radiance HDR or OpenEXR image".into()));
+        }
+        let decoder = reader
+            .into_decoder()
+            .map_err(|e| err(format!("not a readable image: {e}")))?;
+        decode(decoder).map_err(err)?
     };
-    // The header alone gives the size, checked before any pixel is decoded.
-    let (width, height) = reader
-        .into_dimensions()
-        .map_err(|e| err(format!("not a readable {format:?} image: {e}")))?;
-    if width as usize > MAX_ENVMAP_SIDE
-        || height as usize > MAX_ENVMAP_SIDE
-        || (width as usize) * (height as usize) > MAX_ENVMAP_TEXELS
-    {
-        return Err(err(format!(
-            "image is {width}×{height}; each side must be at most {MAX_ENVMAP_SIDE} and the area at most {MAX_ENVMAP_TEXELS} texels"
-        )));
-    }
-    // `into_dimensions` consumed the reader; open again to decode.
-    let file = read::open_capped(path, MAX_BITMAP_FILE_BYTES)
-        .map_err(|e| err(format!("cannot open: {e}")))?;
-    let mut reader = image::ImageReader::with_format(BufReader::new(file), format);
-    reader.limits(limits_for(width, height));
-    let decoded = reader
-        .decode()
-        .map_err(|e| err(format!("cannot decode {format:?}: {e}")))?;
+    let (width, height) = (decoded.width(), decoded.height());
     let linear_file = matches!(
         decoded,
         image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_)
@@ -182,12 +191,26 @@ pub(crate) fn read_bitmap(path: &Path, raw: bool, field: &str) -> Result<Bitmap,
         .ok_or_else(|| err("an empty image or a texel that is negative or not finite".into()))
 }
 
-fn limits_for(width: u32, height: u32) -> image::Limits {
+/// Decodes an image whose size, read from its header, is checked first.
+fn decode(mut decoder: impl image::ImageDecoder) -> Result<image::DynamicImage, String> {
+    let (width, height) = decoder.dimensions();
+    if width as usize > MAX_ENVMAP_SIDE
+        || height as usize > MAX_ENVMAP_SIDE
+        || (width as usize) * (height as usize) > MAX_ENVMAP_TEXELS
+    {
+        return Err(format!(
+            "image is {width}×{height}; each side must be at most {MAX_ENVMAP_SIDE} and the area at most {MAX_ENVMAP_TEXELS} texels"
+        ));
+    }
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(width);
     limits.max_image_height = Some(height);
+    // The image in its own format plus the f32 copy made from it.
     limits.max_alloc = Some(u64::from(width) * u64::from(height) * 16 * 2 + (1 << 20));
-    limits
+    decoder
+        .set_limits(limits)
+        .map_err(|e| format!("too large to decode: {e}"))?;
+    image::DynamicImage::from_decoder(decoder).map_err(|e| format!("cannot decode: {e}"))
 }
 
 /// The sRGB electro-optical transfer function (IEC 61966-2-1).

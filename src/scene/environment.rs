@@ -1,5 +1,6 @@
 //! Light arriving from infinitely far away: a constant colour or a lat-long
-//! environment map read from an EXR file.
+//! environment map read from an image (EXR, Radiance HDR, or an sRGB PNG
+//! or JPEG, `scene::bitmap`).
 //!
 //! ## Lat-long convention (Mitsuba 3's `envmap`)
 //! In the map's own frame +Y is up. A direction `d` has polar angle
@@ -9,10 +10,13 @@
 //! top (towards +Y); column `x = 0` starts at `φ = 0`, i.e. towards −Z.
 //! The map's `to_world` rotation carries map directions into the world.
 //!
-//! The radiance is piecewise constant per texel (nearest texel, no
-//! filtering), so an importance sampler that picks texels in proportion to
-//! `luminance · sin θ` has an exact pdf. Solid angle and the (u, v) square are
-//! related by `dω = 2π² sin θ du dv`.
+//! The radiance is interpolated bilinearly between texels as Mitsuba 3's
+//! `envmap` does: periodic in `u` with texel centres at `(x + ½)/w`, and
+//! clamped in `v` with the first and last rows on the poles (row `y` at
+//! `v = y/(h − 1)`). Importance sampling picks texels (`render::
+//! environment_sampling`), a density that differs from the interpolated
+//! radiance but is positive wherever it is. Solid angle and the (u, v)
+//! square are related by `dω = 2π² sin θ du dv`.
 
 use std::path::Path;
 
@@ -113,18 +117,26 @@ impl EnvironmentMap {
         self.world_to_map.transpose()
     }
 
-    /// Radiance seen looking towards `world_dir` (unit length).
+    /// Radiance seen looking towards `world_dir` (unit length), bilinear
+    /// between the four texels around it (module docs).
     pub fn radiance(&self, world_dir: DVec3) -> [f64; 3] {
         let (u, v) = self.direction_to_uv(world_dir);
-        let (x, y) = self.uv_to_texel(u, v);
-        self.texel(x, y)
-    }
-
-    /// Texel containing (u, v) ∈ [0, 1]².
-    pub fn uv_to_texel(&self, u: f64, v: f64) -> (usize, usize) {
-        let x = ((u * self.width as f64) as usize).min(self.width - 1);
-        let y = ((v * self.height as f64) as usize).min(self.height - 1);
-        (x, y)
+        let x = u * self.width as f64 - 0.5;
+        let y = v * (self.height - 1) as f64;
+        let (fx, fy) = (x.floor(), y.floor());
+        let (tx, ty) = (x - fx, y - fy);
+        let column = |i: f64| (i as i64).rem_euclid(self.width as i64) as usize;
+        let row = |j: f64| (j.max(0.0) as usize).min(self.height - 1);
+        let (x0, x1, y0, y1) = (column(fx), column(fx + 1.0), row(fy), row(fy + 1.0));
+        let (a, b, c, d) = (
+            self.texel(x0, y0),
+            self.texel(x1, y0),
+            self.texel(x0, y1),
+            self.texel(x1, y1),
+        );
+        std::array::from_fn(|k| {
+            (1.0 - ty) * ((1.0 - tx) * a[k] + tx * b[k]) + ty * ((1.0 - tx) * c[k] + tx * d[k])
+        })
     }
 
     /// (u, v) ∈ [0, 1)×[0, 1] of a unit world direction.
@@ -272,11 +284,24 @@ mod tests {
     }
 
     #[test]
-    fn radiance_is_the_scaled_nearest_texel() {
+    fn radiance_is_bilinear_between_scaled_texels_as_in_mitsuba() {
         let m = map(8, 4, DMat3::IDENTITY);
-        let d = m.uv_to_direction((3.0 + 0.5) / 8.0, (2.0 + 0.5) / 4.0);
-        let expected = m.texel(3, 2);
-        assert_eq!(m.radiance(d), expected);
-        assert_eq!(expected, [2.0 * 19.0, 2.0 * 3.0, 2.0 * 2.0]);
+        let at = |u: f64, v: f64| m.radiance(m.uv_to_direction(u, v));
+        let close = |a: [f64; 3], b: [f64; 3]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9);
+        // Texel (3, 2) sits at u = 3.5/8, v = 2/3 (rows run pole to pole).
+        assert!(close(
+            at(3.5 / 8.0, 2.0 / 3.0),
+            [2.0 * 19.0, 2.0 * 3.0, 2.0 * 2.0]
+        ));
+        // Halfway between columns 3 and 4, and across the seam at u = 0
+        // between the last column and the first.
+        let mid = |a: [f64; 3], b: [f64; 3]| std::array::from_fn(|k| 0.5 * (a[k] + b[k]));
+        assert!(close(at(0.5, 2.0 / 3.0), mid(m.texel(3, 2), m.texel(4, 2))));
+        assert!(close(at(0.0, 1.0 / 3.0), mid(m.texel(7, 1), m.texel(0, 1))));
+        // A third of the way from row 1 to row 2.
+        let v = (1.0 + 1.0 / 3.0) / 3.0;
+        let expected: [f64; 3] =
+            std::array::from_fn(|k| (2.0 * m.texel(5, 1)[k] + m.texel(5, 2)[k]) / 3.0);
+        assert!(close(at(5.5 / 8.0, v), expected));
     }
 }

@@ -8,11 +8,11 @@ use std::sync::Arc;
 
 use glam::{DAffine3, DMat3, DVec2, DVec3};
 
-use super::bitmap::Bitmaps;
+use super::bitmap::{Bitmaps, read_bitmap};
 use super::bvh::{Aabb, Bvh};
 use super::digest::SceneDigest;
 use super::emitter::{self, Emitter};
-use super::environment::{self, Environment, EnvironmentMap};
+use super::environment::{Environment, EnvironmentMap};
 use super::error::SceneError;
 use super::files::Files;
 use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKind};
@@ -664,7 +664,8 @@ fn load_environment(e: &EnvironmentDoc, files: &Files) -> Result<Environment, Sc
                 None => DMat3::IDENTITY,
             };
             let path = files.resolve(name, "environment.filename")?;
-            let (width, height, texels) = environment::read_exr(&path, "environment.filename")?;
+            let (width, height, texels) =
+                read_bitmap(&path, false, "environment.filename")?.into_parts();
             Ok(Environment::Map(EnvironmentMap::new(
                 width, height, texels, scale, rotation,
             )))

@@ -140,3 +140,18 @@ fn blend_mask_and_other_materials_agree_with_mitsuba() {
         "materials_mitsuba.exr",
     );
 }
+
+/// An `envmap` from a Radiance HDR file, rotated and scaled, seen directly
+/// (where its bilinear lookup shows on a 32 × 16 map) and lighting a
+/// diffuse and a rough metal sphere (`tests/data/mitsuba/envmap.xml`,
+/// reference and map by `docs/validation/mitsuba_envmap.py`).
+#[test]
+fn hdr_environment_map_agrees_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "envmap.xml",
+        &[],
+        6,
+        "envmap_mitsuba.exr",
+    );
+}
