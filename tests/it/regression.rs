@@ -109,12 +109,17 @@ async fn fixed_seed_results_are_unchanged() {
     // began to spread their first-vertex light and BSDF samples over shared
     // stratified patterns (render::path::SharedFirstVertex): a different
     // unbiased estimator of the same pixels, 10.22 % -> 8.70 % at 256 spp.
+    // The three point estimates re-recorded on 2026-12-04 when the cube
+    // took Mitsuba 3's vertex layout (for its texture coordinates): the same
+    // surface split into other triangles, so points on the two boxes are
+    // computed from other vertices and differ in their last bits (with the
+    // old layout restored, all five hashes come back).
     let expected: [(&str, u64); 5] = [
         ("path tile", 0xde85cb11b4d0fea6),
         ("reproducible cached tile", 0xeaaf2473d5621bb9),
-        ("mc points", 0x5a5e5bc073baf374),
-        ("qmc points", 0xa28add0793b85994),
-        ("bmc points", 0x75f35688e67e45e0),
+        ("mc points", 0x8097099769a5419f),
+        ("qmc points", 0x035f13d4cc4f6f13),
+        ("bmc points", 0xfd4f74617db0a533),
     ];
     for ((name, hash), (_, want)) in got.iter().zip(expected) {
         assert_eq!(*hash, want, "{name} changed");
