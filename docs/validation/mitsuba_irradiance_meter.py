@@ -18,6 +18,7 @@ Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
 """
 
 import argparse
+import os
 import time
 
 import mitsuba as mi
@@ -63,17 +64,19 @@ def main():
     args = ap.parse_args()
     pts = points()
     text = open(SCENE).read()
-    # Meters only: the scene's camera would be sensor 0 otherwise.
+    # File names in the scene are relative to its folder.
+    mi.file_resolver().prepend(os.path.dirname(SCENE))
+    # One meter per scene, in place of the camera (Mitsuba refuses several
+    # meters in one document).
     start, end = text.index("<sensor"), text.index("</sensor>") + len("</sensor>")
-    text = text[:start] + "\n".join(meter(p, n) for p, n in pts) + text[end:]
-    scene = mi.load_string(text)
-    [light] = [
-        e for e in scene.emitters() if mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)
-    ]
     started = time.time()
     rows = []
     for i, (p, n) in enumerate(pts):
-        image = np.array(mi.render(scene, sensor=i, spp=args.spp, seed=i)).reshape(-1)[:3]
+        scene = mi.load_string(text[:start] + meter(p, n) + text[end:])
+        [light] = [
+            e for e in scene.emitters() if mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)
+        ]
+        image = np.array(mi.render(scene, spp=args.spp, seed=i)).reshape(-1)[:3]
         # The directional light's direct irradiance, E cos θ if unshadowed.
         it = mi.Interaction3f()
         it.p = mi.Point3f(np.array(p) + 1e-4 * np.array(n))
@@ -82,8 +85,7 @@ def main():
         cos = max(0.0, float(np.dot(np.array(ds.d), n)))
         blocked = scene.ray_test(it.spawn_ray(ds.d))
         direct = np.zeros(3) if blocked else np.array(weight) * cos
-        e = image + direct
-        rows.append((*p, *n, *e))
+        rows.append((*p, *n, *(image + direct)))
     print(f"mitsuba {mi.__version__}: {len(pts)} meters at {args.spp} spp in {time.time() - started:.1f} s")
     with open(args.out, "w") as f:
         f.write("x,y,z,nx,ny,nz,r,g,b\n")

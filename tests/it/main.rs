@@ -18,6 +18,7 @@ mod layering;
 mod light_transport;
 mod loadtest;
 mod mitsuba_images;
+mod mitsuba_irradiance;
 mod mitsuba_xml;
 mod readme_commands;
 mod regression;
