@@ -13,7 +13,7 @@ use crate::render::{
     PixelSample, RenderError, RenderedImage, RenderedTile, SharedFirstVertex, TileRequest,
     TraceStats, Transport, render_tile_with,
 };
-use crate::scene::Ray;
+use crate::scene::{Ray, Scene};
 
 /// The path tracer on one scene.
 #[derive(Clone, Copy)]
@@ -91,6 +91,10 @@ struct PathTracer<'a> {
 }
 
 impl CameraRayShader for PathTracer<'_> {
+    fn scene(&self) -> &Scene {
+        self.transport.scene()
+    }
+
     fn radiance(
         &self,
         ray: Ray,

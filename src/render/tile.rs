@@ -36,7 +36,7 @@ use super::mean::{Evaluation, MeanEstimate};
 use super::path::{PathDepth, TraceStats};
 use super::seed::point_rng;
 use crate::image::Image;
-use crate::scene::{Camera, Ray};
+use crate::scene::{Camera, Ray, Scene};
 
 /// Largest tile, in pixels (2048²): bounds one request's memory and time.
 pub const MAX_TILE_PIXELS: u64 = 1 << 22;
@@ -160,6 +160,9 @@ pub struct PixelSample {
 /// variance the shader knows of for it ((W/(m²·sr))², zero if none). The
 /// tile loop calls it `spp` times per pixel with that pixel's generator.
 pub trait CameraRayShader: Sync {
+    /// The scene the camera rays are traced in.
+    fn scene(&self) -> &Scene;
+
     fn radiance(
         &self,
         ray: Ray,
@@ -167,6 +170,28 @@ pub trait CameraRayShader: Sync {
         rng: &mut Pcg64,
         stats: &mut TraceStats,
     ) -> Evaluation;
+}
+
+/// Most emitters a camera ray is moved past (more is a degenerate scene).
+const MAX_HIDDEN_EMITTERS: usize = 64;
+
+/// The camera ray as the scene's `hide_emitters` leaves it: unchanged when
+/// emitters are shown; otherwise moved past the area emitters it meets
+/// first, as if they were not there, and `None` (black) when it then leaves
+/// the scene, the environment being hidden too (Mitsuba 3's path tracer).
+fn visible(scene: &Scene, mut ray: Ray, stats: &mut TraceStats) -> Option<Ray> {
+    if !scene.hide_emitters {
+        return Some(ray);
+    }
+    for _ in 0..MAX_HIDDEN_EMITTERS {
+        stats.rays += 1;
+        let hit = scene.intersect(&ray)?;
+        if hit.emitter.is_none() {
+            return Some(ray);
+        }
+        ray = scene.spawn_ray(hit.position, hit.normal, ray.dir);
+    }
+    None
 }
 
 /// Generator of pixel (px, py) for a request seeded with `seed`: a function
@@ -210,7 +235,10 @@ pub fn render_tile_with(
                     count: request.samples_per_pixel,
                     pattern,
                 };
-                shader.radiance(ray, sample, &mut rng, &mut stats)
+                match visible(shader.scene(), ray, &mut stats) {
+                    Some(ray) => shader.radiance(ray, sample, &mut rng, &mut stats),
+                    None => Evaluation::of(super::rgb::Rgb::BLACK),
+                }
             });
             Some((MeanEstimate::of_evaluations(samples), stats.rays))
         })

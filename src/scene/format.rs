@@ -31,6 +31,9 @@ pub struct SceneDoc {
     pub lights: Vec<serde_json::Map<String, serde_json::Value>>,
     pub environment: Option<EnvironmentDoc>,
     pub camera: CameraDoc,
+    /// Camera rays pass through area emitters and see no environment.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub hide_emitters: bool,
 }
 
 /// A material: its plugin `type` and that plugin's parameters, which

@@ -184,6 +184,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         emitters,
         environment,
         camera,
+        hide_emitters: doc.hide_emitters,
         digest,
         files: read,
         ..scene
@@ -490,6 +491,7 @@ impl GeometryBuilder {
             emitters: Vec::new(),
             environment: None,
             camera: Camera::new(DAffine3::IDENTITY, 45.0, Default::default(), 1, 1),
+            hide_emitters: false,
             shapes: self.shapes,
             triangles: self.triangles,
             vertex_normals: self.vertex_normals,

@@ -122,6 +122,9 @@ pub struct Scene {
     pub emitters: Vec<Emitter>,
     pub environment: Option<Environment>,
     pub camera: Camera,
+    /// Camera rays pass through area emitters and see no environment
+    /// (Mitsuba 3's `hide_emitters`); light still comes from them.
+    pub hide_emitters: bool,
     shapes: Vec<Shape>,
     /// World-space triangles in authoring order (shape by shape).
     triangles: Vec<Triangle>,

@@ -41,7 +41,7 @@ use crate::render::{
     CameraRayShader, Cancel, Evaluation, PathDepth, PixelSample, QueryPoint, RenderError,
     RenderedTile, Rgb, TileRequest, TraceStats, pixel_rng, render_tile_with,
 };
-use crate::scene::Ray;
+use crate::scene::{Ray, Scene};
 
 /// What a cached tile request did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -85,6 +85,10 @@ struct CacheRayShader<'a> {
 }
 
 impl CameraRayShader for CacheRayShader<'_> {
+    fn scene(&self) -> &Scene {
+        self.integrator.transport.scene()
+    }
+
     fn radiance(
         &self,
         ray: Ray,

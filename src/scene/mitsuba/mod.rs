@@ -10,6 +10,7 @@
 
 mod bsdf;
 mod emitter;
+mod integrator;
 mod parse;
 mod props;
 mod sensor;
@@ -202,6 +203,7 @@ pub(crate) struct Ctx<'a> {
     lights: Vec<serde_json::Map<String, serde_json::Value>>,
     environment: Option<EnvironmentDoc>,
     camera: Option<CameraDoc>,
+    hide_emitters: bool,
     /// Document field path → XML element, most specific last.
     origins: Vec<(String, Origin)>,
     /// Elements whose references are being followed (cycle detection).
@@ -226,6 +228,7 @@ impl<'a> Ctx<'a> {
             lights: Vec::new(),
             environment: None,
             camera: None,
+            hide_emitters: false,
             origins: Vec::new(),
             resolving: Vec::new(),
             mesh_files: HashMap::new(),
@@ -383,9 +386,9 @@ fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, 
     check_version(ctx, scene)?;
     for el in &scene.children {
         match el.tag.as_str() {
-            // Already applied while parsing; rendering settings do not
-            // change the scene.
-            "default" | "integrator" => {}
+            // Already applied while parsing.
+            "default" => {}
+            "integrator" => ctx.hide_emitters = integrator::hide_emitters(ctx, el)?,
             "bsdf" => {
                 bsdf::material(ctx, el)?;
             }
@@ -428,6 +431,7 @@ fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, 
         lights: std::mem::take(&mut ctx.lights),
         environment: ctx.environment.take(),
         camera,
+        hide_emitters: ctx.hide_emitters,
     })
 }
 

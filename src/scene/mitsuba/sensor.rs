@@ -169,7 +169,17 @@ fn film_size<'a>(ctx: &mut Ctx<'a>, film: &'a Element) -> Result<(u32, u32), Xml
         "compensate",
         "banner",
     ]);
-    props.ignore_tags(&["rfilter"]);
+    // The film averages radiance over each pixel: a box filter. Wider
+    // filters blur a little across pixels, which is approximated, said once.
+    for filter in props.nested(ctx, "rfilter")? {
+        let kind = filter.attr("type").unwrap_or("box");
+        if kind != "box" {
+            ctx.warn(
+                filter,
+                format!("a {kind} reconstruction filter is approximated by a box (each pixel's mean radiance)"),
+            );
+        }
+    }
     props.finish(ctx)?;
     // In range by construction.
     Ok((width as u32, height as u32))
