@@ -229,7 +229,12 @@ pub fn render_tile_with(
                     u = (f64::from(k % side) + u) / f64::from(side);
                     v = (f64::from(k / side) + v) / f64::from(side);
                 }
-                let ray = camera.generate_ray(f64::from(px) + u, f64::from(py) + v);
+                let (x, y) = (f64::from(px) + u, f64::from(py) + v);
+                // A pinhole draws no lens sample, so its images keep their bits.
+                let ray = match camera.has_lens() {
+                    true => camera.generate_ray_through_lens(x, y, [rng.random(), rng.random()]),
+                    false => camera.generate_ray(x, y),
+                };
                 let sample = PixelSample {
                     index: k,
                     count: request.samples_per_pixel,

@@ -1,4 +1,5 @@
-//! Perspective pinhole camera with Mitsuba 3's conventions.
+//! Perspective camera with Mitsuba 3's conventions: a pinhole
+//! (`perspective`) or a thin lens (`thinlens`, depth of field).
 //!
 //! The camera looks along its local +z with +y up; image x runs towards local
 //! −x (Mitsuba's `perspective` sensor), so with `look_at` the image's left is
@@ -8,7 +9,7 @@
 use glam::{DAffine3, DVec3};
 
 use super::error::SceneError;
-use super::format::{CameraDoc, FovAxis};
+use super::format::{CameraDoc, CameraKind, FovAxis};
 use super::ray::Ray;
 use super::transform;
 
@@ -23,7 +24,20 @@ pub struct Camera {
     to_world: DAffine3,
     /// tan of the half field of view along x and y.
     tan_half: (f64, f64),
+    lens: Option<Lens>,
 }
+
+/// A thin lens: rays leave a disk of `aperture_radius` in the camera's xy
+/// plane and meet where the pinhole ray meets the plane `z =
+/// focus_distance` (Mitsuba 3's `thinlens`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Lens {
+    aperture_radius: f64,
+    focus_distance: f64,
+}
+
+/// Mitsuba's default focus distance (its far clip), scene units.
+const DEFAULT_FOCUS_DISTANCE: f64 = 1e4;
 
 impl Camera {
     /// A camera at `to_world` with full field of view `fov_degrees` along
@@ -53,6 +67,7 @@ impl Camera {
             height,
             to_world,
             tan_half,
+            lens: None,
         }
     }
 
@@ -92,13 +107,79 @@ impl Camera {
                 ));
             }
         };
-        Ok(Self::new(
-            to_world,
-            doc.fov,
-            doc.fov_axis,
-            doc.width,
-            doc.height,
-        ))
+        let lens_fields = [
+            ("aperture_radius", doc.aperture_radius),
+            ("focus_distance", doc.focus_distance),
+        ];
+        let lens = match doc.kind {
+            CameraKind::Perspective => {
+                if let Some((name, _)) = lens_fields.iter().find(|(_, v)| v.is_some()) {
+                    return Err(SceneError::invalid(
+                        format!("{field}.{name}"),
+                        "only a `thinlens` camera has a lens",
+                    ));
+                }
+                None
+            }
+            CameraKind::Thinlens => {
+                let positive = |name: &str, value: Option<f64>| match value {
+                    Some(v) if v > 0.0 && v.is_finite() => Ok(v),
+                    Some(v) => Err(SceneError::invalid(
+                        format!("{field}.{name}"),
+                        format!("{v} is not a positive length"),
+                    )),
+                    None => Err(SceneError::invalid(
+                        field,
+                        format!("a thinlens camera needs `{name}`"),
+                    )),
+                };
+                Some(Lens {
+                    aperture_radius: positive("aperture_radius", doc.aperture_radius)?,
+                    focus_distance: positive(
+                        "focus_distance",
+                        Some(doc.focus_distance.unwrap_or(DEFAULT_FOCUS_DISTANCE)),
+                    )?,
+                })
+            }
+        };
+        Ok(Self {
+            lens,
+            ..Self::new(to_world, doc.fov, doc.fov_axis, doc.width, doc.height)
+        })
+    }
+
+    /// Whether rays leave a lens ([`Self::generate_ray_through_lens`])
+    /// rather than a pinhole.
+    pub fn has_lens(&self) -> bool {
+        self.lens.is_some()
+    }
+
+    /// Primary ray through the continuous pixel position (px, py) that
+    /// leaves the lens at the point `lens_sample ∈ [0, 1)²` picks
+    /// (uniformly by area, Shirley–Chiu); [`Self::generate_ray`] for a pinhole.
+    pub fn generate_ray_through_lens(&self, px: f64, py: f64, lens_sample: [f64; 2]) -> Ray {
+        let Some(lens) = self.lens else {
+            return self.generate_ray(px, py);
+        };
+        let focus = self.local_direction(px, py) * lens.focus_distance;
+        let a = super::shape::concentric_disk(lens_sample) * lens.aperture_radius;
+        let aperture = DVec3::new(a.x, a.y, 0.0);
+        Ray {
+            origin: self.to_world.transform_point3(aperture),
+            dir: self
+                .to_world
+                .transform_vector3(focus - aperture)
+                .normalize(),
+            t_max: f64::INFINITY,
+        }
+    }
+
+    /// The pinhole ray's direction through (px, py) in the camera frame,
+    /// scaled to `z = 1`.
+    fn local_direction(&self, px: f64, py: f64) -> DVec3 {
+        let sx = 1.0 - 2.0 * px / self.width as f64;
+        let sy = 1.0 - 2.0 * py / self.height as f64;
+        DVec3::new(sx * self.tan_half.0, sy * self.tan_half.1, 1.0)
     }
 
     /// Image size in pixels, (width, height).
@@ -115,9 +196,7 @@ impl Camera {
     /// the image's top-left corner, (width, height) its bottom-right corner,
     /// pixel centres are at half-integers. `t_max` is infinite.
     pub fn generate_ray(&self, px: f64, py: f64) -> Ray {
-        let sx = 1.0 - 2.0 * px / self.width as f64;
-        let sy = 1.0 - 2.0 * py / self.height as f64;
-        let local = DVec3::new(sx * self.tan_half.0, sy * self.tan_half.1, 1.0);
+        let local = self.local_direction(px, py);
         Ray {
             origin: self.to_world.translation,
             dir: self.to_world.transform_vector3(local).normalize(),
@@ -154,6 +233,55 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn doc(extra: serde_json::Value) -> CameraDoc {
+        let mut value = serde_json::json!({"fov": 40, "width": 8, "height": 8,
+            "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]});
+        value
+            .as_object_mut()
+            .unwrap()
+            .extend(extra.as_object().unwrap().clone());
+        serde_json::from_value(value).unwrap()
+    }
+
+    #[test]
+    fn a_thin_lens_focuses_its_rays_on_the_focal_plane() {
+        let cam = Camera::from_doc(
+            &doc(serde_json::json!({"type": "thinlens", "aperture_radius": 0.2, "focus_distance": 3})),
+            "camera",
+        )
+        .unwrap();
+        let pinhole = cam.generate_ray(2.5, 6.0);
+        let focus = pinhole.origin + pinhole.dir * (3.0 / pinhole.dir.dot(-DVec3::Z));
+        for sample in [[0.1, 0.2], [0.9, 0.5], [0.5, 0.99]] {
+            let ray = cam.generate_ray_through_lens(2.5, 6.0, sample);
+            // Off the pinhole, on the lens disk, through the same focus point.
+            let offset = ray.origin - pinhole.origin;
+            assert!(
+                offset.z.abs() < 1e-12 && offset.length() <= 0.2 + 1e-12 && offset.length() > 0.0
+            );
+            let t = (focus - ray.origin).dot(ray.dir);
+            assert!((ray.origin + ray.dir * t - focus).length() < 1e-9);
+        }
+        let field = |extra| {
+            Camera::from_doc(&doc(extra), "camera")
+                .unwrap_err()
+                .field()
+                .map(str::to_string)
+        };
+        assert_eq!(
+            field(serde_json::json!({"aperture_radius": 0.1})).as_deref(),
+            Some("camera.aperture_radius")
+        );
+        assert_eq!(
+            field(serde_json::json!({"type": "thinlens"})).as_deref(),
+            Some("camera")
+        );
+        assert_eq!(
+            field(serde_json::json!({"type": "thinlens", "aperture_radius": 0.1, "focus_distance": -1})).as_deref(),
+            Some("camera.focus_distance")
+        );
+    }
 
     #[test]
     fn raster_inverts_generate_ray() {

@@ -137,6 +137,8 @@ pub struct EnvironmentDoc {
 pub enum CameraKind {
     #[default]
     Perspective,
+    /// A perspective camera with a thin lens: depth of field.
+    Thinlens,
 }
 
 #[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
@@ -165,6 +167,13 @@ pub struct CameraDoc {
     pub origin: Option<Vec3>,
     pub target: Option<Vec3>,
     pub up: Option<Vec3>,
+    /// thinlens: the aperture's radius, scene units (required).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_radius: Option<f64>,
+    /// thinlens: distance from the lens to the plane in focus, scene units
+    /// (default 10⁴, Mitsuba's far clip).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub focus_distance: Option<f64>,
 }
 
 /// One step of a `to_world` transform.

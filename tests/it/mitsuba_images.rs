@@ -177,3 +177,17 @@ fn hidden_emitters_agree_with_mitsuba() {
         "hide_emitters_mitsuba.exr",
     );
 }
+
+/// A `thinlens` camera: the near and far spheres and the floor's pattern
+/// blur as in Mitsuba (`tests/data/mitsuba/thinlens.xml`, reference by
+/// `docs/validation/mitsuba_thinlens.py`).
+#[test]
+fn thin_lens_depth_of_field_agrees_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "thinlens.xml",
+        &[],
+        4,
+        "thinlens_mitsuba.exr",
+    );
+}

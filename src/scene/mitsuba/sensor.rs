@@ -55,32 +55,32 @@ pub(crate) fn default_camera() -> CameraDoc {
         origin: None,
         target: None,
         up: None,
+        aperture_radius: None,
+        focus_distance: None,
     }
 }
 
 pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc, XmlError> {
     let mut props = Props::new(el);
-    match el.attr("type").unwrap_or("") {
-        "perspective" => {}
-        "thinlens" => {
-            props.ignore(&["aperture_radius", "focus_distance"]);
-            ctx.unsupported(
-                el,
-                "type",
-                "thin-lens cameras are not supported",
-                "using a pinhole",
-            )?;
-        }
+    let (kind, aperture_radius, focus_distance) = match el.attr("type").unwrap_or("") {
+        "perspective" => (CameraKind::Perspective, None, None),
+        "thinlens" => (
+            CameraKind::Thinlens,
+            Some(props.opt_float("aperture_radius")?.ok_or_else(|| {
+                el.error("aperture_radius", "a thinlens needs `aperture_radius`")
+            })?),
+            props.opt_float("focus_distance")?,
+        ),
         other => {
             return Err(el.error(
                 "type",
                 format!(
-                    "sensor type {} is not supported (perspective)",
+                    "sensor type {} is not supported (perspective, thinlens)",
                     quote(other)
                 ),
             ));
         }
-    }
+    };
     let (width, height) = match props.nested(ctx, "film")?[..] {
         [] => DEFAULT_SIZE,
         [film] => film_size(ctx, film)?,
@@ -128,18 +128,14 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
         Some(t) => Ops::read(t)?,
         None => Ops::default(),
     };
-    props.ignore(&[
-        "near_clip",
-        "far_clip",
-        "focus_distance",
-        "shutter_open",
-        "shutter_close",
-    ]);
+    props.ignore(&["near_clip", "far_clip", "shutter_open", "shutter_close"]);
     props.ignore_tags(&["sampler"]);
     props.finish(ctx)?;
     ctx.origin("camera", el);
     Ok(CameraDoc {
-        kind: CameraKind::Perspective,
+        kind,
+        aperture_radius,
+        focus_distance,
         fov,
         fov_axis,
         width,

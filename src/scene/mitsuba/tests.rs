@@ -105,7 +105,11 @@ fn cornell_box_xml_equals_json() {
     .unwrap();
     // Its film's gaussian filter is the one approximation (by a box).
     assert_eq!(warnings.len(), 1, "{warnings:?}");
-    assert!(warnings[0].message.contains("gaussian reconstruction filter"));
+    assert!(
+        warnings[0]
+            .message
+            .contains("gaussian reconstruction filter")
+    );
     assert_eq!(xml.name, json.name);
     assert_eq!(xml.materials, json.materials);
     assert_eq!(xml.material_ids, json.material_ids);
