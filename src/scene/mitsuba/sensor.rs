@@ -63,7 +63,11 @@ pub(crate) fn default_camera() -> CameraDoc {
 pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc, XmlError> {
     let mut props = Props::new(el);
     let (kind, aperture_radius, focus_distance) = match el.attr("type").unwrap_or("") {
-        "perspective" => (CameraKind::Perspective, None, None),
+        "perspective" => {
+            // Every projective camera takes it; a pinhole has no use for it.
+            props.ignore(&["focus_distance"]);
+            (CameraKind::Perspective, None, None)
+        }
         "thinlens" => (
             CameraKind::Thinlens,
             Some(props.opt_float("aperture_radius")?.ok_or_else(|| {
