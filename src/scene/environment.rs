@@ -124,19 +124,11 @@ impl EnvironmentMap {
         let x = u * self.width as f64 - 0.5;
         let y = v * (self.height - 1) as f64;
         let (fx, fy) = (x.floor(), y.floor());
-        let (tx, ty) = (x - fx, y - fy);
         let column = |i: f64| (i as i64).rem_euclid(self.width as i64) as usize;
         let row = |j: f64| (j.max(0.0) as usize).min(self.height - 1);
         let (x0, x1, y0, y1) = (column(fx), column(fx + 1.0), row(fy), row(fy + 1.0));
-        let (a, b, c, d) = (
-            self.texel(x0, y0),
-            self.texel(x1, y0),
-            self.texel(x0, y1),
-            self.texel(x1, y1),
-        );
-        std::array::from_fn(|k| {
-            (1.0 - ty) * ((1.0 - tx) * a[k] + tx * b[k]) + ty * ((1.0 - tx) * c[k] + tx * d[k])
-        })
+        let corners = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].map(|(i, j)| self.texel(i, j));
+        super::bilinear::blend(corners, glam::DVec2::new(x - fx, y - fy))
     }
 
     /// (u, v) ∈ [0, 1)×[0, 1] of a unit world direction.

@@ -229,6 +229,18 @@ impl Material {
         }
     }
 
+    /// The materials nested under `bsdf` (one object or a list), each with
+    /// its field path.
+    fn nested(params: &mut Params) -> Result<Vec<(String, Material)>, SceneError> {
+        let mut out = Vec::new();
+        for (kind, field, mut inner) in params.nested("bsdf")? {
+            let material = Self::parse(&kind, &mut inner, &field)?;
+            inner.finish()?;
+            out.push((field, material));
+        }
+        Ok(out)
+    }
+
     /// The material of plugin `kind` from `params` (a nested BSDF's too).
     fn parse(kind: &str, params: &mut Params, field: &str) -> Result<Self, SceneError> {
         let Some((_, parse)) = PLUGINS.iter().find(|(name, _)| *name == kind) else {

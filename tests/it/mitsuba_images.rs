@@ -101,7 +101,7 @@ fn cbox_with_glass_and_mirror_agrees_with_mitsuba() {
 /// Point, spot and directional lights on rough gold (GGX), rough plastic
 /// (Beckmann) and a two-sided disk seen from both sides
 /// (`tests/data/mitsuba/lights.xml`, reference by
-/// `docs/validation/mitsuba_lights.py`). Measured: mean ratio 1.0014,
+/// `docs/validation/mitsuba_scene_images.py`). Measured: mean ratio 1.0014,
 /// 0.81 % over blocks (6.8 % per pixel).
 #[test]
 fn delta_lights_and_rough_materials_agree_with_mitsuba() {
@@ -110,7 +110,7 @@ fn delta_lights_and_rough_materials_agree_with_mitsuba() {
         "lights.xml",
         &[],
         8,
-        "lights_mitsuba_64.exr",
+        "lights_mitsuba.exr",
     );
 }
 
@@ -118,7 +118,7 @@ fn delta_lights_and_rough_materials_agree_with_mitsuba() {
 /// mirror and clamp; `to_uv`) and checkerboards on rectangles, a rotated
 /// cube, a rotated sphere, a disk, an OBJ quad and a PLY quad
 /// (`tests/data/mitsuba/textures.xml`, reference and texture images by
-/// `docs/validation/mitsuba_textures.py`): every shape's texture
+/// `docs/validation/mitsuba_scene_images.py`): every shape's texture
 /// coordinates as Mitsuba 3 defines them.
 #[test]
 fn textures_and_texture_coordinates_agree_with_mitsuba() {
@@ -135,7 +135,7 @@ fn textures_and_texture_coordinates_agree_with_mitsuba() {
 /// `mask` (a bitmap opacity over a two-sided diffuse, and a constant one),
 /// `thindielectric`, `roughdielectric` and `plastic`
 /// (`tests/data/mitsuba/materials.xml`, reference by
-/// `docs/validation/mitsuba_materials.py`).
+/// `docs/validation/mitsuba_scene_images.py`).
 #[test]
 fn blend_mask_and_other_materials_agree_with_mitsuba() {
     assert_agrees_with_mitsuba(
@@ -150,7 +150,7 @@ fn blend_mask_and_other_materials_agree_with_mitsuba() {
 /// An `envmap` from a Radiance HDR file, rotated and scaled, seen directly
 /// (where its bilinear lookup shows on a 32 × 16 map) and lighting a
 /// diffuse and a rough metal sphere (`tests/data/mitsuba/envmap.xml`,
-/// reference and map by `docs/validation/mitsuba_envmap.py`).
+/// reference and map by `docs/validation/mitsuba_scene_images.py`).
 #[test]
 fn hdr_environment_map_agrees_with_mitsuba() {
     assert_agrees_with_mitsuba(
@@ -165,7 +165,7 @@ fn hdr_environment_map_agrees_with_mitsuba() {
 /// `hide_emitters`: camera rays pass through an area light and see black
 /// where the environment would be, while both still light the scene
 /// (`tests/data/mitsuba/hide_emitters.xml`, reference by
-/// `docs/validation/mitsuba_hide_emitters.py`, rendered with the box filter
+/// `docs/validation/mitsuba_scene_images.py`, rendered with the box filter
 /// the file's gaussian is approximated by).
 #[test]
 fn hidden_emitters_agree_with_mitsuba() {
@@ -180,7 +180,7 @@ fn hidden_emitters_agree_with_mitsuba() {
 
 /// A `thinlens` camera: the near and far spheres and the floor's pattern
 /// blur as in Mitsuba (`tests/data/mitsuba/thinlens.xml`, reference by
-/// `docs/validation/mitsuba_thinlens.py`).
+/// `docs/validation/mitsuba_scene_images.py`).
 #[test]
 fn thin_lens_depth_of_field_agrees_with_mitsuba() {
     assert_agrees_with_mitsuba(

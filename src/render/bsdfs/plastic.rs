@@ -64,6 +64,28 @@ pub fn diffuse_fresnel_reflectance(eta: f64) -> f64 {
     critical * critical + smooth
 }
 
+/// What a coated base needs of its reflectances, for smooth and rough
+/// coatings alike: the base's lobe without its coating factors, `ρ'/π ·
+/// 1/η²` with `ρ' = ρ/(1 − ρ_i)` (the inner bounces: `ρ_i` is `internal`,
+/// the coating's diffuse reflectance from inside, times `ρ` if
+/// `nonlinear`), and the weight `w` of the module docs.
+pub(super) fn coated_base(
+    diffuse_reflectance: Rgb,
+    specular_reflectance: Rgb,
+    eta: f64,
+    nonlinear: bool,
+    internal: f64,
+) -> (Rgb, f64) {
+    let kept = diffuse_reflectance.map(|rho| {
+        let lost = if nonlinear { rho * internal } else { internal };
+        rho / (1.0 - lost)
+    });
+    let mean = |c: Rgb| (c.r + c.g + c.b) / 3.0;
+    let (d, s) = (mean(diffuse_reflectance), mean(specular_reflectance));
+    let weight = if d + s > 0.0 { s / (d + s) } else { 0.0 };
+    (kept * (FRAC_1_PI / (eta * eta)), weight)
+}
+
 impl Plastic {
     /// The plastic with relative index `eta = int_ior / ext_ior > 0`.
     pub fn new(
@@ -106,18 +128,19 @@ impl Plastic {
         nonlinear: bool,
         internal: f64,
     ) -> Self {
-        let kept = diffuse_reflectance.map(|rho| {
-            let lost = if nonlinear { rho * internal } else { internal };
-            rho / (1.0 - lost)
-        });
-        let mean = |c: Rgb| (c.r + c.g + c.b) / 3.0;
-        let (d, s) = (mean(diffuse_reflectance), mean(specular_reflectance));
+        let (diffuse, specular_weight) = coated_base(
+            diffuse_reflectance,
+            specular_reflectance,
+            eta,
+            nonlinear,
+            internal,
+        );
         Self {
             diffuse_reflectance,
             specular_reflectance,
             eta,
-            diffuse: kept * (FRAC_1_PI / (eta * eta)),
-            specular_weight: if d + s > 0.0 { s / (d + s) } else { 0.0 },
+            diffuse,
+            specular_weight,
             internal,
         }
     }

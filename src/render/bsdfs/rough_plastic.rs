@@ -26,13 +26,13 @@
 //! `specular_reflectance` (1), `int_ior` (polypropylene), `ext_ior` (air),
 //! `nonlinear` (false).
 
-use std::f64::consts::FRAC_1_PI;
 use std::num::NonZeroUsize;
 use std::sync::Arc;
 
 use gauss_quad::legendre::GaussLegendre;
 use glam::DVec3;
 
+use super::plastic::coated_base;
 use super::{LobeSample, reflect};
 use crate::render::fresnel;
 use crate::render::microfacet::Microfacet;
@@ -184,18 +184,19 @@ impl RoughPlastic {
         eta: f64,
         nonlinear: bool,
     ) -> Self {
-        let kept = diffuse_reflectance.map(|rho| {
-            let lost = if nonlinear { rho * internal } else { internal };
-            rho / (1.0 - lost)
-        });
-        let mean = |c: Rgb| (c.r + c.g + c.b) / 3.0;
-        let (d, s) = (mean(diffuse_reflectance), mean(specular_reflectance));
+        let (diffuse, specular_weight) = coated_base(
+            diffuse_reflectance,
+            specular_reflectance,
+            eta,
+            nonlinear,
+            internal,
+        );
         Self {
             distribution,
             specular_reflectance,
             eta,
-            diffuse: kept * (FRAC_1_PI / (eta * eta)),
-            specular_weight: if d + s > 0.0 { s / (d + s) } else { 0.0 },
+            diffuse,
+            specular_weight,
             transmittance,
             internal,
         }

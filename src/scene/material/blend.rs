@@ -11,12 +11,10 @@ use crate::scene::texture;
 
 pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
     let weight = texture::albedo(params, "weight", [0.5; 3])?;
-    let mut nested = Vec::new();
-    for (kind, field, mut inner) in params.nested("bsdf")? {
-        let material = Material::parse(&kind, &mut inner, &field)?;
-        inner.finish()?;
-        nested.push(material);
-    }
+    let nested: Vec<Material> = Material::nested(params)?
+        .into_iter()
+        .map(|(_, m)| m)
+        .collect();
     let Ok(bsdfs) = <[Material; 2]>::try_from(nested) else {
         return Err(params.invalid("bsdf", "a blend needs exactly two nested materials"));
     };

@@ -12,12 +12,10 @@ use crate::scene::texture;
 
 pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
     let opacity = texture::albedo(params, "opacity", [0.5; 3])?;
-    let mut nested = Vec::new();
-    for (kind, field, mut inner) in params.nested("bsdf")? {
-        let material = Material::parse(&kind, &mut inner, &field)?;
-        inner.finish()?;
-        nested.push(material);
-    }
+    let nested: Vec<Material> = Material::nested(params)?
+        .into_iter()
+        .map(|(_, m)| m)
+        .collect();
     let Ok([bsdf]) = <[Material; 1]>::try_from(nested) else {
         return Err(params.invalid("bsdf", "a mask needs exactly one nested material"));
     };

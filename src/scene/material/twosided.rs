@@ -10,16 +10,14 @@ use crate::scene::error::SceneError;
 
 pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
     let mut sides = Vec::new();
-    for (kind, field, mut nested) in params.nested("bsdf")? {
-        let material = Material::parse(&kind, &mut nested, &field)?;
-        nested.finish()?;
+    for (field, material) in Material::nested(params)? {
         if matches!(
             material,
             Material::TwoSided { .. } | Material::Dielectric { .. }
         ) {
             return Err(SceneError::invalid(
                 format!("{field}.type"),
-                format!("a {kind:?} material cannot be one side of a twosided one"),
+                "a dielectric or twosided material cannot be one side of a twosided one",
             ));
         }
         sides.push(material);

@@ -81,18 +81,9 @@ impl BitmapTexture {
             Filter::Bilinear => {
                 let p = p - 0.5;
                 let (fx, fy) = (p.x.floor(), p.y.floor());
-                let (tx, ty) = (p.x - fx, p.y - fy);
                 let (x0, x1, y0, y1) = (x(fx), x(fx + 1.0), y(fy), y(fy + 1.0));
-                let (a, b2, c, d) = (
-                    b.texel(x0, y0),
-                    b.texel(x1, y0),
-                    b.texel(x0, y1),
-                    b.texel(x1, y1),
-                );
-                std::array::from_fn(|k| {
-                    (1.0 - ty) * ((1.0 - tx) * a[k] + tx * b2[k])
-                        + ty * ((1.0 - tx) * c[k] + tx * d[k])
-                })
+                let corners = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].map(|(i, j)| b.texel(i, j));
+                crate::scene::bilinear::blend(corners, DVec2::new(p.x - fx, p.y - fy))
             }
         }
     }

@@ -1,0 +1,92 @@
+#!/usr/bin/env python3
+"""Mitsuba 3's renders of the small scenes in `tests/data/mitsuba/`, the
+references of the Rust tests in `tests/it/mitsuba_images.rs`, each exercising
+a few plugins: `lights.xml` (point, spot and directional lights; rough gold,
+rough plastic, a two-sided disk), `textures.xml` (bitmaps and checkerboards
+on every shape kind), `materials.xml` (blendbsdf, mask, thindielectric,
+roughdielectric, plastic), `envmap.xml` (a rotated, scaled HDR map),
+`hide_emitters.xml` and `thinlens.xml`.
+
+Every reference is rendered with a box filter (what our film computes; a
+file asking for another filter is rendered with a box here), at the file's
+own resolution, to `<scene>_mitsuba.exr` beside it. First `--assets` writes
+the images the scenes read:
+- `uv_grid.png` (8-bit sRGB) and `uv_grid.exr` (linear): 4x4 texels whose
+  colours name their column (red), row (green) and parity (blue), so any
+  flip or shift of texture coordinates changes the picture;
+- `sky.hdr`: a 32x16 sky, coarse enough that the lookup's interpolation
+  shows, with a warm patch for a low sun.
+
+Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
+
+    python docs/validation/mitsuba_scene_images.py --assets --spp 16384 \
+        lights textures materials envmap hide_emitters thinlens
+"""
+
+import argparse
+import re
+import time
+
+import mitsuba as mi
+import numpy as np
+
+mi.set_variant("scalar_rgb")
+
+DIR = "tests/data/mitsuba"
+
+
+def uv_grid():
+    """The 4x4 texels, row 0 at the top, values in [0, 1]."""
+    texels = np.zeros((4, 4, 3))
+    for y in range(4):
+        for x in range(4):
+            texels[y, x] = [(x + 0.5) / 4, (y + 0.5) / 4, 0.15 + 0.7 * ((x + y) % 2)]
+    return texels
+
+
+def sky(width=32, height=16):
+    """Rows from the +Y pole (top) to the -Y pole."""
+    texels = np.zeros((height, width, 3), dtype=np.float32)
+    for y in range(height):
+        for x in range(width):
+            up = 1.0 - (y + 0.5) / height * 2.0
+            if up > 0:
+                texels[y, x] = [0.3 + 0.4 * up, 0.5 + 0.3 * up, 0.9 + 0.2 * x / width]
+            else:
+                texels[y, x] = [0.15, 0.12, 0.1]
+    texels[4:7, 9:12] = [8.0, 6.5, 4.0]
+    return texels
+
+
+def write_assets():
+    texels = uv_grid()
+    mi.Bitmap(np.round(texels * 255).astype(np.uint8)).write(f"{DIR}/uv_grid.png")
+    mi.Bitmap(texels.astype(np.float32)).write(f"{DIR}/uv_grid.exr")
+    mi.Bitmap(sky()).write(f"{DIR}/sky.hdr")
+
+
+def render(name, spp):
+    text = open(f"{DIR}/{name}.xml").read()
+    text = re.sub(r'<rfilter type="[a-z]+"\s*/>', '<rfilter type="box"/>', text)
+    mi.file_resolver().prepend(DIR)
+    scene = mi.load_string(text.replace("$spp", str(spp)))
+    started = time.time()
+    image = np.array(mi.render(scene, seed=0))
+    print(f"{name}: mitsuba {mi.__version__}, {spp} spp in {time.time() - started:.1f} s; mean {image.mean():.5f}")
+    mi.Bitmap(image.astype(np.float32)).write(f"{DIR}/{name}_mitsuba.exr")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--spp", type=int, default=16384)
+    ap.add_argument("--assets", action="store_true", help="write the images the scenes read first")
+    ap.add_argument("scenes", nargs="*", help="scene names in tests/data/mitsuba (without .xml)")
+    args = ap.parse_args()
+    if args.assets:
+        write_assets()
+    for name in args.scenes:
+        render(name, args.spp)
+
+
+if __name__ == "__main__":
+    main()
