@@ -380,8 +380,8 @@ mod tests {
 
     /// On a checkerboard floor (`tests/data/mitsuba/textures.xml`), one
     /// point on each colour: the cache multiplies its records' irradiance by
-    /// the texture at the point, not by the texture's mean (which is 0.6× the
-    /// light square's and 2× the dark square's), agreeing with path tracing.
+    /// the texture at the point, not by the texture's mean (about 0.65× the
+    /// light square's and 2.2× the dark square's), agreeing with path tracing.
     #[test]
     fn cached_radiance_takes_the_texture_at_the_point() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba");

@@ -21,9 +21,7 @@ pub struct Checkerboard {
 
 impl Checkerboard {
     pub fn eval(&self, uv: DVec2) -> Rgb {
-        let uv = self.to_uv.transform_point2(uv);
-        let upper = |x: f64| x - x.floor() > 0.5;
-        if upper(uv.x) == upper(uv.y) {
+        if self.is_color0(uv) {
             self.color0
         } else {
             self.color1
@@ -32,12 +30,17 @@ impl Checkerboard {
 
     /// The pattern with its colours swapped (Mitsuba's scalar lookup).
     pub fn eval_swapped(&self, uv: DVec2) -> Rgb {
-        let c = self.eval(uv);
-        if c == self.color0 {
+        if self.is_color0(uv) {
             self.color1
         } else {
             self.color0
         }
+    }
+
+    fn is_color0(&self, uv: DVec2) -> bool {
+        let uv = self.to_uv.transform_point2(uv);
+        let upper = |x: f64| x - x.floor() > 0.5;
+        upper(uv.x) == upper(uv.y)
     }
 
     /// Both colours cover half of every period.
