@@ -89,18 +89,30 @@ impl Bitmap {
     }
 }
 
+/// Most texels all the images of one scene may hold together: two of the
+/// largest (768 MiB as f32 RGB). An image is checked once decoded, so a
+/// load peaks at this plus one image.
+pub const MAX_SCENE_TEXELS: usize = 2 * MAX_ENVMAP_TEXELS;
+
 /// The bitmaps of one scene load, each file decoded once per `raw` setting
-/// however many textures name it.
+/// however many textures name it, and within [`MAX_SCENE_TEXELS`] in all.
 pub(crate) struct Bitmaps<'a> {
     files: &'a Files,
     loaded: Mutex<HashMap<(PathBuf, bool), Arc<Bitmap>>>,
+    max_texels: usize,
 }
 
 impl<'a> Bitmaps<'a> {
     pub(crate) fn new(files: &'a Files) -> Self {
+        Self::with_limit(files, MAX_SCENE_TEXELS)
+    }
+
+    /// Bitmaps holding at most `max_texels` in all.
+    pub(crate) fn with_limit(files: &'a Files, max_texels: usize) -> Self {
         Self {
             files,
             loaded: Mutex::new(HashMap::new()),
+            max_texels,
         }
     }
 
@@ -122,10 +134,21 @@ impl<'a> Bitmaps<'a> {
             return Ok(b.clone());
         }
         let bitmap = Arc::new(read_bitmap(&path, raw, field)?);
-        self.loaded
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .insert(key, bitmap.clone());
+        let mut loaded = self.loaded.lock().unwrap_or_else(|p| p.into_inner());
+        // A file read with and without `raw` counts twice: it is held twice.
+        let held: usize = loaded.values().map(|b| b.texels.len()).sum();
+        if held + bitmap.texels.len() > self.max_texels {
+            return Err(SceneError::file(
+                field,
+                &path,
+                format!(
+                    "the scene's images would hold {} texels in all, more than {}",
+                    held + bitmap.texels.len(),
+                    self.max_texels
+                ),
+            ));
+        }
+        loaded.insert(key, bitmap.clone());
         Ok(bitmap)
     }
 }

@@ -222,3 +222,28 @@ fn texture_documents_are_validated_naming_the_field() {
         "materials[2].reflectance"
     );
 }
+
+#[test]
+fn a_scenes_images_are_capped_in_all() {
+    let dir = Scratch::new("cap");
+    for name in ["a.png", "b.png"] {
+        image::RgbImage::from_pixel(4, 4, image::Rgb([9, 9, 9]))
+            .save(dir.0.join(name))
+            .unwrap();
+    }
+    let files = Files::new(&dir.0, &dir.0).unwrap();
+    let bitmaps = Bitmaps::with_limit(&files, 20);
+    let a = bitmaps
+        .load("a.png", false, "materials[0].reflectance.filename")
+        .unwrap();
+    // The same file again is shared, not counted twice.
+    assert!(Arc::ptr_eq(&a, &bitmaps.load("a.png", false, "x").unwrap()));
+    let e = bitmaps
+        .load("b.png", false, "materials[1].reflectance.filename")
+        .unwrap_err();
+    assert_eq!(e.field(), Some("materials[1].reflectance.filename"));
+    assert!(
+        e.to_string().contains("32 texels in all, more than 20"),
+        "{e}"
+    );
+}
