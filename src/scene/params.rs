@@ -75,13 +75,9 @@ impl<'a> Params<'a> {
         self.map.get(name)
     }
 
-    fn take(&mut self, name: &str) -> Option<Value> {
-        self.map.remove(name)
-    }
-
     /// Parameter `name` as given, taken (for a parser of its own).
-    pub fn take_value(&mut self, name: &str) -> Option<Value> {
-        self.take(name)
+    pub fn take(&mut self, name: &str) -> Option<Value> {
+        self.map.remove(name)
     }
 
     /// A finite number, if given.

@@ -135,7 +135,7 @@ pub(crate) fn albedo(params: &mut Params, name: &str, default: Rgb) -> Result<Te
     if !params.peek(name).is_some_and(Value::is_object) {
         return Ok(Texture::Constant(params.albedo(name, default)?));
     }
-    let doc = params.take_value(name).expect("present");
+    let doc = params.take(name).expect("present");
     let texture = Texture::parse(params, name, doc)?;
     match texture.max() {
         m if m > 1.0 => Err(params.invalid(
@@ -171,7 +171,7 @@ const PLUGINS: &[(&str, Parse)] = &[
 
 /// The `to_uv` parameter: the identity if absent.
 fn to_uv(params: &mut Params) -> Result<DAffine2, SceneError> {
-    let Some(value) = params.take_value("to_uv") else {
+    let Some(value) = params.take("to_uv") else {
         return Ok(DAffine2::IDENTITY);
     };
     let field = params.field("to_uv");
