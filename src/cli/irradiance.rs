@@ -32,9 +32,11 @@ pub struct IrradianceArgs {
     /// Hemisphere directions per point (and light samples in split mode).
     #[arg(long, default_value_t = 4096)]
     pub samples: u32,
-    /// Longest light path in segments (1 = direct light only).
-    #[arg(long, default_value_t = PathDepth::default(), value_parser = super::max_depth_parser())]
-    pub max_depth: PathDepth,
+    /// Longest light path in segments from the point (1 = direct light
+    /// only); default: the scene's depth less the camera's segment (Mitsuba's
+    /// integrator `max_depth` − 1), else the service's (16).
+    #[arg(long, value_parser = super::max_depth_parser())]
+    pub max_depth: Option<PathDepth>,
     /// Direct light only (same as --max-depth 1).
     #[arg(long)]
     pub direct_only: bool,
@@ -88,15 +90,16 @@ pub struct IrradianceArgs {
 }
 
 impl IrradianceArgs {
-    /// The library options these arguments ask for.
-    pub fn options(&self) -> IrradianceOptions {
+    /// The library options these arguments ask for, on a scene whose
+    /// default depth from points is `scene_depth` ([`crate::scene::Scene::point_depth`]).
+    pub fn options(&self, scene_depth: PathDepth) -> IrradianceOptions {
         let method = self.decomposition;
         let base = if self.reference {
             IrradianceOptions::reference(self.seed)
         } else {
             IrradianceOptions {
                 samples: self.samples,
-                max_depth: self.max_depth,
+                max_depth: self.max_depth.unwrap_or(scene_depth),
                 seed: self.seed,
                 ..IrradianceOptions::default()
             }
@@ -116,7 +119,11 @@ impl IrradianceArgs {
             self.kernel.is_some() || self.lengthscale.is_some() || self.noise.is_some();
         EstimatorSpec {
             method: self.estimator,
-            samples: self.options().samples,
+            samples: if self.reference {
+                IrradianceOptions::reference(self.seed).samples
+            } else {
+                self.samples
+            },
             sample_set: self.sample_set.map(|kind| (kind.into(), self.set_seed)),
             kernel: bmc_options.then(|| KernelSpec {
                 kind: self.kernel.map(Into::into),
@@ -137,13 +144,13 @@ impl IrradianceArgs {
 /// Runs the subcommand; progress goes to stderr (hidden when it is not a
 /// terminal), results to `out`.
 pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Result<()> {
-    let options = args.options();
-    options.validate()?;
     let estimator = args.estimator().resolve()?;
     let text = std::fs::read_to_string(&args.points)
         .with_context(|| format!("reading points file {}", args.points.display()))?;
     let points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
     let scene = args.scene.load(&mut std::io::stderr())?;
+    let options = args.options(scene.point_depth());
+    options.validate()?;
     let transport = Transport::new(Arc::new(scene));
 
     let progress = ProgressBar::new(points.len() as u64);
@@ -198,7 +205,7 @@ mod tests {
     fn arguments_map_to_options() {
         let args = parse("--scene s.json --points p.csv --samples 64 --max-depth 3 --seed 9")
             .expect("valid");
-        let o = args.options();
+        let o = args.options(PathDepth::default());
         assert_eq!((o.samples, o.max_depth.get(), o.seed), (64, 3, 9));
         assert_eq!(o.method, IrradianceMethod::Auto);
         assert!(!o.direct_only);
@@ -211,7 +218,10 @@ mod tests {
             direct_only: true,
             ..IrradianceOptions::reference(1)
         };
-        assert_eq!(args.options(), expected);
+        assert_eq!(args.options(PathDepth::default()), expected);
+        // Without --max-depth, the scene's depth.
+        let args = parse("--scene s.json --points p.csv").expect("valid");
+        assert_eq!(args.options(PathDepth::constant(5)).max_depth.get(), 5);
     }
 
     #[test]

@@ -19,6 +19,7 @@ use crate::image::{ToneMap, relative_rmse};
 use crate::integrator::cached::{CachedSpec, CachedTileReport};
 use crate::integrator::{IntegratorSpec, Method};
 use crate::render::{Cancel, ImageSettings, PathDepth, Transport};
+use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance render`.
 #[derive(Clone, Debug, clap::Args)]
@@ -34,9 +35,10 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
     /// Longest light path in segments (1 = emitters seen directly only);
-    /// the same default as the service's.
-    #[arg(long, default_value_t = PathDepth::default(), value_parser = super::max_depth_parser())]
-    pub max_depth: PathDepth,
+    /// default: the scene's (its Mitsuba integrator's `max_depth`), else the
+    /// service's (16).
+    #[arg(long, value_parser = super::max_depth_parser())]
+    pub max_depth: Option<PathDepth>,
     /// Seed of all random streams; same seed, same image.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -60,10 +62,11 @@ pub struct RenderArgs {
 const QUADRATURE_BYTES: u64 = 256 << 20;
 
 impl RenderArgs {
-    pub fn settings(&self) -> ImageSettings {
+    /// The image settings on `scene`.
+    pub fn settings(&self, scene: &Scene) -> ImageSettings {
         ImageSettings {
             samples_per_pixel: self.spp,
-            max_depth: self.max_depth,
+            max_depth: self.max_depth.or(scene.max_depth).unwrap_or_default(),
             seed: self.seed,
         }
     }
@@ -74,8 +77,8 @@ impl RenderArgs {
 pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let scene = args.scene.load(&mut std::io::stderr())?;
     let (width, height) = scene.camera.resolution();
+    let settings = args.settings(&scene);
     let transport = Transport::new(Arc::new(scene));
-    let settings = args.settings();
     // Fail on a bad request before any work (the first tile would too).
     settings
         .tile(0, 0, width, height)
@@ -353,7 +356,11 @@ mod tests {
         let Ok(Sub::Render(args)) = parse(&line) else {
             panic!("render arguments rejected")
         };
-        assert_eq!(args.settings().samples_per_pixel, 3);
+        assert_eq!(
+            args.settings(crate::testing::cornell(1).scene())
+                .samples_per_pixel,
+            3
+        );
         let mut summary = Vec::new();
         let rendered = run_render(&args, &mut summary);
         let image = read_exr(&exr);

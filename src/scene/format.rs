@@ -34,6 +34,11 @@ pub struct SceneDoc {
     /// Camera rays pass through area emitters and see no environment.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub hide_emitters: bool,
+    /// The longest path the scene is meant to be rendered with, in segments
+    /// from the camera (1 = emitters seen directly): the depth of every
+    /// request on the scene that names none. Default: the service's (16).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_depth: Option<u32>,
 }
 
 /// A material: its plugin `type` and that plugin's parameters, which

@@ -20,6 +20,7 @@ use super::material::Material;
 use super::mesh::{self, MeshData};
 use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
 use super::{Camera, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
+use crate::render::PathDepth;
 
 /// Largest accepted scene file (inline triangle lists can be big).
 const MAX_SCENE_BYTES: u64 = 1 << 30;
@@ -174,6 +175,20 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         .map(|e| load_environment(e, files))
         .transpose()?;
     let camera = Camera::from_doc(&doc.camera, "camera")?;
+    let max_depth = doc
+        .max_depth
+        .map(|d| {
+            PathDepth::new(d).map_err(|_| {
+                SceneError::invalid(
+                    "max_depth",
+                    format!(
+                        "must be in 1..={} (1 = emitters seen directly only), got {d}",
+                        PathDepth::MAX
+                    ),
+                )
+            })
+        })
+        .transpose()?;
     let digest = files.digest(&doc)?;
     let read = files.relative_opened();
     let mut scene = builder.finish();
@@ -185,6 +200,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         environment,
         camera,
         hide_emitters: doc.hide_emitters,
+        max_depth,
         digest,
         files: read,
         ..scene
@@ -492,6 +508,7 @@ impl GeometryBuilder {
             environment: None,
             camera: Camera::new(DAffine3::IDENTITY, 45.0, Default::default(), 1, 1),
             hide_emitters: false,
+            max_depth: None,
             shapes: self.shapes,
             triangles: self.triangles,
             vertex_normals: self.vertex_normals,

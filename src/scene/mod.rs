@@ -47,6 +47,7 @@ pub use material::Material;
 pub use mitsuba::{MAX_WARNINGS, MitsubaOptions, Warning, Warnings};
 pub use ray::Ray;
 
+use crate::render::PathDepth;
 use bvh::Bvh;
 use shape::{Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
 
@@ -126,6 +127,9 @@ pub struct Scene {
     /// Camera rays pass through area emitters and see no environment
     /// (Mitsuba 3's `hide_emitters`); light still comes from them.
     pub hide_emitters: bool,
+    /// The depth requests on the scene default to, in segments from the
+    /// camera (Mitsuba's integrator `max_depth`); `None`: the service's.
+    pub max_depth: Option<PathDepth>,
     shapes: Vec<Shape>,
     /// World-space triangles in authoring order (shape by shape).
     triangles: Vec<Triangle>,
@@ -144,6 +148,15 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The depth of a query from surface points that names none, in
+    /// segments from the point: the scene's depth less the camera's segment
+    /// (at least one), else the service's default.
+    pub fn point_depth(&self) -> PathDepth {
+        self.max_depth.map_or(PathDepth::default(), |d| {
+            d.after_first_segment().unwrap_or(PathDepth::DIRECT)
+        })
+    }
+
     /// Loads a scene file: Mitsuba 3 XML if the extension is `.xml` (strict:
     /// unsupported features are errors), JSON otherwise. Referenced files
     /// must lie inside `scenes_root`.

@@ -16,6 +16,7 @@ use super::tile_store::{Key, RenderedPass, TileRecords};
 use crate::image::Image;
 use crate::integrator::{Integrator, IntegratorSpec, Preset};
 use crate::render::{Cancel, PathDepth, TileRequest};
+use crate::scene::Scene;
 
 /// A tile as either route names it, before any check: the rectangle, the
 /// preset and the knobs that override it.
@@ -30,7 +31,7 @@ pub struct TileParams {
     pub samples_per_pixel: Option<u32>,
     /// The last pass averaged; `None`: the last of them.
     pub pass: Option<u32>,
-    /// Longest path in segments; `None`: the preset's.
+    /// Longest path in segments; `None`: the scene's, else the preset's.
     pub max_depth: Option<u32>,
     pub seed: u64,
     /// The integrator's knobs over the preset's.
@@ -38,10 +39,12 @@ pub struct TileParams {
 }
 
 impl TileParams {
-    /// The job, every field checked against the camera's `resolution` and
-    /// the limits (errors name the field), all before any work; the work
-    /// budget is [`TileJob::check_work`].
-    pub fn job(&self, resolution: (u32, u32), limits: &Limits) -> Result<TileJob, ApiError> {
+    /// The job on `scene`, every field checked against its camera's
+    /// resolution and the limits (errors name the field), all before any
+    /// work; the work budget is [`TileJob::check_work`]. The depth is the
+    /// request's, else the scene's (what the scene's author rendered it
+    /// with), else the preset's.
+    pub fn job(&self, scene: &Scene, limits: &Limits) -> Result<TileJob, ApiError> {
         let area = u64::from(self.width) * u64::from(self.height);
         ApiError::check_limit("width*height", area, limits.max_tile_area as u64)?;
         let settings = self.preset.settings();
@@ -75,11 +78,10 @@ impl TileParams {
             pass: 0,
         };
         // The rectangle first, so a request with several bad fields is told of it.
-        rectangle.validate(resolution)?;
+        rectangle.validate(scene.camera.resolution())?;
+        let default_depth = scene.max_depth.unwrap_or(settings.max_depth);
         let request = TileRequest {
-            max_depth: self
-                .max_depth
-                .map_or(Ok(settings.max_depth), PathDepth::new)?,
+            max_depth: self.max_depth.map_or(Ok(default_depth), PathDepth::new)?,
             ..rectangle
         };
         Ok(TileJob {
@@ -258,4 +260,56 @@ pub fn render_progressive(
         cache_hits,
         passes_rendered,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::SceneError;
+    use crate::service::config::Config;
+
+    /// The Cornell box, with `max_depth` in its document when given.
+    fn cornell(max_depth: Option<u32>) -> Result<Scene, SceneError> {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let text = std::fs::read_to_string(dir.join("cornell-box.json")).expect("bundled scene");
+        let mut doc: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+        if let Some(d) = max_depth {
+            doc["max_depth"] = d.into();
+        }
+        Scene::from_json_str(&doc.to_string(), &dir, &dir)
+    }
+
+    #[test]
+    fn the_depth_is_the_requests_else_the_scenes_else_the_presets() {
+        let limits = Config::default_config().limits;
+        let depth = |scene: &Scene, max_depth| {
+            let params = TileParams {
+                x: 0,
+                y: 0,
+                width: 8,
+                height: 8,
+                preset: Preset::Draft,
+                samples_per_pixel: None,
+                pass: None,
+                max_depth,
+                seed: 1,
+                estimator: IntegratorSpec::default(),
+            };
+            params
+                .job(scene, &limits)
+                .expect("valid")
+                .request
+                .max_depth
+                .get()
+        };
+        let (plain, deep) = (cornell(None).unwrap(), cornell(Some(3)).unwrap());
+        assert_eq!(
+            depth(&plain, None),
+            Preset::Draft.settings().max_depth.get()
+        );
+        assert_eq!(depth(&deep, None), 3);
+        assert_eq!(depth(&deep, Some(5)), 5);
+        let refused = cornell(Some(0)).err().expect("depth 0 refused");
+        assert_eq!(refused.field(), Some("max_depth"));
+    }
 }

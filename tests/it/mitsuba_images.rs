@@ -12,7 +12,7 @@ use std::sync::Arc;
 use bmc_irradiance::image::{Image, read_exr, relative_rmse};
 use bmc_irradiance::integrator::PathIntegrator;
 use bmc_irradiance::render::ImageSettings;
-use bmc_irradiance::{MitsubaOptions, PathDepth, Scene, Transport};
+use bmc_irradiance::{MitsubaOptions, Scene, Transport};
 
 /// Side of the square blocks images are compared in.
 const BLOCK: u32 = 8;
@@ -34,14 +34,9 @@ fn blocks(image: &Image) -> Image {
 }
 
 /// Loads `dir/file` strictly with `parameters`, path traces it at 1,024
-/// spp and `max_depth`, and compares it with Mitsuba's `dir/reference`.
-fn assert_agrees_with_mitsuba(
-    dir: &str,
-    file: &str,
-    parameters: &[(&str, &str)],
-    max_depth: u32,
-    reference: &str,
-) {
+/// spp and the depth of its own `<integrator>` (which the test requires it
+/// to have), and compares it with Mitsuba's `dir/reference`.
+fn assert_agrees_with_mitsuba(dir: &str, file: &str, parameters: &[(&str, &str)], reference: &str) {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join(dir);
     let options = MitsubaOptions {
         parameters: parameters
@@ -59,10 +54,11 @@ fn assert_agrees_with_mitsuba(
             .all(|w| w.message.contains("reconstruction filter")),
         "{warnings:?}"
     );
+    let max_depth = scene.max_depth.expect("the scene names its depth");
     let transport = Transport::new(Arc::new(scene));
     let settings = ImageSettings {
         samples_per_pixel: 1024,
-        max_depth: PathDepth::new(max_depth).unwrap(),
+        max_depth,
         seed: 1,
     };
     let ours = PathIntegrator::new(&transport)
@@ -93,7 +89,6 @@ fn cbox_with_glass_and_mirror_agrees_with_mitsuba() {
         "tests/data/mitsuba-tutorials",
         "cbox.xml",
         &[("res", "64")],
-        6,
         "cbox_mitsuba_64.exr",
     );
 }
@@ -109,7 +104,6 @@ fn delta_lights_and_rough_materials_agree_with_mitsuba() {
         "tests/data/mitsuba",
         "lights.xml",
         &[],
-        8,
         "lights_mitsuba.exr",
     );
 }
@@ -126,7 +120,6 @@ fn textures_and_texture_coordinates_agree_with_mitsuba() {
         "tests/data/mitsuba",
         "textures.xml",
         &[],
-        3,
         "textures_mitsuba.exr",
     );
 }
@@ -142,7 +135,6 @@ fn blend_mask_and_other_materials_agree_with_mitsuba() {
         "tests/data/mitsuba",
         "materials.xml",
         &[],
-        8,
         "materials_mitsuba.exr",
     );
 }
@@ -157,7 +149,6 @@ fn hdr_environment_map_agrees_with_mitsuba() {
         "tests/data/mitsuba",
         "envmap.xml",
         &[],
-        6,
         "envmap_mitsuba.exr",
     );
 }
@@ -173,7 +164,6 @@ fn hidden_emitters_agree_with_mitsuba() {
         "tests/data/mitsuba",
         "hide_emitters.xml",
         &[],
-        5,
         "hide_emitters_mitsuba.exr",
     );
 }
@@ -187,7 +177,6 @@ fn thin_lens_depth_of_field_agrees_with_mitsuba() {
         "tests/data/mitsuba",
         "thinlens.xml",
         &[],
-        4,
         "thinlens_mitsuba.exr",
     );
 }

@@ -91,7 +91,8 @@ class _Points(_Chunking):
         count the points they covered. ``target`` (an :class:`ErrorTarget` or a dict with
         ``relative_error``, ``confidence``, ``max_samples``) estimates each
         point until its error bar meets it (``mc`` and ``qmc`` only).
-        ``max_depth`` is the longest path in segments (service default 16);
+        ``max_depth`` is the longest path in segments (default: the scene's
+        depth less the camera's segment, else the service's 16);
         ``seed`` defaults to the service's 1.
 
         Point sets over the service's limits are sent as several requests

@@ -203,7 +203,7 @@ pub(crate) struct Ctx<'a> {
     lights: Vec<serde_json::Map<String, serde_json::Value>>,
     environment: Option<EnvironmentDoc>,
     camera: Option<CameraDoc>,
-    hide_emitters: bool,
+    integrator: integrator::IntegratorSettings,
     /// Document field path → XML element, most specific last.
     origins: Vec<(String, Origin)>,
     /// Elements whose references are being followed (cycle detection).
@@ -228,7 +228,7 @@ impl<'a> Ctx<'a> {
             lights: Vec::new(),
             environment: None,
             camera: None,
-            hide_emitters: false,
+            integrator: Default::default(),
             origins: Vec::new(),
             resolving: Vec::new(),
             mesh_files: HashMap::new(),
@@ -388,7 +388,7 @@ fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, 
         match el.tag.as_str() {
             // Already applied while parsing.
             "default" => {}
-            "integrator" => ctx.hide_emitters = integrator::hide_emitters(ctx, el)?,
+            "integrator" => ctx.integrator = integrator::settings(ctx, el)?,
             "bsdf" => {
                 bsdf::material(ctx, el)?;
             }
@@ -431,7 +431,8 @@ fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, 
         lights: std::mem::take(&mut ctx.lights),
         environment: ctx.environment.take(),
         camera,
-        hide_emitters: ctx.hide_emitters,
+        hide_emitters: ctx.integrator.hide_emitters,
+        max_depth: ctx.integrator.max_depth,
     })
 }
 

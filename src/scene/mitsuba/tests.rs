@@ -1044,3 +1044,36 @@ fn strict_documents_name_every_unsupported_feature() {
         assert!(message.contains(&line), "{other}: {message}");
     }
 }
+
+#[test]
+fn integrator_depth_becomes_the_scenes_default() {
+    let depth = |integrator: &str| ok(integrator).max_depth.map(|d| d.get());
+    assert_eq!(depth(""), None);
+    assert_eq!(
+        depth(r#"<integrator type="path"><integer name="max_depth" value="6"/></integrator>"#),
+        Some(6)
+    );
+    // Unbounded keeps the service's default; `direct` is emission plus direct light.
+    assert_eq!(
+        depth(r#"<integrator type="path"><integer name="max_depth" value="-1"/></integrator>"#),
+        None
+    );
+    assert_eq!(depth(r#"<integrator type="direct"/>"#), Some(2));
+    // A wrapper that only adds outputs takes the depth it nests.
+    assert_eq!(
+        depth(
+            r#"<integrator type="aov"><string name="aovs" value="nn:sh_normal"/>
+                 <integrator type="volpath"><integer name="max_depth" value="9"/></integrator>
+               </integrator>"#
+        ),
+        Some(9)
+    );
+    assert!(
+        err(r#"<integrator type="path"><integer name="max_depth" value="0"/></integrator>"#)
+            .contains("0 renders nothing")
+    );
+    assert!(
+        err(r#"<integrator type="path"><integer name="max_depth" value="5000"/></integrator>"#)
+            .contains("outside")
+    );
+}

@@ -129,9 +129,10 @@ pub struct IrradianceRequest {
     /// 1..=`limits.max_points` points.
     pub points: Vec<PointDoc>,
     pub estimator: EstimatorDoc,
-    /// Longest path in segments (1 = direct light only); default 16.
-    #[serde(default = "default_max_depth")]
-    pub max_depth: u32,
+    /// Longest path in segments from the point (1 = direct light only);
+    /// default the scene's depth less the camera's segment (Mitsuba's
+    /// integrator `max_depth` − 1), else 16.
+    pub max_depth: Option<u32>,
     /// Seed of every random stream; same request and seed, same numbers. Default 1.
     #[serde(default = "default_seed")]
     pub seed: u64,
@@ -158,10 +159,6 @@ pub struct TargetDoc {
 
 fn default_confidence() -> f64 {
     0.95
-}
-
-fn default_max_depth() -> u32 {
-    PathDepth::default().get()
 }
 
 fn default_seed() -> u64 {
@@ -282,7 +279,9 @@ pub async fn irradiance(
     // The sample count was checked with the estimator.
     let options = IrradianceOptions {
         samples: estimator.samples,
-        max_depth: PathDepth::new(request.max_depth)?,
+        max_depth: request
+            .max_depth
+            .map_or(Ok(scene.transport.scene().point_depth()), PathDepth::new)?,
         direct_only: false,
         method: estimator.decomposition,
         seed: request.seed,

@@ -17,7 +17,8 @@ pub struct PresetDoc {
     pub samples_per_pixel: u32,
     /// Passes of the progressive render.
     pub passes: u32,
-    /// Longest path in segments.
+    /// Longest path in segments from the camera, on scenes that set none
+    /// (a scene's own `max_depth` replaces it).
     pub max_depth: u32,
     /// The integrator and every knob the preset sets, as a tile request's
     /// `estimator` names them (posting it back changes nothing).

@@ -48,9 +48,9 @@ pub struct RadianceRequest {
     /// `std_dev`), 1..=`limits.max_samples`; default 16.
     #[serde(default = "default_repeats")]
     pub repeats: u32,
-    /// Longest path in segments, the viewer's segment included; default 16.
-    #[serde(default = "default_max_depth")]
-    pub max_depth: u32,
+    /// Longest path in segments, the viewer's segment included; default the
+    /// scene's (its Mitsuba integrator's `max_depth`), else 16.
+    pub max_depth: Option<u32>,
     /// Seed of every random stream; default 1.
     #[serde(default = "default_seed")]
     pub seed: u64,
@@ -58,10 +58,6 @@ pub struct RadianceRequest {
 
 fn default_repeats() -> u32 {
     16
-}
-
-fn default_max_depth() -> u32 {
-    PathDepth::default().get()
 }
 
 fn default_seed() -> u64 {
@@ -104,7 +100,10 @@ pub async fn radiance(
         u64::from(request.repeats),
         limits.max_samples as u64,
     )?;
-    let max_depth = PathDepth::new(request.max_depth)?;
+    let max_depth = request.max_depth.map_or(
+        Ok(scene.transport.scene().max_depth.unwrap_or_default()),
+        PathDepth::new,
+    )?;
     let queries = request
         .points
         .iter()

@@ -219,7 +219,7 @@ pub async fn get_tile(
         seed: query.seed.unwrap_or(1),
         estimator: IntegratorSpec::default(),
     };
-    let job = params.job((width, height), limits)?;
+    let job = params.job(scene.transport.scene(), limits)?;
     let etag = entity_tag(&[
         env!("CARGO_PKG_VERSION"),
         &scene.transport.scene().digest.to_string(),

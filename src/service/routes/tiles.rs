@@ -52,7 +52,8 @@ pub struct TileRequestDoc {
     /// Camera rays per pixel in each pass, 1..=`limits.max_samples`;
     /// default the preset's.
     pub samples_per_pixel: Option<u32>,
-    /// Longest path in segments; default the preset's.
+    /// Longest path in segments from the camera; default the scene's (its
+    /// Mitsuba integrator's `max_depth`), else the preset's.
     pub max_depth: Option<u32>,
     /// Seed of every random stream; default 1. With `path`, a pixel's value
     /// depends only on the seed and its position (not on the tiling); with
@@ -109,7 +110,7 @@ pub async fn tile(
         seed: doc.seed,
         estimator: doc.estimator,
     };
-    let job = params.job(scene.transport.scene().camera.resolution(), limits)?;
+    let job = params.job(scene.transport.scene(), limits)?;
     job.check_work(limits)?;
     let format = doc.format;
     let shared = state.clone();
