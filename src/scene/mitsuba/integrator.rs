@@ -31,10 +31,10 @@ pub(crate) fn settings<'a>(
     let mut props = Props::new(el);
     let hide_emitters = props.boolean("hide_emitters", false)?;
     let depth = props.int("max_depth", -1, -1..=i64::from(PathDepth::MAX))?;
-    if depth == 0 {
-        if let Some(c) = props.get("max_depth")? {
-            return Err(c.error("value", "0 renders nothing: give 1 or more, or -1"));
-        }
+    if depth == 0
+        && let Some(c) = props.get("max_depth")?
+    {
+        return Err(c.error("value", "0 renders nothing: give 1 or more, or -1"));
     }
     let mut max_depth = match el.attr("type") {
         Some("direct") => Some(2),
