@@ -36,7 +36,7 @@ def test_scenes_and_scene_equal_the_raw_responses(client: Client, server: Server
     status, doc, _ = raw(f"{server.url}/v1/scenes")
     assert status == 200 and listed == doc
     ids = [s["id"] for s in listed]
-    assert {"cornell-box", "cornell-box-xml", "overcast", "sky", "mesh"} <= set(ids)
+    assert {"cornell-box", "cornell-box-xml", "overcast", "sky", "mesh", "studio"} <= set(ids)
     one = client.scene("cornell-box")
     status, doc, _ = raw(f"{server.url}/v1/scenes/cornell-box")
     assert status == 200 and one == doc

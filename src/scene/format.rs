@@ -98,6 +98,11 @@ pub struct ShapeDoc {
     /// bottom, false for triangles; Mitsuba 3's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub flip_tex_coords: Option<bool>,
+    /// obj: where the file gives no vertex normals, shade with each
+    /// triangle's own normal (faceted) instead of smooth vertex normals
+    /// (default false, Mitsuba 3's `face_normals`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub face_normals: Option<bool>,
 }
 
 #[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]

@@ -1,8 +1,10 @@
 //! Procedural assets for the bundled scenes, written by the project's own
 //! code: a sky environment map with a sun-like lobe, a smooth overcast sky
-//! without one, and a displaced sphere mesh.
+//! without one, a dusk sky (Radiance HDR), a floor-tile texture (sRGB PNG)
+//! and a displaced sphere mesh.
 //! `cargo run --example generate_scene_assets` regenerates `scenes/sky.exr`,
-//! `scenes/overcast.exr` and `scenes/meshes/blob.obj`.
+//! `scenes/overcast.exr`, `scenes/dusk.hdr`, `scenes/textures/tiles.png`
+//! and `scenes/meshes/blob.obj`.
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -70,6 +72,80 @@ pub fn overcast_radiance(d: DVec3) -> [f64; 3] {
         let sky = 1.4 * gradation * cloud[c] + glow * glow_colour[c];
         sky * (1.0 - g) + ground[c] * g
     })
+}
+
+/// Radiance of the procedural dusk sky along map direction `d` (unit),
+/// W/(m²·sr): deep blue at the zenith, a warm horizon brightest where the
+/// sun has just set (a glow about 40° wide, the sun itself below the
+/// horizon), and a dark ground below a horizon blurred over about 5°. Dim
+/// enough (irradiance ≈ 1 W/m² on the ground) that the studio scene's
+/// point and spot lights dominate where they shine.
+pub fn dusk_radiance(d: DVec3) -> [f64; 3] {
+    let zenith = [0.05, 0.09, 0.25];
+    let horizon = [0.55, 0.38, 0.3];
+    let glow_colour = [1.4, 0.6, 0.22];
+    let ground = [0.04, 0.035, 0.03];
+    let up = d.y.max(0.0);
+    let w = (1.0 - up).powi(3);
+    let set = DVec3::new(0.8, -0.05, -0.6).normalize();
+    let glow = (3.0 * (d.dot(set) - 1.0)).exp() * (1.0 - up).powi(2);
+    let t = (-d.y / 5f64.to_radians().sin()).clamp(0.0, 1.0);
+    let g = t * t * (3.0 - 2.0 * t);
+    std::array::from_fn(|c| {
+        let sky = zenith[c] * (1.0 - w) + horizon[c] * w + glow * glow_colour[c];
+        sky * (1.0 - g) + ground[c] * g
+    })
+}
+
+/// Side of the bundled floor-tile texture in texels.
+pub const TILES_SIZE: u32 = 512;
+
+/// Linear reflectance of the floor-tile texture at texel `(x, y)` of a
+/// `size`² image: 8 × 8 square tiles alternating terracotta and cream, each
+/// tile's colour varied by a few per cent, with grey grout lines between
+/// them.
+pub fn tiles_reflectance(x: u32, y: u32, size: u32) -> [f64; 3] {
+    let tile = size / 8;
+    let (i, j) = (x / tile, y / tile);
+    let (u, v) = (x % tile, y % tile);
+    let grout = tile / 24 + 1;
+    if u < grout || v < grout {
+        return [0.42, 0.41, 0.39];
+    }
+    let base = if (i + j) % 2 == 0 {
+        [0.62, 0.3, 0.18]
+    } else {
+        [0.82, 0.75, 0.6]
+    };
+    // A tile's own shade from a hash of its index: within ±6 %.
+    let hash = (i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663)) % 1000;
+    let shade = 0.94 + 0.12 * f64::from(hash) / 1000.0;
+    base.map(|b| b * shade)
+}
+
+/// The floor-tile texture as 8-bit sRGB texels, `TILES_SIZE`² RGB.
+fn tiles_texture() -> image::RgbImage {
+    let encode = |linear: f64| {
+        // The sRGB transfer function (IEC 61966-2-1).
+        let s = if linear <= 0.003_130_8 {
+            12.92 * linear
+        } else {
+            1.055 * linear.powf(1.0 / 2.4) - 0.055
+        };
+        (s * 255.0).round().clamp(0.0, 255.0) as u8
+    };
+    image::RgbImage::from_fn(TILES_SIZE, TILES_SIZE, |x, y| {
+        image::Rgb(tiles_reflectance(x, y, TILES_SIZE).map(encode))
+    })
+}
+
+/// Writes `texels` (`width` × `height`, rows from the top) as a Radiance
+/// HDR (RGBE) file.
+fn write_hdr(path: &Path, width: usize, height: usize, texels: &[[f32; 3]]) -> anyhow::Result<()> {
+    let rgb: Vec<image::Rgb<f32>> = texels.iter().map(|&t| image::Rgb(t)).collect();
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    image::codecs::hdr::HdrEncoder::new(file).encode(&rgb, width, height)?;
+    Ok(())
 }
 
 /// Texels of a map of `radiance`, each the average of 4×4 directions inside
@@ -150,10 +226,13 @@ pub fn displaced_sphere(segments: usize, rings: usize) -> MeshData {
     }
 }
 
-/// Writes `sky.exr`, `overcast.exr` and `meshes/blob.obj` under `dir`
-/// (normally `scenes/`).
+/// Writes `sky.exr`, `overcast.exr`, `dusk.hdr`, `textures/tiles.png` and
+/// `meshes/blob.obj` under `dir` (normally `scenes/`).
 pub fn write_bundled_assets(dir: &Path) -> anyhow::Result<()> {
     let (w, h) = SKY_SIZE;
+    write_hdr(&dir.join("dusk.hdr"), 2 * w, 2 * h, &map_texels(2 * w, 2 * h, dusk_radiance))?;
+    std::fs::create_dir_all(dir.join("textures"))?;
+    tiles_texture().save(dir.join("textures/tiles.png"))?;
     write_exr_half(&dir.join("sky.exr"), w, h, &map_texels(w, h, sky_radiance))?;
     write_exr_half(
         &dir.join("overcast.exr"),

@@ -304,7 +304,10 @@ impl GeometryBuilder {
             ("normals", s.normals.is_some()),
             ("uvs", s.uvs.is_some()),
         ];
-        let file_field = [("filename", s.filename.is_some())];
+        let file_field = [
+            ("filename", s.filename.is_some()),
+            ("face_normals", s.face_normals.is_some()),
+        ];
         let mesh_field = [("flip_tex_coords", s.flip_tex_coords.is_some())];
         let (reject_sphere, reject_inline, reject_file) = match s.kind {
             ShapeKind::Sphere => (false, true, true),
@@ -344,7 +347,12 @@ impl GeometryBuilder {
                     Some(data) => data,
                     None => Arc::new(mesh::load_obj(&path, &name_field, remaining)?),
                 };
-                self.add_mesh(&data, &placement, field)?
+                if data.normals.is_none() && s.face_normals != Some(true) {
+                    let smooth = MeshData::clone(&data).with_smooth_normals();
+                    self.add_mesh(&smooth, &placement, field)?
+                } else {
+                    self.add_mesh(&data, &placement, field)?
+                }
             }
             ShapeKind::Triangles => {
                 let data = inline_mesh(s, field, remaining)?;

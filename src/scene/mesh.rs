@@ -27,6 +27,43 @@ pub struct MeshData {
     pub uvs: Option<Vec<DVec2>>,
 }
 
+impl MeshData {
+    /// Gives a mesh without shading normals smooth ones, as Mitsuba 3 does
+    /// for OBJ and PLY files unless `face_normals` is set: at each vertex,
+    /// the unit normals of the triangles around it weighted by their angle
+    /// there (Thürmer & Wüthrich 1998, "Computing vertex normals from
+    /// polygonal facets"), so a vertex's normal does not depend on how the
+    /// faces around it are split into triangles. Vertices that only
+    /// degenerate triangles touch, which no ray hits, get `+z`. Files whose
+    /// vertices are split at seams (an OBJ's distinct `v/vt` pairs) keep
+    /// those seams, as in Mitsuba.
+    pub fn with_smooth_normals(mut self) -> MeshData {
+        if self.normals.is_some() {
+            return self;
+        }
+        let mut sums = vec![DVec3::ZERO; self.positions.len()];
+        for t in &self.indices {
+            let p = t.map(|i| self.positions[i as usize]);
+            let Some(n) = (p[1] - p[0]).cross(p[2] - p[0]).try_normalize() else {
+                continue;
+            };
+            for k in 0..3 {
+                let (a, b) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
+                let angle = a.angle_between(b);
+                if angle.is_finite() {
+                    sums[t[k] as usize] += n * angle;
+                }
+            }
+        }
+        self.normals = Some(
+            sums.into_iter()
+                .map(|s| s.try_normalize().unwrap_or(DVec3::Z))
+                .collect(),
+        );
+        self
+    }
+}
+
 /// `[-1, 1]²` in the xy plane, normal +z (Mitsuba's `rectangle`).
 pub fn rectangle() -> MeshData {
     MeshData {
@@ -233,6 +270,53 @@ pub fn write_obj(path: &Path, mesh: &MeshData, digits: usize) -> std::io::Result
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn smooth_normals_weigh_faces_by_their_angle() {
+        // A cube of 8 shared corners, its faces split into triangles along
+        // different diagonals: each corner's normal is the diagonal however
+        // many triangles of each face touch it.
+        let positions = (0..8)
+            .map(|i| DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
+            .map(|p| 2.0 * p - DVec3::ONE)
+            .collect();
+        let quads = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let indices = quads
+            .iter()
+            .enumerate()
+            .flat_map(|(f, &[a, b, c, d])| {
+                if f % 2 == 0 {
+                    [[a, b, c], [a, c, d]]
+                } else {
+                    [[a, b, d], [b, c, d]]
+                }
+            })
+            .collect();
+        let mesh = MeshData {
+            positions,
+            indices,
+            ..MeshData::default()
+        }
+        .with_smooth_normals();
+        for (p, n) in mesh.positions.iter().zip(mesh.normals.as_ref().unwrap()) {
+            assert!(n.distance(p.normalize()) < 1e-12, "{p} {n}");
+        }
+        // A flat mesh keeps its face normal; given normals are kept.
+        let flat = rectangle().with_smooth_normals();
+        assert!(flat.normals.unwrap().iter().all(|n| *n == DVec3::Z));
+        let given = MeshData {
+            normals: Some(vec![DVec3::X; 4]),
+            ..rectangle()
+        };
+        assert_eq!(given.with_smooth_normals().normals, Some(vec![DVec3::X; 4]));
+    }
 
     fn face_normals(mesh: &MeshData) -> Vec<(DVec3, DVec3)> {
         mesh.indices

@@ -13,7 +13,14 @@ use serde_json::{Value, json};
 use tempfile::TempDir;
 
 /// Ids of the scenes bundled in `scenes/`, loaded from a copy at startup.
-const BUNDLED: [&str; 5] = ["cornell-box", "cornell-box-xml", "mesh", "overcast", "sky"];
+const BUNDLED: [&str; 6] = [
+    "cornell-box",
+    "cornell-box-xml",
+    "mesh",
+    "overcast",
+    "sky",
+    "studio",
+];
 
 /// A generous bound for "answers promptly": the attacks took minutes or
 /// never returned.

@@ -1,7 +1,8 @@
 //! Mitsuba shapes → document shapes. `rectangle`, `cube`, `sphere`, `disk`
 //! and `obj` map one to one (same local geometry); `ply` meshes (ASCII and
-//! binary, via `ply-rs-bw`) and `obj` with `face_normals` become inline
-//! triangle lists; an `instance` of a `shapegroup` adds the group's shapes
+//! binary, via `ply-rs-bw`) become inline triangle lists, with smooth
+//! vertex normals where the file has none unless `face_normals` is set
+//! (Mitsuba's default; `MeshData::with_smooth_normals`); an `instance` of a `shapegroup` adds the group's shapes
 //! with the instance's `to_world` applied after their own.
 
 use std::io::BufReader;
@@ -12,7 +13,7 @@ use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, Property};
 
 use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind};
-use crate::scene::mesh::{self, MeshData};
+use crate::scene::mesh::MeshData;
 use crate::scene::{MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, SceneError, TRIANGLE_BYTES};
 
 use super::parse::{Element, quote};
@@ -29,6 +30,7 @@ pub(crate) fn shape_doc(kind: ShapeKind, material: String) -> ShapeDoc {
     ShapeDoc {
         uvs: None,
         flip_tex_coords: None,
+        face_normals: None,
         kind,
         id: None,
         material,
@@ -94,21 +96,11 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             doc.radius = props.opt_float("radius")?;
         }
         Some("obj") => {
-            let name = filename(&mut props)?;
-            let face_normals = props.boolean("face_normals", false)?;
+            // Resolved by the shared loader, exactly as a JSON `obj`.
+            doc.kind = ShapeKind::Obj;
+            doc.filename = Some(filename(&mut props)?.to_string());
+            doc.face_normals = Some(props.boolean("face_normals", false)?);
             doc.flip_tex_coords = Some(props.boolean("flip_tex_coords", true)?);
-            if face_normals {
-                let path = ctx.resolve(el, "filename", name)?;
-                let data = mesh_file(ctx, &path, MeshFormat::Obj, |budget| {
-                    mesh::load_obj(&path, "filename", budget)
-                })
-                .map_err(|e| source_error(el, e))?;
-                set_triangles(&mut doc, &data, false);
-            } else {
-                // Resolved by the shared loader, exactly as a JSON `obj`.
-                doc.kind = ShapeKind::Obj;
-                doc.filename = Some(name.to_string());
-            }
         }
         Some("ply") => {
             let name = filename(&mut props)?;
@@ -119,7 +111,11 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
                 read_ply(&path, budget).map_err(|m| SceneError::file("filename", &path, m))
             })
             .map_err(|e| source_error(el, e))?;
-            set_triangles(&mut doc, &data, !face_normals);
+            if face_normals || data.normals.is_some() {
+                set_triangles(&mut doc, &data, !face_normals);
+            } else {
+                set_triangles(&mut doc, &MeshData::clone(&data).with_smooth_normals(), true);
+            }
         }
         _ => {}
     }
@@ -157,10 +153,9 @@ fn triangle_budget(ctx: &Ctx) -> usize {
     MAX_TRIANGLES.min(by_memory).saturating_sub(used)
 }
 
-/// How a mesh file is read (one file could be named as both).
+/// How a mesh file is read (one file could be named as several).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(crate) enum MeshFormat {
-    Obj,
     Ply,
 }
 
