@@ -5,7 +5,9 @@ a few plugins: `lights.xml` (point, spot and directional lights; rough gold,
 rough plastic, a two-sided disk), `textures.xml` (bitmaps and checkerboards
 on every shape kind), `materials.xml` (blendbsdf, mask, thindielectric,
 roughdielectric, plastic), `envmap.xml` (a rotated, scaled HDR map),
-`hide_emitters.xml` and `thinlens.xml`.
+`hide_emitters.xml` and `thinlens.xml`; and `studio`, the bundled
+`scenes/studio.xml` (every kind of material and light at once), at 80x60 to
+`tests/data/mitsuba/studio_mitsuba.exr`.
 
 Every reference is rendered with a box filter (what our film computes; a
 file asking for another filter is rendered with a box here), at the file's
@@ -20,7 +22,7 @@ the images the scenes read:
 Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
 
     python docs/validation/mitsuba_scene_images.py --assets --spp 16384 \
-        lights textures materials envmap hide_emitters thinlens
+        lights textures materials envmap hide_emitters thinlens studio
 """
 
 import argparse
@@ -65,11 +67,17 @@ def write_assets():
     mi.Bitmap(sky()).write(f"{DIR}/sky.hdr")
 
 
+# Scenes kept elsewhere than DIR: their folder and the parameters (Mitsuba's
+# -D) they are rendered with.
+ELSEWHERE = {"studio": ("scenes", {"resx": "80", "resy": "60"})}
+
+
 def render(name, spp):
-    text = open(f"{DIR}/{name}.xml").read()
+    folder, parameters = ELSEWHERE.get(name, (DIR, {}))
+    text = open(f"{folder}/{name}.xml").read()
     text = re.sub(r'<rfilter type="[a-z]+"\s*/>', '<rfilter type="box"/>', text)
-    mi.file_resolver().prepend(DIR)
-    scene = mi.load_string(text.replace("$spp", str(spp)))
+    mi.file_resolver().prepend(folder)
+    scene = mi.load_string(text.replace("$spp", str(spp)), **parameters)
     started = time.time()
     image = np.array(mi.render(scene, seed=0))
     print(f"{name}: mitsuba {mi.__version__}, {spp} spp in {time.time() - started:.1f} s; mean {image.mean():.5f}")
@@ -80,7 +88,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--spp", type=int, default=16384)
     ap.add_argument("--assets", action="store_true", help="write the images the scenes read first")
-    ap.add_argument("scenes", nargs="*", help="scene names in tests/data/mitsuba (without .xml)")
+    ap.add_argument("scenes", nargs="*", help="scene names in tests/data/mitsuba (without .xml), or studio")
     args = ap.parse_args()
     if args.assets:
         write_assets()

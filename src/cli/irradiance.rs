@@ -91,7 +91,7 @@ pub struct IrradianceArgs {
 
 impl IrradianceArgs {
     /// The library options these arguments ask for, on a scene whose
-    /// default depth from points is `scene_depth` ([`crate::scene::Scene::point_depth`]).
+    /// default depth from points is `scene_depth` ([`PathDepth::for_points`]).
     pub fn options(&self, scene_depth: PathDepth) -> IrradianceOptions {
         let method = self.decomposition;
         let base = if self.reference {
@@ -144,13 +144,14 @@ impl IrradianceArgs {
 /// Runs the subcommand; progress goes to stderr (hidden when it is not a
 /// terminal), results to `out`.
 pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    // Everything but the scene's default depth is checked before it loads.
+    args.options(PathDepth::DIRECT).validate()?;
     let estimator = args.estimator().resolve()?;
     let text = std::fs::read_to_string(&args.points)
         .with_context(|| format!("reading points file {}", args.points.display()))?;
     let points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
     let scene = args.scene.load(&mut std::io::stderr())?;
-    let options = args.options(scene.point_depth());
-    options.validate()?;
+    let options = args.options(PathDepth::for_points(&scene));
     let transport = Transport::new(Arc::new(scene));
 
     let progress = ProgressBar::new(points.len() as u64);

@@ -66,7 +66,9 @@ impl RenderArgs {
     pub fn settings(&self, scene: &Scene) -> ImageSettings {
         ImageSettings {
             samples_per_pixel: self.spp,
-            max_depth: self.max_depth.or(scene.max_depth).unwrap_or_default(),
+            max_depth: self
+                .max_depth
+                .unwrap_or_else(|| PathDepth::for_camera(scene, PathDepth::default())),
             seed: self.seed,
         }
     }

@@ -26,7 +26,7 @@ use super::seed::mix;
 use super::strata::{GridStrata, SharedStrata};
 pub use super::trace_stats::TraceStats;
 use super::transport::Transport;
-use crate::scene::{Ray, SurfaceHit};
+use crate::scene::{Ray, Scene, SurfaceHit};
 use crate::sphere::Frame;
 
 /// Russian roulette starts once a path has this many segments: the first
@@ -75,10 +75,8 @@ pub struct PathLimits {
 pub struct PathDepth(u32);
 
 impl PathDepth {
-    /// Largest accepted depth. Russian roulette cannot end paths in a
-    /// closed scene of albedo 1, so the depth bound is what keeps a request
-    /// finite.
-    pub const MAX: u32 = 1024;
+    /// Largest accepted depth (a scene's bound too).
+    pub const MAX: u32 = crate::scene::MAX_PATH_DEPTH;
     /// Light arriving along the first segment only (direct light for irradiance).
     pub const DIRECT: PathDepth = PathDepth(1);
     /// The depth of every request and command that names none: paths of
@@ -111,6 +109,24 @@ impl PathDepth {
 
     const fn in_range(segments: u32) -> bool {
         segments >= 1 && segments <= Self::MAX
+    }
+
+    /// The depth of a request from the camera (or a viewer) on `scene`
+    /// that names none: the scene's (its Mitsuba integrator's `max_depth`),
+    /// else `fallback`.
+    pub fn for_camera(scene: &Scene, fallback: PathDepth) -> PathDepth {
+        scene.max_depth.map_or(fallback, PathDepth)
+    }
+
+    /// The depth of a query from surface points on `scene` that names none,
+    /// in segments from the point: the scene's depth less the camera's
+    /// segment (at least one), else the default.
+    pub fn for_points(scene: &Scene) -> PathDepth {
+        scene.max_depth.map_or(PathDepth::DEFAULT, |d| {
+            PathDepth(d)
+                .after_first_segment()
+                .unwrap_or(PathDepth::DIRECT)
+        })
     }
 
     /// The number of segments.

@@ -230,7 +230,12 @@ pub fn displaced_sphere(segments: usize, rings: usize) -> MeshData {
 /// `meshes/blob.obj` under `dir` (normally `scenes/`).
 pub fn write_bundled_assets(dir: &Path) -> anyhow::Result<()> {
     let (w, h) = SKY_SIZE;
-    write_hdr(&dir.join("dusk.hdr"), 2 * w, 2 * h, &map_texels(2 * w, 2 * h, dusk_radiance))?;
+    write_hdr(
+        &dir.join("dusk.hdr"),
+        2 * w,
+        2 * h,
+        &map_texels(2 * w, 2 * h, dusk_radiance),
+    )?;
     std::fs::create_dir_all(dir.join("textures"))?;
     tiles_texture().save(dir.join("textures/tiles.png"))?;
     write_exr_half(&dir.join("sky.exr"), w, h, &map_texels(w, h, sky_radiance))?;

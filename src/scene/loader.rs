@@ -19,8 +19,9 @@ use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKi
 use super::material::Material;
 use super::mesh::{self, MeshData};
 use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
-use super::{Camera, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
-use crate::render::PathDepth;
+use super::{
+    Camera, MAX_PATH_DEPTH, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform,
+};
 
 /// Largest accepted scene file (inline triangle lists can be big).
 const MAX_SCENE_BYTES: u64 = 1 << 30;
@@ -175,20 +176,12 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         .map(|e| load_environment(e, files))
         .transpose()?;
     let camera = Camera::from_doc(&doc.camera, "camera")?;
-    let max_depth = doc
-        .max_depth
-        .map(|d| {
-            PathDepth::new(d).map_err(|_| {
-                SceneError::invalid(
-                    "max_depth",
-                    format!(
-                        "must be in 1..={} (1 = emitters seen directly only), got {d}",
-                        PathDepth::MAX
-                    ),
-                )
-            })
-        })
-        .transpose()?;
+    if let Some(d) = doc.max_depth.filter(|d| !(1..=MAX_PATH_DEPTH).contains(d)) {
+        return Err(SceneError::invalid(
+            "max_depth",
+            format!("must be in 1..={MAX_PATH_DEPTH} (1 = emitters seen directly only), got {d}"),
+        ));
+    }
     let digest = files.digest(&doc)?;
     let read = files.relative_opened();
     let mut scene = builder.finish();
@@ -200,7 +193,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         environment,
         camera,
         hide_emitters: doc.hide_emitters,
-        max_depth,
+        max_depth: doc.max_depth,
         digest,
         files: read,
         ..scene

@@ -47,9 +47,13 @@ pub use material::Material;
 pub use mitsuba::{MAX_WARNINGS, MitsubaOptions, Warning, Warnings};
 pub use ray::Ray;
 
-use crate::render::PathDepth;
 use bvh::Bvh;
 use shape::{Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
+
+/// Longest path a scene may ask to be rendered with, in segments: Russian
+/// roulette cannot end paths in a closed scene of albedo 1, so the depth
+/// bound is what keeps a request finite.
+pub const MAX_PATH_DEPTH: u32 = 1024;
 
 /// Largest number of triangles a scene may hold (also bounded by
 /// [`MAX_SCENE_MEMORY_BYTES`]; see [`TRIANGLE_BYTES`]).
@@ -128,8 +132,9 @@ pub struct Scene {
     /// (Mitsuba 3's `hide_emitters`); light still comes from them.
     pub hide_emitters: bool,
     /// The depth requests on the scene default to, in segments from the
-    /// camera (Mitsuba's integrator `max_depth`); `None`: the service's.
-    pub max_depth: Option<PathDepth>,
+    /// camera (Mitsuba's integrator `max_depth`), in
+    /// `1..=`[`MAX_PATH_DEPTH`]; `None`: the service's.
+    pub max_depth: Option<u32>,
     shapes: Vec<Shape>,
     /// World-space triangles in authoring order (shape by shape).
     triangles: Vec<Triangle>,
@@ -148,15 +153,6 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// The depth of a query from surface points that names none, in
-    /// segments from the point: the scene's depth less the camera's segment
-    /// (at least one), else the service's default.
-    pub fn point_depth(&self) -> PathDepth {
-        self.max_depth.map_or(PathDepth::default(), |d| {
-            d.after_first_segment().unwrap_or(PathDepth::DIRECT)
-        })
-    }
-
     /// Loads a scene file: Mitsuba 3 XML if the extension is `.xml` (strict:
     /// unsupported features are errors), JSON otherwise. Referenced files
     /// must lie inside `scenes_root`.

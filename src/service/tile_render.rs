@@ -79,7 +79,7 @@ impl TileParams {
         };
         // The rectangle first, so a request with several bad fields is told of it.
         rectangle.validate(scene.camera.resolution())?;
-        let default_depth = scene.max_depth.unwrap_or(settings.max_depth);
+        let default_depth = PathDepth::for_camera(scene, settings.max_depth);
         let request = TileRequest {
             max_depth: self.max_depth.map_or(Ok(default_depth), PathDepth::new)?,
             ..rectangle

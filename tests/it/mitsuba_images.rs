@@ -12,7 +12,7 @@ use std::sync::Arc;
 use bmc_irradiance::image::{Image, read_exr, relative_rmse};
 use bmc_irradiance::integrator::PathIntegrator;
 use bmc_irradiance::render::ImageSettings;
-use bmc_irradiance::{MitsubaOptions, Scene, Transport};
+use bmc_irradiance::{MitsubaOptions, PathDepth, Scene, Transport};
 
 /// Side of the square blocks images are compared in.
 const BLOCK: u32 = 8;
@@ -54,7 +54,7 @@ fn assert_agrees_with_mitsuba(dir: &str, file: &str, parameters: &[(&str, &str)]
             .all(|w| w.message.contains("reconstruction filter")),
         "{warnings:?}"
     );
-    let max_depth = scene.max_depth.expect("the scene names its depth");
+    let max_depth = PathDepth::new(scene.max_depth.expect("the scene names its depth")).unwrap();
     let transport = Transport::new(Arc::new(scene));
     let settings = ImageSettings {
         samples_per_pixel: 1024,
@@ -178,5 +178,19 @@ fn thin_lens_depth_of_field_agrees_with_mitsuba() {
         "thinlens.xml",
         &[],
         "thinlens_mitsuba.exr",
+    );
+}
+
+/// The bundled studio scene (`scenes/studio.xml`: glass, GGX gold on a
+/// mesh given smooth normals, a textured rough-plastic floor, plastic, a
+/// two-sided panel, point and spot lights, an HDR sky) at 80×60 (reference
+/// by `docs/validation/mitsuba_scene_images.py studio`).
+#[test]
+fn the_bundled_studio_scene_agrees_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "scenes",
+        "studio.xml",
+        &[("resx", "80"), ("resy", "60")],
+        "../tests/data/mitsuba/studio_mitsuba.exr",
     );
 }

@@ -233,10 +233,11 @@ async fn xml_that_expands_or_repeats_is_refused_or_read_promptly() {
 
 #[tokio::test]
 async fn meshes_are_shared_and_scenes_are_budgeted() {
-    // Room for the bundled scenes (101 772 triangles in `mesh`, a few dozen
-    // elsewhere) and two more copies of the blob, not three.
+    // Room for the bundled scenes (the blob's 101 760 triangles in `mesh`
+    // and in `studio`, a few dozen elsewhere) and two more copies of the
+    // blob, not three.
     let app = start(bundled_dir(), |config| {
-        config.scenes.max_triangles = 320_000;
+        config.scenes.max_triangles = 420_000;
         config.scenes.max_scenes = BUNDLED.len() + 2;
     })
     .await;

@@ -13,7 +13,6 @@
 use super::parse::Element;
 use super::props::Props;
 use super::{Ctx, XmlError};
-use crate::render::PathDepth;
 
 /// What an `<integrator>` says about the picture.
 #[derive(Debug, Default, Clone, Copy, PartialEq)]
@@ -30,7 +29,11 @@ pub(crate) fn settings<'a>(
 ) -> Result<IntegratorSettings, XmlError> {
     let mut props = Props::new(el);
     let hide_emitters = props.boolean("hide_emitters", false)?;
-    let depth = props.int("max_depth", -1, -1..=i64::from(PathDepth::MAX))?;
+    let depth = props.int(
+        "max_depth",
+        -1,
+        -1..=i64::from(crate::scene::MAX_PATH_DEPTH),
+    )?;
     if depth == 0
         && let Some(c) = props.get("max_depth")?
     {

@@ -114,7 +114,11 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             if face_normals || data.normals.is_some() {
                 set_triangles(&mut doc, &data, !face_normals);
             } else {
-                set_triangles(&mut doc, &MeshData::clone(&data).with_smooth_normals(), true);
+                set_triangles(
+                    &mut doc,
+                    &MeshData::clone(&data).with_smooth_normals(),
+                    true,
+                );
             }
         }
         _ => {}

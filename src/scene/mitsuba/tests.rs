@@ -1042,7 +1042,7 @@ fn strict_documents_name_every_unsupported_feature() {
 
 #[test]
 fn integrator_depth_becomes_the_scenes_default() {
-    let depth = |integrator: &str| ok(integrator).max_depth.map(|d| d.get());
+    let depth = |integrator: &str| ok(integrator).max_depth;
     assert_eq!(depth(""), None);
     assert_eq!(
         depth(r#"<integrator type="path"><integer name="max_depth" value="6"/></integrator>"#),

@@ -279,9 +279,10 @@ pub async fn irradiance(
     // The sample count was checked with the estimator.
     let options = IrradianceOptions {
         samples: estimator.samples,
-        max_depth: request
-            .max_depth
-            .map_or(Ok(scene.transport.scene().point_depth()), PathDepth::new)?,
+        max_depth: request.max_depth.map_or_else(
+            || Ok(PathDepth::for_points(scene.transport.scene())),
+            PathDepth::new,
+        )?,
         direct_only: false,
         method: estimator.decomposition,
         seed: request.seed,

@@ -101,7 +101,10 @@ pub async fn radiance(
         limits.max_samples as u64,
     )?;
     let max_depth = request.max_depth.map_or(
-        Ok(scene.transport.scene().max_depth.unwrap_or_default()),
+        Ok(PathDepth::for_camera(
+            scene.transport.scene(),
+            PathDepth::default(),
+        )),
         PathDepth::new,
     )?;
     let queries = request
