@@ -53,7 +53,7 @@ pub use irradiance::{
 pub use mean::{Evaluation, MeanEstimate};
 pub use path::{
     AveragedPaths, FirstSegment, PathDepth, PathLengths, PathLimits, RadianceSample,
-    SharedFirstVertex, TraceStats,
+    SharedFirstVertex, TraceStats, power_heuristic,
 };
 pub use query::QueryPoint;
 pub use rgb::Rgb;

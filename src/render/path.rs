@@ -313,6 +313,19 @@ impl Transport {
         }
     }
 
+    /// The solid-angle density with which a light sample from `origin`
+    /// (where `traced` started) would have chosen the emission `traced`
+    /// found directly (its `direct`): the environment's where it escaped, the
+    /// area emitter's where it hit one; the weight of that emission against
+    /// light samples in multiple importance sampling.
+    pub fn light_pdf_of(&self, origin: DVec3, traced: &FirstSegment, dir: DVec3) -> f64 {
+        let scene = self.scene();
+        match &traced.hit {
+            None => self.lights().pdf_environment(scene, dir),
+            Some((hit, _)) => self.lights().pdf_area_hit(scene, origin, hit),
+        }
+    }
+
     /// The second step of [`Self::incident_radiance_averaged`]: the mean of
     /// `paths` continuations from the hit of `traced`.
     pub fn continue_averaged<R: Rng + ?Sized>(

@@ -49,7 +49,7 @@ use super::config::{
     AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, PlacementOptions,
     indirect_paths,
 };
-use super::direct_light::{Surface, direct_radiance};
+use super::direct_light::{Surface, direct_radiance, mis_weights};
 use super::glossy::lobe_sampled;
 use super::record_estimate::{GatheredRecord, PlacementPoint, finish_records, lookup};
 use super::shade_point::{Bounce, OnMiss, ShadePoint};
@@ -378,12 +378,18 @@ impl CachedIntegrator<'_> {
         let mut trace = TraceStats::default();
         let flags = bsdf.flags();
         let mut radiance = Rgb::BLACK;
+        // A glossy lobe other than Phong's reflects lights by light samples
+        // and by the BSDF sample of `lambertian_and_rest`, weighted against
+        // each other: light samples alone miss the highlight of a large
+        // bright light (the sky) in a narrow lobe, and sparkle.
+        let mis = flags.glossy && bsdf.phong().is_none();
         if flags.diffuse || flags.glossy {
             radiance += direct_radiance(
                 self.transport,
                 &surface,
                 r.light_samples,
                 r.sample,
+                mis,
                 rng,
                 &mut trace,
             );
@@ -404,7 +410,7 @@ impl CachedIntegrator<'_> {
             }
             Some(_) => {}
             None => {
-                let rest = self.lambertian_and_rest(&surface, r, rng, &mut trace, stats)?;
+                let rest = self.lambertian_and_rest(&surface, r, mis, rng, &mut trace, stats)?;
                 radiance += rest.value;
                 variance += rest.variance;
             }
@@ -421,13 +427,16 @@ impl CachedIntegrator<'_> {
     /// indirect irradiance `E/π` (on the side `ω_o` sees), plus the rest
     /// `f − ρ/π` by one BSDF sample: all the light arriving through a Dirac
     /// delta (which no light sample reaches), only its indirect part
-    /// otherwise (light samples took the direct). A camera path
-    /// ([`Self::through_delta`]) follows deltas through the cache; every
-    /// other sample's incident radiance is path traced.
+    /// otherwise (light samples took the direct), except with `mis`, where
+    /// the sample also brings the direct emission it finds through the
+    /// whole BSDF, weighted against the light samples ([`direct_radiance`]).
+    /// A camera path ([`Self::through_delta`]) follows deltas through the
+    /// cache; every other sample's incident radiance is path traced.
     fn lambertian_and_rest<R: Rng + ?Sized>(
         &self,
         s: &Surface,
         r: &Reflection,
+        mis: bool,
         rng: &mut R,
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
@@ -444,19 +453,43 @@ impl CachedIntegrator<'_> {
         let Some(sample) = s.bsdf.sample(s.wo_local, rng.random(), u) else {
             return Ok(Evaluation::of(radiance));
         };
-        if !sample.delta && !r.indirect {
+        let mis = mis && !sample.delta;
+        if !sample.delta && !r.indirect && !mis {
             return Ok(Evaluation::of(radiance));
         }
+        let cos_over_pdf = sample.wi.z.abs() / sample.pdf;
         let mut f = sample.value;
         if !sample.delta && sample.wi.z * s.wo_local.z > 0.0 {
             f = f - rho * (1.0 / PI);
         }
-        let throughput = f * (sample.wi.z.abs() / sample.pdf);
-        if throughput.is_black() {
+        let throughput = f * cos_over_pdf;
+        if throughput.is_black() && !mis {
             return Ok(Evaluation::of(radiance));
         }
         let scene = self.transport.scene();
         let ray = scene.spawn_ray(s.hit.position, s.hit.normal, s.frame.to_world(sample.wi));
+        if mis {
+            // Direct emission through the whole BSDF, at the weight the
+            // light samples left it; then, if asked, the indirect light
+            // through the rest `f − ρ/π` along the same first segment.
+            let limits = PathLimits {
+                max_depth: r.placement.paths.max_depth,
+                lengths: PathLengths::All,
+            };
+            let traced = self.transport.trace_first_segment(ray, limits, trace);
+            let light_pdf = self
+                .transport
+                .light_pdf_of(s.hit.position, &traced, ray.dir);
+            let weight = mis_weights(r.light_samples, light_pdf, sample.pdf).1;
+            radiance += sample.value * traced.sample().direct * (weight * cos_over_pdf);
+            if r.indirect && !throughput.is_black() {
+                let incident = self
+                    .transport
+                    .continue_averaged(&traced, limits, 1, rng, trace);
+                radiance += throughput * (incident.radiance - incident.direct);
+            }
+            return Ok(Evaluation::of(radiance));
+        }
         if sample.delta && self.through_delta(r) {
             let arriving = self.arriving_through_delta(ray, r, rng, trace, stats)?;
             return Ok(Evaluation {
