@@ -382,16 +382,55 @@ fn check_version(ctx: &mut Ctx, scene: &Element) -> Result<(), XmlError> {
     }
 }
 
+/// Reads top-level BSDF `el`, which no `<ref>` names: it changes no
+/// picture, so what fails in it (a volume texture, a missing file) does
+/// not fail the scene but leaves it out, with a warning naming it.
+fn unused_bsdf<'a>(ctx: &mut Ctx<'a>, el: &'a Element, id: &str) {
+    let (materials, problems) = (ctx.materials.len(), ctx.problems.len());
+    let failure = match bsdf::material(ctx, el) {
+        Err(e) => Some(e.message),
+        Ok(_) => ctx.problems.get(problems).map(|e| e.message.clone()),
+    };
+    if let Some(why) = failure {
+        ctx.problems.truncate(problems);
+        ctx.materials.truncate(materials);
+        let kept: std::collections::HashSet<&str> =
+            ctx.materials.iter().map(|m| m.id.as_str()).collect();
+        ctx.material_of.retain(|_, m| kept.contains(m.as_str()));
+        ctx.warn(
+            el,
+            format!("BSDF {id:?} is used by no shape and left out, as it cannot be read: {why}"),
+        );
+    }
+}
+
+/// The ids that some `<ref>` under `el` names.
+fn referenced_ids<'a>(el: &'a Element, out: &mut std::collections::HashSet<&'a str>) {
+    for c in &el.children {
+        if c.tag == "ref"
+            && let Some(id) = c.attr("id")
+        {
+            out.insert(id);
+        }
+        referenced_ids(c, out);
+    }
+}
+
 fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, XmlError> {
     check_version(ctx, scene)?;
+    let mut referenced = std::collections::HashSet::new();
+    referenced_ids(scene, &mut referenced);
     for el in &scene.children {
         match el.tag.as_str() {
             // Already applied while parsing.
             "default" => {}
             "integrator" => ctx.integrator = integrator::settings(ctx, el)?,
-            "bsdf" => {
-                bsdf::material(ctx, el)?;
-            }
+            "bsdf" => match el.attr("id") {
+                Some(id) if !referenced.contains(id) => unused_bsdf(ctx, el, id),
+                _ => {
+                    bsdf::material(ctx, el)?;
+                }
+            },
             // Declarations used through <ref>; read where referenced.
             "texture" | "spectrum" | "rgb" | "float" => {}
             "shape" => shape::add(ctx, el, &transform::Ops::default())?,

@@ -544,11 +544,13 @@ fn textures_become_texture_documents_or_lenient_means() {
     for (body, what) in [
         (
             r#"<bsdf type="roughconductor" id="t"><texture type="checkerboard" name="alpha">
-            <float name="color0" value="0.3"/><float name="color1" value="0.1"/></texture></bsdf>"#,
+            <float name="color0" value="0.3"/><float name="color1" value="0.1"/></texture></bsdf>
+            <shape type="rectangle"><ref id="t"/></shape>"#,
             "alpha",
         ),
         (
-            r#"<bsdf type="diffuse" id="t"><texture type="gridvolume" name="reflectance"/></bsdf>"#,
+            r#"<bsdf type="diffuse" id="t"><texture type="gridvolume" name="reflectance"/></bsdf>
+            <shape type="rectangle"><ref id="t"/></shape>"#,
             "gridvolume",
         ),
     ] {
@@ -597,7 +599,9 @@ fn textures_become_texture_documents_or_lenient_means() {
 
 #[test]
 fn unknown_plugin_names_plugin_and_line() {
-    let text = wrap(r#"<bsdf type="principled" id="fancy"/>"#);
+    let text = wrap(
+        r#"<bsdf type="principled" id="fancy"/><shape type="rectangle"><ref id="fancy"/></shape>"#,
+    );
     let e = load_err(&text);
     assert_eq!(syntax_line(&e), line_of(&text, "principled"));
     assert!(e.to_string().contains("\"principled\""), "{e}");
@@ -1027,6 +1031,7 @@ fn a_mesh_file_is_read_once_per_document() {
 fn strict_documents_name_every_unsupported_feature() {
     let body = r#"<bsdf type="diffuse" id="t"><texture type="gridvolume" name="reflectance">
         </texture></bsdf>
+<shape type="rectangle"><ref id="t"/></shape>
 <foo/>
 <bar/>"#;
     let text = wrap(body);
@@ -1071,4 +1076,23 @@ fn integrator_depth_becomes_the_scenes_default() {
         err(r#"<integrator type="path"><integer name="max_depth" value="5000"/></integrator>"#)
             .contains("outside")
     );
+}
+
+#[test]
+fn a_bsdf_no_shape_uses_never_fails_the_scene() {
+    let unused = r#"<bsdf type="diffuse" id="volumetric"><texture type="volume" name="reflectance">
+          <volume type="gridvolume" name="volume"><string name="filename" value="red.vol"/></volume>
+        </texture></bsdf>"#;
+    let shape = r#"<shape type="rectangle"><ref id="w"/></shape>"#;
+    let (scene, warnings) = load(&wrap(&format!("{unused}\n{shape}"))).expect("loads strictly");
+    assert_eq!(scene.material_ids, ["w"]);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    let message = &warnings.iter().next().unwrap().message;
+    assert!(
+        message.contains("\"volumetric\" is used by no shape and left out"),
+        "{message}"
+    );
+    // Used, it is read and refused.
+    let used = r#"<shape type="rectangle"><ref id="volumetric"/></shape>"#;
+    assert!(err(&format!("{unused}\n{used}")).contains("volume"));
 }
