@@ -1,15 +1,16 @@
 #!/usr/bin/env python3
-"""Renders a Mitsuba 3 scene file at SPP samples per pixel (seed 0) to an
-EXR, timing `mi.render` alone: the references and the Mitsuba rows of
-docs/BENCHMARKS.md ("The bundled studio scene", the tutorials' Cornell box).
-Extra NAME=VALUE arguments set the file's `$NAME` parameters.
+"""Renders a Mitsuba 3 scene file at SPP samples per pixel to an EXR,
+timing `mi.render` alone: the references and the Mitsuba rows of
+docs/BENCHMARKS.md ("The bundled studio scene", the tutorials' Cornell box
+and lego). NAME=VALUE arguments set the file's `$NAME` parameters; a
+reference takes another `--seed` than the render it judges.
 
 Run in a throwaway venv (`pip install mitsuba numpy`):
 
     python docs/validation/mitsuba_render.py scenes/studio.xml 4096 studio_ref.exr
 """
 
-import sys
+import argparse
 import time
 
 import mitsuba as mi
@@ -18,13 +19,19 @@ mi.set_variant("scalar_rgb")
 
 
 def main():
-    path, spp, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
-    parameters = dict(a.split("=", 1) for a in sys.argv[4:])
-    scene = mi.load_file(path, **parameters)
+    ap = argparse.ArgumentParser()
+    ap.add_argument("scene")
+    ap.add_argument("spp", type=int)
+    ap.add_argument("out")
+    ap.add_argument("parameters", nargs="*", help="NAME=VALUE")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    parameters = dict(a.split("=", 1) for a in args.parameters)
+    scene = mi.load_file(args.scene, **parameters)
     started = time.time()
-    image = mi.render(scene, spp=spp, seed=0)
-    print(f"{path} {parameters}: {spp} spp in {time.time() - started:.2f} s")
-    mi.util.write_bitmap(out, image)
+    image = mi.render(scene, spp=args.spp, seed=args.seed)
+    print(f"{args.scene} {parameters}: {args.spp} spp (seed {args.seed}) in {time.time() - started:.2f} s")
+    mi.util.write_bitmap(args.out, image)
 
 
 if __name__ == "__main__":
