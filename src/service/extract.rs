@@ -68,21 +68,71 @@ where
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, ApiError> {
+        query_as(parts.uri.query().unwrap_or("")).map(ApiQuery)
+    }
+}
+
+/// `query` as a `T`, errors naming the parameter (see [`ApiQuery`]).
+fn query_as<T: DeserializeOwned>(query: &str) -> Result<T, ApiError> {
+    let pairs = url::form_urlencoded::parse(query.as_bytes());
+    let deserializer = serde_urlencoded::Deserializer::new(pairs);
+    serde_path_to_error::deserialize(deserializer).map_err(|err| {
+        let message = err.inner().to_string();
+        // Unknown parameters are reported at the top: name them.
+        let field = match message.strip_prefix("unknown field `") {
+            Some(rest) => rest.split('`').next().unwrap_or("").to_owned(),
+            None => err.path().to_string(),
+        };
+        let field = if field == "." { String::new() } else { field };
+        ApiError::invalid(field, message)
+    })
+}
+
+/// Prefix of a query parameter that sets a Mitsuba scene's `$NAME`.
+pub const SCENE_PARAMETER_PREFIX: &str = "param.";
+
+/// The query string as a `T` plus its `param.NAME=VALUE` pairs: the values
+/// of a Mitsuba 3 scene's `$NAME` parameters (like `mitsuba -D`), which
+/// `T` does not see. A `NAME` that is empty, not made of ASCII letters,
+/// digits and `_`, or given twice is a 422 naming `param.NAME`.
+#[derive(Debug, Clone)]
+pub struct ApiQueryWithParameters<T>(pub T, pub std::collections::BTreeMap<String, String>);
+
+impl<T, S> FromRequestParts<S> for ApiQueryWithParameters<T>
+where
+    T: DeserializeOwned,
+    S: Send + Sync,
+{
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, ApiError> {
         let query = parts.uri.query().unwrap_or("");
-        let pairs = url::form_urlencoded::parse(query.as_bytes());
-        let deserializer = serde_urlencoded::Deserializer::new(pairs);
-        serde_path_to_error::deserialize(deserializer)
-            .map(ApiQuery)
-            .map_err(|err| {
-                let message = err.inner().to_string();
-                // Unknown parameters are reported at the top: name them.
-                let field = match message.strip_prefix("unknown field `") {
-                    Some(rest) => rest.split('`').next().unwrap_or("").to_owned(),
-                    None => err.path().to_string(),
-                };
-                let field = if field == "." { String::new() } else { field };
-                ApiError::invalid(field, message)
-            })
+        let mut parameters = std::collections::BTreeMap::new();
+        let mut rest = url::form_urlencoded::Serializer::new(String::new());
+        for (key, value) in url::form_urlencoded::parse(query.as_bytes()) {
+            let Some(name) = key.strip_prefix(SCENE_PARAMETER_PREFIX) else {
+                rest.append_pair(&key, &value);
+                continue;
+            };
+            let valid =
+                !name.is_empty() && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_');
+            if !valid {
+                return Err(ApiError::invalid(
+                    key.as_ref(),
+                    "a scene parameter's name is ASCII letters, digits and `_`",
+                ));
+            }
+            if parameters
+                .insert(name.to_owned(), value.into_owned())
+                .is_some()
+            {
+                return Err(ApiError::invalid(key.as_ref(), "given twice"));
+            }
+        }
+        Ok(ApiQueryWithParameters(
+            query_as(&rest.finish())?,
+            parameters,
+        ))
     }
 }
 

@@ -10,6 +10,7 @@
 //! asset bytes`, the header holding the document, how it was posted and
 //! each asset's name and length, in order.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -26,6 +27,8 @@ pub struct Posted {
     pub document: String,
     pub kind: DocumentKind,
     pub lenient: bool,
+    /// Values of a Mitsuba XML scene's `$NAME` parameters.
+    pub parameters: BTreeMap<String, String>,
     /// The assets it came with (`None`: its files are in the scenes directory).
     pub bundle: Option<SceneBundle>,
 }
@@ -35,6 +38,8 @@ pub struct Posted {
 struct BlobHeader {
     xml: bool,
     lenient: bool,
+    #[serde(default)]
+    parameters: BTreeMap<String, String>,
     document: String,
     /// `(name, bytes)` of each asset; `None`: posted without assets.
     assets: Option<Vec<(String, u64)>>,
@@ -52,6 +57,7 @@ impl Posted {
         let header = BlobHeader {
             xml: self.kind == DocumentKind::MitsubaXml,
             lenient: self.lenient,
+            parameters: self.parameters.clone(),
             document: self.document.clone(),
             assets: self.bundle.as_ref().map(|_| {
                 contents
@@ -105,6 +111,7 @@ impl Posted {
                 DocumentKind::Json
             },
             lenient: header.lenient,
+            parameters: header.parameters,
             bundle,
         })
     }
@@ -121,7 +128,7 @@ impl Posted {
     fn options(&self) -> MitsubaOptions {
         MitsubaOptions {
             lenient: self.lenient,
-            ..MitsubaOptions::default()
+            parameters: self.parameters.clone(),
         }
     }
 }
@@ -131,6 +138,8 @@ impl Posted {
 struct PostRecord {
     xml: bool,
     lenient: bool,
+    #[serde(default)]
+    parameters: BTreeMap<String, String>,
     with_assets: bool,
 }
 
@@ -183,6 +192,7 @@ impl PostedScenes {
         let record = PostRecord {
             xml,
             lenient: posted.lenient,
+            parameters: posted.parameters.clone(),
             with_assets: posted.bundle.is_some(),
         };
         std::fs::write(
@@ -310,7 +320,7 @@ fn load_one(dir: &Path, scenes_dir: &Path) -> anyhow::Result<(Scene, Warnings)> 
     };
     let options = MitsubaOptions {
         lenient: record.lenient,
-        ..MitsubaOptions::default()
+        parameters: record.parameters,
     };
     let (scene, warnings) = load_document(&document, kind, &options, &root)?;
     log_warnings(&dir.display().to_string(), &warnings);
@@ -332,6 +342,7 @@ mod tests {
             document: "<scene/>".into(),
             kind: DocumentKind::MitsubaXml,
             lenient: true,
+            parameters: [("spp".to_owned(), "8".to_owned())].into(),
             bundle: Some(bundle),
         };
         let blob = posted.encode().unwrap();
@@ -339,6 +350,7 @@ mod tests {
         assert_eq!(back.document, "<scene/>");
         assert_eq!(back.kind, DocumentKind::MitsubaXml);
         assert!(back.lenient);
+        assert_eq!(back.parameters, posted.parameters);
         let assets: Vec<_> = back
             .bundle
             .as_ref()

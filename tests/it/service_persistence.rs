@@ -175,6 +175,22 @@ async fn posted_scenes_survive_a_restart() {
         .json()
         .await
         .unwrap();
+    // Mitsuba XML with a `$res` parameter set by the query.
+    let xml = r#"<scene version="3.0.0"><default name="res" value="8"/>
+        <sensor type="perspective"><film type="hdrfilm">
+          <integer name="width" value="$res"/><integer name="height" value="$res"/>
+        </film></sensor><shape type="rectangle"/></scene>"#;
+    let response = first
+        .client
+        .post(first.url("/v1/scenes?id=posted-xml&param.res=12"))
+        .header("content-type", "application/xml")
+        .body(xml)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 201);
+    let with_parameter: Value = response.json().await.unwrap();
+    assert_eq!(with_parameter["resolution"], json!([12, 12]));
     drop(first);
     released(data.path()).await;
 
@@ -182,6 +198,7 @@ async fn posted_scenes_survive_a_restart() {
     for (id, digest) in [
         ("posted-box", &posted["digest"]),
         ("posted-sky", &with_asset["digest"]),
+        ("posted-xml", &with_parameter["digest"]),
     ] {
         let summary: Value = second
             .get(&format!("/v1/scenes/{id}"))
@@ -191,6 +208,13 @@ async fn posted_scenes_survive_a_restart() {
             .unwrap();
         assert_eq!(&summary["digest"], digest, "{id}: {summary}");
         assert_eq!(summary["source"], "uploaded");
+        if id == "posted-xml" {
+            assert_eq!(
+                summary["resolution"],
+                json!([12, 12]),
+                "the parameter is kept"
+            );
+        }
     }
     let deleted = second.delete("/v1/scenes/posted-box").await;
     assert_eq!(deleted.status(), 204);

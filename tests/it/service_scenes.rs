@@ -191,3 +191,57 @@ async fn id_query_with_a_json_scene_is_refused() {
         StatusCode::NOT_FOUND
     );
 }
+
+/// `?param.NAME=VALUE` sets a posted Mitsuba scene's `$NAME` (like
+/// `mitsuba -D`); bad names, repeats and JSON scenes are refused, naming
+/// the parameter.
+#[tokio::test]
+async fn posted_xml_takes_its_parameters_from_the_query() {
+    let app = spawn_app_with_scenes(&[("box.json", TINY_SCENE)], |_| {}).await;
+    let xml = r#"<scene version="3.0.0"><default name="res" value="8"/>
+        <sensor type="perspective"><film type="hdrfilm">
+          <integer name="width" value="$res"/><integer name="height" value="$res"/>
+        </film></sensor>
+        <shape type="rectangle"/></scene>"#;
+    let post = |query: &str, content_type: &'static str, body: String| {
+        app.client
+            .post(app.url(&format!("/v1/scenes{query}")))
+            .header("content-type", content_type)
+            .body(body)
+            .send()
+    };
+    let resolution = |response: reqwest::Response| async move {
+        assert!(response.status().is_success(), "{}", response.status());
+        response.json::<Value>().await.unwrap()["resolution"].clone()
+    };
+    let plain = post("?id=p", "application/xml", xml.into()).await.unwrap();
+    assert_eq!(resolution(plain).await, json!([8, 8]));
+    let set = post("?id=p&param.res=16", "application/xml", xml.into())
+        .await
+        .unwrap();
+    assert_eq!(resolution(set).await, json!([16, 16]));
+    for (query, field) in [
+        ("?id=q&param.r%20s=1", "param.r s"),
+        ("?id=q&param.=1", "param."),
+        ("?id=q&param.res=1&param.res=2", "param.res"),
+        ("?id=q&param.res=x", "value"),
+    ] {
+        let refused = post(query, "application/xml", xml.into()).await.unwrap();
+        assert_eq!(
+            refused.status(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "{query}"
+        );
+        let named = error_of(refused).await.1.unwrap_or_default();
+        assert!(named.contains(field), "{query}: {named}");
+    }
+    let json_scene = post(
+        "?param.res=16",
+        "application/json",
+        TINY_SCENE.replacen('{', r#"{"name": "t2","#, 1),
+    )
+    .await
+    .unwrap();
+    assert_eq!(json_scene.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    assert_eq!(error_of(json_scene).await.1.as_deref(), Some("param.res"));
+}

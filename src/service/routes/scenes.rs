@@ -3,15 +3,15 @@
 use std::sync::Arc;
 
 use axum::Json;
-use axum::extract::rejection::QueryRejection;
-use axum::extract::{Query, Request, State};
+use axum::extract::{Request, State};
 use axum::http::StatusCode;
 use tokio::io::AsyncWriteExt;
 
 use crate::scene::bundle::{DocumentKind, SceneBundle};
 use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{
-    MediaType, SceneId, body_bytes, body_media_type, content_type_text, parse_json,
+    ApiQueryWithParameters, MediaType, SCENE_PARAMETER_PREFIX, SceneId, body_bytes,
+    body_media_type, content_type_text, parse_json,
 };
 use crate::service::posted_scenes::Posted;
 use crate::service::scene_changes;
@@ -49,6 +49,8 @@ pub struct PostSceneQuery {
     /// Approximate unsupported Mitsuba features instead of rejecting them.
     #[serde(default)]
     pub lenient: bool,
+    // `param.NAME=VALUE` pairs (the XML scene's `$NAME` values, overriding
+    // its `<default>`s) are taken apart by `ApiQueryWithParameters`.
 }
 
 /// Adds a scene and replaces one with the same id. The body is either a scene
@@ -61,6 +63,8 @@ pub struct PostSceneQuery {
 /// 422 naming `assets[i]`; more than `limits.max_upload_bytes` in all is a
 /// 422 naming that limit).
 /// Otherwise files the scene references must already be in the scenes directory.
+/// `param.NAME=VALUE` query parameters set an XML scene's `$NAME` (overriding
+/// its `<default>`, like `mitsuba -D`); with a JSON scene they are refused.
 /// A scene that would take the loaded scenes over a `scenes.max_*` budget is
 /// refused with 507 and nothing loaded changes.
 #[utoipa::path(post, path = "/v1/scenes", tag = "scenes", params(PostSceneQuery),
@@ -73,10 +77,9 @@ pub struct PostSceneQuery {
                (status = 507, description = "Over a scenes budget", body = ErrorBody)))]
 pub async fn post_scene(
     State(state): State<Arc<AppState>>,
-    query: Result<Query<PostSceneQuery>, QueryRejection>,
+    ApiQueryWithParameters(query, parameters): ApiQueryWithParameters<PostSceneQuery>,
     request: Request,
 ) -> Result<(StatusCode, Json<SceneSummary>), ApiError> {
-    let Query(query) = query?;
     let (id, document, kind, bundle) = match body_media_type(&request) {
         MediaType::Json => {
             let bytes = body_bytes(request, &()).await?;
@@ -107,10 +110,19 @@ pub async fn post_scene(
             });
         }
     };
+    if kind == DocumentKind::Json
+        && let Some(name) = parameters.keys().next()
+    {
+        return Err(ApiError::invalid(
+            format!("{SCENE_PARAMETER_PREFIX}{name}"),
+            "`param.NAME` sets a Mitsuba XML scene's `$NAME`; a JSON scene has no parameters",
+        ));
+    }
     let posted = Posted {
         document,
         kind,
         lenient: query.lenient,
+        parameters,
         bundle,
     };
     let (replaced, summary) = scene_changes::post(&state, id, posted).await?;
