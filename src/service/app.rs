@@ -99,12 +99,13 @@ impl Application {
         }
         // Posted scenes load after the directory's, so they replace directory
         // scenes of the same id, as they did when they were posted.
-        let (dir, posted) = (
+        let (dir, lenient, posted) = (
             config.scenes.dir.clone(),
+            config.scenes.lenient,
             PostedScenes::new(&config.cache.data_dir),
         );
         let (loaded, posted) = tokio::task::spawn_blocking(move || {
-            let mut loaded = scenes::load_dir(&dir);
+            let mut loaded = scenes::load_dir(&dir, lenient);
             loaded.extend(posted.load_all(&dir));
             (loaded, posted)
         })

@@ -182,6 +182,10 @@ pub struct ScenesConfig {
     /// Most bytes held by all loaded scenes together (geometry, acceleration
     /// structures and environment maps, as `Scene::heap_bytes` counts them).
     pub max_scene_bytes: u64,
+    /// Mitsuba XML files of the directory: approximate what the scene model
+    /// cannot represent (each scene's summary says what) instead of skipping
+    /// the scene.
+    pub lenient: bool,
 }
 
 impl Config {

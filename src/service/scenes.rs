@@ -20,7 +20,7 @@ use utoipa::ToSchema;
 use crate::estimators::calibration::Calibrations;
 use crate::estimators::lengthscale::{FittedKernel, FittedKernels};
 use crate::render::Transport;
-use crate::scene::{Scene, SceneError, Warnings};
+use crate::scene::{MitsubaOptions, Scene, SceneError, Warnings};
 use crate::service::config::ScenesConfig;
 use crate::service::error::ApiError;
 
@@ -296,20 +296,10 @@ impl From<InvalidId> for ApiError {
     }
 }
 
-/// Loads every `*.json` and Mitsuba `*.xml` scene of `dir` in parallel; files
-/// that fail are logged and skipped. A missing directory or one that gives no
-/// scene is not an error but a warning ([`warn_no_scenes`]). A scene's id is its
-/// file stem, except an XML file whose stem a JSON file also has: it gets
-/// `<stem>-xml` (`cornell-box.xml` → `cornell-box-xml`), so both stay reachable.
-pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
-    let entries = match std::fs::read_dir(dir) {
-        Ok(entries) => entries,
-        Err(err) => {
-            warn_no_scenes(dir, &format!("cannot read the scenes directory ({err})"));
-            return Vec::new();
-        }
-    };
-    let mut files: Vec<PathBuf> = entries
+/// The regular `*.json` and `*.xml` files at the root of `dir`, sorted;
+/// anything else with those extensions is skipped with a warning.
+fn scene_files_in(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)?
         .filter_map(Result::ok)
         .map(|entry| entry.path())
         .filter(|path| {
@@ -331,9 +321,30 @@ pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
         })
         .collect();
     files.sort();
+    Ok(files)
+}
+
+/// A scene the scenes directory holds: its id, its file and the directory
+/// its files may not leave.
+struct Found {
+    id: String,
+    path: PathBuf,
+    root: PathBuf,
+}
+
+/// The scenes of `dir`: each `*.json` and `*.xml` file at its root (id: the
+/// file stem, except an XML file whose stem a JSON file also has: it gets
+/// `<stem>-xml`, `cornell-box.xml` → `cornell-box-xml`, so both stay
+/// reachable; its files may come from anywhere under `dir`), and each
+/// subfolder with exactly one scene file at its root (id: the folder's
+/// name; its files stay inside the folder). A folder with several is
+/// skipped with a warning naming them; one with none (`meshes/`) is not a
+/// scene. An id taken twice keeps the first.
+fn find_scenes(dir: &Path) -> std::io::Result<Vec<Found>> {
+    let files = scene_files_in(dir)?;
     let has_json_twin = |path: &Path| files.contains(&path.with_extension("json"));
-    let loaded: Vec<LoadedScene> = files
-        .par_iter()
+    let mut found: Vec<Found> = files
+        .iter()
         .filter_map(|path| {
             let stem = path.file_stem()?.to_string_lossy().into_owned();
             let is_xml = path.extension().is_some_and(|ext| ext == "xml");
@@ -342,14 +353,83 @@ pub fn load_dir(dir: &Path) -> Vec<LoadedScene> {
             } else {
                 stem
             };
-            if let Err(reason) = validate_id(&id) {
+            Some(Found {
+                id,
+                path: path.clone(),
+                root: dir.to_path_buf(),
+            })
+        })
+        .collect();
+    let mut folders: Vec<PathBuf> = std::fs::read_dir(dir)?
+        .filter_map(Result::ok)
+        .filter(|entry| entry.file_type().is_ok_and(|t| t.is_dir()))
+        .map(|entry| entry.path())
+        .collect();
+    folders.sort();
+    for folder in folders {
+        let Ok(inner) = scene_files_in(&folder) else {
+            continue;
+        };
+        let id = folder
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        match inner.as_slice() {
+            [] => {}
+            [path] if found.iter().any(|f| f.id == id) => {
+                tracing::warn!(file = %path.display(), %id, "scene skipped: its id is taken");
+            }
+            [path] => found.push(Found {
+                id,
+                path: path.clone(),
+                root: folder.clone(),
+            }),
+            several => tracing::warn!(
+                folder = %folder.display(),
+                files = ?several,
+                "scene folder skipped: it holds several scene files at its root (a scene folder holds one)"
+            ),
+        }
+    }
+    Ok(found)
+}
+
+/// Loads every scene of `dir` ([`find_scenes`]) in parallel, Mitsuba XML
+/// strictly or, with `lenient`, approximating what the scene model cannot
+/// represent (each scene says what in its summary). Files that fail are
+/// logged and skipped. A missing directory or one that gives no scene is not
+/// an error but a warning ([`warn_no_scenes`]).
+pub fn load_dir(dir: &Path, lenient: bool) -> Vec<LoadedScene> {
+    let found = match find_scenes(dir) {
+        Ok(found) => found,
+        Err(err) => {
+            warn_no_scenes(dir, &format!("cannot read the scenes directory ({err})"));
+            return Vec::new();
+        }
+    };
+    let options = MitsubaOptions {
+        lenient,
+        ..MitsubaOptions::default()
+    };
+    let loaded: Vec<LoadedScene> = found
+        .par_iter()
+        .filter_map(|Found { id, path, root }| {
+            if let Err(reason) = validate_id(id) {
                 tracing::warn!(file = %path.display(), %reason, "scene skipped");
                 return None;
             }
-            match Scene::load(path, dir) {
-                Ok(scene) => {
+            let is_xml = path.extension().is_some_and(|ext| ext == "xml");
+            let result = if is_xml {
+                Scene::load_mitsuba_xml(path, root, &options)
+            } else {
+                Scene::load(path, root).map(|scene| (scene, Warnings::default()))
+            };
+            match result {
+                Ok((scene, warnings)) => {
                     tracing::info!(%id, file = %path.display(), "scene loaded");
-                    Some(LoadedScene::new(id, SceneSource::File, scene))
+                    log_warnings(id, &warnings);
+                    let scene = LoadedScene::new(id.clone(), SceneSource::File, scene);
+                    Some(scene.approximating(&warnings))
                 }
                 Err(err) => {
                     log_broken(path, &err);
@@ -444,7 +524,7 @@ mod tests {
         std::fs::write(dir.path().join("broken.json"), "{ not json").unwrap();
         std::fs::write(dir.path().join("bad id!.json"), TINY).unwrap();
         std::fs::write(dir.path().join("notes.txt"), "ignored").unwrap();
-        let loaded = load_dir(dir.path());
+        let loaded = load_dir(dir.path(), false);
         let ids: Vec<_> = loaded.iter().map(|s| s.id.as_str()).collect();
         assert_eq!(ids, ["good"]);
 
@@ -510,8 +590,56 @@ mod tests {
     }
 
     #[test]
+    fn scene_folders_are_scenes_named_after_them() {
+        let xml = |extra: &str| {
+            format!(
+                r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm">
+                <integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+                <shape type="obj"><string name="filename" value="meshes/quad.obj"/></shape>{extra}</scene>"#
+            )
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let write = |path: &str, text: &str| {
+            let path = dir.path().join(path);
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(path, text).unwrap();
+        };
+        let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+        write("good.json", TINY);
+        // A folder scene: named after the folder, its mesh beside it.
+        write("lego/scene.xml", &xml(""));
+        write("lego/meshes/quad.obj", quad);
+        // Not scenes: assets only, two scene files, an id already taken.
+        write("meshes/quad.obj", quad);
+        write("two/a.json", TINY);
+        write("two/b.json", TINY);
+        write("good/scene.json", TINY);
+        // Approximated only when the directory's policy is lenient.
+        write("approx/scene.xml", &xml("<foo/>"));
+        write("approx/meshes/quad.obj", quad);
+        let ids = |lenient| {
+            let mut loaded = load_dir(dir.path(), lenient);
+            loaded.sort_by(|a, b| a.id.cmp(&b.id));
+            loaded
+        };
+        let strict = ids(false);
+        let strict_ids: Vec<_> = strict.iter().map(|s| s.id.as_str()).collect();
+        assert_eq!(strict_ids, ["good", "lego"]);
+        assert_eq!(strict[1].transport.scene().triangle_count(), 2);
+        let lenient = ids(true);
+        let lenient_ids: Vec<_> = lenient.iter().map(|s| s.id.as_str()).collect();
+        assert_eq!(lenient_ids, ["approx", "good", "lego"]);
+        assert_eq!(lenient[0].approximations, 1);
+        assert!(
+            lenient[0].approximated[0].contains("<foo>"),
+            "{:?}",
+            lenient[0].approximated
+        );
+    }
+
+    #[test]
     fn missing_directory_loads_nothing() {
         let dir = tempfile::tempdir().unwrap();
-        assert!(load_dir(&dir.path().join("absent")).is_empty());
+        assert!(load_dir(&dir.path().join("absent"), false).is_empty());
     }
 }
