@@ -8,18 +8,18 @@
 //! needs in memory. Asset names are checked before anything is written: relative
 //! paths of plain components only (no `..`, no root or drive, no `.`
 //! segments, no backslashes or NULs), each at most [`MAX_NAME_BYTES`] long
-//! and [`MAX_DEPTH`] deep, no name twice, at most [`MAX_ASSETS`] of them.
+//! and [`MAX_DEPTH`] deep, no name twice, at most the bundle's `max_assets`
+//! of them (the service's `limits.max_assets`).
 //! The files are created by this code, never links, so nothing can point
 //! outside the directory either.
 
+use std::collections::HashSet;
 use std::path::{Component, Path, PathBuf};
 
 use super::Scene;
 use super::error::SceneError;
 use super::mitsuba::{MitsubaOptions, Warnings};
 
-/// Most assets in one bundle.
-pub const MAX_ASSETS: usize = 256;
 /// Longest asset name, bytes.
 pub const MAX_NAME_BYTES: usize = 255;
 /// Most directory levels in an asset name.
@@ -41,11 +41,18 @@ pub struct SceneBundle {
     dir: tempfile::TempDir,
     /// Relative names in upload order.
     assets: Vec<PathBuf>,
+    /// The most assets it takes.
+    max_assets: usize,
+    /// The names and their folders as a case-insensitive file system sees
+    /// them (lower case), to refuse clashes in constant time per asset.
+    folded_files: HashSet<PathBuf>,
+    folded_folders: HashSet<PathBuf>,
 }
 
 impl SceneBundle {
-    /// An empty bundle in a fresh private directory.
-    pub fn new() -> Result<SceneBundle, SceneError> {
+    /// An empty bundle of at most `max_assets` assets in a fresh private
+    /// directory.
+    pub fn new(max_assets: usize) -> Result<SceneBundle, SceneError> {
         let dir = tempfile::Builder::new()
             .prefix("bmc-upload-")
             .tempdir()
@@ -53,16 +60,19 @@ impl SceneBundle {
         Ok(SceneBundle {
             dir,
             assets: Vec::new(),
+            max_assets,
+            folded_files: HashSet::new(),
+            folded_folders: HashSet::new(),
         })
     }
 
     /// Reserves asset `name` and creates its empty file, to which the caller
     /// writes the asset's bytes; `field` names it in errors (e.g. `assets[2]`).
     pub fn create(&mut self, name: &str, field: &str) -> Result<std::fs::File, SceneError> {
-        if self.assets.len() >= MAX_ASSETS {
+        if self.assets.len() >= self.max_assets {
             return Err(SceneError::invalid(
                 field,
-                format!("more than {MAX_ASSETS} assets"),
+                format!("more than {} assets (limits.max_assets)", self.max_assets),
             ));
         }
         let path = check_name(name).map_err(|reason| {
@@ -71,25 +81,30 @@ impl SceneBundle {
         // Names are compared as a case-insensitive file system would: two
         // names that differ only in case, or a name that is also another's
         // folder, cannot both be files.
-        let folded = |p: &Path| PathBuf::from(p.to_string_lossy().to_lowercase());
-        let new = folded(&path);
-        if let Some(old) = self.assets.iter().find(|p| {
-            let old = folded(p);
-            old.starts_with(&new) || new.starts_with(&old)
-        }) {
-            let reason = if *old == path {
-                format!("asset {name:?} is named twice")
-            } else if folded(old) == new {
-                format!(
-                    "asset {name:?} differs from asset {:?} only in case",
-                    old.display()
-                )
-            } else {
-                format!(
-                    "asset {name:?} and asset {:?} would make one name both a file and a folder",
-                    old.display()
-                )
-            };
+        let folded = PathBuf::from(path.to_string_lossy().to_lowercase());
+        let folders: Vec<PathBuf> = folded
+            .ancestors()
+            .skip(1)
+            .filter(|a| !a.as_os_str().is_empty())
+            .map(Path::to_path_buf)
+            .collect();
+        let clash = if self.folded_files.contains(&folded) {
+            match self.assets.iter().find(|p| **p == path) {
+                Some(_) => Some(format!("asset {name:?} is named twice")),
+                None => Some(format!(
+                    "asset {name:?} differs from another asset only in case"
+                )),
+            }
+        } else if self.folded_folders.contains(&folded)
+            || folders.iter().any(|f| self.folded_files.contains(f))
+        {
+            Some(format!(
+                "asset {name:?} and another asset would make one name both a file and a folder"
+            ))
+        } else {
+            None
+        };
+        if let Some(reason) = clash {
             return Err(SceneError::invalid(field, reason));
         }
         let file = self.dir.path().join(&path);
@@ -103,6 +118,8 @@ impl SceneBundle {
             .open(&file)
             .map_err(|e| io_error(&path, e))?;
         self.assets.push(path);
+        self.folded_files.insert(folded);
+        self.folded_folders.extend(folders);
         Ok(created)
     }
 
@@ -235,16 +252,23 @@ mod tests {
             ("a", "a/tri.obj", "file and a folder"),
             ("meshes/a.obj", "Meshes", "file and a folder"),
         ] {
-            let mut bundle = SceneBundle::new().unwrap();
+            let mut bundle = SceneBundle::new(16).unwrap();
             bundle.add(first, &[1], "assets[0]").unwrap();
             let err = bundle.add(second, &[2], "assets[1]").unwrap_err();
             assert_eq!(err.field(), Some("assets[1]"), "{first} {second}");
             assert!(err.to_string().contains(says), "{err}");
         }
-        let mut bundle = SceneBundle::new().unwrap();
+        let mut bundle = SceneBundle::new(16).unwrap();
         bundle.add("a/b.obj", &[1], "assets[0]").unwrap();
         bundle.add("a/c.obj", &[1], "assets[1]").unwrap();
         bundle.add("ab", &[1], "assets[2]").unwrap();
+        // The bundle's size limit names the asset and the setting.
+        let mut small = SceneBundle::new(2).unwrap();
+        small.add("a.obj", &[1], "assets[0]").unwrap();
+        small.add("b.obj", &[1], "assets[1]").unwrap();
+        let err = small.add("c.obj", &[1], "assets[2]").unwrap_err();
+        assert_eq!(err.field(), Some("assets[2]"));
+        assert!(err.to_string().contains("limits.max_assets"), "{err}");
     }
 
     #[test]
@@ -267,7 +291,7 @@ mod tests {
         for good in ["blob.obj", "meshes/blob.obj", "a/b/c/d.exr", "x..y.png"] {
             assert_eq!(check_name(good).unwrap(), Path::new(good));
         }
-        let mut bundle = SceneBundle::new().unwrap();
+        let mut bundle = SceneBundle::new(16).unwrap();
         bundle.add("a.obj", &[], "assets[0]").unwrap();
         let err = bundle.add("a.obj", &[], "assets[1]").unwrap_err();
         assert_eq!(err.field(), Some("assets[1]"));
@@ -284,7 +308,7 @@ mod tests {
                                 "origin": [0, 0, 3], "target": [0, 0, 0], "up": [0, 1, 0]}}}}"#
             )
         };
-        let mut bundle = SceneBundle::new().unwrap();
+        let mut bundle = SceneBundle::new(16).unwrap();
         bundle
             .add("meshes/tri.obj", obj.as_bytes(), "assets[0]")
             .unwrap();

@@ -148,6 +148,8 @@ pub struct Limits {
     /// Largest scene upload with its assets (`multipart/form-data` on
     /// `POST /v1/scenes`), bytes (413 beyond).
     pub max_upload_bytes: u64,
+    /// Most assets in one scene upload (422 naming the first one over).
+    pub max_assets: usize,
     /// Uploads and records imports read at once (each up to
     /// `max_upload_bytes` in memory); more get 503 with `Retry-After`.
     pub max_concurrent_uploads: usize,
@@ -234,6 +236,7 @@ impl Config {
         let positive = [
             ("limits.max_body_bytes", self.limits.max_body_bytes as u64),
             ("limits.max_upload_bytes", self.limits.max_upload_bytes),
+            ("limits.max_assets", self.limits.max_assets as u64),
             ("limits.max_points", self.limits.max_points as u64),
             ("limits.max_samples", self.limits.max_samples as u64),
             ("limits.max_tile_area", self.limits.max_tile_area as u64),

@@ -91,7 +91,8 @@ impl Posted {
         let bundle = match header.assets {
             None => None,
             Some(assets) => {
-                let mut bundle = SceneBundle::new()?;
+                // Checked against the poster's limit when it was posted.
+                let mut bundle = SceneBundle::new(assets.len())?;
                 for (i, (name, len)) in assets.into_iter().enumerate() {
                     let len = usize::try_from(len)?;
                     anyhow::ensure!(rest.len() >= len, "truncated asset {name:?}");
@@ -333,7 +334,7 @@ mod tests {
 
     #[test]
     fn a_posted_scene_travels_as_one_blob() {
-        let mut bundle = SceneBundle::new().unwrap();
+        let mut bundle = SceneBundle::new(16).unwrap();
         bundle
             .add("meshes/a.obj", b"v 0 0 0\n", "assets[0]")
             .unwrap();

@@ -99,7 +99,7 @@ pub async fn post_scene(
         MediaType::Multipart => {
             let limit = state.config.limits.max_upload_bytes;
             let reading = state.upload_permit()?;
-            let upload = read_upload(request, limit).await?;
+            let upload = read_upload(request, limit, state.config.limits.max_assets).await?;
             drop(reading);
             let id = posted_id(upload.kind, query.id, upload.document.as_bytes())?;
             (id, upload.document, upload.kind, Some(upload.bundle))
@@ -192,7 +192,7 @@ struct Upload {
 /// named `scene` (the document; `.xml` file name or an XML content type
 /// means Mitsuba XML, JSON otherwise) and any number named `asset`, each
 /// with a `filename` that is the relative path the document uses.
-async fn read_upload(request: Request, limit: u64) -> Result<Upload, ApiError> {
+async fn read_upload(request: Request, limit: u64, max_assets: usize) -> Result<Upload, ApiError> {
     let content_type = content_type_text(&request);
     let boundary = multer::parse_boundary(&content_type)?;
     let constraints =
@@ -202,7 +202,7 @@ async fn read_upload(request: Request, limit: u64) -> Result<Upload, ApiError> {
         boundary,
         constraints,
     );
-    let (mut document, mut bundle) = (None, SceneBundle::new()?);
+    let (mut document, mut bundle) = (None, SceneBundle::new(max_assets)?);
     while let Some(part) = parts.next_field().await? {
         match part.name() {
             Some("scene") => {
