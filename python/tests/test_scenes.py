@@ -59,6 +59,12 @@ def test_upload_json_and_xml_then_delete(client: Client, tmp_path: Path) -> None
     assert from_file["id"] == "box-from-file"  # the file's stem
     with pytest.raises(ValueError):
         client.upload(xml)  # XML text needs an id
+    # $NAME parameters of an XML scene (the studio's resolution).
+    small = client.upload(SCENES / "studio.xml", id="studio-small", params={"resx": 40, "resy": 30})
+    assert small["resolution"] == [40, 30]
+    client.delete("studio-small")
+    with pytest.raises(ValueError):
+        client.upload(SCENES / "cornell-box.json", params={"spp": 4})
     ids = {s["id"] for s in client.scenes()}
     assert {"box-copy", "box-xml-text", "box-from-file"} <= ids
 

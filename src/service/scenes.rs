@@ -1,8 +1,9 @@
 //! The scene registry: scenes loaded from the scenes directory at startup or
 //! posted later, each with its light-transport state built once.
 //!
-//! A scene's id is its file stem (`scenes/cornell-box.json` → `cornell-box`;
-//! see [`load_dir`] for XML twins) or, for a posted scene, its JSON `name` or
+//! A scene's id is its file stem (`scenes/cornell-box.json` → `cornell-box`),
+//! its folder's name for a scene folder (see [`find_scenes`], also for XML
+//! twins) or, for a posted scene, its JSON `name` or
 //! the `id` query parameter given with XML. Ids are restricted to
 //! `[A-Za-z0-9_-]{1,64}` because they appear in URL paths. A broken scene file
 //! is logged and skipped at startup, never fatal: one bad file must not keep the

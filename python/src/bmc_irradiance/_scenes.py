@@ -30,6 +30,7 @@ class _Scenes(_Resource):
         id: str | None = None,
         *,
         lenient: bool = False,
+        params: Mapping[str, str | int | float] | None = None,
         assets: str | Sequence[str] | Mapping[str, bytes | os.PathLike[str]] | None = None,
     ) -> dict[str, Any]:
         """``POST /v1/scenes``: adds a scene, or replaces the one with the same id.
@@ -38,7 +39,9 @@ class _Scenes(_Resource):
         or the document's text. A JSON document's id is its ``name``; ``id``
         replaces that name. An XML scene's id is ``id``, by default the file's
         stem; ``lenient`` approximates unsupported Mitsuba features instead of
-        refusing them. Returns the scene's summary.
+        refusing them, and ``params`` sets its ``$NAME`` parameters over the
+        file's ``<default>`` values (like ``mitsuba -D NAME=VALUE``; sent as
+        ``param.NAME`` query parameters). Returns the scene's summary.
 
         Without ``assets``, files the scene references (meshes, environment
         maps, textures) must already be in the service's scenes directory.
@@ -69,6 +72,10 @@ class _Scenes(_Resource):
             if scene_id is None:
                 raise ValueError("an XML scene given as text needs an id")
             query = {"id": scene_id, "lenient": True if lenient else None}
+            for name, value in (params or {}).items():
+                query[f"param.{name}"] = str(value)
+        elif params:
+            raise ValueError("params set a Mitsuba XML scene's $NAME; a JSON scene has none")
         if assets is None:
             answer = self._http.request(
                 "POST",
