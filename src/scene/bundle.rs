@@ -32,6 +32,37 @@ pub enum DocumentKind {
     MitsubaXml,
 }
 
+impl DocumentKind {
+    /// The kind of scene file `path` is by its extension (`.json`, `.xml`),
+    /// or `None`: not a scene file.
+    pub fn of_file_name(path: &Path) -> Option<DocumentKind> {
+        match path.extension()?.to_str()? {
+            "json" => Some(DocumentKind::Json),
+            "xml" => Some(DocumentKind::MitsubaXml),
+            _ => None,
+        }
+    }
+}
+
+/// The scene file of a folder named `folder` whose root holds the scene
+/// files `candidates`: the only one, else the one conventionally its scene
+/// (stem `scene`, or the folder's name: `lego/scene.xml` beside
+/// `lego/scene_box.xml`) when exactly one is; `None` when none or several.
+pub fn main_scene_file<'a>(candidates: &'a [PathBuf], folder: Option<&str>) -> Option<&'a Path> {
+    if let [one] = candidates {
+        return Some(one);
+    }
+    let mut named = candidates.iter().filter(|path| {
+        path.file_stem()
+            .and_then(|s| s.to_str())
+            .is_some_and(|stem| stem == "scene" || Some(stem) == folder)
+    });
+    match (named.next(), named.next()) {
+        (Some(one), None) => Some(one),
+        _ => None,
+    }
+}
+
 /// A document's assets (module docs), each a file in a private directory
 /// from the moment it is added: an upload is written to disk as it arrives,
 /// never held whole in memory.
@@ -81,13 +112,7 @@ impl SceneBundle {
         // Names are compared as a case-insensitive file system would: two
         // names that differ only in case, or a name that is also another's
         // folder, cannot both be files.
-        let folded = PathBuf::from(path.to_string_lossy().to_lowercase());
-        let folders: Vec<PathBuf> = folded
-            .ancestors()
-            .skip(1)
-            .filter(|a| !a.as_os_str().is_empty())
-            .map(Path::to_path_buf)
-            .collect();
+        let (folded, folders) = folded(&path);
         let clash = if self.folded_files.contains(&folded) {
             match self.assets.iter().find(|p| **p == path) {
                 Some(_) => Some(format!("asset {name:?} is named twice")),
@@ -127,6 +152,42 @@ impl SceneBundle {
     pub fn add(&mut self, name: &str, bytes: &[u8], field: &str) -> Result<(), SceneError> {
         let mut file = self.create(name, field)?;
         std::io::Write::write_all(&mut file, bytes).map_err(|e| io_error(Path::new(name), e))
+    }
+
+    /// The most assets it takes.
+    pub fn max_assets(&self) -> usize {
+        self.max_assets
+    }
+
+    /// Makes `folder` (a folder of the assets) the bundle's root: the
+    /// assets inside it are renamed relative to it, the others removed and
+    /// returned.
+    pub fn rebase(&mut self, folder: &Path) -> Result<Vec<PathBuf>, SceneError> {
+        let root = tempfile::Builder::new()
+            .prefix("bmc-upload-")
+            .tempdir()
+            .map_err(|e| io_error(Path::new("<upload directory>"), e))?;
+        // `rename` replaces the fresh, empty directory with the folder.
+        std::fs::rename(self.dir.path().join(folder), root.path())
+            .map_err(|e| io_error(folder, e))?;
+        let (inside, outside): (Vec<PathBuf>, Vec<PathBuf>) = std::mem::take(&mut self.assets)
+            .into_iter()
+            .partition(|name| name.starts_with(folder));
+        let old = std::mem::replace(&mut self.dir, root);
+        drop(old);
+        self.folded_files.clear();
+        self.folded_folders.clear();
+        for name in inside {
+            let name = name
+                .strip_prefix(folder)
+                .expect("partitioned on the prefix")
+                .to_path_buf();
+            let (folded, folders) = folded(&name);
+            self.folded_folders.extend(folders);
+            self.folded_files.insert(folded);
+            self.assets.push(name);
+        }
+        Ok(outside)
     }
 
     /// The assets' relative names, in upload order.
@@ -199,6 +260,19 @@ pub fn load_document(
         }
         DocumentKind::MitsubaXml => Scene::from_mitsuba_xml_str(document, root, root, options),
     }
+}
+
+/// `path` in lower case and its folders, as a case-insensitive file system
+/// compares names.
+fn folded(path: &Path) -> (PathBuf, Vec<PathBuf>) {
+    let folded = PathBuf::from(path.to_string_lossy().to_lowercase());
+    let folders = folded
+        .ancestors()
+        .skip(1)
+        .filter(|a| !a.as_os_str().is_empty())
+        .map(Path::to_path_buf)
+        .collect();
+    (folded, folders)
 }
 
 fn io_error(path: &Path, source: std::io::Error) -> SceneError {

@@ -4,6 +4,7 @@
 //! All geometry is f64 at the API. Everything is immutable after loading, so
 //! a [`Scene`] is `Send + Sync` and callers trace rays in parallel (rayon).
 
+pub(crate) mod archive;
 mod bilinear;
 mod bitmap;
 pub(crate) mod bundle;

@@ -145,11 +145,20 @@ pub struct CacheConfig {
 pub struct Limits {
     /// Largest request body in bytes (413 beyond).
     pub max_body_bytes: usize,
-    /// Largest scene upload with its assets (`multipart/form-data` on
-    /// `POST /v1/scenes`), bytes (413 beyond).
+    /// Largest scene upload with its assets (`multipart/form-data` or an
+    /// archive on `POST /v1/scenes`), bytes as sent (413 beyond).
     pub max_upload_bytes: u64,
-    /// Most assets in one scene upload (422 naming the first one over).
+    /// Most assets (archive entries) in one scene upload (422 naming the
+    /// first one over).
     pub max_assets: usize,
+    /// Largest asset of an upload once unpacked, bytes (422 naming it).
+    pub max_asset_bytes: u64,
+    /// Largest sum of an archive's unpacked entries, bytes (422 naming the
+    /// entry that passes it).
+    pub max_unpacked_bytes: u64,
+    /// Most unpacked bytes per packed byte of an archive entry past its
+    /// first MiB (422 naming it: a zip bomb).
+    pub max_compression_ratio: u64,
     /// Uploads and records imports read at once (each up to
     /// `max_upload_bytes` in memory); more get 503 with `Retry-After`.
     pub max_concurrent_uploads: usize,
@@ -237,6 +246,12 @@ impl Config {
             ("limits.max_body_bytes", self.limits.max_body_bytes as u64),
             ("limits.max_upload_bytes", self.limits.max_upload_bytes),
             ("limits.max_assets", self.limits.max_assets as u64),
+            ("limits.max_asset_bytes", self.limits.max_asset_bytes),
+            ("limits.max_unpacked_bytes", self.limits.max_unpacked_bytes),
+            (
+                "limits.max_compression_ratio",
+                self.limits.max_compression_ratio,
+            ),
             ("limits.max_points", self.limits.max_points as u64),
             ("limits.max_samples", self.limits.max_samples as u64),
             ("limits.max_tile_area", self.limits.max_tile_area as u64),

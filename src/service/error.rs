@@ -96,9 +96,10 @@ pub enum ApiError {
     /// `field` names the config key (`scenes.max_triangles`).
     #[error("{message}")]
     InsufficientStorage { field: String, message: String },
-    /// `POST /v1/scenes` with a body that is neither JSON, XML nor multipart (415).
+    /// `POST /v1/scenes` with a body that is neither JSON, XML, multipart
+    /// nor an archive (415).
     #[error(
-        "content-type must be application/json (a scene document), application/xml (Mitsuba 3) or multipart/form-data (a scene with its assets), got {got}"
+        "content-type must be application/json (a scene document), application/xml (Mitsuba 3), multipart/form-data (a scene with its assets) or application/zip, application/x-tar, application/gzip (a packed scene folder), got {got}"
     )]
     UnsupportedSceneMediaType { got: String },
 }

@@ -16,6 +16,7 @@ use axum::http::request::Parts;
 use serde::de::{DeserializeOwned, IgnoredAny};
 
 use super::error::ApiError;
+use crate::scene::archive::ArchiveFormat;
 
 /// A JSON request body of type `T`; see the module docs for how failures map to errors.
 #[derive(Debug, Clone)]
@@ -45,7 +46,7 @@ where
     async fn from_request(req: Request, state: &S) -> Result<Self, ApiError> {
         match body_media_type(&req) {
             MediaType::Json => parse_json(&body_bytes(req, state).await?).map(ApiJson),
-            MediaType::Xml | MediaType::Multipart | MediaType::Other => {
+            MediaType::Xml | MediaType::Multipart | MediaType::Archive(_) | MediaType::Other => {
                 Err(ApiError::UnsupportedMediaType {
                     got: content_type_text(&req),
                 })
@@ -145,6 +146,10 @@ pub enum MediaType {
     Xml,
     /// `multipart/form-data` (a scene with its assets).
     Multipart,
+    /// A packed scene folder: `application/zip`, `application/x-tar`,
+    /// `application/gzip` (a gzipped tar) and their aliases, or
+    /// `application/octet-stream` (`None`: known by its first bytes).
+    Archive(Option<ArchiveFormat>),
     /// Anything else.
     Other,
 }
@@ -162,8 +167,25 @@ pub fn body_media_type(req: &Request) -> MediaType {
         MediaType::Xml
     } else if essence == "multipart/form-data" {
         MediaType::Multipart
+    } else if let Some(format) = archive_format(essence) {
+        MediaType::Archive(format)
     } else {
         MediaType::Other
+    }
+}
+
+/// The archive format a media type essence declares (`Some(None)`: an
+/// archive of a format its bytes show).
+fn archive_format(essence: &str) -> Option<Option<ArchiveFormat>> {
+    match essence {
+        "application/zip" | "application/x-zip-compressed" => Some(Some(ArchiveFormat::Zip)),
+        "application/x-tar" => Some(Some(ArchiveFormat::Tar)),
+        "application/gzip"
+        | "application/x-gzip"
+        | "application/x-gtar"
+        | "application/x-compressed-tar" => Some(Some(ArchiveFormat::TarGz)),
+        "application/octet-stream" => Some(None),
+        _ => None,
     }
 }
 

@@ -9,6 +9,7 @@
 //! is logged and skipped at startup, never fatal: one bad file must not keep the
 //! other scenes from being served.
 
+use crate::scene::bundle::{DocumentKind, main_scene_file};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -303,10 +304,7 @@ fn scene_files_in(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)?
         .filter_map(Result::ok)
         .map(|entry| entry.path())
-        .filter(|path| {
-            path.extension()
-                .is_some_and(|ext| ext == "json" || ext == "xml")
-        })
+        .filter(|path| DocumentKind::of_file_name(path).is_some())
         // A FIFO would block the reader (and startup) forever and a device
         // can read endlessly; loading refuses them too, this says why early.
         .filter(|path| match std::fs::metadata(path) {
@@ -337,10 +335,11 @@ struct Found {
 /// file stem, except an XML file whose stem a JSON file also has: it gets
 /// `<stem>-xml`, `cornell-box.xml` → `cornell-box-xml`, so both stay
 /// reachable; its files may come from anywhere under `dir`), and each
-/// subfolder with exactly one scene file at its root (id: the folder's
-/// name; its files stay inside the folder). A folder with several is
-/// skipped with a warning naming them; one with none (`meshes/`) is not a
-/// scene. An id taken twice keeps the first.
+/// subfolder with a scene file at its root (id: the folder's name; its
+/// files stay inside the folder): the only one, or among several the one
+/// named `scene` or after the folder ([`main_scene_file`]). A folder with
+/// several and none of those names is skipped with a warning naming them;
+/// one with none (`meshes/`) is not a scene. An id taken twice keeps the first.
 fn find_scenes(dir: &Path) -> std::io::Result<Vec<Found>> {
     let files = scene_files_in(dir)?;
     let has_json_twin = |path: &Path| files.contains(&path.with_extension("json"));
@@ -375,20 +374,21 @@ fn find_scenes(dir: &Path) -> std::io::Result<Vec<Found>> {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        match inner.as_slice() {
-            [] => {}
-            [path] if found.iter().any(|f| f.id == id) => {
+        match (main_scene_file(&inner, Some(&id)), inner.as_slice()) {
+            (_, []) => {}
+            (Some(path), _) if found.iter().any(|f| f.id == id) => {
                 tracing::warn!(file = %path.display(), %id, "scene skipped: its id is taken");
             }
-            [path] => found.push(Found {
+            (Some(path), _) => found.push(Found {
                 id,
-                path: path.clone(),
+                path: path.to_path_buf(),
                 root: folder.clone(),
             }),
-            several => tracing::warn!(
+            (None, several) => tracing::warn!(
                 folder = %folder.display(),
                 files = ?several,
-                "scene folder skipped: it holds several scene files at its root (a scene folder holds one)"
+                "scene folder skipped: it holds several scene files at its root, none named \
+                 `scene` or after the folder"
             ),
         }
     }

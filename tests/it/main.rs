@@ -22,6 +22,7 @@ mod mitsuba_irradiance;
 mod mitsuba_xml;
 mod readme_commands;
 mod regression;
+mod service_archive;
 mod service_bad_inputs;
 mod service_bad_scenes;
 mod service_basics;

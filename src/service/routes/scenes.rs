@@ -7,7 +7,9 @@ use axum::extract::{Request, State};
 use axum::http::StatusCode;
 use tokio::io::AsyncWriteExt;
 
+use crate::scene::archive::{self, ArchiveFormat, ArchiveLimits};
 use crate::scene::bundle::{DocumentKind, SceneBundle};
+use crate::service::config::Limits;
 use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{
     ApiQueryWithParameters, MediaType, SCENE_PARAMETER_PREFIX, SceneId, body_bytes,
@@ -49,6 +51,9 @@ pub struct PostSceneQuery {
     /// Approximate unsupported Mitsuba features instead of rejecting them.
     #[serde(default)]
     pub lenient: bool,
+    /// The scene file of an uploaded archive, when its root holds several
+    /// (or none): `scene.xml`, or `lego/scene.xml`. Refused with other bodies.
+    pub file: Option<String>,
     // `param.NAME=VALUE` pairs (the XML scene's `$NAME` values, overriding
     // its `<default>`s) are taken apart by `ApiQueryWithParameters`.
 }
@@ -62,6 +67,15 @@ pub struct PostSceneQuery {
 /// relative paths it names (`..`, absolute paths and the like are refused,
 /// 422 naming `assets[i]`; more than `limits.max_upload_bytes` in all is a
 /// 422 naming that limit).
+/// As an archive (`application/zip`, `application/x-tar`, `application/gzip`
+/// for a gzipped tar, or `application/octet-stream`: known by its bytes), the
+/// body is a packed scene folder: the scene file at its root or at the root
+/// of the one folder that holds everything (else named by `file`), beside the
+/// files it references. Its id is the `id` parameter, else (XML) that
+/// folder's name or the file's stem. Entries are checked as assets are, and
+/// links, FIFOs, devices and entries past `limits.max_asset_bytes`,
+/// `limits.max_unpacked_bytes` or `limits.max_compression_ratio` are refused,
+/// 422 naming `archive[i]` and the entry's name.
 /// Otherwise files the scene references must already be in the scenes directory.
 /// `param.NAME=VALUE` query parameters set an XML scene's `$NAME` (overriding
 /// its `<default>`, like `mitsuba -D`); with a JSON scene they are refused.
@@ -80,7 +94,14 @@ pub async fn post_scene(
     ApiQueryWithParameters(query, parameters): ApiQueryWithParameters<PostSceneQuery>,
     request: Request,
 ) -> Result<(StatusCode, Json<SceneSummary>), ApiError> {
-    let (id, document, kind, bundle) = match body_media_type(&request) {
+    let media_type = body_media_type(&request);
+    if query.file.is_some() && !matches!(media_type, MediaType::Archive(_)) {
+        return Err(ApiError::invalid(
+            "file",
+            "`file` names the scene file of an uploaded archive",
+        ));
+    }
+    let (id, document, kind, bundle) = match media_type {
         MediaType::Json => {
             let bytes = body_bytes(request, &()).await?;
             let id = posted_id(DocumentKind::Json, query.id, &bytes)?;
@@ -97,12 +118,56 @@ pub async fn post_scene(
             )
         }
         MediaType::Multipart => {
-            let limit = state.config.limits.max_upload_bytes;
             let reading = state.upload_permit()?;
-            let upload = read_upload(request, limit, state.config.limits.max_assets).await?;
+            let upload = read_upload(request, &state.config.limits).await?;
             drop(reading);
             let id = posted_id(upload.kind, query.id, upload.document.as_bytes())?;
             (id, upload.document, upload.kind, Some(upload.bundle))
+        }
+        MediaType::Archive(format) => {
+            let reading = state.upload_permit()?;
+            let archive = body_to_file(request, state.config.limits.max_upload_bytes).await?;
+            let limits = &state.config.limits;
+            let archive_limits = ArchiveLimits {
+                max_entry_bytes: limits.max_asset_bytes,
+                max_total_bytes: limits.max_unpacked_bytes,
+                max_ratio: limits.max_compression_ratio,
+            };
+            let max_assets = limits.max_assets;
+            let file = query.file.clone();
+            let unpacked = tokio::task::spawn_blocking(move || {
+                let format = match format {
+                    Some(format) => format,
+                    None => sniff(&archive)?,
+                };
+                Ok::<_, ApiError>(archive::unpack(
+                    archive,
+                    format,
+                    &archive_limits,
+                    max_assets,
+                    file.as_deref(),
+                )?)
+            })
+            .await??;
+            drop(reading);
+            if !unpacked.outside.is_empty() {
+                tracing::info!(file = %unpacked.file, left_out = ?unpacked.outside,
+                    "archive entries outside the scene file's folder left out");
+            }
+            let id = match (unpacked.kind, query.id) {
+                (DocumentKind::MitsubaXml, None) => {
+                    let id = unpacked.folder.clone().unwrap_or_else(|| {
+                        let file = std::path::Path::new(&unpacked.file);
+                        file.file_stem()
+                            .map(|s| s.to_string_lossy().into_owned())
+                            .unwrap_or_default()
+                    });
+                    validate_id(&id).at("id")?;
+                    id
+                }
+                (kind, id) => posted_id(kind, id, unpacked.document.as_bytes())?,
+            };
+            (id, unpacked.document, unpacked.kind, Some(unpacked.bundle))
         }
         MediaType::Other => {
             return Err(ApiError::UnsupportedSceneMediaType {
@@ -181,6 +246,49 @@ fn unwritable(field: &str, err: &std::io::Error) -> ApiError {
     }
 }
 
+/// Writes the body to a fresh anonymous file as it arrives, at most `limit`
+/// bytes (413 naming `limits.max_upload_bytes` beyond), and rewinds it.
+async fn body_to_file(request: Request, limit: u64) -> Result<std::fs::File, ApiError> {
+    use http_body_util::BodyExt;
+    let file = tempfile::tempfile().map_err(|e| unwritable("body", &e))?;
+    let mut out = tokio::fs::File::from_std(file);
+    let mut body = request.into_body();
+    let mut received = 0u64;
+    while let Some(frame) = body.frame().await {
+        let frame = frame.map_err(|e| ApiError::invalid("body", format!("cannot be read: {e}")))?;
+        let Ok(chunk) = frame.into_data() else {
+            continue;
+        };
+        received += chunk.len() as u64;
+        if received > limit {
+            return Err(ApiError::upload_too_large(limit));
+        }
+        out.write_all(&chunk)
+            .await
+            .map_err(|e| unwritable("body", &e))?;
+    }
+    out.flush().await.map_err(|e| unwritable("body", &e))?;
+    let mut file = out.into_std().await;
+    std::io::Seek::rewind(&mut file).map_err(|e| unwritable("body", &e))?;
+    Ok(file)
+}
+
+/// The format of an archive sent as `application/octet-stream`, by its
+/// first bytes (415 when they show none).
+fn sniff(archive: &std::fs::File) -> Result<ArchiveFormat, ApiError> {
+    use std::io::{Read, Seek};
+    let mut head = Vec::with_capacity(512);
+    let mut reader = archive;
+    reader
+        .take(512)
+        .read_to_end(&mut head)
+        .and_then(|_| reader.rewind())
+        .map_err(|e| unwritable("body", &e))?;
+    ArchiveFormat::sniff(&head).ok_or_else(|| ApiError::UnsupportedSceneMediaType {
+        got: "application/octet-stream whose bytes are not a zip, tar or gzipped tar".into(),
+    })
+}
+
 /// A scene uploaded with its assets.
 struct Upload {
     document: String,
@@ -188,11 +296,13 @@ struct Upload {
     bundle: SceneBundle,
 }
 
-/// Reads a `multipart/form-data` upload of at most `limit` bytes: one part
+/// Reads a `multipart/form-data` upload of at most `limits.max_upload_bytes`
+/// bytes, each asset at most `limits.max_asset_bytes`: one part
 /// named `scene` (the document; `.xml` file name or an XML content type
 /// means Mitsuba XML, JSON otherwise) and any number named `asset`, each
 /// with a `filename` that is the relative path the document uses.
-async fn read_upload(request: Request, limit: u64, max_assets: usize) -> Result<Upload, ApiError> {
+async fn read_upload(request: Request, limits: &Limits) -> Result<Upload, ApiError> {
+    let (limit, max_asset_bytes) = (limits.max_upload_bytes, limits.max_asset_bytes);
     let content_type = content_type_text(&request);
     let boundary = multer::parse_boundary(&content_type)?;
     let constraints =
@@ -202,7 +312,7 @@ async fn read_upload(request: Request, limit: u64, max_assets: usize) -> Result<
         boundary,
         constraints,
     );
-    let (mut document, mut bundle) = (None, SceneBundle::new(max_assets)?);
+    let (mut document, mut bundle) = (None, SceneBundle::new(limits.max_assets)?);
     while let Some(part) = parts.next_field().await? {
         match part.name() {
             Some("scene") => {
@@ -228,8 +338,17 @@ async fn read_upload(request: Request, limit: u64, max_assets: usize) -> Result<
                 // Written to the bundle's file chunk by chunk as it arrives.
                 let file = bundle.create(&name, &field)?;
                 let mut file = tokio::fs::File::from_std(file);
-                let mut part = part;
+                let (mut part, mut written) = (part, 0u64);
                 while let Some(chunk) = part.chunk().await? {
+                    written += chunk.len() as u64;
+                    if written > max_asset_bytes {
+                        return Err(ApiError::invalid(
+                            &field,
+                            format!(
+                                "asset {name:?} is larger than {max_asset_bytes} bytes (limits.max_asset_bytes)"
+                            ),
+                        ));
+                    }
                     file.write_all(&chunk)
                         .await
                         .map_err(|e| unwritable(&field, &e))?;
