@@ -3,13 +3,16 @@ bearer token, and the service routes."""
 
 from __future__ import annotations
 
+import io
 import json
+import shutil
+import zipfile
 from pathlib import Path
 
 import pytest
 
 from bmc_irradiance import Client, ServiceError
-from conftest import SCENES, TOKEN, Server, raw
+from conftest import REPO, SCENES, TOKEN, Server, raw
 
 # A scene that references no file, small enough for any body limit.
 TINY = {
@@ -165,3 +168,27 @@ def test_an_upload_refused_while_sending_raises_the_services_error(
     assert refused.value.status == 422
     assert refused.value.field == "limits.max_upload_bytes"
     assert "65536 bytes" in str(refused.value)
+
+
+def test_a_scene_folder_uploads_whole_or_packed(client: Client, tmp_path: Path) -> None:
+    """The tutorials' Cornell box folder (``cbox.xml`` and its ``meshes/``)
+    uploads as a folder, named after it, and as a gzipped tar made by the
+    standard library; an archive with a ``..`` entry is refused naming it."""
+    folder = tmp_path / "cbox"
+    shutil.copytree(REPO / "tests" / "data" / "mitsuba-tutorials", folder)
+    summary = client.upload_dir(folder)
+    assert summary["id"] == "cbox"
+    packed = shutil.make_archive(str(tmp_path / "packed"), "gztar", root_dir=folder)
+    again = client.upload_archive(packed, "cbox-tar")
+    assert again["id"] == "cbox-tar" and again["digest"] == summary["digest"]
+    escaping = io.BytesIO()
+    with zipfile.ZipFile(escaping, "w") as out:
+        out.writestr("scene.json", json.dumps(TINY))
+        out.writestr("../evil.obj", "v 0 0 0\n")
+    with pytest.raises(ServiceError) as refused:
+        client.upload_archive(escaping.getvalue())
+    assert refused.value.status == 422
+    assert refused.value.field == "archive[1]"
+    assert "../evil.obj" in str(refused.value)
+    for id in ("cbox", "cbox-tar"):
+        client.delete(id)

@@ -1,10 +1,12 @@
-"""Scenes: list, show, upload (with their asset files) and delete."""
+"""Scenes: list, show, upload (with their asset files, or as a packed folder) and delete."""
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
+import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -99,9 +101,91 @@ class _Scenes(_Resource):
         )
         return dict(answer.json())
 
+    def upload_archive(
+        self,
+        archive: bytes | os.PathLike[str] | str,
+        id: str | None = None,
+        *,
+        file: str | None = None,
+        lenient: bool = False,
+        params: Mapping[str, str | int | float] | None = None,
+    ) -> dict[str, Any]:
+        """``POST /v1/scenes`` with a packed scene folder: a zip, tar or
+        gzipped tar (a path, or its bytes), holding the scene file at its root
+        or at the root of the one folder that holds everything, beside the
+        meshes, maps and textures it names.
+
+        The scene file is the only ``.xml``/``.json`` there, or the one named
+        ``scene`` or after the folder, else ``file`` (``"scene_box.xml"``).
+        An XML scene's id is ``id``, by default the folder's name (``lego``
+        for ``zip -r lego.zip lego``) or the file's stem; a JSON scene's is its
+        ``name``. ``lenient`` and ``params`` are as for :meth:`upload`. An
+        entry the service refuses (``..``, a link, a FIFO, a zip bomb, more
+        than its ``limits.max_assets``) raises :class:`ServiceError` naming
+        ``archive[i]``. Returns the scene's summary.
+        """
+        data = archive if isinstance(archive, bytes) else Path(archive).read_bytes()
+        query: dict[str, Any] = {
+            "id": id,
+            "file": file,
+            "lenient": True if lenient else None,
+        }
+        for name, value in (params or {}).items():
+            query[f"param.{name}"] = str(value)
+        answer = self._http.request(
+            "POST",
+            "/v1/scenes",
+            body=data,
+            content_type=_archive_type(archive),
+            query=query,
+        )
+        return dict(answer.json())
+
+    def upload_dir(
+        self,
+        folder: os.PathLike[str] | str,
+        id: str | None = None,
+        *,
+        file: str | None = None,
+        lenient: bool = False,
+        params: Mapping[str, str | int | float] | None = None,
+    ) -> dict[str, Any]:
+        """``POST /v1/scenes`` with a whole scene folder (Mitsuba's ``lego/``
+        with its ``scene.xml``, ``meshes/`` and ``textures/``), zipped in
+        memory as ``<folder name>/...`` and sent as :meth:`upload_archive`
+        does, so an XML scene's id is the folder's name unless ``id`` is
+        given. Links and special files in the folder are refused here, as the
+        service would refuse them."""
+        root = Path(folder)
+        if not root.is_dir():
+            raise ValueError(f"{root} is not a folder")
+        packed = io.BytesIO()
+        with zipfile.ZipFile(packed, "w", zipfile.ZIP_DEFLATED) as out:
+            for path in sorted(root.rglob("*")):
+                if path.is_symlink() or not (path.is_file() or path.is_dir()):
+                    raise ValueError(f"{path} is a link or a special file, not a regular file")
+                if path.is_file():
+                    out.write(path, f"{root.resolve().name}/{path.relative_to(root).as_posix()}")
+        return self.upload_archive(packed.getvalue(), id, file=file, lenient=lenient, params=params)
+
     def delete(self, id: str) -> None:
         """``DELETE /v1/scenes/{id}``; requests already using the scene finish normally."""
         self._http.request("DELETE", f"/v1/scenes/{_segment(id)}")
+
+
+def _archive_type(archive: bytes | os.PathLike[str] | str) -> str:
+    """The media type an archive's file name declares; bytes are sent as
+    ``application/octet-stream``, whose format the service reads from them."""
+    if isinstance(archive, bytes):
+        return "application/octet-stream"
+    name = Path(archive).name.lower()
+    if name.endswith(".zip"):
+        return "application/zip"
+    if name.endswith((".tar.gz", ".tgz")):
+        return "application/gzip"
+    if name.endswith(".tar"):
+        return "application/x-tar"
+    return "application/octet-stream"
 
 
 def _referenced_files(text: str, xml: bool) -> list[str]:
