@@ -7,7 +7,7 @@
 #
 # It reads the scene files in scenes/ beside this script and writes tile.png
 # into the current directory. It changes nothing it did not add: the scenes it
-# uploads (my-box, my-box-xml, my-sky) are deleted at the end, and the bundled
+# uploads (my-box, my-box-xml, my-sky, my-studio) are deleted at the end, and the bundled
 # cornell-box is only queried (its irradiance cache is cleared, which the next
 # request refills). With server.auth_token set, export BMC_TOKEN. Any HTTP
 # error stops the script, printing the service's JSON error body.
@@ -51,6 +51,13 @@ curl -X POST "$BASE/v1/scenes?id=my-box-xml&lenient=false" -H 'content-type: app
 sed 's/"name": "sky"/"name": "my-sky"/' "$SCENES/sky.json" |
     curl -X POST "$BASE/v1/scenes" -F 'scene=@-;filename=scene.json;type=application/json' \
          -F "asset=@$SCENES/sky.exr;filename=sky.exr"
+# A scene folder in one request: a zip, tar or gzipped tar with the scene file at its root
+# (or at the root of its one folder: `zip -r lego.zip lego` gives id "lego"); ?file= picks
+# it among several. Links, FIFOs, "..", zip bombs: 422 naming archive[i]. `bmc-irradiance
+# upload DIR|ARCHIVE` and the Python client's upload_dir do the packing.
+tar -czf - -C "$SCENES" studio.xml dusk.hdr textures/tiles.png meshes/blob.obj |
+    curl -X POST "$BASE/v1/scenes?id=my-studio&file=studio.xml" -H 'content-type: application/gzip' \
+         --data-binary @-
 
 curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: application/json' \
      -d '{"points": [{"position": [0, -0.99, 0], "normal": [0, 1, 0]}],
@@ -136,3 +143,4 @@ curl -X POST "$BASE/v1/quadratures" -H 'content-type: application/json' \
 curl -X DELETE "$BASE/v1/scenes/my-box"
 curl -X DELETE "$BASE/v1/scenes/my-box-xml"
 curl -X DELETE "$BASE/v1/scenes/my-sky"
+curl -X DELETE "$BASE/v1/scenes/my-studio"

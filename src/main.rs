@@ -35,6 +35,8 @@ enum Command {
     Compare(cli::render::CompareArgs),
     /// Fetch a whole camera image from a running service, tile by tile (GET tiles).
     Fetch(cli::fetch::FetchArgs),
+    /// Send a scene folder, or a zip, tar or .tar.gz of one, to a running service.
+    Upload(cli::upload::UploadArgs),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +64,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(args) => cli::render::run_render(&args, &mut std::io::stdout().lock()),
         Command::Compare(args) => cli::render::run_compare(&args, &mut std::io::stdout().lock()),
         Command::Fetch(args) => cli::fetch::run_fetch(&args, &mut std::io::stdout().lock()),
+        Command::Upload(args) => cli::upload::run_upload(&args, &mut std::io::stdout().lock()),
     }
 }
 

@@ -131,13 +131,17 @@ async fn ok_or_service_error(
     if response.status().is_success() {
         Ok(response)
     } else {
-        Err(service_error(response, url).await)
+        Err(service_error(response, "GET", url).await)
     }
 }
 
 /// A failed answer as an error carrying the service's own message (its JSON
 /// error body: message and field) rather than the bare status line.
-async fn service_error(response: reqwest::Response, url: &str) -> anyhow::Error {
+pub(super) async fn service_error(
+    response: reqwest::Response,
+    method: &str,
+    url: &str,
+) -> anyhow::Error {
     let status = response.status();
     let text = response.text().await.unwrap_or_default();
     let said = serde_json::from_str::<serde_json::Value>(&text)
@@ -151,7 +155,7 @@ async fn service_error(response: reqwest::Response, url: &str) -> anyhow::Error 
             })
         })
         .unwrap_or(text);
-    anyhow::anyhow!("GET {url}: the service answered {status}: {said}")
+    anyhow::anyhow!("{method} {url}: the service answered {status}: {said}")
 }
 
 /// Most 503 answers taken for one tile (each waits its `Retry-After`).
@@ -192,7 +196,7 @@ async fn get_with_retries(
                 tokio::time::sleep(backoff).await;
             }
             Ok(response) => {
-                return Err(service_error(response, url).await);
+                return Err(service_error(response, "GET", url).await);
             }
             Err(err) if !last => {
                 tracing::warn!(%url, %err, "retrying");

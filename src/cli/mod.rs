@@ -6,6 +6,7 @@ pub mod quadrature;
 pub mod render;
 pub mod scene_args;
 pub mod study;
+pub mod upload;
 
 use crate::render::PathDepth;
 

@@ -107,6 +107,25 @@ pub fn unpack(
     scene_of(sink.bundle, file)
 }
 
+/// Packs the scene folder `folder` into `out` as a gzipped tar whose
+/// entries are `<folder's name>/…`, as `tar -czf` of the folder would, so
+/// [`unpack`] finds its scene file and names the scene after the folder.
+/// Links are packed as links (and refused by [`unpack`]), never followed.
+pub fn pack_folder(folder: &Path, out: impl std::io::Write) -> std::io::Result<()> {
+    let name = std::fs::canonicalize(folder)?
+        .file_name()
+        .map(|n| n.to_owned())
+        .ok_or_else(|| std::io::Error::other(format!("{} has no name", folder.display())))?;
+    let mut tar = tar::Builder::new(flate2::write::GzEncoder::new(
+        out,
+        flate2::Compression::fast(),
+    ));
+    tar.follow_symlinks(false);
+    tar.append_dir_all(&name, folder)?;
+    tar.into_inner()?.finish()?;
+    Ok(())
+}
+
 /// Where entries go, and what they have taken so far.
 struct Sink {
     bundle: SceneBundle,
@@ -602,6 +621,30 @@ mod tests {
         let err = unpack(zip_of(&many), ArchiveFormat::Zip, &LIMITS, 16, None).unwrap_err();
         assert_eq!(err.field(), Some("archive[16]"));
         assert!(err.to_string().contains("\"f16\""), "{err}");
+    }
+
+    #[test]
+    fn a_packed_folder_unpacks_to_the_same_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let folder = dir.path().join("lego");
+        std::fs::create_dir_all(folder.join("meshes")).unwrap();
+        std::fs::write(folder.join("scene.xml"), "<scene/>").unwrap();
+        std::fs::write(folder.join("meshes/a.ply"), [7u8; 3000]).unwrap();
+        let mut packed = tempfile::tempfile().unwrap();
+        pack_folder(&folder, &mut packed).unwrap();
+        packed.rewind().unwrap();
+        let unpacked = unpack(packed, ArchiveFormat::TarGz, &LIMITS, 16, None).unwrap();
+        assert_eq!(unpacked.folder.as_deref(), Some("lego"));
+        assert_eq!(unpacked.document, "<scene/>");
+        let mesh = unpacked.bundle.path_of(Path::new("meshes/a.ply"));
+        assert_eq!(std::fs::read(mesh).unwrap(), [7u8; 3000]);
+        // A link inside is packed as a link, which unpacking refuses.
+        std::os::unix::fs::symlink("/etc/passwd", folder.join("meshes/b.ply")).unwrap();
+        let mut packed = tempfile::tempfile().unwrap();
+        pack_folder(&folder, &mut packed).unwrap();
+        packed.rewind().unwrap();
+        let err = unpack(packed, ArchiveFormat::TarGz, &LIMITS, 16, None).unwrap_err();
+        assert!(err.to_string().contains("is a link"), "{err}");
     }
 
     #[test]

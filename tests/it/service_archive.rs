@@ -231,3 +231,40 @@ async fn bad_archives_are_refused_naming_the_entry_and_nothing_is_lost() {
         .collect();
     assert_eq!(ids, ["tiny"]);
 }
+
+/// `bmc-irradiance upload DIR` packs the folder and sends it: the scene is
+/// named after the folder; a folder holding a link is refused, the CLI
+/// saying what the service said.
+#[tokio::test]
+async fn the_cli_uploads_a_scene_folder() {
+    let app = spawn_app_with_scenes(&[], |_| {}).await;
+    let work = tempfile::tempdir().unwrap();
+    cbox_folder(work.path());
+    let upload = |folder: std::path::PathBuf| {
+        let base = app.base.clone();
+        tokio::task::spawn_blocking(move || {
+            Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
+                .args(["upload", "--url", &base])
+                .arg(folder)
+                .output()
+                .unwrap()
+        })
+    };
+    let output = upload(work.path().join("cbox")).await.unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let summary: Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(summary["id"], "cbox");
+    renders(&app, "cbox").await;
+    std::os::unix::fs::symlink("/etc/passwd", work.path().join("cbox/meshes/x.obj")).unwrap();
+    let output = upload(work.path().join("cbox")).await.unwrap();
+    assert!(!output.status.success());
+    let said = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        said.contains("is a link") && said.contains("archive["),
+        "{said}"
+    );
+}
