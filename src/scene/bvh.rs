@@ -510,13 +510,61 @@ impl Bvh {
     }
 }
 
-/// The binned-SAH binary tree over `bounds` and the build order.
+/// Ranges of at least this many primitives split their two halves on two
+/// threads; below it a thread is not worth its hand-off.
+const PARALLEL_RANGE: usize = 16 * 1024;
+
+/// How a range of primitives was split, decided before nodes are numbered.
+enum Decision {
+    Leaf { bounds: Aabb },
+    Split { bounds: Aabb, mid: usize, children: Box<[Decision; 2]> },
+}
+
+/// Decides the splits of `range` (reordered in place) at `depth`, the two
+/// halves of large ranges on two threads: the decisions and the final order
+/// depend only on the input, never on the threads.
+fn decide(range: &mut [u32], bounds: &[Aabb], centroids: &[DVec3], depth: usize) -> Decision {
+    let bb = range
+        .iter()
+        .fold(Aabb::EMPTY, |b, &i| b.union(bounds[i as usize]));
+    // Where the SAH cannot split (past the depth bound, or all centroids
+    // coincide) a range too big for a leaf is halved.
+    let sah = (depth < MAX_DEPTH)
+        .then(|| split(range, bounds, &centroids, &bb))
+        .flatten();
+    let Some(mid) = sah.or_else(|| (range.len() > MAX_LEAF).then_some(range.len() / 2)) else {
+        return Decision::Leaf { bounds: bb };
+    };
+    let parallel = range.len() >= PARALLEL_RANGE;
+    let (left, right) = range.split_at_mut(mid);
+    let (l, r) = if parallel {
+        rayon::join(
+            || decide(left, bounds, centroids, depth + 1),
+            || decide(right, bounds, centroids, depth + 1),
+        )
+    } else {
+        (
+            decide(left, bounds, centroids, depth + 1),
+            decide(right, bounds, centroids, depth + 1),
+        )
+    };
+    Decision::Split {
+        bounds: bb,
+        mid,
+        children: Box::new([l, r]),
+    }
+}
+
+/// The binned-SAH binary tree over `bounds` and the build order. Splits are
+/// decided first ([`decide`], in parallel), then nodes are numbered by one
+/// depth-first walk, so the tree is the same whatever the thread count.
 fn build_binary(bounds: &[Aabb]) -> (Vec<BinaryNode>, Vec<u32>) {
     let mut order: Vec<u32> = (0..bounds.len() as u32).collect();
     if bounds.is_empty() {
         return (Vec::new(), order);
     }
     let centroids: Vec<DVec3> = bounds.iter().map(Aabb::centroid).collect();
+    let root = decide(&mut order, bounds, &centroids, 0);
     let empty = BinaryNode {
         bounds: Aabb::EMPTY,
         first: 0,
@@ -524,32 +572,26 @@ fn build_binary(bounds: &[Aabb]) -> (Vec<BinaryNode>, Vec<u32>) {
     };
     let mut nodes = vec![empty];
     nodes.reserve(2 * bounds.len());
-    let mut todo = vec![(0usize, 0usize, bounds.len(), 0usize)];
-    while let Some((index, start, end, depth)) = todo.pop() {
-        let range = &mut order[start..end];
-        let bb = range
-            .iter()
-            .fold(Aabb::EMPTY, |b, &i| b.union(bounds[i as usize]));
-        // Where the SAH cannot split (past the depth bound, or all centroids
-        // coincide) a range too big for a leaf is halved.
-        let sah = (depth < MAX_DEPTH)
-            .then(|| split(range, bounds, &centroids, &bb))
-            .flatten();
-        let split = sah.or_else(|| (range.len() > MAX_LEAF).then_some(range.len() / 2));
-        nodes[index] = match split {
-            Some(mid) => {
+    let mut todo = vec![(0usize, 0usize, bounds.len(), &root)];
+    while let Some((index, start, end, decision)) = todo.pop() {
+        nodes[index] = match decision {
+            Decision::Split {
+                bounds,
+                mid,
+                children,
+            } => {
                 let left = nodes.len();
                 nodes.extend([empty, empty]);
-                todo.push((left, start, start + mid, depth + 1));
-                todo.push((left + 1, start + mid, end, depth + 1));
+                todo.push((left, start, start + mid, &children[0]));
+                todo.push((left + 1, start + mid, end, &children[1]));
                 BinaryNode {
-                    bounds: bb,
+                    bounds: *bounds,
                     first: left as u32,
                     count: 0,
                 }
             }
-            None => BinaryNode {
-                bounds: bb,
+            Decision::Leaf { bounds } => BinaryNode {
+                bounds: *bounds,
                 first: start as u32,
                 count: (end - start) as u32,
             },

@@ -61,6 +61,7 @@ pub enum ShapeKind {
     Sphere,
     Disk,
     Obj,
+    Ply,
     Triangles,
 }
 

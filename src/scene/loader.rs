@@ -120,20 +120,31 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
             ),
         ));
     }
-    // Every mesh file is read once, however many shapes use it, and the
-    // scene's size is known before any triangle is built.
-    let mut meshes = MeshFiles::default();
+    // Every mesh file is read once, however many shapes use it, all of
+    // them in parallel, and the scene's size is known before any triangle
+    // is built.
+    let mut wanted = Vec::new();
+    let mut inline = 0usize;
+    for (i, s) in doc.shapes.iter().enumerate() {
+        match (s.kind, &s.filename, &s.indices) {
+            (ShapeKind::Obj | ShapeKind::Ply, Some(name), _) => {
+                let field = format!("shapes[{i}].filename");
+                wanted.push((files.resolve(name, &field)?, s.kind, field));
+            }
+            (ShapeKind::Triangles, _, Some(indices)) => inline += indices.len(),
+            _ => {}
+        }
+    }
+    let meshes = MeshFiles::read_all(wanted, MAX_TRIANGLES - inline.min(MAX_TRIANGLES))?;
     let mut triangles = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
         let field = format!("shapes[{i}]");
         triangles += match (s.kind, &s.filename, &s.indices) {
             (ShapeKind::Rectangle, ..) => 2,
             (ShapeKind::Cube, ..) => 12,
-            (ShapeKind::Obj, Some(name), _) => {
-                let name_field = format!("{field}.filename");
-                let path = files.resolve(name, &name_field)?;
-                let budget = MAX_TRIANGLES - triangles.min(MAX_TRIANGLES);
-                meshes.load(&path, &name_field, budget)?.indices.len()
+            (ShapeKind::Obj | ShapeKind::Ply, Some(name), _) => {
+                let path = files.resolve(name, &format!("{field}.filename"))?;
+                meshes.get(&path).map_or(0, |m| m.indices.len())
             }
             (ShapeKind::Triangles, _, Some(indices)) => indices.len(),
             _ => 0,
@@ -233,23 +244,42 @@ pub(super) struct MeshFiles {
 }
 
 impl MeshFiles {
-    /// The mesh of the canonical `path`, read now if not yet read. A mesh
-    /// with more than `max_triangles` triangles is refused.
-    pub(super) fn load(
-        &mut self,
-        path: &Path,
-        field: &str,
+    /// Reads the mesh files `wanted` (canonical path, format, the field that
+    /// names it) in parallel, each once, each refused past `max_triangles`.
+    /// The first error in `wanted`'s order is returned, whatever finished first.
+    pub(super) fn read_all(
+        wanted: Vec<(PathBuf, ShapeKind, String)>,
         max_triangles: usize,
-    ) -> Result<Arc<MeshData>, SceneError> {
-        if let Some(mesh) = self.meshes.get(path) {
-            return Ok(mesh.clone());
-        }
-        let mesh = Arc::new(mesh::load_obj(path, field, max_triangles)?);
-        self.meshes.insert(path.to_path_buf(), mesh.clone());
-        Ok(mesh)
+    ) -> Result<MeshFiles, SceneError> {
+        use rayon::prelude::*;
+        let mut seen = std::collections::HashSet::new();
+        let unique: Vec<_> = wanted
+            .into_iter()
+            .filter(|(path, ..)| seen.insert(path.clone()))
+            .collect();
+        let read: Vec<Result<(PathBuf, Arc<MeshData>), SceneError>> = unique
+            .into_par_iter()
+            .map(|(path, kind, field)| {
+                let mesh = match kind {
+                    ShapeKind::Ply => super::ply::read_ply(&path, max_triangles)
+                        .map_err(|m| SceneError::file(&field, &path, m))?,
+                    _ => mesh::load_obj(&path, &field, max_triangles)?,
+                };
+                Ok((path, Arc::new(mesh)))
+            })
+            .collect();
+        Ok(MeshFiles {
+            meshes: read.into_iter().collect::<Result<_, _>>()?,
+        })
     }
 
-    /// A mesh already read by [`MeshFiles::load`].
+    /// How many distinct files were read.
+    #[cfg(test)]
+    pub(super) fn len(&self) -> usize {
+        self.meshes.len()
+    }
+
+    /// A mesh read by [`MeshFiles::read_all`].
     fn get(&self, path: &Path) -> Option<Arc<MeshData>> {
         self.meshes.get(path).cloned()
     }
@@ -305,7 +335,7 @@ impl GeometryBuilder {
         let (reject_sphere, reject_inline, reject_file) = match s.kind {
             ShapeKind::Sphere => (false, true, true),
             ShapeKind::Triangles => (true, false, true),
-            ShapeKind::Obj => (true, true, false),
+            ShapeKind::Obj | ShapeKind::Ply => (true, true, false),
             _ => (true, true, true),
         };
         let reject_mesh = reject_inline && reject_file;
@@ -328,7 +358,7 @@ impl GeometryBuilder {
         let (geometry, area) = match s.kind {
             ShapeKind::Rectangle => self.add_mesh(&mesh::rectangle(), &placement, field)?,
             ShapeKind::Cube => self.add_mesh(&mesh::cube(), &placement, field)?,
-            ShapeKind::Obj => {
+            ShapeKind::Obj | ShapeKind::Ply => {
                 let name_field = format!("{field}.filename");
                 let name = s
                     .filename
@@ -336,15 +366,24 @@ impl GeometryBuilder {
                     .ok_or_else(|| SceneError::invalid(field, "missing field `filename`"))?;
                 let path = files.resolve(name, &name_field)?;
                 // Read while sizing the scene (see `build`).
-                let data = match meshes.get(&path) {
-                    Some(data) => data,
-                    None => Arc::new(mesh::load_obj(&path, &name_field, remaining)?),
-                };
-                if data.normals.is_none() && s.face_normals != Some(true) {
-                    let smooth = MeshData::clone(&data).with_smooth_normals();
-                    self.add_mesh(&smooth, &placement, field)?
-                } else {
-                    self.add_mesh(&data, &placement, field)?
+                let data = meshes.get(&path).ok_or_else(|| {
+                    SceneError::invalid(&name_field, "the mesh file was not read")
+                })?;
+                // `face_normals` discards the file's normals, as in Mitsuba;
+                // without it a mesh that has none gets smooth ones.
+                match (s.face_normals == Some(true), data.normals.is_some()) {
+                    (true, true) => {
+                        let flat = MeshData {
+                            normals: None,
+                            ..MeshData::clone(&data)
+                        };
+                        self.add_mesh(&flat, &placement, field)?
+                    }
+                    (false, false) => {
+                        let smooth = MeshData::clone(&data).with_smooth_normals();
+                        self.add_mesh(&smooth, &placement, field)?
+                    }
+                    _ => self.add_mesh(&data, &placement, field)?,
                 }
             }
             ShapeKind::Triangles => {

@@ -24,6 +24,7 @@ pub mod material;
 mod mesh;
 mod mitsuba;
 mod params;
+mod ply;
 mod ray;
 mod read;
 

@@ -214,3 +214,22 @@ fn identical_primitives_still_give_small_leaves() {
     );
     assert_eq!(seen, 100);
 }
+
+#[test]
+fn the_tree_is_the_same_on_one_thread_or_several() {
+    // Large enough that the top splits run on two threads.
+    let boxes = random_boxes(4 * PARALLEL_RANGE, 7);
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let (bvh, order) = pool.install(|| Bvh::build(&boxes));
+        let nodes: Vec<String> = bvh.nodes.iter().map(|n| format!("{n:?}")).collect();
+        (nodes, order)
+    };
+    let (one, three) = (on(1), on(3));
+    assert_eq!(one.1, three.1);
+    assert!(one.0 == three.0, "the nodes differ");
+    assert!(one.0.len() > boxes.len() / 4);
+}

@@ -23,7 +23,6 @@ mod tests;
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 use super::Scene;
 use super::error::SceneError;
@@ -208,9 +207,6 @@ pub(crate) struct Ctx<'a> {
     origins: Vec<(String, Origin)>,
     /// Elements whose references are being followed (cycle detection).
     resolving: Vec<(u32, u32)>,
-    /// Mesh files read so far, by canonical path and format: each is read
-    /// once however many shapes name it.
-    mesh_files: HashMap<(PathBuf, shape::MeshFormat), Arc<super::mesh::MeshData>>,
 }
 
 impl<'a> Ctx<'a> {
@@ -231,7 +227,6 @@ impl<'a> Ctx<'a> {
             integrator: Default::default(),
             origins: Vec::new(),
             resolving: Vec::new(),
-            mesh_files: HashMap::new(),
         }
     }
 
