@@ -77,10 +77,17 @@ impl RenderArgs {
 /// Runs `render`: progress on stderr (hidden when it is not a terminal),
 /// a one-line summary (time, rays, rays/s) on `out`.
 pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    let loading = Instant::now();
     let scene = args.scene.load(&mut std::io::stderr())?;
     let (width, height) = scene.camera.resolution();
     let settings = args.settings(&scene);
+    let triangles = scene.triangle_count();
     let transport = Transport::new(Arc::new(scene));
+    writeln!(
+        out,
+        "loaded {triangles} triangles in {:.2} s",
+        loading.elapsed().as_secs_f64()
+    )?;
     // Fail on a bad request before any work (the first tile would too).
     settings
         .tile(0, 0, width, height)

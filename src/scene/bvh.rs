@@ -516,8 +516,14 @@ const PARALLEL_RANGE: usize = 16 * 1024;
 
 /// How a range of primitives was split, decided before nodes are numbered.
 enum Decision {
-    Leaf { bounds: Aabb },
-    Split { bounds: Aabb, mid: usize, children: Box<[Decision; 2]> },
+    Leaf {
+        bounds: Aabb,
+    },
+    Split {
+        bounds: Aabb,
+        mid: usize,
+        children: Box<[Decision; 2]>,
+    },
 }
 
 /// Decides the splits of `range` (reordered in place) at `depth`, the two

@@ -110,8 +110,8 @@ fn index_list(p: &Property) -> Option<Vec<i64>> {
 /// Reads the PLY mesh at `path` (module docs), refusing more than
 /// `max_triangles` triangles before its payload is read.
 pub(crate) fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, String> {
-    let file = super::read::open_capped(path, MAX_PLY_BYTES)
-        .map_err(|e| format!("cannot open: {e}"))?;
+    let file =
+        super::read::open_capped(path, MAX_PLY_BYTES).map_err(|e| format!("cannot open: {e}"))?;
     let mut reader = Reader::new(BufReader::new(file));
     let invalid = |e: ply_rs_bw::parser::ParseError| format!("invalid PLY: {e}");
     let header = Parser::<DefaultElement>::new()
@@ -163,10 +163,20 @@ pub(crate) fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, St
         mesh.positions.push(glam::DVec3::from_array(v.position));
     }
     if with_normals && !vertices.is_empty() {
-        mesh.normals = Some(vertices.iter().map(|v| glam::DVec3::from_array(v.normal)).collect());
+        mesh.normals = Some(
+            vertices
+                .iter()
+                .map(|v| glam::DVec3::from_array(v.normal))
+                .collect(),
+        );
     }
     if with_uvs && !vertices.is_empty() {
-        mesh.uvs = Some(vertices.iter().map(|v| glam::DVec2::from_array(v.uv)).collect());
+        mesh.uvs = Some(
+            vertices
+                .iter()
+                .map(|v| glam::DVec2::from_array(v.uv))
+                .collect(),
+        );
     }
     mesh.indices.reserve(faces.len());
     for (f, face) in faces.iter().enumerate() {

@@ -5,9 +5,8 @@
 //! `shapegroup` adds the group's shapes with the instance's `to_world`
 //! applied after their own.
 
-
-use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind};
 use crate::scene::MAX_SHAPES;
+use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind};
 
 use super::parse::{Element, quote};
 use super::props::Props;
@@ -154,4 +153,3 @@ fn instance<'a>(
     ctx.leave();
     Ok(())
 }
-
