@@ -536,7 +536,7 @@ fn decide(range: &mut [u32], bounds: &[Aabb], centroids: &[DVec3], depth: usize)
     // Where the SAH cannot split (past the depth bound, or all centroids
     // coincide) a range too big for a leaf is halved.
     let sah = (depth < MAX_DEPTH)
-        .then(|| split(range, bounds, &centroids, &bb))
+        .then(|| split(range, bounds, centroids, &bb))
         .flatten();
     let Some(mid) = sah.or_else(|| (range.len() > MAX_LEAF).then_some(range.len() / 2)) else {
         return Decision::Leaf { bounds: bb };
