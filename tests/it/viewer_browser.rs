@@ -286,3 +286,94 @@ fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
         tools.errors
     );
 }
+
+/// Drops `path` (a folder or a file) on the page as a user's drag from the
+/// file manager does, through Chromium's own drag machinery.
+fn drop_on_page(tools: &mut DevTools, path: &Path) {
+    let data = json!({"items": [], "files": [path.to_str().unwrap()], "dragOperationsMask": 1});
+    for kind in ["dragEnter", "dragOver", "drop"] {
+        tools.call(
+            "Input.dispatchDragEvent",
+            json!({"type": kind, "x": 400, "y": 300, "data": data}),
+        );
+    }
+}
+
+#[test]
+fn a_scene_folder_or_archive_dropped_on_the_viewer_is_uploaded_and_opened() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let app = runtime.block_on(async {
+        let dir = tempfile::tempdir().unwrap();
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        std::fs::copy(
+            root.join("cornell-box.json"),
+            dir.path().join("cornell-box.json"),
+        )
+        .unwrap();
+        spawn_app_in(dir, |_| {}).await
+    });
+    // The tutorials' Cornell box folder, and a gzipped tar of it under
+    // another folder name.
+    let work = tempfile::tempdir().unwrap();
+    let tutorials = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba-tutorials");
+    let folder = work.path().join("cbox");
+    crate::common::copy_dir(&tutorials, &folder);
+    crate::common::copy_dir(&tutorials, &work.path().join("box-packed"));
+    let status = Command::new("tar")
+        .args(["-czf", "box-packed.tar.gz", "box-packed"])
+        .current_dir(work.path())
+        .status()
+        .unwrap();
+    assert!(status.success());
+
+    let (_browser, mut tools) = launch();
+    tools.call(
+        "Page.navigate",
+        json!({"url": app.url("/?scene=cornell-box&preset=draft")}),
+    );
+    let load = Duration::from_secs(300);
+    tools.wait_for("!!(window.viewer && window.viewer.idle())", load);
+    let listed = || "[...document.getElementById('scene').options].map((o) => o.value)";
+    assert_eq!(tools.eval(listed()), json!(["cornell-box"]));
+
+    for (dropped, id) in [
+        (folder, "cbox"),
+        (work.path().join("box-packed.tar.gz"), "box-packed"),
+    ] {
+        drop_on_page(&mut tools, &dropped);
+        tools.wait_for(
+            &format!(
+                "window.viewer.state.uploadError !== null || \
+                 (window.viewer.state.scene === '{id}' && window.viewer.idle())"
+            ),
+            load,
+        );
+        assert_eq!(tools.eval("window.viewer.state.uploadError"), Value::Null);
+        // Listed, opened and drawn: the box's 256² image is lit.
+        assert!(
+            tools
+                .eval(listed())
+                .as_array()
+                .unwrap()
+                .contains(&json!(id))
+        );
+        assert_eq!(tools.eval("window.viewer.state.width"), json!(256));
+        let shown = tools.eval("window.viewer.layerStats('radiance')");
+        assert_eq!(shown["pixels"], json!(256 * 256), "{shown}");
+        assert!(mean_of(&shown)[0] > 20.0, "{shown}");
+        let summary: Value = runtime.block_on(async {
+            app.get(&format!("/v1/scenes/{id}"))
+                .await
+                .json()
+                .await
+                .unwrap()
+        });
+        assert_eq!(summary["id"], id, "{summary}");
+    }
+    tools.eval("1");
+    assert!(
+        tools.errors.is_empty(),
+        "console errors: {:#?}",
+        tools.errors
+    );
+}

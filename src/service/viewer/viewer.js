@@ -21,6 +21,8 @@
     drawn: { radiance: new Map(), std_dev: new Set(), records: new Set() },
     queue: [], inFlight: 0, loaded: 0, total: 0,
     renderMillis: [], rays: 0, errors: 0, stdDevScale: 0.2,
+    // The upload in progress (its label), and the last upload's error.
+    uploading: null, uploadError: null,
   };
 
   // ---- layers -------------------------------------------------------------
@@ -212,7 +214,129 @@
     $("legend").hidden = !state.uncertainty;
   }
 
+  // ---- uploads: a scene folder or archive dropped on the page --------------
+  // A folder is sent as a tar the page assembles (headers around the File
+  // objects, so no file is read into memory here), an archive as it is; the
+  // service finds the scene file and names the scene after the folder.
+  const ARCHIVES = [[".zip", "application/zip"], [".tar.gz", "application/gzip"],
+    [".tgz", "application/gzip"], [".tar", "application/x-tar"]];
+  const encoder = new TextEncoder();
+
+  // One ustar header block for a regular file `name` (UTF-8, long names split
+  // into the prefix field at a slash) of `size` bytes.
+  function tarHeader(name, size) {
+    const bytes = encoder.encode(name);
+    let [prefix, base] = [new Uint8Array(0), bytes];
+    if (bytes.length > 100) {
+      const slash = bytes.lastIndexOf(0x2f, 155);
+      if (slash < 0 || bytes.length - slash - 1 > 100) throw new Error(`${name}: the name is too long for a tar`);
+      [prefix, base] = [bytes.subarray(0, slash), bytes.subarray(slash + 1)];
+    }
+    const h = new Uint8Array(512);
+    const put = (offset, text) => h.set(typeof text === "string" ? encoder.encode(text) : text, offset);
+    put(0, base);
+    put(100, "0000644\0");
+    put(108, "0000000\0");
+    put(116, "0000000\0");
+    put(124, size.toString(8).padStart(11, "0") + "\0");
+    put(136, "00000000000\0");
+    put(148, "        ");
+    put(156, "0");
+    put(257, "ustar\0");
+    put(263, "00");
+    put(345, prefix);
+    const sum = h.reduce((a, b) => a + b, 0);
+    put(148, sum.toString(8).padStart(6, "0") + "\0 ");
+    return h;
+  }
+
+  // A tar of `files` ([relative name, File]) as a Blob.
+  function tarOf(files) {
+    const parts = [];
+    for (const [name, file] of files) {
+      parts.push(tarHeader(name, file.size), file);
+      if (file.size % 512) parts.push(new Uint8Array(512 - (file.size % 512)));
+    }
+    parts.push(new Uint8Array(1024));
+    return new Blob(parts);
+  }
+
+  // The files under a dropped directory entry, named from its own name down.
+  async function filesOf(entry, path, out) {
+    if (entry.isFile) {
+      out.push([path, await new Promise((resolve, reject) => entry.file(resolve, reject))]);
+    } else if (entry.isDirectory) {
+      const reader = entry.createReader();
+      for (;;) {
+        const batch = await new Promise((resolve, reject) => reader.readEntries(resolve, reject));
+        if (!batch.length) break;
+        for (const child of batch) await filesOf(child, `${path}/${child.name}`, out);
+      }
+    }
+    return out;
+  }
+
+  // What a dropped item becomes: [body, content type, query, label].
+  async function uploadOf(entry, file) {
+    if (entry && entry.isDirectory) {
+      const files = await filesOf(entry, entry.name, []);
+      return [tarOf(files), "application/x-tar", "", `${entry.name}/ (${files.length} files)`];
+    }
+    const name = file.name.toLowerCase();
+    const archive = ARCHIVES.find(([suffix]) => name.endsWith(suffix));
+    if (archive) return [file, archive[1], "", file.name];
+    if (name.endsWith(".xml")) {
+      const id = file.name.replace(/\.xml$/i, "");
+      return [file, "application/xml", `?id=${encodeURIComponent(id)}`, file.name];
+    }
+    if (name.endsWith(".json")) return [file, "application/json", "", file.name];
+    throw new Error(`${file.name}: drop a scene folder, a .zip, .tar or .tar.gz of one, or a scene file`);
+  }
+
+  async function uploadDropped(dataTransfer) {
+    const item = [...dataTransfer.items].find((i) => i.kind === "file");
+    if (!item) return;
+    const [body, type, query, label] = await uploadOf(item.webkitGetAsEntry?.(), item.getAsFile());
+    state.uploading = label;
+    $("progress").textContent = `uploading ${label}…`;
+    try {
+      const response = await fetch(`/v1/scenes${query}`, { method: "POST", headers: { "content-type": type }, body });
+      const answer = await response.json().catch(() => ({}));
+      if (!response.ok) {
+        const e = answer.error;
+        throw new Error(e ? `${label}: ${e.message}${e.field ? ` (${e.field})` : ""}` : `${label}: HTTP ${response.status}`);
+      }
+      await listScenes(answer.id);
+    } finally {
+      state.uploading = null;
+    }
+  }
+
+  function bindDrop() {
+    const over = (on) => document.body.classList.toggle("dropping", on);
+    document.addEventListener("dragover", (e) => { e.preventDefault(); over(true); });
+    document.addEventListener("dragleave", (e) => { if (e.target === document.documentElement || !e.relatedTarget) over(false); });
+    document.addEventListener("drop", (e) => {
+      e.preventDefault();
+      over(false);
+      uploadDropped(e.dataTransfer).catch((err) => { state.uploadError = err.message; $("progress").textContent = err.message; });
+    });
+  }
+
   // ---- scene and controls ---------------------------------------------------
+  // Fills the scene list with every scene the service holds and opens
+  // `wanted` (else the one shown, else cornell-box, else the first).
+  async function listScenes(wanted) {
+    const scenes = await (await fetch("/v1/scenes")).json();
+    const select = $("scene");
+    select.replaceChildren(...scenes.map((s) => new Option(`${s.id} (${s.resolution[0]}×${s.resolution[1]})`, s.id)));
+    const first = scenes.find((s) => s.id === wanted) || scenes.find((s) => s.id === state.scene)
+      || scenes.find((s) => s.id === "cornell-box") || scenes[0];
+    if (!first) { $("progress").textContent = "no scenes loaded: drop a scene folder here"; return; }
+    select.value = first.id;
+    if (first.id !== state.scene || wanted) await selectScene(first.id);
+  }
+
   async function selectScene(id) {
     const response = await fetch(`/v1/scenes/${encodeURIComponent(id)}`);
     if (!response.ok) throw new Error(`scene ${id}: HTTP ${response.status}`);
@@ -288,6 +412,7 @@
 
   async function start() {
     bindControls();
+    bindDrop();
     resizeView();
     drawLegend();
     const params = new URLSearchParams(location.search);
@@ -301,15 +426,7 @@
       if (p.default && !params.get("preset")) state.preset = p.name;
     }
     $("preset").value = state.preset;
-    const response = await fetch("/v1/scenes");
-    const scenes = await response.json();
-    const select = $("scene");
-    for (const s of scenes) select.add(new Option(`${s.id} (${s.resolution[0]}×${s.resolution[1]})`, s.id));
-    const wanted = params.get("scene");
-    const first = scenes.find((s) => s.id === wanted) || scenes.find((s) => s.id === "cornell-box") || scenes[0];
-    if (!first) { $("progress").textContent = "no scenes loaded"; return; }
-    select.value = first.id;
-    await selectScene(first.id);
+    await listScenes(params.get("scene"));
   }
 
   // For people at the console and for the browser test: the state, whether
