@@ -62,6 +62,7 @@ pub enum ShapeKind {
     Disk,
     Obj,
     Ply,
+    Serialized,
     Triangles,
 }
 
@@ -104,6 +105,9 @@ pub struct ShapeDoc {
     /// (default false, Mitsuba 3's `face_normals`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub face_normals: Option<bool>,
+    /// serialized: which mesh of the file (default 0, the first).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shape_index: Option<u32>,
 }
 
 #[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]

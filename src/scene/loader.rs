@@ -127,9 +127,10 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
     let mut inline = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
         match (s.kind, &s.filename, &s.indices) {
-            (ShapeKind::Obj | ShapeKind::Ply, Some(name), _) => {
+            (ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized, Some(name), _) => {
                 let field = format!("shapes[{i}].filename");
-                wanted.push((files.resolve(name, &field)?, s.kind, field));
+                let key = (files.resolve(name, &field)?, s.shape_index.unwrap_or(0));
+                wanted.push((key, s.kind, field));
             }
             (ShapeKind::Triangles, _, Some(indices)) => inline += indices.len(),
             _ => {}
@@ -142,9 +143,10 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         triangles += match (s.kind, &s.filename, &s.indices) {
             (ShapeKind::Rectangle, ..) => 2,
             (ShapeKind::Cube, ..) => 12,
-            (ShapeKind::Obj | ShapeKind::Ply, Some(name), _) => {
+            (ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized, Some(name), _) => {
                 let path = files.resolve(name, &format!("{field}.filename"))?;
-                meshes.get(&path).map_or(0, |m| m.indices.len())
+                let key = (path, s.shape_index.unwrap_or(0));
+                meshes.get(&key).map_or(0, |m| m.indices.len())
             }
             (ShapeKind::Triangles, _, Some(indices)) => indices.len(),
             _ => 0,
@@ -240,32 +242,40 @@ fn check_size(triangles: usize, field: &str) -> Result<(), SceneError> {
 /// one file).
 #[derive(Default)]
 pub(super) struct MeshFiles {
-    meshes: HashMap<PathBuf, Arc<MeshData>>,
+    /// By canonical path and mesh index (0 but for `serialized`).
+    meshes: HashMap<(PathBuf, u32), Arc<MeshData>>,
 }
 
 impl MeshFiles {
-    /// Reads the mesh files `wanted` (canonical path, format, the field that
-    /// names it) in parallel, each once, each refused past `max_triangles`.
-    /// The first error in `wanted`'s order is returned, whatever finished first.
+    /// Reads the mesh files `wanted` ((canonical path, mesh index), format,
+    /// the field that names it) in parallel, each once, each refused past
+    /// `max_triangles`. The first error in `wanted`'s order is returned,
+    /// whatever finished first.
     pub(super) fn read_all(
-        wanted: Vec<(PathBuf, ShapeKind, String)>,
+        wanted: Vec<((PathBuf, u32), ShapeKind, String)>,
         max_triangles: usize,
     ) -> Result<MeshFiles, SceneError> {
         use rayon::prelude::*;
         let mut seen = std::collections::HashSet::new();
         let unique: Vec<_> = wanted
             .into_iter()
-            .filter(|(path, ..)| seen.insert(path.clone()))
+            .filter(|(key, ..)| seen.insert(key.clone()))
             .collect();
-        let read: Vec<Result<(PathBuf, Arc<MeshData>), SceneError>> = unique
+        let read: Vec<Result<((PathBuf, u32), Arc<MeshData>), SceneError>> = unique
             .into_par_iter()
-            .map(|(path, kind, field)| {
+            .map(|((path, index), kind, field)| {
+                let file_error = |m: String| SceneError::file(&field, &path, m);
                 let mesh = match kind {
-                    ShapeKind::Ply => super::ply::read_ply(&path, max_triangles)
-                        .map_err(|m| SceneError::file(&field, &path, m))?,
+                    ShapeKind::Ply => {
+                        super::ply::read_ply(&path, max_triangles).map_err(file_error)?
+                    }
+                    ShapeKind::Serialized => {
+                        super::serialized::read_serialized(&path, index, max_triangles)
+                            .map_err(file_error)?
+                    }
                     _ => mesh::load_obj(&path, &field, max_triangles)?,
                 };
-                Ok((path, Arc::new(mesh)))
+                Ok(((path, index), Arc::new(mesh)))
             })
             .collect();
         Ok(MeshFiles {
@@ -280,8 +290,8 @@ impl MeshFiles {
     }
 
     /// A mesh read by [`MeshFiles::read_all`].
-    fn get(&self, path: &Path) -> Option<Arc<MeshData>> {
-        self.meshes.get(path).cloned()
+    fn get(&self, key: &(PathBuf, u32)) -> Option<Arc<MeshData>> {
+        self.meshes.get(key).cloned()
     }
 }
 
@@ -332,10 +342,11 @@ impl GeometryBuilder {
             ("face_normals", s.face_normals.is_some()),
         ];
         let mesh_field = [("flip_tex_coords", s.flip_tex_coords.is_some())];
+        let serialized_field = [("shape_index", s.shape_index.is_some())];
         let (reject_sphere, reject_inline, reject_file) = match s.kind {
             ShapeKind::Sphere => (false, true, true),
             ShapeKind::Triangles => (true, false, true),
-            ShapeKind::Obj | ShapeKind::Ply => (true, true, false),
+            ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized => (true, true, false),
             _ => (true, true, true),
         };
         let reject_mesh = reject_inline && reject_file;
@@ -344,6 +355,7 @@ impl GeometryBuilder {
             (reject_inline, &inline_fields[..]),
             (reject_file, &file_field[..]),
             (reject_mesh, &mesh_field[..]),
+            (s.kind != ShapeKind::Serialized, &serialized_field[..]),
         ] {
             if reject {
                 reject_fields(field, &kind, fields)?;
@@ -358,7 +370,7 @@ impl GeometryBuilder {
         let (geometry, area) = match s.kind {
             ShapeKind::Rectangle => self.add_mesh(&mesh::rectangle(), &placement, field)?,
             ShapeKind::Cube => self.add_mesh(&mesh::cube(), &placement, field)?,
-            ShapeKind::Obj | ShapeKind::Ply => {
+            ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized => {
                 let name_field = format!("{field}.filename");
                 let name = s
                     .filename
@@ -366,9 +378,11 @@ impl GeometryBuilder {
                     .ok_or_else(|| SceneError::invalid(field, "missing field `filename`"))?;
                 let path = files.resolve(name, &name_field)?;
                 // Read while sizing the scene (see `build`).
-                let data = meshes.get(&path).ok_or_else(|| {
-                    SceneError::invalid(&name_field, "the mesh file was not read")
-                })?;
+                let data = meshes
+                    .get(&(path, s.shape_index.unwrap_or(0)))
+                    .ok_or_else(|| {
+                        SceneError::invalid(&name_field, "the mesh file was not read")
+                    })?;
                 // `face_normals` discards the file's normals, as in Mitsuba;
                 // without it a mesh that has none gets smooth ones.
                 match (s.face_normals == Some(true), data.normals.is_some()) {

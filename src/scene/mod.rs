@@ -27,6 +27,7 @@ mod params;
 mod ply;
 mod ray;
 mod read;
+mod serialized;
 
 pub(crate) use loader::read_scene_file;
 mod shape;

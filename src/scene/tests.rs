@@ -696,7 +696,7 @@ fn mesh_files_are_shared_by_canonical_path() {
     let a = files.resolve("meshes/blob.obj", "f").unwrap();
     let b = files.resolve("./meshes/../meshes/blob.obj", "f").unwrap();
     assert_eq!(a, b);
-    let wanted = [a, b].map(|p| (p, format::ShapeKind::Obj, "f".to_string()));
+    let wanted = [a, b].map(|p| ((p, 0), format::ShapeKind::Obj, "f".to_string()));
     let meshes = loader::MeshFiles::read_all(wanted.to_vec(), MAX_TRIANGLES).unwrap();
     assert_eq!(meshes.len(), 1);
 }

@@ -1,5 +1,5 @@
 //! Mitsuba shapes → document shapes. `rectangle`, `cube`, `sphere`, `disk`,
-//! `obj` and `ply` map one to one (same local geometry; the loader reads
+//! `obj`, `ply` and `serialized` map one to one (same local geometry; the loader reads
 //! mesh files, with smooth vertex normals where a file has none unless
 //! `face_normals` is set, Mitsuba's default); an `instance` of a
 //! `shapegroup` adds the group's shapes with the instance's `to_world`
@@ -20,6 +20,7 @@ pub(crate) fn shape_doc(kind: ShapeKind, material: String) -> ShapeDoc {
         uvs: None,
         flip_tex_coords: None,
         face_normals: None,
+        shape_index: None,
         kind,
         id: None,
         material,
@@ -52,6 +53,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
         "disk" => ShapeKind::Disk,
         "obj" => ShapeKind::Obj,
         "ply" => ShapeKind::Ply,
+        "serialized" => ShapeKind::Serialized,
         // Declares shapes for instances; adds nothing by itself.
         "shapegroup" => return Ok(()),
         "instance" => return instance(ctx, el, props, &to_world),
@@ -96,6 +98,12 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
             doc.filename = Some(filename(&mut props)?.to_string());
             doc.face_normals = Some(props.boolean("face_normals", false)?);
             doc.flip_tex_coords = Some(props.boolean("flip_tex_coords", false)?);
+        }
+        Some("serialized") => {
+            doc.filename = Some(filename(&mut props)?.to_string());
+            doc.face_normals = Some(props.boolean("face_normals", false)?);
+            let index = props.int("shape_index", 0, 0..=i64::from(u32::MAX))?;
+            doc.shape_index = Some(index as u32);
         }
         _ => {}
     }

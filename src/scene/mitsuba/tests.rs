@@ -509,6 +509,46 @@ fn meshes_from_obj_and_ply() {
 }
 
 #[test]
+fn meshes_of_a_serialized_file() {
+    let dir = Scratch::new("serialized");
+    let data =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba/two_meshes.serialized");
+    std::fs::copy(data, dir.0.join("two.serialized")).unwrap();
+    let shape = |extra: &str| {
+        format!(
+            r#"<shape type="serialized"><string name="filename" value="two.serialized"/>{extra}<ref id="w"/></shape>"#
+        )
+    };
+    let text = wrap(
+        &[
+            shape(""),
+            shape(r#"<integer name="shape_index" value="1"/>"#),
+        ]
+        .concat(),
+    );
+    let (scene, _) = load_in(&text, &dir.0, false).unwrap_or_else(|e| panic!("{e}"));
+    // The quad (two triangles, area 1) and the triangle, read from one file.
+    assert_eq!(scene.triangle_count(), 3);
+    assert!((scene.shape_area(0) - 1.0).abs() < 1e-12);
+    let Err(e) = load_in(
+        &wrap(&shape(r#"<integer name="shape_index" value="5"/>"#)),
+        &dir.0,
+        false,
+    ) else {
+        panic!("a missing mesh loaded");
+    };
+    assert!(e.to_string().contains("holds 2 meshes"), "{e}");
+    let Err(e) = load_in(
+        &wrap(&shape(r#"<integer name="shape_index" value="-1"/>"#)),
+        &dir.0,
+        false,
+    ) else {
+        panic!("a negative index loaded");
+    };
+    assert!(e.to_string().contains("outside"), "{e}");
+}
+
+#[test]
 fn instances_of_a_shapegroup() {
     let scene = ok(r#"
       <shape type="shapegroup" id="g">
