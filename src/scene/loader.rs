@@ -241,9 +241,12 @@ fn check_size(triangles: usize, field: &str) -> Result<(), SceneError> {
 /// that names them (keyed by canonical path, so `a.obj` and `./a.obj` are
 /// one file).
 #[derive(Default)]
+/// A mesh file's canonical path and the mesh's index in it (0 but for
+/// `serialized`).
+type MeshKey = (PathBuf, u32);
+
 pub(super) struct MeshFiles {
-    /// By canonical path and mesh index (0 but for `serialized`).
-    meshes: HashMap<(PathBuf, u32), Arc<MeshData>>,
+    meshes: HashMap<MeshKey, Arc<MeshData>>,
 }
 
 impl MeshFiles {
@@ -252,7 +255,7 @@ impl MeshFiles {
     /// `max_triangles`. The first error in `wanted`'s order is returned,
     /// whatever finished first.
     pub(super) fn read_all(
-        wanted: Vec<((PathBuf, u32), ShapeKind, String)>,
+        wanted: Vec<(MeshKey, ShapeKind, String)>,
         max_triangles: usize,
     ) -> Result<MeshFiles, SceneError> {
         use rayon::prelude::*;
@@ -261,7 +264,7 @@ impl MeshFiles {
             .into_iter()
             .filter(|(key, ..)| seen.insert(key.clone()))
             .collect();
-        let read: Vec<Result<((PathBuf, u32), Arc<MeshData>), SceneError>> = unique
+        let read: Vec<Result<(MeshKey, Arc<MeshData>), SceneError>> = unique
             .into_par_iter()
             .map(|((path, index), kind, field)| {
                 let file_error = |m: String| SceneError::file(&field, &path, m);
@@ -290,7 +293,7 @@ impl MeshFiles {
     }
 
     /// A mesh read by [`MeshFiles::read_all`].
-    fn get(&self, key: &(PathBuf, u32)) -> Option<Arc<MeshData>> {
+    fn get(&self, key: &MeshKey) -> Option<Arc<MeshData>> {
         self.meshes.get(key).cloned()
     }
 }
