@@ -237,14 +237,13 @@ fn check_size(triangles: usize, field: &str) -> Result<(), SceneError> {
     Ok(())
 }
 
-/// Mesh files of one scene load, parsed once each and shared by every shape
-/// that names them (keyed by canonical path, so `a.obj` and `./a.obj` are
-/// one file).
-#[derive(Default)]
 /// A mesh file's canonical path and the mesh's index in it (0 but for
 /// `serialized`).
 type MeshKey = (PathBuf, u32);
 
+/// Mesh files of one scene load, parsed once each and shared by every shape
+/// that names them (keyed by canonical path, so `a.obj` and `./a.obj` are
+/// one file).
 pub(super) struct MeshFiles {
     meshes: HashMap<MeshKey, Arc<MeshData>>,
 }
