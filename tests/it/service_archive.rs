@@ -222,14 +222,7 @@ async fn bad_archives_are_refused_naming_the_entry_and_nothing_is_lost() {
     assert_eq!(status, StatusCode::UNSUPPORTED_MEDIA_TYPE);
     // The service is healthy and its scene intact.
     assert_eq!(app.get("/health").await.status(), StatusCode::OK);
-    let scenes: Value = app.get("/v1/scenes").await.json().await.unwrap();
-    let ids: Vec<&str> = scenes
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["id"].as_str().unwrap())
-        .collect();
-    assert_eq!(ids, ["tiny"]);
+    assert_eq!(app.scene_ids().await, ["tiny"]);
 }
 
 /// `bmc-irradiance upload DIR` packs the folder and sends it: the scene is

@@ -469,14 +469,7 @@ async fn every_bad_request_gets_its_status_code_and_field() {
         assert_eq!(field.as_deref(), case.field, "{}", case.name);
     }
     // Still serving, nothing lost, nothing half-added.
-    let scenes: Value = app.get("/v1/scenes").await.json().await.unwrap();
-    let ids: Vec<&str> = scenes
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["id"].as_str().unwrap())
-        .collect();
-    assert_eq!(ids, ["tiny"]);
+    assert_eq!(app.scene_ids().await, ["tiny"]);
     let fine = app
         .post_json("/v1/scenes/tiny/irradiance", &points(good_point()))
         .await;

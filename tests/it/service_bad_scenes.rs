@@ -362,7 +362,10 @@ async fn special_files_never_block_or_exhaust_the_service() {
         StatusCode::UNPROCESSABLE_ENTITY,
     )
     .await;
-    assert!(field.contains("<shape type=\"ply\">"), "{field} / {message}");
+    assert!(
+        field.contains("<shape type=\"ply\">"),
+        "{field} / {message}"
+    );
     assert!(message.contains("not a regular file"), "{message}");
 
     let png = mitsuba(

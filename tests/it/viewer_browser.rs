@@ -196,6 +196,33 @@ async fn server_mean(app: &TestApp, aov: &str) -> [f64; 3] {
     sum.map(|s| s / count as f64)
 }
 
+/// Longest wait for the viewer's tiles (CI's two cores run other tests beside).
+const LOAD: Duration = Duration::from_secs(300);
+
+/// A browser showing the viewer on `app`'s Cornell box (draft preset), once
+/// its tiles are in.
+fn open_viewer(app: &TestApp) -> (Browser, DevTools) {
+    let (browser, mut tools) = launch();
+    tools.call(
+        "Page.navigate",
+        json!({"url": app.url("/?scene=cornell-box&preset=draft")}),
+    );
+    tools.wait_for("!!(window.viewer && window.viewer.idle())", LOAD);
+    (browser, tools)
+}
+
+/// A service whose scenes directory holds only the bundled Cornell box.
+async fn serving_the_cornell_box() -> TestApp {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    std::fs::copy(
+        root.join("cornell-box.json"),
+        dir.path().join("cornell-box.json"),
+    )
+    .unwrap();
+    spawn_app_in(dir, |_| {}).await
+}
+
 fn mean_of(stats: &Value) -> [f64; 3] {
     let m = stats["mean"].as_array().unwrap();
     [0, 1, 2].map(|c| m[c].as_f64().unwrap())
@@ -204,23 +231,9 @@ fn mean_of(stats: &Value) -> [f64; 3] {
 #[test]
 fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let app = runtime.block_on(async {
-        let dir = tempfile::tempdir().unwrap();
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-        std::fs::copy(
-            root.join("cornell-box.json"),
-            dir.path().join("cornell-box.json"),
-        )
-        .unwrap();
-        spawn_app_in(dir, |_| {}).await
-    });
-    let (_browser, mut tools) = launch();
-    tools.call(
-        "Page.navigate",
-        json!({"url": app.url("/?scene=cornell-box&preset=draft")}),
-    );
-    let load = Duration::from_secs(300);
-    tools.wait_for("!!(window.viewer && window.viewer.idle())", load);
+    let app = runtime.block_on(serving_the_cornell_box());
+    let (_browser, mut tools) = open_viewer(&app);
+    let load = LOAD;
     assert_eq!(tools.eval("window.viewer.state.width"), json!(256));
 
     // The radiance layer is the service's PNG tiles, pixel for pixel.
@@ -302,16 +315,7 @@ fn drop_on_page(tools: &mut DevTools, path: &Path) {
 #[test]
 fn a_scene_folder_or_archive_dropped_on_the_viewer_is_uploaded_and_opened() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let app = runtime.block_on(async {
-        let dir = tempfile::tempdir().unwrap();
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-        std::fs::copy(
-            root.join("cornell-box.json"),
-            dir.path().join("cornell-box.json"),
-        )
-        .unwrap();
-        spawn_app_in(dir, |_| {}).await
-    });
+    let app = runtime.block_on(serving_the_cornell_box());
     // The tutorials' Cornell box folder, and a gzipped tar of it under
     // another folder name.
     let work = tempfile::tempdir().unwrap();
@@ -326,13 +330,8 @@ fn a_scene_folder_or_archive_dropped_on_the_viewer_is_uploaded_and_opened() {
         .unwrap();
     assert!(status.success());
 
-    let (_browser, mut tools) = launch();
-    tools.call(
-        "Page.navigate",
-        json!({"url": app.url("/?scene=cornell-box&preset=draft")}),
-    );
-    let load = Duration::from_secs(300);
-    tools.wait_for("!!(window.viewer && window.viewer.idle())", load);
+    let (_browser, mut tools) = open_viewer(&app);
+    let load = LOAD;
     let listed = || "[...document.getElementById('scene').options].map((o) => o.value)";
     assert_eq!(tools.eval(listed()), json!(["cornell-box"]));
 

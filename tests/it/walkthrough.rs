@@ -12,16 +12,6 @@ fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-async fn scene_ids(app: &crate::common::TestApp) -> Vec<String> {
-    let scenes: serde_json::Value = app.get("/v1/scenes").await.json().await.unwrap();
-    scenes
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["id"].as_str().unwrap().to_owned())
-        .collect()
-}
-
 /// Runs the script against a fresh server with the bundled scenes; with
 /// `token`, the server requires it and the script gets it as `BMC_TOKEN`.
 async fn run_walkthrough(token: Option<&str>) {
@@ -31,7 +21,7 @@ async fn run_walkthrough(token: Option<&str>) {
         config.server.auth_token = token.unwrap_or_default().to_owned();
     })
     .await;
-    let bundled = scene_ids(&app).await;
+    let bundled = app.scene_ids().await;
     assert!(bundled.iter().any(|id| id == "cornell-box"), "{bundled:?}");
 
     let out = tempfile::tempdir().unwrap();
@@ -62,7 +52,7 @@ async fn run_walkthrough(token: Option<&str>) {
     let tile = image::open(out.path().join("tile.png")).expect("tile.png is a PNG");
     assert_eq!((tile.width(), tile.height()), (64, 64));
     // The uploaded scenes are gone again, the bundled ones untouched.
-    assert_eq!(scene_ids(&app).await, bundled);
+    assert_eq!(app.scene_ids().await, bundled);
 }
 
 #[tokio::test]

@@ -21,6 +21,17 @@ impl TestApp {
         format!("{}{path}", self.base)
     }
 
+    /// The ids of the scenes the service holds (`GET /v1/scenes`), sorted.
+    pub async fn scene_ids(&self) -> Vec<String> {
+        let scenes: serde_json::Value = self.get("/v1/scenes").await.json().await.unwrap();
+        scenes
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["id"].as_str().unwrap().to_owned())
+            .collect()
+    }
+
     pub async fn get(&self, path: &str) -> reqwest::Response {
         self.client.get(self.url(path)).send().await.unwrap()
     }
