@@ -26,7 +26,7 @@ use super::bsdfs::rough_conductor::RoughConductor;
 use super::bsdfs::rough_dielectric::RoughDielectric;
 use super::bsdfs::rough_plastic::RoughPlastic;
 use super::bsdfs::thin_dielectric::ThinDielectric;
-use super::microfacet::{Microfacet, MicrofacetKind};
+use super::microfacet::{MIN_ALPHA, Microfacet, MicrofacetKind};
 use super::rgb::Rgb;
 use crate::scene::Material;
 use crate::scene::material::{Distribution, Roughness};
@@ -250,12 +250,20 @@ impl Bsdf {
 
 /// The distribution of `r`, or `None` when the roughness is below what
 /// the microfacet models resolve (the smooth model is used instead).
-fn microfacet(r: Roughness) -> Option<Microfacet> {
+fn microfacet(r: &Roughness, lookup: Lookup) -> Option<Microfacet> {
     let kind = match r.distribution {
         Distribution::Beckmann => MicrofacetKind::Beckmann,
         Distribution::Ggx => MicrofacetKind::Ggx,
     };
-    Microfacet::new(kind, r.alpha_u, r.alpha_v)
+    match (lookup, &r.textures) {
+        // A roughness map's texels below the smallest roughness stay rough
+        // (the material is rough wherever it is, as its mean says).
+        (Lookup::At(uv), Some(_)) => {
+            let (u, v) = r.at(uv);
+            Microfacet::new(kind, u.max(MIN_ALPHA), v.max(MIN_ALPHA))
+        }
+        _ => Microfacet::new(kind, r.alpha_u, r.alpha_v),
+    }
 }
 
 impl From<&Material> for Bsdf {
@@ -311,7 +319,7 @@ fn build(material: &Material, lookup: Lookup, template: Option<&Bsdf>) -> Bsdf {
             roughness,
         } => {
             let (eta, k, specular_reflectance) = (rgb(eta), rgb(k), tex(specular_reflectance));
-            match roughness.and_then(microfacet) {
+            match roughness.as_ref().and_then(|r| microfacet(r, lookup)) {
                 Some(distribution) => Bsdf::RoughConductor(RoughConductor {
                     distribution,
                     eta,
@@ -334,7 +342,7 @@ fn build(material: &Material, lookup: Lookup, template: Option<&Bsdf>) -> Bsdf {
         } => {
             let (eta, specular_reflectance, specular_transmittance) =
                 (*eta, tex(specular_reflectance), tex(specular_transmittance));
-            match (thin, roughness.and_then(microfacet)) {
+            match (thin, roughness.as_ref().and_then(|r| microfacet(r, lookup))) {
                 (true, _) => Bsdf::ThinDielectric(ThinDielectric {
                     eta,
                     specular_reflectance,
@@ -361,7 +369,10 @@ fn build(material: &Material, lookup: Lookup, template: Option<&Bsdf>) -> Bsdf {
             roughness,
         } => {
             let (diffuse, specular) = (tex(diffuse_reflectance), tex(specular_reflectance));
-            match (roughness.and_then(microfacet), template) {
+            match (
+                roughness.as_ref().and_then(|r| microfacet(r, Lookup::Mean)),
+                template,
+            ) {
                 (Some(_), Some(Bsdf::RoughPlastic(t))) => {
                     Bsdf::RoughPlastic(t.retinted(diffuse, specular, *nonlinear))
                 }

@@ -47,11 +47,33 @@ pub enum Distribution {
 
 /// A microfacet surface's roughness: distribution and the RMS slopes
 /// along the tangent (`alpha_u`) and bitangent (`alpha_v`), both > 0.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Roughness {
     pub distribution: Distribution,
+    /// The slopes where no surface point is at hand: the constants given,
+    /// or the textures' means.
     pub alpha_u: f64,
     pub alpha_v: f64,
+    /// `[alpha_u, alpha_v]` as textures (scalar lookups, Mitsuba's `eval_1`)
+    /// when either varies over the surface.
+    pub textures: Option<Box<[Texture; 2]>>,
+}
+
+/// The roughness textures of `roughness`, if any.
+fn roughness_textures(roughness: &Option<Roughness>) -> impl Iterator<Item = &Texture> {
+    roughness
+        .iter()
+        .flat_map(|r| r.textures.iter().flat_map(|t| t.iter()))
+}
+
+impl Roughness {
+    /// `(alpha_u, alpha_v)` at texture coordinates `uv`.
+    pub fn at(&self, uv: glam::DVec2) -> (f64, f64) {
+        match &self.textures {
+            Some(t) => (t[0].eval_scalar(uv), t[1].eval_scalar(uv)),
+            None => (self.alpha_u, self.alpha_v),
+        }
+    }
 }
 
 /// A surface's BSDF with its parameters validated (see each plugin's file
@@ -169,13 +191,21 @@ impl Material {
             Material::Glossy { .. } => Vec::new(),
             Material::Conductor {
                 specular_reflectance,
+                roughness,
                 ..
-            } => vec![specular_reflectance],
+            } => [specular_reflectance]
+                .into_iter()
+                .chain(roughness_textures(roughness))
+                .collect(),
             Material::Dielectric {
                 specular_reflectance,
                 specular_transmittance,
+                roughness,
                 ..
-            } => vec![specular_reflectance, specular_transmittance],
+            } => [specular_reflectance, specular_transmittance]
+                .into_iter()
+                .chain(roughness_textures(roughness))
+                .collect(),
             Material::Plastic {
                 diffuse_reflectance,
                 specular_reflectance,

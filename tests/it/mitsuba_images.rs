@@ -124,6 +124,20 @@ fn textures_and_texture_coordinates_agree_with_mitsuba() {
     );
 }
 
+/// Roughness maps: a checkerboard `alpha_u` on rough silver, a raw bitmap
+/// `alpha` on rough copper and on a rough dielectric
+/// (`tests/data/mitsuba/rough_maps.xml`, reference by
+/// `docs/validation/mitsuba_scene_images.py`).
+#[test]
+fn roughness_maps_agree_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "rough_maps.xml",
+        &[],
+        "rough_maps_mitsuba.exr",
+    );
+}
+
 /// `blendbsdf` (a checkerboard weight between rough gold and diffuse),
 /// `mask` (a bitmap opacity over a two-sided diffuse, and a constant one),
 /// `thindielectric`, `roughdielectric` and `plastic`

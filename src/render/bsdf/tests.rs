@@ -16,6 +16,7 @@ fn ggx(alpha: f64) -> Roughness {
         distribution: Distribution::Ggx,
         alpha_u: alpha,
         alpha_v: alpha,
+        textures: None,
     }
 }
 
@@ -46,6 +47,7 @@ fn materials() -> Vec<(&'static str, Material)> {
             distribution: Distribution::Beckmann,
             alpha_u: 0.2,
             alpha_v: 0.2,
+            textures: None,
         }),
     };
     vec![

@@ -7,6 +7,7 @@ use serde_json::Value;
 
 use super::{Distribution, Params, Rgb, Roughness, ior as media, metals};
 use crate::scene::error::SceneError;
+use crate::scene::texture::Texture;
 
 /// Mitsuba's default `alpha` of rough BSDFs.
 const DEFAULT_ALPHA: f64 = 0.1;
@@ -91,12 +92,15 @@ pub(super) fn roughness(params: &mut Params) -> Result<Roughness, SceneError> {
     };
     params.boolean("sample_visible", true)?;
     let (alpha_u, alpha_v) = match (
-        params.number("alpha")?,
-        params.number("alpha_u")?,
-        params.number("alpha_v")?,
+        alpha(params, "alpha")?,
+        alpha(params, "alpha_u")?,
+        alpha(params, "alpha_v")?,
     ) {
-        (Some(a), None, None) => (a, a),
-        (None, None, None) => (DEFAULT_ALPHA, DEFAULT_ALPHA),
+        (Some(a), None, None) => (a.clone(), a),
+        (None, None, None) => (
+            Texture::Constant([DEFAULT_ALPHA; 3]),
+            Texture::Constant([DEFAULT_ALPHA; 3]),
+        ),
         (None, Some(u), Some(v)) => (u, v),
         _ => {
             return Err(params.invalid(
@@ -105,14 +109,38 @@ pub(super) fn roughness(params: &mut Params) -> Result<Roughness, SceneError> {
             ));
         }
     };
-    for (name, a) in [("alpha_u", alpha_u), ("alpha_v", alpha_v)] {
-        if !(a > 0.0 && a <= 4.0) {
-            return Err(params.invalid(name, format!("{a} is not a roughness in (0, 4]")));
-        }
-    }
+    // A constant is the number given (all three channels alike), a
+    // texture stands as its mean where no surface point is at hand.
+    let value = |t: &Texture| t.constant().map_or_else(|| t.mean_scalar(), |c| c[0]);
+    let textured = alpha_u.constant().is_none() || alpha_v.constant().is_none();
     Ok(Roughness {
         distribution,
-        alpha_u,
-        alpha_v,
+        alpha_u: value(&alpha_u),
+        alpha_v: value(&alpha_v),
+        textures: textured.then(|| Box::new([alpha_u, alpha_v])),
     })
+}
+
+/// Roughness parameter `name`: a number in (0, 4], or a texture whose
+/// values are at most 4 (a roughness map; Mitsuba's rough conductors and
+/// dielectrics take one; where it is below `MIN_ALPHA` the surface is
+/// shaded at that roughness, never as a mirror).
+fn alpha(params: &mut Params, name: &str) -> Result<Option<Texture>, SceneError> {
+    if params.peek(name).is_some_and(Value::is_object) {
+        let doc = params.take(name).expect("present");
+        let texture = Texture::parse(params, name, doc)?;
+        let max = texture.max();
+        if !(max > 0.0 && max <= 4.0) {
+            return Err(params.invalid(
+                name,
+                format!("the texture reaches {max}, not a roughness in (0, 4]"),
+            ));
+        }
+        return Ok(Some(texture));
+    }
+    match params.number(name)? {
+        Some(a) if a > 0.0 && a <= 4.0 => Ok(Some(Texture::Constant([a; 3]))),
+        Some(a) => Err(params.invalid(name, format!("{a} is not a roughness in (0, 4]"))),
+        None => Ok(None),
+    }
 }

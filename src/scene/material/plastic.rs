@@ -26,6 +26,13 @@ pub(super) fn parse_rough(params: &mut Params) -> Result<Material, SceneError> {
 
 fn parse(params: &mut Params, rough: bool) -> Result<Material, SceneError> {
     let roughness = if rough {
+        // Its tables depend on the roughness, so it is one number, as in
+        // Mitsuba (whose roughplastic takes no texture for it either).
+        for name in ["alpha", "alpha_u", "alpha_v"] {
+            if params.peek(name).is_some_and(serde_json::Value::is_object) {
+                return Err(params.invalid(name, "roughplastic takes a number, not a texture"));
+            }
+        }
         let r = optics::roughness(params)?;
         if r.alpha_u != r.alpha_v {
             return Err(SceneError::invalid(

@@ -114,7 +114,7 @@ fn bad_parameters_are_named_by_their_field() {
         ),
         (
             json!({"id": "x", "type": "roughconductor", "alpha": 0}),
-            "materials[3].alpha_u",
+            "materials[3].alpha",
         ),
         (
             json!({"id": "x", "type": "roughconductor", "alpha_u": 0.1}),
@@ -156,4 +156,41 @@ fn bad_parameters_are_named_by_their_field() {
     for (doc, field) in cases {
         assert_eq!(field_of(doc.clone()), field, "{doc}");
     }
+}
+
+#[test]
+fn roughness_maps_are_textures_on_conductors_and_dielectrics_only() {
+    let checker = json!({"type": "checkerboard", "color0": 0.05, "color1": 0.4});
+    let Ok(Material::Conductor {
+        roughness: Some(r), ..
+    }) = parse(json!({"id": "c", "type": "roughconductor", "alpha_u": checker, "alpha_v": 0.2}))
+    else {
+        panic!()
+    };
+    // The mean stands where no point is at hand; lookups follow the map
+    // (the checkerboard's scalar lookup swaps its colours, as Mitsuba's).
+    assert!(
+        (r.alpha_u - 0.225).abs() < 1e-12 && r.alpha_v == 0.2,
+        "{r:?}"
+    );
+    let (u, v) = r.at(glam::DVec2::new(0.25, 0.25));
+    assert!(
+        (u - 0.4).abs() < 1e-12 && (v - 0.2).abs() < 1e-12,
+        "{u} {v}"
+    );
+    assert!(
+        Material::Conductor {
+            eta: [0.2; 3],
+            k: [3.0; 3],
+            specular_reflectance: Texture::from([1.0; 3]),
+            roughness: Some(r),
+        }
+        .is_textured()
+    );
+    let too_rough = json!({"type": "checkerboard", "color0": 0.1, "color1": 5.0});
+    let e = parse(json!({"id": "d", "type": "roughdielectric", "alpha": too_rough})).unwrap_err();
+    assert_eq!(e.field(), Some("materials[3].alpha"), "{e}");
+    let e = parse(json!({"id": "p", "type": "roughplastic", "alpha": checker})).unwrap_err();
+    assert_eq!(e.field(), Some("materials[3].alpha"), "{e}");
+    assert!(e.to_string().contains("not a texture"), "{e}");
 }

@@ -579,11 +579,19 @@ fn textures_become_texture_documents_or_lenient_means() {
     assert_eq!((board.color0, board.color1), ([0.8; 3], [0.2; 3]));
     assert_eq!(board.to_uv.matrix2.x_axis.x, 4.0);
 
-    // A texture where the model takes a constant (a metal's roughness),
+    // A texture where the model takes a constant (a rough plastic's roughness),
     // and a texture type it lacks: errors, or with lenient their means.
+    // (A rough conductor takes the same map as a texture.)
+    let scene = ok(
+        r#"<bsdf type="roughconductor" id="t"><texture type="checkerboard" name="alpha">
+            <float name="color0" value="0.3"/><float name="color1" value="0.1"/></texture></bsdf>
+            <shape type="rectangle"><ref id="t"/></shape>"#,
+    );
+    assert!(scene.materials.iter().any(|m| matches!(m,
+        Material::Conductor { roughness: Some(r), .. } if r.textures.is_some())));
     for (body, what) in [
         (
-            r#"<bsdf type="roughconductor" id="t"><texture type="checkerboard" name="alpha">
+            r#"<bsdf type="roughplastic" id="t"><texture type="checkerboard" name="alpha">
             <float name="color0" value="0.3"/><float name="color1" value="0.1"/></texture></bsdf>
             <shape type="rectangle"><ref id="t"/></shape>"#,
             "alpha",
@@ -603,7 +611,7 @@ fn textures_become_texture_documents_or_lenient_means() {
         );
         let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
         match &scene.materials[i] {
-            Material::Conductor {
+            Material::Plastic {
                 roughness: Some(r), ..
             } => assert!((r.alpha_u - 0.2).abs() < 1e-12, "{r:?}"),
             Material::Diffuse { reflectance } => {
