@@ -36,7 +36,6 @@ use crate::render::{
     Transport,
 };
 use crate::scene::{Ray, SurfaceHit};
-use crate::sphere::Frame;
 
 /// Probe distance relative to the scene's bounding-box diagonal.
 pub const PROBE_RELATIVE: f64 = 1e-4;
@@ -216,7 +215,7 @@ fn record_variance(
     let Some(bsdf) = transport.bsdf_at(hit) else {
         return Ok(Rgb::BLACK);
     };
-    let wo_local = Frame::from_normal(hit.shading_normal).to_local(wo);
+    let wo_local = bsdf.frame_at(hit).to_local(wo);
     let rho = bsdf.lambertian(wo_local);
     if rho.is_black() {
         return Ok(Rgb::BLACK);

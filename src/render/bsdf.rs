@@ -31,6 +31,7 @@ use super::rgb::Rgb;
 use crate::scene::Material;
 use crate::scene::material::{Distribution, Roughness};
 use crate::scene::texture::Texture;
+use crate::sphere::Frame;
 pub use blend::Blend;
 pub use mask::Mask;
 
@@ -82,6 +83,36 @@ fn flip(w: DVec3) -> DVec3 {
 }
 
 impl Bsdf {
+    /// True if the BSDF turns with the surface about its normal (a
+    /// microfacet lobe with `alpha_u ≠ alpha_v`): it is then evaluated in
+    /// the hit's tangent frame (`SurfaceHit::shading_frame`), every other
+    /// BSDF in the frame of its normal alone.
+    pub fn is_anisotropic(&self) -> bool {
+        let uneven = |m: &Microfacet| {
+            let (u, v) = m.alpha();
+            u != v
+        };
+        match self {
+            Bsdf::RoughConductor(b) => uneven(&b.distribution),
+            Bsdf::RoughDielectric(b) => uneven(&b.distribution),
+            Bsdf::TwoSided(sides) => sides.iter().any(Bsdf::is_anisotropic),
+            Bsdf::Blend(b) => b.bsdfs.iter().any(Bsdf::is_anisotropic),
+            Bsdf::Mask(m) => m.bsdf.is_anisotropic(),
+            _ => false,
+        }
+    }
+
+    /// The frame `hit`'s BSDF `self` is evaluated in: the tangent frame for
+    /// an anisotropic one, else the normal's ([`Frame::from_normal`]), so
+    /// isotropic shading is what it was before tangents existed.
+    pub fn frame_at(&self, hit: &crate::scene::SurfaceHit) -> Frame {
+        if self.is_anisotropic() {
+            hit.shading_frame()
+        } else {
+            Frame::from_normal(hit.shading_normal)
+        }
+    }
+
     /// For a two-sided BSDF, the side `wo` sees and whether directions
     /// must be turned around for it; the BSDF itself otherwise.
     fn side(&self, wo: DVec3) -> (&Bsdf, bool) {

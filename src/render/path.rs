@@ -27,7 +27,6 @@ use super::strata::{GridStrata, SharedStrata};
 pub use super::trace_stats::TraceStats;
 use super::transport::Transport;
 use crate::scene::{Ray, Scene, SurfaceHit};
-use crate::sphere::Frame;
 
 /// Russian roulette starts once a path has this many segments: the first
 /// bounces carry most of the energy and are never cut (pbrt-v4 uses `depth > 1`).
@@ -393,7 +392,7 @@ impl Transport {
             // Reflection happens in the shading frame (interpolated mesh
             // normals where present), as in Mitsuba 3; rays still leave
             // from the geometric surface, on the side of their direction.
-            let frame = Frame::from_normal(hit.shading_normal);
+            let frame = bsdf.frame_at(&hit);
             let wo = frame.to_local(-dir);
             if !bsdf.scatters_towards(wo) || bsdf.is_black() {
                 // Back faces of one-sided BSDFs are black, as in Mitsuba 3.

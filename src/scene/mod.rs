@@ -105,6 +105,11 @@ pub struct SurfaceHit {
     /// `uvs` on meshes that have them, the barycentrics `(b1, b2)` on
     /// those that do not; see `docs/scene-format.md`).
     pub uv: DVec2,
+    /// Unit direction in which `u` grows on the surface (∂p/∂u normalised;
+    /// not necessarily orthogonal to the shading normal): the tangent of
+    /// anisotropic BSDFs' shading frame, as in Mitsuba 3
+    /// ([`SurfaceHit::shading_frame`]). Zero where `u` does not vary.
+    pub dp_du: DVec3,
     /// Index into [`Scene::materials`].
     pub material: usize,
     /// Index into [`Scene::emitters`] if the shape is an area light.
@@ -113,6 +118,24 @@ pub struct SurfaceHit {
     pub shape: usize,
     /// Triangle index within the shape (0 for spheres and disks).
     pub primitive: u32,
+}
+
+impl SurfaceHit {
+    /// The shading frame of an anisotropic BSDF: the shading normal, and
+    /// `dp_du` made orthogonal to it as the first tangent (Mitsuba 3's
+    /// `sh_frame`); where `dp_du` is zero or along the normal, the frame
+    /// [`Frame::from_normal`] builds.
+    pub fn shading_frame(&self) -> crate::sphere::Frame {
+        let n = self.shading_normal;
+        match (self.dp_du - n * n.dot(self.dp_du)).try_normalize() {
+            Some(s) => crate::sphere::Frame {
+                s,
+                t: n.cross(s),
+                n,
+            },
+            None => crate::sphere::Frame::from_normal(n),
+        }
+    }
 }
 
 /// A loaded scene. Immutable; `Send + Sync`.
@@ -231,13 +254,14 @@ impl Scene {
         );
         if let Some(t) = t_analytic {
             let shape = &self.shapes[analytic_hit];
-            let (position, normal, uv) = shape.analytic_hit(o, d, t);
+            let (position, normal, uv, dp_du) = shape.analytic_hit(o, d, t);
             return Some(SurfaceHit {
                 t,
                 position,
                 normal,
                 shading_normal: normal,
                 uv,
+                dp_du,
                 material: shape.material,
                 emitter: shape.emitter,
                 shape: analytic_hit,
@@ -255,9 +279,20 @@ impl Scene {
                 .unwrap_or(normal),
             None => normal,
         };
-        let uv = match self.vertex_uvs.get(tag.uvs as usize) {
-            Some(t) => t[0] * (1.0 - u - v) + t[1] * u + t[2] * v,
-            None => DVec2::new(u, v),
+        // ∂p/∂u from the texture coordinates' parametrisation (the
+        // barycentric one where the mesh has none: ∂p/∂u = e1).
+        let (uv, dp_du) = match self.vertex_uvs.get(tag.uvs as usize) {
+            Some(t) => {
+                let (d1, d2) = (t[1] - t[0], t[2] - t[0]);
+                let det = d1.x * d2.y - d1.y * d2.x;
+                let dp_du = if det.abs() > 1e-20 {
+                    (tri.e1 * d2.y - tri.e2 * d1.y) / det
+                } else {
+                    DVec3::ZERO
+                };
+                (t[0] * (1.0 - u - v) + t[1] * u + t[2] * v, dp_du)
+            }
+            None => (DVec2::new(u, v), tri.e1),
         };
         Some(SurfaceHit {
             t,
@@ -265,6 +300,7 @@ impl Scene {
             normal,
             shading_normal,
             uv,
+            dp_du: dp_du.normalize_or_zero(),
             material: shape.material,
             emitter: shape.emitter,
             shape: tag.shape as usize,

@@ -227,10 +227,13 @@ impl Shape {
     /// is a few ulps. Texture coordinates follow Mitsuba 3: on a sphere
     /// `(φ/2π, θ/π)` of the local direction (θ from the local +z pole, φ
     /// from +x towards +y); on a disk `(r, φ/2π)` of the local point.
-    pub fn analytic_hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2) {
+    pub fn analytic_hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, DVec3) {
         let p = o + d * t;
         let azimuth = |y: f64, x: f64| y.atan2(x).rem_euclid(2.0 * PI) / (2.0 * PI);
-        let (p, n, uv) = match &self.geometry {
+        // The last entry is the unit ∂p/∂u of the shape's (u, v) (module
+        // docs of `SurfaceHit::dp_du`): along the azimuth on a sphere,
+        // outwards along the radius on a disk.
+        let (p, n, uv, dp_du) = match &self.geometry {
             Geometry::Sphere {
                 center,
                 radius,
@@ -239,7 +242,8 @@ impl Shape {
                 let n = (p - *center).normalize();
                 let l = *to_local * n;
                 let uv = DVec2::new(azimuth(l.y, l.x), l.z.clamp(-1.0, 1.0).acos() / PI);
-                (*center + n * *radius, n, uv)
+                let dp_du = to_local.transpose() * DVec3::new(-l.y, l.x, 0.0);
+                (*center + n * *radius, n, uv, dp_du)
             }
             Geometry::Disk {
                 to_world,
@@ -247,15 +251,22 @@ impl Shape {
                 normal,
             } => {
                 let l = to_local.transform_point3(p);
+                let dp_du = to_world.transform_vector3(DVec3::new(l.x, l.y, 0.0));
                 (
                     to_world.transform_point3(DVec3::new(l.x, l.y, 0.0)),
                     *normal,
                     DVec2::new(l.truncate().length(), azimuth(l.y, l.x)),
+                    dp_du,
                 )
             }
-            Geometry::Mesh { .. } => (p, DVec3::Z, DVec2::ZERO),
+            Geometry::Mesh { .. } => (p, DVec3::Z, DVec2::ZERO, DVec3::ZERO),
         };
-        (p, if self.flip { -n } else { n }, uv)
+        (
+            p,
+            if self.flip { -n } else { n },
+            uv,
+            dp_du.normalize_or_zero(),
+        )
     }
 
     /// Uniform point by area on an analytic shape: (point, front normal).
@@ -339,7 +350,7 @@ mod tests {
             .intersect_analytic(DVec3::ZERO, DVec3::Z, f64::INFINITY)
             .unwrap();
         assert!((t - 4.0).abs() < 1e-12);
-        let (p, n, _) = s.analytic_hit(DVec3::ZERO, DVec3::Z, t);
+        let (p, n, ..) = s.analytic_hit(DVec3::ZERO, DVec3::Z, t);
         assert!((p - DVec3::new(0.0, 0.0, 4.0)).length() < 1e-12);
         assert_eq!(n, -DVec3::Z); // outward normal, not flipped toward the ray
         let t = s

@@ -124,6 +124,20 @@ fn textures_and_texture_coordinates_agree_with_mitsuba() {
     );
 }
 
+/// Anisotropic rough metal on a PLY quad whose `u` runs along its `y`, a
+/// rectangle turned about its normal, a rotated sphere and a disk: each
+/// lobe turns with its shape's ∂p/∂u (`tests/data/mitsuba/anisotropy.xml`,
+/// reference by `docs/validation/mitsuba_scene_images.py`).
+#[test]
+fn anisotropic_lobes_follow_each_shapes_u_direction_as_in_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "anisotropy.xml",
+        &[],
+        "anisotropy_mitsuba.exr",
+    );
+}
+
 /// Roughness maps: a checkerboard `alpha_u` on rough silver, a raw bitmap
 /// `alpha` on rough copper and on a rough dielectric
 /// (`tests/data/mitsuba/rough_maps.xml`, reference by

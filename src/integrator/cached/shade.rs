@@ -364,7 +364,7 @@ impl CachedIntegrator<'_> {
         let Some(bsdf) = self.transport.bsdf_at(hit) else {
             return Ok(Evaluation::of(Rgb::BLACK));
         };
-        let frame = Frame::from_normal(hit.shading_normal);
+        let frame = bsdf.frame_at(hit);
         let wo_local = frame.to_local(wo);
         if !bsdf.scatters_towards(wo_local) || bsdf.is_black() {
             return Ok(Evaluation::of(Rgb::BLACK));
