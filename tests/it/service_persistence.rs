@@ -127,7 +127,8 @@ async fn tiles_survive_a_restart_and_a_torn_log() {
 }
 
 /// Scenes posted at runtime, with or without assets, come back after a
-/// restart with the same content digest; a deleted one does not.
+/// restart with the same content digest (a packed folder's too); a deleted
+/// one does not.
 #[tokio::test]
 async fn posted_scenes_survive_a_restart() {
     let data = tempfile::tempdir().unwrap();
@@ -191,6 +192,26 @@ async fn posted_scenes_survive_a_restart() {
     assert_eq!(response.status(), 201);
     let with_parameter: Value = response.json().await.unwrap();
     assert_eq!(with_parameter["resolution"], json!([12, 12]));
+    // A packed scene folder: the tutorials' Cornell box, zipped by Info-ZIP.
+    let work = tempfile::tempdir().unwrap();
+    let tutorials = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba-tutorials");
+    copy_dir(&tutorials, &work.path().join("cbox"));
+    let zipped = std::process::Command::new("zip")
+        .args(["-q", "-r", "cbox.zip", "cbox"])
+        .current_dir(work.path())
+        .status()
+        .unwrap();
+    assert!(zipped.success());
+    let response = first
+        .client
+        .post(first.url("/v1/scenes"))
+        .header("content-type", "application/zip")
+        .body(std::fs::read(work.path().join("cbox.zip")).unwrap())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 201);
+    let packed: Value = response.json().await.unwrap();
     drop(first);
     released(data.path()).await;
 
@@ -199,6 +220,7 @@ async fn posted_scenes_survive_a_restart() {
         ("posted-box", &posted["digest"]),
         ("posted-sky", &with_asset["digest"]),
         ("posted-xml", &with_parameter["digest"]),
+        ("cbox", &packed["digest"]),
     ] {
         let summary: Value = second
             .get(&format!("/v1/scenes/{id}"))
