@@ -93,7 +93,7 @@ fn selection_power(scene: &Scene, emitter: &Emitter, radius: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
     let lum = |c: &[f64; 3]| Rgb::from_array(*c).luminance();
     match emitter {
-        Emitter::Area { shape, radiance } => PI * scene.shape_area(*shape) * lum(radiance),
+        Emitter::Area { shape, radiance } => PI * scene.shape_area(*shape) * lum(&radiance.mean()),
         Emitter::Point { intensity, .. } => 2.0 * TAU * lum(intensity),
         Emitter::Spot {
             intensity,
@@ -198,7 +198,7 @@ impl LightSampler {
         };
         match &scene.emitters[self.emitters[k]] {
             Emitter::Area { shape, radiance } => {
-                let (point, normal, pdf_area) = scene.sample_shape_area(*shape, u);
+                let (point, normal, pdf_area, uv) = scene.sample_shape_area_uv(*shape, u);
                 let d = point - x;
                 let dist2 = d.length_squared();
                 if dist2 <= 0.0 || pdf_area <= 0.0 {
@@ -211,7 +211,7 @@ impl LightSampler {
                 }
                 Some(LightSample {
                     wi,
-                    radiance: Rgb::from_array(*radiance),
+                    radiance: Rgb::from_array(radiance.eval(uv)),
                     pdf: p_select * pdf_area * dist2 / cos_light,
                     target: Some((point, Some(normal))),
                     delta: false,
@@ -303,7 +303,7 @@ pub fn environment_radiance(scene: &Scene, dir: DVec3) -> Rgb {
 pub fn emitted_radiance(scene: &Scene, hit: &SurfaceHit, dir: DVec3) -> Rgb {
     match hit.emitter.and_then(|e| scene.emitters.get(e)) {
         Some(Emitter::Area { radiance, .. }) if hit.normal.dot(dir) < 0.0 => {
-            Rgb::from_array(*radiance)
+            Rgb::from_array(radiance.eval(hit.uv))
         }
         _ => Rgb::BLACK,
     }

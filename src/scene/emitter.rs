@@ -13,9 +13,11 @@ mod spot;
 
 use serde_json::{Map, Value};
 
+use super::bitmap::Bitmaps;
 use super::error::SceneError;
 use super::format::EmitterDoc;
 use super::params::Params;
+use super::texture::Texture;
 
 /// Largest accepted radiance component, W/(m²·sr); keeps sums finite.
 pub const MAX_RADIANCE: f64 = 1e12;
@@ -24,8 +26,9 @@ pub const MAX_RADIANCE: f64 = 1e12;
 pub enum Emitter {
     /// Diffuse area light on shape `shape` (index into the scene's shapes),
     /// emitting `radiance` W/(m²·sr) per RGB channel from its front side only
-    /// (the side the hit normal points to).
-    Area { shape: usize, radiance: [f64; 3] },
+    /// (the side the hit normal points to), constant or a texture over the
+    /// shape's texture coordinates (Mitsuba's textured `area` emitter).
+    Area { shape: usize, radiance: Texture },
     /// An isotropic point light at `position` of radiant intensity
     /// `intensity` (W/sr per channel): irradiance `I cos θ / d²` at distance `d`.
     Point {
@@ -98,15 +101,26 @@ fn power(params: &mut Params, name: &str, default: f64) -> Result<[f64; 3], Scen
 }
 
 impl Emitter {
+    /// The area light `doc` of shape `shape`; `field` names it in errors,
+    /// a texture's images are read through `bitmaps`.
     pub(crate) fn from_doc(
         doc: &EmitterDoc,
         shape: usize,
         field: &str,
+        bitmaps: &Bitmaps,
     ) -> Result<Self, SceneError> {
-        Ok(Emitter::Area {
-            shape,
-            radiance: check_radiance(doc.radiance, &format!("{field}.radiance"))?,
-        })
+        let mut map = Map::new();
+        map.insert("radiance".into(), doc.radiance.clone());
+        let mut params = Params::new(field, map).with_bitmaps(bitmaps);
+        let radiance = if doc.radiance.is_object() {
+            let value = params.take("radiance").expect("present");
+            let texture = Texture::parse(&params, "radiance", value)?;
+            check_radiance([texture.max(); 3], &params.field("radiance"))?;
+            texture
+        } else {
+            Texture::Constant(power(&mut params, "radiance", 1.0)?)
+        };
+        Ok(Emitter::Area { shape, radiance })
     }
 
     /// Validates one `lights[i]` entry (`field` its path): `type` names a

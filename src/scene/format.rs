@@ -121,8 +121,10 @@ pub enum EmitterKind {
 pub struct EmitterDoc {
     #[serde(rename = "type")]
     pub kind: EmitterKind,
-    /// Emitted radiance, W/(m²·sr) per channel, from the front side.
-    pub radiance: Rgb,
+    /// Emitted radiance, W/(m²·sr) per channel, from the front side: a
+    /// colour, or a texture document (`texture.rs`) over the shape's
+    /// texture coordinates.
+    pub radiance: serde_json::Value,
 }
 
 #[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]

@@ -172,7 +172,12 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         })?;
         let emitter = match &s.emitter {
             Some(e) => {
-                emitters.push(Emitter::from_doc(e, i, &format!("{field}.emitter"))?);
+                emitters.push(Emitter::from_doc(
+                    e,
+                    i,
+                    &format!("{field}.emitter"),
+                    &bitmaps,
+                )?);
                 Some(emitters.len() - 1)
             }
             None => None,

@@ -375,6 +375,13 @@ impl Scene {
     /// Uniform point on shape `shape` by area for `u ∈ [0, 1)²`: (point,
     /// front normal, pdf = 1 / area per unit area).
     pub fn sample_shape_area(&self, shape: usize, u: [f64; 2]) -> (DVec3, DVec3, f64) {
+        let (p, n, pdf, _) = self.sample_shape_area_uv(shape, u);
+        (p, n, pdf)
+    }
+
+    /// [`Self::sample_shape_area`] with the texture coordinates of the
+    /// point (as a hit there reports them, `SurfaceHit::uv`).
+    pub fn sample_shape_area_uv(&self, shape: usize, u: [f64; 2]) -> (DVec3, DVec3, f64, DVec2) {
         let s = &self.shapes[shape];
         let pdf = 1.0 / s.area;
         match &s.geometry {
@@ -383,11 +390,18 @@ impl Scene {
                 let lo = if k == 0 { 0.0 } else { cdf[k - 1] };
                 let u0 = ((u[0] - lo) / (cdf[k] - lo)).clamp(0.0, 1.0);
                 let tri = &self.triangles[first + k];
-                (shape::sample_triangle(tri, [u0, u[1]]), tri.normal(), pdf)
+                let (b1, b2) = shape::sample_barycentric([u0, u[1]]);
+                let uv = match self.vertex_uvs.get(tri.uvs as usize) {
+                    Some(t) => t[0] * (1.0 - b1 - b2) + t[1] * b1 + t[2] * b2,
+                    None => DVec2::new(b1, b2),
+                };
+                (tri.point(b1, b2), tri.normal(), pdf, uv)
             }
             _ => {
                 let (p, n) = s.sample_analytic(u);
-                (p, n, pdf)
+                // The hit's parametrisation at the point itself (t = 0).
+                let (_, _, uv, _) = s.analytic_hit(p, DVec3::Z, 0.0);
+                (p, n, pdf, uv)
             }
         }
     }

@@ -311,13 +311,11 @@ pub(crate) fn concentric_disk(u: [f64; 2]) -> DVec2 {
     DVec2::new(r * c, r * s)
 }
 
-/// Uniform point on a triangle by area; barycentrics via the square-root
-/// warp (Osada et al., "Shape Distributions", 2002).
-pub(crate) fn sample_triangle(t: &Triangle, u: [f64; 2]) -> DVec3 {
+/// Barycentrics `(b1, b2)` uniform by area over a triangle, from `u` in
+/// [0,1)², by the square-root warp (Osada et al., "Shape Distributions", 2002).
+pub(crate) fn sample_barycentric(u: [f64; 2]) -> (f64, f64) {
     let su = u[0].sqrt();
-    let b1 = su * (1.0 - u[1]);
-    let b2 = su * u[1];
-    t.point(b1, b2)
+    (su * (1.0 - u[1]), su * u[1])
 }
 
 /// Area of the image of the unit disk under `to_world`.

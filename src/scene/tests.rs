@@ -120,7 +120,10 @@ fn cornell_box_matches_the_mitsuba_reference() {
     let Emitter::Area { shape, radiance } = scene.emitters[0].clone() else {
         panic!("{:?}", scene.emitters[0])
     };
-    assert_eq!(radiance, [18.387, 13.9873, 6.75357]);
+    assert_eq!(
+        radiance,
+        texture::Texture::Constant([18.387, 13.9873, 6.75357])
+    );
     assert!((scene.shape_area(shape) - 0.46 * 0.38).abs() < 1e-6);
     let hit = scene
         .intersect(&ray(DVec3::new(0.0, 0.5, 0.01), DVec3::Y))

@@ -124,6 +124,19 @@ fn textures_and_texture_coordinates_agree_with_mitsuba() {
     );
 }
 
+/// Area lights with textured radiance: a checkerboard on a rectangle, the
+/// grid image on a disk, seen directly and lighting diffuse surfaces (`tests/data/mitsuba/textured_lights.xml`, reference by
+/// `docs/validation/mitsuba_scene_images.py`).
+#[test]
+fn textured_area_lights_agree_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "textured_lights.xml",
+        &[],
+        "textured_lights_mitsuba.exr",
+    );
+}
+
 /// Anisotropic rough metal on a PLY quad whose `u` runs along its `y`, a
 /// rectangle turned about its normal, a rotated sphere and a disk: each
 /// lobe turns with its shape's ∂p/∂u (`tests/data/mitsuba/anisotropy.xml`,

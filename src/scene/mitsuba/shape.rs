@@ -10,7 +10,7 @@ use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind};
 
 use super::parse::{Element, quote};
 use super::props::Props;
-use super::texture::color;
+use super::texture::parameter;
 use super::transform::Ops;
 use super::{Ctx, XmlError, bsdf};
 
@@ -127,7 +127,11 @@ fn area<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<EmitterDoc, XmlError> 
         return Err(el.error("type", "only `area` emitters can be attached to a shape"));
     }
     let mut props = Props::new(el);
-    let radiance = color(ctx, &mut props, "radiance", [1.0; 3])?;
+    // A colour, or a texture over the shape (Mitsuba's textured area light).
+    let radiance = match props.get("radiance")? {
+        Some(child) => parameter(ctx, child)?,
+        None => serde_json::Value::from(vec![1.0; 3]),
+    };
     props.finish(ctx)?;
     Ok(EmitterDoc {
         kind: EmitterKind::Area,

@@ -354,7 +354,7 @@ fn emitters_area_constant_envmap_and_point() {
         scene.emitters,
         vec![Emitter::Area {
             shape: 0,
-            radiance: [1.0, 2.0, 3.0]
+            radiance: Texture::Constant([1.0, 2.0, 3.0])
         }]
     );
     assert!(matches!(
