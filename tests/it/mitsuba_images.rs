@@ -124,8 +124,10 @@ fn textures_and_texture_coordinates_agree_with_mitsuba() {
     );
 }
 
-/// Area lights with textured radiance: a checkerboard on a rectangle, the
-/// grid image on a disk, seen directly and lighting diffuse surfaces (`tests/data/mitsuba/textured_lights.xml`, reference by
+/// Area lights with textured radiance: checkerboards on a rectangle and a
+/// sphere, the grid image on a disk, seen directly and lighting diffuse
+/// surfaces; the lights have no BSDF, so they are black to light, as in
+/// Mitsuba (`tests/data/mitsuba/textured_lights.xml`, reference by
 /// `docs/validation/mitsuba_scene_images.py`).
 #[test]
 fn textured_area_lights_agree_with_mitsuba() {

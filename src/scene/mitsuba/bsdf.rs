@@ -17,6 +17,8 @@ use super::{Ctx, XmlError};
 
 /// The material a shape without a BSDF gets (Mitsuba: diffuse, 0.5).
 const DEFAULT_MATERIAL_ID: &str = "default-diffuse@mitsuba";
+/// The default material of a shape that emits (see [`default_material`]).
+const DEFAULT_EMITTER_MATERIAL_ID: &str = "default-emitter@mitsuba";
 
 /// Plugins of the scene model that are this project's own, not Mitsuba's.
 const NOT_MITSUBA: &[&str] = &["glossy"];
@@ -48,9 +50,15 @@ pub(crate) fn material<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<String,
     Ok(ctx.materials[ctx.materials.len() - 1].id.clone())
 }
 
-/// Mitsuba's default material for shapes without a BSDF (diffuse, ρ = 0.5).
-pub(crate) fn default_material(ctx: &mut Ctx) -> String {
-    builtin_diffuse(ctx, DEFAULT_MATERIAL_ID, [0.5; 3])
+/// Mitsuba's default material for shapes without a BSDF: diffuse, ρ = 0.5,
+/// or black for a shape that emits (Mitsuba 3's `Shape` gives emitters a
+/// diffuse BSDF of reflectance 0, so lights do not reflect).
+pub(crate) fn default_material(ctx: &mut Ctx, emits: bool) -> String {
+    if emits {
+        builtin_diffuse(ctx, DEFAULT_EMITTER_MATERIAL_ID, [0.0; 3])
+    } else {
+        builtin_diffuse(ctx, DEFAULT_MATERIAL_ID, [0.5; 3])
+    }
 }
 
 /// A diffuse material the translation itself needs, added once under `id`.

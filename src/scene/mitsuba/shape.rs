@@ -69,15 +69,16 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
     if ctx.shapes.len() >= MAX_SHAPES {
         return Err(el.error("", format!("more than {MAX_SHAPES} shapes")));
     }
+    let emitters = props.nested(ctx, "emitter")?;
     let material = match props.nested(ctx, "bsdf")?[..] {
-        [] => bsdf::default_material(ctx),
+        [] => bsdf::default_material(ctx, !emitters.is_empty()),
         [b] => bsdf::material(ctx, b)?,
         _ => return Err(el.error("bsdf", "a shape takes at most one BSDF")),
     };
     let mut doc = shape_doc(kind, material);
     doc.id = el.attr("id").map(str::to_string);
     doc.flip_normals = props.boolean("flip_normals", false)?;
-    doc.emitter = match props.nested(ctx, "emitter")?[..] {
+    doc.emitter = match emitters[..] {
         [] => None,
         [e] => Some(area(ctx, e)?),
         _ => return Err(el.error("emitter", "a shape takes at most one emitter")),
