@@ -94,6 +94,7 @@ pub fn unpack(
         bundle: SceneBundle::new(max_entries)?,
         limits: *limits,
         total: 0,
+        buffer: vec![0u8; 64 * 1024],
     };
     match format {
         ArchiveFormat::Zip => unpack_zip(archive, &mut sink)?,
@@ -131,6 +132,8 @@ struct Sink {
     bundle: SceneBundle,
     limits: ArchiveLimits,
     total: u64,
+    /// Bytes between an entry's reader and its file, reused by every entry.
+    buffer: Vec<u8>,
 }
 
 impl Sink {
@@ -149,10 +152,9 @@ impl Sink {
             |reason: String| SceneError::invalid(&field, format!("entry {name:?}: {reason}"));
         let mut out = self.bundle.create(name, &field)?;
         let mut written = 0u64;
-        let mut buffer = vec![0u8; 64 * 1024];
         loop {
             let n = reader
-                .read(&mut buffer)
+                .read(&mut self.buffer)
                 .map_err(|e| refuse(format!("cannot be unpacked: {e}")))?;
             if n == 0 {
                 return Ok(());
@@ -187,7 +189,7 @@ impl Sink {
                     self.limits.max_ratio
                 )));
             }
-            std::io::Write::write_all(&mut out, &buffer[..n]).map_err(|e| SceneError::Io {
+            std::io::Write::write_all(&mut out, &self.buffer[..n]).map_err(|e| SceneError::Io {
                 file: PathBuf::from(name),
                 source: e,
             })?;

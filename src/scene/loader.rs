@@ -123,31 +123,38 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
     // Every mesh file is read once, however many shapes use it, all of
     // them in parallel, and the scene's size is known before any triangle
     // is built.
-    let mut wanted = Vec::new();
+    // Each shape's mesh file is resolved once, here.
+    let (mut wanted, mut keys) = (Vec::new(), Vec::with_capacity(doc.shapes.len()));
     let mut inline = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
-        match (s.kind, &s.filename, &s.indices) {
+        let key = match (s.kind, &s.filename, &s.indices) {
             (ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized, Some(name), _) => {
                 let field = format!("shapes[{i}].filename");
                 let key = (files.resolve(name, &field)?, s.shape_index.unwrap_or(0));
-                wanted.push((key, s.kind, field));
+                wanted.push((key.clone(), s.kind, field));
+                Some(key)
             }
-            (ShapeKind::Triangles, _, Some(indices)) => inline += indices.len(),
-            _ => {}
-        }
+            (ShapeKind::Triangles, _, Some(indices)) => {
+                inline += indices.len();
+                None
+            }
+            _ => None,
+        };
+        keys.push(key);
     }
     let meshes = MeshFiles::read_all(wanted, MAX_TRIANGLES - inline.min(MAX_TRIANGLES))?;
+    // The mesh of each shape that names a file.
+    let shape_meshes: Vec<Option<Arc<MeshData>>> = keys
+        .iter()
+        .map(|key| key.as_ref().and_then(|k| meshes.get(k)))
+        .collect();
     let mut triangles = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
         let field = format!("shapes[{i}]");
-        triangles += match (s.kind, &s.filename, &s.indices) {
+        triangles += match (s.kind, &shape_meshes[i], &s.indices) {
             (ShapeKind::Rectangle, ..) => 2,
             (ShapeKind::Cube, ..) => 12,
-            (ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized, Some(name), _) => {
-                let path = files.resolve(name, &format!("{field}.filename"))?;
-                let key = (path, s.shape_index.unwrap_or(0));
-                meshes.get(&key).map_or(0, |m| m.indices.len())
-            }
+            (_, Some(mesh), _) => mesh.indices.len(),
             (ShapeKind::Triangles, _, Some(indices)) => indices.len(),
             _ => 0,
         };
@@ -182,7 +189,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
             }
             None => None,
         };
-        builder.add_shape(s, &field, material, emitter, files, &meshes)?;
+        builder.add_shape(s, &field, material, emitter, shape_meshes[i].as_deref())?;
     }
     for (i, light) in doc.lights.iter().enumerate() {
         emitters.push(Emitter::from_light_doc(light, &format!("lights[{i}]"))?);
@@ -326,8 +333,7 @@ impl GeometryBuilder {
         field: &str,
         material: usize,
         emitter: Option<usize>,
-        files: &Files,
-        meshes: &MeshFiles,
+        mesh_file: Option<&MeshData>,
     ) -> Result<(), SceneError> {
         let to_world = match &s.to_world {
             Some(t) => transform::build(t, &format!("{field}.to_world"))?,
@@ -378,33 +384,25 @@ impl GeometryBuilder {
             ShapeKind::Rectangle => self.add_mesh(&mesh::rectangle(), &placement, field)?,
             ShapeKind::Cube => self.add_mesh(&mesh::cube(), &placement, field)?,
             ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized => {
-                let name_field = format!("{field}.filename");
-                let name = s
-                    .filename
-                    .as_deref()
+                // Read while sizing the scene (see `build`); none where the
+                // shape names no file.
+                let data = mesh_file
                     .ok_or_else(|| SceneError::invalid(field, "missing field `filename`"))?;
-                let path = files.resolve(name, &name_field)?;
-                // Read while sizing the scene (see `build`).
-                let data = meshes
-                    .get(&(path, s.shape_index.unwrap_or(0)))
-                    .ok_or_else(|| {
-                        SceneError::invalid(&name_field, "the mesh file was not read")
-                    })?;
                 // `face_normals` discards the file's normals, as in Mitsuba;
                 // without it a mesh that has none gets smooth ones.
                 match (s.face_normals == Some(true), data.normals.is_some()) {
                     (true, true) => {
                         let flat = MeshData {
                             normals: None,
-                            ..MeshData::clone(&data)
+                            ..data.clone()
                         };
                         self.add_mesh(&flat, &placement, field)?
                     }
                     (false, false) => {
-                        let smooth = MeshData::clone(&data).with_smooth_normals();
+                        let smooth = data.clone().with_smooth_normals();
                         self.add_mesh(&smooth, &placement, field)?
                     }
-                    _ => self.add_mesh(&data, &placement, field)?,
+                    _ => self.add_mesh(data, &placement, field)?,
                 }
             }
             ShapeKind::Triangles => {

@@ -21,8 +21,8 @@
     drawn: { radiance: new Map(), std_dev: new Set(), records: new Set() },
     queue: [], inFlight: 0, loaded: 0, total: 0,
     renderMillis: [], rays: 0, errors: 0, stdDevScale: 0.2,
-    // The upload in progress (its label), and the last upload's error.
-    uploading: null, uploadError: null,
+    // The last upload's error (its message), if any.
+    uploadError: null,
   };
 
   // ---- layers -------------------------------------------------------------
@@ -297,19 +297,14 @@
     const item = [...dataTransfer.items].find((i) => i.kind === "file");
     if (!item) return;
     const [body, type, query, label] = await uploadOf(item.webkitGetAsEntry?.(), item.getAsFile());
-    state.uploading = label;
     $("progress").textContent = `uploading ${label}…`;
-    try {
-      const response = await fetch(`/v1/scenes${query}`, { method: "POST", headers: { "content-type": type }, body });
-      const answer = await response.json().catch(() => ({}));
-      if (!response.ok) {
-        const e = answer.error;
-        throw new Error(e ? `${label}: ${e.message}${e.field ? ` (${e.field})` : ""}` : `${label}: HTTP ${response.status}`);
-      }
-      await listScenes(answer.id);
-    } finally {
-      state.uploading = null;
+    const response = await fetch(`/v1/scenes${query}`, { method: "POST", headers: { "content-type": type }, body });
+    const answer = await response.json().catch(() => ({}));
+    if (!response.ok) {
+      const e = answer.error;
+      throw new Error(e ? `${label}: ${e.message}${e.field ? ` (${e.field})` : ""}` : `${label}: HTTP ${response.status}`);
     }
+    await listScenes(answer.id);
   }
 
   function bindDrop() {
