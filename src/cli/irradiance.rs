@@ -16,7 +16,9 @@ use crate::bmc::cache::QuadratureCache;
 use crate::estimators::calibration::Calibrations;
 use crate::estimators::lengthscale::FittedKernels;
 use crate::estimators::points_csv::{parse_points, write_irradiance};
-use crate::estimators::{EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale};
+use crate::estimators::{
+    AmortisedRays, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
+};
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{Cancel, IrradianceMethod, IrradianceOptions, PathDepth, Transport};
 use crate::service::Config;
@@ -163,6 +165,7 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     let kernels = FittedKernels::default();
     let calibrations = Calibrations::default();
     let quadratures = QuadratureCache::new(Config::default_config().cache.factorisation_bytes);
+    let amortised = AmortisedRays::default();
     let estimate = || {
         let caches = EstimatorCaches {
             kernels: &kernels,
@@ -170,6 +173,7 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
             calibrations: &calibrations,
             records: None,
             direct: None,
+            amortised: &amortised,
         };
         estimator.estimate(
             &transport,

@@ -22,6 +22,7 @@
 
 use std::sync::Arc;
 
+use super::amortised::AmortisedRays;
 use super::integral_prior::PriorScales;
 use super::sample_points::{camera_points, training_points};
 use crate::render::Cancel;
@@ -386,11 +387,13 @@ impl Calibrations {
     }
 
     /// The training set for estimators run with `options`, computed on
-    /// first use ([`TrainingSet::new`]).
+    /// first use ([`TrainingSet::new`]; its reference's rays counted in
+    /// `amortised` then).
     pub fn training_set(
         &self,
         transport: &Transport,
         options: &IrradianceOptions,
+        amortised: &AmortisedRays,
         cancel: &Cancel,
     ) -> Result<Arc<TrainingSet>, RenderError> {
         let key = format!(
@@ -399,7 +402,9 @@ impl Calibrations {
             options.effective_max_depth()
         );
         crate::isolated::try_get_with(&self.training, key, || {
-            TrainingSet::new(transport, options, cancel).map(Arc::new)
+            let set = TrainingSet::new(transport, options, cancel)?;
+            amortised.add(set.reference.iter().map(|r| r.rays).sum());
+            Ok(Arc::new(set))
         })
         .map_err(|err: Arc<RenderError>| (*err).clone())
     }

@@ -22,6 +22,7 @@
 use rand::RngExt;
 use serde::Serialize;
 
+use super::amortised::AmortisedRays;
 use super::sample_points::training_points;
 use crate::bmc::KernelKind;
 use crate::bmc::hyperparameters::{self, FitError, FitOptions};
@@ -85,6 +86,8 @@ pub struct FittedKernel {
     pub fit_samples: usize,
     /// Training points.
     pub points: usize,
+    /// Rays the training paths traced.
+    pub rays: u64,
 }
 
 /// Fits the lengthscale for `config` on `transport`'s scene (module docs).
@@ -102,6 +105,7 @@ pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<Fitte
         },
     };
     let prior = transport.hemisphere_prior(config.prior, config.decomposition);
+    let mut stats = TraceStats::default();
     let observations: Vec<Vec<f64>> = points
         .iter()
         .enumerate()
@@ -109,7 +113,6 @@ pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<Fitte
             let mut rng = point_rng(FIT_SEED, i as u64);
             let frame = Frame::from_normal(point.normal())
                 .rotated_about_normal(std::f64::consts::TAU * rng.random::<f64>());
-            let mut stats = TraceStats::default();
             transport
                 .hemisphere_samples(point, &frame, &set.directions, limits, &mut rng, &mut stats)
                 .iter()
@@ -134,6 +137,7 @@ pub fn fit_lengthscale(transport: &Transport, config: FitConfig) -> Result<Fitte
         at_bound,
         fit_samples: set.len(),
         points: points.len(),
+        rays: stats.rays,
     };
     match hyperparameters::fit(&set, config.kernel, &observations, &options) {
         Ok(fit) => Ok(fitted(
@@ -175,11 +179,13 @@ impl Default for FittedKernels {
 }
 
 impl FittedKernels {
-    /// The fit for `config`, computing it on first use.
+    /// The fit for `config`, computing it on first use (its rays counted
+    /// in `amortised` then).
     pub fn get_or_fit(
         &self,
         transport: &Transport,
         config: FitConfig,
+        amortised: &AmortisedRays,
     ) -> Result<FittedKernel, String> {
         let config = FitConfig {
             sample_set: config.sample_set.canonical(),
@@ -187,7 +193,11 @@ impl FittedKernels {
         };
         self.fits.get_with(config, || {
             crate::isolated::isolated(|| {
-                fit_lengthscale(transport, config).map_err(|e| e.to_string())
+                let fit = fit_lengthscale(transport, config);
+                if let Ok(fit) = &fit {
+                    amortised.add(fit.rays);
+                }
+                fit.map_err(|e| e.to_string())
             })
         })
     }
@@ -203,10 +213,11 @@ impl FittedKernels {
         &self,
         transport: &Transport,
         config: FitConfig,
+        amortised: &AmortisedRays,
     ) -> Result<FittedKernel, String> {
         let mut best: Option<FittedKernel> = None;
         for kernel in KernelKind::ALL {
-            let fit = self.get_or_fit(transport, FitConfig { kernel, ..config })?;
+            let fit = self.get_or_fit(transport, FitConfig { kernel, ..config }, amortised)?;
             let better = match (&best, fit.log_marginal_likelihood) {
                 (None, _) => true,
                 (Some(b), Some(l)) => b.log_marginal_likelihood.is_some_and(|bl| l > bl),
@@ -303,14 +314,18 @@ mod tests {
         let transport = cornell(8);
         let kernels = FittedKernels::default();
         assert!(kernels.list().is_empty());
+        let (fitting, reading) = (AmortisedRays::default(), AmortisedRays::default());
         let first = kernels
-            .get_or_fit(&transport, config(Decomposition::Split))
+            .get_or_fit(&transport, config(Decomposition::Split), &fitting)
             .unwrap();
         let again = kernels
-            .get_or_fit(&transport, config(Decomposition::Split))
+            .get_or_fit(&transport, config(Decomposition::Split), &reading)
             .unwrap();
         assert_eq!(first, again);
         assert_eq!(kernels.list(), [first]);
+        // The fit's rays are counted by the request that fitted, only.
+        assert!(first.rays >= (FIT_POINTS * first.fit_samples) as u64);
+        assert_eq!((fitting.get(), reading.get()), (first.rays, 0));
     }
 
     #[test]
@@ -318,7 +333,11 @@ mod tests {
         let transport = cornell(8);
         let kernels = FittedKernels::default();
         let best = kernels
-            .get_or_select(&transport, config(Decomposition::Hemisphere))
+            .get_or_select(
+                &transport,
+                config(Decomposition::Hemisphere),
+                &AmortisedRays::default(),
+            )
             .unwrap();
         let fits = kernels.list();
         assert_eq!(fits.len(), KernelKind::ALL.len());
@@ -331,7 +350,11 @@ mod tests {
         assert!(fits.contains(&best));
         // Asking again selects from the kept fits, identically.
         let again = kernels
-            .get_or_select(&transport, config(Decomposition::Hemisphere))
+            .get_or_select(
+                &transport,
+                config(Decomposition::Hemisphere),
+                &AmortisedRays::default(),
+            )
             .unwrap();
         assert_eq!(again, best);
         assert_eq!(kernels.list().len(), KernelKind::ALL.len());

@@ -3,6 +3,7 @@
 //! calibrated error bars (docs/math.md §1.2, §3, §6, §10, §14).
 //!
 //! - `spec`: the estimators as a caller names them, every default once;
+//! - [`amortised`]: rays a request spends on work kept for later ones;
 //! - `point_estimator`: a spec checked once and run over points;
 //! - `error`: why a spec or an estimate failed;
 //! - `hemisphere_estimate`: one rule over the hemisphere of a point;
@@ -14,6 +15,7 @@
 //! - `sample_points`: training and camera points of a scene;
 //! - `points_csv`: points and estimates as CSV.
 
+pub mod amortised;
 pub mod calibration;
 mod error;
 pub mod error_target;
@@ -25,6 +27,7 @@ pub(crate) mod points_csv;
 pub(crate) mod sample_points;
 mod spec;
 
+pub use amortised::AmortisedRays;
 pub use error::EstimatorError;
 pub use hemisphere_estimate::HemisphereRule;
 pub use integral_prior::IntegralPrior;

@@ -27,6 +27,7 @@
 
 use std::sync::Arc;
 
+use super::amortised::AmortisedRays;
 use super::calibration::{Calibrations, ErrorCalibration, TrainingSet, calibrate, unseen_light};
 use super::error::EstimatorError;
 use super::hemisphere_estimate::HemisphereRule;
@@ -100,6 +101,13 @@ pub struct Estimates {
     pub prior: PriorChoice,
     /// The calibration applied to the error bars, if any.
     pub calibration: Option<ErrorCalibration>,
+}
+
+impl Estimates {
+    /// Rays the estimates traced, all points together.
+    pub fn rays(&self) -> u64 {
+        self.estimates.iter().map(|e| e.rays).sum()
+    }
 }
 
 impl EstimatorSpec {
@@ -210,6 +218,9 @@ pub struct EstimatorCaches<'a> {
     /// on the direct part: direct-light records at the records' places
     /// (docs/math.md §10.8); `None`: none.
     pub direct: Option<&'a dyn IntegralPrior>,
+    /// Counts the rays of the kept work (fits, calibrations) this request
+    /// does because no earlier one did.
+    pub amortised: &'a AmortisedRays,
 }
 
 impl PointEstimator {
@@ -245,24 +256,28 @@ impl PointEstimator {
                     PointRule::Mc { .. } => unseen_light(self.spec.samples),
                     PointRule::Qmc(_) | PointRule::Bmc(_) => 0.0,
                 };
-                let training = caches
-                    .calibrations
-                    .training_set(transport, options, cancel)?;
+                let training = caches.calibrations.training_set(
+                    transport,
+                    options,
+                    caches.amortised,
+                    cancel,
+                )?;
                 if self.has_priors(&caches) {
                     return self.calibrate_with_priors(
                         transport, caches, &training, options, unseen, cancel,
                     );
                 }
                 calibrate(&training, options, unseen, &|points, options| {
-                    self.estimate_with_model_errors(
+                    let run = self.estimate_with_model_errors(
                         transport,
                         caches,
                         points,
                         options,
                         &|| {},
                         cancel,
-                    )
-                    .map(|e| e.estimates)
+                    )?;
+                    caches.amortised.add(run.rays());
+                    Ok(run.estimates)
                 })
             })?)
         } else {
@@ -314,14 +329,16 @@ impl PointEstimator {
         let runs = training
             .requests(options)
             .map(|request| {
-                rule.estimate(
+                let run = rule.estimate(
                     transport,
                     caches,
                     &training.points,
                     &request,
                     &|| {},
                     cancel,
-                )
+                )?;
+                caches.amortised.add(run.rays());
+                Ok::<_, EstimatorError>(run)
             })
             .collect::<Result<Vec<_>, _>>()?;
         let decomposition = transport.decomposition(options.method);
@@ -552,8 +569,12 @@ impl BmcSetup {
                     prior,
                 };
                 let fit = match self.kind {
-                    Some(_) => caches.kernels.get_or_fit(transport, config),
-                    None => caches.kernels.get_or_select(transport, config),
+                    Some(_) => caches
+                        .kernels
+                        .get_or_fit(transport, config, caches.amortised),
+                    None => caches
+                        .kernels
+                        .get_or_select(transport, config, caches.amortised),
                 }
                 .map_err(EstimatorError::Fit)?;
                 let noise = fit.noise_ratio * self.variance;

@@ -18,11 +18,11 @@ use serde::Serialize;
 use crate::bmc::Kernel;
 use crate::bmc::cache::QuadratureCache;
 use crate::cache::{Accuracy, CacheConfig, IrradianceCache};
-use crate::estimators::IntegralPrior;
 use crate::estimators::calibration::Calibrations;
 use crate::estimators::error_target::ErrorTarget;
 use crate::estimators::lengthscale::FittedKernels;
 use crate::estimators::sample_points::camera_points;
+use crate::estimators::{AmortisedRays, IntegralPrior};
 use crate::estimators::{
     EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec,
 };
@@ -132,6 +132,8 @@ struct Setup {
     kernels: FittedKernels,
     quadratures: QuadratureCache,
     calibrations: Calibrations,
+    /// Rays of the kept work (fits, calibrations); a study does not report them.
+    amortised: AmortisedRays,
 }
 
 /// The study's query points: up to `options.points` camera-visible points,
@@ -172,6 +174,7 @@ impl Setup {
             kernels: FittedKernels::default(),
             quadratures: QuadratureCache::new(256 << 20),
             calibrations: Calibrations::default(),
+            amortised: AmortisedRays::default(),
         })
     }
 
@@ -186,6 +189,7 @@ impl Setup {
             calibrations: &self.calibrations,
             records,
             direct,
+            amortised: &self.amortised,
         }
     }
 }

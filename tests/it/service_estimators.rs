@@ -2,7 +2,10 @@
 //! estimators on the bundled Cornell box, the `"auto"` lengthscale and its
 //! report in `GET /v1/scenes/{id}`.
 
-use crate::common::{TestApp, error_of, spawn_app_with_scenes};
+use crate::common::{
+    TestApp, answer_and_cost, assert_same_answer_without_the_kept_work, error_of,
+    spawn_app_with_scenes,
+};
 use bmc_irradiance::testing::agrees;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
@@ -119,7 +122,7 @@ async fn point_requests_fill_the_factorisation_cache() {
         .unwrap();
     assert_eq!(quadrature["cached"], json!(true), "{quadrature}");
     // Same request, same numbers (the cache changes nothing but the cost).
-    assert_eq!(irradiance(&app, estimator).await, first);
+    assert_same_answer_without_the_kept_work(&first, &irradiance(&app, estimator).await);
 }
 
 #[tokio::test]
@@ -141,7 +144,10 @@ async fn auto_lengthscale_is_fitted_once_reported_and_dropped_with_the_scene() {
         json!({"method": "bmc", "samples": 32, "kernel": {"lengthscale": "auto"}}),
     )
     .await;
-    assert_eq!(explicit, first);
+    // The same numbers; naming the default is another configuration, whose
+    // error bars are calibrated apart (on the kept fit).
+    assert_eq!(answer_and_cost(&explicit).0, answer_and_cost(&first).0);
+    assert!(first["amortised_rays"].as_u64() > explicit["amortised_rays"].as_u64());
 
     // No family named: every family was fitted on the same values and the
     // response names the one of largest marginal likelihood.

@@ -1,6 +1,8 @@
 //! `POST /v1/scenes/{id}/irradiance` end to end, and a table of bad requests.
 
-use crate::common::{TINY_SCENE, error_of, spawn_app_with_scenes};
+use crate::common::{
+    TINY_SCENE, assert_same_answer_without_the_kept_work, error_of, spawn_app_with_scenes,
+};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -38,29 +40,39 @@ async fn open_sky_gives_pi_times_radiance_and_counts_rays() {
     );
 }
 
+/// The same request gives the same numbers; the first on a scene also
+/// counts the rays of the work it did for every later one (the kernel fit of
+/// an `"auto"` lengthscale, the calibration of the error bars), and says so.
 #[tokio::test]
-async fn same_request_same_numbers() {
+async fn same_request_same_numbers_and_the_first_counts_its_calibration() {
     let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
-    let mut body = request([0.3, 0.1, 1.0], 32);
-    body["points"] = json!([
-        {"position": [0.2, -0.1, 0.0], "normal": [0.0, 0.0, 1.0]},
-        {"position": [0.0, 0.0, 1.0], "normal": [0.3, 0.2, 1.0]}
-    ]);
-    body["max_depth"] = json!(4);
-    body["estimator"]["decomposition"] = json!("split");
-    let first: Value = app
-        .post_json("/v1/scenes/tiny/irradiance", &body)
-        .await
-        .json()
-        .await
-        .unwrap();
-    let second: Value = app
-        .post_json("/v1/scenes/tiny/irradiance", &body)
-        .await
-        .json()
-        .await
-        .unwrap();
-    assert_eq!(first, second);
+    for method in ["mc", "qmc", "bmc"] {
+        let mut body = request([0.3, 0.1, 1.0], 32);
+        body["points"] = json!([
+            {"position": [0.2, -0.1, 0.0], "normal": [0.0, 0.0, 1.0]},
+            {"position": [0.0, 0.0, 1.0], "normal": [0.3, 0.2, 1.0]}
+        ]);
+        body["max_depth"] = json!(4);
+        body["estimator"]["method"] = json!(method);
+        body["estimator"]["decomposition"] = json!("split");
+        let mut answers = Vec::new();
+        for _ in 0..2 {
+            let response = app.post_json("/v1/scenes/tiny/irradiance", &body).await;
+            assert_eq!(response.status(), StatusCode::OK);
+            answers.push(response.json::<Value>().await.unwrap());
+        }
+        let (first, second) = (&answers[0], &answers[1]);
+        assert!(first.get("calibration").is_some(), "{first}");
+        assert_same_answer_without_the_kept_work(first, second);
+        // Two points of 32 paths each; the calibration runs the estimator
+        // four times on 96 training points, and the first calibration of
+        // the scene also traces their reference (4,096 paths each), which
+        // the others share.
+        assert!(second["rays"].as_u64() >= Some(2 * 32), "{second}");
+        let reference = if method == "mc" { 96 * 4096 } else { 0 };
+        let calibrating = first["amortised_rays"].as_u64().unwrap();
+        assert!(calibrating >= 4 * 96 * 32 + reference, "{method}: {first}");
+    }
 }
 
 #[tokio::test]

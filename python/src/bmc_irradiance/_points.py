@@ -159,6 +159,7 @@ class _Points(_Chunking):
             value=_rows(answers, "irradiance"),
             std_dev=_rows(answers, "std_dev"),
             rays=sum(int(doc["rays"]) for _, doc in answers),
+            amortised_rays=sum(int(doc["amortised_rays"]) for _, doc in answers),
             decomposition=str(first.get("decomposition")),
             prior=str(first.get("prior")),
             calibration=first.get("calibration"),

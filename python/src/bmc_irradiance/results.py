@@ -68,13 +68,16 @@ class IrradianceResult:
     records' direct-light twins covered. With a
     target, per point:
     ``samples`` spent, ``relative_error`` reached and ``target_met``.
-    ``rays`` sums all requests; ``chunks`` lists the requests the point set
-    was split into (one unless it exceeded the service's limits).
+    ``rays`` sums all requests, and ``amortised_rays`` the part of them spent
+    on work the service keeps for later requests (kernel fits, calibrations);
+    ``chunks`` lists the requests the point set was split into (one unless
+    it exceeded the service's limits).
     """
 
     value: FloatArray
     std_dev: FloatArray
     rays: int
+    amortised_rays: int
     decomposition: str
     prior: str
     calibration: dict[str, Any] | None = None

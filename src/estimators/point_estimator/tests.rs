@@ -169,6 +169,7 @@ fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
             calibrations: &calibrations,
             records: None,
             direct: prior.map(|p| p as &dyn IntegralPrior),
+            amortised: &AmortisedRays::default(),
         };
         EstimatorSpec {
             records_prior,

@@ -19,7 +19,8 @@ use crate::cache::RecordsPrior;
 use crate::estimators::calibration::ErrorCalibration;
 use crate::estimators::error_target::ErrorTarget;
 use crate::estimators::{
-    Estimates, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
+    AmortisedRays, Estimates, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec,
+    Lengthscale,
 };
 use crate::integrator::cached::point_priors;
 use crate::render::environment_prior::PriorChoice;
@@ -171,8 +172,15 @@ pub struct IrradianceResponse {
     pub irradiance: Vec<[f64; 3]>,
     /// Standard error of each estimate, `[r, g, b]` in W/m².
     pub std_dev: Vec<[f64; 3]>,
-    /// Rays traced for the whole request.
+    /// Rays traced for the whole request: its points' and those of the work
+    /// it did first for this scene and configuration (below).
     pub rays: u64,
+    /// Of `rays`, those spent on work kept for later requests of the scene,
+    /// which the first request needing it does: fitting an `"auto"` kernel,
+    /// calibrating the error bars (training points, their reference and the
+    /// estimator's runs), the records prior's direct-light twins. A request
+    /// repeated once that work is kept reports 0 here.
+    pub amortised_rays: u64,
     /// `bmc`: the kernel family used (selected by marginal likelihood when
     /// the request names none and the lengthscale is `"auto"`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -289,6 +297,8 @@ pub async fn irradiance(
     };
 
     let worker = state.clone();
+    let amortised = Arc::new(AmortisedRays::default());
+    let spent = amortised.clone();
     let estimates = state
         .pool
         .run(move |cancel| {
@@ -306,7 +316,7 @@ pub async fn irradiance(
                 options.method,
                 cancel,
             )?;
-            ::metrics::counter!(RAYS_TRACED).increment(priors.rays);
+            spent.add(priors.rays);
             let (records, direct): (&RecordsPrior, &RecordsPrior) =
                 (&priors.records, &priors.direct);
             let caches = EstimatorCaches {
@@ -315,6 +325,7 @@ pub async fn irradiance(
                 calibrations: &scene.calibrations,
                 records: Some(records),
                 direct: Some(direct),
+                amortised: &spent,
             };
             let estimates = match &target {
                 None => point_estimator
@@ -361,13 +372,15 @@ pub async fn irradiance(
         Some(targeted) => targeted.iter().map(|t| t.estimate).collect(),
         None => estimates.estimates,
     };
-    let rays = estimates.iter().map(|e| e.rays).sum();
+    let amortised_rays = amortised.get();
+    let rays = estimates.iter().map(|e| e.rays).sum::<u64>() + amortised_rays;
     ::metrics::counter!(RAYS_TRACED).increment(rays);
     let rgb = |c: Rgb| [c.r, c.g, c.b];
     Ok(Json(IrradianceResponse {
         irradiance: estimates.iter().map(|e| rgb(e.irradiance)).collect(),
         std_dev: estimates.iter().map(|e| rgb(e.std_error)).collect(),
         rays,
+        amortised_rays,
         records_prior_points,
         direct_records_points,
         kernel: kernel.map(|k| k.kind),

@@ -158,3 +158,37 @@ pub fn copy_dir(from: &std::path::Path, to: &std::path::Path) {
         }
     }
 }
+
+/// A point request's answer without its cost (`rays`, `amortised_rays`),
+/// and that cost.
+pub fn answer_and_cost(answer: &serde_json::Value) -> (serde_json::Value, u64, u64) {
+    let mut rest = answer.clone();
+    let object = rest.as_object_mut().expect("a JSON object");
+    let mut take = |key: &str| {
+        object
+            .remove(key)
+            .and_then(|v| v.as_u64())
+            .unwrap_or_else(|| panic!("no {key} in {answer}"))
+    };
+    let (rays, amortised) = (take("rays"), take("amortised_rays"));
+    (rest, rays, amortised)
+}
+
+/// Checks that `again`, a point request repeated after `first`, answers the
+/// same numbers, that it found the work `first` did for later requests kept
+/// (`amortised_rays` 0), and that `first`'s `rays` counted that work on top
+/// of the same rays for its points.
+pub fn assert_same_answer_without_the_kept_work(
+    first: &serde_json::Value,
+    again: &serde_json::Value,
+) {
+    let (first_rest, first_rays, first_amortised) = answer_and_cost(first);
+    let (again_rest, again_rays, again_amortised) = answer_and_cost(again);
+    assert_eq!(first_rest, again_rest);
+    assert_eq!(again_amortised, 0, "{again}");
+    assert_eq!(
+        first_rays,
+        again_rays + first_amortised,
+        "{first} then {again}"
+    );
+}
