@@ -132,7 +132,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                      bounces; {} placement rays, {} records' rays fell back to a path), \
                      {} in the secondary cache ({} rays), {} in cache; shading: {} hits ({} relaxed), {} path-traced fallbacks, \
                      {} glossy BMC ({} lobe-sampled by the negative-weight guard), \
-                     {} glossy path-traced",
+                     {} glossy path-traced; {} tiles too dense for records ({} probe rays)",
                     rendered.rays,
                     r.placement.records_created,
                     r.placement.ambient_records,
@@ -147,6 +147,8 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
                     r.shading.glossy_bmc,
                     r.shading.glossy_fallbacks,
                     r.shading.glossy_path_traced,
+                    r.dense_tiles,
+                    r.probe_rays,
                 )
             })?;
         }

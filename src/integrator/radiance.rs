@@ -170,6 +170,7 @@ pub fn radiance_at_points(
                             // Independent repeats, so their spread is the
                             // standard error (no pattern shared between them).
                             sample: None,
+                            dense: false,
                         };
                         integrator.outgoing_radiance(
                             hit,

@@ -216,8 +216,9 @@ pub fn render_progressive(
             rendered.store(true, Relaxed);
             let (tile, cache_hits) = match (bound.cached(), &records) {
                 (Some(i), Some(records)) => {
+                    let dense = records.report.dense();
                     let (tile, stats) =
-                        i.render_tile_from_records(&request, &records.records, cancel)?;
+                        i.render_tile_from_records(&request, &records.records, dense, cancel)?;
                     (tile, stats.cache_hits)
                 }
                 _ => {

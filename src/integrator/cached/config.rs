@@ -79,6 +79,9 @@ pub struct CacheShadingOptions {
     /// once per scene and configuration) instead of tracing paths on;
     /// excludes `ambient_bounces`.
     pub secondary_cache: bool,
+    /// Records per placement point above which a tile places none and
+    /// path traces its indirect light (`dense`); `None`: records everywhere.
+    pub max_records_per_pixel: Option<f64>,
 }
 
 impl Default for CacheShadingOptions {
@@ -95,6 +98,7 @@ impl Default for CacheShadingOptions {
             paths_per_direction: 1,
             ambient_bounces: 0,
             secondary_cache: false,
+            max_records_per_pixel: None,
         }
     }
 }
@@ -144,6 +148,14 @@ impl CacheShadingOptions {
             return Err(CacheError::invalid(
                 "relative_error_target",
                 format!("must be finite and > 0, got {t}"),
+            ));
+        }
+        if let Some(m) = self.max_records_per_pixel
+            && !(m.is_finite() && m > 0.0)
+        {
+            return Err(CacheError::invalid(
+                "max_records_per_pixel",
+                format!("must be finite and > 0, got {m}"),
             ));
         }
         PixelFootprint::new(1.0, self.min_pixels, self.max_pixels)?;

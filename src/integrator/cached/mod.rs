@@ -23,12 +23,14 @@
 //!   first hits instead of tracing paths on, and how it is built;
 //! - `secondary_caches`: those caches held by a rule set, each built once;
 //! - `tiles`: camera tiles shaded through a shared or private cache;
+//! - `dense`: tiles where records do not pay, and the probe that finds them;
 //! - `point_priors`: which caches' records serve point queries as priors;
 //! - `record_view`: records as the camera sees them (positions, radii,
 //!   an overlay image);
 //! - `stats`: counters.
 
 mod config;
+mod dense;
 mod direct_light;
 mod direct_records;
 mod error;

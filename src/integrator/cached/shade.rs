@@ -49,6 +49,7 @@ use super::config::{
     AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, PlacementOptions,
     indirect_paths,
 };
+use super::dense::DENSE_LIGHT_FACTOR;
 use super::direct_light::{Surface, direct_radiance, mis_weights};
 use super::glossy::lobe_sampled;
 use super::record_estimate::{GatheredRecord, PlacementPoint, finish_records, lookup};
@@ -333,9 +334,10 @@ impl CachedIntegrator<'_> {
             return Ok(Evaluation::of(radiance));
         };
         let placement = self.shading.placement(indirect_paths(from_point), 0);
+        let light_factor = if how.dense { DENSE_LIGHT_FACTOR } else { 1 };
         let reflection = Reflection {
             placement: &placement,
-            light_samples: options.light_samples,
+            light_samples: options.light_samples.saturating_mul(light_factor),
             level: 0,
             on_miss: how.on_miss,
             sample: how.sample,

@@ -27,6 +27,9 @@ pub struct ShadePoint {
     /// The camera ray of a pixel this point is, if it is one: its light
     /// samples then take their share of one pattern over the pixel's rays.
     pub sample: Option<PixelSample>,
+    /// The point is in a tile without records (`dense`): its direct light
+    /// takes `DENSE_LIGHT_FACTOR` times the configuration's light samples.
+    pub dense: bool,
 }
 
 /// An ambient bounce of a record's rays through the cache (module docs).

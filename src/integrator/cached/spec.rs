@@ -112,6 +112,14 @@ pub struct CachedSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[arg(long)]
     pub max_pixels: Option<f64>,
+    /// Records per camera-visible diffuse pixel of a tile above which the
+    /// tile places none: its camera samples' indirect light is then path
+    /// traced, one path each, and their direct light takes 4 times
+    /// `light_samples` (decided by a cheap probe of the placement; tiles
+    /// only), finite and > 0; default off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[arg(long)]
+    pub max_records_per_pixel: Option<f64>,
     /// Mirror-angle (`θ_r`) nodes of the glossy BMC rule, 2..=1024; default 16.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[arg(long)]
@@ -175,6 +183,7 @@ impl CachedSpec {
             cache: self.cache.or(base.cache),
             min_pixels: self.min_pixels.or(base.min_pixels),
             max_pixels: self.max_pixels.or(base.max_pixels),
+            max_records_per_pixel: self.max_records_per_pixel.or(base.max_records_per_pixel),
             glossy_bins: self.glossy_bins.or(base.glossy_bins),
         }
     }
@@ -214,6 +223,7 @@ impl CachedSpec {
             secondary_cache: self.secondary_cache.unwrap_or(d.secondary_cache),
             min_pixels: self.min_pixels.unwrap_or(d.min_pixels),
             max_pixels: self.max_pixels.unwrap_or(d.max_pixels),
+            max_records_per_pixel: self.max_records_per_pixel.or(d.max_records_per_pixel),
             ..d
         };
         let accuracy = options.validate()?;
@@ -334,6 +344,7 @@ mod tests {
             "cache": c.shared,
             "min_pixels": o.min_pixels,
             "max_pixels": o.max_pixels,
+            "max_records_per_pixel": o.max_records_per_pixel.map_or("off".into(), |m| m.to_string()),
             "glossy_bins": c.glossy_bins,
         })
     }

@@ -29,6 +29,7 @@ use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
 use super::config::indirect_paths;
+use super::dense::probe;
 use super::placement::{PlacementCache, PlacementReport, place_records};
 use super::record_estimate::{PlacementPoint, diffuse_front};
 use super::secondary::secondary_cache_of;
@@ -57,6 +58,18 @@ pub struct CachedTileReport {
     pub shading: ShadingStats,
     /// Records copied from the private cache into the shared one.
     pub records_published: u64,
+    /// Tiles that placed no records as the probe found them too dense
+    /// (`dense`; 0 or 1 per tile), and the probe's rays (in
+    /// `placement.rays` too).
+    pub dense_tiles: u64,
+    pub probe_rays: u64,
+}
+
+impl CachedTileReport {
+    /// Whether the tile (one) placed no records as they would not pay.
+    pub fn dense(&self) -> bool {
+        self.dense_tiles > 0
+    }
 }
 
 impl CachedTileReport {
@@ -71,6 +84,8 @@ impl CachedTileReport {
         self.secondary.rays += other.secondary.rays;
         self.shading += other.shading;
         self.records_published += other.records_published;
+        self.dense_tiles += other.dense_tiles;
+        self.probe_rays += other.probe_rays;
     }
 }
 
@@ -80,6 +95,8 @@ struct CacheRayShader<'a> {
     integrator: CachedIntegrator<'a>,
     /// The request's depth, counted from the camera.
     depth: PathDepth,
+    /// The tile placed no records (`dense`).
+    dense: bool,
     stats: Mutex<ShadingStats>,
     error: Mutex<Option<RenderError>>,
 }
@@ -106,6 +123,7 @@ impl CameraRayShader for CacheRayShader<'_> {
             max_depth: self.depth,
             on_miss: OnMiss::PathTrace,
             sample: Some(sample),
+            dense: self.dense,
         };
         let result = self
             .integrator
@@ -177,12 +195,13 @@ impl CachedIntegrator<'_> {
         if !self.shading.options.reproducible {
             let mut report =
                 self.place_tile_records(request, |c| PlacementCache::Shared(c), cancel)?;
-            let (tile, shading) = self.shade_tile(request, cancel)?;
+            let (tile, shading) = self.shade_tile(request, report.dense(), cancel)?;
             report.shading = shading;
             return Ok((add_placement_rays(tile, &report), report));
         }
         let (records, mut report) = self.tile_records(request, cancel)?;
-        let (tile, shading) = self.render_tile_from_records(request, &records, cancel)?;
+        let (tile, shading) =
+            self.render_tile_from_records(request, &records, report.dense(), cancel)?;
         report.shading = shading;
         report.records_published = self.publish(&records)?;
         Ok((add_placement_rays(tile, &report), report))
@@ -212,11 +231,13 @@ impl CachedIntegrator<'_> {
     /// One tile shaded through a private cache holding exactly `records`
     /// (inserted in their order, as [`Self::tile_records`] returns them), so
     /// the result is bit-identical whatever ran before; returns the tile
-    /// (camera and shading rays only) and the shading counters.
+    /// (camera and shading rays only) and the shading counters. `dense`:
+    /// the placement found the tile dense ([`CachedTileReport::dense`]).
     pub fn render_tile_from_records(
         &self,
         request: &TileRequest,
         records: &[Record],
+        dense: bool,
         cancel: &Cancel,
     ) -> Result<(RenderedTile, ShadingStats), RenderError> {
         let private = self.private_cache()?;
@@ -230,7 +251,7 @@ impl CachedIntegrator<'_> {
             cache: &private,
             ..*self
         }
-        .shade_tile(request, cancel)
+        .shade_tile(request, dense, cancel)
     }
 
     /// Inserts into this integrator's cache the records it does not
@@ -279,6 +300,23 @@ impl CachedIntegrator<'_> {
         // reuse each other's record rotations.
         let seed = pixel_rng(request.seed, request.x, request.y).next_u64();
         let options = shading.placement(indirect_paths(from_hit), seed);
+        if let Some(limit) = shading.options.max_records_per_pixel {
+            let config = *self.cache.config();
+            let found = probe(
+                transport,
+                config,
+                shading.rule.spec().samples,
+                &points,
+                &options,
+                cancel,
+            )?;
+            report.probe_rays = found.rays;
+            report.placement.rays += found.rays;
+            if found.is_dense(points.len(), limit) {
+                report.dense_tiles = 1;
+                return Ok(report);
+            }
+        }
         // A private cache is only read at the bounces, so the batch stays
         // deterministic (see `placement`).
         let reproducible = shading.options.reproducible;
@@ -305,12 +343,14 @@ impl CachedIntegrator<'_> {
     fn shade_tile(
         &self,
         request: &TileRequest,
+        dense: bool,
         cancel: &Cancel,
     ) -> Result<(RenderedTile, ShadingStats), RenderError> {
         let camera = &self.transport.scene().camera;
         let shader = CacheRayShader {
             integrator: *self,
             depth: request.max_depth,
+            dense,
             stats: Mutex::new(ShadingStats::default()),
             error: Mutex::new(None),
         };
@@ -335,6 +375,7 @@ mod tests {
     use super::*;
     use std::sync::Arc;
 
+    use super::super::dense::MIN_DENSE_RECORDS;
     use crate::bmc::cache::QuadratureCache;
     use crate::cache::CacheConfig;
     use crate::image::relative_rmse;
@@ -575,6 +616,55 @@ mod tests {
         let (c, _) = render_cached(&transport, &r, &cache(), &by_paths).unwrap();
         assert_ne!(c.image, a.image);
         assert_agrees_with_path_tracing(&transport, &a, &r);
+    }
+
+    /// A tile whose probe finds more records per pixel than the limit
+    /// places none and path traces its indirect light with 4× the light
+    /// samples; it stays reproducible and agrees with path tracing. Under a
+    /// limit the probe never reaches, the tile is the same bytes as without
+    /// one (the probe draws from no stream of the render's).
+    #[test]
+    fn tiles_too_dense_for_records_place_none_and_agree_with_path_tracing() {
+        let transport = cornell(16);
+        let base = CacheShadingOptions {
+            light_samples: 4,
+            ..options(true)
+        };
+        let r = TileRequest {
+            samples_per_pixel: 4,
+            ..cached_request(0, 0, 16)
+        };
+        let with_limit = |limit| {
+            shading(CacheShadingOptions {
+                max_records_per_pixel: Some(limit),
+                ..base
+            })
+        };
+        let (plain, plain_report) =
+            render_cached(&transport, &r, &cache(), &shading(base)).unwrap();
+        let records = plain_report.placement.records_created;
+        assert!(records > MIN_DENSE_RECORDS, "{records} records");
+        assert!(!plain_report.dense() && plain_report.probe_rays == 0);
+
+        let loose = with_limit(1e6);
+        let (same, report) = render_cached(&transport, &r, &cache(), &loose).unwrap();
+        assert_eq!(same.image, plain.image);
+        assert!(!report.dense() && report.probe_rays > 0);
+        assert_eq!(report.placement.records_created, records);
+
+        let tight = with_limit(1e-3);
+        let (dense, report) =
+            in_pool(1, || render_cached(&transport, &r, &cache(), &tight)).unwrap();
+        assert!(report.dense(), "{report:?}");
+        assert_eq!(report.placement.records_created, 0);
+        assert_eq!(report.placement.rays, report.probe_rays);
+        assert_eq!(report.shading.cache_hits, 0);
+        assert!(report.shading.fallbacks > 0);
+        // Four times the shadow rays of the plain tile's direct light.
+        assert!(report.shading.rays > plain_report.shading.rays * 2);
+        let (again, _) = in_pool(2, || render_cached(&transport, &r, &cache(), &tight)).unwrap();
+        assert_eq!(again.image, dense.image);
+        assert_agrees_with_path_tracing(&transport, &dense, &r);
     }
 
     #[test]

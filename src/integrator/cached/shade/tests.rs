@@ -142,6 +142,7 @@ fn radiance_queries_insert_records_on_a_miss_and_reuse_them() {
             max_depth: PathDepth::constant(max_depth),
             on_miss: OnMiss::Insert,
             sample: None,
+            dense: false,
         };
         integrator
             .outgoing_radiance(&hit, -ray.dir, how, &mut rng, stats)
