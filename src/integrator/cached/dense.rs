@@ -4,10 +4,11 @@
 //! record costs its `N` directions' paths and serves a pixel or two, which
 //! is more than the camera samples' own indirect paths cost, and its
 //! interpolation still leaves a bias. Such a tile places no records: each
-//! camera sample's diffuse indirect light is one cosine-distributed path
-//! (the shading pass's miss fallback, unbiased), and its direct light takes
-//! [`DENSE_LIGHT_FACTOR`] times the light samples, as the records' budget
-//! goes to the direct light that then dominates the noise.
+//! camera sample's diffuse indirect light is the mean of
+//! [`DENSE_INDIRECT_PATHS`] cosine-distributed paths (the shading pass's
+//! miss fallback, unbiased), and its direct light takes
+//! [`DENSE_LIGHT_FACTOR`] times the light samples: the records' budget goes
+//! to the two terms whose noise is then left.
 //!
 //! Whether a tile is dense is decided before any record is computed, by a
 //! probe: the placement pass over the tile's placement points, in the same
@@ -33,9 +34,15 @@ pub const PROBE_DIRECTIONS: usize = 64;
 /// tile that sees a few pixels of geometry keeps its records.
 pub const MIN_DENSE_RECORDS: u64 = 32;
 /// Light samples of a dense tile's shading points, in multiples of the
-/// configuration's: on the lego at the `final` preset, 4.85 % error over
-/// 8×8 blocks in 9.6 s with 1×, 4.34 % in 21.8 s with 4× (docs/BENCHMARKS.md).
-pub const DENSE_LIGHT_FACTOR: u32 = 4;
+/// configuration's, and the paths of their indirect light. On the lego
+/// with the `final` preset's knobs (64 camera rays per pixel, 4 light
+/// samples), error over 8×8 blocks against Mitsuba's 1,024-spp image for
+/// two seeds, and time (docs/BENCHMARKS.md): (1×, 1 path) 4.85 % in 9.6 s;
+/// (4×, 1) 4.35/4.34 % in 21.5 s; (1×, 2) 4.90/4.06 % in 15.4 s; (2×, 2)
+/// 3.99/4.14 % in 18.2 s; (1×, 4) 3.94/4.09 % in 22.3 s; (2×, 3)
+/// 3.91/3.83 % in 22.7 s.
+pub const DENSE_LIGHT_FACTOR: u32 = 2;
+pub const DENSE_INDIRECT_PATHS: u32 = 2;
 /// Seed of the probe's record rotations (its own stream: the probe draws
 /// nothing from the placement's).
 const PROBE_SEED: u64 = 0xde05_e7a1_e5ba_5e00;

@@ -49,7 +49,7 @@ use super::config::{
     AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, PlacementOptions,
     indirect_paths,
 };
-use super::dense::DENSE_LIGHT_FACTOR;
+use super::dense::{DENSE_INDIRECT_PATHS, DENSE_LIGHT_FACTOR};
 use super::direct_light::{Surface, direct_radiance, mis_weights};
 use super::glossy::lobe_sampled;
 use super::record_estimate::{GatheredRecord, PlacementPoint, finish_records, lookup};
@@ -267,6 +267,7 @@ impl RecordGather<'_> {
             indirect: true,
             glossy_bmc: false,
             delta_chain: 0,
+            fallback_paths: 1,
         };
         segments
             .iter()
@@ -302,6 +303,9 @@ struct Reflection<'a> {
     /// Dirac-delta bounces (mirrors, glass) a camera path has followed
     /// through the cache to reach this point.
     delta_chain: u32,
+    /// Cosine-distributed paths that estimate the indirect irradiance
+    /// where no record covers the point ([`OnMiss::PathTrace`]).
+    fallback_paths: u32,
 }
 
 /// Longest chain of delta bounces a camera path follows through the cache
@@ -334,10 +338,14 @@ impl CachedIntegrator<'_> {
             return Ok(Evaluation::of(radiance));
         };
         let placement = self.shading.placement(indirect_paths(from_point), 0);
-        let light_factor = if how.dense { DENSE_LIGHT_FACTOR } else { 1 };
+        let (light_factor, fallback_paths) = match how.dense {
+            true => (DENSE_LIGHT_FACTOR, DENSE_INDIRECT_PATHS),
+            false => (1, 1),
+        };
         let reflection = Reflection {
             placement: &placement,
             light_samples: options.light_samples.saturating_mul(light_factor),
+            fallback_paths,
             level: 0,
             on_miss: how.on_miss,
             sample: how.sample,
@@ -577,6 +585,7 @@ impl CachedIntegrator<'_> {
             indirect: true,
             glossy_bmc: false,
             delta_chain: 0,
+            fallback_paths: 1,
         };
         let all = bounce.paths.lengths == PathLengths::All;
         let scene = self.transport.scene();
@@ -657,18 +666,21 @@ impl CachedIntegrator<'_> {
                 }
                 stats.cache_misses += 1;
                 stats.fallbacks += 1;
-                // E ≈ π L_i(ω) for one cosine-distributed ω.
+                // E ≈ π mean L_i(ω) over cosine-distributed ω.
                 let frame = Frame::from_normal(point.normal());
-                let dir = warp::cosine_hemisphere([rng.random(), rng.random()]);
-                let sample = self.transport.hemisphere_samples(
+                let dirs: Vec<DVec3> = (0..r.fallback_paths)
+                    .map(|_| warp::cosine_hemisphere([rng.random(), rng.random()]))
+                    .collect();
+                let samples = self.transport.hemisphere_samples(
                     point,
                     &frame,
-                    &[dir],
+                    &dirs,
                     placement.paths,
                     rng,
                     trace,
                 );
-                Ok(sample[0].radiance * PI)
+                let sum = samples.iter().fold(Rgb::BLACK, |a, s| a + s.radiance);
+                Ok(sum * (PI / f64::from(r.fallback_paths)))
             }
         }
     }

@@ -28,7 +28,8 @@ pub struct ShadePoint {
     /// samples then take their share of one pattern over the pixel's rays.
     pub sample: Option<PixelSample>,
     /// The point is in a tile without records (`dense`): its direct light
-    /// takes `DENSE_LIGHT_FACTOR` times the configuration's light samples.
+    /// takes `DENSE_LIGHT_FACTOR` times the configuration's light samples,
+    /// its indirect light `DENSE_INDIRECT_PATHS` paths.
     pub dense: bool,
 }
 

@@ -114,7 +114,7 @@ pub struct CachedSpec {
     pub max_pixels: Option<f64>,
     /// Records per camera-visible diffuse pixel of a tile above which the
     /// tile places none: its camera samples' indirect light is then path
-    /// traced, one path each, and their direct light takes 4 times
+    /// traced, two paths each, and their direct light takes twice
     /// `light_samples` (decided by a cheap probe of the placement; tiles
     /// only), finite and > 0; default off.
     #[serde(default, skip_serializing_if = "Option::is_none")]

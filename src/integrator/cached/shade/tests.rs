@@ -215,6 +215,7 @@ fn glossy_bmc_agrees_with_lobe_sampling() {
         indirect: true,
         glossy_bmc: true,
         delta_chain: 0,
+        fallback_paths: 1,
     };
     let mut rng = Pcg64::seed_from_u64(5);
     let (mut trace, mut stats) = (TraceStats::default(), ShadingStats::default());
