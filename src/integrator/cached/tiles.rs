@@ -70,9 +70,7 @@ impl CachedTileReport {
     pub fn dense(&self) -> bool {
         self.dense_tiles > 0
     }
-}
 
-impl CachedTileReport {
     /// Adds `other`'s counts (of another tile of the same image).
     pub fn add(&mut self, other: &CachedTileReport) {
         self.placement_points += other.placement_points;
