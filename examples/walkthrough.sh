@@ -63,7 +63,9 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
      -d '{"points": [{"position": [0, -0.99, 0], "normal": [0, 1, 0]}],
           "estimator": {"method": "mc", "samples": 64, "decomposition": "split"},
           "max_depth": 16, "seed": 1}'
-# → {"irradiance": [[r,g,b]], "std_dev": [[r,g,b]], "rays": n}  (W/m²)
+# → {"irradiance": [[r,g,b]], "std_dev": [[r,g,b]], "rays": n, "amortised_rays": m, …}  (W/m²)
+# rays counts every ray the request caused; amortised_rays, those of the work the first
+# request of a configuration does for every later one (calibration, kernel fit): 0 next time
 
 curl "$BASE/v1/presets"   # draft, preview (the default), final: every knob each sets
 # Tile (tx, ty) of 64-pixel tiles of the camera image, reproducible and cacheable by HTTP:
@@ -94,6 +96,8 @@ curl -X POST "$BASE/v1/scenes/cornell-box/tiles" -H 'content-type: application/j
 #   light_samples, paths_per_direction, ambient_bounces, secondary_cache (records' rays read
 #   a scene-wide cache at their first hits; the final preset's true), reproducible (the presets' true:
 #   records per tile, the same bytes whatever ran before; false: the scene's shared cache),
+#   max_records_per_pixel (above it a tile places no records and path traces its indirect
+#   light; the final preset's 0.2, for scenes of small parts such as the tutorials' lego),
 #   cache: false) or {"method": "path"} (path tracing). Headers x-records-created and
 #   x-cache-hits tell what the cache did.
 
