@@ -108,6 +108,7 @@ def test_a_retried_post_resends_the_same_body(stub: Stub) -> None:
         "irradiance": [[1.0, 2.0, 3.0]],
         "std_dev": [[0.1, 0.2, 0.3]],
         "rays": 7,
+        "amortised_rays": 0,
         "decomposition": "split",
         "prior": "none",
     }
