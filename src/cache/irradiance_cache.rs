@@ -133,6 +133,9 @@ pub struct Interpolated {
     /// if the records' errors are independent; interpolation error is not
     /// included.
     pub variance: Rgb,
+    /// `Σ w_k (E_k(x, n) − E)² / Σ w_k`: how much the records' own
+    /// predictions at the point disagree about it (0 with one record).
+    pub spread: Rgb,
     pub records_used: usize,
 }
 
@@ -297,7 +300,8 @@ impl IrradianceCache {
         accept: impl Fn(&Record) -> bool,
     ) -> Option<Interpolated> {
         let (x, n, a) = (point.position(), point.normal(), accuracy.value());
-        let (mut sum_w, mut sum_e, mut sum_v, mut used) = (0.0, Rgb::BLACK, Rgb::BLACK, 0);
+        let (mut sum_w, mut sum_e, mut sum_e2, mut sum_v, mut used) =
+            (0.0, Rgb::BLACK, Rgb::BLACK, Rgb::BLACK, 0);
         self.index.for_each_near(x, a, |r| {
             if !self.compatible(r, x, n) {
                 return;
@@ -306,7 +310,9 @@ impl IrradianceCache {
             if w > 1.0 / a && accept(r) {
                 let w = w.min(WEIGHT_CAP);
                 sum_w += w;
-                sum_e += r.extrapolate(x, n) * w;
+                let e = r.extrapolate(x, n);
+                sum_e += e * w;
+                sum_e2 += e * e * w;
                 sum_v += r.variance * (w * w);
                 used += 1;
             }
@@ -317,9 +323,14 @@ impl IrradianceCache {
             return None;
         }
         self.hits.fetch_add(1, Ordering::Relaxed);
+        let mean = sum_e / sum_w;
+        let spread = (sum_e2 / sum_w - mean * mean)
+            .to_array()
+            .map(|v| v.max(0.0));
         Some(Interpolated {
-            irradiance: sum_e / sum_w,
+            irradiance: mean,
             variance: sum_v / (sum_w * sum_w),
+            spread: Rgb::new(spread[0], spread[1], spread[2]),
             records_used: used,
         })
     }

@@ -18,10 +18,22 @@ pub struct RecordsPrior<'a> {
 struct Source<'a> {
     cache: &'a IrradianceCache,
     accuracy: Accuracy,
+    /// What the records are, as responses name them.
+    origin: &'static str,
     /// `τ²`: mean squared relative error of the cache's prediction at its
     /// own records, each left out in turn (module docs).
     relative_error2: f64,
 }
+
+/// The finest accuracy of a prior's lookups (docs/math.md §10.7): records
+/// placed finer (the final preset's 0.25) each stand where the others did
+/// not reach, so at their own accuracy almost none is predicted by the
+/// others (10 of 243 on the overcast scene's final tiles) and the prior's
+/// error cannot be measured. Looked up at 0.5, the records predict each
+/// other (239 of 243) and `τ²` measures the error of reaching that far;
+/// at 1.0 the prior reached too far and made environment-only BMC worse
+/// than without it there (1.34× QMC, against 0.82× at 0.5).
+pub const PRIOR_ACCURACY: f64 = 0.5;
 
 /// Records left out in turn to measure a cache's prediction error.
 pub const HELD_OUT_RECORDS: usize = 256;
@@ -30,16 +42,21 @@ pub const HELD_OUT_RECORDS: usize = 256;
 pub const MIN_HELD_OUT: usize = 16;
 
 impl<'a> RecordsPrior<'a> {
-    /// A prior from `caches`, whose records must hold the part the prior is
-    /// for: the indirect irradiance of paths at least as long as the query's,
-    /// or the direct light alone (direct-light twins).
-    pub fn new(caches: impl IntoIterator<Item = (&'a IrradianceCache, Accuracy)>) -> Self {
+    /// A prior from `caches` (each with its accuracy and what its records
+    /// are), whose records must hold the part the prior is for: the indirect
+    /// irradiance of paths at least as long as the query's, or the direct
+    /// light alone (direct-light twins).
+    pub fn new(
+        caches: impl IntoIterator<Item = (&'a IrradianceCache, Accuracy, &'static str)>,
+    ) -> Self {
         let caches = caches
             .into_iter()
-            .filter_map(|(cache, accuracy)| {
+            .filter_map(|(cache, accuracy, origin)| {
+                let accuracy = reach(accuracy);
                 held_out_error2(cache, accuracy).map(|relative_error2| Source {
                     cache,
                     accuracy,
+                    origin,
                     relative_error2,
                 })
             })
@@ -47,9 +64,41 @@ impl<'a> RecordsPrior<'a> {
         Self { caches }
     }
 
-    /// Whether the prior has anything to say at `point`.
-    pub fn covers(&self, point: &QueryPoint) -> bool {
-        self.at(point).is_some()
+    /// Whether no cache serves the prior (none given, or none with enough
+    /// records to measure its error).
+    pub fn is_empty(&self) -> bool {
+        self.caches.is_empty()
+    }
+
+    /// What the records serving the prior at `point` are, if any serve.
+    pub fn origin_at(&self, point: &QueryPoint) -> Option<&'static str> {
+        self.best(point).map(|(source, _)| source.origin)
+    }
+
+    /// Among the caches covering `point`, the one with the smallest prior
+    /// variance of luminance, with its mean and variance; the variance is
+    /// the interpolation's plus `(τ E)²` per channel, `τ²` the cache's
+    /// held-out error.
+    fn best(&self, point: &QueryPoint) -> Option<(&Source<'a>, (Rgb, Rgb))> {
+        self.caches
+            .iter()
+            .filter_map(|source| {
+                let found = source.cache.lookup(point, source.accuracy)?;
+                let e = found.irradiance;
+                let variance = found.variance + found.spread + e * e * source.relative_error2;
+                Some((source, (e, variance)))
+            })
+            .min_by(|a, b| a.1.1.luminance().total_cmp(&b.1.1.luminance()))
+    }
+}
+
+/// The accuracy of a prior's lookups: the cache's, or the coarser
+/// [`PRIOR_ACCURACY`].
+fn reach(accuracy: Accuracy) -> Accuracy {
+    if accuracy.value() >= PRIOR_ACCURACY {
+        accuracy
+    } else {
+        Accuracy::new(PRIOR_ACCURACY).expect("PRIOR_ACCURACY is an accuracy")
     }
 }
 
@@ -83,19 +132,9 @@ fn held_out_error2(cache: &IrradianceCache, accuracy: Accuracy) -> Option<f64> {
 }
 
 impl IntegralPrior for RecordsPrior<'_> {
-    /// Among the caches covering `point`, the one with the smallest prior
-    /// variance of luminance; the variance is the interpolation's plus
-    /// `(τ E)²` per channel, `τ²` the cache's held-out error.
+    /// The best covering cache's mean and variance (`Self::best`).
     fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)> {
-        self.caches
-            .iter()
-            .filter_map(|source| {
-                let found = source.cache.lookup(point, source.accuracy)?;
-                let e = found.irradiance;
-                let variance = found.variance + e * e * source.relative_error2;
-                Some((e, variance))
-            })
-            .min_by(|a, b| a.1.luminance().total_cmp(&b.1.luminance()))
+        self.best(point).map(|(_, prior)| prior)
     }
 
     /// The bit length of the number of records held: it changes each time
@@ -146,18 +185,23 @@ mod tests {
         assert!(e2(&smooth) < 0.01, "{}", e2(&smooth));
         assert!(e2(&noisy) > 0.02, "{}", e2(&noisy));
         let point = QueryPoint::new(DVec3::new(0.45, 0.45, 0.0), DVec3::Z).unwrap();
-        let alone = RecordsPrior::new([(&noisy, accuracy)]);
+        let alone = RecordsPrior::new([(&noisy, accuracy, "noisy")]);
         let (mean, variance) = alone.at(&point).expect("covered");
         assert!(variance.r >= mean.r * mean.r * e2(&noisy) - 1e-12);
         // With both, the more precise cache is the prior.
-        let both = RecordsPrior::new([(&noisy, accuracy), (&smooth, accuracy)]);
+        let both = RecordsPrior::new([(&noisy, accuracy, "noisy"), (&smooth, accuracy, "smooth")]);
         let (_, best) = both.at(&point).unwrap();
         assert!(best.r < variance.r);
+        assert_eq!(both.origin_at(&point), Some("smooth"));
         let far = QueryPoint::new(DVec3::new(50.0, 0.0, 0.0), DVec3::Z).unwrap();
-        assert!(!both.covers(&far));
+        assert_eq!(both.origin_at(&far), None);
         // 200 records: bit length 8; a cache too small to measure serves nothing.
         assert_eq!(both.state(), 8);
         let tiny = IrradianceCache::new(CacheConfig::default()).unwrap();
-        assert!(RecordsPrior::new([(&tiny, accuracy)]).caches.is_empty());
+        assert!(
+            RecordsPrior::new([(&tiny, accuracy, "tiny")])
+                .caches
+                .is_empty()
+        );
     }
 }

@@ -18,6 +18,7 @@ use crate::estimators::lengthscale::FittedKernels;
 use crate::estimators::points_csv::{parse_points, write_irradiance};
 use crate::estimators::{
     AmortisedRays, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
+    RecordsPriorMode,
 };
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{Cancel, IrradianceMethod, IrradianceOptions, PathDepth, Transport};
@@ -138,7 +139,7 @@ impl IrradianceArgs {
             // count nothing is left for a calibration to add (§10.5).
             calibrate: (self.model_errors || self.reference).then_some(false),
             // A run of this command has no irradiance cache to draw on.
-            records_prior: false,
+            records_prior: RecordsPriorMode::default(),
         }
     }
 }

@@ -34,5 +34,5 @@ pub use integral_prior::IntegralPrior;
 pub use point_estimator::{BmcSetup, Estimates, EstimatorCaches, PointEstimator, PointRule};
 pub use spec::{
     DEFAULT_KERNEL, DEFAULT_NOISE, DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod,
-    EstimatorSpec, KernelSpec, Lengthscale,
+    EstimatorSpec, KernelSpec, Lengthscale, RecordsPriorMode,
 };

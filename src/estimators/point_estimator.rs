@@ -35,7 +35,7 @@ use super::integral_prior::{IntegralPrior, PriorScales, combine_direct, combine_
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
 use super::spec::{
     DEFAULT_KERNEL, DEFAULT_NOISE, DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod,
-    EstimatorSpec,
+    EstimatorSpec, RecordsPriorMode,
 };
 use crate::bmc::cache::{CachedQuadrature, QuadratureCache};
 use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
@@ -124,7 +124,7 @@ impl EstimatorSpec {
                 "only `bmc` takes a kernel",
             ));
         }
-        if self.records_prior && self.method == EstimatorMethod::Mc {
+        if self.records_prior == RecordsPriorMode::Set(true) && self.method == EstimatorMethod::Mc {
             return Err(EstimatorError::invalid(
                 "records_prior",
                 "`mc` stays plain Monte Carlo; `qmc` and `bmc` take the records prior",
@@ -241,20 +241,25 @@ impl PointEstimator {
             // With the records prior, the bars are fitted again each time
             // the records it draws on double (§10.7), or the direct-light
             // records do (§10.8).
+            // Without records to lean on, the plain estimator's key: the
+            // same estimates take the same bars.
             let records = self.records(&caches).map(|r| r.state());
             let direct = self.direct(&caches).map(|r| r.state());
+            let spec = EstimatorSpec {
+                records_prior: RecordsPriorMode::Set(self.has_priors(&caches)),
+                ..self.spec
+            };
             let key = format!(
-                "{:?} {:?} depth {} light samples {} records {records:?} direct {direct:?}",
-                self.spec,
+                "{spec:?} {:?} depth {} light samples {} records {records:?} direct {direct:?}",
                 options.method,
                 options.effective_max_depth(),
                 options.samples
             );
             Some(caches.calibrations.get_or_calibrate(key, || {
-                // Light that independent directions all missed (§10.5).
+                // Light that every equally weighted direction missed (§10.5).
                 let unseen = match self.rule {
-                    PointRule::Mc { .. } => unseen_light(self.spec.samples),
-                    PointRule::Qmc(_) | PointRule::Bmc(_) => 0.0,
+                    PointRule::Mc { .. } | PointRule::Qmc(_) => unseen_light(self.spec.samples),
+                    PointRule::Bmc(_) => 0.0,
                 };
                 let training = caches.calibrations.training_set(
                     transport,
@@ -386,20 +391,21 @@ impl PointEstimator {
         self.spec.samples
     }
 
-    /// Whether the spec asked for the records prior (§10.7).
+    /// Whether the estimator leans on the records prior (§10.7): the spec
+    /// asked, or left it to the method (`RecordsPriorMode::Auto`).
     pub fn records_prior(&self) -> bool {
-        self.spec.records_prior
+        self.spec.records_prior.applies_to(self.spec.method)
     }
 
-    /// The records prior this estimator uses: the caches' if the spec asked.
+    /// The records prior this estimator uses: the caches', if it uses one.
     fn records<'a>(&self, caches: &EstimatorCaches<'a>) -> Option<&'a dyn IntegralPrior> {
-        caches.records.filter(|_| self.spec.records_prior)
+        caches.records.filter(|_| self.records_prior())
     }
 
-    /// The direct-light records this estimator uses (§10.8): the caches' if
-    /// the spec asked for the records prior.
+    /// The direct-light records this estimator uses (§10.8): the caches',
+    /// if it uses the records prior.
     fn direct<'a>(&self, caches: &EstimatorCaches<'a>) -> Option<&'a dyn IntegralPrior> {
-        caches.direct.filter(|_| self.spec.records_prior)
+        caches.direct.filter(|_| self.records_prior())
     }
 
     /// Whether the estimator combines its rule with priors: the spec asked
@@ -433,7 +439,7 @@ impl PointEstimator {
     fn rule(&self) -> PointEstimator {
         PointEstimator {
             spec: EstimatorSpec {
-                records_prior: false,
+                records_prior: RecordsPriorMode::Set(false),
                 ..self.spec
             },
             indirect_part: true,

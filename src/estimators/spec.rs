@@ -50,8 +50,31 @@ fn auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<(), D::Error> {
     match String::deserialize(d)?.as_str() {
         "auto" => Ok(()),
         other => Err(D::Error::custom(format!(
-            "expected a number or \"auto\", got {other:?}"
+            "expected \"auto\", got {other:?}"
         ))),
+    }
+}
+
+/// Whether point estimates lean on the records the service holds
+/// (docs/math.md §10.7, §10.8): `true`, `false`, or `"auto"`: yes for `bmc`,
+/// whose Bayesian combination it is, while `mc` and `qmc` stay the plain
+/// rules their names promise.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(untagged)]
+pub enum RecordsPriorMode {
+    Set(bool),
+    #[default]
+    #[serde(deserialize_with = "auto")]
+    Auto,
+}
+
+impl RecordsPriorMode {
+    /// Whether `method` combines its estimates with the records.
+    pub fn applies_to(self, method: EstimatorMethod) -> bool {
+        match self {
+            RecordsPriorMode::Set(on) => on,
+            RecordsPriorMode::Auto => method == EstimatorMethod::Bmc,
+        }
     }
 }
 
@@ -108,7 +131,8 @@ pub struct EstimatorSpec {
     /// true.
     pub calibrate: Option<bool>,
     /// `qmc` and `bmc`, either decomposition: combine the indirect part with
-    /// the irradiance cache's records where they cover the point
-    /// (docs/math.md §10.7; `EstimatorCaches::records`).
-    pub records_prior: bool,
+    /// the irradiance cache's records where they cover the point, and the
+    /// direct part with their twins (docs/math.md §10.7, §10.8;
+    /// `EstimatorCaches::records`).
+    pub records_prior: RecordsPriorMode,
 }

@@ -61,6 +61,7 @@ use super::scenes::{self, SceneRegistry};
 use super::server;
 use super::shared_store::SharedStore;
 use super::state::AppState;
+use super::tile_priors::TilePriors;
 use super::tile_store::TileStore;
 use crate::bmc::cache::QuadratureCache;
 
@@ -122,6 +123,10 @@ impl Application {
         let irradiance_caches = IrradianceCaches::new(
             usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX),
         );
+        let tile_priors = TilePriors::new(
+            irradiance_caches.per_cache_bytes(),
+            config.cache.irradiance_bytes,
+        );
         let quadratures = Arc::new(QuadratureCache::new(config.cache.factorisation_bytes));
         let shared = SharedStore::connect(&config.cluster).context("cluster.redis_url")?;
         let mut tiles = open_tile_store(&config.cache, config.limits.max_tile_area)?;
@@ -144,6 +149,7 @@ impl Application {
             pool,
             metrics,
             scenes: registry,
+            tile_priors,
             irradiance_caches,
             tiles,
             posted,

@@ -80,6 +80,28 @@ pub struct SceneCache {
 }
 
 impl SceneCache {
+    /// An empty cache of `config` for records computed with `shading`'s
+    /// rules; its direct-light twins take `1/DIRECT_SHARE` of its budget.
+    pub fn new(
+        config: CacheConfig,
+        shading: CachedShading,
+        description: serde_json::Value,
+    ) -> Result<Self, CacheError> {
+        let direct = CacheConfig {
+            byte_budget: config.byte_budget / DIRECT_SHARE,
+            ..config
+        };
+        Ok(Self {
+            cache: IrradianceCache::new(config)?,
+            direct: DirectTwins {
+                twins: IrradianceCache::new(direct)?,
+                mirrored: Mutex::new(HashSet::new()),
+            },
+            shading,
+            description,
+        })
+    }
+
     /// The direct-light twins of every record held now (docs/math.md §10.8),
     /// made for the records that have none yet. Returns them and the rays
     /// traced for the new ones.
@@ -142,11 +164,28 @@ impl DirectTwins {
 pub struct PriorSource {
     max_depth: PathDepth,
     entry: Arc<SceneCache>,
+    origin: &'static str,
+}
+
+impl PriorSource {
+    /// `entry`'s records, whose camera paths had `max_depth` segments;
+    /// `origin` names them in responses.
+    pub fn new(max_depth: PathDepth, entry: Arc<SceneCache>, origin: &'static str) -> Self {
+        Self {
+            max_depth,
+            entry,
+            origin,
+        }
+    }
 }
 
 impl RecordSource for PriorSource {
     fn records(&self) -> (&IrradianceCache, Accuracy) {
         (&self.entry.cache, self.entry.shading.accuracy())
+    }
+
+    fn origin(&self) -> &'static str {
+        self.origin
     }
 
     fn depth_from_point(&self) -> Option<PathDepth> {
@@ -227,19 +266,7 @@ impl IrradianceCaches {
                         ),
                     ));
                 }
-                let direct = CacheConfig {
-                    byte_budget: config.byte_budget / DIRECT_SHARE,
-                    ..config
-                };
-                Ok(Arc::new(SceneCache {
-                    cache: IrradianceCache::new(config)?,
-                    direct: DirectTwins {
-                        twins: IrradianceCache::new(direct)?,
-                        mirrored: Mutex::new(HashSet::new()),
-                    },
-                    shading,
-                    description: describe(),
-                }))
+                SceneCache::new(config, shading, describe()).map(Arc::new)
             })
             .map_err(|err: Arc<CacheError>| (*err).clone())
     }
@@ -256,13 +283,9 @@ impl IrradianceCaches {
 
     /// Every cache of this version of `scene`, as sources of point
     /// queries' priors (`integrator::cached::point_priors` picks among them).
-    pub fn prior_sources(&self, scene: &LoadedScene) -> Vec<PriorSource> {
+    pub fn prior_sources(&self, scene: &LoadedScene) -> impl Iterator<Item = PriorSource> {
         self.of_scene(scene)
-            .map(|(key, entry)| PriorSource {
-                max_depth: key.records.max_depth(),
-                entry,
-            })
-            .collect()
+            .map(|(key, entry)| PriorSource::new(key.records.max_depth(), entry, "cache"))
     }
 
     /// Stats of every cache of this version of `scene`, sorted by configuration.

@@ -40,6 +40,7 @@ mod scenes;
 mod server;
 mod shared_store;
 mod state;
+mod tile_priors;
 mod tile_render;
 mod tile_response;
 mod tile_store;

@@ -14,6 +14,7 @@ use super::pool::CpuPool;
 use super::posted_scenes::PostedScenes;
 use super::scenes::SceneRegistry;
 use super::shared_store::SharedStore;
+use super::tile_priors::TilePriors;
 use super::tile_store::TileStore;
 
 /// Shared, read-mostly state of one running service.
@@ -28,6 +29,8 @@ pub struct AppState {
     pub scenes: SceneRegistry,
     /// Irradiance-cache records per (scene version, estimator configuration).
     pub irradiance_caches: IrradianceCaches,
+    /// Reproducible tiles' records gathered as priors of point queries.
+    pub tile_priors: TilePriors,
     /// BMC factorisations and weights, `cache.factorisation_bytes` big, shared by
     /// `/v1/quadratures` and every BMC point request (see `routes::quadratures`).
     pub quadratures: Arc<QuadratureCache>,

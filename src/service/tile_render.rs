@@ -2,7 +2,8 @@
 //! (or of explicit knobs) up to a requested one, averaged, with the work a
 //! reproducible tile has done kept for the next request.
 //!
-//! What a reproducible tile keeps for the next request: `tile_store`.
+//! What a reproducible tile keeps for the next request: `tile_store`; its
+//! records serve point queries from there (`tile_priors`).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
@@ -197,6 +198,7 @@ pub fn render_progressive(
                 created.store(report.placement.records_created, Relaxed);
                 Ok::<_, ApiError>(TileRecords {
                     scene: *transport.scene().digest.as_bytes(),
+                    max_depth: job.request.max_depth,
                     records,
                     report,
                 })
@@ -246,12 +248,10 @@ pub fn render_progressive(
         cache_hits += pass_image.cache_hits;
         passes.push(pass_image);
     }
+    // A reproducible tile's records stay out of the shared cache: point
+    // queries meet them through the tile store (`tile_priors`), the same
+    // on every replica whichever of them rendered the tile.
     let records_created = created.into_inner();
-    if let (Some(integrator), Some(records), true) = (bound.cached(), &records, records_created > 0)
-    {
-        // Let the shared cache (and its statistics) know of new records.
-        integrator.publish(&records.records)?;
-    }
     let images: Vec<&Image> = passes.iter().map(|p| &p.image).collect();
     Ok(ProgressiveTile {
         image: Image::mean_of(&images)?,

@@ -46,6 +46,7 @@ use crate::cache::log::{self, AppendLog, LogEntry, LogReport};
 use crate::cache::{CacheConfig, MAX_IRRADIANCE, RECORD_BYTES, RadiusLimits, Record};
 use crate::image::Image;
 use crate::integrator::cached::CachedTileReport;
+use crate::render::PathDepth;
 
 /// A content key (BLAKE3 of a canonical description).
 pub type Key = [u8; 32];
@@ -54,6 +55,9 @@ pub type Key = [u8; 32];
 pub struct TileRecords {
     /// The content digest of the scene they belong to (`scene::SceneDigest`).
     pub scene: [u8; 32],
+    /// Path segments the records' camera paths had, the camera's included
+    /// (what point queries need to know to use them as a prior).
+    pub max_depth: PathDepth,
     pub records: Vec<Record>,
     pub report: CachedTileReport,
 }
@@ -86,10 +90,10 @@ pub struct TileStore {
     max_tile_area: usize,
 }
 
-/// Log entry kinds. Kind 1, records without their scene, is no longer
-/// written and is skipped when read.
+/// Log entry kinds. Kinds 1 (records without their scene) and 3 (records
+/// without their depth) are no longer written and are skipped when read.
 const PASS: u8 = 2;
-const RECORDS: u8 = 3;
+const RECORDS: u8 = 4;
 
 /// Why an import was refused; `entry` counts from 0.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
@@ -274,12 +278,24 @@ impl TileStore {
     /// held here, for an export ([`Self::export_entry`] each, after
     /// [`log::MAGIC`]: a log image).
     pub fn export_keys(&self, scene: &[u8; 32]) -> Vec<Key> {
+        self.tiles_of(scene)
+            .into_iter()
+            .map(|(key, _)| key)
+            .collect()
+    }
+
+    /// The records of every tile of the scene content `scene` held here,
+    /// in the order of their keys.
+    pub fn tiles_of(&self, scene: &[u8; 32]) -> Vec<(Key, Arc<TileRecords>)> {
         self.records.run_pending_tasks();
-        self.records
+        let mut tiles: Vec<_> = self
+            .records
             .iter()
             .filter(|(_, t)| &t.scene == scene)
-            .map(|(key, _)| *key)
-            .collect()
+            .map(|(key, tile)| (*key, tile))
+            .collect();
+        tiles.sort_unstable_by_key(|(key, _)| *key);
+        tiles
     }
 
     /// The records entry of the tile `key`, framed as in the log; `None`
@@ -381,6 +397,9 @@ impl TileStore {
     /// pixel of the largest tile and no two at one place.
     fn decode_records(&self, bytes: &[u8]) -> Result<TileRecords, Refusal> {
         let (scene, bytes) = bytes.split_first_chunk::<32>().ok_or(Refusal::Malformed)?;
+        let (depth, bytes) = bytes.split_first_chunk::<4>().ok_or(Refusal::Malformed)?;
+        let max_depth =
+            PathDepth::new(u32::from_le_bytes(*depth)).map_err(|_| Refusal::Malformed)?;
         if !bytes.len().is_multiple_of(Record::ENCODED_BYTES) {
             return Err(Refusal::Malformed);
         }
@@ -429,6 +448,7 @@ impl TileStore {
         }
         Ok(TileRecords {
             scene: *scene,
+            max_depth,
             records,
             report: CachedTileReport::default(),
         })
@@ -504,9 +524,11 @@ impl TileStore {
     }
 }
 
-/// `scene digest: 32 bytes | records` (`Record::to_le_bytes` each).
+/// `scene digest: 32 bytes | camera depth: u32 LE | records`
+/// (`Record::to_le_bytes` each).
 fn encode_records(tile: &TileRecords) -> Vec<u8> {
     let mut out = tile.scene.to_vec();
+    out.extend(tile.max_depth.get().to_le_bytes());
     out.extend(tile.records.iter().flat_map(Record::to_le_bytes));
     out
 }

@@ -24,7 +24,7 @@ use crate::estimators::lengthscale::FittedKernels;
 use crate::estimators::sample_points::camera_points;
 use crate::estimators::{AmortisedRays, IntegralPrior};
 use crate::estimators::{
-    EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec,
+    EstimatorCaches, EstimatorError, EstimatorMethod, EstimatorSpec, KernelSpec, RecordsPriorMode,
 };
 use crate::integrator::Preset;
 use crate::integrator::cached::{
@@ -277,6 +277,10 @@ impl RecordSource for StudyRecords {
         (&self.cache, self.shading.accuracy())
     }
 
+    fn origin(&self) -> &'static str {
+        "study"
+    }
+
     fn depth_from_point(&self) -> Option<PathDepth> {
         Some(self.depth_from_point)
     }
@@ -379,7 +383,7 @@ pub fn run(
                         .filter(|_| method == EstimatorMethod::Bmc),
                     prior,
                     calibrate: Some(calibrate),
-                    records_prior,
+                    records_prior: RecordsPriorMode::Set(records_prior),
                 };
                 let estimator = spec.resolve()?;
                 for s in 0..options.seeds {
@@ -468,7 +472,7 @@ pub fn run_target(
             kernel: None,
             prior: None,
             calibrate: None,
-            records_prior: false,
+            records_prior: RecordsPriorMode::Set(false),
         };
         let request = |samples, s: u64| IrradianceOptions {
             samples,

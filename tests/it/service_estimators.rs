@@ -275,12 +275,22 @@ async fn bad_estimator_options_name_their_field() {
 
 /// The bundled overcast scene with its map, on a fresh server.
 async fn overcast_app() -> TestApp {
+    overcast_app_on(None).await
+}
+
+/// [`overcast_app`] keeping its tiles in `data_dir`, if given.
+async fn overcast_app_on(data_dir: Option<&std::path::Path>) -> TestApp {
     let dir = tempfile::tempdir().unwrap();
     let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     for name in ["overcast.json", "overcast.exr"] {
         std::fs::copy(scenes.join(name), dir.path().join(name)).unwrap();
     }
-    crate::common::spawn_app_in(dir, |_| {}).await
+    crate::common::spawn_app_in(dir, |c| {
+        if let Some(data) = data_dir {
+            c.cache.data_dir = data.to_owned();
+        }
+    })
+    .await
 }
 
 /// The 200 answer of the overcast scene to `estimator` at `points`
@@ -312,7 +322,8 @@ async fn overcast_at_depth(
 /// alone (§10.8).
 #[tokio::test]
 async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
-    let app = overcast_app().await;
+    let data = tempfile::tempdir().unwrap();
+    let app = overcast_app_on(Some(data.path())).await;
     let points = json!([
         {"position": [-1.0, 0.0, 2.0], "normal": [0, 1, 0]},
         {"position": [0.5, 0.0, 3.0], "normal": [0, 1, 0]},
@@ -331,7 +342,7 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
         }
     }
     let with = post(json!({"method": "bmc", "samples": 32, "records_prior": true})).await;
-    let without = post(json!({"method": "bmc", "samples": 32})).await;
+    let without = post(json!({"method": "bmc", "samples": 32, "records_prior": false})).await;
     let reference = post(json!({"method": "mc", "samples": 4096, "calibrate": false})).await;
     assert_eq!(with["decomposition"], "hemisphere", "{with}");
     // Preview records cover the first point only (draft tiles left none
@@ -370,7 +381,7 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
     // only coarsely.
     let sky = |estimator: Value| overcast_at_depth(&app, &points, estimator, 5, 1);
     let with = sky(json!({"method": "bmc", "samples": 32, "records_prior": true})).await;
-    let without = sky(json!({"method": "bmc", "samples": 32})).await;
+    let without = sky(json!({"method": "bmc", "samples": 32, "records_prior": false})).await;
     let reference = sky(json!({"method": "mc", "samples": 4096, "calibrate": false})).await;
     assert_eq!(with["records_prior_points"], 0, "{with}");
     assert_eq!(with["direct_records_points"], 1, "{with}");
@@ -386,6 +397,54 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
     for point in 1..3 {
         assert_eq!(with["irradiance"][point], without["irradiance"][point]);
     }
+
+    // By default `bmc` leans on the records (`"auto"`), and says which
+    // served each point: the reproducible tiles'.
+    let default =
+        overcast_irradiance(&app, &points, json!({"method": "bmc", "samples": 32}), 5).await;
+    let asked = overcast_irradiance(
+        &app,
+        &points,
+        json!({"method": "bmc", "samples": 32, "records_prior": true}),
+        5,
+    )
+    .await;
+    assert_eq!(default["irradiance"], asked["irradiance"], "{default}");
+    assert_eq!(default["prior_used"][0]["indirect"], "tiles", "{default}");
+    assert_eq!(default["prior_used"][0]["direct"], "tiles", "{default}");
+    assert_eq!(default["prior_used"][1], json!({}), "{default}");
+    // `qmc` stays plain unless asked.
+    let qmc = overcast_irradiance(&app, &points, json!({"method": "qmc", "samples": 32}), 5).await;
+    assert!(qmc.get("prior_used").is_none(), "{qmc}");
+
+    // The same records give the same numbers, bit for bit, on another
+    // replica (here: one that imported them) and after a restart.
+    async fn answer(app: &TestApp, points: &Value) -> [Value; 3] {
+        let body =
+            overcast_irradiance(app, points, json!({"method": "bmc", "samples": 32}), 5).await;
+        ["irradiance", "std_dev", "prior_used"].map(|field| body[field].clone())
+    }
+    let here = answer(&app, &points).await;
+    let export = app
+        .get("/v1/scenes/overcast/records")
+        .await
+        .bytes()
+        .await
+        .unwrap();
+    let replica = overcast_app().await;
+    let imported = replica
+        .client
+        .post(replica.url("/v1/scenes/overcast/records"))
+        .header("content-type", "application/vnd.bmc-records")
+        .body(export.to_vec())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(imported.status(), StatusCode::OK);
+    assert_eq!(answer(&replica, &points).await, here);
+    drop(app);
+    let restarted = overcast_app_on(Some(data.path())).await;
+    assert_eq!(answer(&restarted, &points).await, here);
 }
 
 #[tokio::test]
@@ -518,7 +577,7 @@ async fn error_targets_add_batches_until_met_or_capped() {
 async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     let app = cornell_app().await;
     let with_records = json!({"method": "bmc", "samples": 32, "records_prior": true});
-    let plain = json!({"method": "bmc", "samples": 32});
+    let plain = json!({"method": "bmc", "samples": 32, "records_prior": false});
     // No records yet: the plain estimator's numbers, and it says so.
     let before = irradiance(&app, with_records.clone()).await;
     assert_eq!(before["records_prior_points"], 0, "{before}");

@@ -329,7 +329,8 @@ async fn records_export_from_one_service_and_import_into_another() {
 fn forged(export: &[u8], forge: impl FnOnce(&mut Vec<[f64; 31]>)) -> Vec<u8> {
     let length = u32::from_le_bytes(export[8..12].try_into().unwrap()) as usize;
     let body = &export[20..20 + length];
-    let (head, payload) = body.split_at(33 + 32);
+    // Kind, key, scene digest and camera depth, then the records.
+    let (head, payload) = body.split_at(33 + 32 + 4);
     let mut records: Vec<[f64; 31]> = payload
         .chunks_exact(31 * 8)
         .map(|r| {
@@ -371,9 +372,10 @@ async fn an_export_nobody_reads_is_cut_off() {
     // 40 tiles of 4000 records (about 40 MB): far more than a connection buffers.
     let mut image = b"BMCLOG01".to_vec();
     for tile in 0..40u32 {
-        let mut body = vec![3u8];
+        let mut body = vec![4u8];
         body.extend(blake3::hash(&tile.to_le_bytes()).as_bytes());
         body.extend(&digest);
+        body.extend(8u32.to_le_bytes());
         for i in 0..4000 {
             let (x, y) = (f64::from(i % 100) / 100.0, f64::from(i / 100) / 40.0);
             let mut record = [0.0; 31];

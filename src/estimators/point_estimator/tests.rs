@@ -9,7 +9,7 @@ fn spec(method: EstimatorMethod) -> EstimatorSpec {
         kernel: None,
         prior: None,
         calibrate: None,
-        records_prior: false,
+        records_prior: RecordsPriorMode::Set(false),
     }
 }
 
@@ -172,7 +172,7 @@ fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
             amortised: &AmortisedRays::default(),
         };
         EstimatorSpec {
-            records_prior,
+            records_prior: RecordsPriorMode::Set(records_prior),
             ..spec(EstimatorMethod::Qmc)
         }
         .resolve()

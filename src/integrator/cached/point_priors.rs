@@ -14,6 +14,9 @@ pub trait RecordSource {
     /// The records and the accuracy of their lookups.
     fn records(&self) -> (&IrradianceCache, Accuracy);
 
+    /// What the records are, as responses name them (`RecordsPrior::origin_at`).
+    fn origin(&self) -> &'static str;
+
     /// Path segments the records sum, counted from their own point (`None`:
     /// none beyond it, so no indirect light).
     fn depth_from_point(&self) -> Option<PathDepth>;
@@ -51,7 +54,10 @@ pub fn point_priors<'a, S: RecordSource>(
         let deep_enough = source
             .depth_from_point()
             .is_some_and(|d| d.get() >= max_depth.get());
-        deep_enough.then(|| source.records())
+        deep_enough.then(|| {
+            let (cache, accuracy) = source.records();
+            (cache, accuracy, source.origin())
+        })
     });
     let records = RecordsPrior::new(records);
     let mut twins = Vec::new();
@@ -60,7 +66,7 @@ pub fn point_priors<'a, S: RecordSource>(
         for source in sources {
             if let Some((cache, traced)) = source.direct_twins(transport, cancel)? {
                 rays += traced;
-                twins.push((cache, source.records().1));
+                twins.push((cache, source.records().1, source.origin()));
             }
         }
     }

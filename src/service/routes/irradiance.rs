@@ -20,12 +20,12 @@ use crate::estimators::calibration::ErrorCalibration;
 use crate::estimators::error_target::ErrorTarget;
 use crate::estimators::{
     AmortisedRays, Estimates, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec,
-    Lengthscale,
+    Lengthscale, RecordsPriorMode,
 };
 use crate::integrator::cached::point_priors;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{
-    Decomposition, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, Rgb,
+    Decomposition, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, RenderError, Rgb,
 };
 use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
@@ -71,19 +71,23 @@ pub struct EstimatorDoc {
     pub sample_set: Option<EstimatorSampleSetDoc>,
     /// `bmc` only: the GP kernel over incident radiance.
     pub kernel: Option<EstimatorKernelDoc>,
-    /// `qmc` and `bmc`, either decomposition: where the scene's irradiance
-    /// cache has records at the point (from tiles rendered with the `cache`
-    /// estimator at a depth of at least `max_depth + 1`), combine the
+    /// `true`, `false` or `"auto"` (default: on for `bmc`, off for `mc` and
+    /// `qmc`, which stay the plain rules). Where records of the scene cover
+    /// a point (those of every reproducible tile rendered, gathered per
+    /// camera depth, and those of the shared cache), combine the point's
     /// indirect part with their interpolated irradiance by precision
-    /// (docs/math.md §10.7); under the hemisphere decomposition also the
+    /// (docs/math.md §10.7), and under the hemisphere decomposition its
     /// direct part with the direct light seen from the records' places
     /// (their direct-light twins, made on first use: a thousand rays or so
-    /// per record, §10.8). The answer then depends on the records held when
-    /// it is asked; `records_prior_points` and `direct_records_points` say how
-    /// many points used them. Default false. Calibrated error bars are
-    /// fitted again each time the records double.
+    /// per record, §10.8). Records serve queries of a depth (from the point)
+    /// no greater than theirs (their camera depth less one). The answer
+    /// depends on the records held when it is asked, and on nothing else:
+    /// the same records give the same numbers on any replica. `prior_used`
+    /// says, per point, what moved its estimate. Calibrated error bars are
+    /// fitted again each time the records double. `mc` refuses `true`.
     #[serde(default)]
-    pub records_prior: bool,
+    #[schema(value_type = Object, example = "auto")]
+    pub records_prior: RecordsPriorMode,
 }
 
 /// The sample set of a `qmc`/`bmc` estimator; its size is `estimator.samples`.
@@ -201,6 +205,11 @@ pub struct IrradianceResponse {
     /// records (docs/math.md §10.8).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub direct_records_points: Option<usize>,
+    /// With the records prior: per point, which records its estimate was
+    /// combined with (`records_prior_points` and `direct_records_points`
+    /// count them).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior_used: Option<Vec<PointPriors>>,
     /// The decomposition run: `split` or `hemisphere` (`auto` resolved).
     #[schema(value_type = String, example = "hemisphere")]
     pub decomposition: Decomposition,
@@ -303,12 +312,16 @@ pub async fn irradiance(
         .pool
         .run(move |cancel| {
             let transport = &scene.transport;
-            // The scene's caches serve as priors only when the spec asks.
-            let sources = if records_prior {
-                worker.irradiance_caches.prior_sources(&scene)
-            } else {
-                Vec::new()
-            };
+            // The scene's records serve as priors only when the spec uses
+            // them: its reproducible tiles' and its shared caches'.
+            let mut sources = Vec::new();
+            if records_prior {
+                sources = worker
+                    .tile_priors
+                    .sources(&scene, &worker.tiles, &worker.quadratures)
+                    .map_err(RenderError::from)?;
+                sources.extend(worker.irradiance_caches.prior_sources(&scene));
+            }
             let priors = point_priors(
                 &sources,
                 transport,
@@ -323,8 +336,8 @@ pub async fn irradiance(
                 kernels: &scene.kernels,
                 quadratures: &worker.quadratures,
                 calibrations: &scene.calibrations,
-                records: Some(records),
-                direct: Some(direct),
+                records: (!records.is_empty()).then_some(records),
+                direct: (!direct.is_empty()).then_some(direct),
                 amortised: &spent,
             };
             let estimates = match &target {
@@ -338,29 +351,42 @@ pub async fn irradiance(
             if let Ok(Some(cached)) = estimates.as_ref().map(|(e, _)| e.quadrature_cached) {
                 metrics::record_quadrature_lookup(&worker.quadratures, Some(cached));
             }
-            // The points whose indirect part met the records (estimates
-            // with reflections report an indirect part), and those whose
-            // direct part met the twins (hemisphere estimates only).
+            // Per point, the records its indirect part met (estimates with
+            // reflections report an indirect part) and those whose twins
+            // its direct part met (hemisphere estimates only).
             let covered = |e: &Estimates| {
-                let indirect = e
-                    .estimates
+                let hemisphere = e.decomposition == Decomposition::Hemisphere;
+                e.estimates
                     .iter()
                     .zip(&points)
-                    .filter(|(e, p)| e.indirect.is_some() && records.covers(p))
-                    .count();
-                let direct = (e.decomposition == Decomposition::Hemisphere)
-                    .then(|| points.iter().filter(|p| direct.covers(p)).count());
-                (indirect, direct)
+                    .map(|(e, p)| PointPriors {
+                        indirect: e
+                            .indirect
+                            .and_then(|_| records.origin_at(p))
+                            .map(Into::into),
+                        direct: direct.origin_at(p).filter(|_| hemisphere).map(Into::into),
+                    })
+                    .collect::<Vec<_>>()
             };
             estimates.map(|(e, targeted)| {
-                let covered = records_prior.then(|| covered(&e));
+                let covered = records_prior.then(|| (covered(&e), e.decomposition));
                 ((e, targeted), covered)
             })
         })
         .await??;
     let (estimates, covered) = estimates;
-    let records_prior_points = covered.map(|(indirect, _)| indirect);
-    let direct_records_points = covered.and_then(|(_, direct)| direct);
+    let count = |part: fn(&PointPriors) -> bool| {
+        covered
+            .as_ref()
+            .map(|(c, _)| c.iter().filter(|p| part(p)).count())
+    };
+    let records_prior_points = count(|p| p.indirect.is_some());
+    let direct_records_points = count(|p| p.direct.is_some()).filter(|_| {
+        covered
+            .as_ref()
+            .is_some_and(|(_, d)| *d == Decomposition::Hemisphere)
+    });
+    let prior_used = covered.map(|(c, _)| c);
     let (estimates, targeted) = estimates;
     let (kernel, decomposition, prior, calibration) = (
         estimates.kernel,
@@ -383,6 +409,7 @@ pub async fn irradiance(
         amortised_rays,
         records_prior_points,
         direct_records_points,
+        prior_used,
         kernel: kernel.map(|k| k.kind),
         lengthscale: kernel.map(|k| k.lengthscale),
         noise: kernel.map(|k| k.noise),
@@ -397,6 +424,20 @@ pub async fn irradiance(
             .map(|t| t.iter().map(|t| t.relative_error).collect()),
         target_met: targeted.map(|t| t.iter().map(|t| t.met).collect()),
     }))
+}
+
+/// The records one point's estimate was combined with (docs/math.md
+/// §10.7, §10.8): `"tiles"` for those of reproducible tiles, `"cache"` for
+/// the shared cache's; absent where none covered the point.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct PointPriors {
+    /// The records its indirect part met.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indirect: Option<String>,
+    /// The records whose direct-light twins its direct part met
+    /// (hemisphere decomposition only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direct: Option<String>,
 }
 
 impl EstimatorDoc {

@@ -51,6 +51,7 @@ fn tile(scene: u8) -> TileRecords {
     };
     TileRecords {
         scene: [scene; 32],
+        max_depth: PathDepth::new(5).unwrap(),
         records: (0..3)
             .map(|i| Record {
                 position: DVec3::new(0.1 * f64::from(i), 0.0, 0.0),
