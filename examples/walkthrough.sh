@@ -120,19 +120,21 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 #   (scenes/overcast.json) through the hemisphere, with the unoccluded environment as the
 #   prior mean of "bmc" ("prior": "environment" | "none"; docs/math.md §10.4), and
 #   light-samples suns and emitters otherwise. std_dev of every method is calibrated on
-#   the scene (§10.5; "mc" adds a term for light all its samples missed; "calibrate":
+#   the scene (§10.5; "mc" and "qmc" add a term for light all their samples missed; "calibrate":
 #   false gives the model's own variance).
 #   "qmc" takes "sample_set" (fibonacci_cosine | fibonacci); "bmc" also a kernel whose
 #   lengthscale is a number or "auto" (default: fitted once per scene and configuration
 #   by marginal likelihood, listed under "fitted_kernels" by GET /v1/scenes/{id}); with
 #   "auto" and no "kind", the family (squared_exponential | matern32 | matern52) is
 #   selected by marginal likelihood too, and the response's "kernel" names it.
-#   "records_prior": true (qmc, bmc) combines each point's indirect part with the
-#   irradiance cache's records where rendered tiles left some (§10.7), and under the
-#   hemisphere decomposition its direct part with the direct light seen from the records'
-#   places (§10.8), each prior weighed by a variance scale fitted with the calibration
-#   ("calibration": {"prior_scales": …}, §10.9); the response counts the points they
-#   covered in "records_prior_points" and "direct_records_points".
+#   "records_prior" ("auto" by default: on for bmc, off for mc and qmc; true; false)
+#   combines each point's indirect part with the records rendered tiles left where they
+#   cover it (§10.7; every reproducible tile's, gathered the same on every replica,
+#   §10.10), and under the hemisphere decomposition its direct part with the direct light
+#   seen from the records' places (§10.8), each prior weighed by a variance scale fitted
+#   with the calibration ("calibration": {"prior_scales": …}, §10.9); "prior_used" says
+#   per point which records served ("tiles" or "cache"), "records_prior_points" and
+#   "direct_records_points" count them.
 
 curl -X POST "$BASE/v1/quadratures" -H 'content-type: application/json' \
      -d '{"sample_set": {"kind": "fibonacci", "count": 64},

@@ -82,7 +82,13 @@ def test_options_reach_the_service(client: Client) -> None:
     assert result.prior == "none"
     assert result.calibration is None
     assert result.lengthscale == 0.5
-    assert result.records_prior_points is None
+    # `bmc` leans on records by default; none are held, so none served.
+    assert result.records_prior_points == 0
+    assert result.prior_used == ({},) * 3
+    plain = client.irradiance(
+        "overcast", points + UP, UP, method="bmc", samples=16, records_prior=False
+    )
+    assert plain.records_prior_points is None and plain.prior_used is None
 
 
 def test_the_records_prior_is_asked_for_and_reported(client: Client) -> None:
@@ -94,6 +100,7 @@ def test_the_records_prior_is_asked_for_and_reported(client: Client) -> None:
         "cornell-box-xml", positions, UP, method="qmc", samples=16, records_prior=True
     )
     assert result.records_prior_points == 0
+    assert result.prior_used == ({},) * 3
     with pytest.raises(ServiceError) as refused:
         client.irradiance("cornell-box", positions, UP, method="mc", records_prior=True)
     assert refused.value.field == "estimator.records_prior"

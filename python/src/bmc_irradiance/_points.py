@@ -65,7 +65,7 @@ class _Points(_Chunking):
         decomposition: str | None = None,
         prior: str | None = None,
         calibrate: bool | None = None,
-        records_prior: bool | None = None,
+        records_prior: bool | str | None = None,
         sample_set: str | Mapping[str, Any] | None = None,
         kernel: Mapping[str, Any] | None = None,
         target: TargetLike | None = None,
@@ -83,13 +83,16 @@ class _Points(_Chunking):
         ``sample_set`` (a kind such as ``"fibonacci_cosine"`` or
         ``{"kind", "seed"}``) and ``kernel`` (``{"kind", "lengthscale",
         "variance", "noise"}``, ``bmc`` only) default to the service's
-        choices. ``records_prior=True`` (``qmc``, ``bmc``) combines
-        each point's indirect part with the irradiance cache's records where
-        rendered tiles left some, and under the hemisphere decomposition its
+        choices. ``records_prior`` (``True``, ``False`` or ``"auto"``, the
+        service's default: on for ``bmc``, off for ``mc`` and ``qmc``)
+        combines each point's indirect part with the records rendered tiles
+        left where they cover it, and under the hemisphere decomposition its
         direct part with the direct light seen from the records' places;
-        ``result.records_prior_points`` and ``result.direct_records_points``
-        count the points they covered. ``target`` (an :class:`ErrorTarget` or a dict with
-        ``relative_error``, ``confidence``, ``max_samples``) estimates each
+        ``result.prior_used`` says per point which records served
+        (``"tiles"`` or ``"cache"``), ``result.records_prior_points`` and
+        ``result.direct_records_points`` count them. ``target`` (an
+        :class:`ErrorTarget` or a dict with ``relative_error``,
+        ``confidence``, ``max_samples``) estimates each
         point until its error bar meets it (``mc`` and ``qmc`` only).
         ``max_depth`` is the longest path in segments (default: the scene's
         depth less the camera's segment, else the service's 16);
@@ -116,7 +119,9 @@ class _Points(_Chunking):
         if calibrate is not None:
             estimator["calibrate"] = bool(calibrate)
         if records_prior is not None:
-            estimator["records_prior"] = bool(records_prior)
+            estimator["records_prior"] = (
+                records_prior if isinstance(records_prior, str) else bool(records_prior)
+            )
         if sample_set is not None:
             estimator["sample_set"] = (
                 {"kind": sample_set} if isinstance(sample_set, str) else dict(sample_set)
@@ -173,6 +178,11 @@ class _Points(_Chunking):
             direct_records_points=(
                 sum(int(doc["direct_records_points"]) for _, doc in answers)
                 if "direct_records_points" in first
+                else None
+            ),
+            prior_used=(
+                tuple(dict(p) for _, doc in answers for p in doc["prior_used"])
+                if "prior_used" in first
                 else None
             ),
             samples=_flat(answers, "samples", np.int64) if targeted else None,

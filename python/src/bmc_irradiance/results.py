@@ -65,7 +65,9 @@ class IrradianceResult:
     the ``lengthscale`` and kernel ``noise`` used; with ``records_prior``,
     ``records_prior_points`` counts the points the records covered and, under
     the hemisphere decomposition, ``direct_records_points`` those the
-    records' direct-light twins covered. With a
+    records' direct-light twins covered; ``prior_used`` says per point which
+    records served each part (``{"indirect": "tiles", "direct": "tiles"}``,
+    ``{}`` where none did). With a
     target, per point:
     ``samples`` spent, ``relative_error`` reached and ``target_met``.
     ``rays`` sums all requests, and ``amortised_rays`` the part of them spent
@@ -85,6 +87,7 @@ class IrradianceResult:
     noise: float | None = None
     records_prior_points: int | None = None
     direct_records_points: int | None = None
+    prior_used: tuple[dict[str, str], ...] | None = None
     samples: npt.NDArray[np.int64] | None = None
     relative_error: FloatArray | None = None
     target_met: npt.NDArray[np.bool_] | None = None
