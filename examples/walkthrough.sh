@@ -128,12 +128,13 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 #   "auto" and no "kind", the family (squared_exponential | matern32 | matern52) is
 #   selected by marginal likelihood too, and the response's "kernel" names it.
 #   "records_prior" ("auto" by default: on for bmc, off for mc and qmc; true; false)
-#   combines each point's indirect part with the records rendered tiles left where they
-#   cover it (§10.7; every reproducible tile's, gathered the same on every replica,
-#   §10.10), and under the hemisphere decomposition its direct part with the direct light
+#   combines each point's indirect part with the records that cover it (§10.7): every
+#   reproducible tile's, gathered the same on every replica (§10.10), and those a query of
+#   64 points or more places among its own points (§10.11, counted in "amortised_rays");
+#   under the hemisphere decomposition also its direct part with the direct light
 #   seen from the records' places (§10.8), each prior weighed by a variance scale fitted
 #   with the calibration ("calibration": {"prior_scales": …}, §10.9); "prior_used" says
-#   per point which records served ("tiles" or "cache"), "records_prior_points" and
+#   per point which records served ("records" or "cache"), "records_prior_points" and
 #   "direct_records_points" count them.
 
 curl -X POST "$BASE/v1/quadratures" -H 'content-type: application/json' \

@@ -4,9 +4,9 @@
 The points: 200 on a scene laid out like the bundled overcast one (a ground
 plane, two spheres, a box and a wall; `--layout`), of which those behind the
 wall, outside the camera's field of view or on the spheres' far sides are not
-camera-visible. The service renders nothing before the first measurement
-unless `--fetched` says the viewer's tiles were fetched (run
-`bmc-irradiance fetch --scene S --preset final` first). Every estimator runs
+camera-visible. Run it on a fresh service, then again after fetching the
+viewer's tiles (`bmc-irradiance fetch --scene S --preset final`). Every
+estimator runs
 with N samples and several request seeds against a Monte Carlo reference
 (`--ref-seeds` × 4,096 paths per point), at full depth and with
 environment light only (`max_depth` 1). Reports, per mode, the relative RMSE
@@ -184,7 +184,7 @@ def main():
         print("|---|---|---|---|---|---|---|---|")
         for name, ((nrmse, truth, cov, rz), covered, rays) in rows.items():
             print(
-                f"| {name} | {nrmse:.4f} | {truth:.4f} | {truth / base:.2f} | {cov:.3f} | {rz:.2f} | {covered} | {rays} |"
+                f"| {name} | {nrmse:.4f} | {truth:.4f} | {truth / base:.2f} | {cov:.3f} | {rz:.3f} | {covered} | {rays} |"
             )
 
 

@@ -5,8 +5,8 @@
 //! the prior's mean and variance.
 
 use super::irradiance_cache::{Accuracy, IrradianceCache};
-use crate::estimators::IntegralPrior;
-use crate::render::{QueryPoint, Rgb};
+use crate::estimators::{IntegralPrior, PriorAt};
+use crate::render::QueryPoint;
 
 /// Records of one or more caches, each looked up with its own accuracy and
 /// its own measured relative prediction error.
@@ -76,19 +76,26 @@ impl<'a> RecordsPrior<'a> {
     }
 
     /// Among the caches covering `point`, the one with the smallest prior
-    /// variance of luminance, with its mean and variance; the variance is
-    /// the interpolation's plus `(τ E)²` per channel, `τ²` the cache's
-    /// held-out error.
-    fn best(&self, point: &QueryPoint) -> Option<(&Source<'a>, (Rgb, Rgb))> {
+    /// variance of luminance, with the prior there: the interpolation's
+    /// variance and the records' disagreement measured at the point, and
+    /// `(τ E)²` per channel modelled, `τ²` the cache's held-out error.
+    fn best(&self, point: &QueryPoint) -> Option<(&Source<'a>, PriorAt)> {
         self.caches
             .iter()
             .filter_map(|source| {
                 let found = source.cache.lookup(point, source.accuracy)?;
                 let e = found.irradiance;
-                let variance = found.variance + found.spread + e * e * source.relative_error2;
-                Some((source, (e, variance)))
+                let prior = PriorAt {
+                    mean: e,
+                    variance: found.variance + found.spread,
+                    modelled: e * e * source.relative_error2,
+                };
+                Some((source, prior))
             })
-            .min_by(|a, b| a.1.1.luminance().total_cmp(&b.1.1.luminance()))
+            .min_by(|a, b| {
+                let v = |p: &PriorAt| p.stated_variance().luminance();
+                v(&a.1).total_cmp(&v(&b.1))
+            })
     }
 }
 
@@ -132,8 +139,8 @@ fn held_out_error2(cache: &IrradianceCache, accuracy: Accuracy) -> Option<f64> {
 }
 
 impl IntegralPrior for RecordsPrior<'_> {
-    /// The best covering cache's mean and variance (`Self::best`).
-    fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)> {
+    /// The best covering cache's prior (`Self::best`).
+    fn at(&self, point: &QueryPoint) -> Option<PriorAt> {
         self.best(point).map(|(_, prior)| prior)
     }
 
@@ -149,6 +156,7 @@ impl IntegralPrior for RecordsPrior<'_> {
 mod tests {
     use super::*;
     use crate::cache::{CacheConfig, Record};
+    use crate::render::Rgb;
     use glam::DVec3;
 
     /// Records on a 10 × 10 grid in the plane z = 0, 0.1 apart with radius
@@ -186,11 +194,12 @@ mod tests {
         assert!(e2(&noisy) > 0.02, "{}", e2(&noisy));
         let point = QueryPoint::new(DVec3::new(0.45, 0.45, 0.0), DVec3::Z).unwrap();
         let alone = RecordsPrior::new([(&noisy, accuracy, "noisy")]);
-        let (mean, variance) = alone.at(&point).expect("covered");
+        let prior = alone.at(&point).expect("covered");
+        let (mean, variance) = (prior.mean, prior.stated_variance());
         assert!(variance.r >= mean.r * mean.r * e2(&noisy) - 1e-12);
         // With both, the more precise cache is the prior.
         let both = RecordsPrior::new([(&noisy, accuracy, "noisy"), (&smooth, accuracy, "smooth")]);
-        let (_, best) = both.at(&point).unwrap();
+        let best = both.at(&point).unwrap().stated_variance();
         assert!(best.r < variance.r);
         assert_eq!(both.origin_at(&point), Some("smooth"));
         let far = QueryPoint::new(DVec3::new(50.0, 0.0, 0.0), DVec3::Z).unwrap();

@@ -80,6 +80,17 @@ fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
+/// The training points of every calibration on `transport`'s scene: where
+/// the scene will be looked at, what its camera sees, or anywhere on its
+/// surfaces if the camera sees nothing.
+pub fn calibration_points(transport: &Transport) -> Vec<QueryPoint> {
+    let points = camera_points(transport, CALIBRATION_POINTS, CALIBRATION_SEED);
+    if points.len() < CALIBRATION_POINTS / 2 {
+        return training_points(transport, CALIBRATION_POINTS, CALIBRATION_SEED);
+    }
+    points
+}
+
 /// `μ_N = sqrt(3/(4(N + 1)(N + 2)))` (docs/math.md §10.5): with a Jeffreys
 /// prior `Beta(½, ½)` on the share `p` of the hemisphere (in the sampling
 /// density's measure) that brings light, `N` independent directions that
@@ -259,12 +270,7 @@ impl TrainingSet {
         options: &IrradianceOptions,
         cancel: &Cancel,
     ) -> Result<Self, RenderError> {
-        // Where the scene will be looked at: what its camera sees, or anywhere
-        // on its surfaces if the camera sees nothing.
-        let mut points = camera_points(transport, CALIBRATION_POINTS, CALIBRATION_SEED);
-        if points.len() < CALIBRATION_POINTS / 2 {
-            points = training_points(transport, CALIBRATION_POINTS, CALIBRATION_SEED);
-        }
+        let points = calibration_points(transport);
         // Plain MC with light sampling: unbiased for every decomposition, and
         // with enough samples that its own noise does not hide the estimator's.
         let reference = transport.irradiance_at_points(

@@ -14,11 +14,34 @@ use crate::render::QueryPoint;
 use crate::render::Rgb;
 use crate::render::{IndirectPart, IrradianceEstimate};
 
+/// A prior at one point: its mean and variance per channel, W/m² and
+/// (W/m²)², the variance in two parts: what was measured at the point
+/// (`variance`) and what a scene-wide model states (`modelled`), which the
+/// scale fitted on the scene multiplies (docs/math.md §10.9).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PriorAt {
+    pub mean: Rgb,
+    pub variance: Rgb,
+    pub modelled: Rgb,
+}
+
+impl PriorAt {
+    /// Mean and variance with the modelled part scaled by `scale`.
+    pub fn scaled(self, scale: f64) -> (Rgb, Rgb) {
+        (self.mean, self.variance + self.modelled * scale)
+    }
+
+    /// The variance with the modelled part as stated.
+    pub fn stated_variance(self) -> Rgb {
+        self.variance + self.modelled
+    }
+}
+
 /// A prior on a part of the irradiance at a point (indirect or direct),
 /// W/m², when one is known.
 pub trait IntegralPrior: Sync {
-    /// Mean and variance per channel of the prior at `point`, or `None`.
-    fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)>;
+    /// The prior at `point`, or `None`.
+    fn at(&self, point: &QueryPoint) -> Option<PriorAt>;
 
     /// A coarse summary of what the prior knows, which changes when it
     /// learns much more (e.g. `⌊log₂⌋` of the records it holds): error bars
@@ -54,11 +77,6 @@ impl PriorScales {
     /// points unlike those (rms z 1.50 on the environment light of issue
     /// 39's points, 1.37 with 4⁻² the least; docs/math.md §10.9).
     pub const CANDIDATES: [f64; 4] = [1.0, 1.0 / 16.0, 0.25, 4.0];
-}
-
-/// `prior` with its variance multiplied by `scale`.
-pub fn scaled(prior: (Rgb, Rgb), scale: f64) -> (Rgb, Rgb) {
-    (prior.0, prior.1 * scale)
 }
 
 /// The posterior of `estimate` (value, variance per channel) under the

@@ -31,7 +31,7 @@ use super::amortised::AmortisedRays;
 use super::calibration::{Calibrations, ErrorCalibration, TrainingSet, calibrate, unseen_light};
 use super::error::EstimatorError;
 use super::hemisphere_estimate::HemisphereRule;
-use super::integral_prior::{IntegralPrior, PriorScales, combine_direct, combine_part, scaled};
+use super::integral_prior::{IntegralPrior, PriorAt, PriorScales, combine_direct, combine_part};
 use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
 use super::spec::{
     DEFAULT_KERNEL, DEFAULT_NOISE, DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod,
@@ -43,7 +43,6 @@ use crate::bmc::report::QuadratureSpec;
 use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
 use crate::render::Cancel;
 use crate::render::QueryPoint;
-use crate::render::Rgb;
 use crate::render::Transport;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{Decomposition, IrradianceEstimate, IrradianceOptions};
@@ -526,8 +525,8 @@ impl PointEstimator {
 
 /// The priors' means and variances at a point, where they cover it.
 struct KnownPriors {
-    records: Option<(Rgb, Rgb)>,
-    direct: Option<(Rgb, Rgb)>,
+    records: Option<PriorAt>,
+    direct: Option<PriorAt>,
 }
 
 /// Combines each estimate with the priors at its point (§10.7, §10.8),
@@ -543,10 +542,10 @@ fn combine_priors(
         .map(|(estimate, known)| {
             let mut moved = false;
             if let Some(prior) = known.records {
-                moved |= combine_part(estimate, scaled(prior, scales.records));
+                moved |= combine_part(estimate, prior.scaled(scales.records));
             }
             if let Some(prior) = known.direct {
-                combine_direct(estimate, scaled(prior, scales.direct));
+                combine_direct(estimate, prior.scaled(scales.direct));
                 moved = true;
             }
             moved

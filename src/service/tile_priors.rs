@@ -1,5 +1,5 @@
-//! Reproducible tiles' records as priors of point queries (docs/math.md
-//! §10.10).
+//! Reproducible tiles' records, and records placed among point queries'
+//! own points, as priors of point queries (docs/math.md §10.10, §10.11).
 //!
 //! A reproducible tile's records (`tile_store`) are a function of the
 //! scene's content and the tile's request, and a replica holds the same
@@ -11,6 +11,13 @@
 //! held. A gathering is built once per set of tiles held and kept
 //! ([`TilePriors`]); its direct-light twins (§10.8) are made by the first
 //! query that needs them, all with one rule ([`TWIN_DIRECTIONS`]).
+//!
+//! A query of at least [`MIN_POINTS_FOR_RECORDS`] points places records
+//! among its own points (`integrator::cached::point_records`), and the
+//! first such query of a scene content and depth among the calibration's
+//! training points too, so the error bars are fitted on points with
+//! records placed the same way (§10.11). Both are kept in the tile store
+//! under content keys, like a tile's, and gathered with them.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
@@ -19,15 +26,26 @@ use moka::sync::Cache;
 
 use super::irradiance_caches::{PriorSource, SceneCache};
 use super::scenes::LoadedScene;
+use super::tile_store::TileRecords;
 use super::tile_store::{Key, TileStore};
 use crate::bmc::cache::QuadratureCache;
 use crate::cache::{CacheConfig, CacheError};
-use crate::integrator::cached::{CachedShading, CachedSpec};
+use crate::estimators::calibration::calibration_points;
+use crate::integrator::cached::{CachedShading, CachedSpec, CachedTileReport, point_records};
+use crate::render::{Cancel, PathDepth, QueryPoint, RenderError};
 
 /// Directions of the rule that makes the gathered records' direct-light
 /// twins: as many as the final preset's records have, with which the twins
 /// were measured (docs/BENCHMARKS.md, direct-light records).
 const TWIN_DIRECTIONS: usize = 1024;
+
+/// Fewest points of a query that places records among them (module docs):
+/// below it, a record's thousand paths would serve too few points to pay.
+pub const MIN_POINTS_FOR_RECORDS: usize = 64;
+
+/// Seed of every record placed among query points (shared with no request,
+/// so a request's seed changes its own samples, not the records).
+const POINT_RECORDS_SEED: u64 = 0x9017_5EC0;
 
 /// Gatherings of reproducible tiles' records (module docs).
 pub struct TilePriors {
@@ -103,9 +121,79 @@ impl TilePriors {
                 Ok::<_, CacheError>(Arc::new(gathering))
             })
             .map_err(|e: Arc<CacheError>| (*e).clone())?;
-            sources.push(PriorSource::new(max_depth, gathering, "tiles"));
+            sources.push(PriorSource::new(max_depth, gathering, "records"));
         }
         Ok(sources)
+    }
+
+    /// Places records among `points` (when there are at least
+    /// [`MIN_POINTS_FOR_RECORDS`] and at most `max_records`) and among the
+    /// calibration's training points, for queries of `from_point` segments
+    /// from the point (at least 2, so a query of direct light only still
+    /// leaves places for twins); each set once per scene content, kept in
+    /// `tiles`. Returns the rays traced now.
+    #[allow(clippy::too_many_arguments)]
+    pub fn place_among(
+        &self,
+        scene: &LoadedScene,
+        tiles: &TileStore,
+        quadratures: &Arc<QuadratureCache>,
+        points: &[QueryPoint],
+        from_point: PathDepth,
+        max_records: usize,
+        cancel: &Cancel,
+    ) -> Result<u64, RenderError> {
+        if points.len() < MIN_POINTS_FOR_RECORDS || points.len() > max_records {
+            return Ok(0);
+        }
+        let transport = &scene.transport;
+        let from_point = PathDepth::new(from_point.get().max(2))?;
+        // Kept with the camera's depth convention: one segment more.
+        let Ok(camera_depth) = PathDepth::new(from_point.get() + 1) else {
+            return Ok(0);
+        };
+        let digest = *transport.scene().digest.as_bytes();
+        let rules = self.twin_rules(quadratures)?;
+        let mut rays = 0;
+        for set in [calibration_points(transport), points.to_vec()] {
+            let mut hasher = blake3::Hasher::new();
+            hasher.update(b"point records\0");
+            hasher.update(env!("CARGO_PKG_VERSION").as_bytes());
+            hasher.update(&digest);
+            hasher.update(&from_point.get().to_le_bytes());
+            for p in &set {
+                for c in p
+                    .position()
+                    .to_array()
+                    .into_iter()
+                    .chain(p.normal().to_array())
+                {
+                    hasher.update(&c.to_le_bytes());
+                }
+            }
+            let key = *hasher.finalize().as_bytes();
+            tiles.records_or(key, || {
+                let (records, placement) = point_records(
+                    transport,
+                    &rules,
+                    &set,
+                    from_point,
+                    POINT_RECORDS_SEED,
+                    cancel,
+                )?;
+                rays += placement.rays;
+                Ok::<_, RenderError>(TileRecords {
+                    scene: digest,
+                    max_depth: camera_depth,
+                    records,
+                    report: CachedTileReport {
+                        placement,
+                        ..CachedTileReport::default()
+                    },
+                })
+            })?;
+        }
+        Ok(rays)
     }
 
     /// The rules every gathering's twins are made with.

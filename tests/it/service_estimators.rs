@@ -399,7 +399,8 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
     }
 
     // By default `bmc` leans on the records (`"auto"`), and says which
-    // served each point: the reproducible tiles'.
+    // served each point: the content-keyed ones (here the reproducible
+    // tiles'; a query of 3 points places none of its own).
     let default =
         overcast_irradiance(&app, &points, json!({"method": "bmc", "samples": 32}), 5).await;
     let asked = overcast_irradiance(
@@ -410,8 +411,8 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
     )
     .await;
     assert_eq!(default["irradiance"], asked["irradiance"], "{default}");
-    assert_eq!(default["prior_used"][0]["indirect"], "tiles", "{default}");
-    assert_eq!(default["prior_used"][0]["direct"], "tiles", "{default}");
+    assert_eq!(default["prior_used"][0]["indirect"], "records", "{default}");
+    assert_eq!(default["prior_used"][0]["direct"], "records", "{default}");
     assert_eq!(default["prior_used"][1], json!({}), "{default}");
     // `qmc` stays plain unless asked.
     let qmc = overcast_irradiance(&app, &points, json!({"method": "qmc", "samples": 32}), 5).await;
@@ -445,6 +446,57 @@ async fn the_records_prior_moves_the_indirect_part_of_a_hemisphere_estimate() {
     drop(app);
     let restarted = overcast_app_on(Some(data.path())).await;
     assert_eq!(answer(&restarted, &points).await, here);
+}
+
+/// A query of many points places records among them (docs/math.md
+/// §10.11): each point is served by records, their rays are counted as
+/// work kept for later, a repeat costs none of it and gives the same
+/// numbers, and the estimates agree with a reference within their bars; a
+/// query of few points places none.
+#[tokio::test]
+async fn a_query_of_many_points_places_records_among_them() {
+    let app = overcast_app().await;
+    let grid: Vec<Value> = (0..64)
+        .map(|i| {
+            let (x, z) = (f64::from(i % 8), f64::from(i / 8));
+            json!({"position": [-2.0 + 0.5 * x, 0.0, 1.0 + 0.3 * z], "normal": [0, 1, 0]})
+        })
+        .collect();
+    let few = json!(grid[..3]);
+    let grid = json!(grid);
+    let bmc = json!({"method": "bmc", "samples": 16});
+    let sparse = overcast_irradiance(&app, &few, bmc.clone(), 5).await;
+    assert_eq!(sparse["prior_used"], json!([{}, {}, {}]), "{sparse}");
+
+    let first = overcast_irradiance(&app, &grid, bmc.clone(), 5).await;
+    assert_eq!(first["records_prior_points"], 64, "{first}");
+    assert_eq!(first["direct_records_points"], 64, "{first}");
+    for used in first["prior_used"].as_array().unwrap() {
+        assert_eq!(used["indirect"], "records", "{used}");
+    }
+    let again = overcast_irradiance(&app, &grid, bmc, 5).await;
+    assert!(first["amortised_rays"].as_u64().unwrap() > 0, "{first}");
+    assert_eq!(again["amortised_rays"], 0, "{again}");
+    assert_eq!(again["irradiance"], first["irradiance"]);
+    assert_eq!(again["std_dev"], first["std_dev"]);
+    let reference = overcast_irradiance(
+        &app,
+        &grid,
+        json!({"method": "mc", "samples": 4096, "calibrate": false}),
+        6,
+    )
+    .await;
+    let within = (0..64)
+        .filter(|&i| {
+            let (e, s) = (
+                luminance(&first, i, "irradiance"),
+                luminance(&first, i, "std_dev"),
+            );
+            let sigma = s.hypot(luminance(&reference, i, "std_dev"));
+            agrees(e, luminance(&reference, i, "irradiance"), sigma, 3.0, 0.0)
+        })
+        .count();
+    assert!(within >= 60, "{within} of 64 within 3σ");
 }
 
 #[tokio::test]

@@ -89,7 +89,7 @@ class _Points(_Chunking):
         left where they cover it, and under the hemisphere decomposition its
         direct part with the direct light seen from the records' places;
         ``result.prior_used`` says per point which records served
-        (``"tiles"`` or ``"cache"``), ``result.records_prior_points`` and
+        (``"records"`` or ``"cache"``), ``result.records_prior_points`` and
         ``result.direct_records_points`` count them. ``target`` (an
         :class:`ErrorTarget` or a dict with ``relative_error``,
         ``confidence``, ``max_samples``) estimates each

@@ -66,7 +66,7 @@ class IrradianceResult:
     ``records_prior_points`` counts the points the records covered and, under
     the hemisphere decomposition, ``direct_records_points`` those the
     records' direct-light twins covered; ``prior_used`` says per point which
-    records served each part (``{"indirect": "tiles", "direct": "tiles"}``,
+    records served each part (``{"indirect": "records", "direct": "records"}``,
     ``{}`` where none did). With a
     target, per point:
     ``samples`` spent, ``relative_error`` reached and ``target_met``.

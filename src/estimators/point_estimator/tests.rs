@@ -104,7 +104,7 @@ struct ReferencePrior<'a> {
 }
 
 impl IntegralPrior for ReferencePrior<'_> {
-    fn at(&self, point: &QueryPoint) -> Option<(Rgb, Rgb)> {
+    fn at(&self, point: &QueryPoint) -> Option<PriorAt> {
         if self.half && point.position().x <= 0.0 {
             return None;
         }
@@ -120,7 +120,11 @@ impl IntegralPrior for ReferencePrior<'_> {
             .irradiance_at_points(&[*point], &options, &|| {}, &Cancel::never())
             .unwrap();
         let e = reference[0].irradiance;
-        Some((e * self.bias, e * e * (self.stated * self.stated)))
+        Some(PriorAt {
+            mean: e * self.bias,
+            variance: crate::render::Rgb::BLACK,
+            modelled: e * e * (self.stated * self.stated),
+        })
     }
 
     fn state(&self) -> u64 {

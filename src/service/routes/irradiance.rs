@@ -72,9 +72,12 @@ pub struct EstimatorDoc {
     /// `bmc` only: the GP kernel over incident radiance.
     pub kernel: Option<EstimatorKernelDoc>,
     /// `true`, `false` or `"auto"` (default: on for `bmc`, off for `mc` and
-    /// `qmc`, which stay the plain rules). Where records of the scene cover
-    /// a point (those of every reproducible tile rendered, gathered per
-    /// camera depth, and those of the shared cache), combine the point's
+    /// `qmc`, which stay the plain rules). A query of 64 points or more
+    /// first places records among its own points (docs/math.md §10.11; kept
+    /// for later queries, their rays counted in `amortised_rays`). Where
+    /// records of the scene cover a point (those placed among query points,
+    /// those of every reproducible tile rendered, gathered per camera depth,
+    /// and those of the shared cache), combine the point's
     /// indirect part with their interpolated irradiance by precision
     /// (docs/math.md §10.7), and under the hemisphere decomposition its
     /// direct part with the direct light seen from the records' places
@@ -313,9 +316,19 @@ pub async fn irradiance(
         .run(move |cancel| {
             let transport = &scene.transport;
             // The scene's records serve as priors only when the spec uses
-            // them: its reproducible tiles' and its shared caches'.
+            // them: those placed among the points first (a query of many
+            // points), then its reproducible tiles' and its shared caches'.
             let mut sources = Vec::new();
             if records_prior {
+                spent.add(worker.tile_priors.place_among(
+                    &scene,
+                    &worker.tiles,
+                    &worker.quadratures,
+                    &points,
+                    options.max_depth,
+                    worker.config.limits.max_tile_area,
+                    cancel,
+                )?);
                 sources = worker
                     .tile_priors
                     .sources(&scene, &worker.tiles, &worker.quadratures)
@@ -427,7 +440,8 @@ pub async fn irradiance(
 }
 
 /// The records one point's estimate was combined with (docs/math.md
-/// §10.7, §10.8): `"tiles"` for those of reproducible tiles, `"cache"` for
+/// §10.7, §10.8): `"records"` for the content-keyed ones (of reproducible
+/// tiles, and placed among queries' points, §10.10–§10.11), `"cache"` for
 /// the shared cache's; absent where none covered the point.
 #[derive(Debug, Serialize, Deserialize, ToSchema)]
 pub struct PointPriors {
