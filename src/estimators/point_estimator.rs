@@ -239,9 +239,8 @@ impl PointEstimator {
         let calibration = if self.calibrate {
             // With the records prior, the bars are fitted again each time
             // the records it draws on double (§10.7), or the direct-light
-            // records do (§10.8).
-            // Without records to lean on, the plain estimator's key: the
-            // same estimates take the same bars.
+            // records do (§10.8); with no records to lean on, the key is the
+            // plain estimator's, whose estimates these are.
             let records = self.records(&caches).map(|r| r.state());
             let direct = self.direct(&caches).map(|r| r.state());
             let spec = EstimatorSpec {
@@ -407,8 +406,8 @@ impl PointEstimator {
         caches.direct.filter(|_| self.records_prior())
     }
 
-    /// Whether the estimator combines its rule with priors: the spec asked
-    /// for the records prior and the caches hold one (§10.7, §10.8).
+    /// Whether the estimator combines its rule with priors: it uses the
+    /// records prior and the caches hold one (§10.7, §10.8).
     fn has_priors(&self, caches: &EstimatorCaches) -> bool {
         self.records(caches).is_some() || self.direct(caches).is_some()
     }
