@@ -47,9 +47,10 @@ pub const MIN_POINTS_FOR_RECORDS: usize = 64;
 /// so a request's seed changes its own samples, not the records).
 const POINT_RECORDS_SEED: u64 = 0x9017_5EC0;
 
-/// Gatherings of reproducible tiles' records (module docs).
+/// Gatherings of the tile store's records: reproducible tiles' and those
+/// placed among query points (module docs).
 pub struct TilePriors {
-    /// By the content key of the scene, depth and tiles gathered.
+    /// By the content key of the scene, depth and entries gathered.
     gathered: Cache<Key, Arc<SceneCache>>,
     /// The byte budget of one gathering (its oldest tiles' records, in key
     /// order, are dropped beyond it).
@@ -73,8 +74,8 @@ impl TilePriors {
         }
     }
 
-    /// The gatherings of the tiles `tiles` holds for `scene`'s content, one
-    /// per camera depth.
+    /// The gatherings of the records entries `tiles` holds for `scene`'s
+    /// content (tiles' and query points'), one per camera depth.
     pub fn sources(
         &self,
         scene: &LoadedScene,
