@@ -3,6 +3,7 @@
 //! resulting weights and posterior variance.
 
 pub mod cache;
+pub mod control_variate;
 pub mod dense;
 mod density;
 mod error;

@@ -2,20 +2,22 @@
 //! the relative error is within a target at a confidence, or a sample cap is
 //! reached (docs/math.md §10.6).
 //!
-//! A point is estimated in batches of the estimator's `N` samples; batch `k`
-//! is the same estimator with an independent random stream (a new rotation
-//! of the sample set, new paths), so batch errors are independent and the
+//! A point is estimated in batches ([`PointEstimator::batches`]: `N`
+//! samples, `2N` for `bmc`, whose batches add the unbiased residual
+//! correction of `bmc::control_variate`); batch `k` is the same estimator
+//! with an independent random stream (a new rotation of the sample set, new
+//! paths and fresh directions), so batch errors are independent and the
 //! mean of `B` batches has variance `Σ_b σ_b² / B²` per channel, `σ_b` the
 //! batch's calibrated standard deviation (§10.5). After each batch a point
 //! stops when `z · σ_Y ≤ relative_error · Y`, with `Y` the luminance of the
 //! mean, `σ_Y = Σ_c w_c σ_c` its standard deviation (the sum, not the root
 //! of the sum of squares, because the channels' errors are strongly
 //! correlated) and `z` the two-sided normal quantile of `confidence`; or
-//! when another batch would pass `max_samples`. `bmc` takes no target: its
-//! batches share the bias of their fixed rings of directions (§10.6).
+//! when another batch would pass `max_samples`. Plain `bmc` batches would
+//! share the bias of their fixed rings of directions, hence the correction.
 
 use super::error::EstimatorError;
-use super::point_estimator::{Estimates, EstimatorCaches, PointEstimator, PointRule};
+use super::point_estimator::{Estimates, EstimatorCaches, PointEstimator};
 use crate::render::Cancel;
 use crate::render::QueryPoint;
 use crate::render::Rgb;
@@ -47,33 +49,14 @@ pub struct TargetedEstimate {
 }
 
 impl ErrorTarget {
-    /// Checks the numbers against the estimator's batch size `samples`;
-    /// errors name the field under `target`.
-    pub fn validate(&self, estimator: &PointEstimator, samples: u32) -> Result<(), EstimatorError> {
+    /// Checks the numbers against the batches `estimator` would run
+    /// ([`PointEstimator::batches`]); errors name the field under `target`.
+    pub fn validate(&self, estimator: &PointEstimator) -> Result<(), EstimatorError> {
         let invalid = |field: &str, message: String| EstimatorError::InvalidTarget {
             field: field.into(),
             message,
         };
-        if matches!(estimator.rule, PointRule::Bmc(_)) {
-            // Measured: on the Cornell box at 2 %, BMC batches reported the
-            // target met at 96 % of points and were within it at 70 %.
-            return Err(EstimatorError::InvalidTarget {
-                field: String::new(),
-                message: "error targets need batches whose errors average out; every `bmc` \
-                          batch shares the bias of its fixed rings of directions \
-                          (docs/math.md §10.6): use `qmc` or `mc`"
-                    .into(),
-            });
-        }
-        if estimator.records_prior() {
-            return Err(EstimatorError::InvalidTarget {
-                field: String::new(),
-                message: "error targets average independent batches, and every batch would \
-                          count the same records prior again (docs/math.md §10.7): drop \
-                          `records_prior` or the target"
-                    .into(),
-            });
-        }
+        let batch = estimator.batches()?.samples();
         if !(self.relative_error > 0.0 && self.relative_error <= 1.0) {
             return Err(invalid(
                 "relative_error",
@@ -86,11 +69,11 @@ impl ErrorTarget {
                 format!("must be in [0.5, 0.9999], got {}", self.confidence),
             ));
         }
-        if self.max_samples < samples {
+        if self.max_samples < batch {
             return Err(invalid(
                 "max_samples",
                 format!(
-                    "must be at least the estimator's samples ({samples}), got {}",
+                    "must be at least one batch's samples ({batch}), got {}",
                     self.max_samples
                 ),
             ));
@@ -137,8 +120,9 @@ impl PointEstimator {
         target: &ErrorTarget,
         cancel: &Cancel,
     ) -> Result<(Estimates, Vec<TargetedEstimate>), EstimatorError> {
-        let batch = self.samples();
-        target.validate(self, batch)?;
+        target.validate(self)?;
+        let estimator = self.batches()?;
+        let batch = estimator.samples();
         if points.is_empty() {
             return Err(EstimatorError::Invalid {
                 field: "points".into(),
@@ -159,7 +143,8 @@ impl PointEstimator {
                 seed: batch_seed(options.seed, k),
                 ..*options
             };
-            let estimates = self.estimate(transport, caches, &subset, &request, &|| {}, cancel)?;
+            let estimates =
+                estimator.estimate(transport, caches, &subset, &request, &|| {}, cancel)?;
             let mut still_active = Vec::new();
             for (&i, e) in active.iter().zip(&estimates.estimates) {
                 let (sum, variance_sum, rays, samples) = &mut sums[i];

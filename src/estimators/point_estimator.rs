@@ -38,6 +38,7 @@ use super::spec::{
     EstimatorSpec, RecordsPriorMode,
 };
 use crate::bmc::cache::{CachedQuadrature, QuadratureCache};
+use crate::bmc::control_variate::BmcControlVariate;
 use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
 use crate::bmc::report::QuadratureSpec;
 use crate::bmc::{Density, Kernel, KernelKind, KernelMeanMethod, PriorMean};
@@ -61,6 +62,10 @@ pub struct PointEstimator {
     /// (the rule under a records prior, §10.7; it costs three more
     /// evaluations of the rule per point).
     indirect_part: bool,
+    /// `bmc` in the batches of an error target: the fresh directions of the
+    /// residual correction (`bmc::control_variate`, §10.6) per point, as
+    /// many as the set has; `false` everywhere else.
+    corrected: bool,
 }
 
 /// The rule of a [`PointEstimator`].
@@ -144,6 +149,7 @@ impl EstimatorSpec {
             calibrate: self.calibrate.unwrap_or(true),
             spec: *self,
             indirect_part: false,
+            corrected: false,
         })
     }
 
@@ -248,7 +254,9 @@ impl PointEstimator {
                 ..self.spec
             };
             let key = format!(
-                "{spec:?} {:?} depth {} light samples {} records {records:?} direct {direct:?}",
+                "{spec:?} corrected {} {:?} depth {} light samples {} records {records:?} \
+                 direct {direct:?}",
+                self.corrected,
                 options.method,
                 options.effective_max_depth(),
                 options.samples
@@ -257,6 +265,9 @@ impl PointEstimator {
                 // Light that every equally weighted direction missed (§10.5).
                 let unseen = match self.rule {
                     PointRule::Mc { .. } | PointRule::Qmc(_) => unseen_light(self.spec.samples),
+                    // The corrected rule's bar is a sample variance too
+                    // (§10.6), blind to light all its directions missed.
+                    PointRule::Bmc(_) if self.corrected => unseen_light(self.samples()),
                     PointRule::Bmc(_) => 0.0,
                 };
                 let training = caches.calibrations.training_set(
@@ -384,9 +395,38 @@ impl PointEstimator {
         Ok(calibration)
     }
 
-    /// Hemisphere samples per point of one run.
+    /// Hemisphere samples per point of one run: the spec's, doubled for
+    /// the corrected `bmc` of error targets.
     pub fn samples(&self) -> u32 {
-        self.spec.samples
+        if self.corrected {
+            2 * self.spec.samples
+        } else {
+            self.spec.samples
+        }
+    }
+
+    /// The estimator each batch of an error target runs (§10.6): the same
+    /// rule, without the records prior (every batch would count it again),
+    /// and `bmc` with the residual correction that makes its batches
+    /// unbiased. An explicit `"records_prior": true` is refused.
+    pub fn batches(&self) -> Result<PointEstimator, EstimatorError> {
+        if self.spec.records_prior == RecordsPriorMode::Set(true) {
+            return Err(EstimatorError::InvalidTarget {
+                field: String::new(),
+                message: "error targets average independent batches, and every batch would \
+                          count the same records prior again (docs/math.md §10.7): drop \
+                          `records_prior` or the target"
+                    .into(),
+            });
+        }
+        Ok(PointEstimator {
+            spec: EstimatorSpec {
+                records_prior: RecordsPriorMode::Set(false),
+                ..self.spec
+            },
+            corrected: matches!(self.rule, PointRule::Bmc(_)),
+            ..self.clone()
+        })
     }
 
     /// Whether the estimator leans on the records prior (§10.7): the spec
@@ -507,8 +547,16 @@ impl PointEstimator {
             PointRule::Bmc(bmc) => {
                 let (quadrature, kernel, cached) =
                     bmc.quadrature(transport, caches, decomposition, prior)?;
-                let estimator = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
-                (run(&estimator)?, Some(kernel), Some(cached))
+                let estimates = if self.corrected {
+                    let count = quadrature.quadrature.weights.len();
+                    run(&BmcControlVariate::new(quadrature, kernel, count))?
+                } else {
+                    run(&BayesianEstimator::new(
+                        quadrature,
+                        BmcVariance::AmplitudeFit,
+                    ))?
+                };
+                (estimates, Some(kernel), Some(cached))
             }
         };
         Ok(Estimates {

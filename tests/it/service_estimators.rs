@@ -594,14 +594,56 @@ async fn error_targets_add_batches_until_met_or_capped() {
         .unwrap();
     assert_eq!(capped["samples"][0], 32);
     assert_eq!(capped["target_met"][0], false);
-    // BMC takes no target: its batches share one bias.
+    // BMC (its default `records_prior` included) takes a target: batches of
+    // its 32 set directions and 32 fresh ones for the residual correction,
+    // no records prior, and an answer within its error bar of a reference.
     let mut body = request(json!({"method": "bmc", "samples": 32}));
-    body["target"] = json!({"relative_error": 0.05});
+    body["target"] = json!({"relative_error": 0.05, "max_samples": 4096});
+    let response = app
+        .post_json("/v1/scenes/cornell-box/irradiance", &body)
+        .await;
+    assert_eq!(response.status(), StatusCode::OK);
+    let bmc: Value = response.json().await.unwrap();
+    assert_eq!(bmc["records_prior_points"], Value::Null, "{bmc}");
+    let reference: Value = app
+        .post_json(
+            "/v1/scenes/cornell-box/irradiance",
+            &request(json!({"method": "mc", "samples": 4096, "calibrate": false})),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    for i in 0..2 {
+        let samples = bmc["samples"][i].as_u64().unwrap();
+        let met = bmc["target_met"][i].as_bool().unwrap();
+        assert!(
+            samples.is_multiple_of(64) && (64..=4096).contains(&samples),
+            "{bmc}"
+        );
+        assert_eq!(
+            met,
+            bmc["relative_error"][i].as_f64().unwrap() <= 0.05,
+            "{bmc}"
+        );
+        assert!(met || samples == 4096, "{bmc}");
+        let (e, r) = (
+            luminance(&bmc, i, "irradiance"),
+            luminance(&reference, i, "irradiance"),
+        );
+        let s = luminance(&bmc, i, "std_dev").hypot(luminance(&reference, i, "std_dev"));
+        assert!((e - r).abs() <= 4.0 * s, "{e} vs {r} ± {s}: {bmc}");
+    }
+    // A cap below one such batch names the field.
+    body["target"] = json!({"relative_error": 0.05, "max_samples": 48});
     let response = app
         .post_json("/v1/scenes/cornell-box/irradiance", &body)
         .await;
     assert_eq!(response.status(), StatusCode::UNPROCESSABLE_ENTITY);
-    assert_eq!(error_of(response).await.1.as_deref(), Some("target"));
+    assert_eq!(
+        error_of(response).await.1.as_deref(),
+        Some("target.max_samples")
+    );
     // Bad targets name their field.
     for (target, field) in [
         (json!({"relative_error": 0.0}), "target.relative_error"),

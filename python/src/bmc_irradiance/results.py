@@ -26,7 +26,9 @@ class ErrorTarget:
     * ``max_samples``: most hemisphere samples per point (default: the
       service's ``limits.max_samples``).
 
-    Only ``mc`` and ``qmc`` take a target; ``bmc`` is refused (422, field ``target``).
+    ``bmc`` batches are twice ``samples``: the set's directions and as many
+    fresh ones for an unbiased correction; with ``records_prior=True`` a
+    target is refused (422, field ``target``).
     """
 
     relative_error: float

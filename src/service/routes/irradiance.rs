@@ -144,8 +144,10 @@ pub struct IrradianceRequest {
     /// Seed of every random stream; same request and seed, same numbers. Default 1.
     #[serde(default = "default_seed")]
     pub seed: u64,
-    /// Estimate each point in batches of `estimator.samples` until its
-    /// calibrated error bar meets this target or `max_samples` is spent.
+    /// Estimate each point in batches of `estimator.samples` (`bmc`: twice
+    /// that, half of them fresh directions for an unbiased correction, and
+    /// no records prior) until its calibrated error bar meets this target or
+    /// `max_samples` is spent.
     /// For targets of a few per cent, batches of a few hundred samples keep
     /// the reported `target_met` honest (docs/math.md §10.6).
     pub target: Option<TargetDoc>,
@@ -221,7 +223,8 @@ pub struct IrradianceResponse {
     pub prior: PriorChoice,
     /// The calibration applied to `std_dev`, if any: `std_dev² =
     /// scale² (model² + (floor · irradiance)²) + (unseen · level)²` per
-    /// channel (`unseen` only for `mc`).
+    /// channel (`unseen` for `mc`, `qmc` and the batches of `bmc` under a
+    /// target).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
     pub calibration: Option<ErrorCalibration>,
@@ -262,7 +265,6 @@ pub async fn irradiance(
         limits.max_samples as u64,
     )?;
     let point_estimator = request.estimator.spec().resolve()?;
-    let records_prior = point_estimator.records_prior();
     let target = request
         .target
         .map(|t| ErrorTarget {
@@ -278,10 +280,12 @@ pub async fn irradiance(
                 u64::from(target.max_samples),
                 limits.max_samples as u64,
             )?;
-            target.validate(&point_estimator, request.estimator.samples)?;
+            target.validate(&point_estimator)?;
             Ok::<_, ApiError>(target)
         })
         .transpose()?;
+    // A target's batches run without the records prior (docs/math.md §10.6).
+    let records_prior = target.is_none() && point_estimator.records_prior();
     // One path per point and hemisphere sample (light samples are shadow
     // rays), at most `max_samples` of them per point under a target.
     let samples_per_point = target.map_or(request.estimator.samples, |t| t.max_samples);
