@@ -16,11 +16,15 @@ the N would spend. Standard library only:
 
     python3 docs/validation/sensor_grid.py --scene overcast --y 0 --x -2.5 2.5 --z 2 4 --estimators qmc
     (then on a fresh service) ... --estimators bmc
+
+`radiance_sensor_grid.py` runs Radiance's `rtrace -I` on the same grid
+against the same reference (`grid_points` and `reference` below).
 """
 
 import argparse
 import json
 import math
+import os
 import time
 import urllib.request
 
@@ -35,8 +39,8 @@ def post(url, body):
     return doc, time.monotonic() - start
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def grid_arguments(ap):
+    """The grid's and reference's command-line options."""
     ap.add_argument("--url", default="http://127.0.0.1:8080")
     ap.add_argument("--scene", required=True)
     ap.add_argument("--y", type=float, required=True)
@@ -46,14 +50,14 @@ def main():
     ap.add_argument("--ref-seeds", type=int, default=8)
     ap.add_argument("--target", type=float, default=0.02)
     ap.add_argument(
-        "--estimators",
-        default="qmc,bmc",
-        help="which to run (each on a fresh service, so neither reuses the other's calibration)",
+        "--reference-cache", default=None, help="JSON file: the reference is read from it, or written to it"
     )
-    args = ap.parse_args()
-    url = f"{args.url}/v1/scenes/{args.scene}/irradiance"
+
+
+def grid_points(args):
+    """The grid's points as the service takes them, row by row."""
     n = args.side
-    pts = [
+    return [
         {
             "position": [
                 args.x[0] + (args.x[1] - args.x[0]) * (i + 0.5) / n,
@@ -65,21 +69,69 @@ def main():
         for j in range(n)
         for i in range(n)
     ]
-    runs = []
-    for s in range(args.ref_seeds):
-        body = {
-            "points": pts,
-            "estimator": {"method": "mc", "samples": 4096, "calibrate": False},
-            "seed": 2_000_000 + s,
-        }
-        runs.append(post(url, body)[0])
-    k = args.ref_seeds
-    ref = [[sum(r["irradiance"][j][c] for r in runs) / k for c in range(3)] for j in range(len(pts))]
-    rv = [[sum(r["std_dev"][j][c] ** 2 for r in runs) / k**2 for c in range(3)] for j in range(len(pts))]
-    mean = sum(sum(r) for r in ref) / (3 * len(ref))
-    keep = [j for j in range(len(pts)) if sum(ref[j]) / 3 > 0.01 * mean]
-    level = sum(sum(ref[j]) for j in keep) / (3 * len(keep))
-    print(f"{args.scene}: {len(keep)} of {len(pts)} grid points (reference {k} × 4096 paths)")
+
+
+class Reference:
+    """Plain MC with `seeds` × 4,096 paths per point: the mean, its
+    variance, the points kept (reference above 1 % of the mean) and their
+    mean level."""
+
+    def __init__(self, url, pts, seeds):
+        runs = []
+        for s in range(seeds):
+            body = {
+                "points": pts,
+                "estimator": {"method": "mc", "samples": 4096, "calibrate": False},
+                "seed": 2_000_000 + s,
+            }
+            runs.append(post(url, body)[0])
+        k = seeds
+        self.mean = [[sum(r["irradiance"][j][c] for r in runs) / k for c in range(3)] for j in range(len(pts))]
+        self.variance = [
+            [sum(r["std_dev"][j][c] ** 2 for r in runs) / k**2 for c in range(3)] for j in range(len(pts))
+        ]
+        overall = sum(sum(r) for r in self.mean) / (3 * len(self.mean))
+        self.keep = [j for j in range(len(pts)) if sum(self.mean[j]) / 3 > 0.01 * overall]
+        self.level = sum(sum(self.mean[j]) for j in self.keep) / (3 * len(self.keep))
+
+    @classmethod
+    def cached(cls, args, pts):
+        """The grid's reference, from `args.reference_cache` if that file is
+        there (written on first use)."""
+        path = args.reference_cache
+        if path and os.path.exists(path):
+            ref = cls.__new__(cls)
+            with open(path) as f:
+                ref.__dict__.update(json.load(f))
+            return ref
+        ref = cls(f"{args.url}/v1/scenes/{args.scene}/irradiance", pts, args.ref_seeds)
+        if path:
+            with open(path, "w") as f:
+                json.dump(ref.__dict__, f)
+        return ref
+
+    def nrmse_vs_truth(self, values):
+        """nrmse of `values` (per point, RGB) vs truth: the squared error
+        against the reference less the reference's own variance
+        (docs/math.md §17.3, §17.4), over the kept points."""
+        err2 = sum((values[j][c] - self.mean[j][c]) ** 2 for j in self.keep for c in range(3))
+        noise = sum(self.variance[j][c] for j in self.keep for c in range(3))
+        return math.sqrt(max(err2 - noise, 0.0) / (3 * len(self.keep))) / self.level
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    grid_arguments(ap)
+    ap.add_argument(
+        "--estimators",
+        default="qmc,bmc",
+        help="which to run (each on a fresh service, so neither reuses the other's calibration)",
+    )
+    args = ap.parse_args()
+    url = f"{args.url}/v1/scenes/{args.scene}/irradiance"
+    pts = grid_points(args)
+    ref = Reference.cached(args, pts)
+    print(f"{args.scene}: {len(ref.keep)} of {len(pts)} grid points (reference {args.ref_seeds} × 4096 paths)")
     print("| estimator | N | nrmse vs truth | rays | amortised | time, s | total rays | total time, s |")
     print("|---|---|---|---|---|---|---|---|")
     chosen = args.estimators.split(",")
@@ -92,9 +144,7 @@ def main():
         total_rays, total_time, samples = 0, 0.0, 4
         while samples <= 4096:
             doc, wall = post(url, {"points": pts, "estimator": dict(estimator, samples=samples), "seed": 1})
-            err2 = sum((doc["irradiance"][j][c] - ref[j][c]) ** 2 for j in keep for c in range(3))
-            noise = sum(rv[j][c] for j in keep for c in range(3))
-            truth = math.sqrt(max(err2 - noise, 0.0) / (3 * len(keep))) / level
+            truth = ref.nrmse_vs_truth(doc["irradiance"])
             total_rays += doc["rays"]
             total_time += wall
             print(
