@@ -62,9 +62,9 @@ pub struct PointEstimator {
     /// (the rule under a records prior, §10.7; it costs three more
     /// evaluations of the rule per point).
     indirect_part: bool,
-    /// `bmc` in the batches of an error target: the fresh directions of the
-    /// residual correction (`bmc::control_variate`, §10.6) per point, as
-    /// many as the set has; `false` everywhere else.
+    /// `bmc` in the batches of an error target: whether the rule adds the
+    /// residual correction (`bmc::control_variate`, §10.6) from as many
+    /// fresh directions per point as its set has; `false` everywhere else.
     corrected: bool,
 }
 
