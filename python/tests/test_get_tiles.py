@@ -33,9 +33,9 @@ def preview(server: Server) -> Image:
     return Client(server.url, timeout=300).image(SCENE, preset="preview")
 
 
-def test_presets_lists_draft_preview_final(client: Client, server: Server) -> None:
+def test_presets_lists_draft_preview_standard_final(client: Client, server: Server) -> None:
     presets = client.presets()
-    assert [p["name"] for p in presets] == ["draft", "preview", "final"]
+    assert [p["name"] for p in presets] == ["draft", "preview", "standard", "final"]
     assert [p["name"] for p in presets if p["default"]] == ["preview"]
     for p in presets:
         assert p["samples_per_pixel"] >= 1 and p["passes"] >= 1 and p["max_depth"] >= 1

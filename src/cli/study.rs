@@ -77,7 +77,7 @@ pub struct SceneStudyArgs {
     pub noise: Option<f64>,
     /// Also run `qmc` and `bmc` with the records prior (docs/math.md §10.7),
     /// on records placed by rendering the camera image once with this
-    /// preset's cache settings (`draft`, `preview`, `final`).
+    /// preset's cache settings (`draft`, `preview`, `standard`, `final`).
     #[arg(long, value_enum)]
     pub records_from: Option<crate::integrator::Preset>,
     /// With `--records-from` and the hemisphere decomposition: also run `qmc`

@@ -32,6 +32,11 @@ pub enum Preset {
     /// in seconds on two cores.
     #[default]
     Preview,
+    /// A clean image in a few seconds: the final preset's records at half
+    /// the directions and a quarter of the camera rays (≈ 3 % error on the
+    /// Cornell box in about 3 s cold on two cores, below path tracing with
+    /// a denoiser at that time; docs/BENCHMARKS.md "Interactive budgets").
+    Standard,
     /// Publication quality (≈ 2 % error on the Cornell box's diffuse pixels).
     Final,
 }
@@ -59,12 +64,18 @@ impl TileSettings {
 }
 
 impl Preset {
-    pub const ALL: [Preset; 3] = [Preset::Draft, Preset::Preview, Preset::Final];
+    pub const ALL: [Preset; 4] = [
+        Preset::Draft,
+        Preset::Preview,
+        Preset::Standard,
+        Preset::Final,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Preset::Draft => "draft",
             Preset::Preview => "preview",
+            Preset::Standard => "standard",
             Preset::Final => "final",
         }
     }
@@ -81,6 +92,7 @@ impl Preset {
             match self {
                 Preset::Draft => (2, 1, 8, 64, 1, 0.5, 12.0, 1, 8),
                 Preset::Preview => (4, 2, 16, 256, 2, 0.4, 8.0, 4, 16),
+                Preset::Standard => (16, 1, 64, 512, 1, 0.3, 4.0, 4, 32),
                 Preset::Final => (16, 4, 64, 1024, 1, 0.25, 3.0, 4, 64),
             };
         // At 1,024 directions a record pays for itself where it serves more
@@ -88,14 +100,17 @@ impl Preset {
         // probe finds more than 0.2 records per pixel (the lego's bricks,
         // 0.23–0.5 per tile: 7.2 % → 4.4 % error over 8×8 blocks in half the
         // time; the Cornell boxes' tiles reach 0.15 and keep their records,
-        // as do all the studio's but one edge tile, at 0.25). The cheaper
-        // presets' records pay at any density seen so far.
-        let max_records_per_pixel = (self == Preset::Final).then_some(0.2);
-        // The final preset's records stop at their rays' first hits and read
-        // the scene's secondary cache there (one light sample per direction,
-        // `paths_per_direction`): 2.2× less time × error² on the Cornell box
-        // than 4 paths per direction (docs/BENCHMARKS.md "The secondary cache").
-        let secondary_cache = self == Preset::Final;
+        // as do all the studio's but one edge tile, at 0.25). The standard
+        // preset's 512 directions keep the same limit; the cheaper presets'
+        // records pay at any density seen so far.
+        let full_depth = matches!(self, Preset::Standard | Preset::Final);
+        let max_records_per_pixel = full_depth.then_some(0.2);
+        // The final and standard presets' records stop at their rays' first
+        // hits and read the scene's secondary cache there (one light sample
+        // per direction, `paths_per_direction`): 2.2× less time × error² on
+        // the Cornell box than 4 paths per direction (docs/BENCHMARKS.md "The
+        // secondary cache").
+        let secondary_cache = full_depth;
         TileSettings {
             samples_per_pixel: spp,
             passes,

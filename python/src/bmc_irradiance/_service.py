@@ -28,9 +28,9 @@ class _Service(_Resource):
 
     def presets(self) -> list[dict[str, Any]]:
         """``GET /v1/presets``: the quality presets of camera tiles, cheapest
-        first (``draft``, ``preview``, ``final``). Each is a dict with
-        ``name``, ``default`` (``True`` for the one used when none is named,
-        ``preview``), ``samples_per_pixel`` (camera rays per pixel in each
-        pass), ``passes``, ``max_depth`` and ``estimator`` (the irradiance
-        cache's knobs)."""
+        first (``draft``, ``preview``, ``standard``, ``final``). Each is a
+        dict with ``name``, ``default`` (``True`` for the one used when none
+        is named, ``preview``), ``samples_per_pixel`` (camera rays per pixel
+        in each pass), ``passes``, ``max_depth`` and ``estimator`` (the
+        irradiance cache's knobs)."""
         return list(self._http.get_json("/v1/presets"))

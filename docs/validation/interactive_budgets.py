@@ -1,0 +1,144 @@
+#!/usr/bin/env python3
+"""Issue 40's comparison at interactive budgets: path tracing plus Intel Open
+Image Denoise against the service's presets, error vs truth and wall time in
+one run.
+
+- Path tracing: `bmc-irradiance render --method path --spp S` (all cores),
+  then `pyoidn.denoise(color, hdr=True)` on its RGB (no albedo or normal
+  buffer: the renderer writes none). The time is the render's wall time plus
+  the denoiser's.
+- The service: for each preset a freshly started server on an empty data
+  directory (cold), `bmc-irradiance fetch --preset P` of the whole image as
+  GET tiles; the time is the fetch's wall time.
+
+The error is the relative RMSE against the reference EXR over the pixels
+`compare --exclude-above 1 --exclude-margin 2` keeps (emitters and the pixels
+within 2 of them left out), reported raw and "vs truth": the reference's own
+relative noise on that mask (`--reference-noise`, docs/BENCHMARKS.md) removed
+in quadrature. Needs numpy, OpenEXR and pyoidn (a throwaway venv, never a
+dependency of the project):
+
+    python3 -m venv /tmp/oidnvenv && /tmp/oidnvenv/bin/pip install pyoidn numpy OpenEXR
+    cargo build --release
+    /tmp/oidnvenv/bin/python docs/validation/interactive_budgets.py --spp 4 16 64 256 \\
+        --presets draft preview final
+"""
+
+import argparse
+import os
+import subprocess
+import tempfile
+import time
+
+import numpy as np
+import OpenEXR
+import pyoidn
+
+
+def read_rgb(path):
+    with OpenEXR.File(path) as f:
+        channels = f.channels()
+        if "RGB" in channels:
+            rgb = channels["RGB"].pixels
+        else:
+            rgb = np.stack([channels[c].pixels for c in ("R", "G", "B")], axis=-1)
+    return np.asarray(rgb, dtype=np.float32)
+
+
+def write_rgb(path, rgb):
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, {"RGB": np.ascontiguousarray(rgb, dtype=np.float32)}) as f:
+        f.write(path)
+
+
+def lit_mask(reference, limit=1.0, margin=2):
+    """`compare --exclude-above limit --exclude-margin margin`'s pixels."""
+    keep = (reference <= limit).all(axis=-1)
+    for _ in range(margin):
+        shrunk = keep.copy()
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                shrunk &= np.roll(np.roll(keep, dy, 0), dx, 1)
+        keep = shrunk
+    return keep
+
+
+class Scorer:
+    def __init__(self, reference_path, reference_noise):
+        self.reference = read_rgb(reference_path)
+        self.mask = lit_mask(self.reference)
+        self.noise = reference_noise
+
+    def __call__(self, rgb):
+        a, b = rgb[self.mask], self.reference[self.mask]
+        raw = float(np.sqrt(np.mean((a - b) ** 2)) / np.mean(b))
+        return raw, float(np.sqrt(max(raw**2 - self.noise**2, 0.0)))
+
+
+def timed(cmd):
+    start = time.monotonic()
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return time.monotonic() - start
+
+
+def main():
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bin", default=os.path.join(root, "target", "release", "bmc-irradiance"))
+    ap.add_argument("--scene", default="cornell-box", help="the bundled scene's id and file stem")
+    ap.add_argument(
+        "--reference", default=os.path.join(root, "docs", "validation", "data", "mitsuba_cornell_256.exr")
+    )
+    ap.add_argument("--reference-noise", type=float, default=0.0299)
+    ap.add_argument("--spp", type=int, nargs="*", default=[4, 16, 64, 256])
+    ap.add_argument("--presets", nargs="*", default=["draft", "preview", "final"])
+    ap.add_argument("--port", type=int, default=18777)
+    args = ap.parse_args()
+    score = Scorer(args.reference, args.reference_noise)
+    work = tempfile.mkdtemp(prefix="budgets-")
+    scene_file = os.path.join(root, "scenes", f"{args.scene}.json")
+    print(f"{int(score.mask.sum())} of {score.mask.size} pixels compared")
+    print("| what | time, s | rel. RMSE raw | vs truth |")
+    print("|---|---|---|---|")
+    pyoidn.denoise(np.zeros((8, 8, 3), np.float32), hdr=True)  # the device's start-up, not timed
+    for spp in args.spp:
+        out = os.path.join(work, f"path{spp}.exr")
+        wall = timed([args.bin, "render", "--scene", scene_file, "--method", "path", "--spp", str(spp), "--out", out])
+        noisy = read_rgb(out)
+        raw, truth = score(noisy)
+        print(f"| path {spp} spp | {wall:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
+        start = time.monotonic()
+        clean = pyoidn.denoise(noisy, hdr=True)
+        denoise = time.monotonic() - start
+        write_rgb(os.path.join(work, f"path{spp}_oidn.exr"), clean)
+        raw, truth = score(clean)
+        print(f"| path {spp} spp + OIDN | {wall + denoise:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
+    for preset in args.presets:
+        data = os.path.join(work, f"data-{preset}")
+        os.makedirs(data)
+        env = dict(
+            os.environ,
+            BMC_SERVER__BIND=f"127.0.0.1:{args.port}",
+            BMC_CACHE__DATA_DIR=data,
+            BMC_SCENES__DIR=os.path.join(root, "scenes"),
+        )
+        server = subprocess.Popen([args.bin, "serve"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            url = f"http://127.0.0.1:{args.port}"
+            for _ in range(200):
+                try:
+                    subprocess.run(["curl", "-sf", f"{url}/ready"], check=True, capture_output=True)
+                    break
+                except subprocess.CalledProcessError:
+                    time.sleep(0.1)
+            out = os.path.join(work, f"{preset}.exr")
+            wall = timed([args.bin, "fetch", "--url", url, "--scene", args.scene, "--preset", preset, "--out", out])
+            raw, truth = score(read_rgb(out))
+            print(f"| service `{preset}`, cold | {wall:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
+        finally:
+            server.terminate()
+            server.wait()
+
+
+if __name__ == "__main__":
+    main()
