@@ -71,10 +71,7 @@ impl BmcControlVariate {
     fn posterior_mean(&self, values: &[f64], ys: &[DVec3]) -> Vec<f64> {
         let mean = match self.cached.quadrature.prior_mean {
             PriorMean::Zero => 0.0,
-            PriorMean::Gls => {
-                let u = self.gls.ones_solved();
-                u.iter().zip(values).map(|(u, f)| u * f).sum::<f64>() / self.gls.ones_sum()
-            }
+            PriorMean::Gls => self.gls.mean(values),
         };
         let centred: Vec<f64> = values.iter().map(|f| f - mean).collect();
         let alpha = self.cached.factorised.factorisation.solve(&centred);
@@ -169,20 +166,21 @@ mod tests {
         }
     }
 
-    /// `∫ occluded_sky cos θ/π`: the cap's Lambert measure by a fine grid
-    /// in `(cos² θ, φ)`, where the Lambert density is uniform.
+    /// The centres of an `n × n` grid in `(sin² θ, φ)`, where the Lambert
+    /// density is uniform: each direction carries weight `1/n²`.
+    fn lambert_grid(n: usize) -> impl Iterator<Item = DVec3> {
+        (0..n * n).map(move |k| {
+            let u = ((k / n) as f64 + 0.5) / n as f64;
+            let phi = 2.0 * std::f64::consts::PI * ((k % n) as f64 + 0.5) / n as f64;
+            let (s, c) = (u.sqrt(), (1.0 - u).sqrt());
+            DVec3::new(s * phi.cos(), s * phi.sin(), c)
+        })
+    }
+
+    /// `∫ occluded_sky cos θ/π`: the cap's Lambert measure on a fine grid.
     fn truth() -> f64 {
         let n = 2000;
-        let mut inside = 0usize;
-        for i in 0..n {
-            for j in 0..n {
-                let u = (i as f64 + 0.5) / n as f64;
-                let phi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
-                let (s, c) = (u.sqrt(), (1.0 - u).sqrt());
-                let w = DVec3::new(s * phi.cos(), s * phi.sin(), c);
-                inside += usize::from(occluded_sky(w) > 1.0);
-            }
-        }
+        let inside = lambert_grid(n).filter(|&w| occluded_sky(w) > 1.0).count();
         0.5 + 3.5 * inside as f64 / (n * n) as f64
     }
 
@@ -202,16 +200,8 @@ mod tests {
         for (m, f) in cv.posterior_mean(&values, &xs).iter().zip(&values) {
             assert!((m - f).abs() < 1e-2, "{m} against {f}");
         }
-        // Its Lambert integral, by a fine cosine-uniform grid, is wᵀf.
-        let n = 400;
-        let grid: Vec<DVec3> = (0..n * n)
-            .map(|k| {
-                let u = ((k / n) as f64 + 0.5) / n as f64;
-                let phi = 2.0 * std::f64::consts::PI * ((k % n) as f64 + 0.5) / n as f64;
-                let (s, c) = (u.sqrt(), (1.0 - u).sqrt());
-                DVec3::new(s * phi.cos(), s * phi.sin(), c)
-            })
-            .collect();
+        // Its Lambert integral, on a fine grid, is wᵀf.
+        let grid: Vec<DVec3> = lambert_grid(400).collect();
         let integral = cv.posterior_mean(&values, &grid).iter().sum::<f64>() / grid.len() as f64;
         let bmc = q.quadrature.estimate(&values);
         assert!((integral - bmc).abs() < 1e-3, "{integral} against {bmc}");

@@ -35,6 +35,11 @@ impl Gls {
         self.ones_sum
     }
 
+    /// The GLS mean `m̂ = uᵀY/s` of the values `Y`.
+    pub fn mean(&self, values: &[f64]) -> f64 {
+        dot(&self.ones_solved, values) / self.ones_sum
+    }
+
     /// `(Y − m̂1)ᵀQ⁻¹(Y − m̂1)` from `Y` and `Q⁻¹Y`, clamped at 0 against
     /// rounding. Divided by the number of values it is the maximum-likelihood
     /// amplitude `σ̂²`; by one less, the unbiased one (one degree of freedom
@@ -72,8 +77,7 @@ mod tests {
         let factorisation = Factorisation::new(&set, &kernel).unwrap();
         let gls = Gls::new(&factorisation);
         let constant = vec![2.5; 16];
-        // The GLS mean `m̂ = uᵀY/s`.
-        let mean = dot(gls.ones_solved(), &constant) / gls.ones_sum();
+        let mean = gls.mean(&constant);
         assert!((mean - 2.5).abs() < 1e-9);
         let residual = gls.residual(&constant, &factorisation.solve(&constant));
         assert!(residual.abs() < 1e-6, "{residual}");
