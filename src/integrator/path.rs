@@ -196,6 +196,14 @@ mod tests {
         };
         assert_eq!(field(spp(0)), "samples_per_pixel");
         assert_eq!(field(spp(MAX_SAMPLES_PER_PIXEL + 1)), "samples_per_pixel");
+        let pass = |pass, passes| TileRequest {
+            pass,
+            passes,
+            ..request(0, 0, 1, 1)
+        };
+        assert_eq!(field(pass(1, 1)), "pass");
+        assert_eq!(field(pass(0, 0)), "pass");
+        assert_eq!(field(pass(0, MAX_SAMPLES_PER_PIXEL)), "samples_per_pixel");
         // Inside a huge image but too large for one request.
         let huge = TileRequest {
             width: 4096,

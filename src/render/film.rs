@@ -33,6 +33,7 @@ impl ImageSettings {
             max_depth: self.max_depth,
             seed: self.seed,
             pass: 0,
+            passes: 1,
         }
     }
 }

@@ -1,63 +1,113 @@
 //! Stratified 2D samples shared by several estimates of one quantity: the
-//! light samples of all camera rays of a pixel (or of all repeats of a
-//! radiance query) are spread over one jittered grid instead of each ray
-//! stratifying only its own few samples.
+//! camera positions and light samples of all camera rays of a pixel (or of
+//! all repeats of a radiance query) are spread over one pattern instead of
+//! each ray stratifying only its own few samples.
 //!
-//! Sample `j` of `M` uses cell `c(j) = (π(j) + o) mod s²` of an `s × s`
-//! grid, `s = ⌊√M⌋`, jittered uniformly within the cell; samples `j ≥ s²`
-//! are uniform on the square (padding, as in the camera-ray grid of
-//! `render::tile`). `π` is a pseudo-random permutation of `0..s²` keyed per
-//! pattern (so the order of the rays carries no structure into the cells)
-//! and `o` a uniform random offset: for every fixed `j`, `c(j)` is uniform
-//! over the cells whatever `π` is, so every sample is uniform on its own and
-//! means of them stay unbiased, while distinct samples of a pattern never
-//! share a cell (Owen 2013, *Monte Carlo theory, methods and examples*,
-//! §10.2, for jittered sampling; the rotation by `o` is the Cranley–Patterson
-//! trick applied to cell indices).
+//! The pattern is progressive (docs/math.md §16): sample `j` of `M` takes
+//! cell `D(σ(R(τ(j))))` of a `2^⌈k/2⌉ × 2^⌊k/2⌋` grid, `k = ⌊log₂ M⌋`,
+//! jittered uniformly within the cell, where `τ` and `σ` are nested uniform
+//! (Owen) scrambles of `k` bits keyed per pattern (hash-based, Burley 2020),
+//! `R` reverses the bits, and `D` de-interleaves them into a column (the
+//! even bits from the top) and a row (the odd ones). Samples `j ≥ 2^k` are
+//! uniform on the square (padding). Any aligned block of `2^m` consecutive
+//! samples (`j` from `a·2^m`) then puts one sample in each cell of the
+//! coarser `2^⌈m/2⌉ × 2^⌊m/2⌋` grid: a pass of `spp` rays is stratified on
+//! its own and so is every aligned run of passes of a power-of-two length,
+//! while every sample is uniform on its own (each scrambled word is) and
+//! samples in distinct cells are nearly independent within them, so means
+//! stay unbiased with at most about the variance of independent samples
+//! (Owen 1997, "Monte Carlo variance of scrambled net quadrature"; the
+//! bit-reversed Morton order is the base-2 van der Corput idea in 2D). `τ`
+//! shuffles the order within blocks, so two patterns with different seeds
+//! used by the same rays (a ray's camera position and its light sample) are
+//! not //! coupled through their shared index.
+
+use super::seed::mix;
 
 /// One pattern of `count` 2D samples (see the module docs). `Copy`, so a
 /// pixel draws it once and hands it to each of its rays.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SharedStrata {
-    /// Grid side `s = ⌊√M⌋`.
-    side: u64,
-    /// Key of the permutation `π`.
-    key: u64,
-    /// Cell offset `o ∈ 0..s²`.
-    offset: u64,
+    /// `k = ⌊log₂ count⌋` (at most 32): the pattern has `2^k` cells.
+    bits: u32,
+    /// Seeds of the index shuffle `τ` and of the scramble `σ`.
+    seeds: [u32; 2],
+    /// `1 / columns`, `1 / rows`: powers of two, so multiplying is exact.
+    cell: [f64; 2],
 }
 
 impl SharedStrata {
     /// A pattern of `count ≥ 1` samples (0 is taken as 1) from two
-    /// independent uniform words: the permutation key and the offset's.
+    /// independent uniform words.
     pub fn new(count: u64, seeds: [u64; 2]) -> Self {
-        let count = count.max(1);
-        let side = count.isqrt();
-        let cells = side * side;
-        // Multiply-high maps a uniform u64 onto 0..cells (bias < cells/2⁶⁴).
-        let offset = ((u128::from(seeds[1]) * u128::from(cells)) >> 64) as u64;
+        let key = mix(seeds[0] ^ mix(seeds[1]));
+        let bits = count.max(1).ilog2().min(32);
         Self {
-            side,
-            key: seeds[0],
-            offset,
+            bits,
+            seeds: [key as u32, (key >> 32) as u32],
+            cell: [
+                1.0 / (1u64 << bits.div_ceil(2)) as f64,
+                1.0 / (1u64 << (bits / 2)) as f64,
+            ],
         }
     }
 
     /// Sample `j` of the pattern from the uniform jitter `u ∈ [0, 1)²`:
-    /// `u` moved into cell `c(j)` for `j < s²`, `u` itself otherwise.
+    /// `u` moved into cell `D(σ(R(τ(j))))` for `j < 2^k`, `u` itself
+    /// otherwise.
     pub fn sample(&self, j: u64, u: [f64; 2]) -> [f64; 2] {
-        let cells = self.side * self.side;
-        if j >= cells {
+        let k = self.bits;
+        if k == 0 || j >> k != 0 {
             return u;
         }
-        // Both terms are below `cells`, so one subtraction wraps the sum
-        // (an integer division costs tens of cycles per camera ray).
-        let cell = permute(j, cells, self.key) + self.offset;
-        let cell = if cell >= cells { cell - cells } else { cell };
-        let (row, column) = (cell / self.side, cell % self.side);
-        let s = self.side as f64;
-        [(column as f64 + u[0]) / s, (row as f64 + u[1]) / s]
+        let shuffled = owen_scramble(j as u32, k, self.seeds[0]);
+        let code = owen_scramble(reverse(shuffled, k), k, self.seeds[1]);
+        // De-interleave from the top bit: column, row, column, … With a zero
+        // appended when `k` is odd, the column holds the odd bits and the
+        // row the even ones (the row then one zero too many at the bottom).
+        let even = u64::from(code) << (k & 1);
+        let column = compact_even_bits(even >> 1);
+        let row = compact_even_bits(even) >> (k & 1);
+        [
+            (column as f64 + u[0]) * self.cell[0],
+            (row as f64 + u[1]) * self.cell[1],
+        ]
     }
+}
+
+/// The low `k ∈ 1..=32` bits of `v` in reverse order.
+fn reverse(v: u32, k: u32) -> u32 {
+    v.reverse_bits() >> (32 - k)
+}
+
+/// Nested uniform scramble of the `k`-bit word `v` (Owen 1995): bit
+/// `k − 1 − l` (level `l` from the top) is flipped by a coin that depends on
+/// the seed and on `v`'s bits above it only. So it maps every aligned block
+/// of `2^m` words onto an aligned block of the same size and permutes within
+/// blocks, exactly. The coins come from a hash whose bit `i` depends only on
+/// bits `0..=i` of its input (a Laine–Karras permutation, here with
+/// Vegdahl's 2021 constants) applied to the reversed word, as in Burley
+/// 2020, "Practical hash-based Owen scrambling" (JCGT 9(4)): every output
+/// word is uniform when the seed is (its first step adds the seed), and the
+/// coins of distinct nodes are close to independent.
+fn owen_scramble(v: u32, k: u32, seed: u32) -> u32 {
+    let mut x = reverse(v, k);
+    x ^= x.wrapping_mul(0x3D20_ADEA);
+    x = x.wrapping_add(seed);
+    x = x.wrapping_mul((seed >> 16) | 1);
+    x ^= x.wrapping_mul(0x0552_6C56);
+    x ^= x.wrapping_mul(0x53A2_2864);
+    reverse(x, k)
+}
+
+/// Bits 0, 2, 4, … of `x` packed into its low half (bit `2i` to bit `i`).
+fn compact_even_bits(x: u64) -> u64 {
+    let mut x = x & 0x5555_5555_5555_5555;
+    x = (x | (x >> 1)) & 0x3333_3333_3333_3333;
+    x = (x | (x >> 2)) & 0x0F0F_0F0F_0F0F_0F0F;
+    x = (x | (x >> 4)) & 0x00FF_00FF_00FF_00FF;
+    x = (x | (x >> 8)) & 0x0000_FFFF_0000_FFFF;
+    (x | (x >> 16)) & 0x0000_0000_FFFF_FFFF
 }
 
 /// A near-square grid of `s_x × s_y = n` cells over the unit square
@@ -90,43 +140,6 @@ impl GridStrata {
     }
 }
 
-/// A pseudo-random permutation of `0..n` keyed by `key`: a bijection on the
-/// `b`-bit integers (`2^b ≥ n`, the smallest such) iterated until it lands
-/// below `n` ("cycle walking": the walk stays on `i`'s cycle, which returns
-/// below `n`, and takes fewer than two steps on average as `2^b < 2n`).
-/// Each round xors a key, multiplies by an odd constant and xor-shifts
-/// right, each a bijection modulo `2^b`.
-fn permute(i: u64, n: u64, key: u64) -> u64 {
-    debug_assert!(i < n);
-    if n <= 1 {
-        return 0;
-    }
-    let bits = 64 - (n - 1).leading_zeros();
-    let mask = if bits == 64 {
-        u64::MAX
-    } else {
-        (1 << bits) - 1
-    };
-    let shift = (bits / 2).max(1);
-    let round_keys = [key, key.rotate_left(21), key.rotate_left(42)];
-    const ODD: [u64; 3] = [
-        0x9E37_79B9_7F4A_7C15,
-        0xBF58_476D_1CE4_E5B9,
-        0x94D0_49BB_1331_11EB,
-    ];
-    let mut x = i;
-    loop {
-        for (k, m) in round_keys.iter().zip(ODD) {
-            x = (x ^ k) & mask;
-            x = x.wrapping_mul(m) & mask;
-            x ^= x >> shift;
-        }
-        if x < n {
-            return x;
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -153,35 +166,65 @@ mod tests {
     }
 
     #[test]
-    fn permutations_are_bijections() {
-        for n in [1, 2, 3, 7, 64, 100, 1000, 4097] {
-            for key in [0, 1, 0xDEAD_BEEF, u64::MAX] {
-                let mut seen = vec![false; n as usize];
-                for i in 0..n {
-                    let p = permute(i, n, key);
-                    assert!(p < n && !seen[p as usize], "n {n} key {key}: {i} → {p}");
-                    seen[p as usize] = true;
-                }
+    fn scrambles_are_bijections() {
+        let mut rng = Pcg64::seed_from_u64(3);
+        for count in [2, 8, 64, 1000, 4096] {
+            let strata = random_strata(count, &mut rng);
+            let cells = 1u32 << strata.bits;
+            let mut seen = vec![false; cells as usize];
+            for code in 0..cells {
+                let s = owen_scramble(code, strata.bits, strata.seeds[1]);
+                assert!(
+                    s < cells && !seen[s as usize],
+                    "count {count}: {code} → {s}"
+                );
+                seen[s as usize] = true;
             }
         }
     }
 
+    /// Every aligned block of `2^m` samples puts one in each cell of the
+    /// `2^⌈m/2⌉ × 2^⌊m/2⌋` grid: each pass of a power-of-two size, and the
+    /// whole pattern, are stratified.
     #[test]
-    fn a_pattern_puts_one_sample_in_each_cell() {
+    fn every_aligned_block_puts_one_sample_in_each_cell() {
         let mut rng = Pcg64::seed_from_u64(1);
-        for count in [1, 4, 10, 64, 256] {
+        for count in [1, 2, 8, 10, 16, 64, 256] {
             let strata = random_strata(count, &mut rng);
-            let side = count.isqrt();
-            let mut hits = vec![0; (side * side) as usize];
-            for j in 0..count {
-                let [x, y] = strata.sample(j, [rng.random(), rng.random()]);
-                assert!((0.0..1.0).contains(&x) && (0.0..1.0).contains(&y));
-                if j < side * side {
-                    let cell = (y * side as f64) as u64 * side + (x * side as f64) as u64;
-                    hits[cell as usize] += 1;
+            for m in 0..=strata.bits {
+                let (columns, rows) = (1u64 << m.div_ceil(2), 1u64 << (m / 2));
+                for block in 0..(1u64 << (strata.bits - m)) {
+                    let mut hits = vec![0; (columns * rows) as usize];
+                    for j in block << m..(block + 1) << m {
+                        let [x, y] = strata.sample(j, [rng.random(), rng.random()]);
+                        assert!((0.0..1.0).contains(&x) && (0.0..1.0).contains(&y));
+                        let cell = (y * rows as f64) as u64 * columns + (x * columns as f64) as u64;
+                        hits[cell as usize] += 1;
+                    }
+                    assert!(
+                        hits.iter().all(|&h| h == 1),
+                        "count {count} m {m}: {hits:?}"
+                    );
                 }
             }
-            assert!(hits.iter().all(|&h| h == 1), "count {count}: {hits:?}");
+            // Padding past the 2^k cells is the jitter itself.
+            assert_eq!(strata.sample(1 << strata.bits, [0.25, 0.75]), [0.25, 0.75]);
+        }
+    }
+
+    /// Two patterns used by the same rays (a camera position and a light
+    /// sample of ray `j`) are not coupled through the index: whether both
+    /// samples of a ray fall in the left half agrees for about half the
+    /// rays, where without the shuffle `τ` it agrees for all or none.
+    #[test]
+    fn patterns_sharing_an_index_are_not_coupled() {
+        let mut rng = Pcg64::seed_from_u64(4);
+        for _ in 0..50 {
+            let (a, b) = (random_strata(256, &mut rng), random_strata(256, &mut rng));
+            let agree = (0..256)
+                .filter(|&j| (a.sample(j, [0.5; 2])[0] < 0.5) == (b.sample(j, [0.5; 2])[0] < 0.5))
+                .count();
+            assert!((64..=192).contains(&agree), "{agree} of 256");
         }
     }
 

@@ -5,15 +5,16 @@
 //!
 //! A pixel's value is the box-filtered average of radiance over its area:
 //! `spp` camera rays, each shaded by a [`CameraRayShader`], averaged with
-//! Welford's method ([`MeanEstimate`]). The first `s²` rays (`s = ⌊√spp⌋`)
-//! pass through positions jittered within the cells of an `s × s` grid over
-//! the pixel, the rest uniformly: every ray is uniform over the pixel on its
-//! own, so the mean is unbiased, and stratification cuts the noise of
-//! edges inside the pixel (anti-aliasing) from `O(spp^-1/2)` towards
-//! `O(spp^-3/4)` (Mitchell 1996). Each ray also learns which of the pixel's
-//! rays it is ([`PixelSample`]), so a shader can stratify other dimensions
-//! over all of them (the irradiance cache's light samples and the path
-//! tracer's first-vertex samples, [`crate::render::strata::SharedStrata`]). The image stores the mean and
+//! Welford's method ([`MeanEstimate`]). The rays pass through positions
+//! spread over the pixel by a progressive pattern of all the pixel's rays
+//! over every pass ([`SharedStrata`], docs/math.md §16): every ray is
+//! uniform over the pixel on its own, so the mean is unbiased, and
+//! stratification cuts the noise of edges inside the pixel
+//! (anti-aliasing) from `O(spp^-1/2)` towards `O(spp^-3/4)` (Mitchell
+//! 1996), for each pass and for the passes together. Each ray also learns
+//! which of the pixel's rays it is ([`PixelSample`]), so a shader can
+//! stratify other dimensions over all of them (the irradiance cache's light
+//! samples and the path tracer's first-vertex samples). The image stores the mean and
 //! the sample variance / spp, averaged over RGB (see [`Image`]): the
 //! variance of the mean for independent rays, an upper bound for
 //! stratified ones. A shader may report a variance of its own for a ray
@@ -34,7 +35,8 @@ use super::cancel::Cancel;
 use super::error::RenderError;
 use super::mean::{Evaluation, MeanEstimate};
 use super::path::{PathDepth, TraceStats};
-use super::seed::point_rng;
+use super::seed::{mix, point_rng};
+use super::strata::SharedStrata;
 use crate::image::Image;
 use crate::scene::{Camera, Ray, Scene};
 
@@ -59,13 +61,17 @@ pub struct TileRequest {
     pub max_depth: PathDepth,
     /// Seed of every random stream of the request.
     pub seed: u64,
-    /// Which of the seed's disjoint sets of camera samples (0 = the first):
-    /// pixels draw from [`pixel_rng`]`(`[`pass_seed`]`(seed, pass), px, py)`,
-    /// so passes `0..k` are independent renders whose mean is a render of
-    /// `k · samples_per_pixel` rays ([`crate::image::Image::mean_of`]).
-    /// Whatever else the request seeds (the irradiance cache's records) uses
-    /// `seed` alone, so every pass shares it.
+    /// Which of the `passes` disjoint sets of camera samples (0 = the
+    /// first): pixels draw their jitter from
+    /// [`pixel_rng`]`(`[`pass_seed`]`(seed, pass), px, py)` and take rays
+    /// `pass · spp .. (pass + 1) · spp` of one pattern of `passes · spp`
+    /// ([`pixel_pattern`]), so the mean of passes `0..=k` is a render of
+    /// `(k + 1) · spp` rays stratified as one ([`crate::image::Image::mean_of`],
+    /// docs/math.md §16.1). Whatever else the request seeds (the irradiance
+    /// cache's records) uses `seed` alone, so every pass shares it.
     pub pass: u32,
+    /// Passes the pixel's pattern is spread over (1: a single render).
+    pub passes: u32,
 }
 
 /// The seed of pass `pass`'s camera samples: `seed` itself for pass 0 (so a
@@ -128,6 +134,22 @@ impl TileRequest {
                 ),
             ));
         }
+        if self.pass >= self.passes {
+            return Err(bad(
+                "pass",
+                format!("{} is not in 0..{} passes", self.pass, self.passes),
+            ));
+        }
+        let total = u64::from(self.samples_per_pixel) * u64::from(self.passes);
+        if total > u64::from(MAX_SAMPLES_PER_PIXEL) {
+            return Err(bad(
+                "samples_per_pixel",
+                format!(
+                    "{} over {} passes is {total} rays per pixel, more than {MAX_SAMPLES_PER_PIXEL}",
+                    self.samples_per_pixel, self.passes
+                ),
+            ));
+        }
         Ok(())
     }
 }
@@ -143,16 +165,17 @@ pub struct RenderedTile {
     pub rays: u64,
 }
 
-/// Which of its pixel's camera rays a ray is: shaders may spread samples
-/// over all rays of the pixel (e.g. light samples on one
+/// Which of its pixel's camera rays a ray is, over all passes: shaders may
+/// spread samples over all rays of the pixel (e.g. light samples on one
 /// stratified pattern, as the irradiance cache's light samples do).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PixelSample {
-    /// Index of the ray among the pixel's `count` rays.
+    /// Index of the ray among the pixel's `count` rays (`count` over all
+    /// passes; pass `p` holds indices `p · spp .. (p + 1) · spp`).
     pub index: u32,
     pub count: u32,
-    /// Two uniform words drawn once per pixel from its generator, the same
-    /// for all its rays: the seeds of a shared pattern.
+    /// Two uniform words per pixel ([`pixel_pattern`]), the same for all
+    /// its rays in every pass: the seeds of its shared patterns.
     pub pattern: [u64; 2],
 }
 
@@ -198,8 +221,25 @@ fn visible(scene: &Scene, mut ray: Ray, stats: &mut TraceStats) -> Option<Ray> {
 /// of these three numbers only (the stream index packs px and py, so it
 /// does not depend on the image width either).
 pub fn pixel_rng(seed: u64, px: u32, py: u32) -> Pcg64 {
-    point_rng(seed, (u64::from(py) << 32) | u64::from(px))
+    point_rng(seed, pixel_index(px, py))
 }
+
+fn pixel_index(px: u32, py: u32) -> u64 {
+    (u64::from(py) << 32) | u64::from(px)
+}
+
+/// The two seed words of pixel (px, py)'s patterns ([`PixelSample::pattern`]):
+/// a hash of the request's seed and the position, the same for every pass
+/// (so the passes share the patterns) and apart from every pass's stream.
+pub fn pixel_pattern(seed: u64, px: u32, py: u32) -> [u64; 2] {
+    let word = mix(mix(seed ^ PATTERN_STREAM) ^ pixel_index(px, py));
+    [word, mix(word)]
+}
+
+/// Distinguishes the pattern words from the pixel streams' seeds.
+const PATTERN_STREAM: u64 = 0xA076_1D64_78BD_642F;
+/// Distinguishes the camera positions' pattern from the light samples'.
+const CAMERA_PATTERN: u64 = 0xE703_7ED1_A0B4_28DB;
 
 /// The camera/pixel loop shared by every [`CameraRayShader`]; validates
 /// `request` against `camera` and checks `cancel` before each pixel.
@@ -221,14 +261,14 @@ pub fn render_tile_with(
             let py = request.y + (i / width) as u32;
             let mut rng = pixel_rng(pass_seed(request.seed, request.pass), px, py);
             let mut stats = TraceStats::default();
-            let side = f64::from(request.samples_per_pixel).sqrt().floor() as u32;
-            let pattern = [rng.random(), rng.random()];
+            let pattern = pixel_pattern(request.seed, px, py);
+            let count = request.samples_per_pixel * request.passes;
+            let positions =
+                SharedStrata::new(u64::from(count), pattern.map(|w| mix(w ^ CAMERA_PATTERN)));
+            let first = request.pass * request.samples_per_pixel;
             let samples = (0..request.samples_per_pixel).map(|k| {
-                let (mut u, mut v): (f64, f64) = (rng.random(), rng.random());
-                if k < side * side {
-                    u = (f64::from(k % side) + u) / f64::from(side);
-                    v = (f64::from(k / side) + v) / f64::from(side);
-                }
+                let index = first + k;
+                let [u, v] = positions.sample(u64::from(index), [rng.random(), rng.random()]);
                 let (x, y) = (f64::from(px) + u, f64::from(py) + v);
                 // A pinhole draws no lens sample, so its images keep their bits.
                 let ray = match camera.has_lens() {
@@ -236,8 +276,8 @@ pub fn render_tile_with(
                     false => camera.generate_ray(x, y),
                 };
                 let sample = PixelSample {
-                    index: k,
-                    count: request.samples_per_pixel,
+                    index,
+                    count,
                     pattern,
                 };
                 match visible(shader.scene(), ray, &mut stats) {
@@ -290,7 +330,78 @@ pub(crate) mod tests {
             max_depth: PathDepth::constant(6),
             seed: 7,
             pass: 0,
+            passes: 1,
         }
+    }
+
+    /// Records every ray's pixel sample and film position.
+    struct Recorder<'a> {
+        scene: &'a Scene,
+        camera: &'a Camera,
+        seen: std::sync::Mutex<Vec<(PixelSample, [f64; 2])>>,
+    }
+
+    impl CameraRayShader for Recorder<'_> {
+        fn scene(&self) -> &Scene {
+            self.scene
+        }
+
+        fn radiance(
+            &self,
+            ray: Ray,
+            sample: PixelSample,
+            _: &mut Pcg64,
+            _: &mut TraceStats,
+        ) -> Evaluation {
+            let (x, y, _) = self.camera.raster(ray.at(1.0)).expect("in view");
+            self.seen.lock().unwrap().push((sample, [x, y]));
+            Evaluation::of(super::super::rgb::Rgb::BLACK)
+        }
+    }
+
+    /// The passes of a pixel take disjoint index ranges of one pattern
+    /// whose seeds they share, and their camera positions are stratified
+    /// over the pixel as one: each pass over the 2 × 2 quarters, all four
+    /// over the 4 × 4 sixteenths.
+    #[test]
+    fn passes_share_one_stratified_pattern() {
+        let transport = crate::testing::cornell(8);
+        let scene = transport.scene();
+        let recorder = Recorder {
+            scene,
+            camera: &scene.camera,
+            seen: Default::default(),
+        };
+        let (passes, spp) = (4, 4);
+        for pass in 0..passes {
+            let request = TileRequest {
+                samples_per_pixel: spp,
+                pass,
+                passes,
+                ..request(3, 5, 1, 1)
+            };
+            render_tile_with(&scene.camera, &recorder, &request, &Cancel::never()).unwrap();
+        }
+        let seen = recorder.seen.into_inner().unwrap();
+        assert_eq!(seen.len(), 16);
+        let mut fine = [0; 16];
+        for (pass, rays) in seen.chunks(spp as usize).enumerate() {
+            let mut quarters = [0; 4];
+            for (k, (sample, [x, y])) in rays.iter().enumerate() {
+                assert_eq!(sample.index, pass as u32 * spp + k as u32);
+                assert_eq!(sample.count, 16);
+                assert_eq!(sample.pattern, seen[0].0.pattern);
+                let (u, v) = (x - 3.0, y - 5.0);
+                assert!(
+                    (0.0..1.0).contains(&u) && (0.0..1.0).contains(&v),
+                    "{x} {y}"
+                );
+                quarters[(2.0 * v) as usize * 2 + (2.0 * u) as usize] += 1;
+                fine[(4.0 * v) as usize * 4 + (4.0 * u) as usize] += 1;
+            }
+            assert_eq!(quarters, [1; 4], "pass {pass}");
+        }
+        assert_eq!(fine, [1; 16]);
     }
 
     #[test]

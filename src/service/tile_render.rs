@@ -61,13 +61,6 @@ impl TileParams {
             Some(_) => 1,
             None => settings.passes,
         };
-        let last_pass = self.pass.unwrap_or(passes - 1);
-        if last_pass >= passes {
-            return Err(ApiError::invalid(
-                "pass",
-                format!("{last_pass} is not in 0..{passes} ({passes} passes)"),
-            ));
-        }
         let rectangle = TileRequest {
             x: self.x,
             y: self.y,
@@ -76,7 +69,8 @@ impl TileParams {
             samples_per_pixel,
             max_depth: settings.max_depth,
             seed: self.seed,
-            pass: 0,
+            pass: self.pass.unwrap_or(passes - 1),
+            passes,
         };
         // The rectangle first, so a request with several bad fields is told of it.
         rectangle.validate(scene.camera.resolution())?;
@@ -88,8 +82,6 @@ impl TileParams {
         Ok(TileJob {
             request,
             integrator: resolve_integrator(self.estimator.over(settings.integrator), limits)?,
-            last_pass,
-            passes,
         })
     }
 }
@@ -97,14 +89,11 @@ impl TileParams {
 /// One progressive tile request, resolved and checked.
 #[derive(Clone, Copy, Debug)]
 pub struct TileJob {
-    /// The rectangle, depth, seed and samples per pixel of each pass
-    /// (`pass` is ignored: passes `0..=last_pass` are rendered).
+    /// The rectangle, depth, seed and samples per pixel of each pass;
+    /// `pass` is the last pass averaged (passes `0..=pass` are rendered) of
+    /// `passes`, the preset's (1 with explicit samples per pixel).
     pub request: TileRequest,
     pub integrator: Integrator,
-    /// The last pass averaged (0-based).
-    pub last_pass: u32,
-    /// Passes of the tile's preset (1 with explicit samples per pixel).
-    pub passes: u32,
 }
 
 impl TileJob {
@@ -120,7 +109,7 @@ impl TileJob {
         let area = u64::from(r.width) * u64::from(r.height);
         let camera = area
             .saturating_mul(u64::from(r.samples_per_pixel))
-            .saturating_mul(u64::from(self.last_pass) + 1);
+            .saturating_mul(u64::from(r.pass) + 1);
         limits.check_work(self.integrator.estimated_paths(camera, area))
     }
 
@@ -150,6 +139,7 @@ impl TileJob {
         hasher.update(b"pass\0");
         hasher.update(records);
         hasher.update(&self.request.samples_per_pixel.to_le_bytes());
+        hasher.update(&self.request.passes.to_le_bytes());
         hasher.update(&pass.to_le_bytes());
         *hasher.finalize().as_bytes()
     }
@@ -157,7 +147,7 @@ impl TileJob {
 
 /// A progressive tile and the work this request did for it.
 pub struct ProgressiveTile {
-    /// The mean of passes `0..=last_pass`.
+    /// The mean of passes `0..=pass`.
     pub image: Image,
     /// The tile's own records (reproducible cache tiles only).
     pub records: Option<Arc<TileRecords>>,
@@ -207,8 +197,8 @@ pub fn render_progressive(
         }
         _ => None,
     };
-    let mut passes = Vec::with_capacity(job.last_pass as usize + 1);
-    for pass in 0..=job.last_pass {
+    let mut passes = Vec::with_capacity(job.request.pass as usize + 1);
+    for pass in 0..=job.request.pass {
         let request = TileRequest {
             pass,
             ..job.request

@@ -62,7 +62,7 @@ pub fn tile_headers(
         (X_RAYS, tile.rays),
         (X_RECORDS_CREATED, tile.records_created),
         (X_CACHE_HITS, tile.cache_hits),
-        (X_PASSES, u64::from(job.passes)),
+        (X_PASSES, u64::from(job.request.passes)),
         (X_PASSES_RENDERED, u64::from(tile.passes_rendered)),
     ] {
         headers.insert(name, HeaderValue::from(n));

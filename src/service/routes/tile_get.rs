@@ -224,7 +224,7 @@ pub async fn get_tile(
         env!("CARGO_PKG_VERSION"),
         &scene.transport.scene().digest.to_string(),
         &job.integrator.content_key(),
-        &format!("{:?} {} {}", job.request, job.last_pass, job.passes),
+        &format!("{:?}", job.request),
         &format!("{aov:?} {format:?} {exposure} {scale}"),
     ]);
     let mut common = HeaderMap::new();
