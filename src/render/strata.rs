@@ -20,7 +20,7 @@
 //! bit-reversed Morton order is the base-2 van der Corput idea in 2D). `τ`
 //! shuffles the order within blocks, so two patterns with different seeds
 //! used by the same rays (a ray's camera position and its light sample) are
-//! not //! coupled through their shared index.
+//! not coupled through their shared index.
 
 use super::seed::mix;
 
