@@ -169,15 +169,15 @@ fn launch() -> (Browser, DevTools) {
     (browser, tools)
 }
 
-/// Mean RGB (0–255) over all pixels of the service's PNG tiles of the
-/// draft preset, as the viewer requests them.
-async fn server_mean(app: &TestApp, aov: &str) -> [f64; 3] {
+/// Mean RGB (0–255) over all pixels of the service's PNG tiles of `preset`
+/// at `pass`, as the viewer requests them.
+async fn server_mean(app: &TestApp, aov: &str, preset: &str, pass: u32) -> [f64; 3] {
     let (mut sum, mut count) = ([0.0; 3], 0usize);
     for ty in 0..4 {
         for tx in 0..4 {
             let query = match aov {
-                "radiance" => "size=64&preset=draft&pass=0&exposure=0".to_owned(),
-                other => format!("size=64&preset=draft&pass=0&aov={other}"),
+                "radiance" => format!("size=64&preset={preset}&pass={pass}&exposure=0"),
+                other => format!("size=64&preset={preset}&pass={pass}&aov={other}"),
             };
             let url = format!("/v1/scenes/cornell-box/tiles/{tx}/{ty}.png?{query}");
             let response = app.get(&url).await;
@@ -239,7 +239,7 @@ fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
     // The radiance layer is the service's PNG tiles, pixel for pixel.
     let radiance = tools.eval("window.viewer.layerStats('radiance')");
     assert_eq!(radiance["pixels"], json!(256 * 256), "{radiance}");
-    let expected = runtime.block_on(server_mean(&app, "radiance"));
+    let expected = runtime.block_on(server_mean(&app, "radiance", "draft", 0));
     let got = mean_of(&radiance);
     for c in 0..3 {
         assert!(
@@ -258,7 +258,7 @@ fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
         load,
     );
     let std_dev = mean_of(&tools.eval("window.viewer.layerStats('std_dev')"));
-    let expected = runtime.block_on(server_mean(&app, "std_dev"));
+    let expected = runtime.block_on(server_mean(&app, "std_dev", "draft", 0));
     for c in 0..3 {
         assert!(
             (std_dev[c] - expected[c]).abs() < 0.5,
@@ -298,6 +298,46 @@ fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
         "console errors: {:#?}",
         tools.errors
     );
+}
+
+/// The viewer climbs the budget ladder: the cheapest preset's image first,
+/// then each pass of the chosen one, and says which step the image shows.
+/// What it ends on is the chosen preset's last pass, tile for tile.
+#[test]
+fn the_viewer_climbs_the_pass_ladder_and_labels_each_step() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let app = runtime.block_on(serving_the_cornell_box());
+    let (_browser, mut tools) = launch();
+    tools.call(
+        "Page.navigate",
+        json!({"url": app.url("/?scene=cornell-box&preset=preview")}),
+    );
+    tools.wait_for("!!(window.viewer && window.viewer.idle())", LOAD);
+    let ladder = tools.eval("window.viewer.state.ladder.map((s) => s.label)");
+    let expected = json!([
+        "draft (2 spp)",
+        "preview · pass 1 of 2 (4 spp)",
+        "preview · pass 2 of 2 (8 spp)"
+    ]);
+    assert_eq!(ladder, expected);
+    // Every step was shown on the whole image, in order, and the panel
+    // names the last.
+    assert_eq!(tools.eval("window.viewer.state.shownLog"), expected);
+    assert_eq!(
+        tools.eval("document.getElementById('shown').textContent"),
+        json!("preview · pass 2 of 2 (8 spp)")
+    );
+    // The image is the preset's final pass, as GET tiles serve it.
+    let shown = mean_of(&tools.eval("window.viewer.layerStats('radiance')"));
+    let served = runtime.block_on(server_mean(&app, "radiance", "preview", 1));
+    for c in 0..3 {
+        assert!(
+            (shown[c] - served[c]).abs() < 0.5,
+            "{shown:?} vs {served:?}"
+        );
+    }
+    tools.eval("1");
+    assert!(tools.errors.is_empty(), "{:#?}", tools.errors);
 }
 
 /// Drops `path` (a folder or a file) on the page as a user's drag from the

@@ -1,6 +1,8 @@
 // The browser viewer of bmc-irradiance: GET tiles (PNG) of the scene camera's
-// image, loaded progressively (every tile's first pass, then later passes,
-// visible tiles first) into one canvas per layer, shown with pan and zoom.
+// image, loaded progressively up a ladder of budgets (the cheapest preset's
+// image first, then each pass of the chosen preset; every tile's step k
+// before any tile's step k + 1, visible tiles first) into one canvas per
+// layer, shown with pan and zoom.
 // Layers: radiance, the relative standard error (false colour, "std_dev"
 // AOV) and the irradiance-cache records ("records" AOV, transparent overlay).
 "use strict";
@@ -11,13 +13,16 @@
   const $ = (id) => document.getElementById(id);
 
   const state = {
-    scene: null, width: 0, height: 0, passes: 1, presets: new Map(),
+    scene: null, width: 0, height: 0, presets: new Map(),
+    // The steps every radiance tile climbs ({preset, pass, label}), and the
+    // labels of the steps shown on the whole image so far, in order.
+    ladder: [], shownLog: [],
     preset: "preview", exposure: 0, uncertainty: false, records: false,
     zoom: 1, panX: 0, panY: 0,
     // Bumped whenever what the tiles show changes; older answers are dropped.
     generation: 0,
     layers: {},
-    // Highest pass drawn per radiance tile, and which std_dev/records tiles are drawn.
+    // Highest ladder step drawn per radiance tile, and which std_dev/records tiles are drawn.
     drawn: { radiance: new Map(), std_dev: new Set(), records: new Set() },
     queue: [], inFlight: 0, loaded: 0, total: 0,
     renderMillis: [], rays: 0, errors: 0, stdDevScale: 0.2,
@@ -73,8 +78,9 @@
   }
 
   // ---- tiles --------------------------------------------------------------
-  function tileUrl(tx, ty, aov, pass) {
-    const q = new URLSearchParams({ size: TILE, preset: state.preset, pass });
+  function tileUrl(tx, ty, aov, step) {
+    const { preset, pass } = state.ladder[step];
+    const q = new URLSearchParams({ size: TILE, preset, pass });
     if (aov === "radiance") q.set("exposure", state.exposure);
     else q.set("aov", aov);
     return `/v1/scenes/${encodeURIComponent(state.scene)}/tiles/${tx}/${ty}.png?${q}`;
@@ -100,21 +106,46 @@
     return tiles.sort((a, b) => a.order - b.order);
   }
 
-  // Rebuilds the queue from what is missing: radiance pass by pass (every
-  // tile's pass k before any tile's pass k + 1), then the enabled overlays.
+  // The ladder of the chosen preset: the cheapest preset's whole image first
+  // (the service lists presets cheapest first) when another one is chosen,
+  // then each pass of the chosen one, pass k showing the mean of passes 0..k.
+  function buildLadder() {
+    const chosen = state.presets.get(state.preset) ?? { samples_per_pixel: 1, passes: 1 };
+    const cheapest = state.presets.values().next().value;
+    const steps = [];
+    if (cheapest && cheapest.name !== state.preset) {
+      const spp = cheapest.samples_per_pixel * cheapest.passes;
+      steps.push({ preset: cheapest.name, pass: cheapest.passes - 1, label: `${cheapest.name} (${spp} spp)` });
+    }
+    for (let pass = 0; pass < chosen.passes; pass++) {
+      const of = chosen.passes > 1 ? ` · pass ${pass + 1} of ${chosen.passes}` : "";
+      const spp = chosen.samples_per_pixel * (pass + 1);
+      steps.push({ preset: state.preset, pass, label: `${state.preset}${of} (${spp} spp)` });
+    }
+    return steps;
+  }
+
+  function tileCount() {
+    return Math.ceil(state.width / TILE) * Math.ceil(state.height / TILE);
+  }
+
+  // Rebuilds the queue from what is missing: radiance step by step (every
+  // tile's step k before any tile's step k + 1), then the enabled overlays
+  // (at the ladder's top).
   function schedule() {
     if (!state.scene) return;
     const tiles = tilesInOrder();
+    const top = state.ladder.length - 1;
     const jobs = [];
-    for (let pass = 0; pass < state.passes; pass++) {
+    for (let step = 0; step <= top; step++) {
       for (const t of tiles) {
-        if ((state.drawn.radiance.get(t.key) ?? -1) < pass) jobs.push({ ...t, aov: "radiance", pass });
+        if ((state.drawn.radiance.get(t.key) ?? -1) < step) jobs.push({ ...t, aov: "radiance", step });
       }
-      if (pass === 0) {
+      if (step === 0) {
         for (const aov of ["records", "std_dev"]) {
           const wanted = aov === "records" ? state.records : state.uncertainty;
           if (!wanted) continue;
-          for (const t of tiles) if (!state.drawn[aov].has(t.key)) jobs.push({ ...t, aov, pass: state.passes - 1 });
+          for (const t of tiles) if (!state.drawn[aov].has(t.key)) jobs.push({ ...t, aov, step: top });
         }
       }
     }
@@ -141,12 +172,12 @@
   }
 
   async function load(job, generation) {
-    // A radiance pass may already be covered by a later one drawn meanwhile.
-    if (job.aov === "radiance" && (state.drawn.radiance.get(job.key) ?? -1) >= job.pass) return;
+    // A radiance step may already be covered by a later one drawn meanwhile.
+    if (job.aov === "radiance" && (state.drawn.radiance.get(job.key) ?? -1) >= job.step) return;
     const started = performance.now();
     let response;
     for (;;) {
-      response = await fetch(tileUrl(job.tx, job.ty, job.aov, job.pass));
+      response = await fetch(tileUrl(job.tx, job.ty, job.aov, job.step));
       if (response.status !== 503) break;
       const wait = Number(response.headers.get("retry-after") || 1);
       await new Promise((r) => setTimeout(r, 1000 * wait));
@@ -162,7 +193,7 @@
     layer.clearRect(job.tx * TILE, job.ty * TILE, bitmap.width, bitmap.height);
     layer.drawImage(bitmap, job.tx * TILE, job.ty * TILE);
     bitmap.close();
-    if (job.aov === "radiance") state.drawn.radiance.set(job.key, job.pass);
+    if (job.aov === "radiance") state.drawn.radiance.set(job.key, job.step);
     else state.drawn[job.aov].add(job.key);
     if (job.aov === "std_dev") {
       state.stdDevScale = Number(response.headers.get("x-std-dev-scale") || state.stdDevScale);
@@ -178,13 +209,30 @@
   }
 
   // ---- panel --------------------------------------------------------------
+  // Which ladder step the image shows: the lowest step over all tiles, and
+  // how many tiles are already further up.
+  function showLadder() {
+    const steps = [...state.drawn.radiance.values()];
+    const total = tileCount();
+    let text = state.ladder.length ? `loading ${state.ladder[0].label}` : "–";
+    if (steps.length === total && total > 0) {
+      const low = Math.min(...steps), high = Math.max(...steps);
+      const label = state.ladder[low].label;
+      if (state.shownLog[state.shownLog.length - 1] !== label) state.shownLog.push(label);
+      const ahead = steps.filter((s) => s > low).length;
+      text = ahead ? `${label}; ${ahead} of ${total} tiles at ${state.ladder[high].label}` : label;
+    }
+    $("shown").textContent = text;
+  }
+
   function progress() {
     const done = state.total === 0 ? 1 : state.loaded / state.total;
     if (!state.errors) {
       $("progress").textContent = state.queue.length || state.inFlight
         ? `${state.loaded} / ${state.total} tiles`
-        : `done: ${state.passes} pass${state.passes > 1 ? "es" : ""} of ${state.preset}`;
+        : `done: ${state.ladder.length} step${state.ladder.length > 1 ? "s" : ""} to ${state.preset}`;
     }
+    showLadder();
     $("progress-bar").style.width = `${(100 * done).toFixed(1)}%`;
     const ms = state.renderMillis;
     if (ms.length) $("tile-mean").textContent = `${(ms.reduce((a, b) => a + b, 0) / ms.length).toFixed(0)} ms`;
@@ -351,7 +399,8 @@
     state.rays = 0;
     state.errors = 0;
     resetLayers();
-    state.passes = state.presets.get(state.preset)?.passes ?? 1;
+    state.ladder = buildLadder();
+    state.shownLog = [];
     draw();
     schedule();
   }
@@ -362,8 +411,8 @@
     $("exposure").addEventListener("input", (e) => {
       state.exposure = Number(e.target.value);
       $("exposure-value").textContent = state.exposure;
-      // Only the radiance layer depends on the exposure: reload it at the
-      // passes already shown (the service keeps them, so this is cheap).
+      // Only the radiance layer depends on the exposure: reload it up the
+      // ladder again (the service keeps the passes, so this is cheap).
       state.generation++;
       state.queue = [];
       state.drawn.radiance = new Map();
