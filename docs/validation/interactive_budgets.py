@@ -8,8 +8,13 @@ one run.
   buffer: the renderer writes none). The time is the render's wall time plus
   the denoiser's.
 - The service: for each preset a freshly started server on an empty data
-  directory (cold), `bmc-irradiance fetch --preset P` of the whole image as
-  GET tiles; the time is the fetch's wall time.
+  directory (cold), `bmc-irradiance fetch --preset P --pass k` of the whole
+  image as GET tiles for each of the preset's passes in turn (as the
+  viewer's ladder asks for them: pass k renders only what passes 0..k-1 left
+  to do); the time of pass k is the fetches' wall time up to it.
+
+At the end, for each budget (`--budgets`, seconds), the best image of each
+side whose time is within it.
 
 The error is the relative RMSE against the reference EXR over the pixels
 `compare --exclude-above 1 --exclude-margin 2` keeps (emitters and the pixels
@@ -20,11 +25,12 @@ dependency of the project):
 
     python3 -m venv /tmp/oidnvenv && /tmp/oidnvenv/bin/pip install pyoidn numpy OpenEXR
     cargo build --release
-    /tmp/oidnvenv/bin/python docs/validation/interactive_budgets.py --spp 4 16 64 256 \\
-        --presets draft preview final
+    /tmp/oidnvenv/bin/python docs/validation/interactive_budgets.py \\
+        --spp 4 16 32 96 192 --presets draft preview standard final
 """
 
 import argparse
+import json
 import os
 import subprocess
 import tempfile
@@ -93,6 +99,7 @@ def main():
     ap.add_argument("--spp", type=int, nargs="*", default=[4, 16, 64, 256])
     ap.add_argument("--presets", nargs="*", default=["draft", "preview", "final"])
     ap.add_argument("--port", type=int, default=18777)
+    ap.add_argument("--budgets", type=float, nargs="*", default=[0.3, 1, 2, 5, 10])
     args = ap.parse_args()
     score = Scorer(args.reference, args.reference_noise)
     work = tempfile.mkdtemp(prefix="budgets-")
@@ -101,6 +108,7 @@ def main():
     print("| what | time, s | rel. RMSE raw | vs truth |")
     print("|---|---|---|---|")
     pyoidn.denoise(np.zeros((8, 8, 3), np.float32), hdr=True)  # the device's start-up, not timed
+    rows = []  # (side, what, seconds, vs truth)
     for spp in args.spp:
         out = os.path.join(work, f"path{spp}.exr")
         wall = timed([args.bin, "render", "--scene", scene_file, "--method", "path", "--spp", str(spp), "--out", out])
@@ -113,6 +121,7 @@ def main():
         write_rgb(os.path.join(work, f"path{spp}_oidn.exr"), clean)
         raw, truth = score(clean)
         print(f"| path {spp} spp + OIDN | {wall + denoise:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
+        rows.append(("path tracing + OIDN", f"{spp} spp", wall + denoise, truth))
     for preset in args.presets:
         data = os.path.join(work, f"data-{preset}")
         os.makedirs(data)
@@ -131,13 +140,33 @@ def main():
                     break
                 except subprocess.CalledProcessError:
                     time.sleep(0.1)
-            out = os.path.join(work, f"{preset}.exr")
-            wall = timed([args.bin, "fetch", "--url", url, "--scene", args.scene, "--preset", preset, "--out", out])
-            raw, truth = score(read_rgb(out))
-            print(f"| service `{preset}`, cold | {wall:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
+            listed = subprocess.run(["curl", "-sf", f"{url}/v1/presets"], check=True, capture_output=True).stdout
+            passes = next(p["passes"] for p in json.loads(listed) if p["name"] == preset)
+            wall = 0.0
+            for k in range(passes):
+                out = os.path.join(work, f"{preset}-{k}.exr")
+                fetch = [args.bin, "fetch", "--url", url, "--scene", args.scene, "--preset", preset]
+                wall += timed(fetch + ["--pass", str(k), "--out", out])
+                raw, truth = score(read_rgb(out))
+                what = f"`{preset}` pass {k + 1} of {passes}"
+                print(f"| service {what}, cold | {wall:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
+                rows.append(("the service", what, wall, truth))
         finally:
             server.terminate()
             server.wait()
+    print()
+    print("| budget | path tracing + OIDN | the service |")
+    print("|---|---|---|")
+    for budget in args.budgets:
+        best = []
+        for side in ("path tracing + OIDN", "the service"):
+            within = [r for r in rows if r[0] == side and r[2] <= budget]
+            if within:
+                _, what, seconds, truth = min(within, key=lambda r: r[3])
+                best.append(f"{100 * truth:.2f} % ({what}, {seconds:.2f} s)")
+            else:
+                best.append("–")
+        print(f"| {budget:g} s | {best[0]} | {best[1]} |", flush=True)
 
 
 if __name__ == "__main__":

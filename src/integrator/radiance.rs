@@ -18,18 +18,15 @@
 //! scaled by `(k_d/π)²`: the records' own error, which repeats cannot reveal
 //! because every repeat reads the same records.
 
-use std::f64::consts::PI;
-
 use glam::DVec3;
 use rayon::prelude::*;
 
 use super::cached::{
-    CachedIntegrator, CachedShading, OnMiss, PlacementReport, ShadePoint, ShadingStats,
-    indirect_paths, secondary_cache_of,
+    CachedIntegrator, OnMiss, PlacementReport, ShadePoint, ShadingStats, indirect_paths,
+    secondary_cache_of,
 };
 use super::path::PathIntegrator;
 use super::resolved::BoundIntegrator;
-use crate::cache::IrradianceCache;
 use crate::render::seed::point_rng;
 use crate::render::{
     Cancel, Evaluation, MeanEstimate, PathDepth, QueryPoint, RenderError, Rgb, TraceStats,
@@ -182,20 +179,12 @@ pub fn radiance_at_points(
                     }
                 })
                 .collect::<Result<Vec<Evaluation>, RenderError>>()?;
+            // The records' error is every repeat's (`Evaluation::shared`),
+            // so it stays in the variance however many repeats there are.
             let mean = MeanEstimate::of_evaluations(values);
-            let mut variance = mean.variance_of_mean;
-            if let Some(integrator) = cached {
-                variance += record_variance(
-                    transport,
-                    hit,
-                    query.direction,
-                    integrator.cache,
-                    integrator.shading,
-                )?;
-            }
             Ok(RadianceEstimate {
                 radiance: mean.mean,
-                std_error: variance.map(f64::sqrt),
+                std_error: mean.variance_of_mean.map(f64::sqrt),
                 rays: trace.rays + stats.rays,
             })
         })
@@ -203,37 +192,12 @@ pub fn radiance_at_points(
     Ok((estimates, built))
 }
 
-/// `(ρ/π)² V` of the records interpolated at the hit seen from the world
-/// direction `wo`, `ρ` the BSDF's Lambertian part there (zero where it has
-/// none or no record covers the point).
-fn record_variance(
-    transport: &Transport,
-    hit: &SurfaceHit,
-    wo: DVec3,
-    cache: &IrradianceCache,
-    shading: &CachedShading,
-) -> Result<Rgb, RenderError> {
-    let Some(bsdf) = transport.bsdf_at(hit) else {
-        return Ok(Rgb::BLACK);
-    };
-    let wo_local = bsdf.frame_at(hit).to_local(wo);
-    let rho = bsdf.lambertian(wo_local);
-    if rho.is_black() {
-        return Ok(Rgb::BLACK);
-    }
-    let accuracy = shading.accuracy();
-    let normal = hit.shading_normal * wo_local.z.signum();
-    let point = QueryPoint::new(hit.position, normal)?;
-    Ok(cache
-        .lookup(&point, accuracy)
-        .map_or(Rgb::BLACK, |i| i.variance * (rho / PI) * (rho / PI)))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::bmc::cache::QuadratureCache;
-    use crate::integrator::cached::{CacheShadingOptions, default_rule_spec};
+    use crate::cache::IrradianceCache;
+    use crate::integrator::cached::{CacheShadingOptions, CachedShading, default_rule_spec};
     use crate::testing::{agrees, cornell};
     use std::sync::Arc;
 

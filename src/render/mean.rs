@@ -3,13 +3,20 @@
 use super::rgb::Rgb;
 use crate::stats::RunningMean;
 
-/// One estimate of an RGB quantity and the variance its estimator reports
+/// One estimate of an RGB quantity and the variances its estimator reports
 /// for it (per channel, in the quantity's units squared; zero where the
 /// estimator knows none, as for a single path).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Evaluation {
     pub value: Rgb,
+    /// Variance of the evaluation's own noise, independent of other
+    /// evaluations' (a glossy fallback's lobe-sampled paths).
     pub variance: Rgb,
+    /// Variance of an error that every evaluation of the same quantity
+    /// shares, so that it does not average out over them: that of the
+    /// irradiance-cache records an evaluation interpolates (docs/math.md
+    /// §16.3).
+    pub shared: Rgb,
 }
 
 impl Evaluation {
@@ -18,6 +25,7 @@ impl Evaluation {
         Self {
             value,
             variance: Rgb::BLACK,
+            shared: Rgb::BLACK,
         }
     }
 }
@@ -41,14 +49,17 @@ impl MeanEstimate {
     /// of the variances they report themselves over their count
     /// (docs/math.md §13.3): the spread of one evaluation is unknown, and an
     /// estimator's own variance (the glossy fallback's) is a floor the
-    /// reported error should not fall below. Where no evaluation reports a
-    /// variance this is [`Self::of`] of their values, bit for bit.
+    /// reported error should not fall below; plus the mean of their shared
+    /// variances, which no count divides (docs/math.md §16.3). Where no
+    /// evaluation reports a variance this is [`Self::of`] of their values,
+    /// bit for bit.
     pub fn of_evaluations(evaluations: impl IntoIterator<Item = Evaluation>) -> Self {
         let mut running = RunningMean::new();
-        let mut own = Rgb::BLACK;
+        let (mut own, mut shared) = (Rgb::BLACK, Rgb::BLACK);
         for e in evaluations {
             running.push(e.value);
             own += e.variance;
+            shared += e.shared;
         }
         let n = running.count().max(1) as f64;
         let spread = running.variance_of_mean().unwrap_or(Rgb::BLACK).to_array();
@@ -62,7 +73,7 @@ impl MeanEstimate {
         });
         Self {
             mean: running.mean(),
-            variance_of_mean: Rgb::from_array(variance),
+            variance_of_mean: Rgb::from_array(variance) + shared * (1.0 / n),
         }
     }
 
@@ -100,6 +111,7 @@ mod tests {
         let with_own = values.map(|value| Evaluation {
             value,
             variance: Rgb::new(0.0, 4.0, 8.0),
+            shared: Rgb::BLACK,
         });
         let e = MeanEstimate::of_evaluations(with_own);
         assert_eq!(e.mean, plain.mean);
@@ -111,7 +123,24 @@ mod tests {
         let one = MeanEstimate::of_evaluations([Evaluation {
             value: Rgb::WHITE,
             variance: Rgb::new(0.5, 0.0, 0.0),
+            shared: Rgb::BLACK,
         }]);
         assert_eq!(one.variance_of_mean, Rgb::new(0.5, 0.0, 0.0));
+    }
+
+    /// A shared variance is not divided by the count: four evaluations
+    /// sharing a record's error of variance 2 report at least 2.
+    #[test]
+    fn shared_variances_do_not_average_out() {
+        let values = [1.0, 2.0, 4.0, 7.0].map(|v| Rgb::new(v, 0.0, 0.0));
+        let plain = MeanEstimate::of(values);
+        let shared = MeanEstimate::of_evaluations(values.map(|value| Evaluation {
+            shared: Rgb::new(2.0, 2.0, 0.0),
+            ..Evaluation::of(value)
+        }));
+        assert_eq!(shared.mean, plain.mean);
+        assert!((shared.variance_of_mean.r - (1.75 + 2.0)).abs() < 1e-12);
+        assert!((shared.variance_of_mean.g - 2.0).abs() < 1e-12);
+        assert_eq!(shared.variance_of_mean.b, 0.0);
     }
 }

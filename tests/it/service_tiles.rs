@@ -459,26 +459,38 @@ async fn glossy_objects_of_the_sky_scene_have_no_negative_or_black_pixels() {
         "darkest glossy pixel relative to its surroundings: {darkest:?}"
     );
 
-    // One ray per pixel (jittered within it): only the glossy fallback
-    // reports a variance, so none appears away from the glossy objects.
+    // One ray per pixel (jittered within it): there is no spread, so a
+    // pixel reports what its shading knows of its error: the glossy
+    // fallback's paths on the glossy objects, the interpolated records'
+    // posterior variance elsewhere (docs/math.md §16.3), where most pixels
+    // are served by records and the sky's direct light, which no record
+    // carries, keeps it small against the value (0.02 % at the median).
     let reported = |x: u32, y: u32| variance[(y * width + x) as usize];
     let touches_glossy = |x: u32, y: u32| {
         (y.saturating_sub(1)..(y + 2).min(height))
             .any(|v| (x.saturating_sub(1)..(x + 2).min(width)).any(|u| glossy(u, v)))
     };
-    let mut fell_back = 0;
+    let (mut fell_back, mut diffuse) = (0, Vec::new());
     for &(x0, y0) in &tiles {
         for y in y0..(y0 + TILE).min(height) {
             for x in x0..(x0 + TILE).min(width) {
                 if glossy(x, y) {
                     fell_back += usize::from(reported(x, y) > 0.0);
-                } else if !touches_glossy(x, y) {
-                    assert_eq!(reported(x, y), 0.0, "pixel ({x}, {y})");
+                } else if !touches_glossy(x, y) && luminance(x, y) > 0.0 {
+                    diffuse.push(reported(x, y).sqrt() / luminance(x, y));
                 }
             }
         }
     }
     assert!(fell_back > 0);
+    diffuse.sort_by(f32::total_cmp);
+    let served = diffuse.iter().filter(|&&r| r > 0.0).count();
+    assert!(served > diffuse.len() / 2, "{served} of {}", diffuse.len());
+    let median = diffuse[diffuse.len() / 2];
+    assert!(
+        median > 0.0 && median < 0.1,
+        "median relative error {median}"
+    );
 }
 
 /// Each preset's `estimator` from `GET /v1/presets` posts back as a tile

@@ -172,6 +172,7 @@ pub fn lobe_sampled<R: Rng + ?Sized>(
     Evaluation {
         value: terms.mean(),
         variance: terms.variance_of_mean().unwrap_or(Rgb::BLACK),
+        shared: Rgb::BLACK,
     }
 }
 

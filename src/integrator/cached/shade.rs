@@ -356,7 +356,7 @@ impl CachedIntegrator<'_> {
         let reflected = self.reflected_radiance(hit, wo, &reflection, rng, stats)?;
         Ok(Evaluation {
             value: radiance + reflected.value,
-            variance: reflected.variance,
+            ..reflected
         })
     }
 
@@ -404,13 +404,15 @@ impl CachedIntegrator<'_> {
                 &mut trace,
             );
         }
-        let mut variance = Rgb::BLACK;
+        let (mut variance, mut shared) = (Rgb::BLACK, Rgb::BLACK);
         match bsdf.phong() {
             Some(phong) if r.indirect => {
                 let point = QueryPoint::new(hit.position, hit.shading_normal)?;
                 if !phong.diffuse.is_black() {
-                    let e = self.indirect_irradiance(&point, r, rng, &mut trace, stats)?;
-                    radiance += phong.diffuse * e * (1.0 / PI);
+                    let (e, v) = self.indirect_irradiance(&point, r, rng, &mut trace, stats)?;
+                    let kd = phong.diffuse * (1.0 / PI);
+                    radiance += kd * e;
+                    shared += kd * kd * v;
                 }
                 if !phong.specular.is_black() {
                     let i = self.glossy_indirect(&surface, &point, r, rng, &mut trace, stats)?;
@@ -423,12 +425,14 @@ impl CachedIntegrator<'_> {
                 let rest = self.lambertian_and_rest(&surface, r, mis, rng, &mut trace, stats)?;
                 radiance += rest.value;
                 variance += rest.variance;
+                shared += rest.shared;
             }
         }
         stats.rays += trace.rays;
         Ok(Evaluation {
             value: radiance,
             variance,
+            shared,
         })
     }
 
@@ -451,21 +455,30 @@ impl CachedIntegrator<'_> {
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
     ) -> Result<Evaluation, RenderError> {
-        let mut radiance = Rgb::BLACK;
+        let (mut radiance, mut shared) = (Rgb::BLACK, Rgb::BLACK);
         let rho = s.bsdf.lambertian(s.wo_local);
         if r.indirect && !rho.is_black() {
             let side = s.wo_local.z.signum();
             let point = QueryPoint::new(s.hit.position, s.hit.shading_normal * side)?;
-            let e = self.indirect_irradiance(&point, r, rng, trace, stats)?;
-            radiance += rho * e * (1.0 / PI);
+            let (e, v) = self.indirect_irradiance(&point, r, rng, trace, stats)?;
+            let kd = rho * (1.0 / PI);
+            radiance += kd * e;
+            shared = kd * kd * v;
         }
+        // The records' error is in every return below; the rest's noise is
+        // the ray's own.
+        let done = |value| Evaluation {
+            value,
+            variance: Rgb::BLACK,
+            shared,
+        };
         let u = [rng.random(), rng.random()];
         let Some(sample) = s.bsdf.sample(s.wo_local, rng.random(), u) else {
-            return Ok(Evaluation::of(radiance));
+            return Ok(done(radiance));
         };
         let mis = mis && !sample.delta;
         if !sample.delta && !r.indirect && !mis {
-            return Ok(Evaluation::of(radiance));
+            return Ok(done(radiance));
         }
         let cos_over_pdf = sample.wi.z.abs() / sample.pdf;
         let mut f = sample.value;
@@ -474,7 +487,7 @@ impl CachedIntegrator<'_> {
         }
         let throughput = f * cos_over_pdf;
         if throughput.is_black() && !mis {
-            return Ok(Evaluation::of(radiance));
+            return Ok(done(radiance));
         }
         let scene = self.transport.scene();
         let ray = scene.spawn_ray(s.hit.position, s.hit.normal, s.frame.to_world(sample.wi));
@@ -498,13 +511,14 @@ impl CachedIntegrator<'_> {
                     .continue_averaged(&traced, limits, 1, rng, trace);
                 radiance += throughput * (incident.radiance - incident.direct);
             }
-            return Ok(Evaluation::of(radiance));
+            return Ok(done(radiance));
         }
         if sample.delta && self.through_delta(r) {
             let arriving = self.arriving_through_delta(ray, r, rng, trace, stats)?;
             return Ok(Evaluation {
                 value: radiance + throughput * arriving.value,
                 variance: throughput * throughput * arriving.variance,
+                shared: shared + throughput * throughput * arriving.shared,
             });
         }
         let limits = PathLimits {
@@ -516,7 +530,7 @@ impl CachedIntegrator<'_> {
             },
         };
         let incident = self.transport.incident_radiance(ray, limits, rng, trace);
-        Ok(Evaluation::of(radiance + throughput * incident.radiance))
+        Ok(done(radiance + throughput * incident.radiance))
     }
 
     /// Whether a delta bounce at a point shaded as `r` is followed through
@@ -557,7 +571,7 @@ impl CachedIntegrator<'_> {
         let reflected = self.reflected_radiance(&next, -ray.dir, &chained, rng, stats)?;
         Ok(Evaluation {
             value: emitted + reflected.value,
-            variance: reflected.variance,
+            ..reflected
         })
     }
 
@@ -619,7 +633,11 @@ impl CachedIntegrator<'_> {
             .collect()
     }
 
-    /// Indirect irradiance at `point` from the cache (module docs, [`OnMiss`]).
+    /// Indirect irradiance at `point` from the cache (module docs,
+    /// [`OnMiss`]), W/m², and the variance of the records' error in it,
+    /// (W/m²)² (their interpolated posterior variance,
+    /// [`crate::cache::Interpolated::variance`]; zero where paths estimate
+    /// it, whose noise is the ray's own).
     fn indirect_irradiance<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
@@ -627,11 +645,11 @@ impl CachedIntegrator<'_> {
         rng: &mut R,
         trace: &mut TraceStats,
         stats: &mut ShadingStats,
-    ) -> Result<Rgb, RenderError> {
+    ) -> Result<(Rgb, Rgb), RenderError> {
         let (cache, placement) = (self.cache, r.placement);
         if let Some(found) = lookup(cache, self.transport, point, placement) {
             stats.cache_hits += 1;
-            return Ok(found.irradiance);
+            return Ok((found.irradiance, found.variance));
         }
         match r.on_miss {
             OnMiss::Insert => {
@@ -652,7 +670,7 @@ impl CachedIntegrator<'_> {
                 if r.level > 0 {
                     stats.ambient_records += 1;
                 }
-                Ok(record.irradiance)
+                Ok((record.irradiance, record.variance))
             }
             OnMiss::PathTrace => {
                 let relaxed = PlacementOptions {
@@ -662,7 +680,7 @@ impl CachedIntegrator<'_> {
                 if let Some(found) = lookup(cache, self.transport, point, &relaxed) {
                     stats.cache_hits += 1;
                     stats.relaxed_hits += 1;
-                    return Ok(found.irradiance);
+                    return Ok((found.irradiance, found.variance));
                 }
                 stats.cache_misses += 1;
                 stats.fallbacks += 1;
@@ -680,7 +698,7 @@ impl CachedIntegrator<'_> {
                     trace,
                 );
                 let sum = samples.iter().fold(Rgb::BLACK, |a, s| a + s.radiance);
-                Ok(sum * (PI / f64::from(r.fallback_paths)))
+                Ok((sum * (PI / f64::from(r.fallback_paths)), Rgb::BLACK))
             }
         }
     }
