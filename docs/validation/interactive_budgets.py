@@ -38,7 +38,6 @@ import time
 
 import numpy as np
 import OpenEXR
-import pyoidn
 
 
 def read_rgb(path):
@@ -88,6 +87,8 @@ def timed(cmd):
 
 
 def main():
+    import pyoidn  # here, so that pixel_calibration.py can import this module without it
+
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bin", default=os.path.join(root, "target", "release", "bmc-irradiance"))

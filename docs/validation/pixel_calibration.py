@@ -30,6 +30,8 @@ import os
 import numpy as np
 import OpenEXR
 
+from interactive_budgets import lit_mask
+
 
 def read(path):
     with OpenEXR.File(path) as f:
@@ -37,17 +39,6 @@ def read(path):
         rgb = np.asarray(channels["RGB"].pixels, dtype=np.float64)
         variance = np.asarray(channels["variance"].pixels, dtype=np.float64)
     return rgb, variance
-
-
-def lit_mask(reference, limit=1.0, margin=2):
-    keep = (reference <= limit).all(axis=-1)
-    for _ in range(margin):
-        shrunk = keep.copy()
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                shrunk &= np.roll(np.roll(keep, dy, 0), dx, 1)
-        keep = shrunk
-    return keep
 
 
 def main():
