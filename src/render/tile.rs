@@ -19,13 +19,15 @@
 //! variance of the mean for independent rays, an upper bound for
 //! stratified ones. A shader may report a variance of its own for a ray
 //! (the irradiance cache's glossy fallback, docs/math.md §13.3); the pixel
-//! then reports at least the mean of those over spp
-//! ([`MeanEstimate::of_evaluations`]), so a pixel of one ray is not
+//! then reports at least the mean of those over spp, plus the mean of the
+//! variances its rays share (the records they interpolate, docs/math.md
+//! §16.3; [`MeanEstimate::of_evaluations`]), so a pixel of one ray is not
 //! reported exact where its shader knows otherwise.
 //!
 //! Reproducibility: pixel (px, py) draws every random number from
-//! [`pixel_rng`]`(seed, px, py)`, so a pixel's value does not depend on the
-//! tile it belongs to, on the other pixels, or on the thread count.
+//! [`pixel_rng`]`(pass_seed(seed, pass), px, py)` and [`pixel_pattern`]`(seed,
+//! px, py)`, so a pixel's value does not depend on the tile it belongs to,
+//! on the other pixels, or on the thread count.
 
 use rand::RngExt;
 use rand_pcg::Pcg64;
