@@ -70,7 +70,7 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 curl "$BASE/v1/presets"   # draft, preview (the default), standard, final: every knob each sets
 # Tile (tx, ty) of 64-pixel tiles of the camera image, reproducible and cacheable by HTTP:
 curl "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" -o tile.png
-# ?size=64 (tile side) &preset=draft|preview|standard|final &pass=k (mean of passes 0..k; default the
+# ?size=64 (tile side) &preset=draft|preview|interactive|standard|final &pass=k (mean of passes 0..k; default the
 # last) &seed=1 &exposure=0 (PNG) &aov=radiance|std_dev|records &scale=0.2 (std_dev PNG);
 # .exr: R, G, B and per-pixel variance; .json: {"width","height","rgb","variance"}.
 # aov=std_dev: the standard error (PNG: relative, false colour up to `scale`);

@@ -35,7 +35,7 @@ def preview(server: Server) -> Image:
 
 def test_presets_lists_draft_preview_standard_final(client: Client, server: Server) -> None:
     presets = client.presets()
-    assert [p["name"] for p in presets] == ["draft", "preview", "standard", "final"]
+    assert [p["name"] for p in presets] == ["draft", "preview", "interactive", "standard", "final"]
     assert [p["name"] for p in presets if p["default"]] == ["preview"]
     for p in presets:
         assert p["samples_per_pixel"] >= 1 and p["passes"] >= 1 and p["max_depth"] >= 1

@@ -32,6 +32,13 @@ pub enum Preset {
     /// in seconds on two cores.
     #[default]
     Preview,
+    /// Clean enough to work with in about 2 s: the standard preset's depth
+    /// and secondary cache with half its record directions, in five passes
+    /// of 4 camera rays (on the Cornell box cold on two cores: 5.5 % after
+    /// the first pass at 1.1 s, 3.4 % after the fourth at 2.0 s, below path
+    /// tracing with a denoiser from about 1.5 s; docs/BENCHMARKS.md
+    /// "Interactive budgets").
+    Interactive,
     /// A clean image in a few seconds: the final preset's records at half
     /// the directions, in four passes of 16 camera rays (on the Cornell box
     /// cold on two cores: 2.7 % error after the first pass at 2.6 s, 2.3 %
@@ -65,9 +72,10 @@ impl TileSettings {
 }
 
 impl Preset {
-    pub const ALL: [Preset; 4] = [
+    pub const ALL: [Preset; 5] = [
         Preset::Draft,
         Preset::Preview,
+        Preset::Interactive,
         Preset::Standard,
         Preset::Final,
     ];
@@ -76,6 +84,7 @@ impl Preset {
         match self {
             Preset::Draft => "draft",
             Preset::Preview => "preview",
+            Preset::Interactive => "interactive",
             Preset::Standard => "standard",
             Preset::Final => "final",
         }
@@ -93,6 +102,7 @@ impl Preset {
             match self {
                 Preset::Draft => (2, 1, 8, 64, 1, 0.5, 12.0, 1, 8),
                 Preset::Preview => (4, 2, 16, 256, 2, 0.4, 8.0, 4, 16),
+                Preset::Interactive => (4, 5, 64, 256, 1, 0.3, 4.0, 4, 16),
                 Preset::Standard => (16, 4, 64, 512, 1, 0.3, 4.0, 4, 32),
                 Preset::Final => (16, 4, 64, 1024, 1, 0.25, 3.0, 4, 64),
             };
@@ -102,11 +112,11 @@ impl Preset {
         // 0.23–0.5 per tile: 7.2 % → 4.4 % error over 8×8 blocks in half the
         // time; the Cornell boxes' tiles reach 0.15 and keep their records,
         // as do all the studio's but one edge tile, at 0.25). The standard
-        // preset's 512 directions keep the same limit; the cheaper presets'
+        // and interactive presets' 512 and 256 directions keep the same limit; the cheaper presets'
         // records pay at any density seen so far.
-        let full_depth = matches!(self, Preset::Standard | Preset::Final);
+        let full_depth = matches!(self, Preset::Interactive | Preset::Standard | Preset::Final);
         let max_records_per_pixel = full_depth.then_some(0.2);
-        // The final and standard presets' records stop at their rays' first
+        // The final, standard and interactive presets' records stop at their rays' first
         // hits and read the scene's secondary cache there (one light sample
         // per direction, `paths_per_direction`): 2.2× less time × error² on
         // the Cornell box than 4 paths per direction (docs/BENCHMARKS.md "The

@@ -4,12 +4,13 @@
 //! each ray stratifying only its own few samples.
 //!
 //! The pattern is progressive (docs/math.md §16): sample `j` of `M` takes
-//! cell `D(σ(R(τ(j))))` of a `2^⌈k/2⌉ × 2^⌊k/2⌋` grid, `k = ⌊log₂ M⌋`,
+//! cell `D(σ(R(τ(j))))` of a `2^⌈k/2⌉ × 2^⌊k/2⌋` grid, `k = ⌈log₂ M⌉`,
 //! jittered uniformly within the cell, where `τ` and `σ` are nested uniform
 //! (Owen) scrambles of `k` bits keyed per pattern (hash-based, Burley 2020),
 //! `R` reverses the bits, and `D` de-interleaves them into a column (the
-//! even bits from the top) and a row (the odd ones). Samples `j ≥ 2^k` are
-//! uniform on the square (padding). Any aligned block of `2^m` consecutive
+//! even bits from the top) and a row (the odd ones); with `M` not a power of
+//! two, some cells stay empty. Samples `j ≥ 2^k` (past a 32-bit pattern)
+//! are uniform on the square. Any aligned block of `2^m` consecutive
 //! samples (`j` from `a·2^m`) then puts one sample in each cell of the
 //! coarser `2^⌈m/2⌉ × 2^⌊m/2⌋` grid: a pass of `spp` rays is stratified on
 //! its own and so is every aligned run of passes of a power-of-two length,
@@ -28,7 +29,7 @@ use super::seed::mix;
 /// pixel draws it once and hands it to each of its rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SharedStrata {
-    /// `k = ⌊log₂ count⌋` (at most 32): the pattern has `2^k` cells.
+    /// `k = ⌈log₂ count⌉` (at most 32): the pattern has `2^k` cells.
     bits: u32,
     /// Seeds of the index shuffle `τ` and of the scramble `σ`.
     seeds: [u32; 2],
@@ -41,7 +42,7 @@ impl SharedStrata {
     /// independent uniform words.
     pub fn new(count: u64, seeds: [u64; 2]) -> Self {
         let key = mix(seeds[0] ^ mix(seeds[1]));
-        let bits = count.max(1).ilog2().min(32);
+        let bits = count.max(1).next_power_of_two().ilog2().min(32);
         Self {
             bits,
             seeds: [key as u32, (key >> 32) as u32],

@@ -502,7 +502,7 @@ async fn every_preset_estimator_posts_back_unchanged() {
     let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
     let presets: Value = app.get("/v1/presets").await.json().await.unwrap();
     let presets = presets.as_array().expect("a list");
-    assert_eq!(presets.len(), 4);
+    assert_eq!(presets.len(), 5);
     for preset in presets {
         let name = preset["name"].as_str().unwrap();
         let estimator = &preset["estimator"];

@@ -93,7 +93,7 @@ class _Images(_Tiles, _Scenes):
 
         By default the tiles come from the GET route
         (``/v1/scenes/{id}/tiles/{tx}/{ty}.json``) with a quality
-        ``preset`` (``"draft"``, ``"preview"``, ``"standard"``, ``"final"``; see
+        ``preset`` (``"draft"``, ``"preview"``, ``"interactive"``, ``"standard"``, ``"final"``; see
         :meth:`presets`), ``pass_index`` (0-based; pass *k* is the mean of
         passes 0..*k*; default the preset's last) and ``seed``. Each tile is
         reproducible, so the image is the same bytes whatever the order the
@@ -125,7 +125,7 @@ class _Images(_Tiles, _Scenes):
         """
         if preset is not None and not isinstance(preset, str):
             raise TypeError(
-                "preset is a name ('draft', 'preview', 'standard', 'final'); "
+                "preset is a name ('draft', 'preview', 'interactive', 'standard', 'final'); "
                 f"got {preset!r} (camera rays per pixel are spp=...)"
             )
         if tile is not None and size is not None and tile != size:

@@ -28,7 +28,7 @@ class _Service(_Resource):
 
     def presets(self) -> list[dict[str, Any]]:
         """``GET /v1/presets``: the quality presets of camera tiles, cheapest
-        first (``draft``, ``preview``, ``standard``, ``final``). Each is a
+        first (``draft``, ``preview``, ``interactive``, ``standard``, ``final``). Each is a
         dict with ``name``, ``default`` (``True`` for the one used when none
         is named, ``preview``), ``samples_per_pixel`` (camera rays per pixel
         in each pass), ``passes``, ``max_depth`` and ``estimator`` (the

@@ -107,7 +107,8 @@ class _Tiles(_Resource):
           the tile's column and row on the grid of ``size``-pixel squares
           (service default 64; edge tiles are smaller). ``preset``
           (``"draft"``, ``"preview"`` — the service's default —,
-          ``"standard"`` or ``"final"``, see :meth:`presets`), ``pass_index`` (0-based; pass
+          ``"interactive"``, ``"standard"`` or ``"final"``, see :meth:`presets`),
+          ``pass_index`` (0-based; pass
           *k* is the mean of passes 0..*k*; default the preset's last),
           ``seed`` (default 1) and ``aov`` (``"radiance"`` or
           ``"std_dev"``: ``rgb`` is then the per-pixel standard error).

@@ -10,7 +10,7 @@
 //! whose `If-None-Match` names it gets 304 without any rendering.
 //!
 //! Query parameters (all optional): `size` (tile side, default
-//! [`DEFAULT_TILE_SIZE`]), `preset` (`draft`, `preview` default, `standard`, `final`),
+//! [`DEFAULT_TILE_SIZE`]), `preset` (`draft`, `preview` default, `interactive`, `standard`, `final`),
 //! `pass` (0-based; default the preset's last: the final image; pass `k`
 //! is the mean of passes `0..=k`), `seed` (default 1), `exposure` (stops,
 //! PNG radiance only), `aov` (`radiance` default, `std_dev`, `records`) and
@@ -72,7 +72,7 @@ pub enum Aov {
 pub struct TileQuery {
     /// Tile side in pixels, 1..=√`limits.max_tile_area`; default 64.
     pub size: Option<u32>,
-    /// `draft`, `preview` (default), `standard` or `final`.
+    /// `draft`, `preview` (default), `interactive`, `standard` or `final`.
     #[param(value_type = Option<String>)]
     pub preset: Option<Preset>,
     /// Pass to show, 0-based (the mean of passes `0..=pass`); default the last.

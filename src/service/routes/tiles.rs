@@ -38,7 +38,8 @@ pub struct TileRequestDoc {
     #[schema(value_type = String)]
     pub format: ImageEncoding,
     /// Quality preset whose knobs the fields below override: `draft`,
-    /// `preview` (default) or `final` (see `integrator::preset`).
+    /// `preview` (default), `interactive`, `standard` or `final` (see
+    /// `integrator::preset`).
     #[schema(value_type = Option<String>)]
     pub preset: Option<Preset>,
     /// Pass to return, 0-based: the mean of passes `0..=pass`; default the
