@@ -67,7 +67,7 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 # rays counts every ray the request caused; amortised_rays, those of the work the first
 # request of a configuration does for every later one (calibration, kernel fit): 0 next time
 
-curl "$BASE/v1/presets"   # draft, preview (the default), standard, final: every knob each sets
+curl "$BASE/v1/presets"   # draft, preview (the default), interactive, standard, final: every knob each sets
 # Tile (tx, ty) of 64-pixel tiles of the camera image, reproducible and cacheable by HTTP:
 curl "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" -o tile.png
 # ?size=64 (tile side) &preset=draft|preview|interactive|standard|final &pass=k (mean of passes 0..k; default the
