@@ -61,8 +61,10 @@ impl SharedStrata {
         if k == 0 || j >> k != 0 {
             return u;
         }
-        let shuffled = owen_scramble(j as u32, k, self.seeds[0]);
-        let code = owen_scramble(reverse(shuffled, k), k, self.seeds[1]);
+        // `R(τ(j))` is the hash of `R(j)` itself: `τ`'s outer reversal and
+        // `R` cancel, so neither is computed.
+        let shuffled = laine_karras(reverse(j as u32, k), self.seeds[0]);
+        let code = owen_scramble(shuffled, k, self.seeds[1]);
         // De-interleave from the top bit: column, row, column, … With a zero
         // appended when `k` is odd, the column holds the odd bits and the
         // row the even ones (the row then one zero too many at the bottom).
@@ -92,13 +94,18 @@ fn reverse(v: u32, k: u32) -> u32 {
 /// word is uniform when the seed is (its first step adds the seed), and the
 /// coins of distinct nodes are close to independent.
 fn owen_scramble(v: u32, k: u32, seed: u32) -> u32 {
-    let mut x = reverse(v, k);
+    reverse(laine_karras(reverse(v, k), seed), k)
+}
+
+/// The hash of [`owen_scramble`]: a bijection of 32-bit words whose bit `i`
+/// depends only on bits `0..=i` of `x` and on the seed.
+fn laine_karras(mut x: u32, seed: u32) -> u32 {
     x ^= x.wrapping_mul(0x3D20_ADEA);
     x = x.wrapping_add(seed);
     x = x.wrapping_mul((seed >> 16) | 1);
     x ^= x.wrapping_mul(0x0552_6C56);
     x ^= x.wrapping_mul(0x53A2_2864);
-    reverse(x, k)
+    x
 }
 
 /// Bits 0, 2, 4, … of `x` packed into its low half (bit `2i` to bit `i`).
