@@ -139,6 +139,16 @@ pub struct Interpolated {
     pub records_used: usize,
 }
 
+impl Interpolated {
+    /// The variance of the interpolated irradiance as an estimate of the
+    /// true one, (W/m²)²: the records' own [`Self::variance`] plus their
+    /// disagreement [`Self::spread`], which stands in for the interpolation
+    /// error the first leaves out (docs/math.md §16.3).
+    pub fn error_variance(&self) -> Rgb {
+        self.variance + self.spread
+    }
+}
+
 /// Counters, serialisable for the service's stats endpoint. `records =
 /// inserts − evictions − cleared` always holds; `hits + misses = lookups`
 /// holds whenever no lookup is in flight.

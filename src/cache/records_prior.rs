@@ -87,7 +87,7 @@ impl<'a> RecordsPrior<'a> {
                 let e = found.irradiance;
                 let prior = PriorAt {
                     mean: e,
-                    variance: found.variance + found.spread,
+                    variance: found.error_variance(),
                     modelled: e * e * source.relative_error2,
                 };
                 Some((source, prior))

@@ -34,8 +34,12 @@ impl Evaluation {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeanEstimate {
     pub mean: Rgb,
-    /// Unbiased sample variance divided by the sample count (0 for one sample).
+    /// Unbiased sample variance divided by the sample count (0 for one
+    /// sample), plus [`Self::shared`].
     pub variance_of_mean: Rgb,
+    /// The part of `variance_of_mean` that the evaluations share (the mean
+    /// of their [`Evaluation::shared`]), which more of them would not lower.
+    pub shared: Rgb,
 }
 
 impl MeanEstimate {
@@ -71,9 +75,11 @@ impl MeanEstimate {
                 spread[c]
             }
         });
+        let shared = shared * (1.0 / n);
         Self {
             mean: running.mean(),
-            variance_of_mean: Rgb::from_array(variance) + shared * (1.0 / n),
+            variance_of_mean: Rgb::from_array(variance) + shared,
+            shared,
         }
     }
 
@@ -81,6 +87,7 @@ impl MeanEstimate {
         Self {
             mean: self.mean * s,
             variance_of_mean: self.variance_of_mean * (s * s),
+            shared: self.shared * (s * s),
         }
     }
 }
@@ -140,6 +147,7 @@ mod tests {
         }));
         assert_eq!(shared.mean, plain.mean);
         assert!((shared.variance_of_mean.r - (1.75 + 2.0)).abs() < 1e-12);
+        assert_eq!(shared.shared, Rgb::new(2.0, 2.0, 0.0));
         assert!((shared.variance_of_mean.g - 2.0).abs() < 1e-12);
         assert_eq!(shared.variance_of_mean.b, 0.0);
     }

@@ -30,6 +30,7 @@ pub(crate) mod lights;
 mod mean;
 pub mod microfacet;
 mod path;
+mod pixel_variance;
 #[doc(hidden)]
 pub mod polygon;
 mod query;

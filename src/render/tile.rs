@@ -15,7 +15,8 @@
 //! which of the pixel's rays it is ([`PixelSample`]), so a shader can
 //! stratify other dimensions over all of them (the irradiance cache's light
 //! samples and the path tracer's first-vertex samples). The image stores the mean and
-//! the sample variance / spp, averaged over RGB (see [`Image`]): the
+//! the sample variance / spp, averaged over RGB (see [`Image`]) and pooled
+//! with the pixel's neighbours' in the tile ([`pooled_variances`]): the
 //! variance of the mean for independent rays, an upper bound for
 //! stratified ones. A shader may report a variance of its own for a ray
 //! (the irradiance cache's glossy fallback, docs/math.md §13.3); the pixel
@@ -37,6 +38,7 @@ use super::cancel::Cancel;
 use super::error::RenderError;
 use super::mean::{Evaluation, MeanEstimate};
 use super::path::{PathDepth, TraceStats};
+use super::pixel_variance::pooled_variances;
 use super::seed::{mix, point_rng};
 use super::strata::SharedStrata;
 use crate::image::Image;
@@ -296,13 +298,8 @@ pub fn render_tile_with(
         .iter()
         .map(|(e, _)| e.mean.to_array().map(|c| c as f32))
         .collect();
-    let variance = pixels
-        .iter()
-        .map(|(e, _)| {
-            let v = e.variance_of_mean;
-            ((v.r + v.g + v.b) / 3.0) as f32
-        })
-        .collect();
+    let estimates: Vec<MeanEstimate> = pixels.iter().map(|(e, _)| *e).collect();
+    let variance = pooled_variances(width, &estimates);
     let image =
         Image::from_parts(request.width, request.height, rgb, Some(variance)).map_err(|e| {
             RenderError::InvalidOption {
@@ -334,6 +331,28 @@ pub(crate) mod tests {
             pass: 0,
             passes: 1,
         }
+    }
+
+    /// `tiled` is `whole` rendered in tiles of `tile` pixels: the same
+    /// values everywhere, the same variances wherever a pixel's 3×3
+    /// neighbourhood lies in one tile (elsewhere it pools over fewer
+    /// neighbours, [`pooled_variances`]).
+    pub(crate) fn assert_tiling_keeps_the_image(tiled: &Image, whole: &Image, tile: u32) {
+        assert_eq!(tiled.rgb(), whole.rgb());
+        let (w, h) = (whole.width(), whole.height());
+        let inside = |c: u32, size: u32| {
+            (c % tile != 0 || c == 0) && ((c + 1) % tile != 0 || c + 1 == size)
+        };
+        let (a, b) = (tiled.variance().expect("variance"), whole.variance().expect("variance"));
+        let mut compared = 0;
+        for y in (0..h).filter(|&y| inside(y, h)) {
+            for x in (0..w).filter(|&x| inside(x, w)) {
+                let i = (y * w + x) as usize;
+                assert_eq!(a[i], b[i], "pixel ({x}, {y})");
+                compared += 1;
+            }
+        }
+        assert!(compared > 0);
     }
 
     /// Records every ray's pixel sample and film position.

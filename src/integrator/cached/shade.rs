@@ -649,7 +649,7 @@ impl CachedIntegrator<'_> {
         let (cache, placement) = (self.cache, r.placement);
         if let Some(found) = lookup(cache, self.transport, point, placement) {
             stats.cache_hits += 1;
-            return Ok((found.irradiance, found.variance));
+            return Ok((found.irradiance, found.error_variance()));
         }
         match r.on_miss {
             OnMiss::Insert => {
@@ -680,7 +680,7 @@ impl CachedIntegrator<'_> {
                 if let Some(found) = lookup(cache, self.transport, point, &relaxed) {
                     stats.cache_hits += 1;
                     stats.relaxed_hits += 1;
-                    return Ok((found.irradiance, found.variance));
+                    return Ok((found.irradiance, found.error_variance()));
                 }
                 stats.cache_misses += 1;
                 stats.fallbacks += 1;
