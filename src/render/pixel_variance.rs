@@ -4,39 +4,57 @@
 
 use super::mean::MeanEstimate;
 
-/// The reported variance of each pixel of a `width`-pixel-wide tile whose
-/// estimates are `pixels` in row order, mean over RGB ((W/(m²·sr))²): the
-/// larger of the pixel's own noise (its variance of the mean less the
-/// shared part) and the mean of that over its 3×3 neighbourhood within the
-/// tile, plus its shared part ([`MeanEstimate::shared`]).
-///
-/// Why: a pixel's sample variance over `K` rays has `K − 1` degrees of
-/// freedom, so with few rays it is often far too small (with `K = 2`, ±2 of
-/// it covers 70 % of errors, a Student t with one degree of freedom); the
-/// neighbourhood's mean has about nine times the degrees of freedom, and the
-/// larger of the two keeps a pixel noisier than its neighbours (an edge, a
-/// highlight) from being under-reported. Only pixels of the tile pool, so a
-/// tile's output depends on the tile alone.
-pub fn pooled_variances(width: usize, pixels: &[MeanEstimate]) -> Vec<f32> {
-    let mean_rgb = |v: super::rgb::Rgb| (v.r + v.g + v.b) / 3.0;
-    let own: Vec<f64> = pixels
-        .iter()
-        .map(|e| mean_rgb(e.variance_of_mean - e.shared).max(0.0))
-        .collect();
-    let height = pixels.len().checked_div(width).unwrap_or(0);
-    (0..pixels.len())
-        .map(|i| {
-            let (x, y) = (i % width, i / width);
-            let (mut sum, mut count) = (0.0, 0.0);
-            for ny in y.saturating_sub(1)..=(y + 1).min(height - 1) {
-                for nx in x.saturating_sub(1)..=(x + 1).min(width - 1) {
-                    sum += own[ny * width + nx];
-                    count += 1.0;
+/// Per pixel of a tile, mean over RGB ((W/(m²·sr))²): the variance its
+/// image reports, and the part of it that the pixel's rays share.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PixelVariances {
+    /// The larger of the pixel's own noise (its variance of the mean less
+    /// the shared part) and the mean of that over its 3×3 neighbourhood
+    /// within the tile, plus [`Self::shared`].
+    pub variance: Vec<f32>,
+    /// [`MeanEstimate::shared`]: the records' error, which more rays or
+    /// passes over the same records do not lower (docs/math.md §16.3).
+    pub shared: Vec<f32>,
+}
+
+impl PixelVariances {
+    /// The variances of a `width`-pixel-wide tile whose estimates are
+    /// `pixels` in row order.
+    ///
+    /// Why pool: a pixel's sample variance over `K` rays has `K − 1`
+    /// degrees of freedom, so with few rays it is often far too small (with
+    /// `K = 2`, ±2 of it covers 70 % of errors, a Student t with one degree
+    /// of freedom); the neighbourhood's mean has about nine times the
+    /// degrees of freedom, and the larger of the two keeps a pixel noisier
+    /// than its neighbours (an edge, a highlight) from being under-reported
+    /// (docs/math.md §16.4). Only pixels of the tile pool, so a tile's
+    /// output depends on the tile alone.
+    pub fn of_tile(width: usize, pixels: &[MeanEstimate]) -> Self {
+        let mean_rgb = |v: super::rgb::Rgb| (v.r + v.g + v.b) / 3.0;
+        let own: Vec<f64> = pixels
+            .iter()
+            .map(|e| mean_rgb(e.variance_of_mean - e.shared).max(0.0))
+            .collect();
+        let shared: Vec<f64> = pixels.iter().map(|e| mean_rgb(e.shared)).collect();
+        let height = pixels.len().checked_div(width).unwrap_or(0);
+        let variance = (0..pixels.len())
+            .map(|i| {
+                let (x, y) = (i % width, i / width);
+                let (mut sum, mut count) = (0.0, 0.0);
+                for ny in y.saturating_sub(1)..=(y + 1).min(height - 1) {
+                    for nx in x.saturating_sub(1)..=(x + 1).min(width - 1) {
+                        sum += own[ny * width + nx];
+                        count += 1.0;
+                    }
                 }
-            }
-            (own[i].max(sum / count) + mean_rgb(pixels[i].shared)) as f32
-        })
-        .collect()
+                (own[i].max(sum / count) + shared[i]) as f32
+            })
+            .collect();
+        Self {
+            variance,
+            shared: shared.into_iter().map(|s| s as f32).collect(),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -65,7 +83,7 @@ mod tests {
             estimate(0.0, 5.0),
             estimate(4.0, 0.0),
         ];
-        let v = pooled_variances(3, &pixels);
+        let PixelVariances { variance: v, shared } = PixelVariances::of_tile(3, &pixels);
         // Pixel (0, 0): mean of 0, 6, 2, 0 over its 4 neighbours in the tile.
         assert_eq!(v[0], 2.0);
         // Pixel (1, 0): its own 6 beats the mean of all six, 2; plus its 1 shared.
@@ -74,7 +92,8 @@ mod tests {
         assert_eq!(v[4], 7.0);
         // Pixel (2, 1): own 4 beats (6 + 0 + 0 + 4) / 4.
         assert_eq!(v[5], 4.0);
-        assert!(pooled_variances(3, &[]).is_empty());
+        assert_eq!(shared, [0.0, 1.0, 0.0, 0.0, 5.0, 0.0]);
+        assert_eq!(PixelVariances::of_tile(3, &[]), PixelVariances::default());
     }
 
     /// Two rays per pixel of a uniform noise field: ±2 standard errors of
@@ -102,7 +121,8 @@ mod tests {
             within as f64 / pixels.len() as f64
         };
         let own: Vec<f64> = pixels.iter().map(|e| e.variance_of_mean.r).collect();
-        let pooled: Vec<f64> = pooled_variances(width, &pixels)
+        let pooled: Vec<f64> = PixelVariances::of_tile(width, &pixels)
+            .variance
             .into_iter()
             .map(f64::from)
             .collect();

@@ -16,7 +16,7 @@
 //! stratify other dimensions over all of them (the irradiance cache's light
 //! samples and the path tracer's first-vertex samples). The image stores the mean and
 //! the sample variance / spp, averaged over RGB (see [`Image`]) and pooled
-//! with the pixel's neighbours' in the tile ([`pooled_variances`]): the
+//! with the pixel's neighbours' in the tile ([`PixelVariances`]): the
 //! variance of the mean for independent rays, an upper bound for
 //! stratified ones. A shader may report a variance of its own for a ray
 //! (the irradiance cache's glossy fallback, docs/math.md §13.3); the pixel
@@ -38,7 +38,7 @@ use super::cancel::Cancel;
 use super::error::RenderError;
 use super::mean::{Evaluation, MeanEstimate};
 use super::path::{PathDepth, TraceStats};
-use super::pixel_variance::pooled_variances;
+use super::pixel_variance::PixelVariances;
 use super::seed::{mix, point_rng};
 use super::strata::SharedStrata;
 use crate::image::Image;
@@ -165,6 +165,10 @@ pub struct RenderedTile {
     pub x: u32,
     pub y: u32,
     pub image: Image,
+    /// Per pixel, the part of the image's variance that the pixel's rays
+    /// share ([`PixelVariances::shared`]): passes over the same records
+    /// do not average it out.
+    pub shared: Vec<f32>,
     /// Closest-hit plus shadow rays traced, camera rays included.
     pub rays: u64,
 }
@@ -299,7 +303,7 @@ pub fn render_tile_with(
         .map(|(e, _)| e.mean.to_array().map(|c| c as f32))
         .collect();
     let estimates: Vec<MeanEstimate> = pixels.iter().map(|(e, _)| *e).collect();
-    let variance = pooled_variances(width, &estimates);
+    let PixelVariances { variance, shared } = PixelVariances::of_tile(width, &estimates);
     let image =
         Image::from_parts(request.width, request.height, rgb, Some(variance)).map_err(|e| {
             RenderError::InvalidOption {
@@ -311,6 +315,7 @@ pub fn render_tile_with(
         x: request.x,
         y: request.y,
         image,
+        shared,
         rays,
     })
 }
@@ -336,7 +341,7 @@ pub(crate) mod tests {
     /// `tiled` is `whole` rendered in tiles of `tile` pixels: the same
     /// values everywhere, the same variances wherever a pixel's 3×3
     /// neighbourhood lies in one tile (elsewhere it pools over fewer
-    /// neighbours, [`pooled_variances`]).
+    /// neighbours, [`PixelVariances::of_tile`]).
     pub(crate) fn assert_tiling_keeps_the_image(tiled: &Image, whole: &Image, tile: u32) {
         assert_eq!(tiled.rgb(), whole.rgb());
         let (w, h) = (whole.width(), whole.height());

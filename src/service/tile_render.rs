@@ -221,6 +221,7 @@ pub fn render_progressive(
             };
             Ok(RenderedPass {
                 image: tile.image,
+                shared: tile.shared,
                 rays: tile.rays,
                 cache_hits,
             })
@@ -242,15 +243,45 @@ pub fn render_progressive(
     // queries meet them through the tile store (`tile_priors`), the same
     // on every replica whichever of them rendered the tile.
     let records_created = created.into_inner();
-    let images: Vec<&Image> = passes.iter().map(|p| &p.image).collect();
     Ok(ProgressiveTile {
-        image: Image::mean_of(&images)?,
+        image: mean_of_passes(&passes)?,
         records,
         rays,
         records_created,
         cache_hits,
         passes_rendered,
     })
+}
+
+/// The mean of the passes' images, with its variance: their own noise
+/// averages out ([`Image::mean_of`] divides the sum of the variances by
+/// `n²`), the records' error they share does not, so its mean over the
+/// passes is the shared part's variance of the mean (docs/math.md §16.3).
+fn mean_of_passes(passes: &[Arc<RenderedPass>]) -> Result<Image, ApiError> {
+    let images: Vec<&Image> = passes.iter().map(|p| &p.image).collect();
+    let mean = Image::mean_of(&images)?;
+    let n = passes.len() as f64;
+    let Some(variance) = mean.variance() else {
+        return Ok(mean);
+    };
+    let variance = variance
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let shared: f64 = passes
+                .iter()
+                .filter_map(|p| p.shared.get(i))
+                .map(|&s| f64::from(s))
+                .sum();
+            (f64::from(v) + shared * (n - 1.0) / (n * n)) as f32
+        })
+        .collect();
+    Ok(Image::from_parts(
+        mean.width(),
+        mean.height(),
+        mean.rgb().to_vec(),
+        Some(variance),
+    )?)
 }
 
 #[cfg(test)]
@@ -302,5 +333,24 @@ mod tests {
         assert_eq!(depth(&deep, Some(5)), 5);
         let refused = cornell(Some(0)).err().expect("depth 0 refused");
         assert_eq!(refused.field(), Some("max_depth"));
+    }
+
+    /// Two passes of one pixel, each of variance 3 of which 2 is shared:
+    /// the mean's own part halves (1 → 0.5), the shared part stays 2.
+    #[test]
+    fn passes_average_their_own_noise_but_not_the_records_error() {
+        let pass = |value: f32| {
+            Arc::new(RenderedPass {
+                image: Image::from_parts(1, 1, vec![[value; 3]], Some(vec![3.0])).unwrap(),
+                shared: vec![2.0],
+                rays: 1,
+                cache_hits: 0,
+            })
+        };
+        let mean = mean_of_passes(&[pass(1.0), pass(3.0)]).unwrap();
+        assert_eq!(mean.pixel(0, 0), Some([2.0; 3]));
+        assert_eq!(mean.variance(), Some(&[2.5][..]));
+        let one = mean_of_passes(&[pass(1.0)]).unwrap();
+        assert_eq!(one.variance(), Some(&[3.0][..]));
     }
 }

@@ -65,6 +65,9 @@ pub struct TileRecords {
 /// One rendered pass of a tile.
 pub struct RenderedPass {
     pub image: Image,
+    /// Per pixel, the part of the image's variance its rays share
+    /// (`render::RenderedTile::shared`); empty for an image without one.
+    pub shared: Vec<f32>,
     /// Rays the pass traced (camera and shading rays).
     pub rays: u64,
     /// Diffuse shading points served by records.
@@ -550,24 +553,24 @@ fn received_radius_limits() -> RadiusLimits {
         .expect("the default cache configuration is valid")
 }
 
-/// `width, height: u32 | rays, cache_hits: u64 | has variance: u8 | rgb
-/// f32s | variance f32s`, little-endian.
+/// `width, height: u32 | rays, cache_hits: u64 | variances: u8 (0 none,
+/// 1 the image's, 2 the image's and the shared parts) | rgb f32s | variance
+/// f32s | shared f32s`, little-endian.
 fn encode_pass(pass: &RenderedPass) -> Vec<u8> {
     let image = &pass.image;
-    let mut out = Vec::with_capacity(25 + image.rgb().len() * 16);
+    let mut out = Vec::with_capacity(25 + image.rgb().len() * 20);
     out.extend(image.width().to_le_bytes());
     out.extend(image.height().to_le_bytes());
     out.extend(pass.rays.to_le_bytes());
     out.extend(pass.cache_hits.to_le_bytes());
-    out.push(u8::from(image.variance().is_some()));
+    let variances = match (image.variance(), pass.shared.is_empty()) {
+        (None, _) => &[][..],
+        (Some(v), true) => &[v][..],
+        (Some(v), false) => &[v, &pass.shared[..]][..],
+    };
+    out.push(variances.len() as u8);
     out.extend(image.rgb().iter().flatten().flat_map(|c| c.to_le_bytes()));
-    out.extend(
-        image
-            .variance()
-            .into_iter()
-            .flatten()
-            .flat_map(|v| v.to_le_bytes()),
-    );
+    out.extend(variances.iter().copied().flatten().flat_map(|v| v.to_le_bytes()));
     out
 }
 
@@ -579,7 +582,10 @@ fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
     let u64_at = |i: usize| Some(u64::from_le_bytes(bytes.get(i..i + 8)?.try_into().ok()?));
     let (width, height) = (u32_at(0)?, u32_at(4)?);
     let (rays, cache_hits) = (u64_at(8)?, u64_at(16)?);
-    let has_variance = *bytes.get(24)? == 1;
+    let layers = usize::from(*bytes.get(24)?);
+    if layers > 2 {
+        return None;
+    }
     let pixels = (width as usize).checked_mul(height as usize)?;
     if pixels > max_area {
         return None;
@@ -589,7 +595,7 @@ fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
         .collect();
-    if floats.len() != pixels * (3 + usize::from(has_variance))
+    if floats.len() != pixels * (3 + layers)
         || !bytes[25..].len().is_multiple_of(4)
     {
         return None;
@@ -608,10 +614,12 @@ fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
         .chunks_exact(3)
         .map(|c| [c[0], c[1], c[2]])
         .collect();
-    let variance = has_variance.then(|| floats[3 * pixels..].to_vec());
+    let variance = (layers > 0).then(|| floats[3 * pixels..4 * pixels].to_vec());
+    let shared = floats[(3 + layers.min(1)) * pixels..].to_vec();
     let image = Image::from_parts(width, height, rgb, variance).ok()?;
     Some(RenderedPass {
         image,
+        shared,
         rays,
         cache_hits,
     })
