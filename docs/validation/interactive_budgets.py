@@ -4,9 +4,12 @@ Image Denoise against the service's presets, error vs truth and wall time in
 one run.
 
 - Path tracing: `bmc-irradiance render --method path --spp S` (all cores),
-  then `pyoidn.denoise(color, hdr=True)` on its RGB (no albedo or normal
-  buffer: the renderer writes none). The time is the render's wall time plus
-  the denoiser's.
+  then `pyoidn.denoise(color, hdr=True)` on its RGB, and with `--aux` (an
+  `.npz` of mitsuba_aux.py) again with the first hits' albedo and normal
+  buffers (`clean_aux=True`), as a path tracer would hand them to OIDN. The
+  time is the render's wall time plus the denoiser's: the buffers come from
+  the camera rays' first hits, so they are not timed. Each budget takes the
+  better of the two.
 - The service: for each preset a freshly started server on an empty data
   directory (cold), `bmc-irradiance fetch --preset P --pass k` of the whole
   image as GET tiles for each of the preset's passes in turn (as the
@@ -25,7 +28,8 @@ dependency of the project):
 
     python3 -m venv /tmp/oidnvenv && /tmp/oidnvenv/bin/pip install pyoidn numpy OpenEXR
     cargo build --release
-    /tmp/oidnvenv/bin/python docs/validation/interactive_budgets.py \\
+    /tmp/mtsvenv/bin/python docs/validation/mitsuba_aux.py scenes/cornell-box.xml 64 aux.npz
+    /tmp/oidnvenv/bin/python docs/validation/interactive_budgets.py --aux aux.npz \\
         --spp 4 16 32 96 192 --presets draft preview standard final
 """
 
@@ -101,6 +105,7 @@ def main():
     ap.add_argument("--presets", nargs="*", default=["draft", "preview", "final"])
     ap.add_argument("--port", type=int, default=18777)
     ap.add_argument("--budgets", type=float, nargs="*", default=[0.3, 1, 2, 5, 10])
+    ap.add_argument("--aux", help="albedo and normal buffers (.npz of mitsuba_aux.py) for OIDN")
     args = ap.parse_args()
     score = Scorer(args.reference, args.reference_noise)
     work = tempfile.mkdtemp(prefix="budgets-")
@@ -110,6 +115,10 @@ def main():
     print("| what | time, s | rel. RMSE raw | vs truth |")
     print("|---|---|---|---|")
     pyoidn.denoise(np.zeros((8, 8, 3), np.float32), hdr=True)  # the device's start-up, not timed
+    aux = None
+    if args.aux:
+        with np.load(args.aux) as f:
+            aux = {k: np.ascontiguousarray(f[k], dtype=np.float32) for k in ("albedo", "normal")}
     rows = []  # (side, what, seconds, vs truth)
     for spp in args.spp:
         out = os.path.join(work, f"path{spp}.exr")
@@ -124,6 +133,14 @@ def main():
         raw, truth = score(clean)
         print(f"| path {spp} spp + OIDN | {wall + denoise:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
         rows.append(("path tracing + OIDN", f"{spp} spp", wall + denoise, truth))
+        if aux is not None:
+            start = time.monotonic()
+            clean = pyoidn.denoise(noisy, aux["albedo"], aux["normal"], hdr=True, clean_aux=True)
+            denoise = time.monotonic() - start
+            raw, truth = score(clean)
+            what = f"{spp} spp, albedo and normal"
+            print(f"| path {what} + OIDN | {wall + denoise:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
+            rows.append(("path tracing + OIDN", what, wall + denoise, truth))
     for preset in args.presets:
         data = os.path.join(work, f"data-{preset}")
         os.makedirs(data)

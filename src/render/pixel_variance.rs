@@ -83,7 +83,10 @@ mod tests {
             estimate(0.0, 5.0),
             estimate(4.0, 0.0),
         ];
-        let PixelVariances { variance: v, shared } = PixelVariances::of_tile(3, &pixels);
+        let PixelVariances {
+            variance: v,
+            shared,
+        } = PixelVariances::of_tile(3, &pixels);
         // Pixel (0, 0): mean of 0, 6, 2, 0 over its 4 neighbours in the tile.
         assert_eq!(v[0], 2.0);
         // Pixel (1, 0): its own 6 beats the mean of all six, 2; plus its 1 shared.

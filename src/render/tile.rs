@@ -345,10 +345,12 @@ pub(crate) mod tests {
     pub(crate) fn assert_tiling_keeps_the_image(tiled: &Image, whole: &Image, tile: u32) {
         assert_eq!(tiled.rgb(), whole.rgb());
         let (w, h) = (whole.width(), whole.height());
-        let inside = |c: u32, size: u32| {
-            (c % tile != 0 || c == 0) && ((c + 1) % tile != 0 || c + 1 == size)
-        };
-        let (a, b) = (tiled.variance().expect("variance"), whole.variance().expect("variance"));
+        let inside =
+            |c: u32, size: u32| (c % tile != 0 || c == 0) && ((c + 1) % tile != 0 || c + 1 == size);
+        let (a, b) = (
+            tiled.variance().expect("variance"),
+            whole.variance().expect("variance"),
+        );
         let mut compared = 0;
         for y in (0..h).filter(|&y| inside(y, h)) {
             for x in (0..w).filter(|&x| inside(x, w)) {

@@ -570,7 +570,13 @@ fn encode_pass(pass: &RenderedPass) -> Vec<u8> {
     };
     out.push(variances.len() as u8);
     out.extend(image.rgb().iter().flatten().flat_map(|c| c.to_le_bytes()));
-    out.extend(variances.iter().copied().flatten().flat_map(|v| v.to_le_bytes()));
+    out.extend(
+        variances
+            .iter()
+            .copied()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes()),
+    );
     out
 }
 
@@ -595,9 +601,7 @@ fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
         .collect();
-    if floats.len() != pixels * (3 + layers)
-        || !bytes[25..].len().is_multiple_of(4)
-    {
+    if floats.len() != pixels * (3 + layers) || !bytes[25..].len().is_multiple_of(4) {
         return None;
     }
     let (max_value, max_variance) = (

@@ -224,14 +224,18 @@ async fn replicas_share_scenes_and_records_and_survive_a_death() {
         .await
         .unwrap();
     assert_eq!(posted.status(), 201);
-    let mut uploaded = Vec::new();
-    for (_, addr) in &replicas {
-        let url = format!("http://{addr}/v1/scenes/uploaded/tiles/0/0.png?size=16&preset=draft");
-        let response = client.get(&url).send().await.unwrap();
-        assert_eq!(response.status(), 200, "{url}");
-        uploaded.push(response.bytes().await.unwrap());
+    // The same bytes from every replica, for a whole preset and for an
+    // intermediate pass of a progressive one.
+    for query in ["preset=draft", "preset=preview&pass=0"] {
+        let mut uploaded = Vec::new();
+        for (_, addr) in &replicas {
+            let url = format!("http://{addr}/v1/scenes/uploaded/tiles/0/0.png?size=16&{query}");
+            let response = client.get(&url).send().await.unwrap();
+            assert_eq!(response.status(), 200, "{url}");
+            uploaded.push(response.bytes().await.unwrap());
+        }
+        assert!(uploaded.windows(2).all(|w| w[0] == w[1]), "{query}");
     }
-    assert!(uploaded.windows(2).all(|w| w[0] == w[1]));
 
     let urls: Vec<String> = (0..4)
         .flat_map(|ty| (0..4).map(move |tx| (tx, ty)))

@@ -1,5 +1,6 @@
 //! `GET /v1/scenes/{id}/tiles/{tx}/{ty}.{format}` end to end: reproducible
-//! bytes and ETags (across other requests and a restart), 304s, passes
+//! bytes and ETags (across other requests and a restart, for the last pass
+//! and an intermediate one), 304s, passes
 //! without wasted work, the AOVs, CORS and bad parameters.
 
 use crate::common::{TestApp, error_of, spawn_app_in};
@@ -89,6 +90,10 @@ async fn the_same_url_gives_the_same_bytes_across_requests_and_restarts() {
     // Another exposure is another entity.
     let (_, other_headers, _) = fetch(&app, &format!("/v1/scenes/box/tiles/1/0.png?{DRAFT}")).await;
     assert_ne!(other_headers["etag"], etag.as_str());
+    // An intermediate pass of a progressive preset, as the viewer's ladder asks for it.
+    let pass_url = "/v1/scenes/box/tiles/0/0.exr?size=32&preset=preview&pass=0";
+    let (status, _, pass_bytes) = fetch(&app, pass_url).await;
+    assert_eq!(status, StatusCode::OK);
     // After a restart (a new process state, the same scene files).
     let copy = tempfile::tempdir().unwrap();
     std::fs::copy(
@@ -101,6 +106,7 @@ async fn the_same_url_gives_the_same_bytes_across_requests_and_restarts() {
     let (_, headers, bytes) = fetch(&restarted, &url).await;
     assert_eq!(headers["etag"], etag.as_str());
     assert_eq!(bytes, first);
+    assert_eq!(fetch(&restarted, pass_url).await.2, pass_bytes);
 }
 
 #[tokio::test]
