@@ -105,8 +105,8 @@ curl -X POST "$BASE/v1/scenes/cornell-box/radiance" -H 'content-type: applicatio
      -d '{"points": [{"position": [0.1, 0.6, -1.0], "normal": [0, 0, 1], "direction": [0.2, -0.1, 1]}],
           "estimator": {"method": "cache"}, "repeats": 16, "max_depth": 16, "seed": 1}'
 # → {"radiance": [[r,g,b]], "std_dev": [[r,g,b]], "rays": n}  (W/(m²·sr) leaving the surface towards "direction")
-curl "$BASE/v1/scenes/cornell-box/cache"           # irradiance-cache stats per estimator configuration
-curl -X DELETE "$BASE/v1/scenes/cornell-box/cache" # drop the scene's records (secondary caches too)
+curl "$BASE/v1/scenes/cornell-box/cache"           # cache stats per estimator configuration; tiles' content-keyed records
+curl -X DELETE "$BASE/v1/scenes/cornell-box/cache" # drop the shared caches' records (secondary too; content-keyed ones stay)
 
 curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: application/json' \
      -d '{"points": [{"position": [0, -0.99, 0], "normal": [0, 1, 0]}],

@@ -127,6 +127,7 @@ def test_service_routes(client: Client, server: Server) -> None:
     assert status == 200 and stats == doc
     cleared = client.clear_cache("cornell-box")
     assert cleared["cleared_records"] >= 0 and cleared["scene"] == "cornell-box"
+    assert cleared["content_keyed"] == stats["content_keyed"]
 
 
 def test_upload_with_assets_found_in_the_document(client: Client, tmp_path: Path) -> None:

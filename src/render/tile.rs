@@ -345,8 +345,9 @@ pub(crate) mod tests {
     pub(crate) fn assert_tiling_keeps_the_image(tiled: &Image, whole: &Image, tile: u32) {
         assert_eq!(tiled.rgb(), whole.rgb());
         let (w, h) = (whole.width(), whole.height());
-        let inside =
-            |c: u32, size: u32| (c % tile != 0 || c == 0) && ((c + 1) % tile != 0 || c + 1 == size);
+        let inside = |c: u32, size: u32| {
+            (!c.is_multiple_of(tile) || c == 0) && (!(c + 1).is_multiple_of(tile) || c + 1 == size)
+        };
         let (a, b) = (
             tiled.variance().expect("variance"),
             whole.variance().expect("variance"),

@@ -54,6 +54,26 @@ async fn the_same_url_gives_the_same_bytes_across_requests_and_restarts() {
     let etag = first_headers["etag"].to_str().unwrap().to_owned();
     assert!(etag.starts_with('"') && etag.len() > 10, "{etag}");
     assert!(number(&first_headers, "x-records-created") > 0);
+    // The scene's cache report counts them as content-keyed, and clearing the
+    // shared caches leaves them (they would come back bit for bit).
+    let report: Value = app.get("/v1/scenes/box/cache").await.json().await.unwrap();
+    let held = &report["content_keyed"];
+    assert_eq!(held["sets"], 1, "{report}");
+    assert_eq!(
+        held["records"],
+        number(&first_headers, "x-records-created"),
+        "{report}"
+    );
+    let cleared: Value = app
+        .delete("/v1/scenes/box/cache")
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(
+        cleared["content_keyed"], report["content_keyed"],
+        "{cleared}"
+    );
     // The edge tile is clipped to the image: 16 of 32 columns.
     assert_eq!(&first[16..20], &16u32.to_be_bytes());
     // Other work in between: other tiles and seeds, a POST through the shared cache.

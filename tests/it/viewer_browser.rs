@@ -256,6 +256,23 @@ fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
     // The box is lit and coloured: red and green walls.
     assert!(got[0] > 20.0 && got[1] > 20.0, "{got:?}");
     let shown = mean_of(&tools.eval("window.viewer.viewStats()"));
+    // The panel counts the records its (reproducible) tiles placed, as the
+    // service reports them.
+    let report: Value = runtime.block_on(async {
+        app.get("/v1/scenes/cornell-box/cache")
+            .await
+            .json()
+            .await
+            .unwrap()
+    });
+    let held = report["content_keyed"]["records"].as_u64().unwrap();
+    assert!(held > 0, "{report}");
+    tools.wait_for(
+        &format!(
+            "Number(document.getElementById('tile-records').textContent.replace(/,/g, '')) === {held}"
+        ),
+        load,
+    );
 
     // The uncertainty toggle shows the std_dev layer instead.
     tools.eval("document.getElementById('uncertainty').click()");

@@ -15,7 +15,11 @@ class _Records(_Resource):
         return dict(self._http.get_json(f"/v1/scenes/{_segment(scene)}/cache"))
 
     def clear_cache(self, scene: str) -> dict[str, Any]:
-        """``DELETE /v1/scenes/{id}/cache``: drops the scene's cache records (secondary too)."""
+        """``DELETE /v1/scenes/{id}/cache``: drops the shared caches' records (secondary too).
+
+        The content-keyed records of reproducible tiles and point sets stay
+        (``content_keyed`` in the report): they would be computed again bit for bit.
+        """
         return dict(self._http.request("DELETE", f"/v1/scenes/{_segment(scene)}/cache").json())
 
     def export_records(self, scene: str) -> bytes:

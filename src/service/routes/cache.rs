@@ -21,9 +21,25 @@ pub struct SceneCacheReport {
     pub byte_budget_per_cache: usize,
     /// One entry per estimator configuration that has records, sorted.
     pub caches: Vec<ConfigurationStats>,
+    /// The content-keyed records of the scene's reproducible tiles and of
+    /// the point queries that placed records among their points, held in
+    /// the tile store (they serve those tiles again and the records prior
+    /// of point queries). `DELETE` leaves them: they are a function of the
+    /// scene's content and the request alone, so they would come back bit
+    /// for bit.
+    pub content_keyed: ContentKeyedRecords,
     /// Records dropped by this request (`DELETE` only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cleared_records: Option<u64>,
+}
+
+/// What the tile store holds for a scene's content.
+#[derive(Debug, Default, Serialize, ToSchema)]
+pub struct ContentKeyedRecords {
+    /// Tiles and point sets whose records are held.
+    pub sets: u64,
+    /// Records over all of them.
+    pub records: u64,
 }
 
 async fn report(
@@ -32,10 +48,19 @@ async fn report(
     cleared_records: Option<u64>,
 ) -> Result<SceneCacheReport, ApiError> {
     let scene = state.scene(id).await?;
+    // A scan of the store's records entries, as cheap as the caches' stats.
+    let held = state
+        .tiles
+        .tiles_of(scene.transport.scene().digest.as_bytes());
+    let content_keyed = ContentKeyedRecords {
+        sets: held.len() as u64,
+        records: held.iter().map(|(_, t)| t.records.len() as u64).sum(),
+    };
     Ok(SceneCacheReport {
         scene: scene.id.clone(),
         byte_budget_per_cache: state.irradiance_caches.per_cache_bytes(),
         caches: state.irradiance_caches.stats(&scene),
+        content_keyed,
         cleared_records,
     })
 }

@@ -246,6 +246,7 @@
     const report = await response.json();
     const sum = (field) => report.caches.reduce((a, c) => a + (c.stats[field] || 0), 0);
     $("cache-records").textContent = sum("records").toLocaleString("en");
+    $("tile-records").textContent = report.content_keyed.records.toLocaleString("en");
     $("cache-hits").textContent = sum("hits").toLocaleString("en");
     $("cache-bytes").textContent = `${(sum("bytes") / 1024).toFixed(0)} KiB`;
   }
