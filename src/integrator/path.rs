@@ -11,7 +11,7 @@ use rand_pcg::Pcg64;
 use crate::render::{
     CameraRayShader, Cancel, Evaluation, ImageSettings, PathDepth, PathLengths, PathLimits,
     PixelSample, RenderError, RenderedImage, RenderedTile, SharedFirstVertex, TileRequest,
-    TraceStats, Transport, render_tile_with,
+    SamplePlan, TraceStats, Transport, render_tile_with,
 };
 use crate::scene::{Ray, Scene};
 
@@ -57,11 +57,22 @@ impl<'a> PathIntegrator<'a> {
         request: &TileRequest,
         cancel: &Cancel,
     ) -> Result<RenderedTile, RenderError> {
+        self.render_planned_tile(request, None, cancel)
+    }
+
+    /// [`Self::render_tile`] with the rays per pixel of an adaptive pass
+    /// ([`render_tile_with`]).
+    pub fn render_planned_tile(
+        &self,
+        request: &TileRequest,
+        plan: Option<&SamplePlan>,
+        cancel: &Cancel,
+    ) -> Result<RenderedTile, RenderError> {
         let shader = PathTracer {
             transport: self.transport,
             max_depth: request.max_depth,
         };
-        render_tile_with(&self.transport.scene().camera, &shader, request, cancel)
+        render_tile_with(&self.transport.scene().camera, &shader, request, plan, cancel)
     }
 
     /// Renders the camera's whole image as square tiles of side `tile_side`;

@@ -7,7 +7,7 @@ use super::cached::{CachedConfig, CachedIntegrator, CachedShading, CachedTileRep
 use super::method::Method;
 use super::path::PathIntegrator;
 use crate::cache::IrradianceCache;
-use crate::render::{Cancel, RenderError, RenderedTile, TileRequest, Transport};
+use crate::render::{Cancel, RenderError, RenderedTile, SamplePlan, TileRequest, Transport};
 
 /// A checked integrator: [`super::IntegratorSpec::resolve`]'s result.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -92,12 +92,23 @@ impl BoundIntegrator<'_> {
         request: &TileRequest,
         cancel: &Cancel,
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
+        self.render_planned_tile(request, None, cancel)
+    }
+
+    /// [`Self::render_tile`] with the rays per pixel of an adaptive pass
+    /// (`render::render_tile_with`).
+    pub fn render_planned_tile(
+        &self,
+        request: &TileRequest,
+        plan: Option<&SamplePlan>,
+        cancel: &Cancel,
+    ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
         match self {
             BoundIntegrator::Path(path) => Ok((
-                path.render_tile(request, cancel)?,
+                path.render_planned_tile(request, plan, cancel)?,
                 CachedTileReport::default(),
             )),
-            BoundIntegrator::Cache(cached) => cached.render_tile(request, cancel),
+            BoundIntegrator::Cache(cached) => cached.render_planned_tile(request, plan, cancel),
         }
     }
 

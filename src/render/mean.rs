@@ -40,6 +40,8 @@ pub struct MeanEstimate {
     /// The part of `variance_of_mean` that the evaluations share (the mean
     /// of their [`Evaluation::shared`]), which more of them would not lower.
     pub shared: Rgb,
+    /// Values averaged.
+    pub count: u64,
 }
 
 impl MeanEstimate {
@@ -80,6 +82,7 @@ impl MeanEstimate {
             mean: running.mean(),
             variance_of_mean: Rgb::from_array(variance) + shared,
             shared,
+            count: running.count(),
         }
     }
 
@@ -88,6 +91,7 @@ impl MeanEstimate {
             mean: self.mean * s,
             variance_of_mean: self.variance_of_mean * (s * s),
             shared: self.shared * (s * s),
+            count: self.count,
         }
     }
 }

@@ -35,6 +35,7 @@ mod pixel_variance;
 pub mod polygon;
 mod query;
 mod rgb;
+mod sample_plan;
 pub mod seed;
 pub(crate) mod strata;
 pub(crate) mod tile;
@@ -58,6 +59,7 @@ pub use path::{
 };
 pub use query::QueryPoint;
 pub use rgb::Rgb;
+pub use sample_plan::SamplePlan;
 pub use tile::{
     CameraRayShader, MAX_SAMPLES_PER_PIXEL, MAX_TILE_PIXELS, PixelSample, RenderedTile,
     TileRequest, pass_seed, pixel_rng, render_tile_with,

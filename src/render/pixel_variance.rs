@@ -9,8 +9,9 @@ use super::mean::MeanEstimate;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PixelVariances {
     /// The larger of the pixel's own noise (its variance of the mean less
-    /// the shared part) and the mean of that over its 3×3 neighbourhood
-    /// within the tile, plus [`Self::shared`].
+    /// the shared part) and the mean over its 3×3 neighbourhood within the
+    /// tile of the neighbours' per-ray variance (own noise × rays) divided
+    /// by its own rays, plus [`Self::shared`].
     pub variance: Vec<f32>,
     /// [`MeanEstimate::shared`]: the records' error, which more rays or
     /// passes over the same records do not lower (docs/math.md §16.3).
@@ -36,6 +37,9 @@ impl PixelVariances {
             .map(|e| mean_rgb(e.variance_of_mean - e.shared).max(0.0))
             .collect();
         let shared: Vec<f64> = pixels.iter().map(|e| mean_rgb(e.shared)).collect();
+        // Pixels of one pass may take different numbers of rays (an
+        // adaptive pass), so neighbours pool their per-ray variances.
+        let rays: Vec<f64> = pixels.iter().map(|e| e.count.max(1) as f64).collect();
         let height = pixels.len().checked_div(width).unwrap_or(0);
         let variance = (0..pixels.len())
             .map(|i| {
@@ -43,11 +47,12 @@ impl PixelVariances {
                 let (mut sum, mut count) = (0.0, 0.0);
                 for ny in y.saturating_sub(1)..=(y + 1).min(height - 1) {
                     for nx in x.saturating_sub(1)..=(x + 1).min(width - 1) {
-                        sum += own[ny * width + nx];
+                        let q = ny * width + nx;
+                        sum += own[q] * rays[q];
                         count += 1.0;
                     }
                 }
-                (own[i].max(sum / count) + shared[i]) as f32
+                (own[i].max(sum / count / rays[i]) + shared[i]) as f32
             })
             .collect();
         Self {
@@ -67,6 +72,7 @@ mod tests {
             mean: Rgb::BLACK,
             variance_of_mean: Rgb::splat(own + shared),
             shared: Rgb::splat(shared),
+            count: 2,
         }
     }
 
@@ -96,6 +102,20 @@ mod tests {
         // Pixel (2, 1): own 4 beats (6 + 0 + 0 + 4) / 4.
         assert_eq!(v[5], 4.0);
         assert_eq!(shared, [0.0, 1.0, 0.0, 0.0, 5.0, 0.0]);
+        // A pixel of one ray (own 8) beside one of four (own 1): per-ray
+        // variances 8 and 4 pool to 6, which is 6 for the first (its own 8
+        // is larger) and 6 / 4 = 1.5 for the second.
+        let pair = [
+            MeanEstimate {
+                count: 1,
+                ..estimate(8.0, 0.0)
+            },
+            MeanEstimate {
+                count: 4,
+                ..estimate(1.0, 0.0)
+            },
+        ];
+        assert_eq!(PixelVariances::of_tile(2, &pair).variance, [8.0, 1.5]);
         assert_eq!(PixelVariances::of_tile(3, &[]), PixelVariances::default());
     }
 

@@ -39,6 +39,7 @@ use super::error::RenderError;
 use super::mean::{Evaluation, MeanEstimate};
 use super::path::{PathDepth, TraceStats};
 use super::pixel_variance::PixelVariances;
+use super::sample_plan::SamplePlan;
 use super::seed::{mix, point_rng};
 use super::strata::SharedStrata;
 use crate::image::Image;
@@ -250,16 +251,30 @@ const PATTERN_STREAM: u64 = 0xA076_1D64_78BD_642F;
 const CAMERA_PATTERN: u64 = 0xE703_7ED1_A0B4_28DB;
 
 /// The camera/pixel loop shared by every [`CameraRayShader`]; validates
-/// `request` against `camera` and checks `cancel` before each pixel.
+/// `request` against `camera` and checks `cancel` before each pixel. With a
+/// `plan` (an adaptive pass, [`SamplePlan`]) pixel `i` of the tile takes
+/// `plan.counts[i]` rays from index `plan.firsts[i]` of a pattern of
+/// `plan.pattern`; without, every pixel takes `samples_per_pixel` rays of
+/// pass `pass` of a pattern of `samples_per_pixel · passes`.
 pub fn render_tile_with(
     camera: &Camera,
     shader: &impl CameraRayShader,
     request: &TileRequest,
+    plan: Option<&SamplePlan>,
     cancel: &Cancel,
 ) -> Result<RenderedTile, RenderError> {
     request.validate(camera.resolution())?;
     let width = request.width as usize;
-    let pixels: Option<Vec<(MeanEstimate, u64)>> = (0..width * request.height as usize)
+    let area = width * request.height as usize;
+    if let Some(plan) = plan
+        && (plan.counts.len() != area || plan.firsts.len() != area)
+    {
+        return Err(RenderError::InvalidOption {
+            field: "plan",
+            reason: format!("needs {area} pixels, got {}", plan.counts.len()),
+        });
+    }
+    let pixels: Option<Vec<(MeanEstimate, u64)>> = (0..area)
         .into_par_iter()
         .map(|i| {
             if cancel.is_cancelled() {
@@ -270,11 +285,17 @@ pub fn render_tile_with(
             let mut rng = pixel_rng(pass_seed(request.seed, request.pass), px, py);
             let mut stats = TraceStats::default();
             let pattern = pixel_pattern(request.seed, px, py);
-            let count = request.samples_per_pixel * request.passes;
+            let (count, first, rays) = match plan {
+                Some(plan) => (plan.pattern, plan.firsts[i], plan.counts[i]),
+                None => (
+                    request.samples_per_pixel * request.passes,
+                    request.pass * request.samples_per_pixel,
+                    request.samples_per_pixel,
+                ),
+            };
             let positions =
                 SharedStrata::new(u64::from(count), pattern.map(|w| mix(w ^ CAMERA_PATTERN)));
-            let first = request.pass * request.samples_per_pixel;
-            let samples = (0..request.samples_per_pixel).map(|k| {
+            let samples = (0..rays).map(|k| {
                 let index = first + k;
                 let [u, v] = positions.sample(u64::from(index), [rng.random(), rng.random()]);
                 let (x, y) = (f64::from(px) + u, f64::from(py) + v);
@@ -409,7 +430,7 @@ pub(crate) mod tests {
                 passes,
                 ..request(3, 5, 1, 1)
             };
-            render_tile_with(&scene.camera, &recorder, &request, &Cancel::never()).unwrap();
+            render_tile_with(&scene.camera, &recorder, &request, None, &Cancel::never()).unwrap();
         }
         let seen = recorder.seen.into_inner().unwrap();
         assert_eq!(seen.len(), 16);

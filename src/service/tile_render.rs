@@ -16,7 +16,7 @@ use super::state::AppState;
 use super::tile_store::{Key, RenderedPass, TileRecords};
 use crate::image::Image;
 use crate::integrator::{Integrator, IntegratorSpec, Preset};
-use crate::render::{Cancel, PathDepth, TileRequest};
+use crate::render::{Cancel, PathDepth, SamplePlan, TileRequest};
 use crate::scene::Scene;
 
 /// A tile as either route names it, before any check: the rectangle, the
@@ -133,10 +133,34 @@ impl TileJob {
         *blake3::hash(text.as_bytes()).as_bytes()
     }
 
+    /// The rays per pixel of the pass after `before` (docs/math.md §16.5):
+    /// none for a single pass (every pixel its `samples_per_pixel`); for a
+    /// preset's ladder of passes, `samples_per_pixel` each in the first,
+    /// then as the standard errors of the passes before ask.
+    fn plan(&self, before: &[Arc<RenderedPass>]) -> Result<Option<SamplePlan>, ApiError> {
+        let r = &self.request;
+        if r.passes < 2 {
+            return Ok(None);
+        }
+        let area = r.width as usize * r.height as usize;
+        if before.is_empty() {
+            return Ok(Some(SamplePlan::uniform(area, r.samples_per_pixel, r.passes)));
+        }
+        let mean = mean_of_passes(before, r.samples_per_pixel)?;
+        Ok(Some(SamplePlan::adaptive(
+            r.samples_per_pixel,
+            r.passes,
+            &mean.own_variance,
+            &mean.rays,
+        )))
+    }
+
     /// The content key of pass `pass`.
     fn pass_key(&self, records: &Key, pass: u32) -> Key {
         let mut hasher = blake3::Hasher::new();
-        hasher.update(b"pass\0");
+        // Passes of a ladder take their rays per pixel from the passes
+        // before (`Self::plan`), which older entries did not.
+        hasher.update(b"adaptive pass\0");
         hasher.update(records);
         hasher.update(&self.request.samples_per_pixel.to_le_bytes());
         hasher.update(&self.request.passes.to_le_bytes());
@@ -206,15 +230,22 @@ pub fn render_progressive(
         let rendered = AtomicBool::new(false);
         let render = || -> Result<RenderedPass, ApiError> {
             rendered.store(true, Relaxed);
+            let plan = job.plan(&passes)?;
+            let plan = plan.as_ref();
             let (tile, cache_hits) = match (bound.cached(), &records) {
                 (Some(i), Some(records)) => {
                     let dense = records.report.dense();
-                    let (tile, stats) =
-                        i.render_tile_from_records(&request, &records.records, dense, cancel)?;
+                    let (tile, stats) = i.render_tile_from_records(
+                        &request,
+                        plan,
+                        &records.records,
+                        dense,
+                        cancel,
+                    )?;
                     (tile, stats.cache_hits)
                 }
                 _ => {
-                    let (tile, report) = bound.render_tile(&request, cancel)?;
+                    let (tile, report) = bound.render_planned_tile(&request, plan, cancel)?;
                     created.fetch_add(report.placement.records_created, Relaxed);
                     (tile, report.shading.cache_hits)
                 }
@@ -222,6 +253,7 @@ pub fn render_progressive(
             Ok(RenderedPass {
                 image: tile.image,
                 shared: tile.shared,
+                counts: plan.map(|p| p.counts.clone()).unwrap_or_default(),
                 rays: tile.rays,
                 cache_hits,
             })
@@ -244,7 +276,7 @@ pub fn render_progressive(
     // on every replica whichever of them rendered the tile.
     let records_created = created.into_inner();
     Ok(ProgressiveTile {
-        image: mean_of_passes(&passes)?,
+        image: mean_of_passes(&passes, job.request.samples_per_pixel)?.image,
         records,
         rays,
         records_created,
@@ -253,35 +285,61 @@ pub fn render_progressive(
     })
 }
 
-/// The mean of the passes' images, with its variance: their own noise
-/// averages out ([`Image::mean_of`] divides the sum of the variances by
-/// `n²`), the records' error they share does not, so its mean over the
-/// passes is the shared part's variance of the mean (docs/math.md §16.3).
-fn mean_of_passes(passes: &[Arc<RenderedPass>]) -> Result<Image, ApiError> {
-    let images: Vec<&Image> = passes.iter().map(|p| &p.image).collect();
-    let mean = Image::mean_of(&images)?;
-    let n = passes.len() as f64;
-    let Some(variance) = mean.variance() else {
-        return Ok(mean);
+/// The mean of a tile's passes: each pixel's rays over all of them
+/// averaged (passes weighted by the rays they gave the pixel), its own noise
+/// averaging out as `Σ_k n_k² own_k / N²`, and the records' error the passes
+/// share weighted as `Σ_k n_k shared_k / N` (it does not average out,
+/// docs/math.md §16.3). Equal rays give the plain mean of the images.
+struct PassesMean {
+    image: Image,
+    /// Per pixel, the variance of the mean's own noise (its shared part
+    /// left out), what more rays lower.
+    own_variance: Vec<f32>,
+    /// Per pixel, the rays over all passes.
+    rays: Vec<u32>,
+}
+
+/// [`PassesMean`] of `passes`, a pass without per-pixel counts having
+/// `spp` rays in every pixel.
+fn mean_of_passes(passes: &[Arc<RenderedPass>], spp: u32) -> Result<PassesMean, ApiError> {
+    let Some(first) = passes.first() else {
+        return Err(ApiError::invalid("pass", "no pass to average"));
     };
-    let variance = variance
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| {
-            let shared: f64 = passes
-                .iter()
-                .filter_map(|p| p.shared.get(i))
-                .map(|&s| f64::from(s))
-                .sum();
-            (f64::from(v) + shared * (n - 1.0) / (n * n)) as f32
-        })
-        .collect();
-    Ok(Image::from_parts(
-        mean.width(),
-        mean.height(),
-        mean.rgb().to_vec(),
-        Some(variance),
-    )?)
+    let (width, height) = (first.image.width(), first.image.height());
+    let area = first.image.rgb().len();
+    let rays_of = |p: &RenderedPass, i: usize| f64::from(p.counts.get(i).copied().unwrap_or(spp));
+    let mut rgb = Vec::with_capacity(area);
+    let mut variance = Vec::with_capacity(area);
+    let mut own_variance = Vec::with_capacity(area);
+    let mut rays = Vec::with_capacity(area);
+    for i in 0..area {
+        let total: f64 = passes.iter().map(|p| rays_of(p, i)).sum();
+        let mut value = [0.0f64; 3];
+        let (mut own, mut shared) = (0.0f64, 0.0f64);
+        for p in passes {
+            let n = rays_of(p, i);
+            for (c, v) in value.iter_mut().enumerate() {
+                *v += n * f64::from(p.image.rgb()[i][c]);
+            }
+            let s = f64::from(p.shared.get(i).copied().unwrap_or(0.0));
+            let v = p.image.variance().map_or(0.0, |v| f64::from(v[i]));
+            own += n * n * (v - s).max(0.0);
+            shared += n * s;
+        }
+        rgb.push(value.map(|v| (v / total) as f32));
+        own /= total * total;
+        shared /= total;
+        variance.push((own + shared) as f32);
+        own_variance.push(own as f32);
+        rays.push(total as u32);
+    }
+    let has_variance = passes.iter().all(|p| p.image.variance().is_some());
+    let image = Image::from_parts(width, height, rgb, has_variance.then_some(variance))?;
+    Ok(PassesMean {
+        image,
+        own_variance,
+        rays,
+    })
 }
 
 #[cfg(test)]
@@ -336,21 +394,29 @@ mod tests {
     }
 
     /// Two passes of one pixel, each of variance 3 of which 2 is shared:
-    /// the mean's own part halves (1 → 0.5), the shared part stays 2.
+    /// with equal rays the mean's own part halves (1 → 0.5) and the shared
+    /// part stays 2; with 1 and 3 rays the values weigh 1 : 3, the own part
+    /// is (1 + 9) / 16 and the shared part still 2.
     #[test]
     fn passes_average_their_own_noise_but_not_the_records_error() {
-        let pass = |value: f32| {
+        let pass = |value: f32, counts: Vec<u32>| {
             Arc::new(RenderedPass {
                 image: Image::from_parts(1, 1, vec![[value; 3]], Some(vec![3.0])).unwrap(),
                 shared: vec![2.0],
+                counts,
                 rays: 1,
                 cache_hits: 0,
             })
         };
-        let mean = mean_of_passes(&[pass(1.0), pass(3.0)]).unwrap();
-        assert_eq!(mean.pixel(0, 0), Some([2.0; 3]));
-        assert_eq!(mean.variance(), Some(&[2.5][..]));
-        let one = mean_of_passes(&[pass(1.0)]).unwrap();
-        assert_eq!(one.variance(), Some(&[3.0][..]));
+        let mean = mean_of_passes(&[pass(1.0, vec![]), pass(3.0, vec![])], 4).unwrap();
+        assert_eq!(mean.image.pixel(0, 0), Some([2.0; 3]));
+        assert_eq!(mean.image.variance(), Some(&[2.5][..]));
+        assert_eq!((mean.own_variance, mean.rays), (vec![0.5], vec![8]));
+        let one = mean_of_passes(&[pass(1.0, vec![])], 4).unwrap();
+        assert_eq!(one.image.variance(), Some(&[3.0][..]));
+        let weighted = mean_of_passes(&[pass(1.0, vec![1]), pass(3.0, vec![3])], 4).unwrap();
+        assert_eq!(weighted.image.pixel(0, 0), Some([2.5; 3]));
+        assert_eq!(weighted.image.variance(), Some(&[2.625][..]));
+        assert_eq!(weighted.rays, [4]);
     }
 }

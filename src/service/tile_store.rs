@@ -68,6 +68,9 @@ pub struct RenderedPass {
     /// Per pixel, the part of the image's variance its rays share
     /// (`render::RenderedTile::shared`); empty for an image without one.
     pub shared: Vec<f32>,
+    /// Per pixel, the rays of an adaptive pass (`render::SamplePlan`);
+    /// empty when every pixel took the request's `samples_per_pixel`.
+    pub counts: Vec<u32>,
     /// Rays the pass traced (camera and shading rays).
     pub rays: u64,
     /// Diffuse shading points served by records.
@@ -553,25 +556,35 @@ fn received_radius_limits() -> RadiusLimits {
         .expect("the default cache configuration is valid")
 }
 
-/// `width, height: u32 | rays, cache_hits: u64 | variances: u8 (0 none,
-/// 1 the image's, 2 the image's and the shared parts) | rgb f32s | variance
-/// f32s | shared f32s`, little-endian.
+/// `width, height: u32 | rays, cache_hits: u64 | layers: u8 (0 none, 1
+/// the image's variance, 2 and the shared parts, 3 and the rays per pixel)
+/// | rgb f32s | variance f32s | shared f32s | rays per pixel as f32s
+/// (integers below 2²⁴, exact)`, little-endian.
 fn encode_pass(pass: &RenderedPass) -> Vec<u8> {
     let image = &pass.image;
-    let mut out = Vec::with_capacity(25 + image.rgb().len() * 20);
+    let mut out = Vec::with_capacity(25 + image.rgb().len() * 24);
     out.extend(image.width().to_le_bytes());
     out.extend(image.height().to_le_bytes());
     out.extend(pass.rays.to_le_bytes());
     out.extend(pass.cache_hits.to_le_bytes());
-    let variances = match (image.variance(), pass.shared.is_empty()) {
-        (None, _) => &[][..],
-        (Some(v), true) => &[v][..],
-        (Some(v), false) => &[v, &pass.shared[..]][..],
+    let counts: Vec<f32> = pass.counts.iter().map(|&n| n as f32).collect();
+    // Rays per pixel come after the shared parts, zeros if there are none.
+    let zeros = vec![0.0; pass.counts.len()];
+    let shared = if pass.shared.is_empty() {
+        &zeros
+    } else {
+        &pass.shared
     };
-    out.push(variances.len() as u8);
+    let layers: Vec<&[f32]> = match image.variance() {
+        None => vec![],
+        Some(v) if shared.is_empty() => vec![v],
+        Some(v) if counts.is_empty() => vec![v, shared],
+        Some(v) => vec![v, shared, &counts],
+    };
+    out.push(layers.len() as u8);
     out.extend(image.rgb().iter().flatten().flat_map(|c| c.to_le_bytes()));
     out.extend(
-        variances
+        layers
             .iter()
             .copied()
             .flatten()
@@ -582,14 +595,15 @@ fn encode_pass(pass: &RenderedPass) -> Vec<u8> {
 
 /// The pass of an entry's payload (`encode_pass`): at most `max_area`
 /// pixels, every value finite, non-negative and at most [`MAX_IRRADIANCE`]
-/// (variances its square), as rendered passes are.
+/// (variances its square), rays per pixel whole and positive, as rendered
+/// passes are.
 fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
     let u32_at = |i: usize| Some(u32::from_le_bytes(bytes.get(i..i + 4)?.try_into().ok()?));
     let u64_at = |i: usize| Some(u64::from_le_bytes(bytes.get(i..i + 8)?.try_into().ok()?));
     let (width, height) = (u32_at(0)?, u32_at(4)?);
     let (rays, cache_hits) = (u64_at(8)?, u64_at(16)?);
     let layers = usize::from(*bytes.get(24)?);
-    if layers > 2 {
+    if layers > 3 {
         return None;
     }
     let pixels = (width as usize).checked_mul(height as usize)?;
@@ -618,12 +632,19 @@ fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
         .chunks_exact(3)
         .map(|c| [c[0], c[1], c[2]])
         .collect();
-    let variance = (layers > 0).then(|| floats[3 * pixels..4 * pixels].to_vec());
-    let shared = floats[(3 + layers.min(1)) * pixels..].to_vec();
-    let image = Image::from_parts(width, height, rgb, variance).ok()?;
+    let layer = |k: usize| (layers > k).then(|| &floats[(3 + k) * pixels..(4 + k) * pixels]);
+    let counts = match layer(2) {
+        None => vec![],
+        Some(c) if c.iter().all(|&n| n >= 1.0 && n.fract() == 0.0 && n < 16_777_216.0) => {
+            c.iter().map(|&n| n as u32).collect()
+        }
+        Some(_) => return None,
+    };
+    let image = Image::from_parts(width, height, rgb, layer(0).map(<[f32]>::to_vec)).ok()?;
     Some(RenderedPass {
         image,
-        shared,
+        shared: layer(1).map(<[f32]>::to_vec).unwrap_or_default(),
+        counts,
         rays,
         cache_hits,
     })

@@ -40,7 +40,7 @@ use crate::cache::{IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
 use crate::render::{
     CameraRayShader, Cancel, Evaluation, PathDepth, PixelSample, QueryPoint, RenderError,
-    RenderedTile, Rgb, TileRequest, TraceStats, pixel_rng, render_tile_with,
+    RenderedTile, Rgb, SamplePlan, TileRequest, TraceStats, pixel_rng, render_tile_with,
 };
 use crate::scene::{Ray, Scene};
 
@@ -190,16 +190,27 @@ impl CachedIntegrator<'_> {
         request: &TileRequest,
         cancel: &Cancel,
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
+        self.render_planned_tile(request, None, cancel)
+    }
+
+    /// [`Self::render_tile`] with the rays per pixel of an adaptive pass
+    /// ([`render_tile_with`]).
+    pub fn render_planned_tile(
+        &self,
+        request: &TileRequest,
+        plan: Option<&SamplePlan>,
+        cancel: &Cancel,
+    ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
         if !self.shading.options.reproducible {
             let mut report =
                 self.place_tile_records(request, |c| PlacementCache::Shared(c), cancel)?;
-            let (tile, shading) = self.shade_tile(request, report.dense(), cancel)?;
+            let (tile, shading) = self.shade_tile(request, plan, report.dense(), cancel)?;
             report.shading = shading;
             return Ok((add_placement_rays(tile, &report), report));
         }
         let (records, mut report) = self.tile_records(request, cancel)?;
         let (tile, shading) =
-            self.render_tile_from_records(request, &records, report.dense(), cancel)?;
+            self.render_tile_from_records(request, plan, &records, report.dense(), cancel)?;
         report.shading = shading;
         report.records_published = self.publish(&records)?;
         Ok((add_placement_rays(tile, &report), report))
@@ -234,6 +245,7 @@ impl CachedIntegrator<'_> {
     pub fn render_tile_from_records(
         &self,
         request: &TileRequest,
+        plan: Option<&SamplePlan>,
         records: &[Record],
         dense: bool,
         cancel: &Cancel,
@@ -249,7 +261,7 @@ impl CachedIntegrator<'_> {
             cache: &private,
             ..*self
         }
-        .shade_tile(request, dense, cancel)
+        .shade_tile(request, plan, dense, cancel)
     }
 
     /// Inserts into this integrator's cache the records it does not
@@ -341,6 +353,7 @@ impl CachedIntegrator<'_> {
     fn shade_tile(
         &self,
         request: &TileRequest,
+        plan: Option<&SamplePlan>,
         dense: bool,
         cancel: &Cancel,
     ) -> Result<(RenderedTile, ShadingStats), RenderError> {
@@ -352,7 +365,7 @@ impl CachedIntegrator<'_> {
             stats: Mutex::new(ShadingStats::default()),
             error: Mutex::new(None),
         };
-        let tile = render_tile_with(camera, &shader, request, cancel)?;
+        let tile = render_tile_with(camera, &shader, request, plan, cancel)?;
         if let Some(e) = shader.error.into_inner().unwrap_or_else(|p| p.into_inner()) {
             return Err(e);
         }

@@ -5,6 +5,7 @@ fn pass(seed: f32) -> RenderedPass {
     RenderedPass {
         image: Image::from_parts(3, 2, rgb, Some(vec![0.5; 6])).unwrap(),
         shared: vec![0.25; 6],
+        counts: vec![1, 2, 3, 4, 5, 6],
         rays: 99,
         cache_hits: 7,
     }
@@ -30,8 +31,8 @@ fn parts_survive_a_restart_through_the_log() {
         .pass_or::<()>([1; 32], || panic!("not loaded"))
         .unwrap();
     assert_eq!(
-        (back.image.clone(), &back.shared, back.rays, back.cache_hits),
-        (p.image.clone(), &p.shared, 99, 7)
+        (back.image.clone(), &back.shared, &back.counts, back.rays),
+        (p.image.clone(), &p.shared, &p.counts, 99)
     );
     assert!(decode_pass(&encode_pass(&p)[..30], 4096).is_none());
 }
