@@ -10,8 +10,8 @@ use rand_pcg::Pcg64;
 
 use crate::render::{
     CameraRayShader, Cancel, Evaluation, ImageSettings, PathDepth, PathLengths, PathLimits,
-    PixelSample, RenderError, RenderedImage, RenderedTile, SharedFirstVertex, TileRequest,
-    SamplePlan, TraceStats, Transport, render_tile_with,
+    PixelSample, RenderError, RenderedImage, RenderedTile, SamplePlan, SharedFirstVertex,
+    TileRequest, TraceStats, Transport, render_tile_with,
 };
 use crate::scene::{Ray, Scene};
 
@@ -72,7 +72,13 @@ impl<'a> PathIntegrator<'a> {
             transport: self.transport,
             max_depth: request.max_depth,
         };
-        render_tile_with(&self.transport.scene().camera, &shader, request, plan, cancel)
+        render_tile_with(
+            &self.transport.scene().camera,
+            &shader,
+            request,
+            plan,
+            cancel,
+        )
     }
 
     /// Renders the camera's whole image as square tiles of side `tile_side`;

@@ -136,7 +136,7 @@ impl TileJob {
     /// The rays per pixel of the pass after `before` (docs/math.md §16.5):
     /// none for a single pass (every pixel its `samples_per_pixel`); for a
     /// preset's ladder of passes, `samples_per_pixel` each in the first,
-    /// then as the standard errors of the passes before ask.
+    /// then as the first pass's standard errors around each pixel ask.
     fn plan(&self, before: &[Arc<RenderedPass>]) -> Result<Option<SamplePlan>, ApiError> {
         let r = &self.request;
         if r.passes < 2 {
@@ -144,14 +144,20 @@ impl TileJob {
         }
         let area = r.width as usize * r.height as usize;
         if before.is_empty() {
-            return Ok(Some(SamplePlan::uniform(area, r.samples_per_pixel, r.passes)));
+            return Ok(Some(SamplePlan::uniform(
+                area,
+                r.samples_per_pixel,
+                r.passes,
+            )));
         }
-        let mean = mean_of_passes(before, r.samples_per_pixel)?;
+        let first = mean_of_passes(&before[..1], r.samples_per_pixel)?;
+        let rays = mean_of_passes(before, r.samples_per_pixel)?.rays;
         Ok(Some(SamplePlan::adaptive(
             r.samples_per_pixel,
             r.passes,
-            &mean.own_variance,
-            &mean.rays,
+            r.width as usize,
+            &first.own_variance,
+            &rays,
         )))
     }
 

@@ -635,7 +635,10 @@ fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
     let layer = |k: usize| (layers > k).then(|| &floats[(3 + k) * pixels..(4 + k) * pixels]);
     let counts = match layer(2) {
         None => vec![],
-        Some(c) if c.iter().all(|&n| n >= 1.0 && n.fract() == 0.0 && n < 16_777_216.0) => {
+        Some(c)
+            if c.iter()
+                .all(|&n| n >= 1.0 && n.fract() == 0.0 && n < 16_777_216.0) =>
+        {
             c.iter().map(|&n| n as u32).collect()
         }
         Some(_) => return None,
