@@ -28,7 +28,10 @@
 //! Reproducibility: pixel (px, py) draws every random number from
 //! [`pixel_rng`]`(pass_seed(seed, pass), px, py)` and [`pixel_pattern`]`(seed,
 //! px, py)`, so a pixel's value does not depend on the tile it belongs to,
-//! on the other pixels, or on the thread count.
+//! on the other pixels, or on the thread count; with a [`SamplePlan`] (an
+//! adaptive pass) its ray count comes from the plan, which its caller
+//! derives from the tile's first pass, so there the tile's rectangle
+//! matters (the service's GET tiles have one grid).
 
 use rand::RngExt;
 use rand_pcg::Pcg64;

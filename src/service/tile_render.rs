@@ -425,4 +425,62 @@ mod tests {
         assert_eq!(weighted.image.variance(), Some(&[2.625][..]));
         assert_eq!(weighted.rays, [4]);
     }
+
+    /// A preset's ladder: the first pass uniform, the next one's rays where
+    /// the first pass was noisy two pixels away, adding up to the pass's
+    /// rays; a single pass has no plan.
+    #[test]
+    fn a_ladder_plans_its_passes_from_the_first() {
+        let limits = Config::default_config().limits;
+        let scene = cornell(None).unwrap();
+        let params = TileParams {
+            x: 0,
+            y: 0,
+            width: 8,
+            height: 8,
+            preset: Preset::Preview,
+            samples_per_pixel: None,
+            pass: None,
+            max_depth: None,
+            seed: 1,
+            estimator: IntegratorSpec::default(),
+        };
+        let job = params.job(&scene, &limits).unwrap();
+        let spp = job.request.samples_per_pixel;
+        let first = job.plan(&[]).unwrap().expect("a ladder");
+        assert_eq!(first.counts, vec![spp; 64]);
+        // Noise only in columns 6 and 7.
+        let variance = (0..64)
+            .map(|i| if i % 8 >= 6 { 1.0 } else { 0.0 })
+            .collect();
+        let pass = Arc::new(RenderedPass {
+            image: Image::from_parts(8, 8, vec![[1.0; 3]; 64], Some(variance)).unwrap(),
+            shared: vec![],
+            counts: vec![],
+            rays: 0,
+            cache_hits: 0,
+        });
+        let next = job.plan(&[pass]).unwrap().expect("a ladder");
+        assert_eq!(next.counts.iter().sum::<u32>(), 64 * spp);
+        assert_eq!(next.firsts, vec![spp; 64]);
+        for (i, &n) in next.counts.iter().enumerate() {
+            match i % 8 {
+                // Two or more columns from the noise: one ray.
+                0..=3 => assert_eq!(n, 1, "pixel {i}"),
+                _ => assert!(n > spp && n <= 4 * spp, "pixel {i}: {n}"),
+            }
+        }
+        let single = TileParams {
+            samples_per_pixel: Some(4),
+            ..params
+        };
+        assert!(
+            single
+                .job(&scene, &limits)
+                .unwrap()
+                .plan(&[])
+                .unwrap()
+                .is_none()
+        );
+    }
 }

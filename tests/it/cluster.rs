@@ -225,8 +225,8 @@ async fn replicas_share_scenes_and_records_and_survive_a_death() {
         .unwrap();
     assert_eq!(posted.status(), 201);
     // The same bytes from every replica, for a whole preset and for an
-    // intermediate pass of a progressive one.
-    for query in ["preset=draft", "preset=preview&pass=0"] {
+    // adaptive pass of a progressive one (docs/math.md §16.5).
+    for query in ["preset=draft", "preset=preview&pass=1"] {
         let mut uploaded = Vec::new();
         for (_, addr) in &replicas {
             let url = format!("http://{addr}/v1/scenes/uploaded/tiles/0/0.png?size=16&{query}");

@@ -110,8 +110,9 @@ async fn the_same_url_gives_the_same_bytes_across_requests_and_restarts() {
     // Another exposure is another entity.
     let (_, other_headers, _) = fetch(&app, &format!("/v1/scenes/box/tiles/1/0.png?{DRAFT}")).await;
     assert_ne!(other_headers["etag"], etag.as_str());
-    // An intermediate pass of a progressive preset, as the viewer's ladder asks for it.
-    let pass_url = "/v1/scenes/box/tiles/0/0.exr?size=32&preset=preview&pass=0";
+    // A pass of a progressive preset after its first (an adaptive one, docs/math.md
+    // §16.5), as the viewer's ladder asks for it.
+    let pass_url = "/v1/scenes/box/tiles/0/0.exr?size=32&preset=preview&pass=1";
     let (status, _, pass_bytes) = fetch(&app, pass_url).await;
     assert_eq!(status, StatusCode::OK);
     // After a restart (a new process state, the same scene files).
