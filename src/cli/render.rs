@@ -114,7 +114,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
         let report = Mutex::new(CachedTileReport::default());
         let render = || {
             transport.render_image_by(&settings, args.tile, &|request| {
-                let (tile, r) = bound.render_tile(request, &Cancel::never())?;
+                let (tile, r) = bound.render_tile(request, None, &Cancel::never())?;
                 report.lock().unwrap_or_else(|e| e.into_inner()).add(&r);
                 progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
                 Ok(tile)

@@ -52,17 +52,8 @@ impl<'a> PathIntegrator<'a> {
 
     /// Renders one tile of the scene camera's image, in parallel over its
     /// pixels on the current rayon pool; stops between pixels once `cancel` is set.
+    /// `plan`: the rays per pixel of an adaptive pass ([`render_tile_with`]).
     pub fn render_tile(
-        &self,
-        request: &TileRequest,
-        cancel: &Cancel,
-    ) -> Result<RenderedTile, RenderError> {
-        self.render_planned_tile(request, None, cancel)
-    }
-
-    /// [`Self::render_tile`] with the rays per pixel of an adaptive pass
-    /// ([`render_tile_with`]).
-    pub fn render_planned_tile(
         &self,
         request: &TileRequest,
         plan: Option<&SamplePlan>,
@@ -93,7 +84,7 @@ impl<'a> PathIntegrator<'a> {
     ) -> Result<RenderedImage, RenderError> {
         self.transport
             .render_image_by(settings, tile_side, &|request| {
-                let tile = self.render_tile(request, &Cancel::never())?;
+                let tile = self.render_tile(request, None, &Cancel::never())?;
                 on_tile(&tile);
                 Ok(tile)
             })
@@ -153,15 +144,22 @@ mod tests {
     fn tiles_and_thread_counts_give_bit_identical_pixels() {
         let transport = cornell(32);
         let whole = in_pool(1, || {
-            PathIntegrator::new(&transport).render_tile(&request(0, 0, 32, 32), &Cancel::never())
+            PathIntegrator::new(&transport).render_tile(
+                &request(0, 0, 32, 32),
+                None,
+                &Cancel::never(),
+            )
         })
         .expect("renders");
         let mut assembled = Image::black(32, 32).expect("valid");
         let mut rays = 0;
         for (x, y) in [(0, 0), (16, 0), (0, 16), (16, 16)] {
             let tile = in_pool(2, || {
-                PathIntegrator::new(&transport)
-                    .render_tile(&request(x, y, 16, 16), &Cancel::never())
+                PathIntegrator::new(&transport).render_tile(
+                    &request(x, y, 16, 16),
+                    None,
+                    &Cancel::never(),
+                )
             })
             .expect("renders");
             assert_eq!((tile.x, tile.y), (x, y));
@@ -171,7 +169,11 @@ mod tests {
         assert_tiling_keeps_the_image(&assembled, &whole.image, 16);
         assert_eq!(rays, whole.rays);
         let again = in_pool(2, || {
-            PathIntegrator::new(&transport).render_tile(&request(0, 0, 32, 32), &Cancel::never())
+            PathIntegrator::new(&transport).render_tile(
+                &request(0, 0, 32, 32),
+                None,
+                &Cancel::never(),
+            )
         })
         .expect("renders");
         assert_eq!(again, whole);
@@ -182,7 +184,7 @@ mod tests {
         };
         assert_ne!(
             PathIntegrator::new(&transport)
-                .render_tile(&other_seed, &Cancel::never())
+                .render_tile(&other_seed, None, &Cancel::never())
                 .expect("renders")
                 .image,
             whole.image
@@ -194,9 +196,11 @@ mod tests {
     #[test]
     fn bad_requests_name_the_field() {
         let transport = cornell(32);
-        let field = |r: TileRequest| match PathIntegrator::new(&transport)
-            .render_tile(&r, &Cancel::never())
-        {
+        let field = |r: TileRequest| match PathIntegrator::new(&transport).render_tile(
+            &r,
+            None,
+            &Cancel::never(),
+        ) {
             Err(RenderError::InvalidOption { field, .. }) => field,
             other => panic!("{r:?} gave {other:?}"),
         };
@@ -255,6 +259,7 @@ mod tests {
                     samples_per_pixel: 8,
                     ..request(0, 0, 6, 4)
                 },
+                None,
                 &Cancel::never(),
             )
             .expect("renders");
@@ -273,7 +278,7 @@ mod tests {
     fn any_tile_size_gives_the_same_image() {
         let transport = cornell(12);
         let whole = PathIntegrator::new(&transport)
-            .render_tile(&request(0, 0, 12, 12), &Cancel::never())
+            .render_tile(&request(0, 0, 12, 12), None, &Cancel::never())
             .expect("renders");
         let r = request(0, 0, 1, 1);
         let settings = ImageSettings {

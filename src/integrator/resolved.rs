@@ -87,17 +87,9 @@ pub enum BoundIntegrator<'a> {
 impl BoundIntegrator<'_> {
     /// One tile of the scene camera's image, with what the cache did (all
     /// zero for path tracing). Stops between pixels once `cancel` is set.
-    pub fn render_tile(
-        &self,
-        request: &TileRequest,
-        cancel: &Cancel,
-    ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
-        self.render_planned_tile(request, None, cancel)
-    }
-
-    /// [`Self::render_tile`] with the rays per pixel of an adaptive pass
+    /// `plan`: the rays per pixel of an adaptive pass
     /// (`render::render_tile_with`).
-    pub fn render_planned_tile(
+    pub fn render_tile(
         &self,
         request: &TileRequest,
         plan: Option<&SamplePlan>,
@@ -105,10 +97,10 @@ impl BoundIntegrator<'_> {
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
         match self {
             BoundIntegrator::Path(path) => Ok((
-                path.render_planned_tile(request, plan, cancel)?,
+                path.render_tile(request, plan, cancel)?,
                 CachedTileReport::default(),
             )),
-            BoundIntegrator::Cache(cached) => cached.render_planned_tile(request, plan, cancel),
+            BoundIntegrator::Cache(cached) => cached.render_tile(request, plan, cancel),
         }
     }
 

@@ -109,6 +109,12 @@ impl SamplePlan {
         loop {
             let free: f64 = (0..pixels).filter(|&p| !capped[p]).map(|p| sigma[p]).sum();
             if free <= 0.0 {
+                // Only noiseless pixels are left below the cap: they share
+                // the rest evenly, so the pass keeps its rays.
+                let open = capped.iter().filter(|&&c| !c).count().max(1) as f64;
+                for p in (0..pixels).filter(|&p| !capped[p]) {
+                    extra[p] = left / open;
+                }
                 break;
             }
             let mut newly = false;
@@ -195,6 +201,13 @@ mod tests {
         assert!(plan.counts[7] < 4);
         assert_eq!(plan.counts.iter().sum::<u32>(), 64);
         assert!(plan.counts.iter().all(|&n| n >= 1));
+        // Noise that only two pixels' rings see: they take the cap, and the
+        // noiseless rest share what is left evenly.
+        let mut own = vec![0.0_f32; 16];
+        own[7] = 1.0;
+        let plan = SamplePlan::adaptive(4, 2, 16, &own, &[4; 16]);
+        assert_eq!((plan.counts[5], plan.counts[9]), (16, 16));
+        assert_eq!(plan.counts.iter().sum::<u32>(), 64);
     }
 
     /// No noise anywhere (or one ray per pixel): a uniform pass.

@@ -251,7 +251,7 @@ pub fn render_progressive(
                     (tile, stats.cache_hits)
                 }
                 _ => {
-                    let (tile, report) = bound.render_planned_tile(&request, plan, cancel)?;
+                    let (tile, report) = bound.render_tile(&request, plan, cancel)?;
                     created.fetch_add(report.placement.records_created, Relaxed);
                     (tile, report.shading.cache_hits)
                 }

@@ -227,7 +227,7 @@ fn camera_records(
     };
     transport.render_image_by(&settings, 64, &|request| {
         integrator
-            .render_tile(request, &Cancel::never())
+            .render_tile(request, None, &Cancel::never())
             .map(|(tile, _)| tile)
     })?;
     Ok((cache, shading))

@@ -185,17 +185,8 @@ impl CachedIntegrator<'_> {
     /// `max_depth` (the caller keys its caches by them); the request's
     /// `method` is not consulted. Stops between records and pixels once
     /// `cancel` is set.
+    /// `plan`: the rays per pixel of an adaptive pass ([`render_tile_with`]).
     pub fn render_tile(
-        &self,
-        request: &TileRequest,
-        cancel: &Cancel,
-    ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
-        self.render_planned_tile(request, None, cancel)
-    }
-
-    /// [`Self::render_tile`] with the rays per pixel of an adaptive pass
-    /// ([`render_tile_with`]).
-    pub fn render_planned_tile(
         &self,
         request: &TileRequest,
         plan: Option<&SamplePlan>,
@@ -427,7 +418,11 @@ mod tests {
         cache: &IrradianceCache,
         shading: &CachedShading,
     ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
-        CachedIntegrator::new(transport, cache, shading).render_tile(request, &Cancel::never())
+        CachedIntegrator::new(transport, cache, shading).render_tile(
+            request,
+            None,
+            &Cancel::never(),
+        )
     }
 
     #[test]
@@ -548,6 +543,7 @@ mod tests {
                     samples_per_pixel: 256,
                     ..*r
                 },
+                None,
                 &Cancel::never(),
             )
             .unwrap();
