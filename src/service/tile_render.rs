@@ -293,9 +293,12 @@ pub fn render_progressive(
 
 /// The mean of a tile's passes: each pixel's rays over all of them
 /// averaged (passes weighted by the rays they gave the pixel), its own noise
-/// averaging out as `Σ_k n_k² own_k / N²`, and the records' error the passes
-/// share weighted as `Σ_k n_k shared_k / N` (it does not average out,
-/// docs/math.md §16.3). Equal rays give the plain mean of the images.
+/// averaging out as `Σ_k n_k² own_k / N²` but at least the per-ray variance
+/// of its passes of two rays or more over `N` (an adaptive pass's one-ray
+/// pixels measure no spread of their own), and the records' error the
+/// passes share weighted as `Σ_k n_k shared_k / N` (it does not average
+/// out, docs/math.md §16.3, §16.5). Equal rays give the plain mean of the
+/// images.
 struct PassesMean {
     image: Image,
     /// Per pixel, the variance of the mean's own noise (its shared part
@@ -322,6 +325,9 @@ fn mean_of_passes(passes: &[Arc<RenderedPass>], spp: u32) -> Result<PassesMean, 
         let total: f64 = passes.iter().map(|p| rays_of(p, i)).sum();
         let mut value = [0.0f64; 3];
         let (mut own, mut shared) = (0.0f64, 0.0f64);
+        // The per-ray variance over the passes of two rays or more, weighted
+        // by their degrees of freedom: a pass of one ray measures none.
+        let (mut per_ray, mut dof) = (0.0f64, 0.0f64);
         for p in passes {
             let n = rays_of(p, i);
             for (c, v) in value.iter_mut().enumerate() {
@@ -331,9 +337,16 @@ fn mean_of_passes(passes: &[Arc<RenderedPass>], spp: u32) -> Result<PassesMean, 
             let v = p.image.variance().map_or(0.0, |v| f64::from(v[i]));
             own += n * n * (v - s).max(0.0);
             shared += n * s;
+            if n >= 2.0 {
+                per_ray += (n - 1.0) * n * (v - s).max(0.0);
+                dof += n - 1.0;
+            }
         }
         rgb.push(value.map(|v| (v / total) as f32));
         own /= total * total;
+        if dof > 0.0 {
+            own = own.max(per_ray / dof / total);
+        }
         shared /= total;
         variance.push((own + shared) as f32);
         own_variance.push(own as f32);
@@ -422,7 +435,9 @@ mod tests {
         assert_eq!(one.image.variance(), Some(&[3.0][..]));
         let weighted = mean_of_passes(&[pass(1.0, vec![1]), pass(3.0, vec![3])], 4).unwrap();
         assert_eq!(weighted.image.pixel(0, 0), Some([2.5; 3]));
-        assert_eq!(weighted.image.variance(), Some(&[2.625][..]));
+        // Own: (1 + 9) / 16 = 0.625 against the 3-ray pass's per-ray 3 over
+        // 4 rays, 0.75; plus the shared 2.
+        assert_eq!(weighted.image.variance(), Some(&[2.75][..]));
         assert_eq!(weighted.rays, [4]);
     }
 
