@@ -162,47 +162,6 @@ impl Image {
         Ok(())
     }
 
-    /// The mean of equally weighted independent estimates of one image (the
-    /// passes of a progressive render, each of the same samples per pixel):
-    /// the pixel-wise mean, and variance `Σ vᵢ / n²` (the variance of a
-    /// mean of independent estimates, docs/math.md §16.1), kept only if
-    /// every image has one.
-    pub fn mean_of(images: &[&Image]) -> Result<Image, ImageError> {
-        let Some(&first) = images.first() else {
-            return Err(ImageError::invalid("images", "no image to average"));
-        };
-        if let Some(other) = images
-            .iter()
-            .find(|i| (i.width, i.height) != (first.width, first.height))
-        {
-            return Err(ImageError::invalid(
-                "images",
-                format!(
-                    "{}×{} and {}×{} differ",
-                    first.width, first.height, other.width, other.height
-                ),
-            ));
-        }
-        let n = images.len() as f64;
-        let rgb = (0..first.rgb.len())
-            .map(|p| {
-                std::array::from_fn(|c| {
-                    (images.iter().map(|i| f64::from(i.rgb[p][c])).sum::<f64>() / n) as f32
-                })
-            })
-            .collect();
-        let variance = images
-            .iter()
-            .map(|i| i.variance.as_deref())
-            .collect::<Option<Vec<_>>>()
-            .map(|vs| {
-                (0..first.rgb.len())
-                    .map(|p| (vs.iter().map(|v| f64::from(v[p])).sum::<f64>() / (n * n)) as f32)
-                    .collect()
-            });
-        Image::from_parts(first.width, first.height, rgb, variance)
-    }
-
     /// The per-pixel standard error `√variance` as a grey image (every
     /// channel the same, no variance of its own); `None` without a variance.
     pub fn std_dev(&self) -> Option<Image> {
@@ -340,18 +299,6 @@ mod tests {
         assert_eq!(image.pixel(4, 0), None);
         assert!(image.insert(&tile, 3, 0).is_err());
         assert!(image.insert(&tile, 0, u32::MAX).is_err());
-    }
-
-    #[test]
-    fn mean_of_passes_averages_values_and_divides_the_variance() {
-        let (a, b) = (ramp(2, 2, 0.0), ramp(2, 2, 2.0));
-        let mean = Image::mean_of(&[&a, &b]).expect("same size");
-        assert_eq!(mean.pixel(1, 0), Some([2.0, 1.0, 2.0]));
-        // (0.5 + 0.5) / 4 for pixel 1.
-        assert_eq!(mean.variance().expect("both have one")[1], 0.25);
-        assert_eq!(Image::mean_of(&[&a]).expect("one"), a);
-        assert!(Image::mean_of(&[]).is_err());
-        assert!(Image::mean_of(&[&a, &ramp(1, 2, 0.0)]).is_err());
     }
 
     #[test]

@@ -74,8 +74,8 @@ pub struct TileRequest {
     /// [`pixel_rng`]`(`[`pass_seed`]`(seed, pass), px, py)` and take rays
     /// `pass · spp .. (pass + 1) · spp` of one pattern of `passes · spp`
     /// ([`pixel_pattern`]), so the mean of passes `0..=k` is a render of
-    /// `(k + 1) · spp` rays stratified as one ([`crate::image::Image::mean_of`],
-    /// docs/math.md §16.1). Whatever else the request seeds (the irradiance
+    /// `(k + 1) · spp` rays stratified as one (docs/math.md §16.1; a preset's
+    /// later passes take the rays of a [`SamplePlan`] instead, §16.5). Whatever else the request seeds (the irradiance
     /// cache's records) uses `seed` alone, so every pass shares it.
     pub pass: u32,
     /// Passes the pixel's pattern is spread over (1: a single render).

@@ -14,7 +14,7 @@ use super::integrator::{CachedSetup, cached_setup, resolve_integrator};
 use super::scenes::LoadedScene;
 use super::state::AppState;
 use super::tile_store::{Key, RenderedPass, TileRecords};
-use crate::image::Image;
+use crate::image::{Image, ImageError};
 use crate::integrator::{Integrator, IntegratorSpec, Preset};
 use crate::render::{Cancel, PathDepth, SamplePlan, TileRequest};
 use crate::scene::Scene;
@@ -315,6 +315,22 @@ fn mean_of_passes(passes: &[Arc<RenderedPass>], spp: u32) -> Result<PassesMean, 
         return Err(ApiError::invalid("pass", "no pass to average"));
     };
     let (width, height) = (first.image.width(), first.image.height());
+    // Passes of one tile share its size; a pass read from elsewhere (the
+    // log, another replica) that does not is refused, not indexed past.
+    if let Some(other) = passes
+        .iter()
+        .find(|p| (p.image.width(), p.image.height()) != (width, height))
+    {
+        return Err(ImageError::invalid(
+            "images",
+            format!(
+                "passes of {width}×{height} and {}×{} differ",
+                other.image.width(),
+                other.image.height()
+            ),
+        )
+        .into());
+    }
     let area = first.image.rgb().len();
     let rays_of = |p: &RenderedPass, i: usize| f64::from(p.counts.get(i).copied().unwrap_or(spp));
     let mut rgb = Vec::with_capacity(area);
