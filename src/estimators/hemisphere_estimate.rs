@@ -21,13 +21,15 @@
 //! (the caller chooses, see [`crate::bmc::estimator::BmcVariance`]), for
 //! MC/QMC the sample variance of the mean. Where paths reflect, the estimate
 //! also reports its indirect part (paths of 2 or more segments), for a prior
-//! on it (docs/math.md §10.7): in split mode the hemisphere rule's whole
-//! estimate; under the hemisphere decomposition, when
+//! on it (docs/math.md §10.7), with its share of the variance: in split
+//! mode the hemisphere rule's whole estimate, whose variance is the rule's
+//! beside the light samples'; under the hemisphere decomposition, when
 //! [`HemisphereRule::indirect_part`] asks, the rule over each value less the
 //! emission its direction sees directly.
 
 use rayon::prelude::*;
 
+use super::integral_prior::share;
 use crate::bmc::estimator::{HemisphereEstimator, irradiance_from_lambert};
 use crate::render::Cancel;
 use crate::render::QueryPoint;
@@ -230,7 +232,14 @@ impl Transport {
         if decomposition == Decomposition::Split {
             let direct = self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
             irradiance += direct.mean;
+            let indirect_variance = variance;
             variance += direct.variance_of_mean;
+            // The indirect part's share is its own variance over the
+            // whole's (docs/math.md §10.7): a prior on it must not take
+            // away the light samples' variance.
+            if let Some(part) = indirect.as_mut() {
+                part.variance_share = share(indirect_variance, variance);
+            }
         }
         Ok(IrradianceEstimate {
             irradiance,
@@ -398,6 +407,57 @@ mod tests {
             assert!((w - p - d).abs() <= 1e-12 * w, "{w} − {p} vs {d}");
             let share = part.variance_share.to_array()[c];
             assert!((0.0..=1.0).contains(&share), "share {share}");
+        }
+    }
+
+    /// In split mode the indirect part carries the rule's variance, not the
+    /// light samples' (docs/math.md §10.7): a prior on it as good as
+    /// certain leaves the direct part's variance in the error bar.
+    #[test]
+    fn a_split_prior_on_the_indirect_part_keeps_the_light_samples_variance() {
+        let transport = cornell(8);
+        let point = [wall_point()];
+        let estimator = bmc(64, 0.5);
+        let run = |max_depth: u32| {
+            let options = IrradianceOptions {
+                max_depth: crate::render::PathDepth::constant(max_depth),
+                ..options(16, 23)
+            };
+            transport
+                .irradiance_with_estimator(
+                    &point,
+                    HemisphereRule {
+                        estimator: &estimator,
+                        prior: PriorChoice::None,
+                        indirect_part: true,
+                    },
+                    &options,
+                    &|| {},
+                    &Cancel::never(),
+                )
+                .unwrap()[0]
+        };
+        let (mut whole, direct) = (run(8), run(1));
+        let part = whole.indirect.expect("an indirect part in split mode");
+        let total = whole.std_error * whole.std_error;
+        let certain = (part.irradiance, Rgb::splat(1e-30));
+        assert!(super::super::integral_prior::combine_part(
+            &mut whole, certain
+        ));
+        let kept = whole.std_error * whole.std_error;
+        // The depth-1 run's variance is the light samples' alone (other
+        // samples of the same light, so the same size within noise).
+        let direct_variance = direct.std_error * direct.std_error;
+        for c in 0..3 {
+            let share = part.variance_share.to_array()[c];
+            let (t, k, d) = (
+                total.to_array()[c],
+                kept.to_array()[c],
+                direct_variance.to_array()[c],
+            );
+            assert!(share > 0.0 && share < 1.0, "share {share}");
+            assert!((k - (1.0 - share) * t).abs() <= 1e-9 * t, "kept {k} of {t}");
+            assert!(k > d / 3.0 && k < 3.0 * d, "kept {k}, light samples' {d}");
         }
     }
 

@@ -177,7 +177,7 @@ fn move_part(
 }
 
 /// `of / total` per channel, 1 where the total is zero.
-fn share(of: Rgb, total: Rgb) -> Rgb {
+pub(crate) fn share(of: Rgb, total: Rgb) -> Rgb {
     Rgb::from_array(std::array::from_fn(|c| {
         let (p, t) = (of.to_array()[c], total.to_array()[c]);
         if t > 0.0 { p / t } else { 1.0 }

@@ -199,10 +199,9 @@ pub struct IndirectPart {
     /// Indirect irradiance, W/m².
     pub irradiance: Rgb,
     /// The share of the estimate's variance that is the part's, per channel,
-    /// in `[0, 1]`: 1 in split mode (the light-sampled direct part's share is
-    /// small and its variance is estimated apart), the rule's own variance
-    /// of the part over that of the whole under the hemisphere
-    /// decomposition, where the direct part is most of it.
+    /// in `[0, 1]`: the rule's own variance of the part over that of the
+    /// whole (in split mode the hemisphere rule's over the rule's plus the
+    /// light samples'; docs/math.md §10.7).
     pub variance_share: Rgb,
 }
 
