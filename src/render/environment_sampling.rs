@@ -1,18 +1,29 @@
 //! Importance sampling of environment lighting.
 //!
-//! A lat-long map is sampled texel by texel in proportion to
-//! `lum(texel) · sin θ` (the solid angle a texel row covers), then uniformly
-//! within the texel; the density converts from the map's `(u, v)` square to
-//! solid angle with the lat-long Jacobian `dω = 2π² sin θ du dv`, `θ = π v`
-//! (pbrt-v4 §12.5.3; Pharr & Humphreys 2004). A small floor keeps the density
-//! positive wherever a filtered lookup could return light next to a black
-//! texel, so no radiance is ever unreachable.
+//! A lat-long map is sampled cell by cell of a `w × h` grid over its
+//! `(u, v)` square, in proportion to `lum · sin θ` (the solid angle a cell
+//! row covers), then uniformly within the cell; the density converts from
+//! the square to solid angle with the lat-long Jacobian `dω = 2π² sin θ du
+//! dv`, `θ = π v` (pbrt-v4 §12.5.3; Pharr & Humphreys 2004). `lum` is the
+//! mean over the cell of the luminance of the bilinearly interpolated
+//! radiance (what a lookup returns, `scene::environment`), by trapezoids
+//! over the cell's halves along each axis (a 3 × 3 lattice: corners, edge
+//! midpoints, centre), not the texel's own luminance: the interpolation
+//! spreads a bright texel half a texel into its dimmer neighbours, and with
+//! their own luminance as the weight the directions there had a density
+//! hundreds of times below their radiance. A sun of one texel then made
+//! light samples' standard error 15 % at 4,096 samples on issue 39's sunset
+//! scene; with the cells' means the ratio of radiance to density stays
+//! within 16 times its mean. Each cell straddles two texel columns, so the
+//! trapezoids are exact along `u` for the interpolant. A small floor keeps
+//! the density positive everywhere, so no radiance is ever unreachable.
 //!
 //! A constant environment is sampled uniformly over the sphere.
 
 use std::f64::consts::PI;
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::distribution::Distribution2D;
 use super::rgb::Rgb;
@@ -108,17 +119,27 @@ pub fn environment_relative_variance(environment: &Environment) -> f64 {
     (square / (mean * mean) - 1.0).max(0.0)
 }
 
-/// Texel weights `lum · sin θ` plus the floor, as a 2-D distribution over `(u, v)`.
+/// Cell weights `lum · sin θ` (module docs) plus the floor, as a 2-D
+/// distribution over `(u, v)`: `9 w h` lookups, in parallel.
 fn map_distribution(map: &EnvironmentMap) -> Distribution2D {
     let (w, h) = (map.width(), map.height());
     let row_sin = |y: usize| (PI * (y as f64 + 0.5) / h as f64).sin();
-    let mut weights = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let lum = Rgb::from_array(map.texel(x, y)).luminance();
-            weights.push(lum.max(0.0) * row_sin(y));
-        }
-    }
+    // Trapezoids over the cell's two halves along each axis.
+    let lattice = [(0.0, 0.25), (0.5, 0.5), (1.0, 0.25)];
+    let mut weights: Vec<f64> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let mut lum = 0.0;
+            for (a, wa) in lattice {
+                for (b, wb) in lattice {
+                    let (u, v) = ((x as f64 + a) / w as f64, (y as f64 + b) / h as f64);
+                    lum += wa * wb * Rgb::from_array(map.radiance_at_uv(u, v)).luminance();
+                }
+            }
+            lum.max(0.0) * row_sin(y)
+        })
+        .collect();
     let mean = weights.iter().sum::<f64>() / weights.len().max(1) as f64;
     let floor = DENSITY_FLOOR * mean.max(f64::MIN_POSITIVE);
     for (i, weight) in weights.iter_mut().enumerate() {
@@ -173,11 +194,63 @@ mod tests {
                 assert!((dir.length() - 1.0).abs() < 1e-12);
                 assert!((pdf - sampler.pdf(&env, dir)).abs() < 1e-9 * pdf, "{pdf}");
                 assert_eq!(radiance, Rgb::from_array(map.radiance(dir)));
-                bright += usize::from(radiance.r > 10.0);
+                bright += usize::from(radiance.r > 1.0);
             }
         }
-        // One texel of 128 holds most of the luminance.
-        assert!(bright > n * n / 2, "{bright}");
+        // One texel of 128 holds most of the luminance: uniform directions
+        // would see it, directly or through the interpolation around it, a
+        // few per cent of the time; its density draws far more there.
+        assert!(bright > n * n / 4, "{bright}");
+    }
+
+    /// A sun of one texel: the interpolation spreads it half a texel into
+    /// its neighbours, whose density must follow (module docs). Radiance
+    /// over density, whose mean is the map's integral, stays within a
+    /// small multiple of its mean. With the texels' own luminance as
+    /// weights, 40,000 stratified samples read the integral 11 % low: the
+    /// neighbours' rare samples, which carry it, were not drawn.
+    #[test]
+    fn radiance_over_density_stays_bounded_around_a_one_texel_sun() {
+        let (w, h) = (32, 16);
+        let texels = (0..w * h)
+            .map(|i| {
+                if i == 5 * w + 11 {
+                    [3000.0; 3]
+                } else {
+                    [1.0; 3]
+                }
+            })
+            .collect();
+        let env = Environment::Map(EnvironmentMap::new(w, h, texels, 1.0, DMat3::IDENTITY));
+        let sampler = EnvironmentSampler::new(&env);
+        let n = 200;
+        let ratios: Vec<f64> = (0..n * n)
+            .filter_map(|k| {
+                let u = [
+                    ((k % n) as f64 + 0.5) / n as f64,
+                    ((k / n) as f64 + 0.5) / n as f64,
+                ];
+                let (_, radiance, pdf) = sampler.sample(&env, u)?;
+                Some(radiance.luminance() / pdf)
+            })
+            .collect();
+        let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+        let integral = warp::integrate_directions(
+            |d| Rgb::from_array(env.radiance(d)).luminance(),
+            -1.0,
+            2000,
+            2000,
+        );
+        assert!((mean / integral - 1.0).abs() < 0.02, "{mean} vs {integral}");
+        // Beside a texel's centre the interpolant is at most 4× its cell's
+        // mean, 16× at a corner: the bound holds wherever the sun is.
+        let largest = ratios.iter().cloned().fold(0.0, f64::max);
+        assert!(largest < 16.0 * mean, "largest {largest}, mean {mean}");
+        // The relative variance of one sample: 0.88 here (1.16 with each
+        // cell's largest value as its weight).
+        let square = ratios.iter().map(|r| r * r).sum::<f64>() / ratios.len() as f64;
+        let relative_variance = square / (mean * mean) - 1.0;
+        assert!(relative_variance < 1.0, "{relative_variance}");
     }
 
     #[test]

@@ -13,9 +13,9 @@
 //! The radiance is interpolated bilinearly between texels as Mitsuba 3's
 //! `envmap` does: periodic in `u` with texel centres at `(x + ½)/w`, and
 //! clamped in `v` with the first and last rows on the poles (row `y` at
-//! `v = y/(h − 1)`). Importance sampling picks texels (`render::
-//! environment_sampling`), a density that differs from the interpolated
-//! radiance but is positive wherever it is. Solid angle and the (u, v)
+//! `v = y/(h − 1)`). Importance sampling picks cells of the (u, v) square
+//! by the interpolated radiance's mean over them (`render::
+//! environment_sampling`). Solid angle and the (u, v)
 //! square are related by `dω = 2π² sin θ du dv`.
 
 use std::path::Path;
@@ -121,6 +121,12 @@ impl EnvironmentMap {
     /// between the four texels around it (module docs).
     pub fn radiance(&self, world_dir: DVec3) -> [f64; 3] {
         let (u, v) = self.direction_to_uv(world_dir);
+        self.radiance_at_uv(u, v)
+    }
+
+    /// Radiance at map coordinates `(u, v)` ∈ [0, 1]², bilinear between the
+    /// four texels around them (module docs).
+    pub fn radiance_at_uv(&self, u: f64, v: f64) -> [f64; 3] {
         let x = u * self.width as f64 - 0.5;
         let y = v * (self.height - 1) as f64;
         let (fx, fy) = (x.floor(), y.floor());
