@@ -80,9 +80,9 @@ pub struct SceneStudyArgs {
     /// preset's cache settings (`draft`, `preview`, `standard`, `final`).
     #[arg(long, value_enum)]
     pub records_from: Option<crate::integrator::Preset>,
-    /// With `--records-from` and the hemisphere decomposition: also run `qmc`
-    /// and `bmc` with direct-light records at the records' places as a prior
-    /// on the direct part (docs/math.md §10.8).
+    /// With `--records-from`: also run `qmc` and `bmc` with direct-light
+    /// records at the records' places as a prior on the direct part, made as
+    /// the study's decomposition estimates it (docs/math.md §10.8).
     #[arg(long, requires = "records_from")]
     pub direct_records: bool,
     /// Also write the study's points here (`x,y,z,nx,ny,nz`, the input of

@@ -355,8 +355,7 @@ impl PointEstimator {
                 Ok::<_, EstimatorError>(run)
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let decomposition = transport.decomposition(options.method);
-        let known = self.priors_at(&caches, &training.points, decomposition);
+        let known = self.priors_at(&caches, &training.points);
         let combined = |scales| {
             runs.iter()
                 .map(|run| {
@@ -454,9 +453,8 @@ impl PointEstimator {
 
     /// With the records prior: `estimates`, the [`Self::rule`]'s (with the
     /// rule's calibrated error bars, if the spec calibrates), combined with the
-    /// records where they cover a point (§10.7), then, under the hemisphere
-    /// decomposition, their direct part with the direct-light records
-    /// (§10.8), the priors' variances scaled by `scales` (§10.9); and for
+    /// records where they cover a point (§10.7), then their direct part with
+    /// the direct-light records (§10.8), the priors' variances scaled by `scales` (§10.9); and for
     /// each estimate whether a prior moved it (the others keep the rule's
     /// error bars, the moved ones are calibrated again).
     fn with_priors(
@@ -466,7 +464,7 @@ impl PointEstimator {
         points: &[QueryPoint],
         scales: PriorScales,
     ) -> (Estimates, Vec<bool>) {
-        let known = self.priors_at(&caches, points, estimates.decomposition);
+        let known = self.priors_at(&caches, points);
         let moved = combine_priors(&mut estimates.estimates, &known, scales);
         estimates.calibration = None;
         (estimates, moved)
@@ -485,19 +483,11 @@ impl PointEstimator {
         }
     }
 
-    /// The priors at each point, for estimates run under `decomposition`
-    /// (in split mode the direct part is light-sampled, not the rule's, so
-    /// it takes no direct prior).
-    fn priors_at(
-        &self,
-        caches: &EstimatorCaches,
-        points: &[QueryPoint],
-        decomposition: Decomposition,
-    ) -> Vec<KnownPriors> {
+    /// The priors at each point (the caches' direct-light records are made
+    /// for the queries' decomposition, §10.8).
+    fn priors_at(&self, caches: &EstimatorCaches, points: &[QueryPoint]) -> Vec<KnownPriors> {
         let records = self.records(caches);
-        let direct = self
-            .direct(caches)
-            .filter(|_| decomposition == Decomposition::Hemisphere);
+        let direct = self.direct(caches);
         points
             .iter()
             .map(|point| KnownPriors {

@@ -18,8 +18,9 @@
 //! evicts the least valuable one (moka's TinyLFU) as a whole. A configuration
 //! whose rule alone exceeds the total is refused (422) and its rule dropped.
 //! Each cache also holds the direct-light twins of its records (docs/math.md
-//! §10.8), made when a records-prior query first needs them, within
-//! [`DIRECT_SHARE`]⁻¹ of the cache's own budget, weighed with it.
+//! §10.8), one kind for queries under each decomposition, made when a
+//! records-prior query first needs them, both kinds within [`DIRECT_SHARE`]⁻¹
+//! of the cache's own budget (half each), weighed with it.
 
 use std::collections::HashSet;
 use std::sync::{Arc, Mutex};
@@ -30,14 +31,17 @@ use utoipa::ToSchema;
 
 use super::scenes::LoadedScene;
 use crate::cache::{Accuracy, CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
-use crate::integrator::cached::{CachedShading, RecordSource, RecordsKey, direct_records};
-use crate::render::{Cancel, PathDepth, RenderError, Transport};
+use crate::integrator::cached::{
+    CachedShading, RecordSource, RecordsKey, TwinRule, direct_records,
+};
+use crate::render::{Cancel, Decomposition, PathDepth, RenderError, Transport};
 
 /// Each cache may use `1/SHARE` of the total budget.
 pub const SHARE: usize = 4;
 
-/// The direct-light twins of a cache's records may use `1/DIRECT_SHARE` of
-/// the cache's budget (beyond it their own FIFO eviction drops the oldest).
+/// The direct-light twins of a cache's records, both kinds, may use
+/// `1/DIRECT_SHARE` of the cache's budget, half each (beyond it their own
+/// FIFO eviction drops the oldest).
 pub const DIRECT_SHARE: usize = 4;
 
 /// Seed of every direct-light twin (with its place: the same record has the
@@ -73,50 +77,52 @@ pub struct ConfigurationStats {
 pub struct SceneCache {
     pub cache: IrradianceCache,
     pub shading: CachedShading,
-    /// Direct-light twins of the records (docs/math.md §10.8).
+    /// Direct-light twins of the records (docs/math.md §10.8), for queries
+    /// under the hemisphere decomposition and for split ones.
     direct: DirectTwins,
+    light_direct: DirectTwins,
     /// The configuration as people read it in `GET /v1/scenes/{id}/cache`.
     description: serde_json::Value,
 }
 
 impl SceneCache {
     /// An empty cache of `config` for records computed with `shading`'s
-    /// rules; its direct-light twins take `1/DIRECT_SHARE` of its budget.
+    /// rules; each kind of its direct-light twins takes half of
+    /// `1/DIRECT_SHARE` of its budget.
     pub fn new(
         config: CacheConfig,
         shading: CachedShading,
         description: serde_json::Value,
     ) -> Result<Self, CacheError> {
         let direct = CacheConfig {
-            byte_budget: config.byte_budget / DIRECT_SHARE,
+            byte_budget: config.byte_budget / (2 * DIRECT_SHARE),
             ..config
         };
         Ok(Self {
             cache: IrradianceCache::new(config)?,
-            direct: DirectTwins {
-                twins: IrradianceCache::new(direct)?,
-                mirrored: Mutex::new(HashSet::new()),
-            },
+            direct: DirectTwins::new(direct)?,
+            light_direct: DirectTwins::new(direct)?,
             shading,
             description,
         })
     }
 
-    /// The direct-light twins of every record held now (docs/math.md §10.8),
-    /// made for the records that have none yet. Returns them and the rays
-    /// traced for the new ones.
+    /// The direct-light twins of every record held now (docs/math.md §10.8)
+    /// for queries under `decomposition`, made for the records that have
+    /// none yet. Returns them and the rays traced for the new ones.
     pub fn direct_twins(
         &self,
         transport: &Transport,
+        decomposition: Decomposition,
         cancel: &Cancel,
     ) -> Result<(&IrradianceCache, u64), RenderError> {
+        let direct = match decomposition {
+            Decomposition::Hemisphere => &self.direct,
+            Decomposition::Split => &self.light_direct,
+        };
         // One request makes the missing twins; others wait for them rather
         // than trace the same rays.
-        let mut mirrored = self
-            .direct
-            .mirrored
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
+        let mut mirrored = direct.mirrored.lock().unwrap_or_else(|e| e.into_inner());
         let records = self.cache.records();
         // Forget the places of records the cache has evicted since.
         let held: HashSet<[u64; 3]> = records.iter().map(place).collect();
@@ -128,13 +134,13 @@ impl SceneCache {
         let rays = direct_records(
             transport,
             &new,
-            &self.shading.rule,
-            &self.direct.twins,
+            TwinRule::for_queries(decomposition, &self.shading.rule),
+            &direct.twins,
             DIRECT_SEED,
             cancel,
         )?;
         mirrored.extend(new.iter().map(place));
-        Ok((&self.direct.twins, rays))
+        Ok((&direct.twins, rays))
     }
 }
 
@@ -151,6 +157,13 @@ struct DirectTwins {
 }
 
 impl DirectTwins {
+    fn new(config: CacheConfig) -> Result<Self, CacheError> {
+        Ok(Self {
+            twins: IrradianceCache::new(config)?,
+            mirrored: Mutex::new(HashSet::new()),
+        })
+    }
+
     fn clear(&self) {
         let mut mirrored = self.mirrored.lock().unwrap_or_else(|e| e.into_inner());
         self.twins.clear();
@@ -195,9 +208,12 @@ impl RecordSource for PriorSource {
     fn direct_twins(
         &self,
         transport: &Transport,
+        decomposition: Decomposition,
         cancel: &Cancel,
     ) -> Result<Option<(&IrradianceCache, u64)>, RenderError> {
-        self.entry.direct_twins(transport, cancel).map(Some)
+        self.entry
+            .direct_twins(transport, decomposition, cancel)
+            .map(Some)
     }
 }
 
@@ -311,6 +327,7 @@ impl IrradianceCaches {
                 let records = entry.cache.stats().records;
                 entry.cache.clear();
                 entry.direct.clear();
+                entry.light_direct.clear();
                 records + entry.shading.secondary.clear()
             })
             .sum()

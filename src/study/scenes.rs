@@ -28,7 +28,8 @@ use crate::estimators::{
 };
 use crate::integrator::Preset;
 use crate::integrator::cached::{
-    CachedIntegrator, CachedShading, CachedSpec, RecordSource, direct_records, point_priors,
+    CachedIntegrator, CachedShading, CachedSpec, RecordSource, TwinRule, direct_records,
+    point_priors,
 };
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{
@@ -240,6 +241,7 @@ fn camera_direct_records(
     transport: &Transport,
     preset: Preset,
     max_depth: PathDepth,
+    decomposition: Decomposition,
     (records, shading): &(IrradianceCache, CachedShading),
 ) -> Result<IrradianceCache, SceneStudyError> {
     let deeper;
@@ -253,7 +255,7 @@ fn camera_direct_records(
     direct_records(
         transport,
         &places.records(),
-        &shading.rule,
+        TwinRule::for_queries(decomposition, &shading.rule),
         &twins,
         RECORDS_SEED,
         &Cancel::never(),
@@ -288,6 +290,7 @@ impl RecordSource for StudyRecords {
     fn direct_twins(
         &self,
         _: &Transport,
+        _: Decomposition,
         _: &Cancel,
     ) -> Result<Option<(&IrradianceCache, u64)>, RenderError> {
         Ok(self.twins.as_ref().map(|twins| (twins, 0)))
@@ -308,8 +311,17 @@ pub fn run(
     let sources = match options.records_from {
         Some(preset) => {
             let records = camera_records(transport, preset, options.max_depth)?;
-            let twins = (options.direct_records && decomposition == Decomposition::Hemisphere)
-                .then(|| camera_direct_records(transport, preset, options.max_depth, &records))
+            let twins = options
+                .direct_records
+                .then(|| {
+                    camera_direct_records(
+                        transport,
+                        preset,
+                        options.max_depth,
+                        decomposition,
+                        &records,
+                    )
+                })
                 .transpose()?;
             let (cache, shading) = records;
             vec![StudyRecords {

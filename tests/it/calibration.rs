@@ -43,9 +43,9 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
             seed: 2026,
             bmc_kernel: None,
             records_from: Some(records_from),
-            // Under `auto` the overcast scene's decomposition is the
-            // hemisphere, where the direct-light twins apply (§10.8); the
-            // Cornell box's is split, where the study leaves them out.
+            // Direct-light twins (§10.8): under `auto` the overcast scene's
+            // decomposition is the hemisphere, the Cornell box's split,
+            // where they are light-sampled.
             direct_records: true,
         };
         let rows = scenes::run(&transport(scene), scene, &options).unwrap();
@@ -63,12 +63,13 @@ fn mc_qmc_and_bmc_error_bars_are_calibrated_on_two_scenes() {
         // The twins carry the sky seen past the occluders, what the
         // indirect records leave to the rule (measured 0.79× bmc+records
         // here with preview records; 0.43× with a final render's records on
-        // 200 points, docs/BENCHMARKS.md, direct-light records).
-        if let Some(both) = nrmse("bmc+records+direct") {
-            assert!(both < 0.9 * with, "{scene}: +direct {both} vs {with}");
-        } else {
-            assert_eq!(scene, "cornell-box.json", "no direct rows on {scene}");
-        }
+        // 200 points, docs/BENCHMARKS.md, direct-light records). On the
+        // Cornell box, lit by one area light that 64 light samples already
+        // resolve, a preview record's twin (as many light samples as its
+        // rule has directions) adds little, and must take nothing away.
+        let both = nrmse("bmc+records+direct").expect("direct rows");
+        let gain = if scene == "overcast.json" { 0.9 } else { 1.01 };
+        assert!(both < gain * with, "{scene}: +direct {both} vs {with}");
         for row in rows.iter().filter(|r| !r.estimator.contains("+records")) {
             // The default error bars, calibrated for every estimator
             // (docs/math.md §10.5); for MC at N = 16 this needs the term for

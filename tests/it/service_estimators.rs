@@ -694,8 +694,9 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     }
     let after = irradiance(&app, with_records).await;
     assert_eq!(after["records_prior_points"], 2, "{after}");
-    // Split mode light-samples the direct part: no twins are made or used.
-    assert!(after.get("direct_records_points").is_none(), "{after}");
+    // Split mode light-samples the direct part, and so do the records'
+    // twins (docs/math.md §10.8).
+    assert_eq!(after["direct_records_points"], 2, "{after}");
     let reference = irradiance(&app, json!({"method": "mc", "samples": 4096})).await;
     for point in 0..2 {
         let (e, s) = (

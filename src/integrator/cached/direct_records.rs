@@ -1,19 +1,20 @@
 //! Direct-light records: at the places of an irradiance cache's records,
 //! the irradiance of the emission each place sees directly (the environment
-//! where a ray escapes, an emitter's radiance where it hits one), estimated
-//! by the record rule from one-segment rays, with its gradients. Records
+//! where a ray escapes, an emitter's radiance where it hits one). Records
 //! hold the indirect part (§10.7); these twins carry what the environment
-//! and the emitters give once occluded by the scene, which a hemisphere
-//! estimate's direct part integrates from its own few directions
-//! (docs/math.md §10.8).
+//! and the emitters give once occluded by the scene, which a point
+//! estimate's direct part integrates from its own few samples
+//! (docs/math.md §10.8). A twin estimates the direct part as the query it
+//! serves does: under the hemisphere decomposition by the record rule from
+//! one-segment rays, with its gradients; in split mode by light samples.
 
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 
 use crate::cache::{IrradianceCache, RadiusLimits, Record, RecordRule};
 use crate::render::{
-    AveragedPaths, Cancel, PathDepth, PathLengths, PathLimits, QueryPoint, RenderError, TraceStats,
-    Transport,
+    AveragedPaths, Cancel, Decomposition, PathDepth, PathLengths, PathLimits, QueryPoint,
+    RenderError, TraceStats, Transport,
 };
 use crate::sphere::Frame;
 
@@ -21,68 +22,72 @@ use crate::sphere::Frame;
 /// table reads among them).
 const BATCH: usize = 32;
 
+/// How twins estimate the direct light at their places: as the queries
+/// they serve estimate their direct part.
+#[derive(Clone, Copy)]
+pub enum TwinRule<'a> {
+    /// The record rule over one ray along each of its directions, with the
+    /// rule's gradients (for the hemisphere decomposition).
+    Directions(&'a RecordRule),
+    /// This many light samples (multiple importance sampled with cosine
+    /// directions where an environment shines), the estimate of a split
+    /// query's direct part; no gradients (for the split decomposition).
+    LightSamples(u32),
+}
+
+impl<'a> TwinRule<'a> {
+    /// The twins that serve queries under `decomposition`, at the cost of
+    /// `rule`'s: one light sample per direction of it in split mode.
+    pub fn for_queries(decomposition: Decomposition, rule: &'a RecordRule) -> Self {
+        match decomposition {
+            Decomposition::Hemisphere => Self::Directions(rule),
+            Decomposition::Split => Self::LightSamples(rule.directions().len() as u32),
+        }
+    }
+}
+
 /// The direct-light twins of `records`, inserted into `twins`: each at the
 /// record's place and with its validity radius, estimated by `rule`
-/// from one ray per direction (paths of one segment, the rule's directions
-/// turned about the normal by a random angle drawn from `seed` and the
-/// record's place, so a record has the same twin whenever and with whatever
-/// others it is computed). Returns the rays traced.
+/// (with the rule's directions turned about the normal by a random angle);
+/// every random number is drawn from `seed` and the record's place, so a
+/// record has the same twin whenever and with whatever others it is
+/// computed. Returns the rays traced.
 pub fn direct_records(
     transport: &Transport,
     records: &[Record],
-    rule: &RecordRule,
+    rule: TwinRule,
     twins: &IrradianceCache,
     seed: u64,
     cancel: &Cancel,
 ) -> Result<u64, RenderError> {
-    let paths = AveragedPaths {
-        limits: PathLimits {
-            max_depth: PathDepth::new(1)?,
-            lengths: PathLengths::All,
-        },
-        per_direction: 1,
-    };
     let batches: Vec<Result<(Vec<Record>, u64), RenderError>> = records
         .par_chunks(BATCH)
         .map(|batch| {
             cancel.check()?;
             let mut trace = TraceStats::default();
-            let mut gathered = Vec::with_capacity(batch.len());
-            for record in batch {
-                let mut rng = rand_pcg::Pcg64::seed_from_u64(place_seed(seed, record.position));
-                let point = QueryPoint::new(record.position, record.normal)?;
-                let frame = Frame::from_normal(record.normal)
-                    .rotated_about_normal(std::f64::consts::TAU * rng.random::<f64>());
-                let samples = transport.hemisphere_samples_averaged(
-                    &point,
-                    &frame,
-                    rule.directions(),
-                    paths,
-                    &mut rng,
-                    &mut trace,
-                );
-                gathered.push((point, frame, samples));
-            }
-            let values: Vec<&[_]> = gathered.iter().map(|(_, _, s)| s.as_slice()).collect();
-            let estimates = rule.estimate_batch(&values);
-            let twins = gathered
-                .iter()
-                .zip(estimates)
-                .zip(batch)
-                .map(|(((point, frame, samples), estimate), record)| {
-                    let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
-                    // The twin keeps the record's radius (and clamps its
-                    // gradients to it), so both cover the same points.
-                    let limits = RadiusLimits {
-                        min: record.radius,
-                        max: record.radius,
-                    };
-                    Ok(Record::from_estimate(
-                        point, frame, &estimate?, &distances, limits,
-                    ))
-                })
-                .collect::<Result<Vec<_>, RenderError>>()?;
-            Ok((twins, trace.rays))
+            let made = match rule {
+                TwinRule::Directions(rule) => {
+                    directions_twins(transport, batch, rule, seed, &mut trace)?
+                }
+                TwinRule::LightSamples(samples) => batch
+                    .iter()
+                    .map(|record| {
+                        let mut rng =
+                            rand_pcg::Pcg64::seed_from_u64(place_seed(seed, record.position));
+                        let point = QueryPoint::new(record.position, record.normal)?;
+                        let direct =
+                            transport.direct_irradiance(&point, samples, &mut rng, &mut trace);
+                        Ok(Record {
+                            irradiance: direct.mean,
+                            variance: direct.variance_of_mean,
+                            rotation_gradient: [glam::DVec3::ZERO; 3],
+                            translation_gradient: [glam::DVec3::ZERO; 3],
+                            ..*record
+                        })
+                    })
+                    .collect::<Result<Vec<_>, RenderError>>()?,
+            };
+            Ok((made, trace.rays))
         })
         .collect();
     let mut rays = 0;
@@ -94,6 +99,58 @@ pub fn direct_records(
         }
     }
     Ok(rays)
+}
+
+/// The twins of `batch` by the record rule from one-segment rays.
+fn directions_twins(
+    transport: &Transport,
+    batch: &[Record],
+    rule: &RecordRule,
+    seed: u64,
+    trace: &mut TraceStats,
+) -> Result<Vec<Record>, RenderError> {
+    let paths = AveragedPaths {
+        limits: PathLimits {
+            max_depth: PathDepth::new(1)?,
+            lengths: PathLengths::All,
+        },
+        per_direction: 1,
+    };
+    let mut gathered = Vec::with_capacity(batch.len());
+    for record in batch {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(place_seed(seed, record.position));
+        let point = QueryPoint::new(record.position, record.normal)?;
+        let frame = Frame::from_normal(record.normal)
+            .rotated_about_normal(std::f64::consts::TAU * rng.random::<f64>());
+        let samples = transport.hemisphere_samples_averaged(
+            &point,
+            &frame,
+            rule.directions(),
+            paths,
+            &mut rng,
+            trace,
+        );
+        gathered.push((point, frame, samples));
+    }
+    let values: Vec<&[_]> = gathered.iter().map(|(_, _, s)| s.as_slice()).collect();
+    let estimates = rule.estimate_batch(&values);
+    gathered
+        .iter()
+        .zip(estimates)
+        .zip(batch)
+        .map(|(((point, frame, samples), estimate), record)| {
+            let distances: Vec<f64> = samples.iter().map(|s| s.distance).collect();
+            // The twin keeps the record's radius (and clamps its
+            // gradients to it), so both cover the same points.
+            let limits = RadiusLimits {
+                min: record.radius,
+                max: record.radius,
+            };
+            Ok(Record::from_estimate(
+                point, frame, &estimate?, &distances, limits,
+            ))
+        })
+        .collect()
 }
 
 /// The seed of a record's twin: `seed` mixed with the bits of its place.
@@ -158,7 +215,7 @@ mod tests {
             let rays = direct_records(
                 &transport,
                 places,
-                &shading.rule,
+                TwinRule::Directions(&shading.rule),
                 &cache,
                 7,
                 &Cancel::never(),
@@ -178,6 +235,63 @@ mod tests {
         assert!(under.variance.g > 0.0);
         assert_eq!((open.radius, under.radius), (0.3, 0.3));
         // A place has the same twin whatever it is computed with.
+        let (alone, _) = twins_of(&places[1..]);
+        assert_eq!(alone.records()[0], under);
+    }
+
+    /// Light-sampled twins (split mode) hold the same sky: above the disk
+    /// `2π`, under it `π`, with the light samples' variance, the record's
+    /// radius and no gradients; a place has the same twin however it is
+    /// computed.
+    #[test]
+    fn light_sampled_twins_hold_the_same_sky() {
+        let doc = r#"{
+            "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+            "shapes": [{"type": "disk", "material": "grey"}],
+            "environment": {"type": "constant", "radiance": [2, 2, 2]},
+            "camera": {"type": "perspective", "fov": 30, "origin": [0, 0, 4],
+                       "target": [0, 0, 0], "up": [0, 1, 0], "width": 4, "height": 4}
+        }"#;
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
+        let transport = Transport::new(Arc::new(scene));
+        let place = |z: f64| Record {
+            position: DVec3::new(0.0, 0.0, z),
+            normal: DVec3::Z,
+            irradiance: Rgb::BLACK,
+            variance: Rgb::BLACK,
+            radius: 0.3,
+            rotation_gradient: [DVec3::ONE; 3],
+            translation_gradient: [DVec3::ONE; 3],
+        };
+        let places = [place(0.0), place(-1.0)];
+        let twins_of = |places: &[Record]| {
+            let cache = IrradianceCache::new(CacheConfig::default()).unwrap();
+            let rays = direct_records(
+                &transport,
+                places,
+                TwinRule::LightSamples(4096),
+                &cache,
+                7,
+                &Cancel::never(),
+            )
+            .unwrap();
+            (cache, rays)
+        };
+        let (cache, rays) = twins_of(&places);
+        assert!(rays >= 2 * 4096, "{rays}");
+        let twins = cache.records();
+        let at = |z: f64| *twins.iter().find(|t| t.position.z == z).unwrap();
+        let (open, under) = (at(0.0), at(-1.0));
+        let pi = std::f64::consts::PI;
+        for (twin, truth) in [(open, 2.0 * pi), (under, pi)] {
+            let sigma = twin.variance.g.sqrt();
+            assert!(sigma > 0.0 && sigma < 0.02 * truth, "{twin:?}");
+            assert!((twin.irradiance.g - truth).abs() < 4.0 * sigma, "{twin:?}");
+            assert_eq!(twin.radius, 0.3);
+            assert_eq!(twin.rotation_gradient, [DVec3::ZERO; 3]);
+            assert_eq!(twin.translation_gradient, [DVec3::ZERO; 3]);
+        }
         let (alone, _) = twins_of(&places[1..]);
         assert_eq!(alone.records()[0], under);
     }

@@ -52,7 +52,7 @@ pub use config::{
     AMBIENT_MIN_DEPTH, CacheShadingOptions, CachedShading, MAX_AMBIENT_BOUNCES, MAX_BMC_EXPONENT,
     MAX_LIGHT_SAMPLES, PlacementOptions, default_rule_spec, indirect_paths,
 };
-pub use direct_records::direct_records;
+pub use direct_records::{TwinRule, direct_records};
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
 pub use placement::{PlacementCache, PlacementReport, place_and_shade, place_records, shade};
 pub use point_priors::{PointPriors, RecordSource, point_priors};

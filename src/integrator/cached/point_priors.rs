@@ -2,9 +2,9 @@
 //! every front end (the irradiance route, the real-scene study): the
 //! indirect part leans on the records of every cache whose records sum
 //! paths at least as long, from their point, as the query's (docs/math.md
-//! §10.7); under the hemisphere decomposition the direct part leans on the
-//! direct-light twins of every cache's records, at any depth, since those
-//! hold the direct light alone (§10.8).
+//! §10.7); the direct part leans on the direct-light twins of every cache's
+//! records, at any depth, since those hold the direct light alone, made as
+//! the query's decomposition estimates it (§10.8).
 
 use crate::cache::{Accuracy, IrradianceCache, RecordsPrior};
 use crate::render::{Cancel, Decomposition, IrradianceMethod, PathDepth, RenderError, Transport};
@@ -21,11 +21,12 @@ pub trait RecordSource {
     /// none beyond it, so no indirect light).
     fn depth_from_point(&self) -> Option<PathDepth>;
 
-    /// The records' direct-light twins (`None`: none to offer) and the rays
-    /// traced now to make missing ones.
+    /// The records' direct-light twins for queries under `decomposition`
+    /// (`None`: none to offer) and the rays traced now to make missing ones.
     fn direct_twins(
         &self,
         transport: &Transport,
+        decomposition: Decomposition,
         cancel: &Cancel,
     ) -> Result<Option<(&IrradianceCache, u64)>, RenderError>;
 }
@@ -34,7 +35,7 @@ pub trait RecordSource {
 pub struct PointPriors<'a> {
     /// On the indirect part (§10.7).
     pub records: RecordsPrior<'a>,
-    /// On the direct part (§10.8); empty in split mode.
+    /// On the direct part (§10.8).
     pub direct: RecordsPrior<'a>,
     /// Rays traced making direct-light twins.
     pub rays: u64,
@@ -62,12 +63,11 @@ pub fn point_priors<'a, S: RecordSource>(
     let records = RecordsPrior::new(records);
     let mut twins = Vec::new();
     let mut rays = 0;
-    if transport.decomposition(method) == Decomposition::Hemisphere {
-        for source in sources {
-            if let Some((cache, traced)) = source.direct_twins(transport, cancel)? {
-                rays += traced;
-                twins.push((cache, source.records().1, source.origin()));
-            }
+    let decomposition = transport.decomposition(method);
+    for source in sources {
+        if let Some((cache, traced)) = source.direct_twins(transport, decomposition, cancel)? {
+            rays += traced;
+            twins.push((cache, source.records().1, source.origin()));
         }
     }
     Ok(PointPriors {

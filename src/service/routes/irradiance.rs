@@ -205,9 +205,8 @@ pub struct IrradianceResponse {
     /// the irradiance cache's records.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub records_prior_points: Option<usize>,
-    /// With `records_prior` under the hemisphere decomposition: the points
-    /// whose direct part was combined with the direct-light twins of the
-    /// records (docs/math.md §10.8).
+    /// With `records_prior`: the points whose direct part was combined with
+    /// the direct-light twins of the records (docs/math.md §10.8).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub direct_records_points: Option<usize>,
     /// With the records prior: per point, which records its estimate was
@@ -370,9 +369,8 @@ pub async fn irradiance(
             }
             // Per point, the records its indirect part met (estimates with
             // reflections report an indirect part) and those whose twins
-            // its direct part met (hemisphere estimates only).
+            // its direct part met.
             let covered = |e: &Estimates| {
-                let hemisphere = e.decomposition == Decomposition::Hemisphere;
                 e.estimates
                     .iter()
                     .zip(&points)
@@ -381,12 +379,12 @@ pub async fn irradiance(
                             .indirect
                             .and_then(|_| records.origin_at(p))
                             .map(Into::into),
-                        direct: direct.origin_at(p).filter(|_| hemisphere).map(Into::into),
+                        direct: direct.origin_at(p).map(Into::into),
                     })
                     .collect::<Vec<_>>()
             };
             estimates.map(|(e, targeted)| {
-                let covered = records_prior.then(|| (covered(&e), e.decomposition));
+                let covered = records_prior.then(|| covered(&e));
                 ((e, targeted), covered)
             })
         })
@@ -395,15 +393,11 @@ pub async fn irradiance(
     let count = |part: fn(&PointPriors) -> bool| {
         covered
             .as_ref()
-            .map(|(c, _)| c.iter().filter(|p| part(p)).count())
+            .map(|c| c.iter().filter(|p| part(p)).count())
     };
     let records_prior_points = count(|p| p.indirect.is_some());
-    let direct_records_points = count(|p| p.direct.is_some()).filter(|_| {
-        covered
-            .as_ref()
-            .is_some_and(|(_, d)| *d == Decomposition::Hemisphere)
-    });
-    let prior_used = covered.map(|(c, _)| c);
+    let direct_records_points = count(|p| p.direct.is_some());
+    let prior_used = covered;
     let (estimates, targeted) = estimates;
     let (kernel, decomposition, prior, calibration) = (
         estimates.kernel,
