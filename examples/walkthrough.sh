@@ -131,8 +131,9 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 #   combines each point's indirect part with the records that cover it (§10.7): every
 #   reproducible tile's, gathered the same on every replica (§10.10), and those a query of
 #   64 points or more places among its own points (§10.11, counted in "amortised_rays");
-#   under the hemisphere decomposition also its direct part with the direct light
-#   seen from the records' places (§10.8), each prior weighed by a variance scale fitted
+#   also its direct part with the direct light seen from the records' places (§10.8;
+#   light-sampled in split mode, left out where the point's own samples contradict
+#   it), each prior weighed by a variance scale fitted
 #   with the calibration ("calibration": {"prior_scales": …}, §10.9); "prior_used" says
 #   per point which records served ("records" or "cache"), "records_prior_points" and
 #   "direct_records_points" count them.

@@ -79,6 +79,12 @@ impl PriorScales {
     pub const CANDIDATES: [f64; 4] = [1.0, 1.0 / 16.0, 0.25, 4.0];
 }
 
+/// How many standard deviations of their difference a direct part and its
+/// prior may be apart before the prior is taken to be wrong at the point
+/// (docs/math.md §10.8, prior-data conflict): if both were right, a larger
+/// gap would happen once in 370.
+pub const CONFLICT_SIGMAS: f64 = 3.0;
+
 /// The posterior of `estimate` (value, variance per channel) under the
 /// prior `(mean, variance)` (module docs). A channel whose estimate or
 /// prior has no positive variance keeps the estimate: a zero variance states
@@ -110,7 +116,7 @@ pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> boo
     let Some(part) = estimate.indirect else {
         return false;
     };
-    let moved = move_part(estimate, part.irradiance, part.variance_share, prior);
+    let moved = move_part(estimate, part.irradiance, part.variance_share, prior, false);
     estimate.indirect = Some(IndirectPart {
         irradiance: moved.posterior,
         variance_share: share(moved.posterior_variance, moved.total),
@@ -120,7 +126,8 @@ pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> boo
 
 /// `estimate` under `prior`, a prior on its direct part: the estimate less
 /// its indirect part, or all of it where it reports none, as direct-light
-/// records hold it (docs/math.md §10.8). So an estimate with reflections
+/// records hold it (docs/math.md §10.8); a prior in conflict with the part
+/// is left out ([`in_conflict`]). So an estimate with reflections
 /// must report its indirect part (estimators do with the records prior);
 /// one that reports none is taken to be of direct light only. The part is
 /// combined as in [`combine_part`], with the share of the variance that is
@@ -137,6 +144,7 @@ pub fn combine_direct(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
         estimate.irradiance - indirect,
         direct_share,
         prior,
+        true,
     );
     if let Some(part) = estimate.indirect.as_mut() {
         part.variance_share = share(moved.rest, moved.total);
@@ -152,18 +160,44 @@ struct Moved {
     total: Rgb,
 }
 
+/// Whether `part` of an estimate whose variance is `variance` and `prior`
+/// are more than [`CONFLICT_SIGMAS`] standard deviations apart in any
+/// channel, the deviation the estimate's whole variance and the prior's
+/// (docs/math.md §10.8): the whole, not the part's share, because the share
+/// comes from the rule's own model variances, which calibration does not
+/// correct, and a share too small would call agreeing values a conflict.
+fn in_conflict(part: Rgb, variance: Rgb, prior: (Rgb, Rgb)) -> bool {
+    let (part, variance) = (part.to_array(), variance.to_array());
+    let (mean, prior_variance) = (prior.0.to_array(), prior.1.to_array());
+    (0..3).any(|c| {
+        let spread = variance[c] + prior_variance[c];
+        spread > 0.0 && (part[c] - mean[c]).powi(2) > CONFLICT_SIGMAS.powi(2) * spread
+    })
+}
+
 /// Combines `part` of `estimate`, which has `part_share` of its variance,
 /// with `prior`, and moves the total by what the part moved; the rest of the
-/// variance stays beside the part's posterior variance.
+/// variance stays beside the part's posterior variance. With
+/// `check_conflict`, a prior in conflict with the part ([`in_conflict`])
+/// leaves the estimate as it is.
 fn move_part(
     estimate: &mut IrradianceEstimate,
     part: Rgb,
     part_share: Rgb,
     prior: (Rgb, Rgb),
+    check_conflict: bool,
 ) -> Moved {
     let variance = estimate.std_error * estimate.std_error;
     let part_variance = variance * part_share;
     let rest = (variance - part_variance).map(|v| v.max(0.0));
+    if check_conflict && in_conflict(part, variance, prior) {
+        return Moved {
+            posterior: part,
+            posterior_variance: part_variance,
+            rest,
+            total: variance,
+        };
+    }
     let (posterior, posterior_variance) = combine((part, part_variance), prior);
     estimate.irradiance += posterior - part;
     let total = posterior_variance + rest;
@@ -297,5 +331,29 @@ mod tests {
         let (near, _) = combine((Rgb::new(1.0, 1.0, 1.0), Rgb::new(1e-8, 1e-8, 1e-8)), prior);
         assert!(far.r > 9.0);
         assert!((near.r - 1.0).abs() < 1e-5);
+    }
+
+    /// A prior the point's own estimate contradicts beyond three standard
+    /// deviations (the estimate's whole variance and the prior's), in any
+    /// channel, is not combined; within them it weighs as before.
+    #[test]
+    fn a_prior_in_conflict_with_the_estimate_is_left_out() {
+        // Direct light only: the whole estimate is the part, 5.5 ± 0.5.
+        let estimate = IrradianceEstimate {
+            irradiance: Rgb::new(5.5, 5.0, 4.0),
+            std_error: Rgb::splat(0.5),
+            rays: 64,
+            indirect: None,
+        };
+        // The twin of a record in a shadow, confident: 1.0 ± 0.1.
+        let mut moved = estimate;
+        combine_direct(&mut moved, (Rgb::new(1.0, 4.9, 4.1), Rgb::splat(0.01)));
+        assert_eq!(moved, estimate);
+        // Within the bound (1.4 apart against 3 × 0.51).
+        let mut moved = estimate;
+        combine_direct(&mut moved, (Rgb::new(4.1, 4.9, 4.1), Rgb::splat(0.01)));
+        let expected = (5.5 / 0.25 + 4.1 / 0.01) / (1.0 / 0.25 + 1.0 / 0.01);
+        assert!((moved.irradiance.r - expected).abs() < 1e-12, "{moved:?}");
+        assert!(moved.std_error.r < 0.1);
     }
 }

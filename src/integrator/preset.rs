@@ -34,16 +34,18 @@ pub enum Preset {
     Preview,
     /// Clean enough to work with in about 2 s: the standard preset's depth
     /// and secondary cache with half its record directions, in five passes
-    /// of 4 camera rays (on the Cornell box cold on two cores: 5.5 % after
-    /// the first pass at 1.1 s, 3.4 % after the fourth at 2.0 s, below path
-    /// tracing with a denoiser from about 1.5 s; docs/BENCHMARKS.md
-    /// "Interactive budgets").
+    /// of 4 camera rays, the later ones where the first left the widest
+    /// error bars (on the Cornell box cold on two cores: 5.5 % after the
+    /// first pass at 1.2 s, 3.4 % after the third at 1.9 s, level with path
+    /// tracing and a denoiser given albedo and normal buffers at 2 s;
+    /// docs/BENCHMARKS.md "Interactive budgets").
     Interactive,
     /// A clean image in a few seconds: the final preset's records at half
     /// the directions, in four passes of 16 camera rays (on the Cornell box
-    /// cold on two cores: 2.7 % error after the first pass at 2.6 s, 2.3 %
-    /// after the fourth at 5.4 s, below path tracing with a denoiser at
-    /// each; docs/BENCHMARKS.md "Interactive budgets").
+    /// cold on two cores: 2.75 % error after the first pass at 2.7 s, 2.3 %
+    /// after the third at 4.6 s, below path tracing with a denoiser given
+    /// albedo and normal buffers at each; docs/BENCHMARKS.md "Interactive
+    /// budgets").
     Standard,
     /// Publication quality (≈ 2 % error on the Cornell box's diffuse pixels).
     Final,

@@ -720,7 +720,9 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     let body = post_irradiance(&app, &deep).await;
     assert_eq!(body["records_prior_points"], 0, "{body}");
 
-    // Direct light only: there is no indirect part for the records to move.
+    // Direct light only: there is no indirect part for the records to move,
+    // but their light-sampled twins serve the direct part (§10.8), which
+    // they narrow.
     let direct_only = |records_prior: bool| {
         let mut body = request(
             json!({"method": "bmc", "samples": 32, "records_prior": records_prior, "calibrate": false}),
@@ -730,11 +732,16 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     };
     let direct = post_irradiance(&app, &direct_only(true)).await;
     assert_eq!(direct["records_prior_points"], 0, "{direct}");
+    assert_eq!(direct["direct_records_points"], 2, "{direct}");
     let plain = post_irradiance(&app, &direct_only(false)).await;
-    assert_eq!(
-        direct["irradiance"], plain["irradiance"],
-        "{direct} {plain}"
-    );
+    assert_ne!(direct["irradiance"], plain["irradiance"]);
+    for point in 0..2 {
+        let (with, without) = (
+            luminance(&direct, point, "std_dev"),
+            luminance(&plain, point, "std_dev"),
+        );
+        assert!(with < without, "{direct} {plain}");
+    }
 
     // Plain MC stays plain, and a target would count the prior in every batch.
     let response = app

@@ -86,8 +86,8 @@ class _Points(_Chunking):
         choices. ``records_prior`` (``True``, ``False`` or ``"auto"``, the
         service's default: on for ``bmc``, off for ``mc`` and ``qmc``)
         combines each point's indirect part with the records rendered tiles
-        left where they cover it, and under the hemisphere decomposition its
-        direct part with the direct light seen from the records' places;
+        left where they cover it, and its direct part with the direct light
+        seen from the records' places;
         ``result.prior_used`` says per point which records served
         (``"records"`` or ``"cache"``), ``result.records_prior_points`` and
         ``result.direct_records_points`` count them. ``target`` (an

@@ -65,11 +65,10 @@ class IrradianceResult:
     ``calibration`` (``scale``, ``floor``, ..., with ``records_prior`` the
     fitted ``prior_scales``; or ``None``), and for ``bmc``
     the ``lengthscale`` and kernel ``noise`` used; with ``records_prior``,
-    ``records_prior_points`` counts the points the records covered and, under
-    the hemisphere decomposition, ``direct_records_points`` those the
-    records' direct-light twins covered; ``prior_used`` says per point which
-    records served each part (``{"indirect": "records", "direct": "records"}``,
-    ``{}`` where none did). With a
+    ``records_prior_points`` counts the points the records covered and
+    ``direct_records_points`` those the records' direct-light twins covered;
+    ``prior_used`` says per point which records served each part
+    (``{"indirect": "records", "direct": "records"}``, ``{}`` where none did). With a
     target, per point:
     ``samples`` spent, ``relative_error`` reached and ``target_met``.
     ``rays`` sums all requests, and ``amortised_rays`` the part of them spent

@@ -209,9 +209,11 @@ pub struct IrradianceResponse {
     /// the direct-light twins of the records (docs/math.md §10.8).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub direct_records_points: Option<usize>,
-    /// With the records prior: per point, which records its estimate was
-    /// combined with (`records_prior_points` and `direct_records_points`
-    /// count them).
+    /// With the records prior: per point, which records cover each part of
+    /// its estimate, which it was combined with (`records_prior_points` and
+    /// `direct_records_points` count them), except that a direct part whose
+    /// own samples contradict the twins' prior keeps its estimate
+    /// (docs/math.md §10.8) and is still counted.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub prior_used: Option<Vec<PointPriors>>,
     /// The decomposition run: `split` or `hemisphere` (`auto` resolved).

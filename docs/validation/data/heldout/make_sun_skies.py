@@ -1,0 +1,114 @@
+#!/usr/bin/env python3
+"""Writes the sun skies of issue 39's held-out scenes beside this file, each
+made after the work it measures and never used while tuning:
+
+- sunset_sky.hdr (heldout-sunset.json, made after the split mode's variance
+  share changed): a warm sky and a sun of one texel 24° above the horizon,
+  about half of a horizontal plane's irradiance;
+- noon_sky.hdr (heldout-noon.json, made after the split mode's direct-light
+  twins): a blue sky and a sun of a few texels 55° up, about three quarters
+  of it;
+- morning_sky.hdr (heldout-morning.json, made after priors in conflict with
+  a point's own estimate were left out): a pale sky and a small sun 35° up.
+
+Radiance in the equirectangular map's world frame (y up), a dark ground half,
+written as Radiance RGBE files with flat scanlines. Standard library only.
+"""
+
+import math
+import pathlib
+
+SKIES = {
+    "sunset_sky.hdr": {
+        "size": (128, 64),
+        "sun": (24.0, 205.0),  # elevation, azimuth (degrees)
+        "sun_radius": 0.0,  # one texel, the one nearest the sun's direction
+        "sun_radiance": (2900.0, 2450.0, 1900.0),
+        "zenith": (0.45, 0.5, 0.8),
+        "horizon": (0.8, 0.56, 0.24),
+        "glow": (2.0, 1.2, 0.5),
+    },
+    "noon_sky.hdr": {
+        "size": (256, 128),
+        "sun": (55.0, 120.0),
+        "sun_radius": 2.0,  # degrees
+        "sun_radiance": (1500.0, 1450.0, 1350.0),
+        "zenith": (0.25, 0.4, 0.9),
+        "horizon": (0.5, 0.55, 0.6),
+        "glow": (0.8, 0.75, 0.6),
+    },
+    "morning_sky.hdr": {
+        "size": (256, 128),
+        "sun": (35.0, 300.0),
+        "sun_radius": 1.0,
+        "sun_radiance": (5200.0, 4900.0, 4300.0),
+        "zenith": (0.35, 0.45, 0.75),
+        "horizon": (0.7, 0.6, 0.45),
+        "glow": (1.2, 1.0, 0.7),
+    },
+}
+
+
+def direction(i, j, w, h):
+    theta = math.pi * (j + 0.5) / h
+    phi = 2 * math.pi * (i + 0.5) / w
+    return (math.sin(theta) * math.sin(phi), math.cos(theta), -math.sin(theta) * math.cos(phi))
+
+
+def sun_direction(sky):
+    elevation, azimuth = (math.radians(a) for a in sky["sun"])
+    return (
+        math.cos(elevation) * math.sin(azimuth),
+        math.sin(elevation),
+        -math.cos(elevation) * math.cos(azimuth),
+    )
+
+
+def background(sky, d):
+    """The sky (or ground) without the sun's disc."""
+    if d[1] < 0:
+        return (0.18, 0.15, 0.13)
+    towards_sun = sum(a * b for a, b in zip(d, sun_direction(sky)))
+    glow = math.exp(-(1.0 - towards_sun) / 0.08)
+    horizon = math.exp(-d[1] / 0.25)
+    return tuple(
+        z + horizon * h + glow * g for z, h, g in zip(sky["zenith"], sky["horizon"], sky["glow"])
+    )
+
+
+def texels(sky):
+    w, h = sky["size"]
+    sun = sun_direction(sky)
+    cos_radius = math.cos(math.radians(sky["sun_radius"]))
+    nearest = max(
+        ((i, j) for j in range(h) for i in range(w)),
+        key=lambda ij: sum(a * b for a, b in zip(direction(*ij, w, h), sun)),
+    )
+    for j in range(h):
+        for i in range(w):
+            d = direction(i, j, w, h)
+            in_disc = sum(a * b for a, b in zip(d, sun)) >= cos_radius
+            yield sky["sun_radiance"] if in_disc or (i, j) == nearest else background(sky, d)
+
+
+def rgbe(rgb):
+    top = max(rgb)
+    if top < 1e-32:
+        return bytes(4)
+    m, e = math.frexp(top)
+    scale = m * 256.0 / top
+    return bytes([int(c * scale) for c in rgb] + [e + 128])
+
+
+def main():
+    for name, sky in SKIES.items():
+        w, h = sky["size"]
+        header = f"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n".encode()
+        body = b"".join(rgbe(t) for t in texels(sky))
+        out = pathlib.Path(__file__).with_name(name)
+        out.write_bytes(header + body)
+        print(out)
+
+
+if __name__ == "__main__":
+    main()
