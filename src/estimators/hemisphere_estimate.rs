@@ -298,6 +298,20 @@ mod tests {
         QueryPoint::new(DVec3::new(0.2, 0.4, -0.999), DVec3::Z).unwrap()
     }
 
+    /// The estimate at [`wall_point`] by BMC on 64 directions, reporting
+    /// its indirect part.
+    fn wall_estimate(options: IrradianceOptions) -> IrradianceEstimate {
+        let estimator = bmc(64, 0.5);
+        let rule = HemisphereRule {
+            estimator: &estimator,
+            prior: PriorChoice::None,
+            indirect_part: true,
+        };
+        cornell(8)
+            .irradiance_with_estimator(&[wall_point()], rule, &options, &|| {}, &Cancel::never())
+            .unwrap()[0]
+    }
+
     #[test]
     fn bmc_agrees_with_the_mc_reference_and_beats_mc_at_equal_samples() {
         let transport = cornell(8);
@@ -371,28 +385,12 @@ mod tests {
     /// is seen directly from the wall), and there is no part at depth 1.
     #[test]
     fn the_hemisphere_indirect_part_is_the_whole_less_the_direct_light() {
-        let transport = cornell(8);
-        let point = [wall_point()];
-        let estimator = bmc(64, 0.5);
         let run = |max_depth: u32| {
-            let options = IrradianceOptions {
+            wall_estimate(IrradianceOptions {
                 max_depth: crate::render::PathDepth::constant(max_depth),
                 method: IrradianceMethod::Hemisphere,
                 ..options(1, 17)
-            };
-            transport
-                .irradiance_with_estimator(
-                    &point,
-                    HemisphereRule {
-                        estimator: &estimator,
-                        prior: PriorChoice::None,
-                        indirect_part: true,
-                    },
-                    &options,
-                    &|| {},
-                    &Cancel::never(),
-                )
-                .unwrap()[0]
+            })
         };
         let (whole, direct) = (run(8), run(1));
         assert_eq!(direct.indirect, None);
@@ -415,27 +413,11 @@ mod tests {
     /// certain leaves the direct part's variance in the error bar.
     #[test]
     fn a_split_prior_on_the_indirect_part_keeps_the_light_samples_variance() {
-        let transport = cornell(8);
-        let point = [wall_point()];
-        let estimator = bmc(64, 0.5);
         let run = |max_depth: u32| {
-            let options = IrradianceOptions {
+            wall_estimate(IrradianceOptions {
                 max_depth: crate::render::PathDepth::constant(max_depth),
                 ..options(16, 23)
-            };
-            transport
-                .irradiance_with_estimator(
-                    &point,
-                    HemisphereRule {
-                        estimator: &estimator,
-                        prior: PriorChoice::None,
-                        indirect_part: true,
-                    },
-                    &options,
-                    &|| {},
-                    &Cancel::never(),
-                )
-                .unwrap()[0]
+            })
         };
         let (mut whole, direct) = (run(8), run(1));
         let part = whole.indirect.expect("an indirect part in split mode");

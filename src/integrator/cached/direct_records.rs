@@ -178,9 +178,10 @@ mod tests {
     /// A unit disk at the origin facing +z under a constant sky of radiance
     /// 2: above it the whole sky is seen, `E = 2π`; one unit below it,
     /// facing up, the disk hides the cone of half-angle 45°, which holds
-    /// `sin² 45° = ½` of the cosine-weighted sky, `E = π`.
-    #[test]
-    fn twins_hold_the_sky_the_places_see_past_the_occluders() {
+    /// `sin² 45° = ½` of the cosine-weighted sky, `E = π`. Returns the
+    /// scene and the records' places at those two heights, with `gradient`
+    /// in every gradient (a twin must not keep it).
+    fn disk_under_sky(gradient: DVec3) -> (Transport, [Record; 2]) {
         let doc = r#"{
             "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
             "shapes": [{"type": "disk", "material": "grey"}],
@@ -190,16 +191,21 @@ mod tests {
         }"#;
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
         let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
-        let transport = Transport::new(Arc::new(scene));
         let place = |z: f64| Record {
             position: DVec3::new(0.0, 0.0, z),
             normal: DVec3::Z,
             irradiance: Rgb::BLACK,
             variance: Rgb::BLACK,
             radius: 0.3,
-            rotation_gradient: [DVec3::ZERO; 3],
-            translation_gradient: [DVec3::ZERO; 3],
+            rotation_gradient: [gradient; 3],
+            translation_gradient: [gradient; 3],
         };
+        (Transport::new(Arc::new(scene)), [place(0.0), place(-1.0)])
+    }
+
+    #[test]
+    fn twins_hold_the_sky_the_places_see_past_the_occluders() {
+        let (transport, places) = disk_under_sky(DVec3::ZERO);
         let spec = CachedSpec {
             samples: Some(256),
             ..CachedSpec::default()
@@ -209,7 +215,6 @@ mod tests {
             .unwrap()
             .shading(Arc::new(QuadratureCache::new(64 << 20)))
             .unwrap();
-        let places = [place(0.0), place(-1.0)];
         let twins_of = |places: &[Record]| {
             let cache = IrradianceCache::new(CacheConfig::default()).unwrap();
             let rays = direct_records(
@@ -245,26 +250,7 @@ mod tests {
     /// computed.
     #[test]
     fn light_sampled_twins_hold_the_same_sky() {
-        let doc = r#"{
-            "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
-            "shapes": [{"type": "disk", "material": "grey"}],
-            "environment": {"type": "constant", "radiance": [2, 2, 2]},
-            "camera": {"type": "perspective", "fov": 30, "origin": [0, 0, 4],
-                       "target": [0, 0, 0], "up": [0, 1, 0], "width": 4, "height": 4}
-        }"#;
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-        let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
-        let transport = Transport::new(Arc::new(scene));
-        let place = |z: f64| Record {
-            position: DVec3::new(0.0, 0.0, z),
-            normal: DVec3::Z,
-            irradiance: Rgb::BLACK,
-            variance: Rgb::BLACK,
-            radius: 0.3,
-            rotation_gradient: [DVec3::ONE; 3],
-            translation_gradient: [DVec3::ONE; 3],
-        };
-        let places = [place(0.0), place(-1.0)];
+        let (transport, places) = disk_under_sky(DVec3::ONE);
         let twins_of = |places: &[Record]| {
             let cache = IrradianceCache::new(CacheConfig::default()).unwrap();
             let rays = direct_records(

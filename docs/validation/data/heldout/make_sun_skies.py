@@ -18,6 +18,8 @@ written as Radiance RGBE files with flat scanlines. Standard library only.
 import math
 import pathlib
 
+from make_soft_sky import rgbe
+
 SKIES = {
     "sunset_sky.hdr": {
         "size": (128, 64),
@@ -89,15 +91,6 @@ def texels(sky):
             d = direction(i, j, w, h)
             in_disc = sum(a * b for a, b in zip(d, sun)) >= cos_radius
             yield sky["sun_radiance"] if in_disc or (i, j) == nearest else background(sky, d)
-
-
-def rgbe(rgb):
-    top = max(rgb)
-    if top < 1e-32:
-        return bytes(4)
-    m, e = math.frexp(top)
-    scale = m * 256.0 / top
-    return bytes([int(c * scale) for c in rgb] + [e + 128])
 
 
 def main():
