@@ -77,10 +77,11 @@ pub struct ConfigurationStats {
 pub struct SceneCache {
     pub cache: IrradianceCache,
     pub shading: CachedShading,
-    /// Direct-light twins of the records (docs/math.md §10.8), for queries
-    /// under the hemisphere decomposition and for split ones.
-    direct: DirectTwins,
-    light_direct: DirectTwins,
+    /// Direct-light twins of the records (docs/math.md §10.8) for queries
+    /// under the hemisphere decomposition (the record rule's) and for split
+    /// ones (light-sampled).
+    hemisphere_twins: DirectTwins,
+    split_twins: DirectTwins,
     /// The configuration as people read it in `GET /v1/scenes/{id}/cache`.
     description: serde_json::Value,
 }
@@ -100,8 +101,8 @@ impl SceneCache {
         };
         Ok(Self {
             cache: IrradianceCache::new(config)?,
-            direct: DirectTwins::new(direct)?,
-            light_direct: DirectTwins::new(direct)?,
+            hemisphere_twins: DirectTwins::new(direct)?,
+            split_twins: DirectTwins::new(direct)?,
             shading,
             description,
         })
@@ -117,8 +118,8 @@ impl SceneCache {
         cancel: &Cancel,
     ) -> Result<(&IrradianceCache, u64), RenderError> {
         let direct = match decomposition {
-            Decomposition::Hemisphere => &self.direct,
-            Decomposition::Split => &self.light_direct,
+            Decomposition::Hemisphere => &self.hemisphere_twins,
+            Decomposition::Split => &self.split_twins,
         };
         // One request makes the missing twins; others wait for them rather
         // than trace the same rays.
@@ -326,8 +327,8 @@ impl IrradianceCaches {
             .map(|(_, entry)| {
                 let records = entry.cache.stats().records;
                 entry.cache.clear();
-                entry.direct.clear();
-                entry.light_direct.clear();
+                entry.hemisphere_twins.clear();
+                entry.split_twins.clear();
                 records + entry.shading.secondary.clear()
             })
             .sum()
