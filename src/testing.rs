@@ -51,6 +51,13 @@ pub fn cornell(side: u32) -> Transport {
     Transport::new(Arc::new(scene))
 }
 
+/// A standard normal variate by Box–Muller (`1 − U` keeps the logarithm finite).
+pub fn standard_normal<R: rand::Rng + ?Sized>(rng: &mut R) -> f64 {
+    use rand::RngExt;
+    let (u, v): (f64, f64) = (rng.random(), rng.random());
+    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+}
+
 /// Runs `f` on a rayon pool of `threads` threads (results must not depend on it).
 pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
     rayon::ThreadPoolBuilder::new()

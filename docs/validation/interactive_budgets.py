@@ -14,7 +14,9 @@ one run.
   directory (cold), `bmc-irradiance fetch --preset P --pass k` of the whole
   image as GET tiles for each of the preset's passes in turn (as the
   viewer's ladder asks for them: pass k renders only what passes 0..k-1 left
-  to do); the time of pass k is the fetches' wall time up to it.
+  to do); the time of pass k is the fetches' wall time up to it. With
+  `--denoise`, each preset again on another cold server with `fetch
+  --denoise` (the tiles' own denoiser, docs/math.md §16.6).
 
 At the end, for each budget (`--budgets`, seconds), the best image of each
 side whose time is within it.
@@ -106,6 +108,7 @@ def main():
     ap.add_argument("--port", type=int, default=18777)
     ap.add_argument("--budgets", type=float, nargs="*", default=[0.3, 1, 2, 5, 10])
     ap.add_argument("--aux", help="albedo and normal buffers (.npz of mitsuba_aux.py) for OIDN")
+    ap.add_argument("--denoise", action="store_true", help="also each preset's denoised tiles (docs/math.md §16.6)")
     args = ap.parse_args()
     score = Scorer(args.reference, args.reference_noise)
     work = tempfile.mkdtemp(prefix="budgets-")
@@ -141,8 +144,10 @@ def main():
             what = f"{spp} spp, albedo and normal"
             print(f"| path {what} + OIDN | {wall + denoise:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
             rows.append(("path tracing + OIDN", what, wall + denoise, truth))
-    for preset in args.presets:
-        data = os.path.join(work, f"data-{preset}")
+    variants = [False, True] if args.denoise else [False]
+    for preset, denoised in [(p, d) for p in args.presets for d in variants]:
+        tag = f"{preset}-denoised" if denoised else preset
+        data = os.path.join(work, f"data-{tag}")
         os.makedirs(data)
         env = dict(
             os.environ,
@@ -163,11 +168,12 @@ def main():
             passes = next(p["passes"] for p in json.loads(listed) if p["name"] == preset)
             wall = 0.0
             for k in range(passes):
-                out = os.path.join(work, f"{preset}-{k}.exr")
+                out = os.path.join(work, f"{tag}-{k}.exr")
                 fetch = [args.bin, "fetch", "--url", url, "--scene", args.scene, "--preset", preset]
+                fetch += ["--denoise"] if denoised else []
                 wall += timed(fetch + ["--pass", str(k), "--out", out])
                 raw, truth = score(read_rgb(out))
-                what = f"`{preset}` pass {k + 1} of {passes}"
+                what = f"`{preset}` pass {k + 1} of {passes}" + (", denoised" if denoised else "")
                 print(f"| service {what}, cold | {wall:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
                 rows.append(("the service", what, wall, truth))
         finally:

@@ -364,11 +364,8 @@ mod tests {
         let mut rng = Pcg64::seed_from_u64(seed);
         (0..vectors)
             .map(|_| {
-                // Box–Muller standard normals.
-                let z = nalgebra::DVector::from_fn(n, |_, _| {
-                    let (u, v): (f64, f64) = (rng.random(), rng.random());
-                    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-                });
+                let z =
+                    nalgebra::DVector::from_fn(n, |_, _| crate::testing::standard_normal(&mut rng));
                 let offset = rng.random_range(-1.0..1.0);
                 (&l * z).iter().map(|y| y + offset).collect()
             })

@@ -155,7 +155,7 @@ mod tests {
 
     use glam::DVec3;
     use nalgebra::{DMatrix, DVector};
-    use rand::{RngExt, SeedableRng};
+    use rand::SeedableRng;
     use rand_pcg::Pcg64;
 
     use super::*;
@@ -345,13 +345,6 @@ mod tests {
         }
     }
 
-    fn standard_normal(rng: &mut Pcg64) -> f64 {
-        // Box–Muller; 1 − U keeps the logarithm finite.
-        let u1: f64 = 1.0 - rng.random::<f64>();
-        let u2: f64 = rng.random::<f64>();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-
     /// docs/math.md §8 calibration: for `f ~ GP(0, k)`, `(Y, I)` is jointly
     /// Gaussian with `Cov Y = K + σ_n² I`, `Cov(Y, I) = z`, `Var I = V₀`; drawing
     /// them jointly, `(Î − I)/sqrt(V)` must be standard normal.
@@ -390,7 +383,7 @@ mod tests {
             let draws = 1000;
             let (mut covered, mut sum_sq) = (0, 0.0);
             for _ in 0..draws {
-                let e = DVector::from_fn(n + 1, |_, _| standard_normal(&mut rng));
+                let e = DVector::from_fn(n + 1, |_, _| crate::testing::standard_normal(&mut rng));
                 let x = &l * e;
                 let t = (q.estimate(&x.as_slice()[..n]) - x[n]) / q.posterior_variance.sqrt();
                 covered += usize::from(t.abs() <= 2.0);

@@ -35,6 +35,9 @@ pub struct FetchArgs {
     /// Seed of every random stream.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Ask for denoised tiles (the GET tiles' `denoise=true`).
+    #[arg(long)]
+    pub denoise: bool,
     #[command(flatten)]
     pub output: ImageOutput,
     /// Tiles requested at once (about the service's worker count keeps
@@ -98,6 +101,9 @@ async fn fetch(args: &FetchArgs) -> anyhow::Result<(Image, u64)> {
         "size={}&preset={}&seed={}",
         args.size, args.preset, args.seed
     );
+    if args.denoise {
+        query.push_str("&denoise=true");
+    }
     if let Some(pass) = args.pass {
         query.push_str(&format!("&pass={pass}"));
     }

@@ -1,6 +1,7 @@
 //! Rendered images: linear RGB radiance per pixel with an optional per-pixel
-//! variance, their file and byte encodings (EXR, tone-mapped PNG, JSON) and
-//! the relative-RMSE comparison used for validation. Knows nothing of
+//! variance, their file and byte encodings (EXR, tone-mapped PNG, JSON),
+//! the relative-RMSE comparison used for validation and a denoiser guided
+//! by buffers the renderer hands it (`denoise`). Knows nothing of
 //! scenes or HTTP.
 //!
 //! Pixels are row-major, top row first, (0, 0) the top-left corner — the
@@ -8,6 +9,7 @@
 //! Values are radiance in W/(m²·sr) per linear RGB channel, stored as f32.
 
 mod compare;
+mod denoise;
 mod error;
 pub(crate) mod exr_io;
 mod false_colour;
@@ -16,6 +18,7 @@ pub(crate) mod png_io;
 use serde::Serialize;
 
 pub use compare::{RelativeRmse, relative_rmse};
+pub use denoise::{GuideBuffers, GuidePixel, denoise};
 pub use error::ImageError;
 pub use exr_io::{decode_exr, encode_exr, read_exr, write_exr};
 pub use png_io::ToneMap;

@@ -25,6 +25,7 @@ pub(crate) mod environment_sampling;
 mod error;
 mod film;
 pub mod fresnel;
+mod guide_buffers;
 mod irradiance;
 pub(crate) mod lights;
 mod mean;

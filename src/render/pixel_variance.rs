@@ -124,14 +124,10 @@ mod tests {
     /// pixels' own variances cover about 70 %.
     #[test]
     fn pooling_restores_the_coverage_of_two_ray_pixels() {
-        use rand::{RngExt, SeedableRng};
+        use rand::SeedableRng;
         let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
         let (width, height) = (64, 64);
-        let normal = |rng: &mut rand_pcg::Pcg64| {
-            // Box–Muller.
-            let (u, v): (f64, f64) = (rng.random(), rng.random());
-            (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        };
+        let normal = crate::testing::standard_normal::<rand_pcg::Pcg64>;
         let pixels: Vec<MeanEstimate> = (0..width * height)
             .map(|_| MeanEstimate::of((0..2).map(|_| Rgb::splat(normal(&mut rng)))))
             .collect();

@@ -14,7 +14,7 @@ use super::integrator::{CachedSetup, cached_setup, resolve_integrator};
 use super::scenes::LoadedScene;
 use super::state::AppState;
 use super::tile_store::{Key, RenderedPass, TileRecords};
-use crate::image::{Image, ImageError};
+use crate::image::{Image, ImageError, denoise};
 use crate::integrator::{Integrator, IntegratorSpec, Preset};
 use crate::render::{Cancel, PathDepth, SamplePlan, TileRequest};
 use crate::scene::Scene;
@@ -37,6 +37,8 @@ pub struct TileParams {
     pub seed: u64,
     /// The integrator's knobs over the preset's.
     pub estimator: IntegratorSpec,
+    /// Filter the averaged passes with the tile's guides (docs/math.md §16.6).
+    pub denoise: bool,
 }
 
 impl TileParams {
@@ -82,6 +84,7 @@ impl TileParams {
         Ok(TileJob {
             request,
             integrator: resolve_integrator(self.estimator.over(settings.integrator), limits)?,
+            denoise: self.denoise,
         })
     }
 }
@@ -94,6 +97,8 @@ pub struct TileJob {
     /// `passes`, the preset's (1 with explicit samples per pixel).
     pub request: TileRequest,
     pub integrator: Integrator,
+    /// Whether the averaged passes are denoised ([`crate::image::denoise`]).
+    pub denoise: bool,
 }
 
 impl TileJob {
@@ -281,8 +286,16 @@ pub fn render_progressive(
     // queries meet them through the tile store (`tile_priors`), the same
     // on every replica whichever of them rendered the tile.
     let records_created = created.into_inner();
+    let mut image = mean_of_passes(&passes, job.request.samples_per_pixel)?.image;
+    if job.denoise {
+        cancel.check()?;
+        let r = &job.request;
+        let (guides, guide_rays) = transport.guide_buffers(r.x, r.y, r.width, r.height);
+        rays += guide_rays;
+        image = denoise(&image, &guides)?;
+    }
     Ok(ProgressiveTile {
-        image: mean_of_passes(&passes, job.request.samples_per_pixel)?.image,
+        image,
         records,
         rays,
         records_created,
@@ -409,6 +422,7 @@ mod tests {
                 max_depth,
                 seed: 1,
                 estimator: IntegratorSpec::default(),
+                denoise: false,
             };
             params
                 .job(scene, &limits)
@@ -475,6 +489,7 @@ mod tests {
             max_depth: None,
             seed: 1,
             estimator: IntegratorSpec::default(),
+            denoise: false,
         };
         let job = params.job(&scene, &limits).unwrap();
         let spp = job.request.samples_per_pixel;

@@ -1,7 +1,7 @@
 //! `GET /v1/scenes/{id}/tiles/{tx}/{ty}.{format}` end to end: reproducible
 //! bytes and ETags (across other requests and a restart, for the last pass
 //! and an intermediate one), 304s, passes
-//! without wasted work, the AOVs, CORS and bad parameters.
+//! without wasted work, the AOVs, denoised tiles, CORS and bad parameters.
 
 use crate::common::{TestApp, error_of, spawn_app_in};
 use reqwest::StatusCode;
@@ -228,6 +228,53 @@ async fn uncertainty_and_record_aovs_show_what_they_promise() {
     assert_eq!(overlay[25], 6);
 }
 
+/// `denoise=true`: the same bytes on every request, its own ETag, each
+/// pixel within one of its standard errors of the plain tile's value with
+/// the same error bar, closer to the `final` preset's tile, and the guide
+/// rays counted in `x-rays`.
+#[tokio::test]
+async fn denoised_tiles_stay_within_their_error_bars() {
+    let app = spawn().await;
+    let base = "/v1/scenes/box/tiles/0/0.json?size=32&preset=preview";
+    let (_, plain_headers, plain) = fetch(&app, base).await;
+    let (_, _, converged) = fetch(&app, &base.replace("preview", "final")).await;
+    let denoised_url = format!("{base}&denoise=true");
+    let (status, headers, denoised) = fetch(&app, &denoised_url).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_ne!(headers["etag"], plain_headers["etag"]);
+    // The passes are memoised: only the guides' four rays per pixel are new.
+    assert_eq!(number(&headers, "x-rays"), 4 * 32 * 32);
+    let (_, again_headers, again) = fetch(&app, &denoised_url).await;
+    assert_eq!(
+        (again, &again_headers["etag"]),
+        (denoised.clone(), &headers["etag"])
+    );
+    let [plain, denoised, converged]: [Value; 3] =
+        [plain, denoised, converged].map(|b| serde_json::from_slice(&b).unwrap());
+    assert_eq!(plain["variance"], denoised["variance"]);
+    let rgb = |tile: &Value, i: usize, k: usize| tile["rgb"][i][k].as_f64().unwrap();
+    let (mut moved, mut squared_error) = (0, [0.0; 2]);
+    for i in 0..32 * 32 {
+        let sigma = plain["variance"][i].as_f64().unwrap().sqrt();
+        for k in 0..3 {
+            let (a, b) = (rgb(&plain, i, k), rgb(&denoised, i, k));
+            assert!(
+                (a - b).abs() <= sigma * (1.0 + 1e-5) + 1e-6,
+                "pixel {i}: {a} -> {b} (σ {sigma})"
+            );
+            moved += usize::from(a != b);
+            for (e, tile) in squared_error.iter_mut().zip([&plain, &denoised]) {
+                *e += (rgb(tile, i, k) - rgb(&converged, i, k)).powi(2);
+            }
+        }
+    }
+    assert!(moved > 32 * 32, "{moved} channels moved");
+    assert!(
+        squared_error[1] < 0.9 * squared_error[0],
+        "{squared_error:?}"
+    );
+}
+
 #[tokio::test]
 async fn bad_tile_parameters_are_named() {
     let app = spawn().await;
@@ -246,6 +293,7 @@ async fn bad_tile_parameters_are_named() {
         ("/v1/scenes/box/tiles/0/0.gif", "format"),
         ("/v1/scenes/box/tiles/0/0", "format"),
         ("/v1/scenes/box/tiles/x/0.png", "tx"),
+        ("/v1/scenes/box/tiles/0/0.png?denoise=maybe", "denoise"),
     ];
     for (url, field) in cases {
         let response = app.get(url).await;

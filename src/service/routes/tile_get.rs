@@ -15,7 +15,9 @@
 //! is the mean of passes `0..=k`), `seed` (default 1), `exposure` (stops,
 //! PNG radiance only), `aov` (`radiance` default, `std_dev`, `records`) and
 //! `scale` (`std_dev` PNG only: the relative standard error at the top of
-//! the colour map, default [`DEFAULT_STD_DEV_SCALE`]).
+//! the colour map, default [`DEFAULT_STD_DEV_SCALE`]) and `denoise`
+//! (`true` filters the tile with its own guides and error bars,
+//! docs/math.md §16.6; default `false`).
 //!
 //! AOVs: `std_dev` is the per-pixel standard error — as a PNG, the
 //! relative standard error through a false-colour map (its scale in the
@@ -86,6 +88,8 @@ pub struct TileQuery {
     pub aov: Option<Aov>,
     /// `std_dev` PNG only: relative standard error at the top of the colour map; default 0.2.
     pub scale: Option<f64>,
+    /// Denoise the tile (docs/math.md §16.6); each pixel keeps its standard error; default false.
+    pub denoise: Option<bool>,
 }
 
 /// The path of a GET tile: scene id, column and `{row}.{format}`.
@@ -218,13 +222,14 @@ pub async fn get_tile(
         max_depth: None,
         seed: query.seed.unwrap_or(1),
         estimator: IntegratorSpec::default(),
+        denoise: query.denoise.unwrap_or(false),
     };
     let job = params.job(scene.transport.scene(), limits)?;
     let etag = entity_tag(&[
         env!("CARGO_PKG_VERSION"),
         &scene.transport.scene().digest.to_string(),
         &job.integrator.content_key(),
-        &format!("{:?}", job.request),
+        &format!("{:?} denoise {}", job.request, job.denoise),
         &format!("{aov:?} {format:?} {exposure} {scale}"),
     ]);
     let mut common = HeaderMap::new();

@@ -65,6 +65,10 @@ pub struct TileRequestDoc {
     /// PNG only: exposure in stops (values scaled by 2^exposure); default 0.
     #[serde(default)]
     pub exposure: f32,
+    /// Denoise the tile with its own guides and error bars (docs/math.md
+    /// §16.6); each pixel keeps its standard error. Default false.
+    #[serde(default)]
+    pub denoise: bool,
 }
 
 fn default_format() -> ImageEncoding {
@@ -110,6 +114,7 @@ pub async fn tile(
         max_depth: doc.max_depth,
         seed: doc.seed,
         estimator: doc.estimator,
+        denoise: doc.denoise,
     };
     let job = params.job(scene.transport.scene(), limits)?;
     job.check_work(limits)?;
