@@ -75,6 +75,8 @@ curl "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" -o tile.png
 # .exr: R, G, B and per-pixel variance; .json: {"width","height","rgb","variance"}.
 # aov=std_dev: the standard error (PNG: relative, false colour up to `scale`);
 # aov=records: the tile's irradiance-cache records (PNG overlay or JSON list).
+# denoise=true: filtered by the tile's own first-hit guides, each pixel kept within and
+# reporting its own standard error (docs/math.md §16.6; off by default).
 # Headers: ETag (send it back as If-None-Match: 304), Cache-Control, x-rays,
 # x-records-created, x-passes, Server-Timing.
 curl -s -o /dev/null -w '%{http_code}\n' -H "If-None-Match: $(curl -sI \

@@ -1,5 +1,5 @@
 //! An edge-avoiding à-trous filter for a rendered tile (docs/math.md
-//! §16.6), guided by what the camera's first hit saw in each pixel (its
+//! §16.6), guided by what the camera's first hits saw in each pixel (their
 //! shading normal, position and diffuse albedo) and by the pixel's own
 //! standard error, whose interval then bounds how far a value may move.
 //!
@@ -26,8 +26,8 @@ pub const LEVELS: u32 = 3;
 /// Luminance differences are compared with this many (filtered) standard
 /// errors of the pixel's demodulated value (SVGF's `σ_l`).
 pub const SIGMA_LUMINANCE: f64 = 1.0;
-/// Exponent of the normal weight `max(0, n_p·n_q)^σ_n` (SVGF's 128 is for
-/// smooth-shaded meshes; 64 still stops at any edge of a box).
+/// Exponent of the normal weight `max(0, n_p·n_q)^σ_n` (SVGF uses 128): at
+/// 10° between normals the weight is 0.38, at 30° 10⁻⁴.
 pub const SIGMA_NORMAL: i32 = 64;
 /// Distance off the pixel's tangent plane, in pixel footprints per pixel of
 /// offset, at which a neighbour's weight falls by `e`.
@@ -58,7 +58,7 @@ pub struct GuidePixel {
     /// emitter): such a pixel weighs its neighbours by value alone and lends
     /// nothing to pixels with a normal.
     pub normal: Option<DVec3>,
-    /// The first hit, world units.
+    /// The first hits' mean position, world units.
     pub position: DVec3,
     /// World length one pixel spans at the hit's depth.
     pub footprint: f64,
