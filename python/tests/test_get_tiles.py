@@ -131,6 +131,21 @@ def test_an_earlier_pass_is_its_own_image(preview: Image, client: Client) -> Non
     assert (tile.passes, tile.etag) == (2, first.tiles[2 * 4 + 1].etag)
 
 
+def test_a_denoised_image_moves_each_pixel_within_its_error_bar(
+    preview: Image, client: Client
+) -> None:
+    denoised = client.image(SCENE, preset="preview", denoise=True)
+    assert denoised.variance is not None and preview.variance is not None
+    assert np.array_equal(denoised.variance, preview.variance)
+    moved = np.abs(denoised.rgb.astype(np.float64) - preview.rgb)
+    sigma = np.sqrt(preview.variance.astype(np.float64))[..., None]
+    assert np.all(moved <= sigma * (1 + 1e-5) + 1e-6)
+    assert np.count_nonzero(moved) > SIDE * SIDE
+    assert all(a.etag != b.etag for a, b in zip(denoised.tiles, preview.tiles))
+    with pytest.raises(ValueError, match="denoise"):
+        client.image(SCENE, preset="preview", aov="std_dev", denoise=True)  # type: ignore[call-overload]
+
+
 def test_a_repeated_tile_with_its_etag_is_a_304(client: Client, server: Server) -> None:
     png = client.tile_bytes(SCENE, 2, 1, format="png", preset="draft", exposure=1.0)
     assert isinstance(png, TileBytes) and png[:8] == b"\x89PNG\r\n\x1a\n"

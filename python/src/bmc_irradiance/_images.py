@@ -38,6 +38,7 @@ class _Images(_Tiles, _Scenes):
         estimator: Estimator | None = ...,
         max_depth: int | None = ...,
         tile: int | None = ...,
+        denoise: bool = ...,
     ) -> Image: ...
 
     # spp, estimator and max_depth are radiance only (POST tiles).
@@ -85,6 +86,7 @@ class _Images(_Tiles, _Scenes):
         estimator: Estimator | None = None,
         max_depth: int | None = None,
         tile: int | None = None,
+        denoise: bool = False,
     ) -> Image | list[dict[str, Any]]:
         """The scene camera's whole image, assembled from JSON tiles of
         ``size`` pixels (default 64) fetched ``workers`` at a time, with a
@@ -118,6 +120,11 @@ class _Images(_Tiles, _Scenes):
         depends only on the seed and its position. ``tile`` is the former
         name of ``size``.
 
+        ``denoise=True`` (radiance only) asks for tiles filtered by their
+        own first-hit guides: each pixel moves by at most its standard
+        error and keeps it as its error bar (the service's docs/math.md
+        §16.6; off by default).
+
         Errors: a 503 with ``Retry-After`` is retried per tile (the client's
         ``retries``); any other error answer, e.g. 422 for an unknown preset
         (``field == "preset"``) or pass (``"pass"``), raises
@@ -136,6 +143,8 @@ class _Images(_Tiles, _Scenes):
         if aov not in _AOVS:
             raise ValueError(f"aov must be one of {', '.join(_AOVS)}, not {aov!r}")
         post = spp is not None or estimator is not None or max_depth is not None
+        if denoise and aov != "radiance":
+            raise ValueError(f"denoise applies to radiance, not aov={aov!r}")
         if post and aov != "radiance":
             raise ValueError(
                 "spp, estimator and max_depth use POST tiles, which are radiance only; "
@@ -143,7 +152,7 @@ class _Images(_Tiles, _Scenes):
             )
         width, height = (int(v) for v in self.scene(scene)["resolution"])
         grid = [(tx, ty) for ty in range(-(-height // side)) for tx in range(-(-width // side))]
-        query = _grid_query(side, preset, pass_index, seed, aov)
+        query = _grid_query(side, preset, pass_index, seed, aov, denoise=denoise)
 
         def fetch(tx: int, ty: int) -> Response:
             if post:
@@ -161,6 +170,7 @@ class _Images(_Tiles, _Scenes):
                     seed,
                     preset=preset,
                     pass_index=pass_index,
+                    denoise=denoise,
                 )
             answer = self._grid_tile(scene, tx, ty, "json", query, None)
             assert answer is not None  # no If-None-Match, no 304
