@@ -1,7 +1,7 @@
 //! The browser viewer (`/`) in a real headless Chromium, driven over the
 //! Chrome DevTools Protocol: the page loads, the Cornell box appears (the
 //! canvas's pixel statistics equal those of the service's PNG tiles), the
-//! uncertainty toggle changes what is shown, and the console stays free of
+//! uncertainty and denoise toggles change what is shown, and the console stays free of
 //! errors. A screenshot of the page is written to
 //! `target/viewer-screenshot.png` (the one in `docs/` comes from it).
 //!
@@ -170,12 +170,15 @@ fn launch() -> (Browser, DevTools) {
 }
 
 /// Mean RGB (0–255) over all pixels of the service's PNG tiles of `preset`
-/// at `pass`, as the viewer requests them.
-async fn server_mean(app: &TestApp, aov: &str, preset: &str, pass: u32) -> [f64; 3] {
+/// at `pass`, denoised or not, as the viewer requests them.
+async fn server_mean(app: &TestApp, aov: &str, preset: &str, pass: u32, denoise: bool) -> [f64; 3] {
     let (mut sum, mut count) = ([0.0; 3], 0usize);
     for ty in 0..4 {
         for tx in 0..4 {
             let query = match aov {
+                "radiance" if denoise => {
+                    format!("size=64&preset={preset}&pass={pass}&exposure=0&denoise=true")
+                }
                 "radiance" => format!("size=64&preset={preset}&pass={pass}&exposure=0"),
                 other => format!("size=64&preset={preset}&pass={pass}&aov={other}"),
             };
@@ -250,7 +253,7 @@ fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
     // The radiance layer is the service's PNG tiles, pixel for pixel.
     let radiance = tools.eval("window.viewer.layerStats('radiance')");
     assert_eq!(radiance["pixels"], json!(256 * 256), "{radiance}");
-    let expected = runtime.block_on(server_mean(&app, "radiance", "draft", 0));
+    let expected = runtime.block_on(server_mean(&app, "radiance", "draft", 0, false));
     let got = mean_of(&radiance);
     assert_means_agree(got, expected);
     // The box is lit and coloured: red and green walls.
@@ -281,7 +284,7 @@ fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
         load,
     );
     let std_dev = mean_of(&tools.eval("window.viewer.layerStats('std_dev')"));
-    let expected = runtime.block_on(server_mean(&app, "std_dev", "draft", 0));
+    let expected = runtime.block_on(server_mean(&app, "std_dev", "draft", 0, false));
     assert_means_agree(std_dev, expected);
     let toggled = mean_of(&tools.eval("window.viewer.viewStats()"));
     let change: f64 = (0..3).map(|c| (toggled[c] - shown[c]).abs()).sum();
@@ -291,8 +294,28 @@ fn the_viewer_shows_the_cornell_box_and_its_uncertainty_in_chromium() {
         json!(false)
     );
 
-    // The record overlay draws on top.
+    // The denoise toggle reloads the radiance layer from denoised tiles and
+    // says so.
     tools.eval("document.getElementById('uncertainty').click()");
+    tools.eval("document.getElementById('denoise').click()");
+    tools.wait_for(
+        "window.viewer.idle() && window.viewer.state.drawn.radiance.size === 16 \
+         && document.getElementById('shown').textContent.endsWith(', denoised')",
+        load,
+    );
+    let asked = tools.eval(
+        "performance.getEntriesByType('resource').filter((e) => e.name.includes('denoise=true')).length",
+    );
+    assert!(
+        asked.as_u64().unwrap() >= 16,
+        "{asked} denoised tiles fetched"
+    );
+    let denoised = mean_of(&tools.eval("window.viewer.layerStats('radiance')"));
+    let expected = runtime.block_on(server_mean(&app, "radiance", "draft", 0, true));
+    assert_means_agree(denoised, expected);
+    tools.eval("document.getElementById('denoise').click()");
+
+    // The record overlay draws on top.
     tools.eval("document.getElementById('records').click()");
     tools.wait_for(
         "window.viewer.idle() && window.viewer.state.drawn.records.size === 16",
@@ -347,7 +370,7 @@ fn the_viewer_climbs_the_pass_ladder_and_labels_each_step() {
     );
     // The image is the preset's final pass, as GET tiles serve it.
     let shown = mean_of(&tools.eval("window.viewer.layerStats('radiance')"));
-    let served = runtime.block_on(server_mean(&app, "radiance", "preview", 1));
+    let served = runtime.block_on(server_mean(&app, "radiance", "preview", 1, false));
     assert_means_agree(shown, served);
     tools.eval("1");
     assert!(tools.errors.is_empty(), "{:#?}", tools.errors);

@@ -17,7 +17,7 @@
     // The steps every radiance tile climbs ({preset, pass, label}), and the
     // labels of the steps shown on the whole image so far, in order.
     ladder: [], shownLog: [],
-    preset: "preview", exposure: 0, uncertainty: false, records: false,
+    preset: "preview", exposure: 0, denoise: false, uncertainty: false, records: false,
     zoom: 1, panX: 0, panY: 0,
     // Bumped whenever what the tiles show changes; older answers are dropped.
     generation: 0,
@@ -81,8 +81,10 @@
   function tileUrl(tx, ty, aov, step) {
     const { preset, pass } = state.ladder[step];
     const q = new URLSearchParams({ size: TILE, preset, pass });
-    if (aov === "radiance") q.set("exposure", state.exposure);
-    else q.set("aov", aov);
+    if (aov === "radiance") {
+      q.set("exposure", state.exposure);
+      if (state.denoise) q.set("denoise", "true");
+    } else q.set("aov", aov);
     return `/v1/scenes/${encodeURIComponent(state.scene)}/tiles/${tx}/${ty}.png?${q}`;
   }
 
@@ -220,7 +222,8 @@
       const label = state.ladder[low].label;
       if (state.shownLog[state.shownLog.length - 1] !== label) state.shownLog.push(label);
       const ahead = steps.filter((s) => s > low).length;
-      text = ahead ? `${label}; ${ahead} of ${total} tiles at ${state.ladder[high].label}` : label;
+      const shown = state.denoise ? `${label}, denoised` : label;
+      text = ahead ? `${shown}; ${ahead} of ${total} tiles at ${state.ladder[high].label}` : shown;
     }
     $("shown").textContent = text;
   }
@@ -409,17 +412,21 @@
   function bindControls() {
     $("scene").addEventListener("change", (e) => selectScene(e.target.value));
     $("preset").addEventListener("change", (e) => { state.preset = e.target.value; restart(); });
-    $("exposure").addEventListener("input", (e) => {
-      state.exposure = Number(e.target.value);
-      $("exposure-value").textContent = state.exposure;
-      // Only the radiance layer depends on the exposure: reload it up the
-      // ladder again (the service keeps the passes, so this is cheap).
+    // Only the radiance layer depends on the exposure and denoising: reload
+    // it up the ladder again (the service keeps the passes, so this is cheap).
+    const reloadRadiance = () => {
       state.generation++;
       state.queue = [];
       state.drawn.radiance = new Map();
       state.loaded = 0;
       schedule();
+    };
+    $("exposure").addEventListener("input", (e) => {
+      state.exposure = Number(e.target.value);
+      $("exposure-value").textContent = state.exposure;
+      reloadRadiance();
     });
+    $("denoise").addEventListener("change", (e) => { state.denoise = e.target.checked; reloadRadiance(); });
     $("uncertainty").addEventListener("change", (e) => {
       state.uncertainty = e.target.checked; drawLegend(); draw(); schedule();
     });
@@ -464,6 +471,7 @@
     if (params.get("preset")) state.preset = params.get("preset");
     if (params.get("uncertainty") === "1") { state.uncertainty = true; $("uncertainty").checked = true; drawLegend(); }
     if (params.get("records") === "1") { state.records = true; $("records").checked = true; }
+    if (params.get("denoise") === "1") { state.denoise = true; $("denoise").checked = true; }
     const presets = await (await fetch("/v1/presets")).json();
     state.presets = new Map(presets.map((p) => [p.name, p]));
     for (const p of presets) {
