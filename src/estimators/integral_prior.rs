@@ -132,8 +132,9 @@ pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> boo
 /// one that reports none is taken to be of direct light only. The part is
 /// combined as in [`combine_part`], with the share of the variance that is
 /// not the indirect part's, and the indirect part keeps its own variance,
-/// now a share of the smaller total.
-pub fn combine_direct(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
+/// now a share of the smaller total. Returns whether the prior was
+/// combined (`false`: in conflict, the estimate left as it was).
+pub fn combine_direct(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> bool {
     let (indirect, indirect_share) = match estimate.indirect {
         Some(part) => (part.irradiance, part.variance_share),
         None => (Rgb::BLACK, Rgb::BLACK),
@@ -149,11 +150,14 @@ pub fn combine_direct(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) {
     if let Some(part) = estimate.indirect.as_mut() {
         part.variance_share = share(moved.rest, moved.total);
     }
+    moved.combined
 }
 
-/// What [`move_part`] did: the part's posterior mean and variance, the rest
-/// of the estimate's variance and the new total variance, per channel.
+/// What [`move_part`] did: whether it combined the prior at all, the
+/// part's posterior mean and variance, the rest of the estimate's variance
+/// and the new total variance, per channel.
 struct Moved {
+    combined: bool,
     posterior: Rgb,
     posterior_variance: Rgb,
     rest: Rgb,
@@ -192,6 +196,7 @@ fn move_part(
     let rest = (variance - part_variance).map(|v| v.max(0.0));
     if check_conflict && in_conflict(part, variance, prior) {
         return Moved {
+            combined: false,
             posterior: part,
             posterior_variance: part_variance,
             rest,
@@ -203,6 +208,7 @@ fn move_part(
     let total = posterior_variance + rest;
     estimate.std_error = total.map(f64::sqrt);
     Moved {
+        combined: true,
         posterior,
         posterior_variance,
         rest,
@@ -347,11 +353,17 @@ mod tests {
         };
         // The twin of a record in a shadow, confident: 1.0 ± 0.1.
         let mut moved = estimate;
-        combine_direct(&mut moved, (Rgb::new(1.0, 4.9, 4.1), Rgb::splat(0.01)));
+        assert!(!combine_direct(
+            &mut moved,
+            (Rgb::new(1.0, 4.9, 4.1), Rgb::splat(0.01))
+        ));
         assert_eq!(moved, estimate);
         // Within the bound (1.4 apart against 3 × 0.51).
         let mut moved = estimate;
-        combine_direct(&mut moved, (Rgb::new(4.1, 4.9, 4.1), Rgb::splat(0.01)));
+        assert!(combine_direct(
+            &mut moved,
+            (Rgb::new(4.1, 4.9, 4.1), Rgb::splat(0.01))
+        ));
         let expected = (5.5 / 0.25 + 4.1 / 0.01) / (1.0 / 0.25 + 1.0 / 0.01);
         assert!((moved.irradiance.r - expected).abs() < 1e-12, "{moved:?}");
         assert!(moved.std_error.r < 0.1);

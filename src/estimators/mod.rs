@@ -31,7 +31,9 @@ pub use amortised::AmortisedRays;
 pub use error::EstimatorError;
 pub use hemisphere_estimate::HemisphereRule;
 pub use integral_prior::{IntegralPrior, PriorAt};
-pub use point_estimator::{BmcSetup, Estimates, EstimatorCaches, PointEstimator, PointRule};
+pub use point_estimator::{
+    BmcSetup, Estimates, EstimatorCaches, PointEstimator, PointRule, PriorsCombined,
+};
 pub use spec::{
     DEFAULT_KERNEL, DEFAULT_NOISE, DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod,
     EstimatorSpec, KernelSpec, Lengthscale, RecordsPriorMode,

@@ -105,6 +105,26 @@ pub struct Estimates {
     pub prior: PriorChoice,
     /// The calibration applied to the error bars, if any.
     pub calibration: Option<ErrorCalibration>,
+    /// With the records prior, per estimate, which priors were combined
+    /// with it (§10.7, §10.8); empty without it.
+    pub priors_combined: Vec<PriorsCombined>,
+}
+
+/// Which priors were combined with one estimate.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PriorsCombined {
+    /// The records' interpolated irradiance, on the indirect part (§10.7).
+    pub records: bool,
+    /// The direct-light twins, on the direct part (§10.8); not where the
+    /// point's own estimate contradicts them.
+    pub direct: bool,
+}
+
+impl PriorsCombined {
+    /// Whether any prior moved the estimate.
+    pub fn any(self) -> bool {
+        self.records || self.direct
+    }
 }
 
 impl Estimates {
@@ -360,8 +380,11 @@ impl PointEstimator {
             runs.iter()
                 .map(|run| {
                     let mut estimates = run.estimates.clone();
-                    let moved = combine_priors(&mut estimates, &known, scales);
-                    (estimates, moved)
+                    let combined = combine_priors(&mut estimates, &known, scales);
+                    (
+                        estimates,
+                        combined.into_iter().map(PriorsCombined::any).collect(),
+                    )
                 })
                 .unzip::<_, _, Vec<_>, Vec<_>>()
         };
@@ -465,8 +488,10 @@ impl PointEstimator {
         scales: PriorScales,
     ) -> (Estimates, Vec<bool>) {
         let known = self.priors_at(&caches, points);
-        let moved = combine_priors(&mut estimates.estimates, &known, scales);
+        let combined = combine_priors(&mut estimates.estimates, &known, scales);
         estimates.calibration = None;
+        let moved = combined.iter().map(|c| c.any()).collect();
+        estimates.priors_combined = combined;
         (estimates, moved)
     }
 
@@ -556,6 +581,7 @@ impl PointEstimator {
             decomposition,
             prior,
             calibration: None,
+            priors_combined: Vec::new(),
         })
     }
 }
@@ -567,25 +593,22 @@ struct KnownPriors {
 }
 
 /// Combines each estimate with the priors at its point (§10.7, §10.8),
-/// their variances scaled by `scales`; whether a prior moved each.
+/// their variances scaled by `scales`; which priors were combined with each.
 fn combine_priors(
     estimates: &mut [IrradianceEstimate],
     known: &[KnownPriors],
     scales: PriorScales,
-) -> Vec<bool> {
+) -> Vec<PriorsCombined> {
     estimates
         .iter_mut()
         .zip(known)
-        .map(|(estimate, known)| {
-            let mut moved = false;
-            if let Some(prior) = known.records {
-                moved |= combine_part(estimate, prior.scaled(scales.records));
-            }
-            if let Some(prior) = known.direct {
-                combine_direct(estimate, prior.scaled(scales.direct));
-                moved = true;
-            }
-            moved
+        .map(|(estimate, known)| PriorsCombined {
+            records: known
+                .records
+                .is_some_and(|prior| combine_part(estimate, prior.scaled(scales.records))),
+            direct: known
+                .direct
+                .is_some_and(|prior| combine_direct(estimate, prior.scaled(scales.direct))),
         })
         .collect()
 }

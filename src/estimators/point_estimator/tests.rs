@@ -219,3 +219,57 @@ fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
     }
     assert!(moved > 0 && kept > 0, "{moved} moved, {kept} kept");
 }
+
+/// Which priors moved an estimate is what was combined: a direct part its
+/// own samples contradict keeps its value and is not counted, and a point
+/// outside the records is left alone.
+#[test]
+fn only_the_priors_combined_are_reported() {
+    use crate::render::{IndirectPart, IrradianceEstimate, Rgb};
+    let estimate = IrradianceEstimate {
+        irradiance: Rgb::splat(5.0),
+        std_error: Rgb::splat(0.5),
+        rays: 64,
+        indirect: Some(IndirectPart {
+            irradiance: Rgb::splat(1.0),
+            variance_share: Rgb::splat(0.5),
+        }),
+    };
+    let prior = |mean: f64| PriorAt {
+        mean: Rgb::splat(mean),
+        variance: Rgb::splat(0.01),
+        modelled: Rgb::BLACK,
+    };
+    let known = [
+        // Records and twins that agree with the estimate (direct part 4).
+        KnownPriors {
+            records: Some(prior(1.1)),
+            direct: Some(prior(4.1)),
+        },
+        // Twins in shadow where the point is lit.
+        KnownPriors {
+            records: Some(prior(1.1)),
+            direct: Some(prior(0.5)),
+        },
+        KnownPriors {
+            records: None,
+            direct: None,
+        },
+    ];
+    let mut estimates = [estimate; 3];
+    let combined = combine_priors(&mut estimates, &known, PriorScales::ONE);
+    let both = PriorsCombined {
+        records: true,
+        direct: true,
+    };
+    let records_only = PriorsCombined {
+        records: true,
+        direct: false,
+    };
+    assert_eq!(combined, [both, records_only, PriorsCombined::default()]);
+    assert_eq!(estimates[2], estimate);
+    // The lit point's direct part kept its own value: the total moved only
+    // by what the indirect part moved.
+    let indirect_moved = estimates[1].indirect.unwrap().irradiance.r - 1.0;
+    assert!((estimates[1].irradiance.r - 5.0 - indirect_moved).abs() < 1e-12);
+}

@@ -209,11 +209,12 @@ pub struct IrradianceResponse {
     /// the direct-light twins of the records (docs/math.md §10.8).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub direct_records_points: Option<usize>,
-    /// With the records prior: per point, which records cover each part of
-    /// its estimate, which it was combined with (`records_prior_points` and
-    /// `direct_records_points` count them), except that a direct part whose
-    /// own samples contradict the twins' prior keeps its estimate
-    /// (docs/math.md §10.8) and is still counted.
+    /// With the records prior: per point, which records were combined with
+    /// each part of its estimate (`records_prior_points` and
+    /// `direct_records_points` count them). A direct part whose own samples
+    /// contradict the twins' prior keeps its estimate (docs/math.md §10.8)
+    /// and names none; so does every point of an error target, whose
+    /// batches do not use the prior.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub prior_used: Option<Vec<PointPriors>>,
     /// The decomposition run: `split` or `hemisphere` (`auto` resolved).
@@ -369,19 +370,27 @@ pub async fn irradiance(
             if let Ok(Some(cached)) = estimates.as_ref().map(|(e, _)| e.quadrature_cached) {
                 metrics::record_quadrature_lookup(&worker.quadratures, Some(cached));
             }
-            // Per point, the records its indirect part met (estimates with
-            // reflections report an indirect part) and those whose twins
-            // its direct part met.
+            // Per point, the records combined with its indirect part and
+            // those whose twins were combined with its direct part.
             let covered = |e: &Estimates| {
                 e.estimates
                     .iter()
                     .zip(&points)
-                    .map(|(e, p)| PointPriors {
-                        indirect: e
-                            .indirect
-                            .and_then(|_| records.origin_at(p))
-                            .map(Into::into),
-                        direct: direct.origin_at(p).map(Into::into),
+                    .enumerate()
+                    .map(|(i, (_, p))| {
+                        let combined = e.priors_combined.get(i).copied().unwrap_or_default();
+                        PointPriors {
+                            indirect: combined
+                                .records
+                                .then(|| records.origin_at(p))
+                                .flatten()
+                                .map(Into::into),
+                            direct: combined
+                                .direct
+                                .then(|| direct.origin_at(p))
+                                .flatten()
+                                .map(Into::into),
+                        }
                     })
                     .collect::<Vec<_>>()
             };
