@@ -5,8 +5,8 @@
 //! over the pixel. A pixel whose four rays do not all see one smooth
 //! surface (an edge, a silhouette, the background, an emitter) gets its
 //! albedo but no normal: its value mixes surfaces, so the filter weighs
-//! its neighbours by value alone (and lends it to no guided pixel). No
-//! random numbers, so a tile's guides are the same on every
+//! its neighbours by value alone and lends it to no pixel that has a
+//! normal. No random numbers, so a tile's guides are the same on every
 //! request.
 
 use glam::DVec3;

@@ -373,22 +373,19 @@ pub async fn irradiance(
             // Per point, the records combined with its indirect part and
             // those whose twins were combined with its direct part.
             let covered = |e: &Estimates| {
-                e.estimates
+                points
                     .iter()
-                    .zip(&points)
                     .enumerate()
-                    .map(|(i, (_, p))| {
+                    .map(|(i, p)| {
                         let combined = e.priors_combined.get(i).copied().unwrap_or_default();
                         PointPriors {
-                            indirect: combined
-                                .records
-                                .then(|| records.origin_at(p))
-                                .flatten()
+                            indirect: records
+                                .origin_at(p)
+                                .filter(|_| combined.records)
                                 .map(Into::into),
-                            direct: combined
-                                .direct
-                                .then(|| direct.origin_at(p))
-                                .flatten()
+                            direct: direct
+                                .origin_at(p)
+                                .filter(|_| combined.direct)
                                 .map(Into::into),
                         }
                     })
