@@ -115,6 +115,41 @@ fn bmc_tile(x: u32, y: u32, side: u32, extra: Value) -> Value {
            "max_depth": 3, "seed": 9, "samples_per_pixel": 1, "pass": 0, "estimator": estimator})
 }
 
+/// `"denoise": true` on a path-traced tile: the same tile filtered, every
+/// channel within its pixel's standard error, the error bars kept, and the
+/// guides' four rays per pixel counted.
+#[tokio::test]
+async fn a_posted_tile_can_be_denoised_within_its_error_bars() {
+    let app = spawn_app_with_scenes(&[("box.json", &small_cornell(24))], |_| {}).await;
+    let body = |denoise: bool| {
+        json!({"x": 0, "y": 0, "width": 24, "height": 24, "format": "json", "samples_per_pixel": 8,
+               "seed": 3, "estimator": {"method": "path"}, "denoise": denoise})
+    };
+    let plain = app.post_json("/v1/scenes/box/tiles", &body(false)).await;
+    let denoised = app.post_json("/v1/scenes/box/tiles", &body(true)).await;
+    assert_eq!(denoised.status(), StatusCode::OK);
+    // The pass is memoised (a reproducible tile): only the guides are new.
+    assert!(header(&plain, "x-rays") > 24 * 24 * 8);
+    assert_eq!(header(&denoised, "x-rays"), 4 * 24 * 24);
+    let (plain, denoised): (Value, Value) =
+        (plain.json().await.unwrap(), denoised.json().await.unwrap());
+    assert_eq!(plain["variance"], denoised["variance"]);
+    let (_, _, a) = json_pixels(&plain);
+    let (_, _, b) = json_pixels(&denoised);
+    let mut moved = 0;
+    for (i, (a, b)) in a.iter().zip(&b).enumerate() {
+        let sigma = plain["variance"][i].as_f64().unwrap().sqrt() as f32;
+        for c in 0..3 {
+            assert!(
+                (a[c] - b[c]).abs() <= sigma * 1.00001 + 1e-6,
+                "pixel {i}: {a:?} -> {b:?}"
+            );
+            moved += usize::from(a[c] != b[c]);
+        }
+    }
+    assert!(moved > 24 * 24, "{moved} channels moved");
+}
+
 fn header(response: &reqwest::Response, name: &str) -> u64 {
     response.headers()[name].to_str().unwrap().parse().unwrap()
 }
