@@ -51,6 +51,30 @@ pub fn cornell(side: u32) -> Transport {
     Transport::new(Arc::new(scene))
 }
 
+/// A ground plane (z = 0, facing +z) under a square occluder of half-side
+/// ¼ at height 1, lit by a point light of intensity 4 at height 2 above the
+/// origin, whose shadow on the ground is the square of half-side ½, and by
+/// a constant sky of radiance `sky` (none if 0).
+pub fn occluded_ground(sky: f64) -> Transport {
+    let mut doc = serde_json::json!({
+        "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
+        "shapes": [
+            {"type": "rectangle", "material": "grey", "to_world": [{"scale": [10, 10, 1]}]},
+            {"type": "rectangle", "material": "grey",
+             "to_world": [{"scale": [0.25, 0.25, 1]}, {"translate": [0, 0, 1]}]}
+        ],
+        "lights": [{"type": "point", "position": [0, 0, 2], "intensity": [4, 4, 4]}],
+        "camera": {"type": "perspective", "fov": 30, "origin": [0, 0, 6],
+                   "target": [0, 0, 0], "up": [0, 1, 0], "width": 4, "height": 4}
+    });
+    if sky > 0.0 {
+        doc["environment"] = serde_json::json!({"type": "constant", "radiance": [sky, sky, sky]});
+    }
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::from_json_str(&doc.to_string(), dir, dir).expect("loads");
+    Transport::new(Arc::new(scene))
+}
+
 /// A standard normal variate by Box–Muller (`1 − U` keeps the logarithm finite).
 pub fn standard_normal<R: rand::Rng + ?Sized>(rng: &mut R) -> f64 {
     use rand::RngExt;

@@ -12,6 +12,7 @@
 //!   neighbour clamp, byte budget with FIFO eviction, stats.
 //! - `records_prior`: the records (or their direct-light twins) as a prior
 //!   on a point query's indirect (or direct) irradiance.
+//! - `twin_caches`: direct-light twins beside their shadow probes.
 //! - `log`: the append-only, checksummed log that keeps records (and
 //!   whatever else is keyed by content) across restarts.
 //!
@@ -27,6 +28,7 @@ pub(crate) mod log;
 mod record;
 mod record_rule;
 mod records_prior;
+mod twin_caches;
 
 pub use error::CacheError;
 pub use irradiance_cache::{
@@ -35,3 +37,4 @@ pub use irradiance_cache::{
 pub use record::{MAX_IRRADIANCE, PixelFootprint, RadiusLimits, Record, harmonic_mean_distance};
 pub use record_rule::{RecordEstimate, RecordRule, RecordRuleSpec};
 pub use records_prior::RecordsPrior;
+pub use twin_caches::TwinCaches;

@@ -5,8 +5,9 @@
 //! the prior's mean and variance.
 
 use super::irradiance_cache::{Accuracy, IrradianceCache};
+use super::twin_caches::TwinCaches;
 use crate::estimators::{IntegralPrior, PriorAt};
-use crate::render::QueryPoint;
+use crate::render::{QueryPoint, Rgb};
 
 /// Records of one or more caches, each looked up with its own accuracy and
 /// its own measured relative prediction error.
@@ -17,6 +18,8 @@ pub struct RecordsPrior<'a> {
 /// One cache as a source of the prior.
 struct Source<'a> {
     cache: &'a IrradianceCache,
+    /// The shadow probes at the records' places, for twins (§10.8).
+    probes: Option<&'a IrradianceCache>,
     accuracy: Accuracy,
     /// What the records are, as responses name them.
     origin: &'static str,
@@ -49,12 +52,42 @@ impl<'a> RecordsPrior<'a> {
     pub fn new(
         caches: impl IntoIterator<Item = (&'a IrradianceCache, Accuracy, &'static str)>,
     ) -> Self {
+        Self::of_sources(
+            caches
+                .into_iter()
+                .map(|(cache, accuracy, origin)| (cache, None, accuracy, origin)),
+        )
+    }
+
+    /// A prior on the direct part from direct-light twins, each beside its
+    /// shadow probes ([`Self::at_with_probes`]).
+    pub fn of_twins(
+        caches: impl IntoIterator<Item = (&'a TwinCaches, Accuracy, &'static str)>,
+    ) -> Self {
+        Self::of_sources(
+            caches.into_iter().map(|(twins, accuracy, origin)| {
+                (&twins.twins, Some(&twins.probes), accuracy, origin)
+            }),
+        )
+    }
+
+    fn of_sources(
+        caches: impl IntoIterator<
+            Item = (
+                &'a IrradianceCache,
+                Option<&'a IrradianceCache>,
+                Accuracy,
+                &'static str,
+            ),
+        >,
+    ) -> Self {
         let caches = caches
             .into_iter()
-            .filter_map(|(cache, accuracy, origin)| {
+            .filter_map(|(cache, probes, accuracy, origin)| {
                 let accuracy = reach(accuracy);
                 held_out_error2(cache, accuracy).map(|relative_error2| Source {
                     cache,
+                    probes,
                     accuracy,
                     origin,
                     relative_error2,
@@ -62,6 +95,18 @@ impl<'a> RecordsPrior<'a> {
             })
             .collect();
         Self { caches }
+    }
+
+    /// The prior at `point` (as [`IntegralPrior::at`]) and, where its
+    /// records are twins, their shadow probes interpolated at the point
+    /// with the same weights (docs/math.md §10.8).
+    pub fn at_with_probes(&self, point: &QueryPoint) -> Option<(PriorAt, Option<Rgb>)> {
+        let (source, prior) = self.best(point)?;
+        let probes = source
+            .probes
+            .and_then(|probes| probes.lookup(point, source.accuracy))
+            .map(|found| found.irradiance);
+        Some((prior, probes))
     }
 
     /// Whether no cache serves the prior (none given, or none with enough
@@ -89,6 +134,7 @@ impl<'a> RecordsPrior<'a> {
                     mean: e,
                     variance: found.error_variance(),
                     modelled: e * e * source.relative_error2,
+                    rays: 0,
                 };
                 Some((source, prior))
             })

@@ -23,6 +23,9 @@ pub struct PriorAt {
     pub mean: Rgb,
     pub variance: Rgb,
     pub modelled: Rgb,
+    /// Rays traced at the point to state the prior (its shadow probe,
+    /// §10.8), which the estimate it moves counts.
+    pub rays: u64,
 }
 
 impl PriorAt {

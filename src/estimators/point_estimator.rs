@@ -27,6 +27,8 @@
 
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use super::amortised::AmortisedRays;
 use super::calibration::{Calibrations, ErrorCalibration, TrainingSet, calibrate, unseen_light};
 use super::error::EstimatorError;
@@ -376,6 +378,9 @@ impl PointEstimator {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let known = self.priors_at(&caches, &training.points);
+        caches
+            .amortised
+            .add(known.iter().map(KnownPriors::rays).sum());
         let combined = |scales| {
             runs.iter()
                 .map(|run| {
@@ -514,7 +519,7 @@ impl PointEstimator {
         let records = self.records(caches);
         let direct = self.direct(caches);
         points
-            .iter()
+            .par_iter()
             .map(|point| KnownPriors {
                 records: records.and_then(|r| r.at(point)),
                 direct: direct.and_then(|d| d.at(point)),
@@ -592,8 +597,21 @@ struct KnownPriors {
     direct: Option<PriorAt>,
 }
 
+impl KnownPriors {
+    /// The rays traced at the point to state the priors.
+    fn rays(&self) -> u64 {
+        [self.records, self.direct]
+            .iter()
+            .flatten()
+            .map(|p| p.rays)
+            .sum()
+    }
+}
+
 /// Combines each estimate with the priors at its point (§10.7, §10.8),
 /// their variances scaled by `scales`; which priors were combined with each.
+/// Each estimate counts the rays its priors traced at its point, combined
+/// or not.
 fn combine_priors(
     estimates: &mut [IrradianceEstimate],
     known: &[KnownPriors],
@@ -602,13 +620,16 @@ fn combine_priors(
     estimates
         .iter_mut()
         .zip(known)
-        .map(|(estimate, known)| PriorsCombined {
-            records: known
-                .records
-                .is_some_and(|prior| combine_part(estimate, prior.scaled(scales.records))),
-            direct: known
-                .direct
-                .is_some_and(|prior| combine_direct(estimate, prior.scaled(scales.direct))),
+        .map(|(estimate, known)| {
+            estimate.rays += known.rays();
+            PriorsCombined {
+                records: known
+                    .records
+                    .is_some_and(|prior| combine_part(estimate, prior.scaled(scales.records))),
+                direct: known
+                    .direct
+                    .is_some_and(|prior| combine_direct(estimate, prior.scaled(scales.direct))),
+            }
         })
         .collect()
 }

@@ -38,6 +38,7 @@ mod query;
 mod rgb;
 mod sample_plan;
 pub mod seed;
+mod shadow_probe;
 pub(crate) mod strata;
 pub(crate) mod tile;
 mod trace_stats;
@@ -61,6 +62,7 @@ pub use path::{
 pub use query::QueryPoint;
 pub use rgb::Rgb;
 pub use sample_plan::SamplePlan;
+pub use shadow_probe::SHADOW_PROBES;
 pub use tile::{
     CameraRayShader, MAX_SAMPLES_PER_PIXEL, MAX_TILE_PIXELS, PixelSample, RenderedTile,
     TileRequest, pass_seed, pixel_rng, render_tile_with,

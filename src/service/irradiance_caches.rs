@@ -19,8 +19,9 @@
 //! whose rule alone exceeds the total is refused (422) and its rule dropped.
 //! Each cache also holds the direct-light twins of its records (docs/math.md
 //! §10.8), one kind for queries under each decomposition, made when a
-//! records-prior query first needs them, both kinds within [`DIRECT_SHARE`]⁻¹
-//! of the cache's own budget (half each), weighed with it.
+//! records-prior query first needs them, both kinds and their shadow probes
+//! within [`DIRECT_SHARE`]⁻¹ of the cache's own budget (a quarter each),
+//! weighed with it.
 
 use std::collections::HashSet;
 use std::sync::{Arc, Mutex};
@@ -30,7 +31,9 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::scenes::LoadedScene;
-use crate::cache::{Accuracy, CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES};
+use crate::cache::{
+    Accuracy, CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES, TwinCaches,
+};
 use crate::integrator::cached::{
     CachedShading, RecordSource, RecordsKey, TwinRule, direct_records,
 };
@@ -39,9 +42,9 @@ use crate::render::{Cancel, Decomposition, PathDepth, RenderError, Transport};
 /// Each cache may use `1/SHARE` of the total budget.
 pub const SHARE: usize = 4;
 
-/// The direct-light twins of a cache's records, both kinds, may use
-/// `1/DIRECT_SHARE` of the cache's budget, half each (beyond it their own
-/// FIFO eviction drops the oldest).
+/// The direct-light twins of a cache's records, both kinds, and their
+/// shadow probes may use `1/DIRECT_SHARE` of the cache's budget, a quarter
+/// each (beyond it their own FIFO eviction drops the oldest).
 pub const DIRECT_SHARE: usize = 4;
 
 /// Seed of every direct-light twin (with its place: the same record has the
@@ -88,15 +91,15 @@ pub struct SceneCache {
 
 impl SceneCache {
     /// An empty cache of `config` for records computed with `shading`'s
-    /// rules; each kind of its direct-light twins takes half of
-    /// `1/DIRECT_SHARE` of its budget.
+    /// rules; each kind of its direct-light twins, and their probes, take a
+    /// quarter of `1/DIRECT_SHARE` of its budget (at least one record).
     pub fn new(
         config: CacheConfig,
         shading: CachedShading,
         description: serde_json::Value,
     ) -> Result<Self, CacheError> {
         let direct = CacheConfig {
-            byte_budget: config.byte_budget / (2 * DIRECT_SHARE),
+            byte_budget: (config.byte_budget / (4 * DIRECT_SHARE)).max(RECORD_BYTES),
             ..config
         };
         Ok(Self {
@@ -116,7 +119,7 @@ impl SceneCache {
         transport: &Transport,
         decomposition: Decomposition,
         cancel: &Cancel,
-    ) -> Result<(&IrradianceCache, u64), RenderError> {
+    ) -> Result<(&TwinCaches, u64), RenderError> {
         let direct = match decomposition {
             Decomposition::Hemisphere => &self.hemisphere_twins,
             Decomposition::Split => &self.split_twins,
@@ -152,7 +155,7 @@ fn place(record: &crate::cache::Record) -> [u64; 3] {
 
 /// The direct-light twins of one cache's records.
 struct DirectTwins {
-    twins: IrradianceCache,
+    twins: TwinCaches,
     /// The places of the records whose twin has been made.
     mirrored: Mutex<HashSet<[u64; 3]>>,
 }
@@ -160,7 +163,7 @@ struct DirectTwins {
 impl DirectTwins {
     fn new(config: CacheConfig) -> Result<Self, CacheError> {
         Ok(Self {
-            twins: IrradianceCache::new(config)?,
+            twins: TwinCaches::new(config)?,
             mirrored: Mutex::new(HashSet::new()),
         })
     }
@@ -211,7 +214,7 @@ impl RecordSource for PriorSource {
         transport: &Transport,
         decomposition: Decomposition,
         cancel: &Cancel,
-    ) -> Result<Option<(&IrradianceCache, u64)>, RenderError> {
+    ) -> Result<Option<(&TwinCaches, u64)>, RenderError> {
         self.entry
             .direct_twins(transport, decomposition, cancel)
             .map(Some)

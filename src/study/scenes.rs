@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use crate::bmc::Kernel;
 use crate::bmc::cache::QuadratureCache;
-use crate::cache::{Accuracy, CacheConfig, IrradianceCache};
+use crate::cache::{Accuracy, CacheConfig, IrradianceCache, TwinCaches};
 use crate::estimators::calibration::Calibrations;
 use crate::estimators::error_target::ErrorTarget;
 use crate::estimators::lengthscale::FittedKernels;
@@ -243,7 +243,7 @@ fn camera_direct_records(
     max_depth: PathDepth,
     decomposition: Decomposition,
     (records, shading): &(IrradianceCache, CachedShading),
-) -> Result<IrradianceCache, SceneStudyError> {
+) -> Result<TwinCaches, SceneStudyError> {
     let deeper;
     let places = if max_depth.has_reflections() {
         records
@@ -251,7 +251,7 @@ fn camera_direct_records(
         deeper = camera_records(transport, preset, PathDepth::new(2)?)?.0;
         &deeper
     };
-    let twins = IrradianceCache::new(CacheConfig::default()).map_err(RenderError::from)?;
+    let twins = TwinCaches::new(CacheConfig::default()).map_err(RenderError::from)?;
     direct_records(
         transport,
         &places.records(),
@@ -271,7 +271,7 @@ struct StudyRecords {
     cache: IrradianceCache,
     shading: CachedShading,
     depth_from_point: PathDepth,
-    twins: Option<IrradianceCache>,
+    twins: Option<TwinCaches>,
 }
 
 impl RecordSource for StudyRecords {
@@ -292,7 +292,7 @@ impl RecordSource for StudyRecords {
         _: &Transport,
         _: Decomposition,
         _: &Cancel,
-    ) -> Result<Option<(&IrradianceCache, u64)>, RenderError> {
+    ) -> Result<Option<(&TwinCaches, u64)>, RenderError> {
         Ok(self.twins.as_ref().map(|twins| (twins, 0)))
     }
 }

@@ -124,6 +124,7 @@ impl IntegralPrior for ReferencePrior<'_> {
             mean: e * self.bias,
             variance: crate::render::Rgb::BLACK,
             modelled: e * e * (self.stated * self.stated),
+            rays: 0,
         })
     }
 
@@ -239,6 +240,7 @@ fn only_the_priors_combined_are_reported() {
         mean: Rgb::splat(mean),
         variance: Rgb::splat(0.01),
         modelled: Rgb::BLACK,
+        rays: 0,
     };
     let known = [
         // Records and twins that agree with the estimate (direct part 4).

@@ -11,10 +11,10 @@
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 
-use crate::cache::{IrradianceCache, RadiusLimits, Record, RecordRule};
+use crate::cache::{RadiusLimits, Record, RecordRule, TwinCaches};
 use crate::render::{
     AveragedPaths, Cancel, Decomposition, PathDepth, PathLengths, PathLimits, QueryPoint,
-    RenderError, TraceStats, Transport,
+    RenderError, Rgb, TraceStats, Transport,
 };
 use crate::sphere::Frame;
 
@@ -46,21 +46,22 @@ impl<'a> TwinRule<'a> {
     }
 }
 
-/// The direct-light twins of `records`, inserted into `twins`: each at the
-/// record's place and with its validity radius, estimated by `rule`
-/// (with the rule's directions turned about the normal by a random angle);
-/// every random number is drawn from `seed` and the record's place, so a
-/// record has the same twin whenever and with whatever others it is
-/// computed. Returns the rays traced.
+/// The direct-light twins of `records`, inserted into `twins` beside their
+/// shadow probes: each at the record's place and with its validity radius,
+/// estimated by `rule` (with the rule's directions turned about the normal
+/// by a random angle); every random number is drawn from `seed` and the
+/// record's place, so a record has the same twin whenever and with
+/// whatever others it is computed. Returns the rays traced.
 pub fn direct_records(
     transport: &Transport,
     records: &[Record],
     rule: TwinRule,
-    twins: &IrradianceCache,
+    twins: &TwinCaches,
     seed: u64,
     cancel: &Cancel,
 ) -> Result<u64, RenderError> {
-    let batches: Vec<Result<(Vec<Record>, u64), RenderError>> = records
+    type Batch = (Vec<Record>, Vec<Record>, u64);
+    let batches: Vec<Result<Batch, RenderError>> = records
         .par_chunks(BATCH)
         .map(|batch| {
             cancel.check()?;
@@ -87,15 +88,30 @@ pub fn direct_records(
                     })
                     .collect::<Result<Vec<_>, RenderError>>()?,
             };
-            Ok((made, trace.rays))
+            let probes = made
+                .iter()
+                .map(|twin| {
+                    let point = QueryPoint::new(twin.position, twin.normal)?;
+                    Ok(Record {
+                        irradiance: transport.shadow_probe(&point, &mut trace),
+                        variance: Rgb::BLACK,
+                        rotation_gradient: [glam::DVec3::ZERO; 3],
+                        translation_gradient: [glam::DVec3::ZERO; 3],
+                        ..*twin
+                    })
+                })
+                .collect::<Result<Vec<_>, RenderError>>()?;
+            Ok((made, probes, trace.rays))
         })
         .collect();
     let mut rays = 0;
     for batch in batches {
-        let (batch, traced) = batch?;
+        let (batch, probes, traced) = batch?;
         rays += traced;
-        for twin in batch {
-            twins.insert(twin)?;
+        // In the same order into both: they evict alike.
+        for (twin, probe) in batch.into_iter().zip(probes) {
+            twins.twins.insert(twin)?;
+            twins.probes.insert(probe)?;
         }
     }
     Ok(rays)
@@ -173,7 +189,7 @@ mod tests {
     use crate::bmc::cache::QuadratureCache;
     use crate::cache::CacheConfig;
     use crate::integrator::cached::CachedSpec;
-    use crate::render::Rgb;
+    use crate::render::SHADOW_PROBES;
 
     /// A unit disk at the origin facing +z under a constant sky of radiance
     /// 2: above it the whole sky is seen, `E = 2π`; one unit below it,
@@ -216,7 +232,7 @@ mod tests {
             .shading(Arc::new(QuadratureCache::new(64 << 20)))
             .unwrap();
         let twins_of = |places: &[Record]| {
-            let cache = IrradianceCache::new(CacheConfig::default()).unwrap();
+            let cache = TwinCaches::new(CacheConfig::default()).unwrap();
             let rays = direct_records(
                 &transport,
                 places,
@@ -229,9 +245,21 @@ mod tests {
             (cache, rays)
         };
         let (cache, rays) = twins_of(&places);
-        assert_eq!(rays, 2 * 256);
-        let twins = cache.records();
+        // One ray per direction, and the probes' shadow rays.
+        let probe_rays = rays - 2 * 256;
+        assert!(probe_rays <= 4 * u64::from(SHADOW_PROBES), "{rays}");
+        let twins = cache.twins.records();
         assert_eq!(twins.len(), 2);
+        // Each twin has its probe at its place, with its radius: the sky is
+        // half hidden under the disk, so the probe there sees no more.
+        let probes = cache.probes.records();
+        for (twin, probe) in twins.iter().zip(&probes) {
+            assert_eq!((probe.position, probe.radius), (twin.position, twin.radius));
+        }
+        assert!(
+            probes[1].irradiance.g <= probes[0].irradiance.g,
+            "{probes:?}"
+        );
         let at = |z: f64| *twins.iter().find(|t| t.position.z == z).unwrap();
         let (open, under) = (at(0.0), at(-1.0));
         let pi = std::f64::consts::PI;
@@ -241,7 +269,7 @@ mod tests {
         assert_eq!((open.radius, under.radius), (0.3, 0.3));
         // A place has the same twin whatever it is computed with.
         let (alone, _) = twins_of(&places[1..]);
-        assert_eq!(alone.records()[0], under);
+        assert_eq!(alone.twins.records()[0], under);
     }
 
     /// Light-sampled twins (split mode) hold the same sky: above the disk
@@ -252,7 +280,7 @@ mod tests {
     fn light_sampled_twins_hold_the_same_sky() {
         let (transport, places) = disk_under_sky(DVec3::ONE);
         let twins_of = |places: &[Record]| {
-            let cache = IrradianceCache::new(CacheConfig::default()).unwrap();
+            let cache = TwinCaches::new(CacheConfig::default()).unwrap();
             let rays = direct_records(
                 &transport,
                 places,
@@ -266,7 +294,7 @@ mod tests {
         };
         let (cache, rays) = twins_of(&places);
         assert!(rays >= 2 * 4096, "{rays}");
-        let twins = cache.records();
+        let twins = cache.twins.records();
         let at = |z: f64| *twins.iter().find(|t| t.position.z == z).unwrap();
         let (open, under) = (at(0.0), at(-1.0));
         let pi = std::f64::consts::PI;
@@ -279,6 +307,6 @@ mod tests {
             assert_eq!(twin.translation_gradient, [DVec3::ZERO; 3]);
         }
         let (alone, _) = twins_of(&places[1..]);
-        assert_eq!(alone.records()[0], under);
+        assert_eq!(alone.twins.records()[0], under);
     }
 }

@@ -55,7 +55,7 @@ pub use config::{
 pub use direct_records::{TwinRule, direct_records};
 pub use glossy::{GlossyRule, GlossyWeights, MAX_GLOSSY_BINS};
 pub use placement::{PlacementCache, PlacementReport, place_and_shade, place_records, shade};
-pub use point_priors::{PointPriors, RecordSource, point_priors};
+pub use point_priors::{DirectPrior, PointPriors, RecordSource, point_priors};
 pub use point_records::point_records;
 pub use record_estimate::{PlacementPoint, lookup};
 pub use record_view::{RecordView, record_overlay, record_views};

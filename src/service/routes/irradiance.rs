@@ -22,7 +22,7 @@ use crate::estimators::{
     AmortisedRays, Estimates, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec,
     Lengthscale, RecordsPriorMode,
 };
-use crate::integrator::cached::point_priors;
+use crate::integrator::cached::{DirectPrior, point_priors};
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{
     Decomposition, IrradianceMethod, IrradianceOptions, PathDepth, QueryPoint, RenderError, Rgb,
@@ -349,7 +349,7 @@ pub async fn irradiance(
                 cancel,
             )?;
             spent.add(priors.rays);
-            let (records, direct): (&RecordsPrior, &RecordsPrior) =
+            let (records, direct): (&RecordsPrior, &DirectPrior) =
                 (&priors.records, &priors.direct);
             let caches = EstimatorCaches {
                 kernels: &scene.kernels,

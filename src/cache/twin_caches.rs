@@ -1,0 +1,29 @@
+//! Direct-light twins beside their shadow probes (docs/math.md §10.8).
+
+use super::error::CacheError;
+use super::irradiance_cache::{CacheConfig, IrradianceCache};
+
+/// The direct-light twins of a cache's records and, at each twin's place,
+/// normal and radius, the shadow probe there (`render::SHADOW_PROBES`
+/// light samples from fixed numbers, no variance, no gradients): both caches
+/// take the same records in the same order, so a lookup weighs a twin and
+/// its probe alike and both evict alike.
+pub struct TwinCaches {
+    pub twins: IrradianceCache,
+    pub probes: IrradianceCache,
+}
+
+impl TwinCaches {
+    /// Both empty, each with `config`.
+    pub fn new(config: CacheConfig) -> Result<Self, CacheError> {
+        Ok(Self {
+            twins: IrradianceCache::new(config)?,
+            probes: IrradianceCache::new(config)?,
+        })
+    }
+
+    pub fn clear(&self) {
+        self.twins.clear();
+        self.probes.clear();
+    }
+}
