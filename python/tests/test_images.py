@@ -65,6 +65,21 @@ def test_path_traced_pixels_do_not_depend_on_the_tiling(image: Image, server: Se
     assert not np.array_equal(reseeded.rgb, image.rgb)
 
 
+def test_a_posted_image_can_be_denoised_within_its_error_bars(image: Image, server: Server) -> None:
+    denoised = Client(server.url).image(
+        "cornell-box", spp=SPP, estimator="path", tile=64, workers=4, denoise=True
+    )
+    assert denoised.variance is not None and image.variance is not None
+    assert np.array_equal(denoised.variance, image.variance)
+    moved = np.abs(denoised.rgb.astype(np.float64) - image.rgb)
+    sigma = np.sqrt(image.variance.astype(np.float64))[..., None]
+    assert np.all(moved <= sigma * (1 + 1e-5) + 1e-6)
+    assert np.count_nonzero(moved) > 256 * 256
+    # The same pass was rendered for `image` and is kept: only the guides'
+    # four camera rays per pixel are traced.
+    assert denoised.rays == 4 * 256 * 256
+
+
 def test_the_progress_bar_shows_only_on_a_terminal(
     server: Server, capsys: pytest.CaptureFixture[str]
 ) -> None:

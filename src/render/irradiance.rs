@@ -307,41 +307,91 @@ impl Transport {
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> MeanEstimate {
+        let values: Vec<Rgb> = (0..samples)
+            .map(|_| self.direct_sample(point, rng, stats).0)
+            .collect();
+        MeanEstimate::of(values)
+    }
+
+    /// [`Self::direct_irradiance`] and, from the same samples, its gradient
+    /// with respect to the normal per channel (W/m² per unit of normal,
+    /// docs/math.md §10.8): `∂E/∂n = ∫ L(ω) ω dω` over the unoccluded
+    /// directions in front, each sample's `L w ω / p`.
+    pub fn direct_irradiance_and_normal_gradient<R: Rng + ?Sized>(
+        &self,
+        point: &QueryPoint,
+        samples: u32,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> (MeanEstimate, [DVec3; 3]) {
+        let mut gradient = [DVec3::ZERO; 3];
+        let values: Vec<Rgb> = (0..samples)
+            .map(|_| {
+                let (value, g) = self.direct_sample(point, rng, stats);
+                for (sum, g) in gradient.iter_mut().zip(g) {
+                    *sum += g;
+                }
+                value
+            })
+            .collect();
+        let count = f64::from(samples.max(1));
+        (MeanEstimate::of(values), gradient.map(|g| g / count))
+    }
+
+    /// One sample of [`Self::direct_irradiance`] (its light sample and, with
+    /// an environment, its cosine direction) and its contribution to the
+    /// normal gradient per channel: a direction `ω` of weight `L w / p`
+    /// adds `L w cos θ / p` to the value and `L w ω / p` to the gradient.
+    fn direct_sample<R: Rng + ?Sized>(
+        &self,
+        point: &QueryPoint,
+        rng: &mut R,
+        stats: &mut TraceStats,
+    ) -> (Rgb, [DVec3; 3]) {
         let scene = self.scene();
         let (x, n) = (point.position(), point.normal());
-        let environment = self.lights().has_environment();
-        let frame = Frame::from_normal(n);
-        let values = (0..samples).map(|_| {
-            let u_select = rng.random();
-            let u = [rng.random(), rng.random()];
-            let mut value = Rgb::BLACK;
-            if let Some(light) = self.lights().sample(scene, x, u_select, u) {
-                let cos = n.dot(light.wi);
-                if cos > 0.0 && !light.radiance.is_black() && light.visible_from(scene, x, n, stats)
-                {
-                    // Only environment light is also reachable by the cosine strategy.
-                    let weight = if light.is_environment() {
-                        power_heuristic(light.pdf, cos / PI)
-                    } else {
-                        1.0
-                    };
-                    value += light.radiance * (weight * cos / light.pdf);
-                }
+        let mut value = Rgb::BLACK;
+        let mut gradient = [DVec3::ZERO; 3];
+        // `L` times `w cos θ / p` into the value, `w / p` along `ω` into the
+        // gradient (each factor written as the estimate always wrote it).
+        let mut add = |radiance: Rgb, value_factor: f64, weight_over_pdf: f64, dir: DVec3| {
+            value += radiance * value_factor;
+            for (g, l) in gradient.iter_mut().zip(radiance.to_array()) {
+                *g += dir * (l * weight_over_pdf);
             }
-            if environment {
-                let local = warp::cosine_hemisphere([rng.random(), rng.random()]);
-                let dir = frame.to_world(local);
-                stats.rays += 1;
-                if local.z > 0.0 && scene.intersect(&scene.spawn_ray(x, n, dir)).is_none() {
-                    let pdf = local.z / PI;
-                    let weight = power_heuristic(pdf, self.lights().pdf_environment(scene, dir));
-                    // L cos θ / p = π L for cosine-distributed directions.
-                    value += environment_radiance(scene, dir) * (weight * PI);
-                }
+        };
+        let u_select = rng.random();
+        let u = [rng.random(), rng.random()];
+        if let Some(light) = self.lights().sample(scene, x, u_select, u) {
+            let cos = n.dot(light.wi);
+            if cos > 0.0 && !light.radiance.is_black() && light.visible_from(scene, x, n, stats) {
+                // Only environment light is also reachable by the cosine strategy.
+                let weight = if light.is_environment() {
+                    power_heuristic(light.pdf, cos / PI)
+                } else {
+                    1.0
+                };
+                let value_factor = weight * cos / light.pdf;
+                add(light.radiance, value_factor, weight / light.pdf, light.wi);
             }
-            value
-        });
-        MeanEstimate::of(values.collect::<Vec<_>>())
+        }
+        if self.lights().has_environment() {
+            let local = warp::cosine_hemisphere([rng.random(), rng.random()]);
+            let dir = Frame::from_normal(n).to_world(local);
+            stats.rays += 1;
+            if local.z > 0.0 && scene.intersect(&scene.spawn_ray(x, n, dir)).is_none() {
+                let pdf = local.z / PI;
+                let weight = power_heuristic(pdf, self.lights().pdf_environment(scene, dir));
+                // L cos θ / p = π L for cosine-distributed directions.
+                add(
+                    environment_radiance(scene, dir),
+                    weight * PI,
+                    weight / pdf,
+                    dir,
+                );
+            }
+        }
+        (value, gradient)
     }
 
     /// Hemisphere estimate of `∫_H L cos θ dω` with `samples` cosine-weighted

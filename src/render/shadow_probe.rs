@@ -6,6 +6,7 @@
 //! occluders and the normals between them change in their direct light,
 //! with none of the noise two independent estimates would add.
 
+use glam::DVec3;
 use rand::SeedableRng;
 
 use super::path::TraceStats;
@@ -23,19 +24,20 @@ const PROBE_SEED: u64 = 0x5AD0_0B5E;
 impl Transport {
     /// The probe at `point`: [`Transport::direct_irradiance`]'s mean of
     /// [`SHADOW_PROBES`] samples (W/m²) from numbers every point shares, an
-    /// unbiased estimate of the direct irradiance; its rays are counted in
-    /// `stats`.
-    pub fn shadow_probe(&self, point: &QueryPoint, stats: &mut TraceStats) -> Rgb {
+    /// unbiased estimate of the direct irradiance, and its gradient with
+    /// respect to the normal from the same samples
+    /// ([`Transport::direct_irradiance_and_normal_gradient`]); its rays
+    /// are counted in `stats`.
+    pub fn shadow_probe(&self, point: &QueryPoint, stats: &mut TraceStats) -> (Rgb, [DVec3; 3]) {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(PROBE_SEED);
-        self.direct_irradiance(point, SHADOW_PROBES, &mut rng, stats)
-            .mean
+        let (probe, gradient) =
+            self.direct_irradiance_and_normal_gradient(point, SHADOW_PROBES, &mut rng, stats);
+        (probe.mean, gradient)
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use glam::DVec3;
-
     use super::*;
 
     #[test]
@@ -44,12 +46,18 @@ mod tests {
         let at = |x: f64| QueryPoint::new(DVec3::new(x, 0.0, 0.0), DVec3::Z).unwrap();
         let mut stats = TraceStats::default();
         // Under the occluder: the light is hidden.
-        assert_eq!(transport.shadow_probe(&at(0.1), &mut stats), Rgb::BLACK);
+        assert_eq!(transport.shadow_probe(&at(0.1), &mut stats).0, Rgb::BLACK);
         // Beside it: the point light's irradiance I cos θ / r², exactly.
-        let lit = transport.shadow_probe(&at(1.0), &mut stats);
+        let (lit, gradient) = transport.shadow_probe(&at(1.0), &mut stats);
         let (r2, cos) = (5.0, 2.0 / 5f64.sqrt());
         assert!((lit.r - 4.0 * cos / r2).abs() < 1e-12, "{lit:?}");
-        assert_eq!(transport.shadow_probe(&at(1.0), &mut stats), lit);
+        assert_eq!(transport.shadow_probe(&at(1.0), &mut stats).0, lit);
+        // ∂E/∂n = I ω / r², towards the light.
+        let towards = DVec3::new(-1.0, 0.0, 2.0) / r2.sqrt();
+        assert!(
+            (gradient[0] - towards * (4.0 / r2)).length() < 1e-12,
+            "{gradient:?}"
+        );
         assert_eq!(stats.rays, 3 * u64::from(SHADOW_PROBES));
     }
 }

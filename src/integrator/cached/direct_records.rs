@@ -31,7 +31,8 @@ pub enum TwinRule<'a> {
     Directions(&'a RecordRule),
     /// This many light samples (multiple importance sampled with cosine
     /// directions where an environment shines), the estimate of a split
-    /// query's direct part; no gradients (for the split decomposition).
+    /// query's direct part, with the rotation gradient from the same
+    /// samples and no translation gradient (for the split decomposition).
     LightSamples(u32),
 }
 
@@ -46,8 +47,8 @@ impl<'a> TwinRule<'a> {
     }
 }
 
-/// The direct-light twins of `records`, inserted into `twins` beside their
-/// shadow probes: each at the record's place and with its validity radius,
+/// The direct-light twins of `records`, inserted into `twins` (beside their
+/// shadow probes when light-sampled): each at the record's place and with its validity radius,
 /// estimated by `rule` (with the rule's directions turned about the normal
 /// by a random angle); every random number is drawn from `seed` and the
 /// record's place, so a record has the same twin whenever and with
@@ -76,26 +77,36 @@ pub fn direct_records(
                         let mut rng =
                             rand_pcg::Pcg64::seed_from_u64(place_seed(seed, record.position));
                         let point = QueryPoint::new(record.position, record.normal)?;
-                        let direct =
-                            transport.direct_irradiance(&point, samples, &mut rng, &mut trace);
+                        let (direct, gradient) = transport.direct_irradiance_and_normal_gradient(
+                            &point, samples, &mut rng, &mut trace,
+                        );
                         Ok(Record {
                             irradiance: direct.mean,
                             variance: direct.variance_of_mean,
-                            rotation_gradient: [glam::DVec3::ZERO; 3],
+                            // E(n) ≈ E + (n_k × ∇)·(n_k × n) for ∇ = ∂E/∂n.
+                            rotation_gradient: gradient.map(|g| record.normal.cross(g)),
                             translation_gradient: [glam::DVec3::ZERO; 3],
                             ..*record
                         })
                     })
                     .collect::<Result<Vec<_>, RenderError>>()?,
             };
-            let probes = made
+            // Twins of the record rule turn and move with its gradients
+            // under a smooth environment; light-sampled twins only turn, and
+            // meet the edges of hard shadows (docs/math.md §10.8).
+            let probed = match rule {
+                TwinRule::Directions(_) => &made[..0],
+                TwinRule::LightSamples(_) => &made[..],
+            };
+            let probes = probed
                 .iter()
                 .map(|twin| {
                     let point = QueryPoint::new(twin.position, twin.normal)?;
+                    let (probe, gradient) = transport.shadow_probe(&point, &mut trace);
                     Ok(Record {
-                        irradiance: transport.shadow_probe(&point, &mut trace),
+                        irradiance: probe,
                         variance: Rgb::BLACK,
-                        rotation_gradient: [glam::DVec3::ZERO; 3],
+                        rotation_gradient: gradient.map(|g| twin.normal.cross(g)),
                         translation_gradient: [glam::DVec3::ZERO; 3],
                         ..*twin
                     })
@@ -109,8 +120,10 @@ pub fn direct_records(
         let (batch, probes, traced) = batch?;
         rays += traced;
         // In the same order into both: they evict alike.
-        for (twin, probe) in batch.into_iter().zip(probes) {
+        for twin in batch {
             twins.twins.insert(twin)?;
+        }
+        for probe in probes {
             twins.probes.insert(probe)?;
         }
     }
@@ -189,7 +202,6 @@ mod tests {
     use crate::bmc::cache::QuadratureCache;
     use crate::cache::CacheConfig;
     use crate::integrator::cached::CachedSpec;
-    use crate::render::SHADOW_PROBES;
 
     /// A unit disk at the origin facing +z under a constant sky of radiance
     /// 2: above it the whole sky is seen, `E = 2π`; one unit below it,
@@ -245,21 +257,11 @@ mod tests {
             (cache, rays)
         };
         let (cache, rays) = twins_of(&places);
-        // One ray per direction, and the probes' shadow rays.
-        let probe_rays = rays - 2 * 256;
-        assert!(probe_rays <= 4 * u64::from(SHADOW_PROBES), "{rays}");
+        // One ray per direction, and no probe: these twins have gradients.
+        assert_eq!(rays, 2 * 256);
+        assert!(cache.probes.records().is_empty());
         let twins = cache.twins.records();
         assert_eq!(twins.len(), 2);
-        // Each twin has its probe at its place, with its radius: the sky is
-        // half hidden under the disk, so the probe there sees no more.
-        let probes = cache.probes.records();
-        for (twin, probe) in twins.iter().zip(&probes) {
-            assert_eq!((probe.position, probe.radius), (twin.position, twin.radius));
-        }
-        assert!(
-            probes[1].irradiance.g <= probes[0].irradiance.g,
-            "{probes:?}"
-        );
         let at = |z: f64| *twins.iter().find(|t| t.position.z == z).unwrap();
         let (open, under) = (at(0.0), at(-1.0));
         let pi = std::f64::consts::PI;
@@ -303,10 +305,62 @@ mod tests {
             assert!(sigma > 0.0 && sigma < 0.02 * truth, "{twin:?}");
             assert!((twin.irradiance.g - truth).abs() < 4.0 * sigma, "{twin:?}");
             assert_eq!(twin.radius, 0.3);
-            assert_eq!(twin.rotation_gradient, [DVec3::ZERO; 3]);
+            // The sky is symmetric about the normal at both places: turning
+            // the normal changes E only at second order, and the gradient
+            // holds the samples' noise alone (a few times the value's).
+            assert!(twin.rotation_gradient[1].length() < 0.1 * truth, "{twin:?}");
             assert_eq!(twin.translation_gradient, [DVec3::ZERO; 3]);
         }
         let (alone, _) = twins_of(&places[1..]);
         assert_eq!(alone.twins.records()[0], under);
+        // Each twin has its probe at its place, with its radius: the sky is
+        // half hidden under the disk, so the probe there sees less.
+        let probes = cache.probes.records();
+        for (twin, probe) in twins.iter().zip(&probes) {
+            assert_eq!((probe.position, probe.radius), (twin.position, twin.radius));
+        }
+        assert!(
+            probes[1].irradiance.g < probes[0].irradiance.g,
+            "{probes:?}"
+        );
+    }
+
+    /// A light-sampled twin turns with the normal: lit by a point light,
+    /// its rotation gradient predicts `I cos θ' / r²` at a normal turned by
+    /// 0.1 rad up to the second-order term.
+    #[test]
+    fn light_sampled_twins_turn_with_the_normal() {
+        let transport = crate::testing::occluded_ground(0.0);
+        let place = Record {
+            position: DVec3::new(1.0, 0.0, 0.0),
+            normal: DVec3::Z,
+            irradiance: Rgb::BLACK,
+            variance: Rgb::BLACK,
+            radius: 0.5,
+            rotation_gradient: [DVec3::ZERO; 3],
+            translation_gradient: [DVec3::ZERO; 3],
+        };
+        let caches = TwinCaches::new(CacheConfig::default()).unwrap();
+        let never = Cancel::never();
+        direct_records(
+            &transport,
+            &[place],
+            TwinRule::LightSamples(8),
+            &caches,
+            1,
+            &never,
+        )
+        .unwrap();
+        let twin = caches.twins.records()[0];
+        let to_light = DVec3::new(-1.0, 0.0, 2.0);
+        let exact = |n: DVec3| 4.0 * n.dot(to_light.normalize()) / to_light.length_squared();
+        assert!((twin.irradiance.r - exact(DVec3::Z)).abs() < 1e-12);
+        for angle in [0.1f64, -0.1] {
+            let turned = DVec3::new(-angle.sin(), 0.0, angle.cos());
+            let predicted = twin.extrapolate(place.position, turned).r;
+            let (e, flat) = (exact(turned), twin.irradiance.r);
+            assert!((predicted - e).abs() < angle * angle * e, "{predicted} {e}");
+            assert!((flat - e).abs() > 4.0 * (predicted - e).abs());
+        }
     }
 }

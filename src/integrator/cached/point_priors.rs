@@ -116,7 +116,7 @@ impl IntegralPrior for DirectPrior<'_> {
         let (mut prior, probes) = self.twins.at_with_probes(point)?;
         if let Some(probes) = probes {
             let mut stats = TraceStats::default();
-            let difference = self.transport.shadow_probe(point, &mut stats) - probes;
+            let difference = self.transport.shadow_probe(point, &mut stats).0 - probes;
             prior.variance += difference * difference;
             prior.rays += stats.rays;
         }
