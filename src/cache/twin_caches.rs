@@ -5,9 +5,9 @@ use super::irradiance_cache::{CacheConfig, IrradianceCache};
 
 /// The direct-light twins of a cache's records and, for light-sampled
 /// twins, at each twin's place, normal and radius, the shadow probe there
-/// (`Transport::shadow_probe`, no variance, its rotation gradient): both caches take
-/// the same records in the same order, so a lookup weighs a twin and its
-/// probe alike and both evict alike.
+/// (`render::shadow_probe`, no variance, its rotation gradient): both
+/// caches take the same records in the same order, so a lookup weighs a
+/// twin and its probe alike and both evict alike.
 pub struct TwinCaches {
     pub twins: IrradianceCache,
     pub probes: IrradianceCache,

@@ -88,9 +88,10 @@ pub fn point_priors<'a, S: RecordSource>(
 /// The prior on a point's direct part (docs/math.md §10.8): the
 /// interpolated direct-light twins, their variance widened by the squared
 /// difference between the point's shadow probe and the twins' probes
-/// interpolated there. Twins see neither the occluders' edges nor the
-/// turn of the normal between their places and the point; the probes,
-/// drawn from the same numbers at both, see what those change.
+/// interpolated there. Twins do not see the edges of occluders between
+/// their places and the point, nor what their extrapolation to its normal
+/// misses; the probes, drawn from the same numbers at both and
+/// extrapolated alike, see what those change.
 pub struct DirectPrior<'a> {
     twins: RecordsPrior<'a>,
     transport: &'a Transport,
