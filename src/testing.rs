@@ -21,7 +21,10 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use crate::render::Transport;
+use glam::DVec3;
+
+use crate::cache::Record;
+use crate::render::{Rgb, Transport};
 use crate::scene::Scene;
 
 /// A small valid scene document: a diffuse unit rectangle under a constant
@@ -73,6 +76,20 @@ pub fn occluded_ground(sky: f64) -> Transport {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
     let scene = Scene::from_json_str(&doc.to_string(), dir, dir).expect("loads");
     Transport::new(Arc::new(scene))
+}
+
+/// A record holding `irradiance` at `position` within `radius`, with no
+/// variance and no gradients (the place and value a test needs).
+pub fn flat_record(position: DVec3, normal: DVec3, irradiance: Rgb, radius: f64) -> Record {
+    Record {
+        position,
+        normal,
+        irradiance,
+        variance: Rgb::BLACK,
+        radius,
+        rotation_gradient: [DVec3::ZERO; 3],
+        translation_gradient: [DVec3::ZERO; 3],
+    }
 }
 
 /// A standard normal variate by Box–Muller (`1 − U` keeps the logarithm finite).

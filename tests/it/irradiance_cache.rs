@@ -23,7 +23,7 @@ use bmc_irradiance::render::{
 };
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::sphere::{Frame, SampleSetKind, SampleSetSpec};
-use bmc_irradiance::testing::agrees;
+use bmc_irradiance::testing::{agrees, flat_record};
 use glam::DVec3;
 use rand::RngExt;
 
@@ -232,15 +232,12 @@ fn occlusion_check_stops_records_leaking_through_a_box() {
     })
     .unwrap();
     cache
-        .insert(Record {
-            position: DVec3::new(0.335, -1.0, -0.1),
-            normal: DVec3::Y,
-            irradiance: Rgb::WHITE,
-            variance: Rgb::BLACK,
-            radius: 1.0,
-            rotation_gradient: [DVec3::ZERO; 3],
-            translation_gradient: [DVec3::ZERO; 3],
-        })
+        .insert(flat_record(
+            DVec3::new(0.335, -1.0, -0.1),
+            DVec3::Y,
+            Rgb::WHITE,
+            1.0,
+        ))
         .unwrap();
     let behind_box = QueryPoint::new(DVec3::new(0.335, -1.0, 0.86), DVec3::Y).unwrap();
     let beside = QueryPoint::new(DVec3::new(0.335, -1.0, -0.5), DVec3::Y).unwrap();

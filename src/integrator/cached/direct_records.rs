@@ -331,15 +331,8 @@ mod tests {
     #[test]
     fn light_sampled_twins_turn_with_the_normal() {
         let transport = crate::testing::occluded_ground(0.0);
-        let place = Record {
-            position: DVec3::new(1.0, 0.0, 0.0),
-            normal: DVec3::Z,
-            irradiance: Rgb::BLACK,
-            variance: Rgb::BLACK,
-            radius: 0.5,
-            rotation_gradient: [DVec3::ZERO; 3],
-            translation_gradient: [DVec3::ZERO; 3],
-        };
+        let place =
+            crate::testing::flat_record(DVec3::new(1.0, 0.0, 0.0), DVec3::Z, Rgb::BLACK, 0.5);
         let caches = TwinCaches::new(CacheConfig::default()).unwrap();
         let never = Cancel::never();
         direct_records(

@@ -147,14 +147,9 @@ mod tests {
         let sky = 0.05;
         let transport = crate::testing::occluded_ground(sky);
         let places: Vec<Record> = (0..25)
-            .map(|i| Record {
-                position: DVec3::new(0.2 * (i % 5) as f64 - 0.4, 0.2 * (i / 5) as f64 - 0.4, 0.0),
-                normal: DVec3::Z,
-                irradiance: Rgb::BLACK,
-                variance: Rgb::BLACK,
-                radius: 0.6,
-                rotation_gradient: [DVec3::ZERO; 3],
-                translation_gradient: [DVec3::ZERO; 3],
+            .map(|i| {
+                let (x, y) = (0.2 * (i % 5) as f64 - 0.4, 0.2 * (i / 5) as f64 - 0.4);
+                crate::testing::flat_record(DVec3::new(x, y, 0.0), DVec3::Z, Rgb::BLACK, 0.6)
             })
             .collect();
         let caches = TwinCaches::new(CacheConfig::default()).unwrap();
