@@ -87,6 +87,18 @@ LAYOUTS = {
         "out_of_view": [(-7.5, -5.5, -3.0, 1.0), (5.0, 7.5, 3.0, 5.5)],
         "behind_wall": (3.3, 4.6, -3.0, 0.0),
     },
+    # docs/validation/data/heldout/heldout-evening.json, a low sun of a few
+    # texels; built after the twins' shadow probes and rotation gradients,
+    # never used while tuning.
+    "evening": {
+        "camera": (1.0, 2.6, 6.5),
+        "spheres": [((0.6, 0.75, -0.8), 0.75), ((-1.7, 0.4, 0.9), 0.4)],
+        "circles": [(0.6, -0.8, 0.75), (-1.7, 0.9, 0.4)],
+        "rectangles": [(1.25, 2.55, 0.35, 1.65), (-2.95, 1.95, -3.4, -3.0)],
+        "visible": (-2.0, 2.6, -2.6, 2.5),
+        "out_of_view": [(5.5, 7.5, -3.0, 2.0), (-7.5, -5.5, -1.0, 4.0)],
+        "behind_wall": (-1.8, 0.8, -4.8, -3.6),
+    },
 }
 
 

@@ -9,7 +9,10 @@ made after the work it measures and never used while tuning:
   twins): a blue sky and a sun of a few texels 55° up, about three quarters
   of it;
 - morning_sky.hdr (heldout-morning.json, made after priors in conflict with
-  a point's own estimate were left out): a pale sky and a small sun 35° up.
+  a point's own estimate were left out): a pale sky and a small sun 35° up;
+- evening_sky.hdr (heldout-evening.json, made after the twins' shadow
+  probes and rotation gradients): an amber sky and a sun of a few texels
+  18° up.
 
 Radiance in the equirectangular map's world frame (y up), a dark ground half,
 written as Radiance RGBE files with flat scanlines. Standard library only.
@@ -47,6 +50,15 @@ SKIES = {
         "zenith": (0.35, 0.45, 0.75),
         "horizon": (0.7, 0.6, 0.45),
         "glow": (1.2, 1.0, 0.7),
+    },
+    "evening_sky.hdr": {
+        "size": (256, 128),
+        "sun": (18.0, 60.0),
+        "sun_radius": 1.5,
+        "sun_radiance": (2600.0, 1900.0, 1100.0),
+        "zenith": (0.3, 0.35, 0.65),
+        "horizon": (0.85, 0.6, 0.35),
+        "glow": (1.6, 1.0, 0.45),
     },
 }
 
