@@ -48,11 +48,12 @@ impl<'a> TwinRule<'a> {
 }
 
 /// The direct-light twins of `records`, inserted into `twins` (beside their
-/// shadow probes when light-sampled): each at the record's place and with its validity radius,
-/// estimated by `rule` (with the rule's directions turned about the normal
-/// by a random angle); every random number is drawn from `seed` and the
-/// record's place, so a record has the same twin whenever and with
-/// whatever others it is computed. Returns the rays traced.
+/// shadow probes when light-sampled): each at the record's place and with
+/// its validity radius, estimated by `rule` (with the rule's directions
+/// turned about the normal by a random angle); every random number is
+/// drawn from `seed` and the record's place, so a record has the same twin
+/// whenever and with whatever others it is computed. Returns the rays
+/// traced.
 pub fn direct_records(
     transport: &Transport,
     records: &[Record],
