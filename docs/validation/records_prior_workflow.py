@@ -99,6 +99,18 @@ LAYOUTS = {
         "out_of_view": [(5.5, 7.5, -3.0, 2.0), (-7.5, -5.5, -1.0, 4.0)],
         "behind_wall": (-1.8, 0.8, -4.8, -3.6),
     },
+    # docs/validation/data/heldout/heldout-afternoon.json, a small sun 42°
+    # up; built after the prior's modelled error was made to grow with the
+    # distance to the records, never used while tuning.
+    "afternoon": {
+        "camera": (-1.0, 2.6, 6.5),
+        "spheres": [((-0.7, 0.7, -1.0), 0.7), ((1.3, 0.45, 1.1), 0.45)],
+        "circles": [(-0.7, -1.0, 0.7), (1.3, 1.1, 0.45)],
+        "rectangles": [(-2.4, -1.2, 0.7, 1.9), (-2.35, 2.75, -3.5, -3.1)],
+        "visible": (-2.6, 2.0, -2.6, 2.5),
+        "out_of_view": [(5.5, 7.5, -1.0, 4.0), (-7.5, -5.5, -3.0, 2.0)],
+        "behind_wall": (-1.6, 2.0, -4.8, -3.7),
+    },
 }
 
 

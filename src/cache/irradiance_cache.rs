@@ -137,6 +137,11 @@ pub struct Interpolated {
     /// predictions at the point disagree about it (0 with one record).
     pub spread: Rgb,
     pub records_used: usize,
+    /// `1 / Σ w_k`: how far the point is from the records that cover it, in
+    /// validity radii (Ward's `ε`, the harmonic mean over the records used
+    /// divided by their count), at most the lookup's accuracy; near 0 at a
+    /// record's own place.
+    pub reach: f64,
 }
 
 impl Interpolated {
@@ -342,6 +347,7 @@ impl IrradianceCache {
             variance: sum_v / (sum_w * sum_w),
             spread: Rgb::new(spread[0], spread[1], spread[2]),
             records_used: used,
+            reach: 1.0 / sum_w,
         })
     }
 

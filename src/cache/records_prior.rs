@@ -23,9 +23,8 @@ struct Source<'a> {
     accuracy: Accuracy,
     /// What the records are, as responses name them.
     origin: &'static str,
-    /// `τ²`: mean squared relative error of the cache's prediction at its
-    /// own records, each left out in turn (module docs).
-    relative_error2: f64,
+    /// The cache's held-out prediction error (module docs).
+    error: HeldOutError,
 }
 
 /// The finest accuracy of a prior's lookups (docs/math.md §10.7): records
@@ -85,12 +84,12 @@ impl<'a> RecordsPrior<'a> {
             .into_iter()
             .filter_map(|(cache, probes, accuracy, origin)| {
                 let accuracy = reach(accuracy);
-                held_out_error2(cache, accuracy).map(|relative_error2| Source {
+                held_out_error(cache, accuracy).map(|error| Source {
                     cache,
                     probes,
                     accuracy,
                     origin,
-                    relative_error2,
+                    error,
                 })
             })
             .collect();
@@ -133,7 +132,7 @@ impl<'a> RecordsPrior<'a> {
                 let prior = PriorAt {
                     mean: e,
                     variance: found.error_variance(),
-                    modelled: e * e * source.relative_error2,
+                    modelled: e * e * source.error.at(found.reach),
                     rays: 0,
                 };
                 Some((source, prior))
@@ -155,17 +154,48 @@ fn reach(accuracy: Accuracy) -> Accuracy {
     }
 }
 
-/// `τ²` of a cache (module docs): for up to [`HELD_OUT_RECORDS`] records
-/// spread over its insertion order, the squared relative difference of
-/// luminance between the record and the interpolation of the others at its
-/// point and normal; `None` below [`MIN_HELD_OUT`] predictions. It holds the
-/// interpolation error and the noise of the records on both sides, and is
-/// measured about a validity radius from the others, so it errs on the wide
-/// side (docs/math.md §10.9: the estimators scale it on the scene).
-fn held_out_error2(cache: &IrradianceCache, accuracy: Accuracy) -> Option<f64> {
+/// A cache's squared relative prediction error as a function of how far
+/// its records reach a point (docs/math.md §10.7): `τ²(δ) = c δ`, with `δ`
+/// the lookup's [`Interpolated::reach`](super::Interpolated::reach). Linear
+/// because an occluder's edge lies between the point and its records with a
+/// chance that grows with the distance, and then costs a step; a smooth field
+/// extrapolated with gradients errs less (second order), so the line is the
+/// wider of the two near the records.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct HeldOutError {
+    /// `c`: the squared relative error per validity radius of reach.
+    per_reach: f64,
+}
+
+impl HeldOutError {
+    /// `τ²` at a point the records reach by `reach`.
+    fn at(self, reach: f64) -> f64 {
+        self.per_reach * reach
+    }
+
+    /// `c = Σ e_i² / Σ δ_i` over pairs `(δ_i, e_i²)`, so that `τ²(δ_i)`
+    /// averages to the measured error over them.
+    fn fit(pairs: &[(f64, f64)]) -> Option<Self> {
+        let (reach, error) = pairs
+            .iter()
+            .fold((0.0, 0.0), |(d, e), p| (d + p.0, e + p.1));
+        (reach > 0.0).then(|| Self {
+            per_reach: error / reach,
+        })
+    }
+}
+
+/// `τ²(δ)` of a cache (module docs): for up to [`HELD_OUT_RECORDS`]
+/// records spread over its insertion order, the squared relative difference
+/// of luminance `e²` between the record and the interpolation of the others
+/// at its point and normal, and how far the others reach it, `δ`, fitted by
+/// [`HeldOutError::fit`]. `None` below [`MIN_HELD_OUT`] predictions. It
+/// holds the interpolation error and the noise of the records on both sides
+/// (docs/math.md §10.9: the estimators scale it on the scene).
+fn held_out_error(cache: &IrradianceCache, accuracy: Accuracy) -> Option<HeldOutError> {
     let records = cache.records();
     let step = records.len().div_ceil(HELD_OUT_RECORDS).max(1);
-    let (mut sum, mut count) = (0.0, 0usize);
+    let mut pairs = Vec::new();
     for record in records.iter().step_by(step) {
         let own = record.irradiance.luminance();
         let Ok(point) = QueryPoint::new(record.position, record.normal) else {
@@ -177,11 +207,13 @@ fn held_out_error2(cache: &IrradianceCache, accuracy: Accuracy) -> Option<f64> {
         let others = cache.lookup_filtered(&point, accuracy, |r| r.position != record.position);
         if let Some(others) = others {
             let d = (others.irradiance.luminance() - own) / own;
-            sum += d * d;
-            count += 1;
+            pairs.push((others.reach, d * d));
         }
     }
-    (count >= MIN_HELD_OUT).then(|| sum / count as f64)
+    if pairs.len() < MIN_HELD_OUT {
+        return None;
+    }
+    HeldOutError::fit(&pairs)
 }
 
 impl IntegralPrior for RecordsPrior<'_> {
@@ -229,20 +261,39 @@ mod tests {
         cache
     }
 
+    /// On errors that grow with the reach the line averages to them; at a
+    /// record's own place it is near zero.
+    #[test]
+    fn the_held_out_error_grows_with_the_reach() {
+        let pairs: Vec<_> = (1..=20)
+            .map(|i| {
+                let d = 0.02 * f64::from(i);
+                (d, 0.05 * d)
+            })
+            .collect();
+        let fit = HeldOutError::fit(&pairs).unwrap();
+        assert!((fit.per_reach - 0.05).abs() < 1e-12);
+        assert!(fit.at(1e-12) < 1e-12);
+        assert_eq!(HeldOutError::fit(&[(0.0, 0.1)]), None);
+    }
+
     #[test]
     fn the_prior_variance_holds_the_measured_prediction_error() {
         let accuracy = Accuracy::new(0.5).unwrap();
         let (smooth, noisy) = (grid(0.0, 1e-6), grid(0.2, 1e-6));
-        let e2 = |c| held_out_error2(c, accuracy).expect("enough records");
+        let e2 = |c| held_out_error(c, accuracy).expect("enough records");
         // A linear field is predicted well; alternating ±20 % is not, and
         // the records' own (tiny) variances do not hide it.
-        assert!(e2(&smooth) < 0.01, "{}", e2(&smooth));
-        assert!(e2(&noisy) > 0.02, "{}", e2(&noisy));
+        let (smooth_e2, noisy_e2) = (e2(&smooth).at(0.3), e2(&noisy).at(0.3));
+        assert!(smooth_e2 < 0.01, "{smooth_e2}");
+        assert!(noisy_e2 > 0.02, "{noisy_e2}");
         let point = QueryPoint::new(DVec3::new(0.45, 0.45, 0.0), DVec3::Z).unwrap();
         let alone = RecordsPrior::new([(&noisy, accuracy, "noisy")]);
         let prior = alone.at(&point).expect("covered");
         let (mean, variance) = (prior.mean, prior.stated_variance());
-        assert!(variance.r >= mean.r * mean.r * e2(&noisy) - 1e-12);
+        let reach = noisy.lookup(&point, accuracy).unwrap().reach;
+        assert!(reach > 0.0 && reach <= 0.5, "{reach}");
+        assert!((prior.modelled.r - mean.r * mean.r * e2(&noisy).at(reach)).abs() < 1e-12);
         // With both, the more precise cache is the prior.
         let both = RecordsPrior::new([(&noisy, accuracy, "noisy"), (&smooth, accuracy, "smooth")]);
         let best = both.at(&point).unwrap().stated_variance();

@@ -151,12 +151,16 @@ async fn fixed_seed_results_are_unchanged() {
     // the twins cover are combined with another prior, and their `rays`
     // count the probes. The light samples themselves are unchanged ("mc
     // points" and "qmc points" kept their hashes).
+    // "bmc points" re-recorded on 2026-12-06 (stop 55) when the prior's
+    // modelled error began to grow with the records' reach at the point
+    // (docs/math.md §10.7): the same twins give the two covered points
+    // another variance, so another combination and calibration.
     let expected: [(&str, u64); 5] = [
         ("path tile", 0x07bcce54f73b88ce),
         ("reproducible cached tile", 0xf98cdfb6ddca1754),
         ("mc points", 0xdfebdf0e03169deb),
         ("qmc points", 0x3fb7deacecf24a58),
-        ("bmc points", 0xe3cdb95869cffbab),
+        ("bmc points", 0xa29ff35a14ad2252),
     ];
     // All at once, so that a failure shows every hash that changed.
     let hex = |v: &[(&str, u64)]| -> Vec<String> {

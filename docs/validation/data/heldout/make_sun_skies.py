@@ -12,7 +12,10 @@ made after the work it measures and never used while tuning:
   a point's own estimate were left out): a pale sky and a small sun 35° up;
 - evening_sky.hdr (heldout-evening.json, made after the twins' shadow
   probes and rotation gradients): an amber sky and a sun of a few texels
-  18° up.
+  18° up;
+- afternoon_sky.hdr (heldout-afternoon.json, made after the prior's modelled
+  error was made to grow with the distance to the records): a clear sky and
+  a small sun 42° up.
 
 Radiance in the equirectangular map's world frame (y up), a dark ground half,
 written as Radiance RGBE files with flat scanlines. Standard library only.
@@ -59,6 +62,15 @@ SKIES = {
         "zenith": (0.3, 0.35, 0.65),
         "horizon": (0.85, 0.6, 0.35),
         "glow": (1.6, 1.0, 0.45),
+    },
+    "afternoon_sky.hdr": {
+        "size": (256, 128),
+        "sun": (42.0, 145.0),
+        "sun_radius": 1.2,
+        "sun_radiance": (3800.0, 3600.0, 3200.0),
+        "zenith": (0.3, 0.45, 0.85),
+        "horizon": (0.6, 0.62, 0.65),
+        "glow": (1.0, 0.9, 0.7),
     },
 }
 
