@@ -48,7 +48,7 @@ use crate::render::Cancel;
 use crate::render::QueryPoint;
 use crate::render::Transport;
 use crate::render::environment_prior::PriorChoice;
-use crate::render::{Decomposition, IrradianceEstimate, IrradianceOptions};
+use crate::render::{Decomposition, IrradianceEstimate, IrradianceOptions, Rgb};
 use crate::sphere::{SampleSetKind, SampleSetSpec};
 
 /// A checked estimator, ready to run.
@@ -319,6 +319,7 @@ impl PointEstimator {
         } else {
             None
         };
+        let mut least = Vec::new();
         let (mut estimates, calibrated) = if self.has_priors(&caches) {
             let scales = calibration
                 .and_then(|c| c.prior_scales)
@@ -326,7 +327,18 @@ impl PointEstimator {
             let estimates = self
                 .rule()
                 .estimate(transport, caches, points, options, on_done, cancel)?;
-            self.with_priors(estimates, caches, points, scales)
+            let rule: Vec<Rgb> = estimates.estimates.iter().map(|e| e.std_error).collect();
+            let combined = self.with_priors(estimates, caches, points, scales);
+            // Under the hemisphere decomposition the bound made bars too
+            // wide (docs/math.md §10.9): kept to split mode.
+            if combined.0.decomposition == Decomposition::Split {
+                least = rule
+                    .into_iter()
+                    .zip(&combined.0.estimates)
+                    .map(|(rule, combined)| rule_noise_carried(rule, combined.std_error))
+                    .collect();
+            }
+            combined
         } else {
             let estimates = self
                 .estimate_with_model_errors(transport, caches, points, options, on_done, cancel)?;
@@ -334,13 +346,19 @@ impl PointEstimator {
             (estimates, all)
         };
         if let Some(calibration) = calibration {
-            for (estimate, _) in estimates
+            for (i, estimate) in estimates
                 .estimates
                 .iter_mut()
                 .zip(calibrated)
-                .filter(|(_, calibrated)| *calibrated)
+                .enumerate()
+                .filter_map(|(i, (e, calibrated))| calibrated.then_some((i, e)))
             {
                 calibration.apply(estimate);
+                if let Some(least) = least.get(i) {
+                    let (sd, least) = (estimate.std_error.to_array(), least.to_array());
+                    estimate.std_error =
+                        Rgb::from_array(std::array::from_fn(|c| sd[c].max(least[c])));
+                }
             }
         }
         estimates.calibration = calibration;
@@ -606,6 +624,22 @@ impl KnownPriors {
             .map(|p| p.rays)
             .sum()
     }
+}
+
+/// The least standard error, per channel, of an estimate combined with
+/// priors (docs/math.md §10.9): the rule's own noise it still carries. A
+/// combination keeps the share `w = v / (s² + v)` of the rule's part, whose
+/// calibrated variance `s²` is independent of the prior's error, so its
+/// variance is at least `w² s²`; with the combination's model variance
+/// `t² = w s²` that is `t⁴ / s²`, and over two parts (Cauchy–Schwarz) the
+/// same expression stays below what both carry. `rule` is the rule's
+/// calibrated standard error, `combined` the combination's before its own
+/// calibration.
+fn rule_noise_carried(rule: Rgb, combined: Rgb) -> Rgb {
+    Rgb::from_array(std::array::from_fn(|c| {
+        let (s, t) = (rule.to_array()[c], combined.to_array()[c]);
+        if s > 0.0 { t * t / s } else { 0.0 }
+    }))
 }
 
 /// Combines each estimate with the priors at its point (§10.7, §10.8),

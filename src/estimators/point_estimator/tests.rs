@@ -275,3 +275,21 @@ fn only_the_priors_combined_are_reported() {
     let indirect_moved = estimates[1].indirect.unwrap().irradiance.r - 1.0;
     assert!((estimates[1].irradiance.r - 5.0 - indirect_moved).abs() < 1e-12);
 }
+
+/// A combination keeps the share `w = v / (s² + v)` of the rule's
+/// estimate, so at least `w s` of its standard error: with a wide prior
+/// almost all of the rule's, with a narrow one little (docs/math.md §10.9).
+#[test]
+fn combined_bars_keep_the_rule_noise_they_carry() {
+    let s = 0.4;
+    for v in [100.0, 1.0, 0.01] {
+        let (_, posterior) = crate::estimators::integral_prior::combine(
+            (Rgb::splat(1.0), Rgb::splat(s * s)),
+            (Rgb::splat(2.0), Rgb::splat(v)),
+        );
+        let least = rule_noise_carried(Rgb::splat(s), posterior.map(f64::sqrt));
+        let w = v / (s * s + v);
+        assert!((least.g - w * s).abs() < 1e-12, "v = {v}: {least:?}");
+    }
+    assert_eq!(rule_noise_carried(Rgb::BLACK, Rgb::splat(0.1)), Rgb::BLACK);
+}
