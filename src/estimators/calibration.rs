@@ -64,8 +64,8 @@ pub struct ErrorCalibration {
     /// Training `(point, seed, channel)` triples the fit used.
     pub pairs: usize,
     /// `μ_N`: standard deviation of light that no sample saw, relative to
-    /// `level` and added after scaling ([`unseen_light`]); 0 for rules
-    /// whose samples are not independent (QMC, BMC).
+    /// `level` and added after scaling ([`unseen_light`]); 0 for BMC under
+    /// the hemisphere decomposition (docs/math.md §10.5).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub unseen: f64,
     /// With the records prior: the multipliers of the priors' variances

@@ -290,6 +290,14 @@ impl PointEstimator {
                     // The corrected rule's bar is a sample variance too
                     // (§10.6), blind to light all its directions missed.
                     PointRule::Bmc(_) if self.corrected => unseen_light(self.samples()),
+                    // Split direct light is the light samples' mean, the
+                    // same independent draws for every rule (at depth 1
+                    // the whole estimate, QMC's to the bit).
+                    PointRule::Bmc(_)
+                        if transport.decomposition(options.method) == Decomposition::Split =>
+                    {
+                        unseen_light(options.samples)
+                    }
                     PointRule::Bmc(_) => 0.0,
                 };
                 let training = caches.calibrations.training_set(

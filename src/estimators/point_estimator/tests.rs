@@ -133,14 +133,8 @@ impl IntegralPrior for ReferencePrior<'_> {
     }
 }
 
-/// A ground under a constant sky, partly shaded by a square above it:
-/// 16 directions see the square's edges badly, a prior that knows the
-/// answer and says it knows it poorly is trusted more than it says, and
-/// a wrong prior that says it is sure is trusted less (docs/math.md
-/// §10.9); where the prior says nothing, the estimate and its error bar
-/// are the rule's.
-#[test]
-fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
+/// A ground under a constant sky, partly shaded by a square above it.
+fn shaded_ground() -> Transport {
     let doc = r#"{
         "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
         "shapes": [
@@ -155,7 +149,17 @@ fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
     }"#;
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let scene = crate::scene::Scene::from_json_str(doc, dir, dir).unwrap();
-    let transport = Transport::new(Arc::new(scene));
+    Transport::new(Arc::new(scene))
+}
+
+/// On [`shaded_ground`], 16 directions see the square's edges badly, a
+/// prior that knows the answer and says it knows it poorly is trusted more
+/// than it says, and a wrong prior that says it is sure is trusted less
+/// (docs/math.md §10.9); where the prior says nothing, the estimate and its
+/// error bar are the rule's.
+#[test]
+fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
+    let transport = shaded_ground();
     let (kernels, quadratures) = (FittedKernels::default(), QuadratureCache::new(16 << 20));
     let options = IrradianceOptions {
         samples: 16,
@@ -292,4 +296,49 @@ fn combined_bars_keep_the_rule_noise_they_carry() {
         assert!((least.g - w * s).abs() < 1e-12, "v = {v}: {least:?}");
     }
     assert_eq!(rule_noise_carried(Rgb::BLACK, Rgb::splat(0.1)), Rgb::BLACK);
+}
+
+/// Split direct light is the light samples' mean whatever the rule, so at
+/// depth 1 BMC's estimates are QMC's and must be calibrated alike, with
+/// the term for light every sample missed (docs/math.md §10.5).
+#[test]
+fn split_direct_light_is_calibrated_alike_for_every_rule() {
+    let transport = shaded_ground();
+    let (kernels, quadratures) = (FittedKernels::default(), QuadratureCache::new(16 << 20));
+    let calibrations = Calibrations::default();
+    let options = IrradianceOptions {
+        samples: 16,
+        max_depth: crate::render::PathDepth::new(1).unwrap(),
+        method: crate::render::IrradianceMethod::Split,
+        seed: 5,
+        ..IrradianceOptions::default()
+    };
+    let points = super::super::sample_points::camera_points(&transport, 12, 3);
+    let run = |method| {
+        let caches = EstimatorCaches {
+            kernels: &kernels,
+            quadratures: &quadratures,
+            calibrations: &calibrations,
+            records: None,
+            direct: None,
+            amortised: &AmortisedRays::default(),
+        };
+        spec(method)
+            .resolve()
+            .unwrap()
+            .estimate(
+                &transport,
+                caches,
+                &points,
+                &options,
+                &|| {},
+                &Cancel::never(),
+            )
+            .unwrap()
+    };
+    let (qmc, bmc) = (run(EstimatorMethod::Qmc), run(EstimatorMethod::Bmc));
+    let unseen = |e: &Estimates| e.calibration.unwrap().unseen;
+    assert!(unseen(&bmc) > 0.0);
+    assert_eq!(unseen(&bmc), unseen(&qmc));
+    assert_eq!(bmc.estimates, qmc.estimates);
 }
