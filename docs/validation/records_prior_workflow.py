@@ -123,6 +123,18 @@ LAYOUTS = {
         "out_of_view": [(5.5, 7.5, -2.0, 3.0), (-7.5, -5.5, -3.0, 2.0)],
         "behind_wall": (-2.0, 1.4, -4.4, -3.4),
     },
+    # docs/validation/data/heldout/heldout-winter.json, a small sun 12° up
+    # behind the wall; built after split-mode BMC's error bars took the
+    # light samples' unseen-light term, never used while tuning.
+    "winter": {
+        "camera": (-0.4, 2.7, 6.6),
+        "spheres": [((-1.5, 0.55, -0.8), 0.55), ((1.0, 0.45, 1.0), 0.45)],
+        "circles": [(-1.5, -0.8, 0.55), (1.0, 1.0, 0.45)],
+        "rectangles": [(-1.05, -0.15, 1.15, 2.05), (-1.25, 2.85, -3.4, -3.0)],
+        "visible": (-2.4, 2.2, -2.6, 2.6),
+        "out_of_view": [(5.5, 7.5, -2.0, 3.0), (-7.5, -5.5, -3.0, 2.0)],
+        "behind_wall": (-1.0, 2.6, -4.6, -3.6),
+    },
 }
 
 

@@ -18,7 +18,10 @@ made after the work it measures and never used while tuning:
   a small sun 42° up;
 - haze_sky.hdr (heldout-haze.json, made after combined error bars were held
   at least to the rule's noise they carry): a hazy sky and a wide sun 30°
-  up.
+  up;
+- winter_sky.hdr (heldout-winter.json, made after split-mode BMC's error
+  bars took the light samples' unseen-light term): a pale sky and a small
+  sun 12° up behind the wall.
 
 Radiance in the equirectangular map's world frame (y up), a dark ground half,
 written as Radiance RGBE files with flat scanlines. Standard library only.
@@ -83,6 +86,15 @@ SKIES = {
         "zenith": (0.5, 0.55, 0.7),
         "horizon": (0.75, 0.75, 0.72),
         "glow": (1.5, 1.3, 1.0),
+    },
+    "winter_sky.hdr": {
+        "size": (256, 128),
+        "sun": (12.0, 330.0),
+        "sun_radius": 0.8,
+        "sun_radiance": (6000.0, 5200.0, 4200.0),
+        "zenith": (0.32, 0.42, 0.7),
+        "horizon": (0.75, 0.65, 0.5),
+        "glow": (1.4, 1.0, 0.6),
     },
 }
 
