@@ -263,27 +263,40 @@ pub struct TrainingSet {
     level: [f64; 3],
 }
 
+/// Seed of the part a reference of `samples` adds to the one of half as
+/// many ([`Calibrations::training_set`]); the smallest references are drawn
+/// with [`CALIBRATION_SEED`].
+fn reference_seed(samples: u32) -> u64 {
+    CALIBRATION_SEED ^ u64::from(samples).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+/// Plain MC with light sampling of `samples` paths per point, seeded with
+/// `seed`: unbiased for every decomposition, and with enough samples that
+/// its own noise does not hide the estimator's.
+fn reference_at(
+    transport: &Transport,
+    points: &[QueryPoint],
+    options: &IrradianceOptions,
+    samples: u32,
+    seed: u64,
+    cancel: &Cancel,
+) -> Result<Vec<IrradianceEstimate>, RenderError> {
+    transport.irradiance_at_points(
+        points,
+        &IrradianceOptions {
+            samples,
+            method: IrradianceMethod::Split,
+            seed,
+            ..*options
+        },
+        &|| {},
+        cancel,
+    )
+}
+
 impl TrainingSet {
-    /// The points and their reference for an estimator run with `options`.
-    pub fn new(
-        transport: &Transport,
-        options: &IrradianceOptions,
-        cancel: &Cancel,
-    ) -> Result<Self, RenderError> {
-        let points = calibration_points(transport);
-        // Plain MC with light sampling: unbiased for every decomposition, and
-        // with enough samples that its own noise does not hide the estimator's.
-        let reference = transport.irradiance_at_points(
-            &points,
-            &IrradianceOptions {
-                samples: reference_samples(options),
-                method: IrradianceMethod::Split,
-                seed: CALIBRATION_SEED,
-                ..*options
-            },
-            &|| {},
-            cancel,
-        )?;
+    /// The training points and a reference at them.
+    fn with_reference(points: Vec<QueryPoint>, reference: Vec<IrradianceEstimate>) -> Self {
         let level: [f64; 3] = std::array::from_fn(|c| {
             reference
                 .iter()
@@ -291,11 +304,34 @@ impl TrainingSet {
                 .sum::<f64>()
                 / reference.len().max(1) as f64
         });
-        Ok(Self {
+        Self {
             points,
             reference,
             level,
-        })
+        }
+    }
+
+    /// This set, whose reference has `kept` samples per point, with a
+    /// reference of `more` samples more per point, `added`, drawn
+    /// independently: the sample-weighted mean of the two and the variance
+    /// of that mean. Only the irradiance and its standard error are kept.
+    fn extended(&self, kept: u32, added: &[IrradianceEstimate], more: u32) -> Self {
+        let total = f64::from(kept) + f64::from(more);
+        let (a, b) = (f64::from(kept) / total, f64::from(more) / total);
+        let reference = self
+            .reference
+            .iter()
+            .zip(added)
+            .map(|(old, new)| IrradianceEstimate {
+                irradiance: old.irradiance * a + new.irradiance * b,
+                std_error: (old.std_error * old.std_error * (a * a)
+                    + new.std_error * new.std_error * (b * b))
+                    .map(f64::sqrt),
+                rays: old.rays + new.rays,
+                indirect: None,
+            })
+            .collect();
+        Self::with_reference(self.points.clone(), reference)
     }
 
     /// The [`CALIBRATION_SEEDS`] requests the estimator is run with at the
@@ -393,8 +429,11 @@ impl Calibrations {
     }
 
     /// The training set for estimators run with `options`, computed on
-    /// first use ([`TrainingSet::new`]; its reference's rays counted in
-    /// `amortised` then).
+    /// first use, its reference's new rays counted in `amortised` then. A
+    /// reference of at least twice [`CALIBRATION_REFERENCE_SAMPLES`] is the
+    /// one of half its samples (computed first if not kept) extended by as
+    /// many more, so a request at `2N` pays for half of its reference
+    /// when one at `N` came before; which request built it changes nothing.
     pub fn training_set(
         &self,
         transport: &Transport,
@@ -402,15 +441,56 @@ impl Calibrations {
         amortised: &AmortisedRays,
         cancel: &Cancel,
     ) -> Result<Arc<TrainingSet>, RenderError> {
-        let key = format!(
-            "reference samples {} depth {:?}",
+        self.training_set_of(
+            transport,
+            options,
             reference_samples(options),
+            amortised,
+            cancel,
+        )
+    }
+
+    /// [`Self::training_set`] with a reference of `samples` per point.
+    fn training_set_of(
+        &self,
+        transport: &Transport,
+        options: &IrradianceOptions,
+        samples: u32,
+        amortised: &AmortisedRays,
+        cancel: &Cancel,
+    ) -> Result<Arc<TrainingSet>, RenderError> {
+        let key = format!(
+            "reference samples {samples} depth {:?}",
             options.effective_max_depth()
         );
+        let rays = |reference: &[IrradianceEstimate]| reference.iter().map(|r| r.rays).sum();
         crate::isolated::try_get_with(&self.training, key, || {
-            let set = TrainingSet::new(transport, options, cancel)?;
-            amortised.add(set.reference.iter().map(|r| r.rays).sum());
-            Ok(Arc::new(set))
+            if samples >= 2 * CALIBRATION_REFERENCE_SAMPLES {
+                let kept = samples / 2;
+                let half = self.training_set_of(transport, options, kept, amortised, cancel)?;
+                let more = samples - kept;
+                let added = reference_at(
+                    transport,
+                    &half.points,
+                    options,
+                    more,
+                    reference_seed(samples),
+                    cancel,
+                )?;
+                amortised.add(rays(&added));
+                return Ok(Arc::new(half.extended(kept, &added, more)));
+            }
+            let points = calibration_points(transport);
+            let reference = reference_at(
+                transport,
+                &points,
+                options,
+                samples,
+                CALIBRATION_SEED,
+                cancel,
+            )?;
+            amortised.add(rays(&reference));
+            Ok(Arc::new(TrainingSet::with_reference(points, reference)))
         })
         .map_err(|err: Arc<RenderError>| (*err).clone())
     }
@@ -508,5 +588,37 @@ mod tests {
         // Without the term (QMC, BMC) the same fit leaves only the floor.
         let plain = ErrorCalibration::fit(&training(&errors), [1.0; 3], 0.0);
         assert_eq!(plain.unseen, 0.0);
+    }
+
+    /// A reference of twice the samples extends the one of half as many,
+    /// paying only for the half it adds, and is the same whether or not
+    /// the smaller one was asked for first.
+    #[test]
+    fn a_larger_reference_extends_the_smaller_one() {
+        let transport = crate::testing::cornell(16);
+        let options = |samples| IrradianceOptions {
+            samples,
+            max_depth: crate::render::PathDepth::new(1).unwrap(),
+            ..IrradianceOptions::default()
+        };
+        let build = |calibrations: &Calibrations, samples| {
+            let amortised = AmortisedRays::default();
+            let set = calibrations
+                .training_set(&transport, &options(samples), &amortised, &Cancel::never())
+                .unwrap();
+            (set, amortised.get())
+        };
+        let climbing = Calibrations::default();
+        let (small, small_rays) = build(&climbing, 64);
+        let (large, large_rays) = build(&climbing, 128);
+        let (direct, direct_rays) = build(&Calibrations::default(), 128);
+        assert!(small_rays > 0);
+        assert_eq!(direct_rays, small_rays + large_rays);
+        assert_eq!(large.reference, direct.reference);
+        assert_eq!(large.level, direct.level);
+        for (s, l) in small.reference.iter().zip(&large.reference) {
+            let (s, l) = (s.std_error.to_array(), l.std_error.to_array());
+            assert!((0..3).all(|c| l[c] < s[c] || s[c] == 0.0), "{s:?} {l:?}");
+        }
     }
 }
