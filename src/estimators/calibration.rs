@@ -231,7 +231,7 @@ pub type EstimateFn<'a, E> =
 /// Calibrates the estimator `estimate` runs (module docs) on `training`:
 /// `estimate(points, options)` must return the uncalibrated estimates of the
 /// configuration for `options` (whose seed it must honour). `unseen` is the
-/// estimator's [`ErrorCalibration::unseen`] (0, or [`unseen_light`] for plain MC).
+/// estimator's [`ErrorCalibration::unseen`] (0, or [`unseen_light`] where §10.5 adds it).
 pub fn calibrate<E>(
     training: &TrainingSet,
     options: &IrradianceOptions,
