@@ -122,8 +122,8 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 #   (scenes/overcast.json) through the hemisphere, with the unoccluded environment as the
 #   prior mean of "bmc" ("prior": "environment" | "none"; docs/math.md §10.4), and
 #   light-samples suns and emitters otherwise. std_dev of every method is calibrated on
-#   the scene (§10.5; "mc" and "qmc" add a term for light all their samples missed; "calibrate":
-#   false gives the model's own variance).
+#   the scene (§10.5; "mc" and "qmc", and "bmc" in split mode for its light samples, add a
+#   term for light all their samples missed; "calibrate": false gives the model's own variance).
 #   "qmc" takes "sample_set" (fibonacci_cosine | fibonacci); "bmc" also a kernel whose
 #   lengthscale is a number or "auto" (default: fitted once per scene and configuration
 #   by marginal likelihood, listed under "fitted_kernels" by GET /v1/scenes/{id}); with

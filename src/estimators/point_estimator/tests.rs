@@ -152,6 +152,45 @@ fn shaded_ground() -> Transport {
     Transport::new(Arc::new(scene))
 }
 
+/// `spec`'s estimates at `points` at depth 1, 16 samples and seed 5 under
+/// `method`, calibrated with `calibrations`, `direct` its prior on the
+/// direct part.
+fn estimate_at(
+    transport: &Transport,
+    points: &[QueryPoint],
+    spec: EstimatorSpec,
+    method: crate::render::IrradianceMethod,
+    calibrations: &Calibrations,
+    direct: Option<&dyn IntegralPrior>,
+) -> Estimates {
+    let options = IrradianceOptions {
+        samples: 16,
+        max_depth: crate::render::PathDepth::new(1).unwrap(),
+        method,
+        seed: 5,
+        ..IrradianceOptions::default()
+    };
+    let caches = EstimatorCaches {
+        kernels: &FittedKernels::default(),
+        quadratures: &QuadratureCache::new(16 << 20),
+        calibrations,
+        records: None,
+        direct,
+        amortised: &AmortisedRays::default(),
+    };
+    spec.resolve()
+        .unwrap()
+        .estimate(
+            transport,
+            caches,
+            points,
+            &options,
+            &|| {},
+            &Cancel::never(),
+        )
+        .unwrap()
+}
+
 /// On [`shaded_ground`], 16 directions see the square's edges badly, a
 /// prior that knows the answer and says it knows it poorly is trusted more
 /// than it says, and a wrong prior that says it is sure is trusted less
@@ -160,41 +199,21 @@ fn shaded_ground() -> Transport {
 #[test]
 fn the_priors_variance_is_scaled_by_what_the_training_points_show() {
     let transport = shaded_ground();
-    let (kernels, quadratures) = (FittedKernels::default(), QuadratureCache::new(16 << 20));
-    let options = IrradianceOptions {
-        samples: 16,
-        max_depth: crate::render::PathDepth::new(1).unwrap(),
-        method: crate::render::IrradianceMethod::Hemisphere,
-        seed: 5,
-        ..IrradianceOptions::default()
-    };
     let points = super::super::sample_points::camera_points(&transport, 12, 3);
     let run = |records_prior: bool, prior: Option<&ReferencePrior>| {
-        // Each prior is fitted apart (its state says nothing of it).
-        let calibrations = Calibrations::default();
-        let caches = EstimatorCaches {
-            kernels: &kernels,
-            quadratures: &quadratures,
-            calibrations: &calibrations,
-            records: None,
-            direct: prior.map(|p| p as &dyn IntegralPrior),
-            amortised: &AmortisedRays::default(),
-        };
-        EstimatorSpec {
+        let spec = EstimatorSpec {
             records_prior: RecordsPriorMode::Set(records_prior),
             ..spec(EstimatorMethod::Qmc)
-        }
-        .resolve()
-        .unwrap()
-        .estimate(
+        };
+        // Each prior is fitted apart (its state says nothing of it).
+        estimate_at(
             &transport,
-            caches,
             &points,
-            &options,
-            &|| {},
-            &Cancel::never(),
+            spec,
+            crate::render::IrradianceMethod::Hemisphere,
+            &Calibrations::default(),
+            prior.map(|p| p as &dyn IntegralPrior),
         )
-        .unwrap()
     };
     let prior = |bias, stated, half| ReferencePrior {
         transport: &transport,
@@ -304,37 +323,18 @@ fn combined_bars_keep_the_rule_noise_they_carry() {
 #[test]
 fn split_direct_light_is_calibrated_alike_for_every_rule() {
     let transport = shaded_ground();
-    let (kernels, quadratures) = (FittedKernels::default(), QuadratureCache::new(16 << 20));
-    let calibrations = Calibrations::default();
-    let options = IrradianceOptions {
-        samples: 16,
-        max_depth: crate::render::PathDepth::new(1).unwrap(),
-        method: crate::render::IrradianceMethod::Split,
-        seed: 5,
-        ..IrradianceOptions::default()
-    };
     let points = super::super::sample_points::camera_points(&transport, 12, 3);
+    let calibrations = Calibrations::default();
     let run = |method| {
-        let caches = EstimatorCaches {
-            kernels: &kernels,
-            quadratures: &quadratures,
-            calibrations: &calibrations,
-            records: None,
-            direct: None,
-            amortised: &AmortisedRays::default(),
-        };
-        spec(method)
-            .resolve()
-            .unwrap()
-            .estimate(
-                &transport,
-                caches,
-                &points,
-                &options,
-                &|| {},
-                &Cancel::never(),
-            )
-            .unwrap()
+        let split = crate::render::IrradianceMethod::Split;
+        estimate_at(
+            &transport,
+            &points,
+            spec(method),
+            split,
+            &calibrations,
+            None,
+        )
     };
     let (qmc, bmc) = (run(EstimatorMethod::Qmc), run(EstimatorMethod::Bmc));
     let unseen = |e: &Estimates| e.calibration.unwrap().unseen;
