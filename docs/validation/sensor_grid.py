@@ -50,6 +50,9 @@ def grid_arguments(ap):
     ap.add_argument("--ref-seeds", type=int, default=8)
     ap.add_argument("--target", type=float, default=0.02)
     ap.add_argument(
+        "--max-depth", type=int, default=None, help="path depth of the reference and every request (the scene's default)"
+    )
+    ap.add_argument(
         "--reference-cache", default=None, help="JSON file: the reference is read from it, or written to it"
     )
 
@@ -71,19 +74,27 @@ def grid_points(args):
     ]
 
 
+def with_depth(body, max_depth):
+    """`body` with `max_depth` when one is given."""
+    return body if max_depth is None else dict(body, max_depth=max_depth)
+
+
 class Reference:
     """Plain MC with `seeds` × 4,096 paths per point: the mean, its
     variance, the points kept (reference above 1 % of the mean) and their
     mean level."""
 
-    def __init__(self, url, pts, seeds):
+    def __init__(self, url, pts, seeds, max_depth=None):
         runs = []
         for s in range(seeds):
-            body = {
-                "points": pts,
-                "estimator": {"method": "mc", "samples": 4096, "calibrate": False},
-                "seed": 2_000_000 + s,
-            }
+            body = with_depth(
+                {
+                    "points": pts,
+                    "estimator": {"method": "mc", "samples": 4096, "calibrate": False},
+                    "seed": 2_000_000 + s,
+                },
+                max_depth,
+            )
             runs.append(post(url, body)[0])
         k = seeds
         self.mean = [[sum(r["irradiance"][j][c] for r in runs) / k for c in range(3)] for j in range(len(pts))]
@@ -104,7 +115,7 @@ class Reference:
             with open(path) as f:
                 ref.__dict__.update(json.load(f))
             return ref
-        ref = cls(f"{args.url}/v1/scenes/{args.scene}/irradiance", pts, args.ref_seeds)
+        ref = cls(f"{args.url}/v1/scenes/{args.scene}/irradiance", pts, args.ref_seeds, args.max_depth)
         if path:
             with open(path, "w") as f:
                 json.dump(ref.__dict__, f)
@@ -143,7 +154,8 @@ def main():
             continue
         total_rays, total_time, samples = 0, 0.0, 4
         while samples <= 4096:
-            doc, wall = post(url, {"points": pts, "estimator": dict(estimator, samples=samples), "seed": 1})
+            body = {"points": pts, "estimator": dict(estimator, samples=samples), "seed": 1}
+            doc, wall = post(url, with_depth(body, args.max_depth))
             truth = ref.nrmse_vs_truth(doc["irradiance"])
             total_rays += doc["rays"]
             total_time += wall
