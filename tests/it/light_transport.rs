@@ -385,9 +385,9 @@ fn environment_map_importance_sampling_is_unbiased() {
     // upper half of the map, `θ = π v`, `φ = 2π u`. The radiance is
     // bilinear between texel centres, so on 16 × 16 cells per texel, each
     // with its radiance at its centre and its band's `∫ cos θ dω =
-    // (2π/cells) (sin²θ₁ − sin²θ₀)/2` exactly, the sum is exact to far
-    // below the estimates' 0.1 % error (the texels' values over their
-    // bands, piecewise constant, are 0.4 % low, which stratified light
+    // (2π/cells) (sin²θ₁ − sin²θ₀)/2` exactly, the sum is exact to about
+    // 10⁻⁵, far below the estimates' error bars (the texels' values over
+    // their bands, piecewise constant, are 0.4 % low, which stratified light
     // samples with 0.1 % error bars revealed: docs/BENCHMARKS.md, stop 57).
     let (su, sv) = (16 * w, 16 * h);
     let mut exact = Rgb::BLACK;
