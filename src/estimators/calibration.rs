@@ -14,22 +14,29 @@
 //! ([`CALIBRATION_POINTS`] area-sampled surface points, [`CALIBRATION_SEEDS`]
 //! request seeds) share nothing with the points of any request, so the
 //! calibration is measured, not assumed, when a study checks it on others.
+//! Where the light samples are stratified, their variance in `σ_model²` is
+//! first moderated toward the scene's pooled ratio of it to the independent
+//! samples' variance ([`StrataModeration`]), in the rule's estimates before
+//! any prior is combined with them, at the training points as at a
+//! request's.
 //!
-//! Plain MC adds one more term, fixed rather than fitted: the light its `N`
-//! independent directions may all have missed, `(μ_N Ē)²` with
+//! Plain MC adds one more term, fixed rather than fitted, where light may be
+//! missing at the scene's scale ([`IrradianceEstimate::unseen_light`]): the
+//! light its `N` independent directions may all have missed, `(μ_N Ē)²` with
 //! `μ_N² = 3/(4(N + 1)(N + 2))` ([`unseen_light`]), so that an estimate that
 //! saw nothing still reports an error bar of the scene's scale.
 
 use std::sync::Arc;
 
 use super::amortised::AmortisedRays;
-use super::integral_prior::PriorScales;
+use super::integral_prior::{PriorScales, share};
 use super::sample_points::{camera_points, training_points};
 use crate::render::Cancel;
+use crate::render::MIN_STRATA_BLOCKS;
 use crate::render::QueryPoint;
 use crate::render::RenderError;
 use crate::render::Transport;
-use crate::render::{IrradianceEstimate, IrradianceMethod, IrradianceOptions};
+use crate::render::{IrradianceEstimate, IrradianceMethod, IrradianceOptions, Rgb};
 use crate::stats::standard_score;
 
 /// Training points per calibration.
@@ -64,8 +71,9 @@ pub struct ErrorCalibration {
     /// Training `(point, seed, channel)` triples the fit used.
     pub pairs: usize,
     /// `μ_N`: standard deviation of light that no sample saw, relative to
-    /// `level` and added after scaling ([`unseen_light`]); 0 for BMC under
-    /// the hemisphere decomposition (docs/math.md §10.5).
+    /// `level` and added after scaling where
+    /// [`IrradianceEstimate::unseen_light`] says so ([`unseen_light`]); 0
+    /// for BMC under the hemisphere decomposition (docs/math.md §10.5).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub unseen: f64,
     /// With the records prior: the multipliers of the priors' variances
@@ -74,6 +82,65 @@ pub struct ErrorCalibration {
     /// (docs/math.md §10.9).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prior_scales: Option<PriorScales>,
+    /// Where the light samples are stratified: how their variance is
+    /// moderated before the fit and the scaling ([`StrataModeration`]);
+    /// `None`: as the contrasts give it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub strata: Option<StrataModeration>,
+}
+
+/// The moderation of a stratified mean's variance ([`crate::render::StrataVariance`])
+/// (docs/math.md §10.5): toward `ratio` times the independent samples'
+/// variance, the prior worth [`STRATA_PRIOR_BLOCKS`] blocks.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StrataModeration {
+    /// `c`: the training estimates' stratified variance over their
+    /// independent one, each relative to its channel's level, pooled.
+    pub ratio: f64,
+}
+
+/// `d₀`: the blocks the pooled prior of [`StrataModeration`] is worth, as
+/// many as the fewest a stratified variance is estimated from
+/// ([`MIN_STRATA_BLOCKS`]), so that at that count the point's own variance
+/// and the prior weigh the same, and the point's own counts for more as its
+/// blocks grow (docs/math.md §10.5).
+pub const STRATA_PRIOR_BLOCKS: f64 = MIN_STRATA_BLOCKS as f64;
+
+impl StrataModeration {
+    /// The ratio pooled over `estimates` with channel levels `level`; none where
+    /// no estimate had stratified light samples.
+    fn pooled<'a>(
+        estimates: impl Iterator<Item = &'a IrradianceEstimate>,
+        level: [f64; 3],
+    ) -> Option<Self> {
+        let (mut stratified, mut independent) = (0.0, 0.0);
+        for s in estimates.filter_map(|e| e.direct_strata) {
+            let (a, b) = (s.stratified.to_array(), s.independent.to_array());
+            for c in (0..3).filter(|&c| level[c] > 0.0) {
+                stratified += a[c] / (level[c] * level[c]);
+                independent += b[c] / (level[c] * level[c]);
+            }
+        }
+        (independent > 0.0).then(|| Self {
+            ratio: stratified / independent,
+        })
+    }
+
+    /// Replaces the stratified variance in `estimate`'s by its moderation,
+    /// once (it takes [`IrradianceEstimate::direct_strata`]); the indirect
+    /// part keeps its own variance, now a share of another total.
+    pub fn apply(&self, estimate: &mut IrradianceEstimate) {
+        let Some(strata) = estimate.direct_strata.take() else {
+            return;
+        };
+        let before = estimate.std_error * estimate.std_error;
+        let moderated = strata.moderated(self.ratio, STRATA_PRIOR_BLOCKS);
+        let after = (before - strata.stratified + moderated).map(|v| v.max(0.0));
+        estimate.std_error = after.map(f64::sqrt);
+        if let Some(part) = estimate.indirect.as_mut() {
+            part.variance_share = share(part.variance_share * before, after);
+        }
+    }
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -111,8 +178,17 @@ struct Training {
     sigma: f64,
     reference_sigma: f64,
     magnitude: f64,
-    /// `Ē` of the channel.
-    level: f64,
+    /// `Ē` of the channel where [`ErrorCalibration::unseen`] applies
+    /// ([`IrradianceEstimate::unseen_light`]), else 0.
+    unseen_level: f64,
+}
+
+/// The scale of the light an estimate's samples may all have missed
+/// ([`ErrorCalibration::unseen`]): `level` where it may be missing at the
+/// scene's scale ([`IrradianceEstimate::unseen_light`]), else 0
+/// (docs/math.md §10.5).
+fn unseen_level(unseen_light: bool, level: f64) -> f64 {
+    if unseen_light { level } else { 0.0 }
 }
 
 /// `|value|`, but no less than [`FLOOR_MIN_LEVEL`] times `level`.
@@ -129,6 +205,7 @@ impl ErrorCalibration {
         pairs: 0,
         unseen: 0.0,
         prior_scales: None,
+        strata: None,
     };
 
     /// Widens `estimate.std_error` (module docs).
@@ -137,17 +214,22 @@ impl ErrorCalibration {
         let value = estimate.irradiance;
         let sigma = estimate.std_error.to_array();
         let value = value.to_array();
-        estimate.std_error = crate::render::Rgb::from_array(std::array::from_fn(|c| {
+        let unseen_light = estimate.unseen_light;
+        estimate.std_error = Rgb::from_array(std::array::from_fn(|c| {
             let magnitude = floor_magnitude(value[c], self.level[c]);
-            // The unseen term is not scaled by κ; written inside the root
-            // so that without it (QMC, BMC) the result is `κ sqrt(…)` bit for bit.
-            let unseen = self.unseen * self.level[c] / scale;
+            // The unseen term, only where light may be missing, is not
+            // scaled by κ; written inside the root so that without it the
+            // result is `κ sqrt(…)` bit for bit.
+            let unseen = unseen_level(unseen_light[c], self.level[c]) * self.unseen / scale;
             scale * (sigma[c] * sigma[c] + (floor * magnitude).powi(2) + unseen * unseen).sqrt()
         }));
     }
 
     /// Fits `τ` on a grid and `κ` for each by bisection (module docs), with
-    /// the fixed term `unseen` ([`Self::unseen`]) in every variance.
+    /// the fixed term `unseen` ([`Self::unseen`]) where it applies; of the
+    /// fits whose coverage is within a binomial standard
+    /// error of 95 %, the sharpest (narrowest mean bar), else the one
+    /// nearest 95 % (docs/math.md §10.5).
     fn fit(training: &[Training], level: [f64; 3], unseen: f64) -> Self {
         if training.is_empty() {
             return Self {
@@ -156,14 +238,19 @@ impl ErrorCalibration {
                 ..Self::IDENTITY
             };
         }
-        let z = |scale: f64, floor: f64, t: &Training| {
+        let bar = |scale: f64, floor: f64, t: &Training| {
             let model = t.sigma * t.sigma + (floor * t.magnitude).powi(2);
-            let unseen = (unseen * t.level).powi(2);
-            standard_score(
-                t.error,
-                scale * scale * model + unseen,
-                t.reference_sigma.powi(2),
-            )
+            scale * scale * model + (unseen * t.unseen_level).powi(2)
+        };
+        let z = |scale: f64, floor: f64, t: &Training| {
+            standard_score(t.error, bar(scale, floor, t), t.reference_sigma.powi(2))
+        };
+        let width = |scale, floor| {
+            training
+                .iter()
+                .map(|t| bar(scale, floor, t).sqrt())
+                .sum::<f64>()
+                / training.len() as f64
         };
         let rms = |scale, floor| {
             (training
@@ -182,7 +269,9 @@ impl ErrorCalibration {
         };
         let floors =
             std::iter::once(0.0).chain((0..=16).map(|k| 10f64.powf(-4.0 + 0.25 * k as f64)));
-        let mut best: Option<(f64, Self)> = None;
+        let tolerance = (0.95 * 0.05 / training.len() as f64).sqrt();
+        // (miss of 95 %, mean width, the fit) of each floor that reaches rms z 1.
+        let mut fits: Vec<(f64, f64, Self)> = Vec::new();
         for floor in floors {
             // rms z falls as κ grows; bisect log κ for rms z = 1.
             let (mut lo, mut hi) = (1e-3f64.ln(), 1e3f64.ln());
@@ -198,30 +287,46 @@ impl ErrorCalibration {
                 }
             }
             let scale = hi.exp();
-            let miss = (coverage(scale, floor) - 0.95).abs();
-            if best.as_ref().is_none_or(|(m, _)| miss < *m - 1e-9) {
-                best = Some((
-                    miss,
-                    Self {
-                        scale,
-                        floor,
-                        level,
-                        pairs: training.len(),
-                        unseen,
-                        prior_scales: None,
-                    },
-                ));
-            }
+            fits.push((
+                (coverage(scale, floor) - 0.95).abs(),
+                width(scale, floor),
+                Self {
+                    scale,
+                    floor,
+                    level,
+                    pairs: training.len(),
+                    unseen,
+                    prior_scales: None,
+                    strata: None,
+                },
+            ));
         }
-        best.map_or(
+        choose(&fits, tolerance).map_or(
             Self {
                 unseen,
                 level,
                 ..Self::IDENTITY
             },
-            |(_, c)| c,
+            |c| *c,
         )
     }
+}
+
+/// Of `fits` (miss of 95 % coverage, mean bar width, fit), each calibrated
+/// to rms z 1: the narrowest of those whose miss is within `tolerance`,
+/// calibration first and then sharpness (Gneiting, Balabdaoui & Raftery,
+/// "Probabilistic forecasts, calibration and sharpness", 2007); else the
+/// nearest 95 %, the first of equals.
+fn choose<T>(fits: &[(f64, f64, T)], tolerance: f64) -> Option<&T> {
+    let sharpest = fits
+        .iter()
+        .filter(|(miss, _, _)| *miss <= tolerance)
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    let nearest = || {
+        fits.iter()
+            .reduce(|best, f| if f.0 < best.0 - 1e-9 { f } else { best })
+    };
+    sharpest.or_else(nearest).map(|(_, _, fit)| fit)
 }
 
 /// Uncalibrated estimates at points for options (see [`calibrate`]).
@@ -238,11 +343,15 @@ pub fn calibrate<E>(
     unseen: f64,
     estimate: &EstimateFn<'_, E>,
 ) -> Result<ErrorCalibration, E> {
-    let runs = training
+    let mut runs = training
         .requests(options)
         .map(|request| estimate(&training.points, &request))
         .collect::<Result<Vec<_>, E>>()?;
-    Ok(training.fit(&runs, None, unseen))
+    let strata = training.moderate(&mut runs.iter_mut().map(Vec::as_mut_slice).collect::<Vec<_>>());
+    Ok(ErrorCalibration {
+        strata,
+        ..training.fit(&runs, None, unseen)
+    })
 }
 
 /// Samples of the training reference for estimators run with `options`
@@ -329,6 +438,8 @@ impl TrainingSet {
                     .map(f64::sqrt),
                 rays: old.rays + new.rays,
                 indirect: None,
+                unseen_light: std::array::from_fn(|c| old.unseen_light[c] && new.unseen_light[c]),
+                direct_strata: None,
             })
             .collect();
         Self::with_reference(self.points.clone(), reference)
@@ -345,6 +456,17 @@ impl TrainingSet {
             seed: CALIBRATION_SEED.wrapping_add(1 + s),
             ..options
         })
+    }
+
+    /// The moderation of the stratified light samples' variance pooled
+    /// over the estimates of `runs` at the training points
+    /// ([`StrataModeration`]), applied to them.
+    pub fn moderate(&self, runs: &mut [&mut [IrradianceEstimate]]) -> Option<StrataModeration> {
+        let moderation = StrataModeration::pooled(runs.iter().flat_map(|r| r.iter()), self.level)?;
+        runs.iter_mut()
+            .flat_map(|r| r.iter_mut())
+            .for_each(|e| moderation.apply(e));
+        Some(moderation)
     }
 
     /// Sum over runs, points and channels of the squared error against the
@@ -388,7 +510,7 @@ impl TrainingSet {
                         sigma: sigma[c],
                         reference_sigma: reference_sigma[c],
                         magnitude: floor_magnitude(value[c], level[c]),
-                        level: level[c],
+                        unseen_level: unseen_level(e.unseen_light[c], level[c]),
                     });
                 }
             }
@@ -508,9 +630,116 @@ mod tests {
                 sigma,
                 reference_sigma: 0.0,
                 magnitude: 1.0,
-                level: 1.0,
+                unseen_level: 0.0,
             })
             .collect()
+    }
+
+    /// Calibration first, then sharpness: of the fits within the tolerance
+    /// the narrowest, not the one nearest 95 %; none within it, the
+    /// nearest.
+    #[test]
+    fn the_sharpest_calibrated_fit_is_chosen() {
+        let fits = [(0.004, 2.0, 'a'), (0.001, 3.0, 'b'), (0.02, 1.0, 'c')];
+        assert_eq!(choose(&fits, 0.005), Some(&'a'));
+        assert_eq!(choose(&fits, 0.0005), Some(&'b'));
+        assert_eq!(choose::<char>(&[], 0.005), None);
+    }
+
+    /// Stratified variances with the expectation of the true ones but only
+    /// two degrees of freedom (a few blocks on a small sun) are calibrated
+    /// only by bars that all but ignore them; moderated toward the pooled
+    /// ratio times the independent variance, by sharper ones.
+    #[test]
+    fn heavy_tailed_stratified_variances_are_moderated() {
+        use crate::render::StrataVariance;
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut normal = || {
+            let (u, v): (f64, f64) = (rng.random(), rng.random());
+            (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        };
+        let truth = Rgb::splat(10.0);
+        let estimates: Vec<IrradianceEstimate> = (0..1000)
+            .map(|i| {
+                let sd = 0.5 + f64::from(i % 10) * 0.1;
+                // χ²₂/2 is exponential with mean 1.
+                let chi2 = 0.5 * (normal().powi(2) + normal().powi(2));
+                let stratified = Rgb::splat(sd * sd * chi2);
+                IrradianceEstimate {
+                    irradiance: truth + Rgb::new(normal(), normal(), normal()) * sd,
+                    std_error: stratified.map(f64::sqrt),
+                    rays: 0,
+                    indirect: None,
+                    unseen_light: [false; 3],
+                    direct_strata: Some(StrataVariance {
+                        stratified,
+                        independent: Rgb::splat(sd * sd / 0.4),
+                        blocks: 16,
+                    }),
+                }
+            })
+            .collect();
+        let point = QueryPoint::new(glam::DVec3::ZERO, glam::DVec3::Z).unwrap();
+        let reference = IrradianceEstimate {
+            irradiance: truth,
+            std_error: Rgb::BLACK,
+            direct_strata: None,
+            ..estimates[0]
+        };
+        let set = TrainingSet::with_reference(vec![point; 1000], vec![reference; 1000]);
+        // (coverage, mean bar) of a fit on `runs`, which it then takes.
+        let measure = |runs: &[Vec<IrradianceEstimate>]| {
+            let fit = set.fit(runs, None, 0.0);
+            let (mut covered, mut width) = (0, 0.0);
+            for e in &runs[0] {
+                let mut e = *e;
+                fit.apply(&mut e);
+                let (error, bar) = ((e.irradiance - truth).r.abs(), e.std_error.r);
+                covered += usize::from(error <= 2.0 * bar);
+                width += bar;
+            }
+            (covered as f64 / 1000.0, width / 1000.0)
+        };
+        let (_, plain_width) = measure(std::slice::from_ref(&estimates));
+        let mut moderated = estimates.clone();
+        let strata = set.moderate(&mut [moderated.as_mut_slice()]).unwrap();
+        assert!((strata.ratio - 0.4).abs() < 0.03, "{strata:?}");
+        assert!(moderated.iter().all(|e| e.direct_strata.is_none()));
+        let (coverage, width) = measure(&[moderated]);
+        assert!((coverage - 0.95).abs() < 0.015, "coverage {coverage}");
+        assert!(width < 0.95 * plain_width, "{width} against {plain_width}");
+    }
+
+    /// The moderation replaces the stratified variance in the total, keeps
+    /// the indirect part's own variance, and applies once.
+    #[test]
+    fn moderation_keeps_the_indirect_variance() {
+        use crate::render::StrataVariance;
+        let mut e = IrradianceEstimate {
+            irradiance: Rgb::splat(5.0),
+            // Indirect 3 + stratified 1.
+            std_error: Rgb::splat(4.0f64.sqrt()),
+            rays: 0,
+            indirect: Some(crate::render::IndirectPart {
+                irradiance: Rgb::splat(2.0),
+                variance_share: Rgb::splat(0.75),
+            }),
+            unseen_light: [false; 3],
+            direct_strata: Some(StrataVariance {
+                stratified: Rgb::splat(1.0),
+                independent: Rgb::splat(4.0),
+                blocks: 16,
+            }),
+        };
+        let m = StrataModeration { ratio: 0.75 };
+        m.apply(&mut e);
+        // (16 · 1 + 16 · 0.75 · 4)/32 = 2, beside the indirect 3.
+        assert!((e.std_error.g - 5.0f64.sqrt()).abs() < 1e-12);
+        assert!((e.indirect.unwrap().variance_share.b - 0.6).abs() < 1e-12);
+        let once = e;
+        m.apply(&mut e);
+        assert_eq!(e, once);
     }
 
     #[test]
@@ -543,10 +772,12 @@ mod tests {
         let fit = ErrorCalibration::fit(&training(&errors), [1.0, 1.0, 0.0], 0.0);
         assert!(fit.floor > 0.0, "{fit:?}");
         let mut estimate = IrradianceEstimate {
-            irradiance: crate::render::Rgb::from_array([1.0, 2.0, 0.0]),
-            std_error: crate::render::Rgb::BLACK,
+            irradiance: Rgb::from_array([1.0, 2.0, 0.0]),
+            std_error: Rgb::BLACK,
             rays: 0,
             indirect: None,
+            unseen_light: [false; 3],
+            direct_strata: None,
         };
         fit.apply(&mut estimate);
         assert!(estimate.std_error.r > 0.0 && estimate.std_error.g > estimate.std_error.r);
@@ -575,16 +806,29 @@ mod tests {
         let fit = ErrorCalibration::fit(&training(&errors), [1.0; 3], unseen);
         assert_eq!(fit.unseen, unseen);
         let mut nothing = IrradianceEstimate {
-            irradiance: crate::render::Rgb::BLACK,
-            std_error: crate::render::Rgb::BLACK,
+            irradiance: Rgb::BLACK,
+            std_error: Rgb::BLACK,
             rays: 0,
             indirect: None,
+            unseen_light: [true; 3],
+            direct_strata: None,
         };
         fit.apply(&mut nothing);
         let floor = fit.scale * fit.floor * FLOOR_MIN_LEVEL;
         let expected = (floor * floor + unseen * unseen).sqrt();
         assert!((nothing.std_error.r - expected).abs() < 1e-12, "{fit:?}");
         assert!(nothing.std_error.r >= unseen);
+        // An estimate that saw light does not take it, even with a zero
+        // model σ: its bar is the floor's.
+        let mut some = IrradianceEstimate {
+            irradiance: Rgb::WHITE,
+            unseen_light: [false; 3],
+            direct_strata: None,
+            ..nothing
+        };
+        some.std_error = Rgb::BLACK;
+        fit.apply(&mut some);
+        assert_eq!(some.std_error.r, fit.scale * fit.floor);
         // Without the term (QMC, BMC) the same fit leaves only the floor.
         let plain = ErrorCalibration::fit(&training(&errors), [1.0; 3], 0.0);
         assert_eq!(plain.unseen, 0.0);

@@ -158,6 +158,14 @@ impl PointEstimator {
                     std_error: variance_sum.map(f64::sqrt) * (1.0 / batches),
                     rays: *rays,
                     indirect: None,
+                    unseen_light: std::array::from_fn(|c| {
+                        e.unseen_light[c]
+                            && results[i]
+                                .as_ref()
+                                .is_none_or(|r| r.estimate.unseen_light[c])
+                    }),
+                    // The batches' bars are calibrated (moderated) already.
+                    direct_strata: None,
                 };
                 let relative_error = relative_half_width(z, &mean);
                 let met = relative_error <= target.relative_error;

@@ -141,6 +141,8 @@ impl Transport {
         };
         let (mut irradiance, mut variance) = (Rgb::BLACK, Rgb::BLACK);
         let mut indirect = None;
+        let mut unseen_light = [true; 3];
+        let mut direct_strata = None;
         if let Some(lengths) = lengths {
             let directions = estimator.directions(&mut rng);
             let limits = PathLimits {
@@ -230,8 +232,11 @@ impl Transport {
             };
         }
         if decomposition == Decomposition::Split {
-            let direct = self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
+            let (direct, strata) =
+                self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
+            direct_strata = strata;
             irradiance += direct.mean;
+            unseen_light = direct.mean.to_array().map(|v| v == 0.0);
             let indirect_variance = variance;
             variance += direct.variance_of_mean;
             // The indirect part's share is its own variance over the
@@ -246,6 +251,8 @@ impl Transport {
             std_error: variance.map(f64::sqrt),
             rays: stats.rays,
             indirect,
+            unseen_light,
+            direct_strata,
         })
     }
 }

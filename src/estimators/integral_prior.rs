@@ -256,6 +256,8 @@ mod tests {
             std_error: Rgb::splat(1.0),
             rays: 7,
             indirect: Some(IndirectPart::whole(Rgb::splat(2.0))),
+            unseen_light: [false; 3],
+            direct_strata: None,
         };
         assert!(combine_part(
             &mut estimate,
@@ -291,6 +293,8 @@ mod tests {
                 irradiance: Rgb::splat(2.0),
                 variance_share: Rgb::splat(0.25),
             }),
+            unseen_light: [false; 3],
+            direct_strata: None,
         };
         combine_part(&mut estimate, (Rgb::splat(4.0), Rgb::splat(1.0)));
         // The part's variance is ¼ · 4 = 1: the midpoint 3 with variance ½,
@@ -312,6 +316,8 @@ mod tests {
                 irradiance: Rgb::splat(2.0),
                 variance_share: Rgb::splat(0.25),
             }),
+            unseen_light: [false; 3],
+            direct_strata: None,
         };
         combine_direct(&mut estimate, (Rgb::splat(5.0), Rgb::splat(3.0)));
         // Direct part 3 with variance ¾ · 4 = 3 against the prior 5 with 3:
@@ -327,6 +333,8 @@ mod tests {
             std_error: Rgb::splat(1.0),
             rays: 7,
             indirect: None,
+            unseen_light: [false; 3],
+            direct_strata: None,
         };
         combine_direct(&mut direct_only, (Rgb::splat(3.0), Rgb::splat(1.0)));
         assert!((direct_only.irradiance.g - 2.0).abs() < 1e-12);
@@ -353,6 +361,8 @@ mod tests {
             std_error: Rgb::splat(0.5),
             rays: 64,
             indirect: None,
+            unseen_light: [false; 3],
+            direct_strata: None,
         };
         // The twin of a record in a shadow, confident: 1.0 ± 0.1.
         let mut moved = estimate;

@@ -327,14 +327,23 @@ impl PointEstimator {
         } else {
             None
         };
+        // The stratified light samples' variance moderated as at the
+        // training points, before any prior weighs the estimates (§10.5).
+        let moderate = |mut estimates: Estimates| {
+            if let Some(strata) = calibration.and_then(|c| c.strata) {
+                estimates.estimates.iter_mut().for_each(|e| strata.apply(e));
+            }
+            estimates
+        };
         let mut least = Vec::new();
         let (mut estimates, calibrated) = if self.has_priors(&caches) {
             let scales = calibration
                 .and_then(|c| c.prior_scales)
                 .unwrap_or(PriorScales::ONE);
-            let estimates = self
-                .rule()
-                .estimate(transport, caches, points, options, on_done, cancel)?;
+            let estimates = moderate(
+                self.rule()
+                    .estimate(transport, caches, points, options, on_done, cancel)?,
+            );
             let rule: Vec<Rgb> = estimates.estimates.iter().map(|e| e.std_error).collect();
             let combined = self.with_priors(estimates, caches, points, scales);
             // Under the hemisphere decomposition the bound made bars too
@@ -348,8 +357,10 @@ impl PointEstimator {
             }
             combined
         } else {
-            let estimates = self
-                .estimate_with_model_errors(transport, caches, points, options, on_done, cancel)?;
+            let estimates =
+                moderate(self.estimate_with_model_errors(
+                    transport, caches, points, options, on_done, cancel,
+                )?);
             let all = vec![true; estimates.estimates.len()];
             (estimates, all)
         };
@@ -388,7 +399,7 @@ impl PointEstimator {
         cancel: &Cancel,
     ) -> Result<ErrorCalibration, EstimatorError> {
         let rule = self.rule();
-        let runs = training
+        let mut runs = training
             .requests(options)
             .map(|request| {
                 let run = rule.estimate(
@@ -403,6 +414,12 @@ impl PointEstimator {
                 Ok::<_, EstimatorError>(run)
             })
             .collect::<Result<Vec<_>, _>>()?;
+        let strata = training.moderate(
+            &mut runs
+                .iter_mut()
+                .map(|run| run.estimates.as_mut_slice())
+                .collect::<Vec<_>>(),
+        );
         let known = self.priors_at(&caches, &training.points);
         caches
             .amortised
@@ -445,6 +462,7 @@ impl PointEstimator {
         let (runs, moved) = combined(best.0);
         let mut calibration = training.fit(&runs, Some(&moved), unseen);
         calibration.prior_scales = Some(best.0);
+        calibration.strata = strata;
         Ok(calibration)
     }
 

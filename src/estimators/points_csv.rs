@@ -145,6 +145,8 @@ mod tests {
             std_error: Rgb::splat(0.25),
             rays: 10,
             indirect: None,
+            unseen_light: [false; 3],
+            direct_strata: None,
         }];
         let mut out = Vec::new();
         write_irradiance(&mut out, &points, &estimates, true).unwrap();

@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use super::cancel::Cancel;
 use super::error::RenderError;
 use super::lights::environment_radiance;
-use super::mean::MeanEstimate;
+use super::mean::{MeanEstimate, StrataVariance};
 use super::path::{
     AveragedPaths, FirstSegment, PathLengths, PathLimits, RadianceSample, TraceStats,
     power_heuristic,
@@ -37,6 +37,7 @@ use super::path::{
 use super::query::QueryPoint;
 use super::rgb::Rgb;
 use super::seed::point_rng;
+use super::strata::SharedStrata;
 use super::transport::Transport;
 use super::warp;
 use crate::sphere::Frame;
@@ -191,6 +192,19 @@ pub struct IrradianceEstimate {
     /// part a prior on the integral concerns (docs/math.md §10.7), where a
     /// hemisphere rule estimated it; `None` otherwise.
     pub indirect: Option<IndirectPart>,
+    /// Per channel, whether light that none of the samples saw may be
+    /// missing at the scene's scale, for which the calibration adds a term
+    /// (docs/math.md §10.5): always for directions drawn without regard to
+    /// the lights (a hemisphere rule's); for light samples (split mode) only
+    /// where none of them carried light, since they reach every light the
+    /// scene has, so that once one has seen light what they missed is a
+    /// share of the light they saw (an occluder or a gap), which the model
+    /// variance and the calibration's floor hold.
+    pub unseen_light: [bool; 3],
+    /// Where the direct part is the mean of stratified light samples
+    /// (split mode), its two variances; `std_error` holds the stratified
+    /// one, which the calibration moderates (docs/math.md §10.5, §14).
+    pub direct_strata: Option<StrataVariance>,
 }
 
 /// The indirect part of an [`IrradianceEstimate`] (docs/math.md §10.7).
@@ -299,18 +313,20 @@ impl Transport {
     /// direction, and environment light found by either strategy is weighted
     /// by the power heuristic (docs/math.md §14, §15.2): light sampling alone
     /// wastes most samples on a smooth environment that the cosine lobe
-    /// would find, and cosine sampling alone misses a sun.
+    /// would find, and cosine sampling alone misses a sun. The samples are
+    /// stratified; with enough of them, both variances of their mean.
     pub fn direct_irradiance<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
         samples: u32,
         rng: &mut R,
         stats: &mut TraceStats,
-    ) -> MeanEstimate {
+    ) -> (MeanEstimate, Option<StrataVariance>) {
+        let strata = direct_strata(samples, rng);
         let values: Vec<Rgb> = (0..samples)
-            .map(|_| self.direct_sample(point, rng, stats).0)
+            .map(|j| self.direct_sample(point, (&strata, j), rng, stats).0)
             .collect();
-        MeanEstimate::of(values)
+        direct_mean(&strata, &values)
     }
 
     /// [`Self::direct_irradiance`] and, from the same samples, its gradient
@@ -325,9 +341,10 @@ impl Transport {
         stats: &mut TraceStats,
     ) -> (MeanEstimate, [DVec3; 3]) {
         let mut gradient = [DVec3::ZERO; 3];
+        let strata = direct_strata(samples, rng);
         let values: Vec<Rgb> = (0..samples)
-            .map(|_| {
-                let (value, g) = self.direct_sample(point, rng, stats);
+            .map(|j| {
+                let (value, g) = self.direct_sample(point, (&strata, j), rng, stats);
                 for (sum, g) in gradient.iter_mut().zip(g) {
                     *sum += g;
                 }
@@ -335,7 +352,7 @@ impl Transport {
             })
             .collect();
         let count = f64::from(samples.max(1));
-        (MeanEstimate::of(values), gradient.map(|g| g / count))
+        (direct_mean(&strata, &values).0, gradient.map(|g| g / count))
     }
 
     /// One sample of [`Self::direct_irradiance`] (its light sample and, with
@@ -345,6 +362,7 @@ impl Transport {
     fn direct_sample<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
+        (strata, j): (&SharedStrata, u32),
         rng: &mut R,
         stats: &mut TraceStats,
     ) -> (Rgb, [DVec3; 3]) {
@@ -361,7 +379,7 @@ impl Transport {
             }
         };
         let u_select = rng.random();
-        let u = [rng.random(), rng.random()];
+        let u = strata.sample(u64::from(j), [rng.random(), rng.random()]);
         if let Some(light) = self.lights().sample(scene, x, u_select, u) {
             let cos = n.dot(light.wi);
             if cos > 0.0 && !light.radiance.is_black() && light.visible_from(scene, x, n, stats) {
@@ -376,7 +394,8 @@ impl Transport {
             }
         }
         if self.lights().has_environment() {
-            let local = warp::cosine_hemisphere([rng.random(), rng.random()]);
+            let u = strata.sample(u64::from(j), [rng.random(), rng.random()]);
+            let local = warp::cosine_hemisphere(u);
             let dir = Frame::from_normal(n).to_world(local);
             stats.rays += 1;
             if local.z > 0.0 && scene.intersect(&scene.spawn_ray(x, n, dir)).is_none() {
@@ -421,7 +440,9 @@ impl Transport {
     ) -> IrradianceEstimate {
         let mut stats = TraceStats::default();
         let depth = options.effective_max_depth();
-        let parts = match self.decomposition(options.method) {
+        let decomposition = self.decomposition(options.method);
+        let mut direct_strata = None;
+        let parts = match decomposition {
             Decomposition::Hemisphere => vec![self.cosine_hemisphere_irradiance(
                 point,
                 options.samples,
@@ -433,8 +454,10 @@ impl Transport {
                 &mut stats,
             )],
             Decomposition::Split => {
-                let mut parts =
-                    vec![self.direct_irradiance(point, options.samples, rng, &mut stats)];
+                let (direct, strata) =
+                    self.direct_irradiance(point, options.samples, rng, &mut stats);
+                direct_strata = strata;
+                let mut parts = vec![direct];
                 if depth.has_reflections() {
                     parts.push(self.cosine_hemisphere_irradiance(
                         point,
@@ -458,6 +481,11 @@ impl Transport {
             std_error: variance.map(f64::sqrt),
             rays: stats.rays,
             indirect: None,
+            unseen_light: match decomposition {
+                Decomposition::Hemisphere => [true; 3],
+                Decomposition::Split => parts[0].mean.to_array().map(|v| v == 0.0),
+            },
+            direct_strata,
         }
     }
 
@@ -485,6 +513,23 @@ impl Transport {
             })
             .collect()
     }
+}
+
+/// The pattern the direct light's `samples` samples at a point are spread
+/// over (docs/math.md §14): sample `j` takes cell `j`'s place on the lights
+/// and, with an environment, its cosine direction in the same cell of the
+/// direction's square, each jittered independently.
+fn direct_strata<R: Rng + ?Sized>(samples: u32, rng: &mut R) -> SharedStrata {
+    SharedStrata::new(u64::from(samples), [rng.random(), rng.random()])
+}
+
+/// The mean of the direct light's samples and its collapsed-strata
+/// variance ([`MeanEstimate::of_strata`]).
+fn direct_mean(strata: &SharedStrata, values: &[Rgb]) -> (MeanEstimate, Option<StrataVariance>) {
+    let cells: Vec<Option<u32>> = (0..values.len() as u64)
+        .map(|j| strata.cell_code(j))
+        .collect();
+    MeanEstimate::of_strata(values, &cells)
 }
 
 #[cfg(test)]

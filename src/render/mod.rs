@@ -54,7 +54,7 @@ pub use irradiance::{
     Decomposition, IndirectPart, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
     SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE,
 };
-pub use mean::{Evaluation, MeanEstimate};
+pub use mean::{Evaluation, MIN_STRATA_BLOCKS, MeanEstimate, StrataVariance};
 pub use path::{
     AveragedPaths, FirstSegment, PathDepth, PathLengths, PathLimits, RadianceSample,
     SharedFirstVertex, TraceStats, power_heuristic,

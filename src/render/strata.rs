@@ -58,13 +58,9 @@ impl SharedStrata {
     /// otherwise.
     pub fn sample(&self, j: u64, u: [f64; 2]) -> [f64; 2] {
         let k = self.bits;
-        if k == 0 || j >> k != 0 {
+        let Some(code) = self.cell_code(j) else {
             return u;
-        }
-        // `R(τ(j))` is the hash of `R(j)` itself: `τ`'s outer reversal and
-        // `R` cancel, so neither is computed.
-        let shuffled = laine_karras(reverse(j as u32, k), self.seeds[0]);
-        let code = owen_scramble(shuffled, k, self.seeds[1]);
+        };
         // De-interleave from the top bit: column, row, column, … With a zero
         // appended when `k` is odd, the column holds the odd bits and the
         // row the even ones (the row then one zero too many at the bottom).
@@ -75,6 +71,21 @@ impl SharedStrata {
             (column as f64 + u[0]) * self.cell[0],
             (row as f64 + u[1]) * self.cell[1],
         ]
+    }
+
+    /// The code `σ(R(τ(j)))` of sample `j`'s cell (module docs), `k` bits;
+    /// `None` where the sample is not stratified (`k = 0` or `j ≥ 2^k`).
+    /// Codes `2m` and `2m + 1` are neighbouring cells: they differ only in
+    /// the lowest bit, the finest column or row.
+    pub fn cell_code(&self, j: u64) -> Option<u32> {
+        let k = self.bits;
+        if k == 0 || j >> k != 0 {
+            return None;
+        }
+        // `R(τ(j))` is the hash of `R(j)` itself: `τ`'s outer reversal and
+        // `R` cancel, so neither is computed.
+        let shuffled = laine_karras(reverse(j as u32, k), self.seeds[0]);
+        Some(owen_scramble(shuffled, k, self.seeds[1]))
     }
 }
 

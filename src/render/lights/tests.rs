@@ -34,6 +34,7 @@ fn direct(transport: &Transport, x: DVec3, n: u32) -> Rgb {
     let mut stats = TraceStats::default();
     transport
         .direct_irradiance(&point, n, &mut rng, &mut stats)
+        .0
         .mean
 }
 
