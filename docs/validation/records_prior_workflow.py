@@ -135,6 +135,18 @@ LAYOUTS = {
         "out_of_view": [(5.5, 7.5, -2.0, 3.0), (-7.5, -5.5, -3.0, 2.0)],
         "behind_wall": (-1.0, 2.6, -4.6, -3.6),
     },
+    # docs/validation/data/heldout/heldout-dusk.json, a small sun low to the
+    # right; built after the stratified light samples' variance was
+    # moderated, never used while tuning.
+    "dusk": {
+        "camera": (1.0, 2.6, 6.2),
+        "spheres": [((1.7, 0.65, -0.3), 0.65), ((-1.2, 0.5, 0.9), 0.5)],
+        "circles": [(1.7, -0.3, 0.65), (-1.2, 0.9, 0.5)],
+        "rectangles": [(-0.3, 0.7, 1.4, 2.4), (-2.75, 1.75, -3.5, -3.1)],
+        "visible": (-2.5, 2.8, -2.6, 2.8),
+        "out_of_view": [(5.5, 7.5, -2.5, 2.5), (-7.5, -5.5, -1.0, 4.0)],
+        "behind_wall": (-2.0, 1.2, -4.8, -3.7),
+    },
 }
 
 

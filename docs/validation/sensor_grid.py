@@ -12,7 +12,10 @@ N = 4, 8, 16, ... (one request each, seed 1) until the nrmse vs truth
 rays (its `rays`, which for BMC's first request include the records it
 placed among the grid's points, `amortised_rays`) and wall time; the
 "total" columns add the estimator's earlier rows, as a user searching for
-the N would spend. Standard library only:
+the N would spend, and the calibrated bars' ±2σ coverage and rms z against
+the reference. `--samples 64 256 1024` runs those N only; `--max-depth 1`
+restricts the reference and every request to direct light. Standard library
+only:
 
     python3 docs/validation/sensor_grid.py --scene overcast --y 0 --x -2.5 2.5 --z 2 4 --estimators qmc
     (then on a fresh service) ... --estimators bmc
@@ -129,6 +132,18 @@ class Reference:
         noise = sum(self.variance[j][c] for j in self.keep for c in range(3))
         return math.sqrt(max(err2 - noise, 0.0) / (3 * len(self.keep))) / self.level
 
+    def calibration(self, values, std_devs):
+        """±2σ coverage and rms z of `values` with their standard errors
+        against the reference, its own variance added (docs/math.md §10.3),
+        over the kept points and channels."""
+        zs = [
+            (values[j][c] - self.mean[j][c]) / math.sqrt(std_devs[j][c] ** 2 + self.variance[j][c])
+            for j in self.keep
+            for c in range(3)
+        ]
+        coverage = sum(abs(z) <= 2 for z in zs) / len(zs)
+        return coverage, math.sqrt(sum(z * z for z in zs) / len(zs))
+
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -138,13 +153,22 @@ def main():
         default="qmc,bmc",
         help="which to run (each on a fresh service, so neither reuses the other's calibration)",
     )
+    ap.add_argument(
+        "--samples",
+        type=int,
+        nargs="+",
+        default=None,
+        help="run these N only (default: N = 4, 8, … until the target is reached)",
+    )
     args = ap.parse_args()
     url = f"{args.url}/v1/scenes/{args.scene}/irradiance"
     pts = grid_points(args)
     ref = Reference.cached(args, pts)
     print(f"{args.scene}: {len(ref.keep)} of {len(pts)} grid points (reference {args.ref_seeds} × 4096 paths)")
-    print("| estimator | N | nrmse vs truth | rays | amortised | time, s | total rays | total time, s |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(
+        "| estimator | N | nrmse vs truth | coverage, rms z | rays | amortised | time, s | total rays | total time, s |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
     chosen = args.estimators.split(",")
     for name, estimator in [
         ("qmc plain", {"method": "qmc", "records_prior": False}),
@@ -152,20 +176,20 @@ def main():
     ]:
         if name.split()[0] not in chosen:
             continue
-        total_rays, total_time, samples = 0, 0.0, 4
-        while samples <= 4096:
+        total_rays, total_time = 0, 0.0
+        for samples in args.samples or [4 << k for k in range(11)]:
             body = {"points": pts, "estimator": dict(estimator, samples=samples), "seed": 1}
             doc, wall = post(url, with_depth(body, args.max_depth))
             truth = ref.nrmse_vs_truth(doc["irradiance"])
+            coverage, rms_z = ref.calibration(doc["irradiance"], doc["std_dev"])
             total_rays += doc["rays"]
             total_time += wall
             print(
-                f"| {name} | {samples} | {truth:.4f} | {doc['rays']} | {doc['amortised_rays']} | "
-                f"{wall:.2f} | {total_rays} | {total_time:.2f} |"
+                f"| {name} | {samples} | {truth:.4f} | {coverage:.3f}, {rms_z:.2f} | {doc['rays']} | "
+                f"{doc['amortised_rays']} | {wall:.2f} | {total_rays} | {total_time:.2f} |"
             )
-            if truth <= args.target:
+            if truth <= args.target and not args.samples:
                 break
-            samples *= 2
 
 
 if __name__ == "__main__":

@@ -21,7 +21,10 @@ made after the work it measures and never used while tuning:
   up;
 - winter_sky.hdr (heldout-winter.json, made after split-mode BMC's error
   bars took the light samples' unseen-light term): a pale sky and a small
-  sun 12° up behind the wall.
+  sun 12° up behind the wall;
+- dusk_sky.hdr (heldout-dusk.json, made after the stratified light samples'
+  variance was moderated toward the scene's pooled ratio): a violet sky and
+  a small sun 20° up, shadows toward the camera.
 
 Radiance in the equirectangular map's world frame (y up), a dark ground half,
 written as Radiance RGBE files with flat scanlines. Standard library only.
@@ -95,6 +98,15 @@ SKIES = {
         "zenith": (0.32, 0.42, 0.7),
         "horizon": (0.75, 0.65, 0.5),
         "glow": (1.4, 1.0, 0.6),
+    },
+    "dusk_sky.hdr": {
+        "size": (256, 128),
+        "sun": (20.0, 75.0),
+        "sun_radius": 1.0,
+        "sun_radiance": (3300.0, 2500.0, 1600.0),
+        "zenith": (0.28, 0.33, 0.62),
+        "horizon": (0.8, 0.55, 0.4),
+        "glow": (1.3, 0.85, 0.45),
     },
 }
 
