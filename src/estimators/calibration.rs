@@ -227,9 +227,9 @@ impl ErrorCalibration {
 
     /// Fits `τ` on a grid and `κ` for each by bisection (module docs), with
     /// the fixed term `unseen` ([`Self::unseen`]) where it applies; of the
-    /// fits whose coverage is within a binomial standard
-    /// error of 95 %, the sharpest (narrowest mean bar), else the one
-    /// nearest 95 % (docs/math.md §10.5).
+    /// fits whose coverage is within a binomial standard error of 95 %, the
+    /// sharpest (narrowest mean bar), else the one nearest 95 %
+    /// (docs/math.md §10.5).
     fn fit(training: &[Training], level: [f64; 3], unseen: f64) -> Self {
         if training.is_empty() {
             return Self {

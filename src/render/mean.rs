@@ -52,8 +52,8 @@ pub struct StrataVariance {
 impl StrataVariance {
     /// The stratified variance moderated towards `ratio` times the
     /// independent one, as if that prior were worth `prior_blocks` blocks:
-    /// `(d v_s + d₀ c v_i)/(d + d₀)` (Smyth 2004; docs/math.md §14), with
-    /// `c` and `d₀` fitted by the calibration on the scene (§10.5).
+    /// `(d v_s + d₀ c v_i)/(d + d₀)` (Smyth 2004), with `c` pooled by the
+    /// calibration on the scene and `d₀` fixed there (docs/math.md §10.5).
     pub fn moderated(&self, ratio: f64, prior_blocks: f64) -> Rgb {
         let d = f64::from(self.blocks);
         (self.stratified * d + self.independent * (ratio * prior_blocks))
