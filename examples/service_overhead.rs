@@ -79,6 +79,7 @@ fn main() -> anyhow::Result<()> {
     };
     let options = IrradianceOptions {
         samples: SAMPLES,
+        light_samples: None,
         max_depth: MAX_DEPTH,
         direct_only: false,
         method: IrradianceMethod::Split,

@@ -160,6 +160,12 @@ def main():
         default=None,
         help="run these N only (default: N = 4, 8, … until the target is reached)",
     )
+    ap.add_argument(
+        "--light-samples",
+        type=int,
+        default=None,
+        help="light samples of the split direct part per point (default: N)",
+    )
     args = ap.parse_args()
     url = f"{args.url}/v1/scenes/{args.scene}/irradiance"
     pts = grid_points(args)
@@ -176,6 +182,9 @@ def main():
     ]:
         if name.split()[0] not in chosen:
             continue
+        if args.light_samples:
+            estimator = dict(estimator, light_samples=args.light_samples)
+            name += f", {args.light_samples} light samples"
         total_rays, total_time = 0, 0.0
         for samples in args.samples or [4 << k for k in range(11)]:
             body = {"points": pts, "estimator": dict(estimator, samples=samples), "seed": 1}

@@ -91,6 +91,24 @@ def test_options_reach_the_service(client: Client) -> None:
     assert plain.records_prior_points is None and plain.prior_used is None
 
 
+def test_light_samples_reach_the_service(client: Client) -> None:
+    # With direct light only, the answer is the light samples' alone: 16
+    # directions with 64 light samples answer as 64 directions.
+    positions = floor_points(3, seed=5)
+    asked: dict[str, Any] = {
+        "method": "qmc",
+        "calibrate": False,
+        "decomposition": "split",
+        "max_depth": 1,
+    }
+    apart = client.irradiance("cornell-box", positions, UP, samples=16, light_samples=64, **asked)
+    same = client.irradiance("cornell-box", positions, UP, samples=64, **asked)
+    assert np.array_equal(apart.value, same.value)
+    with pytest.raises(ServiceError) as refused:
+        client.irradiance("cornell-box", positions, UP, samples=16, light_samples=0)
+    assert refused.value.field == "estimator.light_samples"
+
+
 def test_the_records_prior_is_asked_for_and_reported(client: Client) -> None:
     # No test renders tiles of this scene, so it holds no records: the option
     # reaches the service, which reports that it covered no point; asked of

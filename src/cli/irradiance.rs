@@ -32,9 +32,13 @@ pub struct IrradianceArgs {
     /// CSV of query points, rows `x,y,z,nx,ny,nz` (header optional).
     #[arg(long)]
     pub points: PathBuf,
-    /// Hemisphere directions per point (and light samples in split mode).
+    /// Hemisphere directions per point.
     #[arg(long, default_value_t = 4096)]
     pub samples: u32,
+    /// Light samples per point for the split direct part (default:
+    /// `--samples`); each is one shadow ray.
+    #[arg(long, conflicts_with = "reference")]
+    pub light_samples: Option<u32>,
     /// Longest light path in segments from the point (1 = direct light
     /// only); default: the scene's depth less the camera's segment (Mitsuba's
     /// integrator `max_depth` − 1), else the service's (16).
@@ -102,6 +106,7 @@ impl IrradianceArgs {
         } else {
             IrradianceOptions {
                 samples: self.samples,
+                light_samples: self.light_samples,
                 max_depth: self.max_depth.unwrap_or(scene_depth),
                 seed: self.seed,
                 ..IrradianceOptions::default()

@@ -13,7 +13,7 @@
 //!    the Lambert density `cos θ/π`, so `E = π I` ([`irradiance_from_lambert`]).
 //!
 //! [`IrradianceMethod::Split`] adds light-sampled direct light
-//! ([`Transport::direct_irradiance`], `options.samples` light samples) to the
+//! ([`Transport::direct_irradiance`], `options.light_samples()` of them) to the
 //! hemisphere estimate of path lengths `2..=max_depth`; the two parts use
 //! disjoint random numbers, so their variances add. The reported standard
 //! deviation is the square root of the estimator's variance: for BMC the
@@ -86,8 +86,9 @@ impl Transport {
     /// Irradiance at every point with `rule` for the hemisphere part
     /// (module docs), in parallel on the current rayon pool.
     ///
-    /// `options.samples` is the number of light samples of the direct part in
-    /// split mode; the hemisphere sample count is the estimator's. `on_done`
+    /// `options.light_samples()` is the number of light samples of the
+    /// direct part in split mode; the hemisphere sample count is the
+    /// estimator's. `on_done`
     /// is called once per finished point; stops between points once `cancel`
     /// is set.
     pub fn irradiance_with_estimator(
@@ -233,7 +234,7 @@ impl Transport {
         }
         if decomposition == Decomposition::Split {
             let (direct, strata) =
-                self.direct_irradiance(point, options.samples, &mut rng, &mut stats);
+                self.direct_irradiance(point, options.light_samples(), &mut rng, &mut stats);
             direct_strata = strata;
             irradiance += direct.mean;
             unseen_light = direct.mean.to_array().map(|v| v == 0.0);
@@ -293,6 +294,7 @@ mod tests {
     fn options(light_samples: u32, seed: u64) -> IrradianceOptions {
         IrradianceOptions {
             samples: light_samples,
+            light_samples: None,
             max_depth: crate::render::PathDepth::constant(3),
             direct_only: false,
             method: IrradianceMethod::Split,

@@ -281,7 +281,7 @@ impl PointEstimator {
                 self.corrected,
                 options.method,
                 options.effective_max_depth(),
-                options.samples
+                options.light_samples()
             );
             Some(caches.calibrations.get_or_calibrate(key, || {
                 // Light that every equally weighted direction missed (§10.5).
@@ -296,7 +296,7 @@ impl PointEstimator {
                     PointRule::Bmc(_)
                         if transport.decomposition(options.method) == Decomposition::Split =>
                     {
-                        unseen_light(options.samples)
+                        unseen_light(options.light_samples())
                     }
                     PointRule::Bmc(_) => 0.0,
                 };

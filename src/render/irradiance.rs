@@ -119,9 +119,13 @@ impl Transport {
 /// What to estimate and with how much work.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IrradianceOptions {
-    /// Hemisphere directions per point; in split mode also the number of
-    /// light samples for the direct part. At least 1 (2 for a standard error).
+    /// Hemisphere directions per point. At least 1 (2 for a standard error).
     pub samples: u32,
+    /// Light samples of the direct part in split mode; `None`: `samples`.
+    /// Each is one shadow ray, against a path per hemisphere direction, so a
+    /// query whose error is in the direct light (penumbrae, a sun) can take
+    /// many more of them than directions. At least 1 when given.
+    pub light_samples: Option<u32>,
     /// Longest path counted, in segments from the point (1 = direct light only).
     pub max_depth: PathDepth,
     /// Direct light only; the same as `max_depth = 1`.
@@ -135,6 +139,7 @@ impl Default for IrradianceOptions {
     fn default() -> Self {
         Self {
             samples: 256,
+            light_samples: None,
             max_depth: PathDepth::default(),
             direct_only: false,
             method: IrradianceMethod::Split,
@@ -150,6 +155,7 @@ impl IrradianceOptions {
     pub fn reference(seed: u64) -> Self {
         Self {
             samples: 65_536,
+            light_samples: None,
             max_depth: PathDepth::constant(64),
             direct_only: false,
             method: IrradianceMethod::Split,
@@ -166,13 +172,24 @@ impl IrradianceOptions {
         }
     }
 
-    /// Checks the sample count (the depth is valid by construction).
+    /// Light samples of the split direct part (`light_samples`, else
+    /// `samples`).
+    pub fn light_samples(&self) -> u32 {
+        self.light_samples.unwrap_or(self.samples)
+    }
+
+    /// Checks the sample counts (the depth is valid by construction).
     pub fn validate(&self) -> Result<(), RenderError> {
-        if self.samples == 0 {
-            return Err(RenderError::InvalidOption {
-                field: "samples",
-                reason: "must be at least 1".into(),
-            });
+        for (field, count) in [
+            ("samples", self.samples),
+            ("light_samples", self.light_samples()),
+        ] {
+            if count == 0 {
+                return Err(RenderError::InvalidOption {
+                    field,
+                    reason: "must be at least 1".into(),
+                });
+            }
         }
         Ok(())
     }
@@ -455,7 +472,7 @@ impl Transport {
             )],
             Decomposition::Split => {
                 let (direct, strata) =
-                    self.direct_irradiance(point, options.samples, rng, &mut stats);
+                    self.direct_irradiance(point, options.light_samples(), rng, &mut stats);
                 direct_strata = strata;
                 let mut parts = vec![direct];
                 if depth.has_reflections() {
@@ -548,6 +565,17 @@ mod tests {
                 ..
             })
         ));
+        o.samples = 8;
+        o.light_samples = Some(0);
+        assert!(matches!(
+            o.validate(),
+            Err(RenderError::InvalidOption {
+                field: "light_samples",
+                ..
+            })
+        ));
+        o.light_samples = None;
+        assert_eq!(o.light_samples(), 8);
         o.direct_only = true;
         o.max_depth = PathDepth::constant(9);
         assert_eq!(o.effective_max_depth(), PathDepth::DIRECT);

@@ -39,6 +39,14 @@ use crate::render::{Cancel, PathDepth, QueryPoint, RenderError};
 /// were measured (docs/BENCHMARKS.md, direct-light records).
 const TWIN_DIRECTIONS: usize = 1024;
 
+/// Paths per direction of the records placed among the points of a query
+/// with reflections (§10.11), on the twins' directions: on a sensor grid
+/// those records are most of every point's prior and their paths' noise its
+/// floor. Measured (docs/BENCHMARKS.md, stop 60): on the Cornell box's floor
+/// grid default `bmc` at N = 256 was within 2.84 % nrmse with one path per
+/// direction and 1.87 % with four.
+const POINT_RECORD_PATHS: u32 = 4;
+
 /// Fewest points of a query that places records among them (module docs):
 /// below it, a record's thousand paths would serve too few points to pay.
 pub const MIN_POINTS_FOR_RECORDS: usize = 64;
@@ -55,8 +63,9 @@ pub struct TilePriors {
     /// The byte budget of one gathering (its oldest tiles' records, in key
     /// order, are dropped beyond it).
     gathering_bytes: usize,
-    /// The twins' rule, built on first use.
+    /// The twins' rule and the point records' rule, built on first use.
     twin_rules: Mutex<Option<CachedShading>>,
+    point_record_rules: Mutex<Option<CachedShading>>,
 }
 
 impl TilePriors {
@@ -71,6 +80,7 @@ impl TilePriors {
                 .build(),
             gathering_bytes,
             twin_rules: Mutex::new(None),
+            point_record_rules: Mutex::new(None),
         }
     }
 
@@ -148,13 +158,25 @@ impl TilePriors {
             return Ok(0);
         }
         let transport = &scene.transport;
+        // A query of direct light only uses the records as places for twins,
+        // and their values never: one path per direction is enough there.
+        let (rules, paths) = if from_point.has_reflections() {
+            let spec = CachedSpec {
+                samples: Some(TWIN_DIRECTIONS),
+                paths_per_direction: Some(POINT_RECORD_PATHS),
+                ..CachedSpec::default()
+            };
+            let rules = rules_of(&self.point_record_rules, spec, quadratures)?;
+            (rules, POINT_RECORD_PATHS)
+        } else {
+            (self.twin_rules(quadratures)?, 1)
+        };
         let from_point = PathDepth::new(from_point.get().max(2))?;
         // Kept with the camera's depth convention: one segment more.
         let Ok(camera_depth) = PathDepth::new(from_point.get() + 1) else {
             return Ok(0);
         };
         let digest = *transport.scene().digest.as_bytes();
-        let rules = self.twin_rules(quadratures)?;
         let mut rays = 0;
         for set in [calibration_points(transport), points.to_vec()] {
             let mut hasher = blake3::Hasher::new();
@@ -162,6 +184,7 @@ impl TilePriors {
             hasher.update(env!("CARGO_PKG_VERSION").as_bytes());
             hasher.update(&digest);
             hasher.update(&from_point.get().to_le_bytes());
+            hasher.update(&paths.to_le_bytes());
             for p in &set {
                 for c in p
                     .position()
@@ -199,16 +222,25 @@ impl TilePriors {
 
     /// The rules every gathering's twins are made with.
     fn twin_rules(&self, quadratures: &Arc<QuadratureCache>) -> Result<CachedShading, CacheError> {
-        let mut rules = self.twin_rules.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(rules) = rules.as_ref() {
-            return Ok(rules.clone());
-        }
         let spec = CachedSpec {
             samples: Some(TWIN_DIRECTIONS),
             ..CachedSpec::default()
         };
-        let built = spec.resolve()?.shading(quadratures.clone())?;
-        *rules = Some(built.clone());
-        Ok(built)
+        rules_of(&self.twin_rules, spec, quadratures)
     }
+}
+
+/// The cached shading of `spec`, built into `slot` on first use.
+fn rules_of(
+    slot: &Mutex<Option<CachedShading>>,
+    spec: CachedSpec,
+    quadratures: &Arc<QuadratureCache>,
+) -> Result<CachedShading, CacheError> {
+    let mut rules = slot.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(rules) = rules.as_ref() {
+        return Ok(rules.clone());
+    }
+    let built = spec.resolve()?.shading(quadratures.clone())?;
+    *rules = Some(built.clone());
+    Ok(built)
 }

@@ -151,6 +151,7 @@ impl Setup {
         }
         let base = IrradianceOptions {
             samples: options.reference_samples,
+            light_samples: None,
             max_depth: options.max_depth,
             direct_only: false,
             method: options.decomposition,

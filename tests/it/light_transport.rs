@@ -112,6 +112,7 @@ fn assert_close(got: &IrradianceEstimate, expected: Rgb, rel: f64, what: &str) {
 fn options(samples: u32, max_depth: u32, method: IrradianceMethod) -> IrradianceOptions {
     IrradianceOptions {
         samples,
+        light_samples: None,
         max_depth: PathDepth::new(max_depth).unwrap(),
         direct_only: false,
         method,

@@ -75,6 +75,35 @@ async fn same_request_same_numbers_and_the_first_counts_its_calibration() {
     }
 }
 
+/// `light_samples` sets the split direct part's samples apart from the
+/// hemisphere's: with direct light only the answer is the light samples'
+/// alone, so 16 directions with 256 light samples answer as 256 directions,
+/// to the bit, for either fixed rule.
+#[tokio::test]
+async fn light_samples_set_the_direct_part_apart_from_the_directions() {
+    let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
+    let mut answers = Vec::new();
+    for estimator in [
+        json!({"method": "qmc", "samples": 256}),
+        json!({"method": "qmc", "samples": 16, "light_samples": 256}),
+        json!({"method": "bmc", "samples": 16, "light_samples": 256}),
+        json!({"method": "qmc", "samples": 16}),
+    ] {
+        let mut body = request([0.3, 0.2, 1.0], 0);
+        body["points"][0]["position"] = json!([0.2, -0.1, 0.0]);
+        body["estimator"] = estimator;
+        body["estimator"]["decomposition"] = json!("split");
+        body["estimator"]["calibrate"] = json!(false);
+        let response = app.post_json("/v1/scenes/tiny/irradiance", &body).await;
+        assert_eq!(response.status(), StatusCode::OK);
+        let answer: Value = response.json().await.unwrap();
+        answers.push((answer["irradiance"].clone(), answer["std_dev"].clone()));
+    }
+    assert_eq!(answers[0], answers[1]);
+    assert_eq!(answers[0], answers[2]);
+    assert_ne!(answers[0], answers[3]);
+}
+
 #[tokio::test]
 async fn bad_requests_get_their_status_code_and_field() {
     let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |config| {
@@ -109,6 +138,33 @@ async fn bad_requests_get_their_status_code_and_field() {
             StatusCode::UNPROCESSABLE_ENTITY,
             "invalid_field",
             Some("estimator.samples"),
+        ),
+        (
+            "light samples under the hemisphere decomposition",
+            with(&|b| b["estimator"]["light_samples"] = json!(8)),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("estimator.light_samples"),
+        ),
+        (
+            "zero light samples",
+            with(&|b| {
+                b["estimator"]["decomposition"] = json!("split");
+                b["estimator"]["light_samples"] = json!(0);
+            }),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_field",
+            Some("estimator.light_samples"),
+        ),
+        (
+            "too many light samples",
+            with(&|b| {
+                b["estimator"]["decomposition"] = json!("split");
+                b["estimator"]["light_samples"] = json!(65);
+            }),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "limit_exceeded",
+            Some("estimator.light_samples"),
         ),
         (
             "unknown method",

@@ -62,6 +62,7 @@ class _Points(_Chunking):
         method: str = "bmc",
         samples: int = 64,
         *,
+        light_samples: int | None = None,
         decomposition: str | None = None,
         prior: str | None = None,
         calibrate: bool | None = None,
@@ -78,7 +79,8 @@ class _Points(_Chunking):
         ``positions`` and ``normals`` are N×3 (a single normal applies to all
         points; normals need not be unit length). ``method`` is ``"mc"``,
         ``"qmc"`` or ``"bmc"`` with ``samples`` hemisphere samples per point;
-        ``decomposition`` (``"auto"``, ``"split"``, ``"hemisphere"``),
+        ``light_samples`` (default ``samples``) are the split direct part's
+        samples, a shadow ray each; ``decomposition`` (``"auto"``, ``"split"``, ``"hemisphere"``),
         ``prior`` (``"environment"``, ``"none"``), ``calibrate``,
         ``sample_set`` (a kind such as ``"fibonacci_cosine"`` or
         ``{"kind", "seed"}``) and ``kernel`` (``{"kind", "lengthscale",
@@ -93,7 +95,7 @@ class _Points(_Chunking):
         ``result.direct_records_points`` count them. ``target`` (an
         :class:`ErrorTarget` or a dict with ``relative_error``,
         ``confidence``, ``max_samples``) estimates each
-        point until its error bar meets it (``mc`` and ``qmc`` only).
+        point until its error bar meets it.
         ``max_depth`` is the longest path in segments (default: the scene's
         depth less the camera's segment, else the service's 16);
         ``seed`` defaults to the service's 1.
@@ -112,6 +114,8 @@ class _Points(_Chunking):
         if count == 0:
             raise ValueError("no points")
         estimator: dict[str, Any] = {"method": method, "samples": int(samples)}
+        if light_samples is not None:
+            estimator["light_samples"] = int(light_samples)
         if decomposition is not None:
             estimator["decomposition"] = decomposition
         if prior is not None:

@@ -48,8 +48,15 @@ pub struct EstimatorDoc {
     /// `mc`, `qmc` or `bmc`.
     #[schema(value_type = String, example = "bmc")]
     pub method: EstimatorMethod,
-    /// Hemisphere samples per point (and light samples in `split`), 1..=`limits.max_samples`.
+    /// Hemisphere samples per point, 1..=`limits.max_samples`.
     pub samples: u32,
+    /// Light samples per point for the direct part under the `split`
+    /// decomposition, 1..=`limits.max_samples` (default: `samples`). Each is
+    /// one shadow ray, where a hemisphere sample is a path, so where the
+    /// error is in the direct light (penumbrae, a sun) many more of them than
+    /// hemisphere samples are cheap. Refused with `"decomposition":
+    /// "hemisphere"`, which takes none; ignored where `auto` resolves to it.
+    pub light_samples: Option<u32>,
     /// `auto` (default: `hemisphere` for a scene lit only by a smooth
     /// environment, else `split`), `split` or `hemisphere`.
     #[serde(default)]
@@ -266,6 +273,19 @@ pub async fn irradiance(
         u64::from(request.estimator.samples),
         limits.max_samples as u64,
     )?;
+    if let Some(light_samples) = request.estimator.light_samples {
+        ApiError::check_count(
+            "estimator.light_samples",
+            u64::from(light_samples),
+            limits.max_samples as u64,
+        )?;
+        if request.estimator.decomposition == IrradianceMethod::Hemisphere {
+            return Err(ApiError::invalid(
+                "estimator.light_samples",
+                "the hemisphere decomposition takes no light samples",
+            ));
+        }
+    }
     let point_estimator = request.estimator.spec().resolve()?;
     let target = request
         .target
@@ -288,10 +308,16 @@ pub async fn irradiance(
         .transpose()?;
     // A target's batches run without the records prior (docs/math.md §10.6).
     let records_prior = target.is_none() && point_estimator.records_prior();
-    // One path per point and hemisphere sample (light samples are shadow
-    // rays), at most `max_samples` of them per point under a target.
-    let samples_per_point = target.map_or(request.estimator.samples, |t| t.max_samples);
-    limits.check_work(request.points.len() as u64 * u64::from(samples_per_point))?;
+    // One path per point and hemisphere sample, at most `max_samples` of
+    // them per point under a target; a light sample is a shadow ray, no
+    // more than a path, and every batch of a target draws them again.
+    let samples = u64::from(request.estimator.samples);
+    let paths = target.map_or(samples, |t| u64::from(t.max_samples));
+    let light = request
+        .estimator
+        .light_samples
+        .map_or(0, |l| u64::from(l) * paths.div_ceil(samples.max(1)));
+    limits.check_work(request.points.len() as u64 * paths.max(light))?;
     let points = request
         .points
         .iter()
@@ -305,6 +331,7 @@ pub async fn irradiance(
     // The sample count was checked with the estimator.
     let options = IrradianceOptions {
         samples: estimator.samples,
+        light_samples: estimator.light_samples,
         max_depth: request.max_depth.map_or_else(
             || Ok(PathDepth::for_points(scene.transport.scene())),
             PathDepth::new,
