@@ -121,7 +121,9 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 #   "decomposition": "auto" (default) integrates a scene lit only by a smooth environment
 #   (scenes/overcast.json) through the hemisphere, with the unoccluded environment as the
 #   prior mean of "bmc" ("prior": "environment" | "none"; docs/math.md §10.4), and
-#   light-samples suns and emitters otherwise. std_dev of every method is calibrated on
+#   light-samples suns and emitters otherwise ("light_samples": the split direct part's
+#   samples, a shadow ray each, default "samples"; many more of them than directions are
+#   cheap where the error is in the direct light). std_dev of every method is calibrated on
 #   the scene (§10.5; "mc" and "qmc", and "bmc" in split mode for its light samples, add a
 #   term for light all their samples missed; "calibrate": false gives the model's own variance).
 #   "qmc" takes "sample_set" (fibonacci_cosine | fibonacci); "bmc" also a kernel whose

@@ -294,7 +294,7 @@ mod tests {
     fn options(light_samples: u32, seed: u64) -> IrradianceOptions {
         IrradianceOptions {
             samples: light_samples,
-            light_samples: None,
+            light_samples: Some(light_samples),
             max_depth: crate::render::PathDepth::constant(3),
             direct_only: false,
             method: IrradianceMethod::Split,
