@@ -161,13 +161,7 @@ impl TilePriors {
         // A query of direct light only uses the records as places for twins,
         // and their values never: one path per direction is enough there.
         let (rules, paths) = if from_point.has_reflections() {
-            let spec = CachedSpec {
-                samples: Some(TWIN_DIRECTIONS),
-                paths_per_direction: Some(POINT_RECORD_PATHS),
-                ..CachedSpec::default()
-            };
-            let rules = rules_of(&self.point_record_rules, spec, quadratures)?;
-            (rules, POINT_RECORD_PATHS)
+            (self.point_record_rules(quadratures)?, POINT_RECORD_PATHS)
         } else {
             (self.twin_rules(quadratures)?, 1)
         };
@@ -227,6 +221,20 @@ impl TilePriors {
             ..CachedSpec::default()
         };
         rules_of(&self.twin_rules, spec, quadratures)
+    }
+
+    /// The rules of the records placed among the points of a query with
+    /// reflections: the twins' directions, [`POINT_RECORD_PATHS`] paths each.
+    fn point_record_rules(
+        &self,
+        quadratures: &Arc<QuadratureCache>,
+    ) -> Result<CachedShading, CacheError> {
+        let spec = CachedSpec {
+            samples: Some(TWIN_DIRECTIONS),
+            paths_per_direction: Some(POINT_RECORD_PATHS),
+            ..CachedSpec::default()
+        };
+        rules_of(&self.point_record_rules, spec, quadratures)
     }
 }
 
