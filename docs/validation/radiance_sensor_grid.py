@@ -1,13 +1,15 @@
 #!/usr/bin/env python3
-"""Radiance `rtrace -I` on issue 39's sensor grid of the Cornell box floor:
-the time each option set takes and the nrmse vs truth it reaches, against
-the same reference as `sensor_grid.py` (plain MC through the service, 8 ×
-4,096 paths per point, its own noise removed).
+"""Radiance `rtrace -I` on issue 39's sensor grids: the time each option
+set takes and the nrmse vs truth it reaches, against the same reference as
+`sensor_grid.py` (plain MC through the service, 8 × 4,096 paths per point,
+its own noise removed).
 
-The scene is `radiance_irradiance.py`'s conversion of Mitsuba's Cornell box
+The Cornell box is `radiance_irradiance.py`'s conversion of Mitsuba's
 (the geometry of `scenes/cornell-box.json`; that script's doc lists what
-differs). Each option set is one `rtrace -h -I` call on the whole grid,
-points lifted 1e-4 along the normal; `-n 2` where asked runs two processes
+differs); any other `--scene` is `scenes/<scene>.json` converted by
+`radiance_json_scene.py` (its doc lists what converts and how). Each
+option set is one `rtrace -h -I` call on the whole grid, points lifted
+1e-4 along the normal; `-n 2` where asked runs two processes
 that share the ambient file. The reference is fetched once from a running
 service and kept in `--reference-cache` (which `sensor_grid.py` reads too). Needs `pyradiance` and numpy (a
 throwaway venv, never a dependency of the project):
@@ -17,6 +19,10 @@ throwaway venv, never a dependency of the project):
     /tmp/radvenv/bin/python docs/validation/radiance_sensor_grid.py --scene cornell-box \\
         --y -1 --x -1 1 --z -1 1 --reference-cache /tmp/cornell-grid-ref.json \\
         --opts "-ab 8 -aa 0.1 -ad 1024 -as 512 -ar 128 -lr -10 -lw 1e-5"
+    /tmp/radvenv/bin/pip install OpenEXR    # for the overcast scene's map
+    /tmp/radvenv/bin/python docs/validation/radiance_sensor_grid.py --scene overcast \\
+        --y 0 --x -2.5 2.5 --z 2 4 --reference-cache /tmp/overcast-grid-ref.json \\
+        --opts "-ab 4 -aa 0.1 -ad 512 -as 128 -ar 64 -lr -10 -lw 1e-5"
 """
 
 import argparse
@@ -30,6 +36,7 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cornell_common import DEFAULT_REFERENCE, load_reference  # noqa: E402
 from radiance_irradiance import radiance_env, scene_rad  # noqa: E402
+from radiance_json_scene import scene_rad as json_scene_rad  # noqa: E402
 from sensor_grid import Reference, grid_arguments, grid_points  # noqa: E402
 
 
@@ -42,9 +49,14 @@ def main():
     ref = Reference.cached(args, pts)
     env, version = radiance_env()
     work = tempfile.mkdtemp(prefix="radiance-grid-")
-    rad, octree = os.path.join(work, "cornell.rad"), os.path.join(work, "cornell.oct")
+    rad, octree = os.path.join(work, "scene.rad"), os.path.join(work, "scene.oct")
+    if args.scene == "cornell-box":
+        text = scene_rad(load_reference(DEFAULT_REFERENCE))
+    else:
+        root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+        text = json_scene_rad(os.path.join(root, "scenes", f"{args.scene}.json"), work)
     with open(rad, "w") as f:
-        f.write(scene_rad(load_reference(DEFAULT_REFERENCE)))
+        f.write(text)
     with open(octree, "wb") as f:
         subprocess.run(["oconv", rad], stdout=f, check=True, env=env)
     lines = "".join(
