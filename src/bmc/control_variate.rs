@@ -10,9 +10,13 @@
 //! whose expectation over the fresh directions is `∫ f p` for every `X`
 //! and every kernel: the fixed set's bias, which no number of rotated
 //! batches of plain BMC removes, is gone, and independent batches average
-//! out. Its variance is the residual's over `M`, estimated without bias by
-//! the residuals' sample variance; where the GP fits `f`, it is far below
-//! `f`'s own.
+//! out. The fresh directions are stratified, one cosine-distributed point in
+//! each of `M` cells of equal cosine-weighted measure
+//! ([`SampleSetKind::StratifiedCosine`]), which keeps the mean unbiased and
+//! removes the residual's variation between cells. Its variance is at most
+//! the residual's over `M`, which the residuals' sample variance estimates;
+//! where the GP fits `f` it is far below `f`'s own, and the calibration on
+//! the scene (docs/math.md §10.5) scales what the stratification removes.
 
 use std::borrow::Cow;
 use std::sync::Arc;
@@ -30,8 +34,8 @@ use super::{Kernel, PriorMean};
 use crate::sphere::{SampleSet, SampleSetKind, SampleSetSpec};
 
 /// [`HemisphereEstimator`] of the module docs: the directions are the
-/// quadrature's set followed by `residual_samples` cosine-distributed fresh
-/// ones.
+/// quadrature's set followed by `residual_samples` fresh stratified
+/// cosine-distributed ones.
 #[derive(Clone, Debug)]
 pub struct BmcControlVariate {
     cached: Arc<CachedQuadrature>,
@@ -91,7 +95,7 @@ impl BmcControlVariate {
 impl HemisphereEstimator for BmcControlVariate {
     fn directions(&self, rng: &mut Pcg64) -> Cow<'_, [DVec3]> {
         let fresh = SampleSet::generate(SampleSetSpec {
-            kind: SampleSetKind::Cosine,
+            kind: SampleSetKind::StratifiedCosine,
             count: self.residual_samples,
             seed: rng.random(),
         })

@@ -90,7 +90,9 @@ impl SamplingPdf {
             SampleSetKind::Fibonacci | SampleSetKind::Uniform | SampleSetKind::Stratified => {
                 Self::Uniform
             }
-            SampleSetKind::FibonacciCosine | SampleSetKind::Cosine => Self::Cosine,
+            SampleSetKind::FibonacciCosine
+            | SampleSetKind::Cosine
+            | SampleSetKind::StratifiedCosine => Self::Cosine,
         }
     }
 

@@ -22,6 +22,9 @@ pub enum SetArg {
     Cosine,
     /// Jittered equal-area strata.
     Stratified,
+    /// Jittered strata of equal cosine-weighted measure.
+    #[value(alias = "stratified_cosine")]
+    StratifiedCosine,
 }
 
 impl From<SetArg> for SampleSetKind {
@@ -32,6 +35,7 @@ impl From<SetArg> for SampleSetKind {
             SetArg::Uniform => Self::Uniform,
             SetArg::Cosine => Self::Cosine,
             SetArg::Stratified => Self::Stratified,
+            SetArg::StratifiedCosine => Self::StratifiedCosine,
         }
     }
 }

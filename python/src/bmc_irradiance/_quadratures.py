@@ -32,8 +32,8 @@ class _Quadratures(_Resource):
         """BMC weights of one configuration (``POST /v1/quadratures``).
 
         ``samples`` directions of ``sample_set`` (``fibonacci``,
-        ``fibonacci_cosine``, ``uniform``, ``cosine``, ``stratified``; ``seed``
-        for the random kinds), a ``kernel`` (``squared_exponential``,
+        ``fibonacci_cosine``, ``uniform``, ``cosine``, ``stratified``,
+        ``stratified_cosine``; ``seed`` for the random kinds), a ``kernel`` (``squared_exponential``,
         ``matern32``, ``matern52``) with ``lengthscale`` (chordal distance),
         ``variance`` σ² (service default 1) and ``noise`` σ_n² (default 1e-8),
         the ``density`` (``lambert``, ``uniform``, or ``phong`` with
