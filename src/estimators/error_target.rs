@@ -17,12 +17,15 @@
 //! share the bias of their fixed rings of directions, hence the correction.
 
 use super::error::EstimatorError;
-use super::point_estimator::{Estimates, EstimatorCaches, PointEstimator};
+use super::integral_prior::PriorScales;
+use super::point_estimator::{
+    Estimates, EstimatorCaches, PointEstimator, PriorsCombined, combine_priors,
+};
 use crate::render::Cancel;
 use crate::render::QueryPoint;
 use crate::render::Rgb;
 use crate::render::Transport;
-use crate::render::{IrradianceEstimate, IrradianceOptions};
+use crate::render::{IndirectPart, IrradianceEstimate, IrradianceOptions};
 use crate::stats::two_sided_normal_quantile;
 
 /// What a caller asks of every point's estimate.
@@ -56,7 +59,7 @@ impl ErrorTarget {
             field: field.into(),
             message,
         };
-        let batch = estimator.batches()?.samples();
+        let batch = estimator.batches().samples();
         if !(self.relative_error > 0.0 && self.relative_error <= 1.0) {
             return Err(invalid(
                 "relative_error",
@@ -96,6 +99,68 @@ fn relative_half_width(z: f64, estimate: &IrradianceEstimate) -> f64 {
     }
 }
 
+/// What a point's batches add up to so far.
+#[derive(Clone, Copy, Debug, Default)]
+struct BatchSums {
+    batches: u32,
+    samples: u32,
+    rays: u64,
+    irradiance: Rgb,
+    variance: Rgb,
+    /// The indirect parts, and their variances (share × variance).
+    indirect: Option<(Rgb, Rgb)>,
+    /// Per channel, whether every batch may have missed light at the
+    /// scene's scale ([`IrradianceEstimate::unseen_light`]).
+    unseen_light: Option<[bool; 3]>,
+}
+
+impl BatchSums {
+    fn add(&mut self, e: &IrradianceEstimate, batch: u32) {
+        let variance = e.std_error * e.std_error;
+        self.batches += 1;
+        self.samples += batch;
+        self.rays += e.rays;
+        self.irradiance += e.irradiance;
+        self.variance += variance;
+        // A part every batch reports, or none.
+        self.indirect = match (self.batches, self.indirect, e.indirect) {
+            (1, _, Some(part)) => Some((part.irradiance, part.variance_share * variance)),
+            (_, Some((sum, part_variance)), Some(part)) => Some((
+                sum + part.irradiance,
+                part_variance + part.variance_share * variance,
+            )),
+            _ => None,
+        };
+        let seen = self.unseen_light.unwrap_or([true; 3]);
+        self.unseen_light = Some(std::array::from_fn(|c| seen[c] && e.unseen_light[c]));
+    }
+
+    /// The mean of the batches with the standard deviation of that mean
+    /// (their variances add, the batches being independent), and its
+    /// indirect part with that part's share of the variance.
+    fn mean(&self) -> IrradianceEstimate {
+        let inverse = 1.0 / f64::from(self.batches.max(1));
+        let share = |part: Rgb| {
+            Rgb::from_array(std::array::from_fn(|c| {
+                let (part, total) = (part.to_array()[c], self.variance.to_array()[c]);
+                if total > 0.0 { part / total } else { 0.0 }
+            }))
+        };
+        IrradianceEstimate {
+            irradiance: self.irradiance * inverse,
+            std_error: self.variance.map(f64::sqrt) * inverse,
+            rays: self.rays,
+            indirect: self.indirect.map(|(sum, variance)| IndirectPart {
+                irradiance: sum * inverse,
+                variance_share: share(variance),
+            }),
+            unseen_light: self.unseen_light.unwrap_or([false; 3]),
+            // The batches' bars are calibrated (moderated) already.
+            direct_strata: None,
+        }
+    }
+}
+
 /// Seed of batch `k` of a request with seed `seed`: the request's own for
 /// the first batch, so a target that one batch meets changes nothing.
 fn batch_seed(seed: u64, k: u64) -> u64 {
@@ -121,7 +186,7 @@ impl PointEstimator {
         cancel: &Cancel,
     ) -> Result<(Estimates, Vec<TargetedEstimate>), EstimatorError> {
         target.validate(self)?;
-        let estimator = self.batches()?;
+        let estimator = self.batches();
         let batch = estimator.samples();
         if points.is_empty() {
             return Err(EstimatorError::Invalid {
@@ -130,8 +195,16 @@ impl PointEstimator {
             });
         }
         let z = two_sided_normal_quantile(target.confidence);
-        let mut sums = vec![(Rgb::BLACK, Rgb::BLACK, 0u64, 0u32); points.len()];
+        // The priors, stated once for every point, are combined with the
+        // mean of its batches, never with a batch (docs/math.md §10.6).
+        let known = if self.has_priors(&caches) {
+            self.priors_at(&caches, points)
+        } else {
+            Vec::new()
+        };
+        let mut sums = vec![BatchSums::default(); points.len()];
         let mut results: Vec<Option<TargetedEstimate>> = vec![None; points.len()];
+        let mut combined = vec![PriorsCombined::default(); points.len()];
         let mut active: Vec<usize> = (0..points.len()).collect();
         let mut first = None;
         for k in 0.. {
@@ -147,31 +220,21 @@ impl PointEstimator {
                 estimator.estimate(transport, caches, &subset, &request, &|| {}, cancel)?;
             let mut still_active = Vec::new();
             for (&i, e) in active.iter().zip(&estimates.estimates) {
-                let (sum, variance_sum, rays, samples) = &mut sums[i];
-                *sum += e.irradiance;
-                *variance_sum += e.std_error * e.std_error;
-                *rays += e.rays;
-                *samples += batch;
-                let batches = f64::from(*samples / batch);
-                let mean = IrradianceEstimate {
-                    irradiance: *sum * (1.0 / batches),
-                    std_error: variance_sum.map(f64::sqrt) * (1.0 / batches),
-                    rays: *rays,
-                    indirect: None,
-                    unseen_light: std::array::from_fn(|c| {
-                        e.unseen_light[c]
-                            && results[i]
-                                .as_ref()
-                                .is_none_or(|r| r.estimate.unseen_light[c])
-                    }),
-                    // The batches' bars are calibrated (moderated) already.
-                    direct_strata: None,
-                };
+                sums[i].add(e, batch);
+                let mut mean = sums[i].mean();
+                if let Some(known) = known.get(i) {
+                    combined[i] = combine_priors(
+                        std::slice::from_mut(&mut mean),
+                        std::slice::from_ref(known),
+                        PriorScales::ONE,
+                    )[0];
+                }
                 let relative_error = relative_half_width(z, &mean);
                 let met = relative_error <= target.relative_error;
+                let samples = sums[i].samples;
                 results[i] = Some(TargetedEstimate {
                     estimate: mean,
-                    samples: *samples,
+                    samples,
                     relative_error,
                     met,
                 });
@@ -182,7 +245,10 @@ impl PointEstimator {
             first.get_or_insert(estimates);
             active = still_active;
         }
-        let first = first.expect("at least one point and one batch");
+        let mut first = first.expect("at least one point and one batch");
+        if !known.is_empty() {
+            first.priors_combined = combined;
+        }
         let results = results
             .into_iter()
             .map(|r| r.expect("every point estimated at least once"))

@@ -477,27 +477,16 @@ impl PointEstimator {
     }
 
     /// The estimator each batch of an error target runs (§10.6): the same
-    /// rule, without the records prior (every batch would count it again),
-    /// and `bmc` with the residual correction that makes its batches
-    /// unbiased. An explicit `"records_prior": true` is refused.
-    pub fn batches(&self) -> Result<PointEstimator, EstimatorError> {
-        if self.spec.records_prior == RecordsPriorMode::Set(true) {
-            return Err(EstimatorError::InvalidTarget {
-                field: String::new(),
-                message: "error targets average independent batches, and every batch would \
-                          count the same records prior again (docs/math.md §10.7): drop \
-                          `records_prior` or the target"
-                    .into(),
-            });
-        }
-        Ok(PointEstimator {
-            spec: EstimatorSpec {
-                records_prior: RecordsPriorMode::Set(false),
-                ..self.spec
-            },
+    /// rule without the records prior, which [`Self::estimate_to_target`]
+    /// combines once with the batches' mean instead (a prior in every batch
+    /// would be counted again with each), reporting its indirect part for
+    /// that; `bmc` with the residual correction that makes its batches
+    /// unbiased.
+    pub fn batches(&self) -> PointEstimator {
+        PointEstimator {
             corrected: matches!(self.rule, PointRule::Bmc(_)),
-            ..self.clone()
-        })
+            ..self.rule()
+        }
     }
 
     /// Whether the estimator leans on the records prior (§10.7): the spec
@@ -519,7 +508,7 @@ impl PointEstimator {
 
     /// Whether the estimator combines its rule with priors: it uses the
     /// records prior and the caches hold one (§10.7, §10.8).
-    fn has_priors(&self, caches: &EstimatorCaches) -> bool {
+    pub(super) fn has_priors(&self, caches: &EstimatorCaches) -> bool {
         self.records(caches).is_some() || self.direct(caches).is_some()
     }
 
@@ -559,7 +548,11 @@ impl PointEstimator {
 
     /// The priors at each point (the caches' direct-light records are made
     /// for the queries' decomposition, §10.8).
-    fn priors_at(&self, caches: &EstimatorCaches, points: &[QueryPoint]) -> Vec<KnownPriors> {
+    pub(super) fn priors_at(
+        &self,
+        caches: &EstimatorCaches,
+        points: &[QueryPoint],
+    ) -> Vec<KnownPriors> {
         let records = self.records(caches);
         let direct = self.direct(caches);
         points
@@ -636,7 +629,7 @@ impl PointEstimator {
 }
 
 /// The priors' means and variances at a point, where they cover it.
-struct KnownPriors {
+pub(super) struct KnownPriors {
     records: Option<PriorAt>,
     direct: Option<PriorAt>,
 }
@@ -672,7 +665,7 @@ fn rule_noise_carried(rule: Rgb, combined: Rgb) -> Rgb {
 /// their variances scaled by `scales`; which priors were combined with each.
 /// Each estimate counts the rays its priors traced at its point, combined
 /// or not.
-fn combine_priors(
+pub(super) fn combine_priors(
     estimates: &mut [IrradianceEstimate],
     known: &[KnownPriors],
     scales: PriorScales,

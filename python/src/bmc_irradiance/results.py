@@ -27,8 +27,9 @@ class ErrorTarget:
       service's ``limits.max_samples``).
 
     ``bmc`` batches are twice ``samples``: the set's directions and as many
-    fresh ones for an unbiased correction; with ``records_prior=True`` a
-    target is refused (422, field ``target``).
+    fresh ones for an unbiased correction. With the records prior (the
+    default for ``bmc``) the batches run without it and their mean is
+    combined with it once.
     """
 
     relative_error: float

@@ -306,8 +306,7 @@ pub async fn irradiance(
             Ok::<_, ApiError>(target)
         })
         .transpose()?;
-    // A target's batches run without the records prior (docs/math.md §10.6).
-    let records_prior = target.is_none() && point_estimator.records_prior();
+    let records_prior = point_estimator.records_prior();
     // One path per point and hemisphere sample, at most `max_samples` of
     // them per point under a target; a light sample is a shadow ray, no
     // more than a path, and every batch of a target draws them again.
