@@ -94,7 +94,9 @@ pub struct EstimatorDoc {
     /// depends on the records held when it is asked, and on nothing else:
     /// the same records give the same numbers on any replica. `prior_used`
     /// says, per point, what moved its estimate. Calibrated error bars are
-    /// fitted again each time the records double. `mc` refuses `true`.
+    /// fitted again each time the records double. Under a `target` the
+    /// batches run without it and their mean is combined with it once
+    /// (docs/math.md §10.6). `mc` refuses `true`.
     #[serde(default)]
     #[schema(value_type = Object, example = "auto")]
     pub records_prior: RecordsPriorMode,
