@@ -15,6 +15,9 @@
 //! correlated) and `z` the two-sided normal quantile of `confidence`; or
 //! when another batch would pass `max_samples`. Plain `bmc` batches would
 //! share the bias of their fixed rings of directions, hence the correction.
+//! With the records prior the batches run without it, and after each batch
+//! their mean (with its indirect part) is combined with the priors at the
+//! point once, the stopping rule then reading the posterior (§10.6).
 
 use super::error::EstimatorError;
 use super::integral_prior::PriorScales;

@@ -33,8 +33,9 @@ class _Quadratures(_Resource):
 
         ``samples`` directions of ``sample_set`` (``fibonacci``,
         ``fibonacci_cosine``, ``uniform``, ``cosine``, ``stratified``,
-        ``stratified_cosine``; ``seed`` for the random kinds), a ``kernel`` (``squared_exponential``,
-        ``matern32``, ``matern52``) with ``lengthscale`` (chordal distance),
+        ``stratified_cosine``; ``seed`` for the random kinds), a ``kernel``
+        (``squared_exponential``, ``matern32``, ``matern52``) with
+        ``lengthscale`` (chordal distance),
         ``variance`` σ² (service default 1) and ``noise`` σ_n² (default 1e-8),
         the ``density`` (``lambert``, ``uniform``, or ``phong`` with
         ``exponent`` and ``mirror_elevation`` in radians), ``prior_mean``
