@@ -20,7 +20,7 @@
 //! point once, the stopping rule then reading the posterior (§10.6).
 
 use super::error::EstimatorError;
-use super::integral_prior::PriorScales;
+use super::integral_prior::{PriorScales, share};
 use super::point_estimator::{
     Estimates, EstimatorCaches, PointEstimator, PriorsCombined, combine_priors,
 };
@@ -143,19 +143,13 @@ impl BatchSums {
     /// indirect part with that part's share of the variance.
     fn mean(&self) -> IrradianceEstimate {
         let inverse = 1.0 / f64::from(self.batches.max(1));
-        let share = |part: Rgb| {
-            Rgb::from_array(std::array::from_fn(|c| {
-                let (part, total) = (part.to_array()[c], self.variance.to_array()[c]);
-                if total > 0.0 { part / total } else { 0.0 }
-            }))
-        };
         IrradianceEstimate {
             irradiance: self.irradiance * inverse,
             std_error: self.variance.map(f64::sqrt) * inverse,
             rays: self.rays,
             indirect: self.indirect.map(|(sum, variance)| IndirectPart {
                 irradiance: sum * inverse,
-                variance_share: share(variance),
+                variance_share: share(variance, self.variance),
             }),
             unseen_light: self.unseen_light.unwrap_or([false; 3]),
             // The batches' bars are calibrated (moderated) already.
