@@ -9,16 +9,19 @@
 //! in that cell or one of its 26 neighbours, and a query visits 27 cells per
 //! occupied level. Records are stored by value in their cell.
 //!
-//! Cells are spread over [`SHARDS`] hash maps by a hash of the cell key, and
-//! each shard is an immutable snapshot behind an [`ArcSwap`] (read-copy-
-//! update). Readers never lock and never write to shared memory: loading a
-//! snapshot uses a per-thread slot, so two threads scanning the same cells
-//! do not bounce a lock's cache line between cores (with `RwLock`ed shards
-//! that was 29 % of a warm cached render, docs/BENCHMARKS.md). A writer
-//! copies one shard's map (cells are `Arc`ed, so that copies one pointer
-//! per cell) plus the one cell it changes, and publishes the copy; writers
-//! serialise on a mutex. Readers therefore never wait, and a query sees
-//! each cell as it was before or after any one write.
+//! Cells are spread over [`SHARDS`] hash maps by a hash of the cell key;
+//! the shards are immutable snapshots, and the array of them is published
+//! whole behind one [`ArcSwap`] (read-copy-update). Readers never lock and
+//! never write to shared memory: loading the snapshot uses a per-thread
+//! slot, so two threads scanning the same cells do not bounce a lock's
+//! cache line between cores (with `RwLock`ed shards that was 29 % of a warm
+//! cached render, docs/BENCHMARKS.md), and a query loads it once for all the
+//! cells it visits (one load per cell was 7 % of a cold preview render). A
+//! writer copies one shard's map (cells are `Arc`ed, so that copies one
+//! pointer per cell), the one cell it changes and the array of shard
+//! pointers, and publishes the copy; writers serialise on a mutex. Readers
+//! therefore never wait, and a query sees the index as it was before or
+//! after any one write.
 //!
 //! A cell keeps its records' validity spheres (centre and radius, 32 bytes)
 //! apart from the records themselves (about 250 bytes): a query tests every
@@ -77,7 +80,7 @@ type Shard = HashMap<CellKey, Arc<Cell>, foldhash::fast::FixedState>;
 pub struct SpatialIndex {
     finest: f64,
     levels: usize,
-    shards: Vec<ArcSwap<Shard>>,
+    shards: ArcSwap<Vec<Arc<Shard>>>,
     /// Held by every write (copy, change, publish) so none is lost.
     writer: Mutex<()>,
     /// Records per level, so queries skip empty levels.
@@ -92,9 +95,7 @@ impl SpatialIndex {
         Self {
             finest: min_radius,
             levels,
-            shards: (0..SHARDS)
-                .map(|_| ArcSwap::from_pointee(Shard::default()))
-                .collect(),
+            shards: ArcSwap::from_pointee(empty_shards()),
             writer: Mutex::new(()),
             occupancy: (0..levels).map(|_| AtomicUsize::new(0)).collect(),
         }
@@ -139,8 +140,9 @@ impl SpatialIndex {
         key: CellKey,
         change: impl FnOnce(&[(u64, Record)]) -> Option<Vec<(u64, Record)>>,
     ) {
-        let shard = &self.shards[self.shard(&key)];
-        let mut copy = Shard::clone(&shard.load());
+        let index = self.shard(&key);
+        let mut shards = Vec::clone(&self.shards.load());
+        let mut copy = Shard::clone(&shards[index]);
         let old = copy.get(&key).map_or(&[][..], |c| &c.records[..]);
         match change(old) {
             Some(cell) => {
@@ -150,7 +152,8 @@ impl SpatialIndex {
                 copy.remove(&key);
             }
         }
-        shard.store(Arc::new(copy));
+        shards[index] = Arc::new(copy);
+        self.shards.store(Arc::new(shards));
     }
 
     /// Store `record` under `id`; returns the cell it went to.
@@ -170,8 +173,7 @@ impl SpatialIndex {
     /// Remove record `id` from cell `key`; whether it was there.
     pub fn remove(&self, key: CellKey, id: u64) -> bool {
         let _writer = self.writer();
-        let present = self.shards[self.shard(&key)]
-            .load()
+        let present = self.shards.load()[self.shard(&key)]
             .get(&key)
             .is_some_and(|c| c.records.iter().any(|(rid, _)| *rid == id));
         if !present {
@@ -189,8 +191,7 @@ impl SpatialIndex {
     /// radius, so the same cell); whether it was there.
     pub fn replace(&self, key: CellKey, id: u64, record: Record) -> bool {
         let _writer = self.writer();
-        let present = self.shards[self.shard(&key)]
-            .load()
+        let present = self.shards.load()[self.shard(&key)]
             .get(&key)
             .is_some_and(|c| c.records.iter().any(|(rid, _)| *rid == id));
         if present {
@@ -206,8 +207,7 @@ impl SpatialIndex {
 
     /// Record `id` in cell `key`, if present.
     pub fn get(&self, key: CellKey, id: u64) -> Option<Record> {
-        self.shards[self.shard(&key)]
-            .load()
+        self.shards.load()[self.shard(&key)]
             .get(&key)?
             .records
             .iter()
@@ -218,6 +218,7 @@ impl SpatialIndex {
     /// Calls `f` for every record with `|x − x_k| < scale · R_k`
     /// (`0 < scale ≤ 1`; Ward's `w_k > 1/a` implies this with `scale = a`).
     pub fn for_each_near(&self, x: DVec3, scale: f64, mut f: impl FnMut(&Record)) {
+        let shards = self.shards.load();
         for level in 0..self.levels {
             if self.occupancy[level].load(Ordering::Relaxed) == 0 {
                 continue;
@@ -236,8 +237,7 @@ impl SpatialIndex {
                             level: lo.level,
                             cell: [cx, cy, cz],
                         };
-                        let shard = self.shards[self.shard(&key)].load();
-                        let Some(cell) = shard.get(&key) else {
+                        let Some(cell) = shards[self.shard(&key)].get(&key) else {
                             continue;
                         };
                         for (sphere, (_, r)) in cell.spheres.iter().zip(&cell.records[..]) {
@@ -255,13 +255,15 @@ impl SpatialIndex {
     /// Drop every record.
     pub fn clear(&self) {
         let _writer = self.writer();
-        for shard in &self.shards {
-            shard.store(Arc::default());
-        }
+        self.shards.store(Arc::new(empty_shards()));
         for level in &self.occupancy {
             level.store(0, Ordering::Relaxed);
         }
     }
+}
+
+fn empty_shards() -> Vec<Arc<Shard>> {
+    (0..SHARDS).map(|_| Arc::default()).collect()
 }
 
 /// `d.length() < reach`, decided without the square root unless `|d|²` is
