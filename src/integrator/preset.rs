@@ -103,7 +103,7 @@ impl Preset {
         let (spp, passes, max_depth, samples, paths, accuracy, min_pixels, light, glossy) =
             match self {
                 Preset::Draft => (2, 1, 64, 128, 1, 0.5, 12.0, 4, 8),
-                Preset::Preview => (8, 2, 64, 256, 1, 0.4, 8.0, 4, 16),
+                Preset::Preview => (8, 2, 64, 384, 1, 0.45, 10.0, 4, 16),
                 Preset::Interactive => (4, 5, 64, 256, 1, 0.3, 4.0, 4, 16),
                 Preset::Standard => (16, 4, 64, 512, 1, 0.3, 4.0, 4, 32),
                 Preset::Final => (16, 4, 64, 1024, 1, 0.25, 3.0, 4, 64),
