@@ -102,8 +102,8 @@ impl Preset {
         // samples, glossy BMC directions)
         let (spp, passes, max_depth, samples, paths, accuracy, min_pixels, light, glossy) =
             match self {
-                Preset::Draft => (2, 1, 64, 128, 1, 0.5, 12.0, 4, 8),
-                Preset::Preview => (8, 2, 64, 384, 1, 0.45, 10.0, 4, 16),
+                Preset::Draft => (2, 1, 8, 64, 1, 0.5, 12.0, 1, 8),
+                Preset::Preview => (4, 2, 16, 256, 2, 0.4, 8.0, 4, 16),
                 Preset::Interactive => (4, 5, 64, 256, 1, 0.3, 4.0, 4, 16),
                 Preset::Standard => (16, 4, 64, 512, 1, 0.3, 4.0, 4, 32),
                 Preset::Final => (16, 4, 64, 1024, 1, 0.25, 3.0, 4, 64),
@@ -113,19 +113,17 @@ impl Preset {
         // probe finds more than 0.2 records per pixel (the lego's bricks,
         // 0.23–0.5 per tile: 7.2 % → 4.4 % error over 8×8 blocks in half the
         // time; the Cornell boxes' tiles reach 0.15 and keep their records,
-        // as do all the studio's but one edge tile, at 0.25). The presets of
-        // 256 and 512 directions keep the same limit; the draft's 128-direction
+        // as do all the studio's but one edge tile, at 0.25). The standard
+        // and interactive presets' 512 and 256 directions keep the same limit; the cheaper presets'
         // records pay at any density seen so far.
-        let max_records_per_pixel = (self != Preset::Draft).then_some(0.2);
-        // Every preset's records stop at their rays' first hits and read the
-        // scene's secondary cache there (one light sample per direction,
-        // `paths_per_direction`): 2.2× less time × error² on the Cornell box
-        // than 4 paths per direction (docs/BENCHMARKS.md "The secondary
-        // cache"), and for the draft and preview presets half the error of
-        // their former 8- and 16-segment paths at the same time
-        // (docs/BENCHMARKS.md "Interactive budgets"). The depth of 64 is what
-        // lets them (`AMBIENT_MIN_DEPTH`), and leaves no visible truncation.
-        let secondary_cache = true;
+        let full_depth = matches!(self, Preset::Interactive | Preset::Standard | Preset::Final);
+        let max_records_per_pixel = full_depth.then_some(0.2);
+        // The final, standard and interactive presets' records stop at their rays' first
+        // hits and read the scene's secondary cache there (one light sample
+        // per direction, `paths_per_direction`): 2.2× less time × error² on
+        // the Cornell box than 4 paths per direction (docs/BENCHMARKS.md "The
+        // secondary cache").
+        let secondary_cache = full_depth;
         TileSettings {
             samples_per_pixel: spp,
             passes,

@@ -165,8 +165,12 @@ impl RecordsKey {
 }
 
 impl CachedSpec {
-    /// `self` with `base`'s knobs (a preset's) where `self` names none.
+    /// `self` with `base`'s knobs (a preset's) where `self` names none. The
+    /// secondary cache and ambient bounces are two ways for records' rays to
+    /// go on, and exclude each other: ambient bounces that `self` asks for
+    /// also turn off `base`'s secondary cache.
     pub fn over(self, base: CachedSpec) -> CachedSpec {
+        let ambient = self.ambient_bounces.is_some_and(|b| b > 0);
         CachedSpec {
             samples: self.samples.or(base.samples),
             glossy_samples: self.glossy_samples.or(base.glossy_samples),
@@ -174,7 +178,9 @@ impl CachedSpec {
             noise: self.noise.or(base.noise),
             paths_per_direction: self.paths_per_direction.or(base.paths_per_direction),
             ambient_bounces: self.ambient_bounces.or(base.ambient_bounces),
-            secondary_cache: self.secondary_cache.or(base.secondary_cache),
+            secondary_cache: self
+                .secondary_cache
+                .or(base.secondary_cache.filter(|_| !ambient)),
             accuracy: self.accuracy.or(base.accuracy),
             relative_error_target: self.relative_error_target.or(base.relative_error_target),
             occlusion_check: self.occlusion_check.or(base.occlusion_check),
@@ -479,5 +485,31 @@ mod tests {
             }),
             "accuracy"
         );
+    }
+
+    /// A request's ambient bounces over a preset whose records read the
+    /// secondary cache: the request's way wins and resolves; naming both
+    /// is still refused.
+    #[test]
+    fn asked_for_ambient_bounces_turn_off_a_presets_secondary_cache() {
+        let preset = CachedSpec {
+            secondary_cache: Some(true),
+            samples: Some(256),
+            ..CachedSpec::default()
+        };
+        let ambient = |bounces| CachedSpec {
+            ambient_bounces: Some(bounces),
+            ..CachedSpec::default()
+        };
+        let merged = ambient(2).over(preset);
+        assert_eq!(merged.secondary_cache, None);
+        assert_eq!(merged.samples, Some(256));
+        assert!(merged.resolve().is_ok());
+        assert_eq!(ambient(0).over(preset).secondary_cache, Some(true));
+        let both = CachedSpec {
+            secondary_cache: Some(true),
+            ..ambient(2)
+        };
+        assert!(both.over(preset).resolve().is_err());
     }
 }
