@@ -25,7 +25,10 @@ use crate::render::PathDepth;
 )]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
-    /// The fastest useful look: structure and lighting, visibly noisy.
+    /// The fastest useful look: structure and lighting, visibly noisy
+    /// (on the Cornell box cold on two cores: 13.8 % error in 0.22 s; its
+    /// four light samples per camera ray rather than one took 20 % to 13.8 %
+    /// for 0.02 s more; docs/BENCHMARKS.md "Interactive budgets").
     Draft,
     /// The default: an interactive first look that a person can judge
     /// (a few per cent error on the Cornell box), a whole 256² image cold
@@ -36,14 +39,15 @@ pub enum Preset {
     /// and secondary cache with half its record directions, in five passes
     /// of 4 camera rays, the later ones where the first left the widest
     /// error bars (on the Cornell box cold on two cores: 5.5 % after the
-    /// first pass at 1.2 s, 3.4 % after the third at 1.9 s, level with path
-    /// tracing and a denoiser given albedo and normal buffers at 2 s;
+    /// first pass at 0.8 s, 3.4 % after the third at 1.3 s, 3.2 % after the
+    /// fifth at 1.7 s, level with path tracing and a denoiser given albedo
+    /// and normal buffers at 2 s;
     /// docs/BENCHMARKS.md "Interactive budgets").
     Interactive,
     /// A clean image in a few seconds: the final preset's records at half
     /// the directions, in four passes of 16 camera rays (on the Cornell box
-    /// cold on two cores: 2.75 % error after the first pass at 2.7 s, 2.3 %
-    /// after the third at 4.6 s, below path tracing with a denoiser given
+    /// cold on two cores: 2.75 % error after the first pass at 1.8 s, 2.3 %
+    /// after the third at 3.1 s, below path tracing with a denoiser given
     /// albedo and normal buffers at each; docs/BENCHMARKS.md "Interactive
     /// budgets").
     Standard,
@@ -102,7 +106,7 @@ impl Preset {
         // samples, glossy BMC directions)
         let (spp, passes, max_depth, samples, paths, accuracy, min_pixels, light, glossy) =
             match self {
-                Preset::Draft => (2, 1, 8, 64, 1, 0.5, 12.0, 1, 8),
+                Preset::Draft => (2, 1, 8, 64, 1, 0.5, 12.0, 4, 8),
                 Preset::Preview => (4, 2, 16, 256, 2, 0.4, 8.0, 4, 16),
                 Preset::Interactive => (4, 5, 64, 256, 1, 0.3, 4.0, 4, 16),
                 Preset::Standard => (16, 4, 64, 512, 1, 0.3, 4.0, 4, 32),
