@@ -25,10 +25,12 @@ use crate::render::PathDepth;
 )]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
-    /// The fastest useful look: structure and lighting, visibly noisy
-    /// (on the Cornell box cold on two cores: 13.8 % error in 0.22 s; its
-    /// four light samples per camera ray rather than one took 20 % to 13.8 %
-    /// for 0.02 s more; docs/BENCHMARKS.md "Interactive budgets").
+    /// The fastest useful look: structure and lighting, visibly noisy (on
+    /// the Cornell box cold on two cores: 9.7 % error in 0.26 s, where its
+    /// former 8-segment paths and single light samples gave 20 % in 0.2 s;
+    /// docs/BENCHMARKS.md "Interactive budgets"). Its records hold paths as
+    /// deep as the other presets', so point queries of any usual depth can
+    /// read them (the records prior, docs/math.md §10.7).
     Draft,
     /// The default: an interactive first look that a person can judge
     /// (a few per cent error on the Cornell box), a whole 256² image cold
@@ -106,7 +108,7 @@ impl Preset {
         // samples, glossy BMC directions)
         let (spp, passes, max_depth, samples, paths, accuracy, min_pixels, light, glossy) =
             match self {
-                Preset::Draft => (2, 1, 8, 64, 1, 0.5, 12.0, 4, 8),
+                Preset::Draft => (2, 1, 64, 128, 1, 0.5, 12.0, 4, 8),
                 Preset::Preview => (4, 2, 16, 256, 2, 0.4, 8.0, 4, 16),
                 Preset::Interactive => (4, 5, 64, 256, 1, 0.3, 4.0, 4, 16),
                 Preset::Standard => (16, 4, 64, 512, 1, 0.3, 4.0, 4, 32),
@@ -122,12 +124,16 @@ impl Preset {
         // records pay at any density seen so far.
         let full_depth = matches!(self, Preset::Interactive | Preset::Standard | Preset::Final);
         let max_records_per_pixel = full_depth.then_some(0.2);
-        // The final, standard and interactive presets' records stop at their rays' first
-        // hits and read the scene's secondary cache there (one light sample
-        // per direction, `paths_per_direction`): 2.2× less time × error² on
-        // the Cornell box than 4 paths per direction (docs/BENCHMARKS.md "The
-        // secondary cache").
-        let secondary_cache = full_depth;
+        // Records stop at their rays' first hits and read the scene's
+        // secondary cache there (one light sample per direction,
+        // `paths_per_direction`): 2.2× less time × error² on the Cornell box
+        // than 4 paths per direction (docs/BENCHMARKS.md "The secondary
+        // cache"), and for the draft 9.7 % error where its 8-segment paths
+        // of 64 directions gave 13.8 % in nearly the same time. The preview
+        // keeps 16-segment paths: read through the secondary cache its
+        // records left the records prior of shallow point queries out of its
+        // calibration band (docs/BENCHMARKS.md "Interactive budgets").
+        let secondary_cache = self != Preset::Preview;
         TileSettings {
             samples_per_pixel: spp,
             passes,

@@ -681,13 +681,13 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     // No records yet: the plain estimator's numbers, and it says so.
     let before = irradiance(&app, with_records.clone()).await;
     assert_eq!(before["records_prior_points"], 0, "{before}");
-    let without = irradiance(&app, plain).await;
+    let without = irradiance(&app, plain.clone()).await;
     assert_eq!(before["irradiance"], without["irradiance"]);
     assert_eq!(before["std_dev"], without["std_dev"]);
     assert!(without.get("records_prior_points").is_none(), "{without}");
 
-    // A person looks at the image: the draft tiles (paths of 8 segments
-    // from the camera, so 7 from the records) leave records in the cache.
+    // A person looks at the image: the draft tiles (paths of 64 segments
+    // from the camera, so 63 from the records) leave records in the cache.
     for ty in 0..4 {
         for tx in 0..4 {
             let response = app
@@ -698,12 +698,21 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
             assert_eq!(response.status(), StatusCode::OK);
         }
     }
-    let after = irradiance(&app, with_records).await;
+    // At the scene's usual depth (the records' paths go on to 63 segments,
+    // where the rest is negligible and within their calibration).
+    let at_depth = |estimator: &Value, max_depth: u32| {
+        let mut body = request(estimator.clone());
+        body["max_depth"] = json!(max_depth);
+        body
+    };
+    let after = post_irradiance(&app, &at_depth(&with_records, 16)).await;
     assert_eq!(after["records_prior_points"], 2, "{after}");
     // Split mode light-samples the direct part, and so do the records'
     // twins (docs/math.md §10.8).
     assert_eq!(after["direct_records_points"], 2, "{after}");
-    let reference = irradiance(&app, json!({"method": "mc", "samples": 4096})).await;
+    let without = post_irradiance(&app, &at_depth(&plain, 16)).await;
+    let mc = json!({"method": "mc", "samples": 4096});
+    let reference = post_irradiance(&app, &at_depth(&mc, 16)).await;
     for point in 0..2 {
         let (e, s) = (
             luminance(&after, point, "irradiance"),
@@ -721,8 +730,7 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     }
 
     // Deeper paths than any record holds: no prior.
-    let mut deep = request(json!({"method": "bmc", "samples": 32, "records_prior": true}));
-    deep["max_depth"] = json!(8);
+    let deep = at_depth(&with_records, 65);
     let body = post_irradiance(&app, &deep).await;
     assert_eq!(body["records_prior_points"], 0, "{body}");
 
@@ -764,6 +772,7 @@ async fn the_records_prior_uses_records_that_rendered_tiles_left() {
     // A target with the prior: the batches' mean meets the records and
     // their twins once (docs/math.md §10.6), and the answer still covers
     // the reference.
+    let reference = irradiance(&app, mc).await;
     let mut targeted = request(json!({"method": "qmc", "samples": 32, "records_prior": true}));
     targeted["target"] = json!({"relative_error": 0.05});
     let body = post_irradiance(&app, &targeted).await;
