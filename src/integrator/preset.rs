@@ -26,7 +26,7 @@ use crate::render::PathDepth;
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// The fastest useful look: structure and lighting, visibly noisy (on
-    /// the Cornell box cold on two cores: 9.7 % error in 0.26 s, where its
+    /// the Cornell box cold on two cores: 9.7 % error in 0.25 s, where its
     /// former 8-segment paths and single light samples gave 20 % in 0.2 s;
     /// docs/BENCHMARKS.md "Interactive budgets"). Its records hold paths as
     /// deep as the other presets', so point queries of any usual depth can
@@ -130,9 +130,11 @@ impl Preset {
         // than 4 paths per direction (docs/BENCHMARKS.md "The secondary
         // cache"), and for the draft 9.7 % error where its 8-segment paths
         // of 64 directions gave 13.8 % in nearly the same time. The preview
-        // keeps 16-segment paths: read through the secondary cache its
-        // records left the records prior of shallow point queries out of its
-        // calibration band (docs/BENCHMARKS.md "Interactive budgets").
+        // keeps its 16-segment paths, two per direction: the variant tried
+        // (384 single-path directions through the secondary cache) left the
+        // records prior of a depth-2 calibration test, which such records
+        // serve by paths, out of its band (docs/BENCHMARKS.md "Interactive
+        // budgets").
         let secondary_cache = self != Preset::Preview;
         TileSettings {
             samples_per_pixel: spp,
