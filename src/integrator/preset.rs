@@ -32,9 +32,10 @@ pub enum Preset {
     /// deep as the other presets', so point queries of any usual depth can
     /// read them (the records prior, docs/math.md §10.7).
     Draft,
-    /// The default: an interactive first look that a person can judge
-    /// (a few per cent error on the Cornell box), a whole 256² image cold
-    /// in seconds on two cores.
+    /// The default: an interactive first look that a person can judge, a
+    /// whole 256² image cold in under a second on two cores (on the Cornell
+    /// box 5.6 % error after the first pass at 0.5 s, 4.1 % after the second
+    /// at 0.7 s; docs/BENCHMARKS.md "Interactive budgets").
     #[default]
     Preview,
     /// Clean enough to work with in about 2 s: the standard preset's depth
@@ -109,7 +110,7 @@ impl Preset {
         let (spp, passes, max_depth, samples, paths, accuracy, min_pixels, light, glossy) =
             match self {
                 Preset::Draft => (2, 1, 64, 128, 1, 0.5, 12.0, 4, 8),
-                Preset::Preview => (4, 2, 16, 256, 2, 0.4, 8.0, 4, 16),
+                Preset::Preview => (4, 2, 64, 256, 2, 0.4, 8.0, 4, 16),
                 Preset::Interactive => (4, 5, 64, 256, 1, 0.3, 4.0, 4, 16),
                 Preset::Standard => (16, 4, 64, 512, 1, 0.3, 4.0, 4, 32),
                 Preset::Final => (16, 4, 64, 1024, 1, 0.25, 3.0, 4, 64),
@@ -128,14 +129,16 @@ impl Preset {
         // secondary cache there (one light sample per direction,
         // `paths_per_direction`): 2.2× less time × error² on the Cornell box
         // than 4 paths per direction (docs/BENCHMARKS.md "The secondary
-        // cache"), and for the draft 9.7 % error where its 8-segment paths
-        // of 64 directions gave 13.8 % in nearly the same time. The preview
-        // keeps its 16-segment paths, two per direction: the variant tried
-        // (384 single-path directions through the secondary cache) left the
-        // records prior of a depth-2 calibration test, which such records
-        // serve by paths, out of its band (docs/BENCHMARKS.md "Interactive
-        // budgets").
-        let secondary_cache = self != Preset::Preview;
+        // cache"), for the draft 9.7 % error where its 8-segment paths of
+        // 64 directions gave 13.8 % in nearly the same time, and for the
+        // preview 5.6 % and 4.1 % after its passes at 0.5 s and 0.7 s, where
+        // its 16-segment paths gave 6.4 % and 5.1 % at 0.6 s and 0.8 s
+        // (docs/BENCHMARKS.md "Interactive budgets"). A scene or request
+        // depth too short for the cache (`AMBIENT_MIN_DEPTH`) gets paths as
+        // before: the preview keeps two per direction, as its records serve
+        // the records prior of such shallow queries (a variant with one path
+        // per direction left a depth-2 calibration test out of its band).
+        let secondary_cache = true;
         TileSettings {
             samples_per_pixel: spp,
             passes,
