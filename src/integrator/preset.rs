@@ -104,31 +104,31 @@ impl Preset {
     /// records' Monte Carlo noise, a smaller accuracy places more of them
     /// (docs/BENCHMARKS.md "Irradiance cache" for how each knob trades).
     pub fn settings(self) -> TileSettings {
-        // (spp per pass, passes, max_depth, record directions, paths per
-        // direction, accuracy, smallest record radius in pixels, light
-        // samples, glossy BMC directions)
-        let (spp, passes, max_depth, samples, paths, accuracy, min_pixels, light, glossy) =
-            match self {
-                Preset::Draft => (2, 1, 64, 128, 1, 0.5, 12.0, 4, 8),
-                Preset::Preview => (4, 2, 64, 256, 2, 0.4, 8.0, 4, 16),
-                Preset::Interactive => (4, 5, 64, 256, 1, 0.3, 4.0, 4, 16),
-                Preset::Standard => (16, 4, 64, 512, 1, 0.3, 4.0, 4, 32),
-                Preset::Final => (16, 4, 64, 1024, 1, 0.25, 3.0, 4, 64),
-            };
+        // (spp per pass, passes, record directions, paths per direction,
+        // accuracy, smallest record radius in pixels, light samples, glossy
+        // BMC directions)
+        let (spp, passes, samples, paths, accuracy, min_pixels, light, glossy) = match self {
+            Preset::Draft => (2, 1, 128, 1, 0.5, 12.0, 4, 8),
+            Preset::Preview => (4, 2, 256, 2, 0.4, 8.0, 4, 16),
+            Preset::Interactive => (4, 5, 256, 1, 0.3, 4.0, 4, 16),
+            Preset::Standard => (16, 4, 512, 1, 0.3, 4.0, 4, 32),
+            Preset::Final => (16, 4, 1024, 1, 0.25, 3.0, 4, 64),
+        };
         // At 1,024 directions a record pays for itself where it serves more
         // than a few pixels: the final preset path traces the tiles where its
         // probe finds more than 0.2 records per pixel (the lego's bricks,
         // 0.23–0.5 per tile: 7.2 % → 4.4 % error over 8×8 blocks in half the
         // time; the Cornell boxes' tiles reach 0.15 and keep their records,
         // as do all the studio's but one edge tile, at 0.25). The standard
-        // and interactive presets' 512 and 256 directions keep the same limit; the cheaper presets'
-        // records pay at any density seen so far.
-        let full_depth = matches!(self, Preset::Interactive | Preset::Standard | Preset::Final);
-        let max_records_per_pixel = full_depth.then_some(0.2);
-        // Records stop at their rays' first hits and read the scene's
-        // secondary cache there (one light sample per direction,
-        // `paths_per_direction`): 2.2× less time × error² on the Cornell box
-        // than 4 paths per direction (docs/BENCHMARKS.md "The secondary
+        // and interactive presets' 512 and 256 directions keep the same
+        // limit; the cheaper presets' records pay at any density seen so far.
+        let dense_limit = matches!(self, Preset::Interactive | Preset::Standard | Preset::Final);
+        let max_records_per_pixel = dense_limit.then_some(0.2);
+        // Every preset's paths may run 64 segments, which leaves no visible
+        // truncation and lets the records' rays stop at their first hits and
+        // read the scene's secondary cache there (one light sample per
+        // direction, `paths_per_direction`): 2.2× less time × error² on the
+        // Cornell box than 4 paths per direction (docs/BENCHMARKS.md "The secondary
         // cache"), for the draft 9.7 % error where its 8-segment paths of
         // 64 directions gave 13.8 % in nearly the same time, and for the
         // preview 5.6 % and 4.1 % after its passes at 0.5 s and 0.7 s, where
@@ -138,16 +138,15 @@ impl Preset {
         // before: the preview keeps two per direction, as its records serve
         // the records prior of such shallow queries (a variant with one path
         // per direction left a depth-2 calibration test out of its band).
-        let secondary_cache = true;
         TileSettings {
             samples_per_pixel: spp,
             passes,
-            max_depth: PathDepth::constant(max_depth),
+            max_depth: PathDepth::constant(64),
             integrator: IntegratorSpec::Cache(CachedSpec {
                 samples: Some(samples),
                 glossy_samples: Some(glossy),
                 paths_per_direction: Some(paths),
-                secondary_cache: Some(secondary_cache),
+                secondary_cache: Some(true),
                 accuracy: Some(accuracy),
                 light_samples: Some(light),
                 min_pixels: Some(min_pixels),
