@@ -34,18 +34,19 @@ pub enum Preset {
     Draft,
     /// The default: an interactive first look that a person can judge, a
     /// whole 256² image cold in under a second on two cores (on the Cornell
-    /// box 5.6 % error after the first pass at 0.5 s, 4.1 % after the second
-    /// at 0.7 s; docs/BENCHMARKS.md "Interactive budgets").
+    /// box 5.5 % error after the first pass at 0.5 s, 4.1 % after the second
+    /// at 0.7 s, 3.8 % after the third at 0.9 s; docs/BENCHMARKS.md
+    /// "Interactive budgets").
     #[default]
     Preview,
-    /// Clean enough to work with in about 2 s: the standard preset's depth
-    /// and secondary cache with half its record directions, in five passes
-    /// of 4 camera rays, the later ones where the first left the widest
-    /// error bars (on the Cornell box cold on two cores: 5.5 % after the
-    /// first pass at 0.8 s, 3.4 % after the third at 1.3 s, 3.2 % after the
-    /// fifth at 1.7 s, level with path tracing and a denoiser given albedo
-    /// and normal buffers at 2 s;
-    /// docs/BENCHMARKS.md "Interactive budgets").
+    /// Clean enough to work with in about 2 s: records of 384 directions,
+    /// each shaded with two light samples at its first hit, placed at the
+    /// standard preset's accuracy, in five passes of 4 camera rays, the
+    /// later ones where the first left the widest error bars (on the
+    /// Cornell box cold on two cores: 5.2 % after the first pass at 1.0 s,
+    /// 3.3 % after the second at 1.3 s, 2.7 % after the fifth at 1.9 s,
+    /// below path tracing and a denoiser given albedo and normal buffers at
+    /// 2 s; docs/BENCHMARKS.md "Interactive budgets").
     Interactive,
     /// A clean image in a few seconds: the final preset's records at half
     /// the directions, in four passes of 16 camera rays (on the Cornell box
@@ -109,8 +110,8 @@ impl Preset {
         // BMC directions)
         let (spp, passes, samples, paths, accuracy, min_pixels, light, glossy) = match self {
             Preset::Draft => (2, 1, 128, 1, 0.5, 12.0, 4, 8),
-            Preset::Preview => (4, 2, 256, 2, 0.4, 8.0, 4, 16),
-            Preset::Interactive => (4, 5, 256, 1, 0.3, 4.0, 4, 16),
+            Preset::Preview => (4, 3, 256, 2, 0.4, 8.0, 4, 16),
+            Preset::Interactive => (4, 5, 384, 2, 0.3, 4.0, 4, 16),
             Preset::Standard => (16, 4, 512, 1, 0.3, 4.0, 4, 32),
             Preset::Final => (16, 4, 1024, 1, 0.25, 3.0, 4, 64),
         };
@@ -131,13 +132,18 @@ impl Preset {
         // Cornell box than 4 paths per direction (docs/BENCHMARKS.md "The secondary
         // cache"), for the draft 9.7 % error where its 8-segment paths of
         // 64 directions gave 13.8 % in nearly the same time, and for the
-        // preview 5.6 % and 4.1 % after its passes at 0.5 s and 0.7 s, where
-        // its 16-segment paths gave 6.4 % and 5.1 % at 0.6 s and 0.8 s
+        // preview 5.6 % and 4.1 % after its first passes at 0.5 s and 0.7 s,
+        // where its 16-segment paths gave 6.4 % and 5.1 % at 0.6 s and 0.8 s
         // (docs/BENCHMARKS.md "Interactive budgets"). A scene or request
         // depth too short for the cache (`AMBIENT_MIN_DEPTH`) gets paths as
         // before: the preview keeps two per direction, as its records serve
         // the records prior of such shallow queries (a variant with one path
         // per direction left a depth-2 calibration test out of its band).
+        // The preview keeps 256 directions: 384 gave 3.6 % after its second
+        // pass at 0.8 s, but their records, as the final preset's already
+        // do, leave QMC combined with them and their twins at depth 2 on the
+        // overcast scene with bars too wide for that test (docs/BENCHMARKS.md
+        // "Interactive budgets", stop 63).
         TileSettings {
             samples_per_pixel: spp,
             passes,

@@ -357,8 +357,9 @@ fn the_viewer_climbs_the_pass_ladder_and_labels_each_step() {
     let ladder = tools.eval("window.viewer.state.ladder.map((s) => s.label)");
     let expected = json!([
         "draft (2 spp)",
-        "preview · pass 1 of 2 (4 spp)",
-        "preview · pass 2 of 2 (8 spp)"
+        "preview · pass 1 of 3 (4 spp)",
+        "preview · pass 2 of 3 (8 spp)",
+        "preview · pass 3 of 3 (12 spp)"
     ]);
     assert_eq!(ladder, expected);
     // Every step was shown on the whole image, in order, and the panel
@@ -366,11 +367,11 @@ fn the_viewer_climbs_the_pass_ladder_and_labels_each_step() {
     assert_eq!(tools.eval("window.viewer.state.shownLog"), expected);
     assert_eq!(
         tools.eval("document.getElementById('shown').textContent"),
-        json!("preview · pass 2 of 2 (8 spp)")
+        json!("preview · pass 3 of 3 (12 spp)")
     );
     // The image is the preset's final pass, as GET tiles serve it.
     let shown = mean_of(&tools.eval("window.viewer.layerStats('radiance')"));
-    let served = runtime.block_on(server_mean(&app, "radiance", "preview", 1, false));
+    let served = runtime.block_on(server_mean(&app, "radiance", "preview", 2, false));
     assert_means_agree(shown, served);
     tools.eval("1");
     assert!(tools.errors.is_empty(), "{:#?}", tools.errors);
