@@ -184,11 +184,11 @@ struct Training {
 }
 
 /// The scale of the light an estimate's samples may all have missed
-/// ([`ErrorCalibration::unseen`]): `level` where it may be missing at the
-/// scene's scale ([`IrradianceEstimate::unseen_light`]), else 0
-/// (docs/math.md §10.5).
-fn unseen_level(unseen_light: bool, level: f64) -> f64 {
-    if unseen_light { level } else { 0.0 }
+/// ([`ErrorCalibration::unseen`]): `level` times the weight of those samples
+/// in the estimate ([`IrradianceEstimate::unseen_light`]; docs/math.md
+/// §10.5).
+fn unseen_level(unseen_light: f64, level: f64) -> f64 {
+    unseen_light * level
 }
 
 /// `|value|`, but no less than [`FLOOR_MIN_LEVEL`] times `level`.
@@ -438,7 +438,7 @@ impl TrainingSet {
                     .map(f64::sqrt),
                 rays: old.rays + new.rays,
                 indirect: None,
-                unseen_light: std::array::from_fn(|c| old.unseen_light[c] && new.unseen_light[c]),
+                unseen_light: std::array::from_fn(|c| old.unseen_light[c].min(new.unseen_light[c])),
                 direct_strata: None,
             })
             .collect();
@@ -671,7 +671,7 @@ mod tests {
                     std_error: stratified.map(f64::sqrt),
                     rays: 0,
                     indirect: None,
-                    unseen_light: [false; 3],
+                    unseen_light: [0.0; 3],
                     direct_strata: Some(StrataVariance {
                         stratified,
                         independent: Rgb::splat(sd * sd / 0.4),
@@ -725,7 +725,7 @@ mod tests {
                 irradiance: Rgb::splat(2.0),
                 variance_share: Rgb::splat(0.75),
             }),
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: Some(StrataVariance {
                 stratified: Rgb::splat(1.0),
                 independent: Rgb::splat(4.0),
@@ -776,7 +776,7 @@ mod tests {
             std_error: Rgb::BLACK,
             rays: 0,
             indirect: None,
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: None,
         };
         fit.apply(&mut estimate);
@@ -810,7 +810,7 @@ mod tests {
             std_error: Rgb::BLACK,
             rays: 0,
             indirect: None,
-            unseen_light: [true; 3],
+            unseen_light: [1.0; 3],
             direct_strata: None,
         };
         fit.apply(&mut nothing);
@@ -822,7 +822,7 @@ mod tests {
         // model σ: its bar is the floor's.
         let mut some = IrradianceEstimate {
             irradiance: Rgb::WHITE,
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: None,
             ..nothing
         };

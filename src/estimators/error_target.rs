@@ -112,9 +112,11 @@ struct BatchSums {
     variance: Rgb,
     /// The indirect parts, and their variances (share × variance).
     indirect: Option<(Rgb, Rgb)>,
-    /// Per channel, whether every batch may have missed light at the
-    /// scene's scale ([`IrradianceEstimate::unseen_light`]).
-    unseen_light: Option<[bool; 3]>,
+    /// Per channel, the least weight of samples that may all have missed
+    /// light at the scene's scale over the batches
+    /// ([`IrradianceEstimate::unseen_light`]): a batch whose light samples
+    /// saw light shows the light is there.
+    unseen_light: Option<[f64; 3]>,
 }
 
 impl BatchSums {
@@ -134,8 +136,8 @@ impl BatchSums {
             )),
             _ => None,
         };
-        let seen = self.unseen_light.unwrap_or([true; 3]);
-        self.unseen_light = Some(std::array::from_fn(|c| seen[c] && e.unseen_light[c]));
+        let least = self.unseen_light.unwrap_or([1.0; 3]);
+        self.unseen_light = Some(std::array::from_fn(|c| least[c].min(e.unseen_light[c])));
     }
 
     /// The mean of the batches with the standard deviation of that mean
@@ -151,7 +153,7 @@ impl BatchSums {
                 irradiance: sum * inverse,
                 variance_share: share(variance, self.variance),
             }),
-            unseen_light: self.unseen_light.unwrap_or([false; 3]),
+            unseen_light: self.unseen_light.unwrap_or([0.0; 3]),
             // The batches' bars are calibrated (moderated) already.
             direct_strata: None,
         }

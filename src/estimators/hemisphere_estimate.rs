@@ -37,6 +37,7 @@ use crate::render::RenderError;
 use crate::render::Rgb;
 use crate::render::Transport;
 use crate::render::environment_prior::{EnvironmentPrior, PriorChoice};
+use crate::render::nothing_seen;
 use crate::render::seed::point_rng;
 use crate::render::{Decomposition, IndirectPart, IrradianceEstimate, IrradianceOptions};
 use crate::render::{PathLengths, PathLimits, TraceStats};
@@ -142,7 +143,7 @@ impl Transport {
         };
         let (mut irradiance, mut variance) = (Rgb::BLACK, Rgb::BLACK);
         let mut indirect = None;
-        let mut unseen_light = [true; 3];
+        let mut unseen_light = [1.0; 3];
         let mut direct_strata = None;
         if let Some(lengths) = lengths {
             let directions = estimator.directions(&mut rng);
@@ -237,7 +238,7 @@ impl Transport {
                 self.direct_irradiance(point, options.light_samples(), &mut rng, &mut stats);
             direct_strata = strata;
             irradiance += direct.mean;
-            unseen_light = direct.mean.to_array().map(|v| v == 0.0);
+            unseen_light = nothing_seen(direct.mean);
             let indirect_variance = variance;
             variance += direct.variance_of_mean;
             // The indirect part's share is its own variance over the

@@ -135,8 +135,11 @@ pub fn combine_part(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> boo
 /// one that reports none is taken to be of direct light only. The part is
 /// combined as in [`combine_part`], with the share of the variance that is
 /// not the indirect part's, and the indirect part keeps its own variance,
-/// now a share of the smaller total. Returns whether the prior was
-/// combined (`false`: in conflict, the estimate left as it was).
+/// now a share of the smaller total. Light the rule's samples may all have
+/// missed ([`IrradianceEstimate::unseen_light`]) is missing from the
+/// combination only with the rule's weight in the part, its posterior
+/// variance over the part's (docs/math.md §10.5, §10.8). Returns whether the
+/// prior was combined (`false`: in conflict, the estimate left as it was).
 pub fn combine_direct(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> bool {
     let (indirect, indirect_share) = match estimate.indirect {
         Some(part) => (part.irradiance, part.variance_share),
@@ -153,14 +156,19 @@ pub fn combine_direct(estimate: &mut IrradianceEstimate, prior: (Rgb, Rgb)) -> b
     if let Some(part) = estimate.indirect.as_mut() {
         part.variance_share = share(moved.rest, moved.total);
     }
+    if moved.combined {
+        let weight = share(moved.posterior_variance, moved.part_variance).to_array();
+        estimate.unseen_light = std::array::from_fn(|c| estimate.unseen_light[c] * weight[c]);
+    }
     moved.combined
 }
 
 /// What [`move_part`] did: whether it combined the prior at all, the
-/// part's posterior mean and variance, the rest of the estimate's variance
-/// and the new total variance, per channel.
+/// part's variance before, its posterior mean and variance, the rest of the
+/// estimate's variance and the new total variance, per channel.
 struct Moved {
     combined: bool,
+    part_variance: Rgb,
     posterior: Rgb,
     posterior_variance: Rgb,
     rest: Rgb,
@@ -200,6 +208,7 @@ fn move_part(
     if check_conflict && in_conflict(part, variance, prior) {
         return Moved {
             combined: false,
+            part_variance,
             posterior: part,
             posterior_variance: part_variance,
             rest,
@@ -212,6 +221,7 @@ fn move_part(
     estimate.std_error = total.map(f64::sqrt);
     Moved {
         combined: true,
+        part_variance,
         posterior,
         posterior_variance,
         rest,
@@ -256,7 +266,7 @@ mod tests {
             std_error: Rgb::splat(1.0),
             rays: 7,
             indirect: Some(IndirectPart::whole(Rgb::splat(2.0))),
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: None,
         };
         assert!(combine_part(
@@ -293,7 +303,7 @@ mod tests {
                 irradiance: Rgb::splat(2.0),
                 variance_share: Rgb::splat(0.25),
             }),
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: None,
         };
         combine_part(&mut estimate, (Rgb::splat(4.0), Rgb::splat(1.0)));
@@ -316,7 +326,7 @@ mod tests {
                 irradiance: Rgb::splat(2.0),
                 variance_share: Rgb::splat(0.25),
             }),
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: None,
         };
         combine_direct(&mut estimate, (Rgb::splat(5.0), Rgb::splat(3.0)));
@@ -333,12 +343,50 @@ mod tests {
             std_error: Rgb::splat(1.0),
             rays: 7,
             indirect: None,
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: None,
         };
         combine_direct(&mut direct_only, (Rgb::splat(3.0), Rgb::splat(1.0)));
         assert!((direct_only.irradiance.g - 2.0).abs() < 1e-12);
         assert!((direct_only.std_error.b - 0.5f64.sqrt()).abs() < 1e-15);
+    }
+
+    /// Light every direction of the rule missed is missing from a
+    /// combination only as far as the rule still weighs in its direct part
+    /// (docs/math.md §10.5); the records' prior on the indirect part leaves
+    /// the direct part, and the weight, to the rule.
+    #[test]
+    fn a_direct_prior_takes_over_the_light_the_rule_may_have_missed() {
+        let rule = IrradianceEstimate {
+            irradiance: Rgb::splat(5.0),
+            std_error: Rgb::splat(2.0),
+            rays: 64,
+            indirect: Some(IndirectPart {
+                irradiance: Rgb::splat(2.0),
+                variance_share: Rgb::splat(0.25),
+            }),
+            unseen_light: [1.0, 1.0, 0.0],
+            direct_strata: None,
+        };
+        // The direct part's variance is ¾ · 4 = 3; a prior with 1 weighs
+        // three times the rule there, which keeps a quarter.
+        let mut estimate = rule;
+        assert!(combine_direct(
+            &mut estimate,
+            (Rgb::splat(3.0), Rgb::splat(1.0))
+        ));
+        assert!((estimate.unseen_light[0] - 0.25).abs() < 1e-15);
+        assert_eq!(estimate.unseen_light[2], 0.0);
+        let mut estimate = rule;
+        assert!(combine_part(
+            &mut estimate,
+            (Rgb::splat(2.0), Rgb::splat(1.0))
+        ));
+        assert_eq!(estimate.unseen_light, rule.unseen_light);
+        // A prior without variance is not taken: the rule keeps it all.
+        let mut estimate = rule;
+        combine_direct(&mut estimate, (Rgb::splat(3.0), Rgb::BLACK));
+        assert_eq!(estimate.unseen_light, rule.unseen_light);
     }
 
     #[test]
@@ -361,7 +409,7 @@ mod tests {
             std_error: Rgb::splat(0.5),
             rays: 64,
             indirect: None,
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: None,
         };
         // The twin of a record in a shadow, confident: 1.0 ± 0.1.

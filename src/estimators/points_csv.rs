@@ -145,7 +145,7 @@ mod tests {
             std_error: Rgb::splat(0.25),
             rays: 10,
             indirect: None,
-            unseen_light: [false; 3],
+            unseen_light: [0.0; 3],
             direct_strata: None,
         }];
         let mut out = Vec::new();

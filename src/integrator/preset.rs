@@ -110,7 +110,7 @@ impl Preset {
         // BMC directions)
         let (spp, passes, samples, paths, accuracy, min_pixels, light, glossy) = match self {
             Preset::Draft => (2, 1, 128, 1, 0.5, 12.0, 4, 8),
-            Preset::Preview => (4, 3, 256, 2, 0.4, 8.0, 4, 16),
+            Preset::Preview => (4, 3, 384, 2, 0.4, 8.0, 4, 16),
             Preset::Interactive => (4, 5, 384, 2, 0.3, 4.0, 4, 16),
             Preset::Standard => (16, 4, 512, 1, 0.3, 4.0, 4, 32),
             Preset::Final => (16, 4, 1024, 1, 0.25, 3.0, 4, 64),
@@ -139,11 +139,10 @@ impl Preset {
         // before: the preview keeps two per direction, as its records serve
         // the records prior of such shallow queries (a variant with one path
         // per direction left a depth-2 calibration test out of its band).
-        // The preview keeps 256 directions: 384 gave 3.6 % after its second
-        // pass at 0.8 s, but their records, as the final preset's already
-        // do, leave QMC combined with them and their twins at depth 2 on the
-        // overcast scene with bars too wide for that test (docs/BENCHMARKS.md
-        // "Interactive budgets", stop 63).
+        // The preview's and the interactive preset's 384 directions (256
+        // before) took the Cornell box's preview from 4.1 % to 3.6 % after
+        // its second pass, at 0.8 s (docs/BENCHMARKS.md "Interactive
+        // budgets", stop 63).
         TileSettings {
             samples_per_pixel: spp,
             passes,

@@ -209,19 +209,27 @@ pub struct IrradianceEstimate {
     /// part a prior on the integral concerns (docs/math.md §10.7), where a
     /// hemisphere rule estimated it; `None` otherwise.
     pub indirect: Option<IndirectPart>,
-    /// Per channel, whether light that none of the samples saw may be
-    /// missing at the scene's scale, for which the calibration adds a term
-    /// (docs/math.md §10.5): always for directions drawn without regard to
-    /// the lights (a hemisphere rule's); for light samples (split mode) only
-    /// where none of them carried light, since they reach every light the
-    /// scene has, so that once one has seen light what they missed is a
-    /// share of the light they saw (an occluder or a gap), which the model
-    /// variance and the calibration's floor hold.
-    pub unseen_light: [bool; 3],
+    /// Per channel, in `[0, 1]`, the weight in the estimate of samples that
+    /// may all have missed light at the scene's scale, for which the
+    /// calibration adds a term in proportion (docs/math.md §10.5): 1 for
+    /// directions drawn without regard to the lights (a hemisphere rule's);
+    /// for light samples (split mode) 1 only where none of them carried
+    /// light, else 0, since they reach every light the scene has, so that
+    /// once one has seen light what they missed is a share of the light they
+    /// saw (an occluder or a gap), which the model variance and the
+    /// calibration's floor hold; less than 1 once a prior took over part of
+    /// the direct light (the rule's weight there, §10.8).
+    pub unseen_light: [f64; 3],
     /// Where the direct part is the mean of stratified light samples
     /// (split mode), its two variances; `std_error` holds the stratified
     /// one, which the calibration moderates (docs/math.md §10.5, §14).
     pub direct_strata: Option<StrataVariance>,
+}
+
+/// [`IrradianceEstimate::unseen_light`] of light samples whose mean is
+/// `direct`: 1 in the channels where none carried light, else 0.
+pub fn nothing_seen(direct: Rgb) -> [f64; 3] {
+    direct.to_array().map(|v| if v == 0.0 { 1.0 } else { 0.0 })
 }
 
 /// The indirect part of an [`IrradianceEstimate`] (docs/math.md §10.7).
@@ -499,8 +507,8 @@ impl Transport {
             rays: stats.rays,
             indirect: None,
             unseen_light: match decomposition {
-                Decomposition::Hemisphere => [true; 3],
-                Decomposition::Split => parts[0].mean.to_array().map(|v| v == 0.0),
+                Decomposition::Hemisphere => [1.0; 3],
+                Decomposition::Split => nothing_seen(parts[0].mean),
             },
             direct_strata,
         }

@@ -258,7 +258,7 @@ fn only_the_priors_combined_are_reported() {
             irradiance: Rgb::splat(1.0),
             variance_share: Rgb::splat(0.5),
         }),
-        unseen_light: [false; 3],
+        unseen_light: [0.0; 3],
         direct_strata: None,
     };
     let prior = |mean: f64| PriorAt {
