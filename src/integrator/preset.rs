@@ -33,18 +33,17 @@ pub enum Preset {
     /// read them (the records prior, docs/math.md §10.7).
     Draft,
     /// The default: an interactive first look that a person can judge, a
-    /// whole 256² image cold in under a second on two cores (on the Cornell
-    /// box 5.5 % error after the first pass at 0.5 s, 4.1 % after the second
-    /// at 0.7 s, 3.8 % after the third at 0.9 s; docs/BENCHMARKS.md
+    /// whole 256² image cold in about a second on two cores (on the Cornell
+    /// box 5.2 % error after the first pass at 0.6 s, 3.6 % after the second
+    /// at 0.8 s, 3.3 % after the third at 1.0 s; docs/BENCHMARKS.md
     /// "Interactive budgets").
     #[default]
     Preview,
-    /// Clean enough to work with in about 2 s: records of 384 directions,
-    /// each shaded with two light samples at its first hit, placed at the
-    /// standard preset's accuracy, in five passes of 4 camera rays, the
-    /// later ones where the first left the widest error bars (on the
-    /// Cornell box cold on two cores: 5.2 % after the first pass at 1.0 s,
-    /// 3.3 % after the second at 1.3 s, 2.7 % after the fifth at 1.9 s,
+    /// Clean enough to work with in about 2 s: the preview's records placed
+    /// at the standard preset's accuracy, in five passes of 4 camera rays,
+    /// the later ones where the first left the widest error bars (on the
+    /// Cornell box cold on two cores: 5.2 % after the first pass at 1.1 s,
+    /// 3.0 % after the third at 1.5 s, 2.7 % after the fifth at 1.9 s,
     /// below path tracing and a denoiser given albedo and normal buffers at
     /// 2 s; docs/BENCHMARKS.md "Interactive budgets").
     Interactive,
