@@ -120,28 +120,24 @@ impl Preset {
         // 0.23–0.5 per tile: 7.2 % → 4.4 % error over 8×8 blocks in half the
         // time; the Cornell boxes' tiles reach 0.15 and keep their records,
         // as do all the studio's but one edge tile, at 0.25). The standard
-        // and interactive presets' 512 and 256 directions keep the same
+        // and interactive presets' 512 and 384 directions keep the same
         // limit; the cheaper presets' records pay at any density seen so far.
         let dense_limit = matches!(self, Preset::Interactive | Preset::Standard | Preset::Final);
         let max_records_per_pixel = dense_limit.then_some(0.2);
         // Every preset's paths may run 64 segments, which leaves no visible
         // truncation and lets the records' rays stop at their first hits and
-        // read the scene's secondary cache there (one light sample per
-        // direction, `paths_per_direction`): 2.2× less time × error² on the
-        // Cornell box than 4 paths per direction (docs/BENCHMARKS.md "The secondary
+        // read the scene's secondary cache there (`paths_per_direction` light
+        // samples per direction): 2.2× less time × error² on the Cornell box
+        // than 4 paths per direction (docs/BENCHMARKS.md "The secondary
         // cache"), for the draft 9.7 % error where its 8-segment paths of
         // 64 directions gave 13.8 % in nearly the same time, and for the
-        // preview 5.6 % and 4.1 % after its first passes at 0.5 s and 0.7 s,
-        // where its 16-segment paths gave 6.4 % and 5.1 % at 0.6 s and 0.8 s
-        // (docs/BENCHMARKS.md "Interactive budgets"). A scene or request
-        // depth too short for the cache (`AMBIENT_MIN_DEPTH`) gets paths as
-        // before: the preview keeps two per direction, as its records serve
-        // the records prior of such shallow queries (a variant with one path
-        // per direction left a depth-2 calibration test out of its band).
-        // The preview's and the interactive preset's 384 directions (256
-        // before) took the Cornell box's preview from 4.1 % to 3.6 % after
-        // its second pass, at 0.8 s (docs/BENCHMARKS.md "Interactive
-        // budgets", stop 63).
+        // preview 3.6 % after its second pass at 0.8 s, where 256 directions
+        // of 16-segment paths gave 5.1 % (docs/BENCHMARKS.md "Interactive
+        // budgets", stops 62 and 63). A scene or request depth too short for
+        // the cache (`AMBIENT_MIN_DEPTH`) gets paths as before: the preview
+        // keeps two per direction, as its records serve the records prior of
+        // such shallow queries (a variant with one path per direction left a
+        // depth-2 calibration test out of its band).
         TileSettings {
             samples_per_pixel: spp,
             passes,
