@@ -18,6 +18,12 @@ one run.
   `--denoise`, each preset again on another cold server with `fetch
   --denoise` (the tiles' own denoiser, docs/math.md §16.6).
 
+  With `--oidn-ours`, each of the service's images is also handed to OIDN
+  (with the buffers when `--aux` is given), its time the fetches' plus the
+  denoiser's: whether the gap to path tracing + OIDN is the denoiser's or
+  lies in the images themselves. OIDN is a peer, not part of the service, so
+  these rows make a column of their own.
+
 At the end, for each budget (`--budgets`, seconds), the best image of each
 side whose time is within it.
 
@@ -109,6 +115,7 @@ def main():
     ap.add_argument("--budgets", type=float, nargs="*", default=[0.3, 1, 2, 5, 10])
     ap.add_argument("--aux", help="albedo and normal buffers (.npz of mitsuba_aux.py) for OIDN")
     ap.add_argument("--denoise", action="store_true", help="also each preset's denoised tiles (docs/math.md §16.6)")
+    ap.add_argument("--oidn-ours", action="store_true", help="also each of the service's images through OIDN")
     args = ap.parse_args()
     score = Scorer(args.reference, args.reference_noise)
     work = tempfile.mkdtemp(prefix="budgets-")
@@ -172,26 +179,38 @@ def main():
                 fetch = [args.bin, "fetch", "--url", url, "--scene", args.scene, "--preset", preset]
                 fetch += ["--denoise"] if denoised else []
                 wall += timed(fetch + ["--pass", str(k), "--out", out])
-                raw, truth = score(read_rgb(out))
+                image = read_rgb(out)
+                raw, truth = score(image)
                 what = f"`{preset}` pass {k + 1} of {passes}" + (", denoised" if denoised else "")
                 print(f"| service {what}, cold | {wall:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
                 rows.append(("the service", what, wall, truth))
+                if args.oidn_ours and not denoised:
+                    start = time.monotonic()
+                    if aux is None:
+                        clean = pyoidn.denoise(image, hdr=True)
+                    else:
+                        clean = pyoidn.denoise(image, aux["albedo"], aux["normal"], hdr=True, clean_aux=True)
+                    seconds = wall + time.monotonic() - start
+                    raw, truth = score(clean)
+                    print(f"| service {what} + OIDN | {seconds:.2f} | {raw:.4f} | {truth:.4f} |", flush=True)
+                    rows.append(("the service + OIDN", what, seconds, truth))
         finally:
             server.terminate()
             server.wait()
     print()
-    print("| budget | path tracing + OIDN | the service |")
-    print("|---|---|---|")
+    sides = ["path tracing + OIDN", "the service"] + (["the service + OIDN"] if args.oidn_ours else [])
+    print("| budget | " + " | ".join(sides) + " |")
+    print("|---" * (len(sides) + 1) + "|")
     for budget in args.budgets:
         best = []
-        for side in ("path tracing + OIDN", "the service"):
+        for side in sides:
             within = [r for r in rows if r[0] == side and r[2] <= budget]
             if within:
                 _, what, seconds, truth = min(within, key=lambda r: r[3])
                 best.append(f"{100 * truth:.2f} % ({what}, {seconds:.2f} s)")
             else:
                 best.append("–")
-        print(f"| {budget:g} s | {best[0]} | {best[1]} |", flush=True)
+        print(f"| {budget:g} s | " + " | ".join(best) + " |", flush=True)
 
 
 if __name__ == "__main__":
