@@ -100,6 +100,26 @@ pub fn environment_relative_variance(environment: &Environment) -> f64 {
     let Environment::Map(map) = environment else {
         return 0.0;
     };
+    let (mean, square) = map_luminance_moments(map);
+    if mean <= 0.0 {
+        return 0.0;
+    }
+    (square / (mean * mean) - 1.0).max(0.0)
+}
+
+/// The environment's mean luminance over the sphere (uniform solid-angle
+/// measure), W/(m²·sr): `π` times it is the irradiance a uniform sky of
+/// that radiance gives a surface.
+pub fn environment_mean_luminance(environment: &Environment) -> f64 {
+    match environment {
+        Environment::Constant { radiance } => Rgb::from_array(*radiance).luminance(),
+        Environment::Map(map) => map_luminance_moments(map).0,
+    }
+}
+
+/// The mean and mean square of the map's texel luminance over the sphere
+/// (uniform solid-angle measure); zeros for an empty map.
+fn map_luminance_moments(map: &EnvironmentMap) -> (f64, f64) {
     let (w, h) = (map.width(), map.height());
     let (mut total, mut mean, mut square) = (0.0, 0.0, 0.0);
     for y in 0..h {
@@ -112,11 +132,10 @@ pub fn environment_relative_variance(environment: &Environment) -> f64 {
             square += weight * lum * lum;
         }
     }
-    if total <= 0.0 || mean <= 0.0 {
-        return 0.0;
+    if total <= 0.0 {
+        return (0.0, 0.0);
     }
-    let (mean, square) = (mean / total, square / total);
-    (square / (mean * mean) - 1.0).max(0.0)
+    (mean / total, square / total)
 }
 
 /// Cell weights `lum · sin θ` (module docs) plus the floor, as a 2-D

@@ -425,7 +425,7 @@ impl Transport {
             stats.rays += 1;
             if local.z > 0.0 && scene.intersect(&scene.spawn_ray(x, n, dir)).is_none() {
                 let pdf = local.z / PI;
-                let weight = power_heuristic(pdf, self.lights().pdf_environment(scene, dir));
+                let weight = power_heuristic(pdf, self.lights().pdf_environment(scene, x, dir));
                 // L cos θ / p = π L for cosine-distributed directions.
                 add(
                     environment_radiance(scene, dir),

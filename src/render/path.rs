@@ -320,7 +320,7 @@ impl Transport {
     pub fn light_pdf_of(&self, origin: DVec3, traced: &FirstSegment, dir: DVec3) -> f64 {
         let scene = self.scene();
         match &traced.hit {
-            None => self.lights().pdf_environment(scene, dir),
+            None => self.lights().pdf_environment(scene, origin, dir),
             Some((hit, _)) => self.lights().pdf_area_hit(scene, origin, hit),
         }
     }
@@ -460,7 +460,7 @@ impl Transport {
             let Some(next) = scene.intersect(&ray) else {
                 let le = environment_radiance(scene, dir);
                 if !le.is_black() {
-                    let weight = mis(self.lights().pdf_environment(scene, dir));
+                    let weight = mis(self.lights().pdf_environment(scene, origin, dir));
                     radiance += beta * le * weight;
                 }
                 break;

@@ -411,6 +411,18 @@ impl Scene {
         self.shapes[shape].area
     }
 
+    /// Axis-aligned bounds of shape `shape`, (min, max).
+    pub fn shape_bounds(&self, shape: usize) -> (DVec3, DVec3) {
+        let s = &self.shapes[shape];
+        let b = match &s.geometry {
+            Geometry::Mesh { first, count, .. } => self.triangles[*first..first + count]
+                .iter()
+                .fold(bvh::Aabb::EMPTY, |b, t| b.union(t.bounds())),
+            _ => s.analytic_bounds(),
+        };
+        (b.min, b.max)
+    }
+
     /// Number of shapes (entries of the scene file's `shapes`).
     pub fn shape_count(&self) -> usize {
         self.shapes.len()

@@ -104,10 +104,11 @@ fn a_directional_light_gives_e_cos_and_casts_shadows() {
 }
 
 #[test]
-fn lights_are_chosen_by_power_and_each_stays_unbiased() {
-    // Two point lights of intensity 1 and 3: chosen with probabilities ¼
-    // and ¾, each sample carries its light over its probability, so the mean
-    // over many samples is the sum of both.
+fn lights_are_chosen_by_the_irradiance_they_bring_and_each_stays_unbiased() {
+    // Point lights of intensity 1 at height 1 and 3 at height 2: at the
+    // origin they bring 1 and ¾ (before the cosine), so they are chosen
+    // with probabilities 4/7 and 3/7; each sample carries its light over its
+    // probability, so the mean over many samples is the sum of both.
     let t = scene(
         r#"{"type": "point", "position": [0, 0, 1], "intensity": 1},
            {"type": "point", "position": [0, 0, 2], "intensity": 3}"#,
@@ -117,8 +118,88 @@ fn lights_are_chosen_by_power_and_each_stays_unbiased() {
     let got = direct(&t, DVec3::ZERO, 40_000).g;
     assert!((got - exact).abs() < 0.02 * exact, "{got} vs {exact}");
     let sampler = t.lights();
-    let s = sampler
-        .sample(t.scene(), DVec3::ZERO, 0.1, [0.5, 0.5])
+    let first = sampler
+        .sample(t.scene(), DVec3::ZERO, 0.5, [0.5, 0.5])
         .unwrap();
-    assert!(s.delta && (s.pdf - 0.25).abs() < 1e-12, "{s:?}");
+    assert!(
+        first.delta && (first.pdf - 4.0 / 7.0).abs() < 1e-12,
+        "{first:?}"
+    );
+    let second = sampler
+        .sample(t.scene(), DVec3::ZERO, 0.6, [0.5, 0.5])
+        .unwrap();
+    assert!((second.pdf - 3.0 / 7.0).abs() < 1e-12, "{second:?}");
+}
+
+#[test]
+fn a_spot_light_is_never_chosen_outside_its_cone() {
+    // A bright spot straight down over the origin (cutoff 20°) and a dim
+    // point light: outside the cone every sample goes to the point light;
+    // inside, the spot takes its share of what both bring.
+    let t = scene(
+        r#"{"type": "spot", "position": [0, 0, 1], "direction": [0, 0, -1], "intensity": 100,
+            "cutoff_angle": 20, "beam_width": 10},
+           {"type": "point", "position": [3, 0, 1], "intensity": 1}"#,
+        "",
+    );
+    let sampler = t.lights();
+    let outside = DVec3::new(3.0, 0.0, 0.0);
+    for u in [0.0, 0.3, 0.999] {
+        let s = sampler.sample(t.scene(), outside, u, [0.5, 0.5]).unwrap();
+        assert!((s.pdf - 1.0).abs() < 1e-12, "{u}: {s:?}");
+        assert!((s.wi - DVec3::Z).length() < 1e-12, "{u}: {s:?}");
+    }
+    let spot = sampler
+        .sample(t.scene(), DVec3::ZERO, 0.0, [0.5, 0.5])
+        .unwrap();
+    let share = 100.0 / (100.0 + 1.0 / 10.0);
+    assert!((spot.pdf - share).abs() < 1e-12, "{spot:?}");
+    let exact = 100.0 + 1.0 / 10.0 * (1.0 / 10f64.sqrt());
+    let got = direct(&t, DVec3::ZERO, 20_000).g;
+    assert!((got - exact).abs() < 1e-3 * exact, "{got} vs {exact}");
+}
+
+#[test]
+fn light_samples_report_the_densities_that_the_pdfs_of_what_a_ray_finds_give() {
+    // An emitting square above the floor and a constant sky: at two points
+    // (under the square and far from it), a sample of either kind has the
+    // density that MIS later computes for the same direction from what a
+    // ray there finds.
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = r#"{"materials": [{"id": "m", "type": "diffuse", "reflectance": 0.5}],
+        "shapes": [{"type": "rectangle", "material": "m", "to_world": {"scale": [20, 20, 1]}},
+                   {"type": "rectangle", "material": "m", "flip_normals": true,
+                    "to_world": [{"scale": [0.5, 0.5, 1]}, {"translate": [0, 0, 2]}],
+                    "emitter": {"type": "area", "radiance": 10}}],
+        "environment": {"type": "constant", "radiance": [0.2, 0.2, 0.2]},
+        "camera": {"type": "perspective", "fov": 40, "width": 4, "height": 4,
+                   "to_world": {"look_at": {"origin": [0, -5, 3], "target": [0, 0, 0], "up": [0, 0, 1]}}}}"#;
+    let scene = Scene::from_json_str(text, dir, dir).unwrap_or_else(|e| panic!("{e}"));
+    let t = Transport::new(Arc::new(scene));
+    let sampler = t.lights();
+    let mut rng = Pcg64::seed_from_u64(3);
+    use rand::RngExt;
+    for x in [DVec3::new(0.1, 0.2, 0.0), DVec3::new(6.0, -4.0, 0.0)] {
+        let (mut area, mut sky) = (0, 0);
+        for _ in 0..400 {
+            let Some(s) = sampler.sample(t.scene(), x, rng.random(), [rng.random(), rng.random()])
+            else {
+                continue;
+            };
+            let ray = t.scene().spawn_ray(x, DVec3::Z, s.wi);
+            let pdf = match t.scene().intersect(&ray) {
+                Some(hit) if s.target.is_some() => {
+                    area += 1;
+                    sampler.pdf_area_hit(t.scene(), x, &hit)
+                }
+                Some(_) => continue,
+                None => {
+                    sky += 1;
+                    sampler.pdf_environment(t.scene(), x, s.wi)
+                }
+            };
+            assert!((pdf - s.pdf).abs() <= 1e-6 * s.pdf, "{x}: {pdf} vs {s:?}");
+        }
+        assert!(area > 0 && sky > 0, "{x}: {area} area, {sky} sky samples");
+    }
 }
