@@ -16,11 +16,17 @@
 //!   `D_ω(m) = G1(ω, m) max(0, ω·m) D(m) / ω_z`, itself normalised (Heitz
 //!   2014, eq. 38).
 //!
-//! Sampling: GGX samples its visible normals exactly (Heitz 2018,
-//! "Sampling the GGX distribution of visible normals"), the best strategy
-//! for a specular microfacet BSDF since no sample falls on a facet the
-//! viewer cannot see; Beckmann samples `D(m) cos θ_m` (Walter et al. 2007,
-//! eqs. 28–29), whose density [`Microfacet::pdf`] reports accordingly.
+//! Sampling: both distributions sample their visible normals `D_ω(m)`
+//! exactly, the best strategy for a specular microfacet BSDF since no
+//! sample falls on a facet the viewer cannot see (as Mitsuba 3 does by
+//! default): GGX by Heitz 2018 ("Sampling the GGX distribution of visible
+//! normals"), Beckmann by the slopes of Heitz & d'Eon 2014 ("Importance
+//! sampling microfacet-based BSDFs using the distribution of visible
+//! normals", §4 and appendix), the visible slope along the view inverted
+//! from its CDF and the one across it Gaussian. Beckmann used to sample
+//! `D(m) cos θ_m` (Walter et al. 2007, eqs. 28–29): on rough Beckmann
+//! copper and glass seen at grazing angles its weights `f cos θ / p` spread
+//! far more (docs/math.md §18.1).
 
 use std::f64::consts::{FRAC_1_PI, PI, TAU};
 
@@ -132,18 +138,12 @@ impl Microfacet {
     }
 
     /// Density of the normal [`Self::sample`] draws for a viewer at `w`
-    /// (`w_z > 0`), sr⁻¹: GGX the visible normals `D_w(m)`, Beckmann
-    /// `D(m) cos θ_m`.
+    /// (`w_z > 0`), sr⁻¹: the visible normals' `D_w(m)` (module docs).
     pub fn pdf(&self, w: DVec3, m: DVec3) -> f64 {
-        match self.kind {
-            MicrofacetKind::Ggx => {
-                if w.z <= 0.0 {
-                    return 0.0;
-                }
-                self.g1(w, m) * w.dot(m).max(0.0) * self.d(m) / w.z
-            }
-            MicrofacetKind::Beckmann => self.d(m) * m.z.max(0.0),
+        if w.z <= 0.0 {
+            return 0.0;
         }
+        self.g1(w, m) * w.dot(m).max(0.0) * self.d(m) / w.z
     }
 
     /// A microfacet normal for a viewer at `w` (`w_z > 0`) from two uniform
@@ -151,7 +151,7 @@ impl Microfacet {
     pub fn sample(&self, w: DVec3, u: [f64; 2]) -> NormalSample {
         let m = match self.kind {
             MicrofacetKind::Ggx => self.sample_ggx_visible(w, u),
-            MicrofacetKind::Beckmann => self.sample_beckmann(u),
+            MicrofacetKind::Beckmann => self.sample_beckmann_visible(w, u),
         };
         NormalSample {
             m,
@@ -180,26 +180,115 @@ impl Microfacet {
         DVec3::new(ax * nh.x, ay * nh.y, nh.z.max(1e-12)).normalize()
     }
 
-    /// Walter et al. 2007, eqs. 28–29, with the anisotropic azimuth of
-    /// pbrt-v3's Beckmann sampling: `tan²θ = −α(φ)² ln(1 − u₀)`.
-    fn sample_beckmann(&self, u: [f64; 2]) -> DVec3 {
+    /// Heitz & d'Eon 2014: stretch the view to unit roughness, draw the
+    /// visible slopes there (the one along the view's azimuth from its CDF,
+    /// the one across it from the Gaussian it is), rotate them back to the
+    /// view's azimuth and unstretch them.
+    fn sample_beckmann_visible(&self, w: DVec3, u: [f64; 2]) -> DVec3 {
         let (ax, ay) = (self.alpha_u, self.alpha_v);
-        let phi = if ax == ay {
-            TAU * u[1]
+        let v = DVec3::new(ax * w.x, ay * w.y, w.z).normalize();
+        let sin_theta = (v.x * v.x + v.y * v.y).sqrt();
+        // Slopes of the unit Beckmann distribution are independent normals
+        // of variance ½; seen at an angle, the one along the view is skewed.
+        let across = inverse_erf(2.0 * u[1] - 1.0);
+        let (along, cos_phi, sin_phi) = if sin_theta < 1e-12 {
+            (inverse_erf(2.0 * u[0] - 1.0), 1.0, 0.0)
         } else {
-            let mut phi = (ay / ax * (TAU * u[1] + 0.5 * PI).tan()).atan();
-            if u[1] > 0.5 {
-                phi += PI;
-            }
-            phi
+            (
+                beckmann_visible_slope(v.z / sin_theta, u[0]),
+                v.x / sin_theta,
+                v.y / sin_theta,
+            )
         };
-        let (sin_phi, cos_phi) = phi.sin_cos();
-        let alpha2 = 1.0 / (cos_phi * cos_phi / (ax * ax) + sin_phi * sin_phi / (ay * ay));
-        let tan2 = -alpha2 * (1.0 - u[0]).ln();
-        let cos_theta = 1.0 / (1.0 + tan2).sqrt();
-        let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        DVec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
+        let sx = ax * (cos_phi * along - sin_phi * across);
+        let sy = ay * (sin_phi * along + cos_phi * across);
+        DVec3::new(-sx, -sy, 1.0).normalize()
     }
+}
+
+/// The slope `x` along the view of a visible normal of the unit Beckmann
+/// distribution seen at `cot θ = mu` (≥ 0), for `u ∈ [0, 1)`: the
+/// density of `x` is `∝ (mu − x) e^(−x²)` for `x < mu` (the projected
+/// area of the facet towards the view, Heitz & d'Eon 2014, eq. 13), its
+/// integral from −∞ `A(x) = mu (√π/2) erfc(−x) + e^(−x²)/2`; `A(x) = u A(mu)`
+/// is solved by Newton's method kept inside a shrinking bracket.
+fn beckmann_visible_slope(mu: f64, u: f64) -> f64 {
+    let half_sqrt_pi = 0.5 * PI.sqrt();
+    let a = |x: f64| mu * half_sqrt_pi * libm::erfc(-x) + 0.5 * (-x * x).exp();
+    let total = a(mu);
+    let target = u * total;
+    // Below −6 the mass left is under 1e-16 of any total.
+    let (mut lo, mut hi) = (-6.0, mu);
+    let mut x = (mu - 1.0).min(0.0).max(lo);
+    for _ in 0..100 {
+        let g = a(x) - target;
+        if g.abs() <= 1e-15 * total {
+            break;
+        }
+        if g > 0.0 {
+            hi = x;
+        } else {
+            lo = x;
+        }
+        let newton = x - g / ((mu - x) * (-x * x).exp());
+        let next = if newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if next == x || hi - lo <= 1e-15 * (1.0 + x.abs()) {
+            break;
+        }
+        x = next;
+    }
+    x
+}
+
+/// `erf⁻¹(p)` for `p ∈ (−1, 1)` (clamped just inside): Giles' (2010)
+/// single-precision approximation refined by two Newton steps on
+/// `libm::erf`.
+fn inverse_erf(p: f64) -> f64 {
+    let p = p.clamp(-1.0 + 1e-15, 1.0 - 1e-15);
+    let w = -((1.0 - p) * (1.0 + p)).ln();
+    let mut x = if w < 5.0 {
+        let w = w - 2.5;
+        let mut q = 2.810_226_36e-08;
+        for c in [
+            3.432_739_39e-07,
+            -3.523_387_7e-06,
+            -4.391_506_54e-06,
+            0.000_218_580_87,
+            -0.001_253_725_03,
+            -0.004_177_681_64,
+            0.246_640_727,
+            1.501_409_41,
+        ] {
+            q = c + q * w;
+        }
+        q * p
+    } else {
+        let w = w.sqrt() - 3.0;
+        let mut q = -0.000_200_214_257;
+        for c in [
+            0.000_100_950_558,
+            0.001_349_343_22,
+            -0.003_673_428_44,
+            0.005_739_507_73,
+            -0.007_622_461_3,
+            0.009_438_870_47,
+            1.001_674_06,
+            2.832_976_82,
+        ] {
+            q = c + q * w;
+        }
+        q * p
+    };
+    let two_over_sqrt_pi = 2.0 / PI.sqrt();
+    for _ in 0..2 {
+        let e = libm::erf(x) - p;
+        x -= e / (two_over_sqrt_pi * (-x * x).exp());
+    }
+    x
 }
 
 #[cfg(test)]

@@ -150,3 +150,29 @@ fn sampled_normals_follow_the_reported_density() {
         }
     }
 }
+
+#[test]
+fn the_inverse_error_function_inverts_erf_into_the_tails() {
+    for p in [-0.999_999_9, -0.9, -0.3, 0.0, 1e-9, 0.5, 0.99, 0.999_999] {
+        let x = inverse_erf(p);
+        assert!(
+            (libm::erf(x) - p).abs() < 1e-14,
+            "{p}: erf({x}) = {}",
+            libm::erf(x)
+        );
+    }
+}
+
+#[test]
+fn beckmann_visible_slopes_invert_their_cdf() {
+    // A(x) = mu (√π/2) erfc(−x) + e^(−x²)/2 is the integral of the density
+    // (mu − x) e^(−x²) from −∞, so A(x(u)) = u A(mu) at every u and view.
+    for mu in [0.0, 0.05, 0.7, 3.0, 40.0] {
+        let a = |x: f64| mu * 0.5 * PI.sqrt() * libm::erfc(-x) + 0.5 * (-x * x).exp();
+        for u in [1e-6, 0.1, 0.5, 0.9, 0.999_999] {
+            let x = beckmann_visible_slope(mu, u);
+            assert!(x <= mu, "{mu} {u}: {x}");
+            assert!((a(x) - u * a(mu)).abs() < 1e-10 * a(mu), "{mu} {u}: {x}");
+        }
+    }
+}
