@@ -8,7 +8,8 @@ in absolute terms) and the ratio of the means (a bias check at the noise's
 scale), with the wall time of each render. "The bundled studio scene" in
 docs/BENCHMARKS.md.
 
-Run in a throwaway venv (`pip install mitsuba numpy OpenEXR`):
+Run in a throwaway venv (`pip install mitsuba numpy OpenEXR`), from any
+directory (the script's own is on Python's path):
 
     cargo build --release
     python docs/validation/variance_vs_mitsuba.py scenes/studio.xml 32
@@ -22,17 +23,8 @@ import tempfile
 import time
 
 import numpy as np
-import OpenEXR
 
-
-def read_rgb(path):
-    with OpenEXR.File(path) as f:
-        channels = f.channels()
-        if "RGB" in channels:
-            rgb = channels["RGB"].pixels
-        else:
-            rgb = np.stack([channels[c].pixels for c in ("R", "G", "B")], axis=-1)
-    return np.asarray(rgb, dtype=np.float64)
+from interactive_budgets import read_rgb
 
 
 def noise(a, b):
@@ -60,7 +52,7 @@ def main():
             check=True,
             capture_output=True,
         )
-        renders["mitsuba"].append((read_rgb(out), time.monotonic() - start))
+        renders["mitsuba"].append((read_rgb(out).astype(np.float64), time.monotonic() - start))
         out = os.path.join(work, f"ours{seed}.exr")
         start = time.monotonic()
         subprocess.run(
@@ -68,7 +60,7 @@ def main():
             check=True,
             capture_output=True,
         )
-        renders["ours"].append((read_rgb(out), time.monotonic() - start))
+        renders["ours"].append((read_rgb(out).astype(np.float64), time.monotonic() - start))
     figures = {}
     for name, ((a, ta), (b, tb)) in renders.items():
         rel, mean = noise(a, b)
