@@ -12,9 +12,9 @@ with checkerboard and bitmap radiance), `envmap.xml` (a rotated, scaled HDR map)
 `scenes/studio.xml` (every kind of material and light at once), at 80x60 to
 `tests/data/mitsuba/studio_mitsuba.exr`.
 
-Every reference is rendered with a box filter (what our film computes; a
-file asking for another filter is rendered with a box here), at the file's
-own resolution, to `<scene>_mitsuba.exr` beside it. First `--assets` writes
+Every reference is rendered with the file's own reconstruction filter (ours
+reads box, gaussian and tent as Mitsuba does), at the file's own
+resolution, to `<scene>_mitsuba.exr` beside it. First `--assets` writes
 the images the scenes read:
 - `uv_grid.png` (8-bit sRGB) and `uv_grid.exr` (linear): 4x4 texels whose
   colours name their column (red), row (green) and parity (blue), so any
@@ -29,7 +29,6 @@ Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
 """
 
 import argparse
-import re
 import time
 
 import mitsuba as mi
@@ -78,7 +77,6 @@ ELSEWHERE = {"studio": ("scenes", {"resx": "80", "resy": "60"})}
 def render(name, spp):
     folder, parameters = ELSEWHERE.get(name, (DIR, {}))
     text = open(f"{folder}/{name}.xml").read()
-    text = re.sub(r'<rfilter type="[a-z]+"\s*/>', '<rfilter type="box"/>', text)
     mi.file_resolver().prepend(folder)
     scene = mi.load_string(text.replace("$spp", str(spp)), **parameters)
     started = time.time()

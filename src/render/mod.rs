@@ -18,7 +18,7 @@ mod bsdf;
 pub mod bsdfs;
 mod cancel;
 #[cfg(test)]
-mod chi_square;
+pub(crate) mod chi_square;
 mod distribution;
 pub mod environment_prior;
 pub(crate) mod environment_sampling;

@@ -300,8 +300,8 @@ pub fn render_tile_with(
                 SharedStrata::new(u64::from(count), pattern.map(|w| mix(w ^ CAMERA_PATTERN)));
             let samples = (0..rays).map(|k| {
                 let index = first + k;
-                let [u, v] = positions.sample(u64::from(index), [rng.random(), rng.random()]);
-                let (x, y) = (f64::from(px) + u, f64::from(py) + v);
+                let u = positions.sample(u64::from(index), [rng.random(), rng.random()]);
+                let (x, y) = camera.pixel_position(px, py, u);
                 // A pinhole draws no lens sample, so its images keep their bits.
                 let ray = match camera.has_lens() {
                     true => camera.generate_ray_through_lens(x, y, [rng.random(), rng.random()]),

@@ -10,6 +10,7 @@ use glam::{DAffine3, DVec3};
 
 use super::error::SceneError;
 use super::format::{CameraDoc, CameraKind, FovAxis};
+use super::pixel_filter::PixelFilter;
 use super::ray::Ray;
 use super::transform;
 
@@ -25,6 +26,8 @@ pub struct Camera {
     /// tan of the half field of view along x and y.
     tan_half: (f64, f64),
     lens: Option<Lens>,
+    /// Where in the image a pixel's camera samples fall.
+    filter: PixelFilter,
 }
 
 /// A thin lens: rays leave a disk of `aperture_radius` in the camera's xy
@@ -68,6 +71,7 @@ impl Camera {
             to_world,
             tan_half,
             lens: None,
+            filter: PixelFilter::Box,
         }
     }
 
@@ -142,10 +146,27 @@ impl Camera {
                 })
             }
         };
+        let filter = match &doc.filter {
+            Some(f) => PixelFilter::from_doc(f, &format!("{field}.filter"))?,
+            None => PixelFilter::Box,
+        };
         Ok(Self {
             lens,
+            filter,
             ..Self::new(to_world, doc.fov, doc.fov_axis, doc.width, doc.height)
         })
+    }
+
+    /// The image position, in pixels, of a camera sample of pixel
+    /// `(px, py)` drawn with `u ∈ [0, 1)²`, as the film's reconstruction
+    /// filter distributes them ([`PixelFilter::position`]).
+    pub fn pixel_position(&self, px: u32, py: u32, u: [f64; 2]) -> (f64, f64) {
+        self.filter.position((px, py), (self.width, self.height), u)
+    }
+
+    /// The film's reconstruction filter.
+    pub fn filter(&self) -> PixelFilter {
+        self.filter
     }
 
     /// Whether rays leave a lens ([`Self::generate_ray_through_lens`])

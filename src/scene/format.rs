@@ -191,6 +191,22 @@ pub struct CameraDoc {
     /// (default 10⁴, Mitsuba's far clip).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub focus_distance: Option<f64>,
+    /// The film's reconstruction filter (default `box`: each pixel's mean
+    /// radiance); see `scene::pixel_filter`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub filter: Option<FilterDoc>,
+}
+
+/// A reconstruction filter, Mitsuba 3's names and defaults; widths in pixels.
+#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Default)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum FilterDoc {
+    #[default]
+    Box,
+    /// Cut off at 4 `stddev` (default 0.5).
+    Gaussian { stddev: Option<f64> },
+    /// `radius` default 1.
+    Tent { radius: Option<f64> },
 }
 
 /// One step of a `to_world` transform.

@@ -24,6 +24,7 @@ pub mod material;
 mod mesh;
 mod mitsuba;
 mod params;
+mod pixel_filter;
 mod ply;
 mod ray;
 mod read;
@@ -48,6 +49,7 @@ pub use error::SceneError;
 pub use format::FovAxis;
 pub use material::Material;
 pub use mitsuba::{MAX_WARNINGS, MitsubaOptions, Warning, Warnings};
+pub use pixel_filter::PixelFilter;
 pub use ray::Ray;
 
 use bvh::Bvh;

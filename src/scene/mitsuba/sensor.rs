@@ -5,7 +5,7 @@
 //! clip planes and reconstruction filter do not change the scene and are
 //! ignored.
 
-use crate::scene::format::{CameraDoc, CameraKind, FovAxis, TransformDoc};
+use crate::scene::format::{CameraDoc, CameraKind, FilterDoc, FovAxis, TransformDoc};
 
 use super::parse::{Element, quote};
 use super::props::Props;
@@ -57,6 +57,8 @@ pub(crate) fn default_camera() -> CameraDoc {
         up: None,
         aperture_radius: None,
         focus_distance: None,
+        // Mitsuba's films filter with a Gaussian unless told otherwise.
+        filter: Some(FilterDoc::Gaussian { stddev: None }),
     }
 }
 
@@ -85,8 +87,12 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
             ));
         }
     };
-    let (width, height) = match props.nested(ctx, "film")?[..] {
-        [] => DEFAULT_SIZE,
+    let (width, height, filter) = match props.nested(ctx, "film")?[..] {
+        [] => (
+            DEFAULT_SIZE.0,
+            DEFAULT_SIZE.1,
+            FilterDoc::Gaussian { stddev: None },
+        ),
         [film] => film_size(ctx, film)?,
         _ => return Err(el.error("film", "a sensor takes one <film>")),
     };
@@ -153,10 +159,12 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
         origin: None,
         target: None,
         up: None,
+        filter: Some(filter),
     })
 }
 
-fn film_size<'a>(ctx: &mut Ctx<'a>, film: &'a Element) -> Result<(u32, u32), XmlError> {
+/// The film's size and reconstruction filter.
+fn film_size<'a>(ctx: &mut Ctx<'a>, film: &'a Element) -> Result<(u32, u32, FilterDoc), XmlError> {
     let mut props = Props::new(film);
     let max = i64::from(u32::MAX);
     let width = props.int("width", DEFAULT_SIZE.0.into(), 1..=max)?;
@@ -169,20 +177,52 @@ fn film_size<'a>(ctx: &mut Ctx<'a>, film: &'a Element) -> Result<(u32, u32), Xml
         "compensate",
         "banner",
     ]);
-    // The film averages radiance over each pixel: a box filter. Wider
-    // filters blur a little across pixels, which is approximated, said once.
-    for filter in props.nested(ctx, "rfilter")? {
-        let kind = filter.attr("type").unwrap_or("box");
-        if kind != "box" {
-            ctx.warn(
-                filter,
-                format!("a {kind} reconstruction filter is approximated by a box (each pixel's mean radiance)"),
-            );
-        }
-    }
+    // Mitsuba's default is a Gaussian of standard deviation 0.5 pixel.
+    let filter = match props.nested(ctx, "rfilter")?[..] {
+        [] => FilterDoc::Gaussian { stddev: None },
+        [filter] => reconstruction_filter(ctx, filter)?,
+        _ => return Err(film.error("rfilter", "a film takes one <rfilter>")),
+    };
     props.finish(ctx)?;
     // In range by construction.
-    Ok((width as u32, height as u32))
+    Ok((width as u32, height as u32, filter))
+}
+
+/// A film's `<rfilter>`: box, gaussian (`stddev`) and tent (`radius`) as
+/// Mitsuba has them; filters with negative lobes (mitchell, catmullrom,
+/// lanczos) cannot be importance sampled and are approximated by a box,
+/// said once.
+fn reconstruction_filter<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<FilterDoc, XmlError> {
+    let mut props = Props::new(el);
+    let filter = match el.attr("type").unwrap_or("") {
+        "box" => {
+            if let Some(radius) = props.opt_float("radius")?
+                && radius != 0.5
+            {
+                ctx.warn(
+                    el,
+                    format!("a box filter of radius {radius} is approximated by one of radius 0.5 (each pixel's mean radiance)"),
+                );
+            }
+            FilterDoc::Box
+        }
+        "gaussian" => FilterDoc::Gaussian {
+            stddev: props.opt_float("stddev")?,
+        },
+        "tent" => FilterDoc::Tent {
+            radius: props.opt_float("radius")?,
+        },
+        kind => {
+            ctx.warn(
+                el,
+                format!("a {kind} reconstruction filter is approximated by a box (each pixel's mean radiance)"),
+            );
+            props.ignore(&["radius", "B", "C", "lobes"]);
+            FilterDoc::Box
+        }
+    };
+    props.finish(ctx)?;
+    Ok(filter)
 }
 
 #[cfg(test)]
