@@ -1,9 +1,9 @@
 //! `<sensor type="perspective">` with its `<film>` → the document camera.
 //! `fov_axis` `x`, `y`, `smaller`, `larger` map directly; `diagonal` and
 //! `focal_length` (35 mm equivalent, Mitsuba's default "50mm") are converted
-//! to a horizontal field of view, as Mitsuba's `parse_fov` does. Sampler,
-//! clip planes and reconstruction filter do not change the scene and are
-//! ignored.
+//! to a horizontal field of view, as Mitsuba's `parse_fov` does. The film
+//! gives the size and the reconstruction filter (`scene::pixel_filter`).
+//! Sampler and clip planes do not change the scene and are ignored.
 
 use crate::scene::format::{CameraDoc, CameraKind, FilterDoc, FovAxis, TransformDoc};
 
@@ -93,7 +93,7 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
             DEFAULT_SIZE.1,
             FilterDoc::Gaussian { stddev: None },
         ),
-        [film] => film_size(ctx, film)?,
+        [film] => read_film(ctx, film)?,
         _ => return Err(el.error("film", "a sensor takes one <film>")),
     };
     let fov = props.opt_float("fov")?;
@@ -164,7 +164,7 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
 }
 
 /// The film's size and reconstruction filter.
-fn film_size<'a>(ctx: &mut Ctx<'a>, film: &'a Element) -> Result<(u32, u32, FilterDoc), XmlError> {
+fn read_film<'a>(ctx: &mut Ctx<'a>, film: &'a Element) -> Result<(u32, u32, FilterDoc), XmlError> {
     let mut props = Props::new(film);
     let max = i64::from(u32::MAX);
     let width = props.int("width", DEFAULT_SIZE.0.into(), 1..=max)?;
