@@ -2,8 +2,10 @@
 //! the project computes a sample mean and the variance of that mean, for
 //! scalars (`bmc::estimator`) and RGB values (`render`) alike; and the
 //! standard normal quantile that turns a confidence into a number of
-//! standard deviations (docs/math.md §10.6).
+//! standard deviations (docs/math.md §10.6); the inverse error function and
+//! the root finder the samplers invert their CDFs with.
 
+use std::f64::consts::PI;
 use std::ops::{Add, Div, Mul, Sub};
 
 /// Mean and sum of squared deviations of the values pushed so far.
@@ -81,6 +83,93 @@ pub fn erfc(x: f64) -> f64 {
     if x >= 0.0 { tail } else { 2.0 - tail }
 }
 
+/// `erf⁻¹(p)` for `p ∈ (−1, 1)` (clamped just inside): Giles' (2010)
+/// single-precision approximation refined by two Newton steps on
+/// `libm::erf`.
+pub fn inverse_erf(p: f64) -> f64 {
+    let p = p.clamp(-1.0 + 1e-15, 1.0 - 1e-15);
+    let w = -((1.0 - p) * (1.0 + p)).ln();
+    let mut x = if w < 5.0 {
+        let w = w - 2.5;
+        let mut q = 2.810_226_36e-08;
+        for c in [
+            3.432_739_39e-07,
+            -3.523_387_7e-06,
+            -4.391_506_54e-06,
+            0.000_218_580_87,
+            -0.001_253_725_03,
+            -0.004_177_681_64,
+            0.246_640_727,
+            1.501_409_41,
+        ] {
+            q = c + q * w;
+        }
+        q * p
+    } else {
+        let w = w.sqrt() - 3.0;
+        let mut q = -0.000_200_214_257;
+        for c in [
+            0.000_100_950_558,
+            0.001_349_343_22,
+            -0.003_673_428_44,
+            0.005_739_507_73,
+            -0.007_622_461_3,
+            0.009_438_870_47,
+            1.001_674_06,
+            2.832_976_82,
+        ] {
+            q = c + q * w;
+        }
+        q * p
+    };
+    let two_over_sqrt_pi = 2.0 / PI.sqrt();
+    for _ in 0..2 {
+        let e = libm::erf(x) - p;
+        x -= e / (two_over_sqrt_pi * (-x * x).exp());
+    }
+    x
+}
+
+/// The `x` in `[lo, hi]` where the increasing function `f` reaches
+/// `target`, by Newton's method with `slope`, `f`'s derivative, from
+/// `start`: a step that would leave the bracket, which shrinks around the
+/// root at every evaluation, is a bisection instead. Stops when
+/// `|f(x) − target| ≤ tolerance` or neither the step nor the bracket can
+/// shrink further. The inverse CDFs of samplers (`render::microfacet`,
+/// `scene::pixel_filter`) are found this way.
+pub fn solve_increasing(
+    f: impl Fn(f64) -> f64,
+    slope: impl Fn(f64) -> f64,
+    target: f64,
+    (mut lo, mut hi): (f64, f64),
+    start: f64,
+    tolerance: f64,
+) -> f64 {
+    let mut x = start;
+    for _ in 0..100 {
+        let g = f(x) - target;
+        if g.abs() <= tolerance {
+            break;
+        }
+        if g > 0.0 {
+            hi = x;
+        } else {
+            lo = x;
+        }
+        let newton = x - g / slope(x);
+        let next = if newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if next == x || hi - lo <= 1e-15 * (1.0 + x.abs()) {
+            break;
+        }
+        x = next;
+    }
+    x
+}
+
 /// The `z` with `P(|Z| ≤ z) = confidence` for a standard normal `Z`, by
 /// bisection on `erfc(z/√2) = 1 − confidence`; `confidence` in `(0, 1)`.
 pub fn two_sided_normal_quantile(confidence: f64) -> f64 {
@@ -122,5 +211,17 @@ mod tests {
         }
         assert!((erfc(0.0) - 1.0).abs() < 1e-7);
         assert!((erfc(-1.0) - 1.842_700_79).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_inverse_error_function_inverts_erf_into_the_tails() {
+        for p in [-0.999_999_9, -0.9, -0.3, 0.0, 1e-9, 0.5, 0.99, 0.999_999] {
+            let x = inverse_erf(p);
+            assert!(
+                (libm::erf(x) - p).abs() < 1e-14,
+                "{p}: erf({x}) = {}",
+                libm::erf(x)
+            );
+        }
     }
 }

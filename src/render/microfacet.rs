@@ -32,6 +32,8 @@ use std::f64::consts::{FRAC_1_PI, PI, TAU};
 
 use glam::DVec3;
 
+use crate::stats::{inverse_erf, solve_increasing};
+
 /// The shape of the microfacet normal distribution.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MicrofacetKind {
@@ -211,84 +213,20 @@ impl Microfacet {
 /// density of `x` is `∝ (mu − x) e^(−x²)` for `x < mu` (the projected
 /// area of the facet towards the view, Heitz & d'Eon 2014, eq. 13), its
 /// integral from −∞ `A(x) = mu (√π/2) erfc(−x) + e^(−x²)/2`; `A(x) = u A(mu)`
-/// is solved by Newton's method kept inside a shrinking bracket.
+/// is solved by [`solve_increasing`].
 fn beckmann_visible_slope(mu: f64, u: f64) -> f64 {
     let half_sqrt_pi = 0.5 * PI.sqrt();
     let a = |x: f64| mu * half_sqrt_pi * libm::erfc(-x) + 0.5 * (-x * x).exp();
     let total = a(mu);
-    let target = u * total;
     // Below −6 the mass left is under 1e-16 of any total.
-    let (mut lo, mut hi) = (-6.0, mu);
-    let mut x = (mu - 1.0).min(0.0).max(lo);
-    for _ in 0..100 {
-        let g = a(x) - target;
-        if g.abs() <= 1e-15 * total {
-            break;
-        }
-        if g > 0.0 {
-            hi = x;
-        } else {
-            lo = x;
-        }
-        let newton = x - g / ((mu - x) * (-x * x).exp());
-        let next = if newton > lo && newton < hi {
-            newton
-        } else {
-            0.5 * (lo + hi)
-        };
-        if next == x || hi - lo <= 1e-15 * (1.0 + x.abs()) {
-            break;
-        }
-        x = next;
-    }
-    x
-}
-
-/// `erf⁻¹(p)` for `p ∈ (−1, 1)` (clamped just inside): Giles' (2010)
-/// single-precision approximation refined by two Newton steps on
-/// `libm::erf`.
-fn inverse_erf(p: f64) -> f64 {
-    let p = p.clamp(-1.0 + 1e-15, 1.0 - 1e-15);
-    let w = -((1.0 - p) * (1.0 + p)).ln();
-    let mut x = if w < 5.0 {
-        let w = w - 2.5;
-        let mut q = 2.810_226_36e-08;
-        for c in [
-            3.432_739_39e-07,
-            -3.523_387_7e-06,
-            -4.391_506_54e-06,
-            0.000_218_580_87,
-            -0.001_253_725_03,
-            -0.004_177_681_64,
-            0.246_640_727,
-            1.501_409_41,
-        ] {
-            q = c + q * w;
-        }
-        q * p
-    } else {
-        let w = w.sqrt() - 3.0;
-        let mut q = -0.000_200_214_257;
-        for c in [
-            0.000_100_950_558,
-            0.001_349_343_22,
-            -0.003_673_428_44,
-            0.005_739_507_73,
-            -0.007_622_461_3,
-            0.009_438_870_47,
-            1.001_674_06,
-            2.832_976_82,
-        ] {
-            q = c + q * w;
-        }
-        q * p
-    };
-    let two_over_sqrt_pi = 2.0 / PI.sqrt();
-    for _ in 0..2 {
-        let e = libm::erf(x) - p;
-        x -= e / (two_over_sqrt_pi * (-x * x).exp());
-    }
-    x
+    solve_increasing(
+        a,
+        |x| (mu - x) * (-x * x).exp(),
+        u * total,
+        (-6.0, mu),
+        (mu - 1.0).clamp(-6.0, 0.0),
+        1e-15 * total,
+    )
 }
 
 #[cfg(test)]

@@ -19,6 +19,7 @@ use std::f64::consts::{FRAC_1_SQRT_2, PI};
 
 use super::error::SceneError;
 use super::format::FilterDoc;
+use crate::stats::solve_increasing;
 
 /// Mitsuba's default `stddev` of a Gaussian filter, pixels.
 pub const DEFAULT_STDDEV: f64 = 0.5;
@@ -89,30 +90,44 @@ impl PixelFilter {
         }
     }
 
-    /// Half the filter's support, pixels.
-    fn radius(&self) -> f64 {
-        match *self {
-            PixelFilter::Box => 0.5,
-            PixelFilter::Gaussian { stddev } => 4.0 * stddev,
-            PixelFilter::Tent { radius } => radius,
-        }
-    }
-
     /// An offset from a pixel centred at `centre` on an axis of `size`
     /// pixels, distributed as `f₁` on its part inside the image: its CDF
     /// inverted at `u` taken into the CDF's range there.
     fn offset(&self, u: f64, centre: f64, size: f64) -> f64 {
-        let r = self.radius();
+        let profile = match *self {
+            PixelFilter::Box => Profile::Box,
+            PixelFilter::Tent { radius } => Profile::Tent(radius),
+            PixelFilter::Gaussian { stddev } => Profile::Gaussian(Gaussian::new(stddev)),
+        };
+        let r = profile.radius();
         let (lo, hi) = ((-centre).max(-r), (size - centre).min(r));
-        let (c_lo, c_hi) = (self.cdf(lo), self.cdf(hi));
-        self.inverse_cdf(c_lo + u * (c_hi - c_lo)).clamp(lo, hi)
+        let (c_lo, c_hi) = (profile.cdf(lo), profile.cdf(hi));
+        profile.inverse_cdf(c_lo + u * (c_hi - c_lo)).clamp(lo, hi)
+    }
+}
+
+/// A filter's `f₁` with what its CDF needs, built once per offset.
+enum Profile {
+    Box,
+    Tent(f64),
+    Gaussian(Gaussian),
+}
+
+impl Profile {
+    /// Half the filter's support, pixels.
+    fn radius(&self) -> f64 {
+        match self {
+            Profile::Box => 0.5,
+            Profile::Tent(radius) => *radius,
+            Profile::Gaussian(g) => g.r,
+        }
     }
 
     /// `∫ f₁` from `−r` to `d`, over its total: 0 at `−r`, 1 at `r`.
     fn cdf(&self, d: f64) -> f64 {
-        match *self {
-            PixelFilter::Box => (d + 0.5).clamp(0.0, 1.0),
-            PixelFilter::Tent { radius } => {
+        match self {
+            Profile::Box => (d + 0.5).clamp(0.0, 1.0),
+            Profile::Tent(radius) => {
                 let t = (d / radius).clamp(-1.0, 1.0);
                 if t < 0.0 {
                     0.5 * (1.0 + t) * (1.0 + t)
@@ -120,22 +135,22 @@ impl PixelFilter {
                     1.0 - 0.5 * (1.0 - t) * (1.0 - t)
                 }
             }
-            PixelFilter::Gaussian { stddev } => Gaussian::new(stddev).cdf(d),
+            Profile::Gaussian(g) => g.integral(d) / g.total,
         }
     }
 
     /// The offset where [`Self::cdf`] is `t ∈ [0, 1]`.
     fn inverse_cdf(&self, t: f64) -> f64 {
-        match *self {
-            PixelFilter::Box => t - 0.5,
-            PixelFilter::Tent { radius } => {
+        match self {
+            Profile::Box => t - 0.5,
+            Profile::Tent(radius) => {
                 if t < 0.5 {
                     radius * ((2.0 * t).sqrt() - 1.0)
                 } else {
                     radius * (1.0 - (2.0 * (1.0 - t)).sqrt())
                 }
             }
-            PixelFilter::Gaussian { stddev } => Gaussian::new(stddev).inverse_cdf(t),
+            Profile::Gaussian(g) => g.inverse_cdf(t),
         }
     }
 }
@@ -170,39 +185,17 @@ impl Gaussian {
             - self.bias * (d + self.r)
     }
 
-    fn cdf(&self, d: f64) -> f64 {
-        self.integral(d) / self.total
-    }
-
-    /// Newton's method on `C(d) = t C(r)` kept inside a shrinking bracket
-    /// (`C` is increasing, its derivative the filter).
+    /// The `d` where `C(d) = t C(r)`, by [`solve_increasing`] (`C` is
+    /// increasing, its derivative the filter).
     fn inverse_cdf(&self, t: f64) -> f64 {
-        let target = t.clamp(0.0, 1.0) * self.total;
-        let density = |d: f64| ((-0.5 * (d / self.stddev).powi(2)).exp() - self.bias).max(0.0);
-        let (mut lo, mut hi) = (-self.r, self.r);
-        let mut d = (t - 0.5) * 2.0 * self.stddev;
-        for _ in 0..100 {
-            let g = self.integral(d) - target;
-            if g.abs() <= 1e-15 * self.total {
-                break;
-            }
-            if g > 0.0 {
-                hi = d;
-            } else {
-                lo = d;
-            }
-            let newton = d - g / density(d);
-            let next = if newton > lo && newton < hi {
-                newton
-            } else {
-                0.5 * (lo + hi)
-            };
-            if next == d || hi - lo <= 1e-15 * self.r {
-                break;
-            }
-            d = next;
-        }
-        d
+        solve_increasing(
+            |d| self.integral(d),
+            |d| ((-0.5 * (d / self.stddev).powi(2)).exp() - self.bias).max(0.0),
+            t.clamp(0.0, 1.0) * self.total,
+            (-self.r, self.r),
+            (t - 0.5) * 2.0 * self.stddev,
+            1e-15 * self.total,
+        )
     }
 }
 
