@@ -34,6 +34,8 @@
 //!   ([`estimators::calibration`]) and error targets ([`estimators::error_target`]);
 //!   [`render::seed`] holds the random streams every result is reproducible by.
 //! - [`scene`]: JSON and Mitsuba 3 XML scenes, the camera, rays and the BVH.
+//! - [`cancel`]: the flag a long library call (a tile, a query, a scene
+//!   load) is stopped by, below every layer.
 //! - [`bmc`] and [`sphere`]: the math — kernels, densities, kernel means,
 //!   factorisations, BMC weights and variances, hyperparameter fits;
 //!   hemisphere frames and sample sets.
@@ -51,6 +53,7 @@
 
 pub mod bmc;
 pub mod cache;
+pub mod cancel;
 pub mod cli;
 pub mod estimators;
 pub mod image;

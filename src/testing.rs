@@ -108,6 +108,100 @@ pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
         .install(f)
 }
 
+/// A two-part EXR file: a 1×1 depth part in front of an RGB part that
+/// claims `side`² pixels (ZIP-compressed, 16 rows a chunk), as an
+/// attacker's file would: written 2×2, then its data window, chunk count
+/// and offset table are made to agree with the claim, every chunk pointing
+/// at the one written (the pixels are never there). Decoders read the RGB
+/// part; its table is `8·side/16` bytes (100 KB for 200000²).
+pub fn two_part_exr(side: i32) -> Vec<u8> {
+    use exr::prelude::*;
+    let part = |name: &str, size: usize, channels: &[&str], encoding| {
+        let channels = channels
+            .iter()
+            .map(|c| AnyChannel::new(*c, FlatSamples::F32(vec![0.5; size * size])))
+            .collect();
+        Layer::new(
+            (size, size),
+            LayerAttributes::named(name),
+            encoding,
+            AnyChannels::sort(channels),
+        )
+    };
+    let zip16 = Encoding {
+        compression: Compression::ZIP16,
+        ..Encoding::UNCOMPRESSED
+    };
+    let layers = vec![
+        part("depth", 1, &["Z"], Encoding::UNCOMPRESSED),
+        part("beauty", 2, &["R", "G", "B"], zip16),
+    ];
+    let mut bytes = Vec::new();
+    let attributes = ImageAttributes::new(IntegerBounds::from_dimensions((2, 2)));
+    exr::image::Image::from_layers(attributes, layers)
+        .write()
+        .to_buffered(std::io::Cursor::new(&mut bytes))
+        .expect("encodes");
+    // The value of the RGB part's (the second) attribute `name` of `kind`.
+    let value_at = |bytes: &[u8], name: &str, kind: &str| {
+        let tag = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
+        bytes
+            .windows(tag.len())
+            .enumerate()
+            .filter(|(_, w)| *w == tag.as_slice())
+            .map(|(i, _)| i + tag.len() + 4)
+            .nth(1)
+            .expect("both parts have it")
+    };
+    // `box2i`: x_min, y_min, x_max, y_max as i32.
+    let window = value_at(&bytes, "dataWindow", "box2i");
+    bytes[window + 8..window + 12].copy_from_slice(&(side - 1).to_le_bytes());
+    bytes[window + 12..window + 16].copy_from_slice(&(side - 1).to_le_bytes());
+    let chunks = (side as u64).div_ceil(16);
+    let count = value_at(&bytes, "chunkCount", "int");
+    bytes[count..count + 4].copy_from_slice(&(chunks as i32).to_le_bytes());
+    // The offset tables follow the headers: one entry for each part, the
+    // first pointing just past both.
+    let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().expect("8 bytes"));
+    let table = (0..bytes.len() - 16)
+        .find(|&i| u64_at(i) == i as u64 + 16)
+        .expect("the offset tables");
+    let shift = 8 * (chunks - 1);
+    let mut out = bytes[..table].to_vec();
+    out.extend((u64_at(table) + shift).to_le_bytes());
+    for _ in 0..chunks {
+        out.extend((u64_at(table + 8) + shift).to_le_bytes());
+    }
+    out.extend(&bytes[table + 16..]);
+    out
+}
+
+/// A Mitsuba `serialized` file (version 4) of one single-precision mesh
+/// of `vertices` vertices, all at the origin, and `triangles` triangles
+/// `[0, 0, 0]`: zeros, which compress about a thousandfold, so a few
+/// kilobytes claim what takes hundreds of megabytes once inflated.
+pub fn serialized_mesh(vertices: u64, triangles: u64) -> Vec<u8> {
+    use std::io::Write;
+    let mut out = 0x041Cu16.to_le_bytes().to_vec();
+    out.extend(4u16.to_le_bytes());
+    let mut z = flate2::write::ZlibEncoder::new(out, flate2::Compression::best());
+    z.write_all(&0u32.to_le_bytes()).expect("in memory");
+    z.write_all(b"bomb\0").expect("in memory");
+    z.write_all(&vertices.to_le_bytes()).expect("in memory");
+    z.write_all(&triangles.to_le_bytes()).expect("in memory");
+    let zeros = vec![0u8; 1 << 20];
+    let mut left = 12 * (vertices + triangles);
+    while left > 0 {
+        let n = left.min(zeros.len() as u64) as usize;
+        z.write_all(&zeros[..n]).expect("in memory");
+        left -= n as u64;
+    }
+    let mut out = z.finish().expect("in memory");
+    out.extend(0u64.to_le_bytes());
+    out.extend(1u32.to_le_bytes());
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -51,6 +51,37 @@ pub fn encode_exr(image: &Image) -> Result<Vec<u8>, ImageError> {
     Ok(bytes)
 }
 
+/// Checks every part of an EXR file, from its headers, before any pixel
+/// memory is allocated: `(width, height)` of each must be within
+/// `1..=max_side` and its area at most `max_area` pixels. Every part, not
+/// the first: the decoders take the first part that has the channels they
+/// want, so a small part in front must not vouch for a large one behind
+/// it. A part's largest resolution level is its data window, so mip and rip
+/// levels need no check of their own. Returns the first part's size.
+pub fn check_exr_parts(
+    meta: &exr::meta::MetaData,
+    max_side: usize,
+    max_area: usize,
+) -> Result<(usize, usize), String> {
+    let first = meta.headers.first().ok_or("the file has no parts")?;
+    for (i, header) in meta.headers.iter().enumerate() {
+        let size = header.layer_size;
+        let (width, height) = (size.width(), size.height());
+        let area = width.checked_mul(height);
+        if width == 0
+            || height == 0
+            || width > max_side
+            || height > max_side
+            || area.is_none_or(|a| a > max_area)
+        {
+            return Err(format!(
+                "part {i} is {width}×{height}; each side must be in 1..={max_side} and the area at most {max_area} pixels"
+            ));
+        }
+    }
+    Ok((first.layer_size.width(), first.layer_size.height()))
+}
+
 /// Writes the image to an EXR file.
 pub fn write_exr(image: &Image, path: &Path) -> Result<(), ImageError> {
     let bytes = encode_exr(image)?;
@@ -76,18 +107,8 @@ pub fn read_exr(path: &Path) -> Result<Image, ImageError> {
 pub fn decode_exr(bytes: &[u8]) -> Result<Image, ImageError> {
     let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
         .map_err(|e| exr_error("header", e))?;
-    let size = meta
-        .headers
-        .first()
-        .map(|h| h.layer_size)
-        .ok_or_else(|| exr_error("header", "no layers"))?;
-    let (width, height) = (size.width(), size.height());
-    if width == 0 || height == 0 || size.area() as u64 > MAX_PIXELS {
-        return Err(exr_error(
-            "header",
-            format!("{width}×{height} is empty or exceeds {MAX_PIXELS} pixels"),
-        ));
-    }
+    let max = MAX_PIXELS as usize;
+    check_exr_parts(&meta, max, max).map_err(|e| exr_error("header", e))?;
     type Pixels = (usize, Vec<[f32; 3]>, Option<Vec<f32>>);
     let image = read()
         .no_deep_data()
@@ -155,6 +176,13 @@ mod tests {
             Image::from_parts(2, 1, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]], None).expect("valid");
         let back = decode_exr(&encode_exr(&image).expect("encodes")).expect("decodes");
         assert_eq!(back, image);
+    }
+
+    #[test]
+    fn a_large_part_behind_a_small_one_is_refused_before_decoding() {
+        // 200000² RGB f32 would be 480 GB: allocating it aborted the process.
+        let err = decode_exr(&crate::testing::two_part_exr(200_000)).unwrap_err();
+        assert!(err.to_string().contains("part 1 is 200000×200000"), "{err}");
     }
 
     #[test]

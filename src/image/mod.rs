@@ -20,7 +20,7 @@ use serde::Serialize;
 pub use compare::{RelativeRmse, relative_rmse};
 pub use denoise::{GuideBuffers, GuidePixel, denoise};
 pub use error::ImageError;
-pub use exr_io::{decode_exr, encode_exr, read_exr, write_exr};
+pub use exr_io::{check_exr_parts, decode_exr, encode_exr, read_exr, write_exr};
 pub use png_io::ToneMap;
 
 /// Largest number of pixels an image may hold (8192², 1.3 GB with variance).

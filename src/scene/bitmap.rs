@@ -6,6 +6,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
+use super::budget::Budget;
 use super::environment::{MAX_ENVMAP_SIDE, MAX_ENVMAP_TEXELS, read_exr};
 use super::error::SceneError;
 use super::files::Files;
@@ -95,25 +96,34 @@ impl Bitmap {
 pub const MAX_SCENE_TEXELS: usize = 2 * MAX_ENVMAP_TEXELS;
 
 /// The bitmaps of one scene load, each file decoded once per `raw` setting
-/// however many textures name it, and within [`MAX_SCENE_TEXELS`] in all.
+/// however many textures name it (material, emitter and the translator's
+/// texture means alike), within [`MAX_SCENE_TEXELS`] in all and each
+/// reserved from the load's budget before it is decoded.
 pub(crate) struct Bitmaps<'a> {
     files: &'a Files,
+    budget: &'a Budget,
     loaded: Mutex<HashMap<(PathBuf, bool), Arc<Bitmap>>>,
     max_texels: usize,
 }
 
 impl<'a> Bitmaps<'a> {
-    pub(crate) fn new(files: &'a Files) -> Self {
-        Self::with_limit(files, MAX_SCENE_TEXELS)
+    pub(crate) fn new(files: &'a Files, budget: &'a Budget) -> Self {
+        Self::with_limit(files, budget, MAX_SCENE_TEXELS)
     }
 
     /// Bitmaps holding at most `max_texels` in all.
-    pub(crate) fn with_limit(files: &'a Files, max_texels: usize) -> Self {
+    pub(crate) fn with_limit(files: &'a Files, budget: &'a Budget, max_texels: usize) -> Self {
         Self {
             files,
+            budget,
             loaded: Mutex::new(HashMap::new()),
             max_texels,
         }
+    }
+
+    /// The load's budget, which the scene's other readers share.
+    pub(crate) fn budget(&self) -> &'a Budget {
+        self.budget
     }
 
     /// The image `name` (relative to the scene file), decoded to linear RGB.
@@ -133,7 +143,8 @@ impl<'a> Bitmaps<'a> {
         {
             return Ok(b.clone());
         }
-        let bitmap = Arc::new(read_bitmap(&path, raw, field)?);
+        self.budget.check_cancel()?;
+        let bitmap = Arc::new(read_bitmap(&path, raw, field, self.budget)?);
         let mut loaded = self.loaded.lock().unwrap_or_else(|p| p.into_inner());
         // A file read with and without `raw` counts twice: it is held twice.
         let held: usize = loaded.values().map(|b| b.texels.len()).sum();
@@ -153,25 +164,69 @@ impl<'a> Bitmaps<'a> {
     }
 }
 
+/// Most texels an image may decode to per byte of its file. Deflate (PNG)
+/// inflates at most 1032 times; a JPEG of one flat colour takes about a
+/// bit per 8×8 block and channel, some 150 texels a byte. A file far
+/// smaller than its header's size claims is a truncated or crafted one,
+/// whose decoding would cost the memory and time of the claim.
+pub const MAX_TEXELS_PER_FILE_BYTE: u64 = 1024;
+
+/// Bytes a decoded texel is held in ([`Bitmap`]'s `[f32; 3]`).
+const TEXEL_BYTES: u64 = std::mem::size_of::<[f32; 3]>() as u64;
+/// Bytes a texel takes while a PNG, JPEG or HDR file is decoded, beside
+/// the one it is kept in: the image in its own format (at most RGBA f32)
+/// and the f32 RGB copy made from it.
+const DECODING_BYTES: u64 = 16 + 12;
+
 /// Decodes an image file to linear RGB: EXR and HDR as stored, 8- and
-/// 16-bit formats from sRGB unless `raw` (alpha is ignored).
-pub(crate) fn read_bitmap(path: &Path, raw: bool, field: &str) -> Result<Bitmap, SceneError> {
+/// 16-bit formats from sRGB unless `raw` (alpha is ignored). Its texels are
+/// reserved from `budget` once the header has given its size, before any
+/// pixel memory is allocated (with what decoding holds on the way, given
+/// back after).
+pub(crate) fn read_bitmap(
+    path: &Path,
+    raw: bool,
+    field: &str,
+    budget: &Budget,
+) -> Result<Bitmap, SceneError> {
     let err = |message: String| SceneError::file(field, path, message);
     let extension = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
+    let reserve = |width: usize, height: usize, bytes_per_texel: u64| {
+        let texels = (width as u64) * (height as u64);
+        budget.reserve(
+            texels * bytes_per_texel,
+            field,
+            &format!("the {width}×{height} texels of {}", path.display()),
+        )
+    };
     if extension.as_deref() == Some("exr") {
-        let (width, height, texels) = read_exr(path, field)?;
+        let (width, height, texels) = read_exr(path, field, &|w, h| reserve(w, h, TEXEL_BYTES))?;
         return Bitmap::new(width, height, texels).ok_or_else(|| err("empty image".into()));
     }
-    let file = read::open_capped(path, MAX_BITMAP_FILE_BYTES)
-        .map_err(|e| err(format!("cannot open: {e}")))?;
-    let mut file = BufReader::new(file);
+    let file = read::open_regular(path).map_err(|e| err(format!("cannot open: {e}")))?;
+    let file_bytes = file
+        .metadata()
+        .map_err(|e| err(format!("cannot read: {e}")))?
+        .len();
+    let mut file = BufReader::new(read::Capped::new(file, MAX_BITMAP_FILE_BYTES));
     let radiance = file
         .fill_buf()
         .map_err(|e| err(format!("cannot read: {e}")))?
         .starts_with(b"#?");
+    let admit = |width: u32, height: u32| -> Result<Result<(), String>, SceneError> {
+        if let Err(why) = check_claimed_size(width, height, file_bytes) {
+            return Ok(Err(why));
+        }
+        reserve(
+            width as usize,
+            height as usize,
+            TEXEL_BYTES + DECODING_BYTES,
+        )
+        .map(Ok)
+    };
     let decoded = if radiance {
         // A Radiance file opens with `#?` and the writing program's name;
         // the decoder wants `#?RADIANCE` (Mitsuba, for one, writes `#?RGBE`).
@@ -183,7 +238,7 @@ pub(crate) fn read_bitmap(path: &Path, raw: bool, field: &str) -> Result<Bitmap,
         let reader = BufReader::new(std::io::Cursor::new(&b"#?RADIANCE\n"[..]).chain(file));
         let decoder = image::codecs::hdr::HdrDecoder::new(reader)
             .map_err(|e| err(format!("not a readable Radiance HDR image: {e}")))?;
-        decode(decoder).map_err(err)?
+        decode(decoder, &admit)?.map_err(err)?
     } else {
         let reader = image::ImageReader::new(file)
             .with_guessed_format()
@@ -194,7 +249,7 @@ pub(crate) fn read_bitmap(path: &Path, raw: bool, field: &str) -> Result<Bitmap,
         let decoder = reader
             .into_decoder()
             .map_err(|e| err(format!("not a readable image: {e}")))?;
-        decode(decoder).map_err(err)?
+        decode(decoder, &admit)?.map_err(err)?
     };
     let (width, height) = (decoded.width(), decoded.height());
     let linear_file = matches!(
@@ -210,30 +265,56 @@ pub(crate) fn read_bitmap(path: &Path, raw: bool, field: &str) -> Result<Bitmap,
         }
     };
     let texels: Vec<[f32; 3]> = rgb.pixels().map(|p| p.0.map(decode)).collect();
+    drop(rgb);
+    budget.release(u64::from(width) * u64::from(height) * DECODING_BYTES);
     Bitmap::new(width as usize, height as usize, texels)
         .ok_or_else(|| err("an empty image or a texel that is negative or not finite".into()))
 }
 
-/// Decodes an image whose size, read from its header, is checked first.
-fn decode(mut decoder: impl image::ImageDecoder) -> Result<image::DynamicImage, String> {
-    let (width, height) = decoder.dimensions();
+/// Whether an image file of `file_bytes` bytes may decode to `width ×
+/// height` texels: within the sides and area every image keeps to, and
+/// at most [`MAX_TEXELS_PER_FILE_BYTE`] texels a byte.
+fn check_claimed_size(width: u32, height: u32, file_bytes: u64) -> Result<(), String> {
+    let texels = u64::from(width) * u64::from(height);
     if width as usize > MAX_ENVMAP_SIDE
         || height as usize > MAX_ENVMAP_SIDE
-        || (width as usize) * (height as usize) > MAX_ENVMAP_TEXELS
+        || texels > MAX_ENVMAP_TEXELS as u64
     {
         return Err(format!(
             "image is {width}×{height}; each side must be at most {MAX_ENVMAP_SIDE} and the area at most {MAX_ENVMAP_TEXELS} texels"
         ));
     }
+    if texels > file_bytes.saturating_mul(MAX_TEXELS_PER_FILE_BYTE) {
+        return Err(format!(
+            "image claims {width}×{height} texels in a file of {file_bytes} bytes, more than {MAX_TEXELS_PER_FILE_BYTE} a byte: a truncated or crafted file"
+        ));
+    }
+    Ok(())
+}
+
+/// Decodes an image once `admit` has accepted the size its header gives
+/// (and reserved its memory), before any pixel memory is allocated. The
+/// outer error is the budget's refusal, the inner one the file's.
+fn decode(
+    mut decoder: impl image::ImageDecoder,
+    admit: &dyn Fn(u32, u32) -> Result<Result<(), String>, SceneError>,
+) -> Result<Result<image::DynamicImage, String>, SceneError> {
+    let (width, height) = decoder.dimensions();
+    if let Err(why) = admit(width, height)? {
+        return Ok(Err(why));
+    }
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(width);
     limits.max_image_height = Some(height);
-    // The image in its own format plus the f32 copy made from it.
+    // The image in its own format plus what the decoder holds beside it.
     limits.max_alloc = Some(u64::from(width) * u64::from(height) * 16 * 2 + (1 << 20));
-    decoder
+    let decoded = decoder
         .set_limits(limits)
-        .map_err(|e| format!("too large to decode: {e}"))?;
-    image::DynamicImage::from_decoder(decoder).map_err(|e| format!("cannot decode: {e}"))
+        .map_err(|e| format!("too large to decode: {e}"))
+        .and_then(|()| {
+            image::DynamicImage::from_decoder(decoder).map_err(|e| format!("cannot decode: {e}"))
+        });
+    Ok(decoded)
 }
 
 /// The sRGB electro-optical transfer function (IEC 61966-2-1).

@@ -17,6 +17,7 @@ use std::collections::HashSet;
 use std::path::{Component, Path, PathBuf};
 
 use super::Scene;
+use super::budget::LoadLimits;
 use super::error::SceneError;
 use super::mitsuba::{MitsubaOptions, Warnings};
 
@@ -236,29 +237,43 @@ impl SceneBundle {
         self.assets.is_empty()
     }
 
-    /// Loads `document` against the bundle's directory (module docs).
+    /// Loads `document` against the bundle's directory (module docs)
+    /// within `limits`.
     pub fn load(
         &self,
-        document: &str,
-        kind: DocumentKind,
+        document: &Document,
         options: &MitsubaOptions,
+        limits: &LoadLimits,
     ) -> Result<(Scene, Warnings), SceneError> {
-        load_document(document, kind, options, self.dir.path())
+        load_document(document, options, self.dir.path(), limits)
     }
 }
 
-/// Parses `document` with the files it references resolved against `root`.
+/// A scene document as text, with what it is.
+#[derive(Clone, Debug)]
+pub struct Document {
+    pub text: String,
+    pub kind: DocumentKind,
+    /// What messages call it: the scene file's name as the client gave it
+    /// (`lego/scene.xml`), never a path on the server.
+    pub name: String,
+}
+
+/// Parses `document` with the files it references resolved against `root`,
+/// within `limits`.
 pub fn load_document(
-    document: &str,
-    kind: DocumentKind,
+    document: &Document,
     options: &MitsubaOptions,
     root: &Path,
+    limits: &LoadLimits,
 ) -> Result<(Scene, Warnings), SceneError> {
-    match kind {
-        DocumentKind::Json => {
-            Scene::from_json_str(document, root, root).map(|s| (s, Warnings::default()))
+    let (text, name) = (&document.text, &document.name);
+    match document.kind {
+        DocumentKind::Json => super::loader::from_json_str(text, name, root, root, limits)
+            .map(|s| (s, Warnings::default())),
+        DocumentKind::MitsubaXml => {
+            super::mitsuba::from_str(text, name, root, root, options, limits)
         }
-        DocumentKind::MitsubaXml => Scene::from_mitsuba_xml_str(document, root, root, options),
     }
 }
 
@@ -374,37 +389,40 @@ mod tests {
     #[test]
     fn a_document_loads_with_its_mesh_and_reaches_nothing_else() {
         let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
-        let doc = |file: &str| {
-            format!(
+        let doc = |file: &str| Document {
+            text: format!(
                 r#"{{"name": "up", "shapes": [{{"type": "obj", "filename": "{file}", "material": "m"}}],
                     "materials": [{{"id": "m", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}}],
                     "camera": {{"type": "perspective", "fov": 40, "width": 8, "height": 8,
                                 "origin": [0, 0, 3], "target": [0, 0, 0], "up": [0, 1, 0]}}}}"#
-            )
+            ),
+            kind: DocumentKind::Json,
+            name: "up.json".into(),
         };
+        let limits = LoadLimits::default();
         let mut bundle = SceneBundle::new(16).unwrap();
         bundle
             .add("meshes/tri.obj", obj.as_bytes(), "assets[0]")
             .unwrap();
         let options = MitsubaOptions::default();
         let (scene, _) = bundle
-            .load(&doc("meshes/tri.obj"), DocumentKind::Json, &options)
+            .load(&doc("meshes/tri.obj"), &options, &limits)
             .unwrap();
         assert_eq!(scene.triangle_count(), 1);
         // The document cannot name a file outside the bundle.
-        let Err(err) = bundle.load(&doc("../../etc/hosts"), DocumentKind::Json, &options) else {
+        let Err(err) = bundle.load(&doc("../../etc/hosts"), &options, &limits) else {
             panic!("a name outside the bundle loaded");
         };
         assert!(matches!(err, SceneError::PathEscape { .. }), "{err}");
         // The same content gives the same digest as the same files on disk.
         let (again, _) = bundle
-            .load(&doc("meshes/tri.obj"), DocumentKind::Json, &options)
+            .load(&doc("meshes/tri.obj"), &options, &limits)
             .unwrap();
         assert_eq!(again.digest, scene.digest);
         // An asset the document does not name is not kept.
         bundle.add("notes/unused.txt", b"x", "assets[1]").unwrap();
         let (scene, _) = bundle
-            .load(&doc("meshes/tri.obj"), DocumentKind::Json, &options)
+            .load(&doc("meshes/tri.obj"), &options, &limits)
             .unwrap();
         assert_eq!(scene.files, [PathBuf::from("meshes/tri.obj")]);
         assert_eq!(

@@ -392,7 +392,9 @@ impl Bvh {
         prims: &[P],
         mut visit: impl FnMut(usize, &mut f64) -> bool,
     ) -> bool {
-        if self.nodes.is_empty() {
+        // A ray with a NaN or infinite coordinate hits nothing: its slab
+        // tests would pass every child (NaN compares false both ways).
+        if self.nodes.is_empty() || !(origin.is_finite() && dir.is_finite()) || t_max.is_nan() {
             return false;
         }
         // Every point of the tree lies within this distance of the origin.
@@ -446,6 +448,14 @@ impl Bvh {
                         let near = near.to_array();
                         let slot = |k: usize| (order[k] & 3) as usize;
                         for k in (1..mask.count_ones() as usize).rev() {
+                            // Finite rays visit at most three waiting
+                            // children per level (STACK holds them); a ray
+                            // whose slab arithmetic overflowed to NaN may
+                            // pass every child, and ends here as a miss
+                            // rather than past the stack.
+                            if top == STACK {
+                                return false;
+                            }
                             let child = node.child[slot(k)];
                             self.prefetch(child, prims);
                             stack[top].write((child, near[slot(k)]));

@@ -160,10 +160,16 @@ impl EnvironmentMap {
     }
 }
 
-/// Reads the RGB channels of the first layer of an EXR file: `(width,
-/// height, texels)`, top row first. Errors name `field` and the file; the
-/// size is checked from the header before any pixel memory is allocated.
-pub fn read_exr(path: &Path, field: &str) -> Result<(usize, usize, Vec<[f32; 3]>), SceneError> {
+/// Reads the RGB channels of the first layer that has them of an EXR file:
+/// `(width, height, texels)`, top row first. Errors name `field` and the
+/// file; the size of every part is checked from the headers, and the size
+/// of the part that will be read passed to `reserve`, before any pixel
+/// memory is allocated.
+pub(crate) fn read_exr(
+    path: &Path,
+    field: &str,
+    reserve: &dyn Fn(usize, usize) -> Result<(), SceneError>,
+) -> Result<(usize, usize, Vec<[f32; 3]>), SceneError> {
     use exr::prelude::*;
     let err = |message: String| SceneError::file(field, path, message);
     let open = || {
@@ -173,23 +179,16 @@ pub fn read_exr(path: &Path, field: &str) -> Result<(usize, usize, Vec<[f32; 3]>
     };
     let meta = exr::meta::MetaData::read_from_buffered(open()?, false)
         .map_err(|e| err(format!("not a readable EXR file: {e}")))?;
-    let size = meta
+    crate::image::check_exr_parts(&meta, MAX_ENVMAP_SIDE, MAX_ENVMAP_TEXELS).map_err(err)?;
+    // The decoder reads the first part with RGB channels; reserving the
+    // largest part's size is simpler and never less.
+    let (width, height) = meta
         .headers
-        .first()
-        .map(|h| h.layer_size)
-        .ok_or_else(|| err("EXR file has no layers".into()))?;
-    if size.width() == 0
-        || size.height() == 0
-        || size.width() > MAX_ENVMAP_SIDE
-        || size.height() > MAX_ENVMAP_SIDE
-        || size.area() > MAX_ENVMAP_TEXELS
-    {
-        return Err(err(format!(
-            "image is {}×{}; each side must be in 1..={MAX_ENVMAP_SIDE} and the area ≤ {MAX_ENVMAP_TEXELS}",
-            size.width(),
-            size.height()
-        )));
-    }
+        .iter()
+        .map(|h| (h.layer_size.width(), h.layer_size.height()))
+        .max_by_key(|(w, h)| w * h)
+        .unwrap_or_default();
+    reserve(width, height)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

@@ -42,17 +42,29 @@ pub enum SceneError {
         file: PathBuf,
         message: String,
     },
+    /// What `field` asks for would take the load over its byte budget
+    /// (`scene::LoadLimits`), named by `budget`; nothing was allocated for it.
+    #[error("{field}: {message}")]
+    OverBudget {
+        field: String,
+        budget: &'static str,
+        message: String,
+    },
+    /// The load's cancel flag was set (`scene::LoadLimits::cancel`).
+    #[error("the scene load was cancelled")]
+    Cancelled,
 }
 
 impl SceneError {
     /// The JSON field path the error is about, if it concerns one.
     pub fn field(&self) -> Option<&str> {
         match self {
-            SceneError::Io { .. } => None,
+            SceneError::Io { .. } | SceneError::Cancelled => None,
             SceneError::Syntax { field, .. }
             | SceneError::Invalid { field, .. }
             | SceneError::PathEscape { field, .. }
-            | SceneError::File { field, .. } => Some(field),
+            | SceneError::File { field, .. }
+            | SceneError::OverBudget { field, .. } => Some(field),
         }
     }
 

@@ -9,6 +9,7 @@ use std::sync::Arc;
 use glam::{DAffine3, DMat3, DVec2, DVec3};
 
 use super::bitmap::{Bitmaps, read_bitmap};
+use super::budget::{Budget, LoadLimits};
 use super::bvh::{Aabb, Bvh};
 use super::digest::SceneDigest;
 use super::emitter::{self, Emitter};
@@ -19,18 +20,26 @@ use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKi
 use super::material::Material;
 use super::mesh::{self, MeshData};
 use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
-use super::{
-    Camera, MAX_PATH_DEPTH, MAX_SCENE_MEMORY_BYTES, MAX_SHAPES, MAX_TRIANGLES, Scene, transform,
-};
+use super::{Camera, MAX_PATH_DEPTH, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
 
 /// Largest accepted scene file (inline triangle lists can be big).
 const MAX_SCENE_BYTES: u64 = 1 << 30;
 
-/// Loads a JSON scene document from `path`.
-pub(super) fn load_json(path: &Path, scenes_root: &Path) -> Result<Scene, SceneError> {
+/// Loads a JSON scene document from `path` within `limits`.
+pub(super) fn load_json(
+    path: &Path,
+    scenes_root: &Path,
+    limits: &LoadLimits,
+) -> Result<Scene, SceneError> {
     let text = read_scene_file(path)?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let mut scene = from_json_str(&text, &path.display().to_string(), base, scenes_root)?;
+    let mut scene = from_json_str(
+        &text,
+        &path.display().to_string(),
+        base,
+        scenes_root,
+        limits,
+    )?;
     name_from_file(&mut scene, path);
     Ok(scene)
 }
@@ -53,12 +62,14 @@ pub(super) fn name_from_file(scene: &mut Scene, path: &Path) {
     }
 }
 
-/// Parses and validates; `file` is used in syntax error messages.
+/// Parses and validates within `limits`; `file` is used in syntax error
+/// messages.
 pub(super) fn from_json_str(
     text: &str,
     file: &str,
     base_dir: &Path,
     scenes_root: &Path,
+    limits: &LoadLimits,
 ) -> Result<Scene, SceneError> {
     let mut de = serde_json::Deserializer::from_str(text);
     let syntax = |field: String, e: &serde_json::Error| {
@@ -80,7 +91,8 @@ pub(super) fn from_json_str(
         .map_err(|e| syntax(e.path().to_string(), e.inner()))?;
     de.end().map_err(|e| syntax(".".into(), &e))?;
     let files = Files::new(base_dir, scenes_root)?;
-    build(doc, &files)
+    let budget = Budget::new(limits);
+    build(doc, &files, &Bitmaps::new(&files, &budget))
 }
 
 /// Errors if any of the named optional fields is present.
@@ -94,8 +106,10 @@ fn reject_fields(field: &str, kind: &str, present: &[(&str, bool)]) -> Result<()
     }
 }
 
-pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
-    let bitmaps = Bitmaps::new(files);
+/// Builds the scene `doc` describes, its files resolved by `files` and its
+/// images read through `bitmaps`, whose budget every reader shares.
+pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<Scene, SceneError> {
+    let budget = bitmaps.budget();
     let mut materials = Vec::new();
     let mut material_ids = Vec::new();
     let mut by_id = HashMap::new();
@@ -107,7 +121,8 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
                 format!("duplicate material id {:?}", m.id),
             ));
         }
-        materials.push(Material::from_doc(m, &field, &bitmaps)?);
+        budget.check_cancel()?;
+        materials.push(Material::from_doc(m, &field, bitmaps)?);
         material_ids.push(m.id.clone());
     }
 
@@ -142,7 +157,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
         };
         keys.push(key);
     }
-    let meshes = MeshFiles::read_all(wanted, MAX_TRIANGLES - inline.min(MAX_TRIANGLES))?;
+    let meshes = MeshFiles::read_all(wanted, MAX_TRIANGLES - inline.min(MAX_TRIANGLES), budget)?;
     // The mesh of each shape that names a file.
     let shape_meshes: Vec<Option<Arc<MeshData>>> = keys
         .iter()
@@ -151,14 +166,20 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
     let mut triangles = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
         let field = format!("shapes[{i}]");
-        triangles += match (s.kind, &shape_meshes[i], &s.indices) {
+        let shape_triangles = match (s.kind, &shape_meshes[i], &s.indices) {
             (ShapeKind::Rectangle, ..) => 2,
             (ShapeKind::Cube, ..) => 12,
             (_, Some(mesh), _) => mesh.indices.len(),
             (ShapeKind::Triangles, _, Some(indices)) => indices.len(),
             _ => 0,
         };
-        check_size(triangles, &field)?;
+        triangles += shape_triangles;
+        check_triangles(triangles, &field)?;
+        budget.reserve(
+            super::triangle_bytes(shape_triangles),
+            &field,
+            &format!("its {shape_triangles} triangles, built,"),
+        )?;
     }
     let mut builder = GeometryBuilder {
         triangles: Vec::with_capacity(triangles),
@@ -166,6 +187,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
     };
     let mut emitters = Vec::new();
     for (i, s) in doc.shapes.iter().enumerate() {
+        budget.check_cancel()?;
         let field = format!("shapes[{i}]");
         let material = *by_id.get(&s.material).ok_or_else(|| {
             SceneError::invalid(
@@ -183,7 +205,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
                     e,
                     i,
                     &format!("{field}.emitter"),
-                    &bitmaps,
+                    bitmaps,
                 )?);
                 Some(emitters.len() - 1)
             }
@@ -198,7 +220,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
     let environment = doc
         .environment
         .as_ref()
-        .map(|e| load_environment(e, files))
+        .map(|e| load_environment(e, files, budget))
         .transpose()?;
     let camera = Camera::from_doc(&doc.camera, "camera")?;
     if let Some(d) = doc.max_depth.filter(|d| !(1..=MAX_PATH_DEPTH).contains(d)) {
@@ -209,6 +231,10 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
     }
     let digest = files.digest(&doc)?;
     let read = files.relative_opened();
+    // The meshes as read are not needed once placed.
+    drop(shape_meshes);
+    drop(meshes);
+    budget.check_cancel()?;
     let mut scene = builder.finish();
     scene.name = doc.name.unwrap_or_default();
     Ok(Scene {
@@ -226,23 +252,13 @@ pub(super) fn build(doc: SceneDoc, files: &Files) -> Result<Scene, SceneError> {
 }
 
 /// Refuses a scene whose first shapes, up to `field`, already hold more
-/// than [`MAX_TRIANGLES`] triangles or [`MAX_SCENE_MEMORY_BYTES`] of
-/// geometry (estimated with [`super::TRIANGLE_BYTES`]).
-fn check_size(triangles: usize, field: &str) -> Result<(), SceneError> {
+/// than [`MAX_TRIANGLES`] triangles (their bytes are the load budget's).
+fn check_triangles(triangles: usize, field: &str) -> Result<(), SceneError> {
     if triangles > MAX_TRIANGLES {
         return Err(SceneError::invalid(
             "shapes",
             format!(
                 "the shapes up to {field} hold {triangles} triangles, above the limit of {MAX_TRIANGLES} (MAX_TRIANGLES)"
-            ),
-        ));
-    }
-    let bytes = super::triangle_bytes(triangles);
-    if bytes > MAX_SCENE_MEMORY_BYTES {
-        return Err(SceneError::invalid(
-            "shapes",
-            format!(
-                "the shapes up to {field} would take about {bytes} bytes, above the limit of {MAX_SCENE_MEMORY_BYTES} (MAX_SCENE_MEMORY_BYTES)"
             ),
         ));
     }
@@ -265,9 +281,14 @@ impl MeshFiles {
     /// the field that names it) in parallel, each once, each refused past
     /// `max_triangles`. The first error in `wanted`'s order is returned,
     /// whatever finished first.
+    ///
+    /// Each mesh is reserved from `budget` as it is read (its readers
+    /// reserve what a file's header claims before reading it), so the
+    /// meshes held at once stay within the load's budget.
     pub(super) fn read_all(
         wanted: Vec<(MeshKey, ShapeKind, String)>,
         max_triangles: usize,
+        budget: &Budget,
     ) -> Result<MeshFiles, SceneError> {
         use rayon::prelude::*;
         let mut seen = std::collections::HashSet::new();
@@ -278,17 +299,23 @@ impl MeshFiles {
         let read: Vec<Result<(MeshKey, Arc<MeshData>), SceneError>> = unique
             .into_par_iter()
             .map(|((path, index), kind, field)| {
-                let file_error = |m: String| SceneError::file(&field, &path, m);
+                budget.check_cancel()?;
                 let mesh = match kind {
-                    ShapeKind::Ply => {
-                        super::ply::read_ply(&path, max_triangles).map_err(file_error)?
-                    }
-                    ShapeKind::Serialized => {
-                        super::serialized::read_serialized(&path, index, max_triangles)
-                            .map_err(file_error)?
-                    }
+                    ShapeKind::Ply => super::ply::read_ply(&path, &field, max_triangles, budget)?,
+                    ShapeKind::Serialized => super::serialized::read_serialized(
+                        &path,
+                        index,
+                        &field,
+                        max_triangles,
+                        budget,
+                    )?,
                     _ => mesh::load_obj(&path, &field, max_triangles)?,
                 };
+                budget.reserve(
+                    mesh.heap_bytes(),
+                    &field,
+                    &format!("the mesh of {}", path.display()),
+                )?;
                 Ok(((path, index), Arc::new(mesh)))
             })
             .collect();
@@ -691,7 +718,11 @@ fn similarity_scale(m: &DMat3) -> Option<f64> {
     ok.then_some(s)
 }
 
-fn load_environment(e: &EnvironmentDoc, files: &Files) -> Result<Environment, SceneError> {
+fn load_environment(
+    e: &EnvironmentDoc,
+    files: &Files,
+    budget: &Budget,
+) -> Result<Environment, SceneError> {
     let field = "environment";
     match e.kind {
         EnvironmentKind::Constant => {
@@ -743,7 +774,7 @@ fn load_environment(e: &EnvironmentDoc, files: &Files) -> Result<Environment, Sc
             };
             let path = files.resolve(name, "environment.filename")?;
             let (width, height, texels) =
-                read_bitmap(&path, false, "environment.filename")?.into_parts();
+                read_bitmap(&path, false, "environment.filename", budget)?.into_parts();
             Ok(Environment::Map(EnvironmentMap::new(
                 width, height, texels, scale, rotation,
             )))

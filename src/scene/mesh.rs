@@ -28,6 +28,17 @@ pub struct MeshData {
 }
 
 impl MeshData {
+    /// Bytes the mesh holds on the heap.
+    pub fn heap_bytes(&self) -> u64 {
+        fn bytes<T>(v: &[T]) -> u64 {
+            std::mem::size_of_val(v) as u64
+        }
+        bytes(&self.positions)
+            + bytes(&self.indices)
+            + self.normals.as_deref().map_or(0, bytes)
+            + self.uvs.as_deref().map_or(0, bytes)
+    }
+
     /// Gives a mesh without shading normals smooth ones, as Mitsuba 3 does
     /// for OBJ and PLY files unless `face_normals` is set: at each vertex,
     /// the unit normals of the triangles around it weighted by their angle

@@ -7,6 +7,7 @@
 pub(crate) mod archive;
 mod bilinear;
 mod bitmap;
+mod budget;
 pub(crate) mod bundle;
 mod bvh;
 mod camera;
@@ -37,6 +38,7 @@ mod transform;
 
 use glam::{DVec2, DVec3};
 
+pub use budget::LoadLimits;
 pub use camera::Camera;
 pub use digest::SceneDigest;
 pub use emitter::Emitter;
@@ -188,7 +190,21 @@ impl Scene {
         path: &std::path::Path,
         scenes_root: &std::path::Path,
     ) -> Result<Scene, SceneError> {
-        formats::load(path, scenes_root)
+        let options = MitsubaOptions::default();
+        formats::load(path, scenes_root, &options, &LoadLimits::default()).map(|(scene, _)| scene)
+    }
+
+    /// Loads a scene file by its extension (`.xml`: Mitsuba 3 XML read with
+    /// `options`; anything else: the JSON document) within `limits`: what
+    /// it may hold while loading and the flag that stops it. Returns what
+    /// was approximated.
+    pub fn load_within(
+        path: &std::path::Path,
+        scenes_root: &std::path::Path,
+        options: &MitsubaOptions,
+        limits: &LoadLimits,
+    ) -> Result<(Scene, Warnings), SceneError> {
+        formats::load(path, scenes_root, options, limits)
     }
 
     /// Parses a scene from text; relative file names resolve against
@@ -198,7 +214,13 @@ impl Scene {
         base_dir: &std::path::Path,
         scenes_root: &std::path::Path,
     ) -> Result<Scene, SceneError> {
-        loader::from_json_str(text, "<string>", base_dir, scenes_root)
+        loader::from_json_str(
+            text,
+            "<string>",
+            base_dir,
+            scenes_root,
+            &LoadLimits::default(),
+        )
     }
 
     /// Parses a Mitsuba 3 XML scene from text (see `docs/scene-format.md`,
@@ -210,7 +232,8 @@ impl Scene {
         scenes_root: &std::path::Path,
         options: &MitsubaOptions,
     ) -> Result<(Scene, Warnings), SceneError> {
-        mitsuba::from_str(text, "<string>", base_dir, scenes_root, options)
+        let limits = LoadLimits::default();
+        mitsuba::from_str(text, "<string>", base_dir, scenes_root, options, &limits)
     }
 
     /// Loads a Mitsuba 3 XML scene file with `options`; see
@@ -220,7 +243,7 @@ impl Scene {
         scenes_root: &std::path::Path,
         options: &MitsubaOptions,
     ) -> Result<(Scene, Warnings), SceneError> {
-        mitsuba::load(path, scenes_root, options)
+        mitsuba::load(path, scenes_root, options, &LoadLimits::default())
     }
 
     /// Closest hit with `0 < t < ray.t_max`.

@@ -4,15 +4,31 @@
 //! polygons fanned into triangles. Elements are read into typed records
 //! ([`Vertex`], [`Face`]) rather than the crate's map per element, which
 //! allocates for every property of every vertex.
+//!
+//! A header can claim any number of elements of any kind, so before a
+//! payload is read every element's count is held to what the file's bytes
+//! can hold ([`min_element_bytes`]), elements other than `vertex` and
+//! `face` are skipped without being kept (and not read at all past the
+//! last of those two), and the records of `vertex` and `face` are reserved
+//! from the load's budget. Payloads are read in chunks of [`CHUNK`]
+//! elements, the load's cancel flag asked between them.
 
 use std::io::BufReader;
 use std::path::Path;
 
 use ply_rs_bw::parser::{Parser, Reader};
-use ply_rs_bw::ply::{DefaultElement, Property, PropertyAccess, PropertyAccessResult};
+use ply_rs_bw::ply::{
+    DefaultElement, ElementDef, Encoding, Header, Property, PropertyAccess, PropertyAccessResult,
+    PropertyType, ScalarType,
+};
 
 use super::MAX_TRIANGLES;
+use super::budget::Budget;
+use super::error::SceneError;
 use super::mesh::MeshData;
+
+/// Elements read between two looks at the load's cancel flag.
+const CHUNK: usize = 1 << 16;
 
 /// Largest accepted PLY file, bytes.
 const MAX_PLY_BYTES: u64 = 1 << 30;
@@ -58,6 +74,15 @@ impl PropertyAccess for Vertex {
         *slot = value;
         self.has |= bit;
         PropertyAccessResult::Set
+    }
+}
+
+/// An element this reader has no use for: read past, nothing kept.
+struct Skip;
+
+impl PropertyAccess for Skip {
+    fn new() -> Self {
+        Skip
     }
 }
 
@@ -107,47 +132,155 @@ fn index_list(p: &Property) -> Option<Vec<i64>> {
     })
 }
 
-/// Reads the PLY mesh at `path` (module docs), refusing more than
-/// `max_triangles` triangles before its payload is read.
-pub(crate) fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, String> {
-    let file =
-        super::read::open_capped(path, MAX_PLY_BYTES).map_err(|e| format!("cannot open: {e}"))?;
+/// Bytes of one scalar of `t` in a binary file.
+fn scalar_bytes(t: &ScalarType) -> u64 {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+/// Fewest bytes one `element` takes in a file of `encoding`: in binary its
+/// scalars and its lists' counts (a list may be empty); in ASCII a digit
+/// and a separator per property, and at least a line break.
+fn min_element_bytes(element: &ElementDef, encoding: Encoding) -> u64 {
+    match encoding {
+        Encoding::Ascii => (2 * element.properties.len() as u64).max(1),
+        _ => element
+            .properties
+            .values()
+            .map(|p| match &p.data_type {
+                PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_bytes(t),
+            })
+            .sum(),
+    }
+}
+
+/// Reads `element`'s payload in chunks of [`CHUNK`], asking `budget`'s
+/// cancel flag between them.
+fn read_element<E: PropertyAccess>(
+    reader: &mut Reader<impl std::io::BufRead>,
+    element: &ElementDef,
+    header: &Header,
+    budget: &Budget,
+) -> Result<Result<Vec<E>, String>, SceneError> {
+    let parser = Parser::<E>::new();
+    let mut out = Vec::new();
+    let mut left = element.count;
+    while left > 0 {
+        budget.check_cancel()?;
+        let chunk = ElementDef {
+            count: left.min(CHUNK),
+            ..element.clone()
+        };
+        match parser.read_payload_for_element(reader, &chunk, header) {
+            Ok(part) => out.extend(part),
+            Err(e) => return Ok(Err(format!("invalid PLY: {e}"))),
+        }
+        left -= chunk.count;
+    }
+    Ok(Ok(out))
+}
+
+/// Reads the PLY mesh at `path` (module docs), named by the scene's
+/// `field`, refusing more than `max_triangles` triangles, and elements
+/// the file cannot hold or the budget cannot take, before its payload is
+/// read.
+pub(crate) fn read_ply(
+    path: &Path,
+    field: &str,
+    max_triangles: usize,
+    budget: &Budget,
+) -> Result<MeshData, SceneError> {
+    let fail = |message: String| SceneError::file(field, path, message);
+    let file = super::read::open_regular(path).map_err(|e| fail(format!("cannot open: {e}")))?;
+    let file_bytes = file
+        .metadata()
+        .map_err(|e| fail(format!("cannot read: {e}")))?
+        .len();
+    let file = super::read::Capped::new(file, MAX_PLY_BYTES);
     let mut reader = Reader::new(BufReader::new(file));
-    let invalid = |e: ply_rs_bw::parser::ParseError| format!("invalid PLY: {e}");
     let header = Parser::<DefaultElement>::new()
         .read_header(&mut reader)
-        .map_err(invalid)?;
+        .map_err(|e| fail(format!("invalid PLY: {e}")))?;
     let count = |element: &str| header.elements.get(element).map_or(0, |e| e.count);
     // Each face gives at least one triangle; refuse before reading payload.
     if count("face") > max_triangles || count("vertex") > 3 * MAX_TRIANGLES {
-        return Err(format!(
+        return Err(fail(format!(
             "{} vertices and {} faces exceed the scene's triangle limit",
             count("vertex"),
             count("face")
-        ));
+        )));
     }
-    // Elements are read in the header's order, each by the record type
-    // that wants it; others are read and dropped.
-    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
     for (name, element) in &header.elements {
+        let least = min_element_bytes(element, header.encoding);
+        if (element.count as u64).saturating_mul(least) > file_bytes {
+            return Err(fail(format!(
+                "element {name:?} claims {} entries of at least {least} bytes each, more than the file's {file_bytes} bytes hold",
+                element.count
+            )));
+        }
+    }
+    if let Some(vertex) = header.elements.get("vertex")
+        && let Some(axis) = ["x", "y", "z"]
+            .into_iter()
+            .find(|a| !vertex.properties.contains_key(*a))
+    {
+        return Err(fail(format!("the vertex element has no property {axis:?}")));
+    }
+    // The records of both elements are held at once while the mesh is made
+    // from them; a face's indices are a list of its own (a triangle's or a
+    // quad's fits in 32 bytes).
+    let records = count("vertex") as u64 * std::mem::size_of::<Vertex>() as u64
+        + count("face") as u64 * (std::mem::size_of::<Face>() as u64 + 32);
+    budget.reserve(
+        records,
+        field,
+        &format!(
+            "the {} vertices and {} faces of {}",
+            count("vertex"),
+            count("face"),
+            path.display()
+        ),
+    )?;
+    // Elements are read in the header's order, each by the record type
+    // that wants it; others are read past, and nothing after the last of
+    // `vertex` and `face`.
+    let last = header
+        .elements
+        .keys()
+        .rposition(|name| name == "vertex" || name == "face");
+    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
+    for (i, (name, element)) in header.elements.iter().enumerate() {
+        if last.is_none_or(|last| i > last) {
+            break;
+        }
         match name.as_str() {
             "vertex" => {
-                vertices = Parser::<Vertex>::new()
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(invalid)?;
+                vertices =
+                    read_element::<Vertex>(&mut reader, element, &header, budget)?.map_err(fail)?;
             }
             "face" => {
-                faces = Parser::<Face>::new()
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(invalid)?;
+                faces =
+                    read_element::<Face>(&mut reader, element, &header, budget)?.map_err(fail)?;
             }
+            // Nothing to read past in a binary element of no bytes.
+            _ if min_element_bytes(element, header.encoding) == 0
+                && header.encoding != Encoding::Ascii => {}
             _ => {
-                Parser::<DefaultElement>::new()
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(invalid)?;
+                read_element::<Skip>(&mut reader, element, &header, budget)?.map_err(fail)?;
             }
         }
     }
+    let mesh = mesh_of(&vertices, &faces, max_triangles).map_err(fail);
+    budget.release(records);
+    mesh
+}
+
+/// The mesh of the `vertex` and `face` records (module docs).
+fn mesh_of(vertices: &[Vertex], faces: &[Face], max_triangles: usize) -> Result<MeshData, String> {
     let mut mesh = MeshData::default();
     mesh.positions.reserve(vertices.len());
     let every = |bits: u16| vertices.iter().all(|v| v.has & bits == bits);
@@ -205,4 +338,84 @@ pub(crate) fn read_ply(path: &Path, max_triangles: usize) -> Result<MeshData, St
         return Err("no triangles".to_string());
     }
     Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::budget::LoadLimits;
+
+    const QUAD: &str = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n";
+
+    fn read(header: &str, payload: &[u8], limits: &LoadLimits) -> Result<MeshData, String> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.ply");
+        let mut bytes = header.as_bytes().to_vec();
+        bytes.extend(payload);
+        std::fs::write(&path, bytes).unwrap();
+        read_ply(&path, "shapes[0]", MAX_TRIANGLES, &Budget::new(limits)).map_err(|e| e.to_string())
+    }
+
+    fn header(before: &str, after: &str) -> String {
+        format!(
+            "ply\nformat ascii 1.0\n{before}element vertex 4\nproperty float x\nproperty float y\n\
+             property float z\nelement face 2\nproperty list uchar int vertex_indices\n{after}end_header\n"
+        )
+    }
+
+    #[test]
+    fn elements_the_file_cannot_hold_are_refused_before_reading() {
+        let limits = LoadLimits::default();
+        // 244 bytes claiming 10¹¹ elements of nothing: read one by one, they
+        // grew memory without bound.
+        let junk = "ply\nformat binary_little_endian 1.0\nelement junk 100000000000\n\
+                    element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                    element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+        let mut payload = vec![0u8; 36];
+        payload.extend([3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+        // Binary elements of no bytes take nothing to read past.
+        assert_eq!(read(junk, &payload, &limits).unwrap().indices.len(), 1);
+        let ascii_junk = header("element junk 100000000000\n", "");
+        let e = read(&ascii_junk, QUAD.as_bytes(), &limits).unwrap_err();
+        assert!(e.contains("\"junk\" claims 100000000000 entries"), "{e}");
+        let e = read(
+            &header("", "").replace("vertex 4", "vertex 4000000"),
+            QUAD.as_bytes(),
+            &limits,
+        )
+        .unwrap_err();
+        assert!(e.contains("\"vertex\" claims 4000000 entries"), "{e}");
+    }
+
+    #[test]
+    fn other_elements_are_read_past_and_nothing_after_the_mesh_is_read() {
+        let limits = LoadLimits::default();
+        let mesh = read(
+            &header("element camera 1\nproperty float fov\n", ""),
+            format!("45\n{QUAD}").as_bytes(),
+            &limits,
+        )
+        .unwrap();
+        assert_eq!((mesh.positions.len(), mesh.indices.len()), (4, 2));
+        // A trailing element is never read: its entries need not be there.
+        let trailing = header("", "element edge 3\nproperty int a\n");
+        assert_eq!(
+            read(&trailing, QUAD.as_bytes(), &limits)
+                .unwrap()
+                .indices
+                .len(),
+            2
+        );
+    }
+
+    #[test]
+    fn the_records_are_reserved_from_the_load_budget() {
+        let limits = LoadLimits {
+            max_bytes: 100,
+            budget: "scenes.max_scene_bytes",
+            ..LoadLimits::default()
+        };
+        let e = read(&header("", ""), QUAD.as_bytes(), &limits).unwrap_err();
+        assert!(e.contains("the 4 vertices and 2 faces"), "{e}");
+    }
 }

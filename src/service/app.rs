@@ -105,9 +105,16 @@ impl Application {
             config.scenes.lenient,
             PostedScenes::new(&config.cache.data_dir),
         );
+        // Each within the whole scenes budget; together they are held to it
+        // as they are registered below.
+        let limits = crate::scene::LoadLimits {
+            max_bytes: config.scenes.max_scene_bytes,
+            budget: "scenes.max_scene_bytes",
+            cancel: crate::cancel::Cancel::never(),
+        };
         let (loaded, posted) = tokio::task::spawn_blocking(move || {
-            let mut loaded = scenes::load_dir(&dir, lenient);
-            loaded.extend(posted.load_all(&dir));
+            let mut loaded = scenes::load_dir(&dir, lenient, &limits);
+            loaded.extend(posted.load_all(&dir, &limits));
             (loaded, posted)
         })
         .await

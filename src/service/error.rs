@@ -290,10 +290,23 @@ impl ApiError {
     }
 }
 
-/// Scene documents are request bodies: every field error is the client's (422);
-/// only an unreadable file on the server side is ours (500).
+/// Scene documents are request bodies: every field error is the client's
+/// (422), but for a scene over the service's remaining
+/// `scenes.max_scene_bytes` (507 naming that budget: deleting scenes makes
+/// room); only an unreadable file on the server side is ours (500).
 impl From<crate::scene::SceneError> for ApiError {
     fn from(err: crate::scene::SceneError) -> Self {
+        use crate::scene::SceneError;
+        match &err {
+            SceneError::OverBudget { budget, .. } if budget.starts_with("scenes.") => {
+                return ApiError::InsufficientStorage {
+                    field: (*budget).to_owned(),
+                    message: err.to_string(),
+                };
+            }
+            SceneError::Cancelled => return ApiError::Cancelled,
+            _ => {}
+        }
         match err.field() {
             Some(field) => ApiError::invalid(field, err.to_string()),
             None => ApiError::Internal {

@@ -16,16 +16,15 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::scenes::{LoadedScene, SceneSource, log_warnings, validate_id};
-use crate::scene::bundle::{DocumentKind, SceneBundle, load_document};
-use crate::scene::{MitsubaOptions, Scene, SceneError, Warnings};
+use crate::scene::bundle::{Document, DocumentKind, SceneBundle, load_document};
+use crate::scene::{LoadLimits, MitsubaOptions, Scene, SceneError, Warnings};
 
 /// First bytes of a posted scene's blob.
 const BLOB_MAGIC: &[u8; 8] = b"BMCSCN01";
 
 /// A posted scene as it was received.
 pub struct Posted {
-    pub document: String,
-    pub kind: DocumentKind,
+    pub document: Document,
     pub lenient: bool,
     /// Values of a Mitsuba XML scene's `$NAME` parameters.
     pub parameters: BTreeMap<String, String>,
@@ -41,6 +40,9 @@ struct BlobHeader {
     #[serde(default)]
     parameters: BTreeMap<String, String>,
     document: String,
+    /// The document's name as posted (older blobs have none).
+    #[serde(default)]
+    name: Option<String>,
     /// `(name, bytes)` of each asset; `None`: posted without assets.
     assets: Option<Vec<(String, u64)>>,
 }
@@ -55,10 +57,11 @@ impl Posted {
             .flat_map(SceneBundle::contents)
             .collect::<std::io::Result<_>>()?;
         let header = BlobHeader {
-            xml: self.kind == DocumentKind::MitsubaXml,
+            xml: self.document.kind == DocumentKind::MitsubaXml,
             lenient: self.lenient,
             parameters: self.parameters.clone(),
-            document: self.document.clone(),
+            document: self.document.text.clone(),
+            name: Some(self.document.name.clone()),
             assets: self.bundle.as_ref().map(|_| {
                 contents
                     .iter()
@@ -105,24 +108,23 @@ impl Posted {
         };
         anyhow::ensure!(rest.is_empty(), "trailing bytes after the assets");
         Ok(Posted {
-            document: header.document,
-            kind: if header.xml {
-                DocumentKind::MitsubaXml
-            } else {
-                DocumentKind::Json
-            },
+            document: kept_document(header.document, header.xml, header.name),
             lenient: header.lenient,
             parameters: header.parameters,
             bundle,
         })
     }
 
-    /// Loads the scene as it was when posted: against its assets, or
-    /// against `scenes_dir` when it came without.
-    pub fn load(&self, scenes_dir: &Path) -> Result<(Scene, Warnings), SceneError> {
+    /// Loads the scene as it was when posted, within `limits`: against its
+    /// assets, or against `scenes_dir` when it came without.
+    pub fn load(
+        &self,
+        scenes_dir: &Path,
+        limits: &LoadLimits,
+    ) -> Result<(Scene, Warnings), SceneError> {
         match &self.bundle {
-            Some(bundle) => bundle.load(&self.document, self.kind, &self.options()),
-            None => load_document(&self.document, self.kind, &self.options(), scenes_dir),
+            Some(bundle) => bundle.load(&self.document, &self.options(), limits),
+            None => load_document(&self.document, &self.options(), scenes_dir, limits),
         }
     }
 
@@ -142,6 +144,24 @@ struct PostRecord {
     #[serde(default)]
     parameters: BTreeMap<String, String>,
     with_assets: bool,
+    /// The document's name as posted (older records have none).
+    #[serde(default)]
+    name: Option<String>,
+}
+
+/// A kept document: its text, its format and the name it was posted under
+/// (what the file it is kept in is called, for copies kept before names
+/// were).
+fn kept_document(text: String, xml: bool, name: Option<String>) -> Document {
+    let (kind, file) = match xml {
+        true => (DocumentKind::MitsubaXml, "scene.xml"),
+        false => (DocumentKind::Json, "scene.json"),
+    };
+    Document {
+        text,
+        kind,
+        name: name.unwrap_or_else(|| file.to_owned()),
+    }
 }
 
 /// Where posted scenes are kept; `None` keeps them in memory only.
@@ -164,8 +184,8 @@ impl PostedScenes {
         let Some(dir) = &self.dir else {
             return Ok(0);
         };
-        let new =
-            posted.document.len() as u64 + posted.bundle.as_ref().map_or(0, SceneBundle::bytes);
+        let new = posted.document.text.len() as u64
+            + posted.bundle.as_ref().map_or(0, SceneBundle::bytes);
         let mut others = 0;
         if let Ok(entries) = std::fs::read_dir(dir) {
             for entry in entries.filter_map(Result::ok) {
@@ -187,14 +207,15 @@ impl PostedScenes {
         let staging = tempfile::Builder::new()
             .prefix(".posting-")
             .tempdir_in(dir)?;
-        let xml = posted.kind == DocumentKind::MitsubaXml;
+        let xml = posted.document.kind == DocumentKind::MitsubaXml;
         let name = if xml { "scene.xml" } else { "scene.json" };
-        std::fs::write(staging.path().join(name), &posted.document)?;
+        std::fs::write(staging.path().join(name), &posted.document.text)?;
         let record = PostRecord {
             xml,
             lenient: posted.lenient,
             parameters: posted.parameters.clone(),
             with_assets: posted.bundle.is_some(),
+            name: Some(posted.document.name.clone()),
         };
         std::fs::write(
             staging.path().join("post.json"),
@@ -249,9 +270,10 @@ impl PostedScenes {
         }
     }
 
-    /// Every kept scene, loaded; `scenes_dir` resolves the files of those
-    /// posted without assets. Broken copies are logged and skipped.
-    pub fn load_all(&self, scenes_dir: &Path) -> Vec<LoadedScene> {
+    /// Every kept scene, loaded, each within `limits`; `scenes_dir`
+    /// resolves the files of those posted without assets. Broken copies
+    /// are logged and skipped.
+    pub fn load_all(&self, scenes_dir: &Path, limits: &LoadLimits) -> Vec<LoadedScene> {
         let Some(dir) = &self.dir else {
             return Vec::new();
         };
@@ -264,7 +286,7 @@ impl PostedScenes {
             if id.starts_with('.') || validate_id(&id).is_err() {
                 continue;
             }
-            match load_one(&entry.path(), scenes_dir) {
+            match load_one(&entry.path(), scenes_dir, limits) {
                 Ok((mut scene, warnings)) => {
                     if scene.name.is_empty() {
                         scene.name = id.clone();
@@ -297,7 +319,11 @@ fn tree_bytes(path: &Path) -> u64 {
     }
 }
 
-fn load_one(dir: &Path, scenes_dir: &Path) -> anyhow::Result<(Scene, Warnings)> {
+fn load_one(
+    dir: &Path,
+    scenes_dir: &Path,
+    limits: &LoadLimits,
+) -> anyhow::Result<(Scene, Warnings)> {
     // Read as scene files are: regular files only (a FIFO would block the
     // start for ever), with a byte cap.
     let record: PostRecord =
@@ -307,23 +333,22 @@ fn load_one(dir: &Path, scenes_dir: &Path) -> anyhow::Result<(Scene, Warnings)> 
     } else {
         "scene.json"
     };
-    let document = crate::scene::read_scene_file(&dir.join(name))?;
+    let document = kept_document(
+        crate::scene::read_scene_file(&dir.join(name))?,
+        record.xml,
+        record.name,
+    );
     let root = if record.with_assets {
         dir.join("assets")
     } else {
         scenes_dir.to_owned()
     };
     std::fs::create_dir_all(&root)?;
-    let kind = if record.xml {
-        DocumentKind::MitsubaXml
-    } else {
-        DocumentKind::Json
-    };
     let options = MitsubaOptions {
         lenient: record.lenient,
         parameters: record.parameters,
     };
-    let (scene, warnings) = load_document(&document, kind, &options, &root)?;
+    let (scene, warnings) = load_document(&document, &options, &root, limits)?;
     log_warnings(&dir.display().to_string(), &warnings);
     Ok((scene, warnings))
 }
@@ -340,16 +365,20 @@ mod tests {
             .unwrap();
         bundle.add("sky.exr", &[1, 2, 3], "assets[1]").unwrap();
         let posted = Posted {
-            document: "<scene/>".into(),
-            kind: DocumentKind::MitsubaXml,
+            document: Document {
+                text: "<scene/>".into(),
+                kind: DocumentKind::MitsubaXml,
+                name: "lego/scene.xml".into(),
+            },
             lenient: true,
             parameters: [("spp".to_owned(), "8".to_owned())].into(),
             bundle: Some(bundle),
         };
         let blob = posted.encode().unwrap();
         let back = Posted::decode(&blob).unwrap();
-        assert_eq!(back.document, "<scene/>");
-        assert_eq!(back.kind, DocumentKind::MitsubaXml);
+        assert_eq!(back.document.text, "<scene/>");
+        assert_eq!(back.document.kind, DocumentKind::MitsubaXml);
+        assert_eq!(back.document.name, "lego/scene.xml");
         assert!(back.lenient);
         assert_eq!(back.parameters, posted.parameters);
         let assets: Vec<_> = back

@@ -105,7 +105,9 @@ pub async fn adopt(
         message: format!("shared scene `{id}` does not decode: {err}"),
     })?;
     let dir = state.config.scenes.dir.clone();
-    let (loaded, posted) = tokio::task::spawn_blocking(move || (posted.load(&dir), posted)).await?;
+    let limits = state.scenes.load_limits(id, crate::cancel::Cancel::never());
+    let (loaded, posted) =
+        tokio::task::spawn_blocking(move || (posted.load(&dir, &limits), posted)).await?;
     let (mut scene, warnings) = loaded?;
     log_warnings(id, &warnings);
     if scene.name.is_empty() {

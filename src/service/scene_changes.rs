@@ -10,6 +10,7 @@ use super::error::ApiError;
 use super::posted_scenes::Posted;
 use super::scenes::{LoadedScene, SceneSource, SceneSummary, log_warnings};
 use super::state::AppState;
+use crate::scene::LoadLimits;
 
 /// Adds the scene `posted` describes under `id`, replacing one with the
 /// same id; returns whether it replaced one, and its summary.
@@ -19,9 +20,18 @@ pub async fn post(
     mut posted: Posted,
 ) -> Result<(bool, SceneSummary), ApiError> {
     let root = state.config.scenes.dir.clone();
+    let limits = state
+        .scenes
+        .load_limits(&id, crate::cancel::Cancel::never());
     let (loaded, returned) = state
         .pool
-        .run(move |_| (posted.load(&root), posted))
+        .run(move |cancel| {
+            let limits = LoadLimits {
+                cancel: cancel.clone(),
+                ..limits
+            };
+            (posted.load(&root, &limits), posted)
+        })
         .await?;
     posted = returned;
     let (mut scene, warnings) = loaded?;

@@ -19,10 +19,11 @@ use rayon::prelude::*;
 use serde::Serialize;
 use utoipa::ToSchema;
 
+use crate::cancel::Cancel;
 use crate::estimators::calibration::Calibrations;
 use crate::estimators::lengthscale::{FittedKernel, FittedKernels};
 use crate::render::Transport;
-use crate::scene::{MitsubaOptions, Scene, SceneError, Warnings};
+use crate::scene::{LoadLimits, MitsubaOptions, Scene, SceneError, Warnings};
 use crate::service::config::ScenesConfig;
 use crate::service::error::ApiError;
 
@@ -200,6 +201,24 @@ impl SceneRegistry {
 
     pub fn get(&self, id: &str) -> Option<Arc<LoadedScene>> {
         self.read().get(id).cloned()
+    }
+
+    /// What loading scene `id` may hold: the `scenes.max_scene_bytes` left
+    /// beside the other loaded scenes (the one it would replace does not
+    /// count), stopped by `cancel`. Concurrent loads may each see the same
+    /// room; [`Self::insert`] still holds the sum to the budget.
+    pub fn load_limits(&self, id: &str, cancel: Cancel) -> LoadLimits {
+        let others: u64 = self
+            .read()
+            .values()
+            .filter(|s| s.id != id)
+            .map(|s| s.bytes)
+            .sum();
+        LoadLimits {
+            max_bytes: self.budget.max_scene_bytes.saturating_sub(others),
+            budget: "scenes.max_scene_bytes",
+            cancel,
+        }
     }
 
     /// Adds or replaces a scene; returns the one it replaced. A scene that
@@ -399,8 +418,9 @@ fn find_scenes(dir: &Path) -> std::io::Result<Vec<Found>> {
 /// strictly or, with `lenient`, approximating what the scene model cannot
 /// represent (each scene says what in its summary). Files that fail are
 /// logged and skipped. A missing directory or one that gives no scene is not
-/// an error but a warning ([`warn_no_scenes`]).
-pub fn load_dir(dir: &Path, lenient: bool) -> Vec<LoadedScene> {
+/// an error but a warning ([`warn_no_scenes`]). Each scene is loaded within
+/// `limits`.
+pub fn load_dir(dir: &Path, lenient: bool, limits: &LoadLimits) -> Vec<LoadedScene> {
     let found = match find_scenes(dir) {
         Ok(found) => found,
         Err(err) => {
@@ -419,13 +439,7 @@ pub fn load_dir(dir: &Path, lenient: bool) -> Vec<LoadedScene> {
                 tracing::warn!(file = %path.display(), %reason, "scene skipped");
                 return None;
             }
-            let is_xml = path.extension().is_some_and(|ext| ext == "xml");
-            let result = if is_xml {
-                Scene::load_mitsuba_xml(path, root, &options)
-            } else {
-                Scene::load(path, root).map(|scene| (scene, Warnings::default()))
-            };
-            match result {
+            match Scene::load_within(path, root, &options, limits) {
                 Ok((scene, warnings)) => {
                     tracing::info!(%id, file = %path.display(), "scene loaded");
                     log_warnings(id, &warnings);
@@ -525,7 +539,7 @@ mod tests {
         std::fs::write(dir.path().join("broken.json"), "{ not json").unwrap();
         std::fs::write(dir.path().join("bad id!.json"), TINY).unwrap();
         std::fs::write(dir.path().join("notes.txt"), "ignored").unwrap();
-        let loaded = load_dir(dir.path(), false);
+        let loaded = load_dir(dir.path(), false, &LoadLimits::default());
         let ids: Vec<_> = loaded.iter().map(|s| s.id.as_str()).collect();
         assert_eq!(ids, ["good"]);
 
@@ -619,7 +633,7 @@ mod tests {
         write("approx/scene.xml", &xml("<foo/>"));
         write("approx/meshes/quad.obj", quad);
         let ids = |lenient| {
-            let mut loaded = load_dir(dir.path(), lenient);
+            let mut loaded = load_dir(dir.path(), lenient, &LoadLimits::default());
             loaded.sort_by(|a, b| a.id.cmp(&b.id));
             loaded
         };
@@ -641,6 +655,6 @@ mod tests {
     #[test]
     fn missing_directory_loads_nothing() {
         let dir = tempfile::tempdir().unwrap();
-        assert!(load_dir(&dir.path().join("absent"), false).is_empty());
+        assert!(load_dir(&dir.path().join("absent"), false, &LoadLimits::default()).is_empty());
     }
 }

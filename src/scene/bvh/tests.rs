@@ -233,3 +233,32 @@ fn the_tree_is_the_same_on_one_thread_or_several() {
     assert!(one.0 == three.0, "the nodes differ");
     assert!(one.0.len() > boxes.len() / 4);
 }
+
+#[test]
+fn rays_with_nan_or_huge_coordinates_miss_instead_of_overrunning_the_stack() {
+    // Deep enough that a ray passing every child would need more than the
+    // traversal stack holds.
+    let boxes = random_boxes(30_000, 11);
+    let (bvh, order) = Bvh::build(&boxes);
+    let prims: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
+    let nan = DVec3::splat(f64::NAN);
+    let huge = DVec3::splat(1e300);
+    for (origin, dir) in [
+        (DVec3::splat(5.0), nan),
+        (nan, DVec3::X),
+        (DVec3::splat(f64::INFINITY), DVec3::X),
+        // Finite, but the slab distances overflow to ±∞ and their
+        // differences to NaN.
+        (-huge, DVec3::new(1.0, 1e-300, 0.0)),
+        (huge, -DVec3::ONE.normalize()),
+    ] {
+        let mut visited = 0;
+        let hit = bvh.closest(origin, dir, f64::INFINITY, &prims, |_, _| {
+            visited += 1;
+            None
+        });
+        assert_eq!(hit, None);
+        assert!(!bvh.any(origin, dir, f64::INFINITY, &prims, |_, _| false));
+        assert!(visited <= prims.len());
+    }
+}

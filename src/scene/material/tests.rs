@@ -1,4 +1,5 @@
 use crate::scene::bitmap::Bitmaps;
+use crate::scene::budget::{Budget, LoadLimits};
 use crate::scene::texture::Texture;
 use serde_json::json;
 
@@ -8,7 +9,8 @@ fn parse(doc: serde_json::Value) -> Result<Material, SceneError> {
     let doc: MaterialDoc = serde_json::from_value(doc).unwrap();
     let dir = std::env::temp_dir();
     let files = crate::scene::files::Files::new(&dir, &dir).unwrap();
-    Material::from_doc(&doc, "materials[3]", &Bitmaps::new(&files))
+    let budget = Budget::new(&LoadLimits::default());
+    Material::from_doc(&doc, "materials[3]", &Bitmaps::new(&files, &budget))
 }
 
 fn field_of(doc: serde_json::Value) -> String {

@@ -89,6 +89,7 @@ fn describe<'a>(
     el: &'a Element,
     field: &str,
 ) -> Result<(String, Map<String, Value>), XmlError> {
+    ctx.check_cancel(el)?;
     ctx.origin(field, el);
     let kind = el.attr("type").unwrap_or("");
     if !plugin_names().contains(&kind) || NOT_MITSUBA.contains(&kind) {

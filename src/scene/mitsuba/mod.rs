@@ -22,9 +22,11 @@ mod transform;
 mod tests;
 
 use std::collections::{BTreeMap, HashMap};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use super::Scene;
+use super::bitmap::Bitmaps;
+use super::budget::{Budget, LoadLimits};
 use super::error::SceneError;
 use super::files::Files;
 use super::format::{CameraDoc, EnvironmentDoc, MaterialDoc, SceneDoc, ShapeDoc};
@@ -190,7 +192,9 @@ impl Origin {
 pub(crate) struct Ctx<'a> {
     ids: HashMap<String, &'a Element>,
     lenient: bool,
-    files: &'a Files,
+    /// The images the translation reads (a texture's mean where a constant
+    /// is wanted), each once, shared with the scene's build after it.
+    bitmaps: &'a Bitmaps<'a>,
     warnings: Warnings,
     /// Unsupported features of a strict document, reported together once
     /// it has been read through.
@@ -211,11 +215,15 @@ pub(crate) struct Ctx<'a> {
 
 impl<'a> Ctx<'a> {
     /// Empty conversion state for a document whose elements with an `id` are `ids`.
-    fn new(ids: HashMap<String, &'a Element>, options: &MitsubaOptions, files: &'a Files) -> Self {
+    fn new(
+        ids: HashMap<String, &'a Element>,
+        options: &MitsubaOptions,
+        bitmaps: &'a Bitmaps<'a>,
+    ) -> Self {
         Ctx {
             ids,
             lenient: options.lenient,
-            files,
+            bitmaps,
             warnings: Warnings::default(),
             problems: Vec::new(),
             materials: Vec::new(),
@@ -299,30 +307,33 @@ impl<'a> Ctx<'a> {
         self.resolving.pop();
     }
 
-    /// Resolves file name `name` given by property `prop` of `el` inside the
-    /// scenes directory.
-    fn resolve(&self, el: &Element, prop: &str, name: &str) -> Result<PathBuf, XmlError> {
-        self.files.resolve(name, prop).map_err(|e| XmlError {
+    /// `Err` once the load is cancelled, located at `el`.
+    fn check_cancel(&self, el: &Element) -> Result<(), XmlError> {
+        self.bitmaps.budget().check_cancel().map_err(|e| XmlError {
             source: Some(Box::new(e)),
-            ..el.error(prop, "")
+            ..el.error("", "")
         })
     }
 }
 
-/// Parses Mitsuba XML `text` (named `file` in messages) and builds the scene.
-/// Relative file names resolve against `base_dir` and must stay inside
-/// `scenes_root`.
+/// Parses Mitsuba XML `text` (named `file` in messages) and builds the scene
+/// within `limits`. Relative file names resolve against `base_dir` and must
+/// stay inside `scenes_root`.
 pub(crate) fn from_str(
     text: &str,
     file: &str,
     base_dir: &Path,
     scenes_root: &Path,
     options: &MitsubaOptions,
+    limits: &LoadLimits,
 ) -> Result<(Scene, Warnings), SceneError> {
     let files = Files::new(base_dir, scenes_root)?;
+    let budget = Budget::new(limits);
+    let bitmaps = Bitmaps::new(&files, &budget);
     let scene_el = parse::parse(text, &options.parameters).map_err(|e| e.into_scene_error(file))?;
     let ids = parse::index_ids(&scene_el).map_err(|e| e.into_scene_error(file))?;
-    let mut ctx = Ctx::new(ids, options, &files);
+    budget.check_cancel()?;
+    let mut ctx = Ctx::new(ids, options, &bitmaps);
     let converted = convert_scene(&mut ctx, &scene_el);
     // A strict document's unsupported features come first: an error met
     // afterwards may be one of their stand-ins failing.
@@ -333,15 +344,17 @@ pub(crate) fn from_str(
     let Ctx {
         origins, warnings, ..
     } = ctx;
-    let scene = loader::build(doc, &files).map_err(|e| locate(e, file, &origins))?;
+    let scene = loader::build(doc, &files, &bitmaps).map_err(|e| locate(e, file, &origins))?;
     Ok((scene, warnings))
 }
 
-/// Reads and converts a `.xml` scene file; the scene is named after the file.
+/// Reads and converts a `.xml` scene file within `limits`; the scene is
+/// named after the file.
 pub(crate) fn load(
     path: &Path,
     scenes_root: &Path,
     options: &MitsubaOptions,
+    limits: &LoadLimits,
 ) -> Result<(Scene, Warnings), SceneError> {
     let text = loader::read_scene_file(path)?;
     let base = path.parent().unwrap_or(Path::new("."));
@@ -351,6 +364,7 @@ pub(crate) fn load(
         base,
         scenes_root,
         options,
+        limits,
     )?;
     loader::name_from_file(&mut scene, path);
     Ok((scene, warnings))
@@ -416,6 +430,7 @@ fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, 
     let mut referenced = std::collections::HashSet::new();
     referenced_ids(scene, &mut referenced);
     for el in &scene.children {
+        ctx.check_cancel(el)?;
         match el.tag.as_str() {
             // Already applied while parsing.
             "default" => {}
@@ -507,6 +522,15 @@ fn locate(e: SceneError, file: &str, origins: &[(String, Origin)]) -> SceneError
         } => SceneError::File {
             field: relabel(&field, file, find(&field)),
             file: f,
+            message,
+        },
+        SceneError::OverBudget {
+            field,
+            budget,
+            message,
+        } => SceneError::OverBudget {
+            field: relabel(&field, file, find(&field)),
+            budget,
             message,
         },
         other => other,

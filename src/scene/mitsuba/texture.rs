@@ -9,7 +9,6 @@
 
 use serde_json::{Map, Value};
 
-use crate::scene::bitmap::read_bitmap;
 use crate::scene::format::Rgb;
 
 use super::parse::{Element, quote};
@@ -164,9 +163,15 @@ fn spectrum(ctx: &mut Ctx, el: &Element) -> Result<Rgb, XmlError> {
     Ok([mean; 3])
 }
 
-/// The mean linear colour of texture element `el`: a bitmap's texels, a
-/// checkerboard's two colours; mid grey for other types.
+/// The mean linear colour of texture element `el`, the stand-in of a
+/// lenient document: a bitmap's texels (each file decoded once for the
+/// whole load, within its budget), a checkerboard's two colours; mid grey
+/// for other types. A strict document fails where a stand-in is needed,
+/// so it gets mid grey without any image being decoded.
 pub(crate) fn mean<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlError> {
+    if !ctx.lenient {
+        return Ok(GREY);
+    }
     let mut props = Props::new(el);
     let out = match el.attr("type").unwrap_or("") {
         "bitmap" => {
@@ -174,8 +179,8 @@ pub(crate) fn mean<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlErr
                 .string("filename")?
                 .ok_or_else(|| el.error("filename", "a bitmap needs a `filename`"))?;
             let raw = props.boolean("raw", false)?;
-            let path = ctx.resolve(el, "filename", name)?;
-            read_bitmap(&path, raw, "filename")
+            ctx.bitmaps
+                .load(name, raw, "filename")
                 .map_err(|e| XmlError {
                     source: Some(Box::new(e)),
                     ..el.error("filename", "")

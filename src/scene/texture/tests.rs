@@ -5,7 +5,13 @@ use serde_json::json;
 
 use super::*;
 use crate::scene::bitmap::{self, Bitmaps, read_bitmap};
+use crate::scene::budget::{Budget, LoadLimits};
 use crate::scene::files::Files;
+
+/// A load budget of the library's own bounds.
+fn unlimited() -> Budget {
+    Budget::new(&LoadLimits::default())
+}
 
 /// A 2 × 2 bitmap: red, green on the top row; blue, white below.
 fn quad(filter: Filter, wrap: Wrap) -> BitmapTexture {
@@ -104,7 +110,7 @@ impl Drop for Scratch {
 }
 
 fn read(path: &Path, raw: bool) -> Bitmap {
-    read_bitmap(path, raw, "reflectance").unwrap()
+    read_bitmap(path, raw, "reflectance", &unlimited()).unwrap()
 }
 
 #[test]
@@ -157,7 +163,7 @@ fn every_format_decodes_to_linear_rgb() {
     // Not an image.
     let txt = dir.0.join("f.png");
     std::fs::write(&txt, "hello").unwrap();
-    let e = read_bitmap(&txt, false, "reflectance").unwrap_err();
+    let e = read_bitmap(&txt, false, "reflectance", &unlimited()).unwrap_err();
     assert_eq!(e.field(), Some("reflectance"));
 }
 
@@ -169,7 +175,8 @@ fn texture_documents_are_validated_naming_the_field() {
         .unwrap();
     crate::scene::write_exr_half(&dir.0.join("bright.exr"), 1, 1, &[[2.0, 0.5, 0.5]]).unwrap();
     let files = Files::new(&dir.0, &dir.0).unwrap();
-    let bitmaps = Bitmaps::new(&files);
+    let budget = unlimited();
+    let bitmaps = Bitmaps::new(&files, &budget);
     let parse = |doc: serde_json::Value| {
         let serde_json::Value::Object(map) = json!({ "reflectance": doc }) else {
             unreachable!()
@@ -232,7 +239,8 @@ fn a_scenes_images_are_capped_in_all() {
             .unwrap();
     }
     let files = Files::new(&dir.0, &dir.0).unwrap();
-    let bitmaps = Bitmaps::with_limit(&files, 20);
+    let budget = unlimited();
+    let bitmaps = Bitmaps::with_limit(&files, &budget, 20);
     let a = bitmaps
         .load("a.png", false, "materials[0].reflectance.filename")
         .unwrap();

@@ -8,7 +8,7 @@ use axum::http::StatusCode;
 use tokio::io::AsyncWriteExt;
 
 use crate::scene::archive::{self, ArchiveFormat, ArchiveLimits};
-use crate::scene::bundle::{DocumentKind, SceneBundle};
+use crate::scene::bundle::{Document, DocumentKind, SceneBundle};
 use crate::service::config::Limits;
 use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{
@@ -101,28 +101,28 @@ pub async fn post_scene(
             "`file` names the scene file of an uploaded archive",
         ));
     }
-    let (id, document, kind, bundle) = match media_type {
+    // What messages call a document sent as the body itself.
+    const BODY: &str = "body";
+    let (id, document, kind, name, bundle) = match media_type {
         MediaType::Json => {
             let bytes = body_bytes(request, &()).await?;
             let id = posted_id(DocumentKind::Json, query.id, &bytes)?;
-            (id, body_text(&bytes, "JSON")?, DocumentKind::Json, None)
+            let text = body_text(&bytes, "JSON")?;
+            (id, text, DocumentKind::Json, BODY.to_owned(), None)
         }
         MediaType::Xml => {
             let bytes = body_bytes(request, &()).await?;
             let id = posted_id(DocumentKind::MitsubaXml, query.id, &bytes)?;
-            (
-                id,
-                body_text(&bytes, "XML")?,
-                DocumentKind::MitsubaXml,
-                None,
-            )
+            let text = body_text(&bytes, "XML")?;
+            (id, text, DocumentKind::MitsubaXml, BODY.to_owned(), None)
         }
         MediaType::Multipart => {
             let reading = state.upload_permit()?;
             let upload = read_upload(request, &state.config.limits).await?;
             drop(reading);
             let id = posted_id(upload.kind, query.id, upload.document.as_bytes())?;
-            (id, upload.document, upload.kind, Some(upload.bundle))
+            let name = upload.name;
+            (id, upload.document, upload.kind, name, Some(upload.bundle))
         }
         MediaType::Archive(format) => {
             let reading = state.upload_permit()?;
@@ -167,7 +167,14 @@ pub async fn post_scene(
                 }
                 (kind, id) => posted_id(kind, id, unpacked.document.as_bytes())?,
             };
-            (id, unpacked.document, unpacked.kind, Some(unpacked.bundle))
+            let name = unpacked.file;
+            (
+                id,
+                unpacked.document,
+                unpacked.kind,
+                name,
+                Some(unpacked.bundle),
+            )
         }
         MediaType::Other => {
             return Err(ApiError::UnsupportedSceneMediaType {
@@ -184,8 +191,11 @@ pub async fn post_scene(
         ));
     }
     let posted = Posted {
-        document,
-        kind,
+        document: Document {
+            text: document,
+            kind,
+            name,
+        },
         lenient: query.lenient,
         parameters,
         bundle,
@@ -293,6 +303,8 @@ fn sniff(archive: &std::fs::File) -> Result<ArchiveFormat, ApiError> {
 struct Upload {
     document: String,
     kind: DocumentKind,
+    /// The `scene` part's file name (`scene` if it gave none).
+    name: String,
     bundle: SceneBundle,
 }
 
@@ -320,13 +332,14 @@ async fn read_upload(request: Request, limits: &Limits) -> Result<Upload, ApiErr
                     || part
                         .content_type()
                         .is_some_and(|m| m.essence_str().ends_with("xml"));
+                let name = part.file_name().unwrap_or("scene").to_owned();
                 let text = part.text().await?;
                 let kind = if xml {
                     DocumentKind::MitsubaXml
                 } else {
                     DocumentKind::Json
                 };
-                if document.replace((text, kind)).is_some() {
+                if document.replace((text, kind, name)).is_some() {
                     return Err(ApiError::invalid("scene", "more than one `scene` part"));
                 }
             }
@@ -363,11 +376,12 @@ async fn read_upload(request: Request, limits: &Limits) -> Result<Upload, ApiErr
             }
         }
     }
-    let (document, kind) =
+    let (document, kind, name) =
         document.ok_or_else(|| ApiError::invalid("scene", "the upload has no `scene` part"))?;
     Ok(Upload {
         document,
         kind,
+        name,
         bundle,
     })
 }
