@@ -17,7 +17,7 @@ use super::environment::{Environment, EnvironmentMap};
 use super::error::SceneError;
 use super::files::Files;
 use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeDoc, ShapeKind};
-use super::material::Material;
+use super::material::{Declared, Material};
 use super::mesh::{self, MeshData};
 use super::shape::{self, Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
 use super::{Camera, MAX_PATH_DEPTH, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
@@ -113,6 +113,9 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
     let mut materials = Vec::new();
     let mut material_ids = Vec::new();
     let mut by_id = HashMap::new();
+    // What nested references may name: the materials before each one,
+    // shared (a material named many times is held once).
+    let mut declared = Declared::new();
     for (i, m) in doc.materials.iter().enumerate() {
         let field = format!("materials[{i}]");
         if by_id.insert(m.id.clone(), i).is_some() {
@@ -122,7 +125,9 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
             ));
         }
         budget.check_cancel()?;
-        materials.push(Material::from_doc(m, &field, bitmaps)?);
+        let material = Material::from_doc(m, &field, bitmaps, &declared)?;
+        declared.insert(m.id.clone(), Arc::new(material.clone()));
+        materials.push(material);
         material_ids.push(m.id.clone());
     }
 

@@ -11,7 +11,12 @@
 //!   and transmittances Mitsuba textures also take a texture document
 //!   ([`Texture`], `scene::texture`);
 //! - indices of refraction: a number or a named medium ([`ior`]);
-//! - metals: `eta` and `k` as colours, or `material`, a named metal ([`metals`]).
+//! - metals: `eta` and `k` as colours, or `material`, a named metal ([`metals`]);
+//! - nested materials (`bsdf` of `twosided`, `blendbsdf`, `mask`): a
+//!   material document, or the `id` of a material declared before this one,
+//!   which is shared, not copied. Sharing lets a few lines describe a tree
+//!   of any size, which every shading point would walk, so a material may
+//!   expand to at most [`MAX_MATERIAL_NODES`] plugins.
 
 mod blend;
 mod conductor;
@@ -25,11 +30,24 @@ mod optics;
 mod plastic;
 mod twosided;
 
+use std::sync::Arc;
+
 use super::bitmap::Bitmaps;
 use super::error::SceneError;
 use super::format::MaterialDoc;
+use super::params::Nested;
 pub(crate) use super::params::Params;
 use super::texture::Texture;
+
+/// Most plugins one material may expand to, counting a shared nested
+/// material each time it is used: shading walks the whole tree at every
+/// surface point. Published scenes nest a few (a blend of two-sided
+/// coatings); `blendbsdf` doubling a shared material ten times would make
+/// 2047.
+pub const MAX_MATERIAL_NODES: usize = 64;
+
+/// Materials declared so far in a scene, by id, for nested references.
+pub(crate) type Declared = std::collections::HashMap<String, std::sync::Arc<Material>>;
 
 /// Largest accepted Phong exponent; beyond it the lobe is a mirror for all
 /// practical purposes and sampling it in f64 loses precision.
@@ -116,19 +134,19 @@ pub enum Material {
     },
     /// `front` on the side the normal points to, `back` on the other.
     TwoSided {
-        front: Box<Material>,
-        back: Box<Material>,
+        front: Arc<Material>,
+        back: Arc<Material>,
     },
     /// `(1 − w) f₀ + w f₁` with `w` the luminance of `weight`.
     Blend {
         weight: Texture,
-        bsdfs: Box<[Material; 2]>,
+        bsdfs: [Arc<Material>; 2],
     },
     /// `bsdf` where the surface is present (probability: the luminance of
     /// `opacity`), straight through elsewhere.
     Mask {
         opacity: Texture,
-        bsdf: Box<Material>,
+        bsdf: Arc<Material>,
     },
 }
 
@@ -158,16 +176,49 @@ pub fn plugin_names() -> Vec<&'static str> {
 
 impl Material {
     /// Validates one `materials[i]` entry; `field` is its path. Bitmap
-    /// textures are read through `bitmaps`.
+    /// textures are read through `bitmaps`; nested references name the
+    /// materials `declared` before it.
     pub(crate) fn from_doc(
         doc: &MaterialDoc,
         field: &str,
         bitmaps: &Bitmaps,
+        declared: &Declared,
     ) -> Result<Self, SceneError> {
-        let mut params = Params::new(field, doc.params.clone()).with_bitmaps(bitmaps);
+        let mut params = Params::new(field, doc.params.clone())
+            .with_bitmaps(bitmaps)
+            .with_declared(declared);
         let material = Self::parse(&doc.kind, &mut params, field)?;
         params.finish()?;
+        let nodes = material.nodes_up_to(MAX_MATERIAL_NODES + 1);
+        if nodes > MAX_MATERIAL_NODES {
+            return Err(SceneError::invalid(
+                format!("{field}.bsdf"),
+                format!(
+                    "the material expands to more than {MAX_MATERIAL_NODES} plugins (MAX_MATERIAL_NODES), counting each use of a shared one"
+                ),
+            ));
+        }
         Ok(material)
+    }
+
+    /// The plugins the material expands to (itself and, recursively, each
+    /// use of a nested one), counted up to `cap` and no further, so that
+    /// counting costs at most `cap` steps whatever the sharing.
+    pub fn nodes_up_to(&self, cap: usize) -> usize {
+        let mut count = 1;
+        let nested: &[&Arc<Material>] = match self {
+            Material::TwoSided { front, back } => &[front, back],
+            Material::Blend { bsdfs, .. } => &[&bsdfs[0], &bsdfs[1]],
+            Material::Mask { bsdf, .. } => &[bsdf],
+            _ => &[],
+        };
+        for inner in nested {
+            if count >= cap {
+                break;
+            }
+            count += inner.nodes_up_to(cap - count);
+        }
+        count.min(cap)
     }
 
     /// The parameters of a `kind` document that its plugin does not take,
@@ -261,11 +312,30 @@ impl Material {
 
     /// The materials nested under `bsdf` (one object or a list), each with
     /// its field path.
-    fn nested(params: &mut Params) -> Result<Vec<(String, Material)>, SceneError> {
+    fn nested(params: &mut Params) -> Result<Vec<(String, Arc<Material>)>, SceneError> {
         let mut out = Vec::new();
-        for (kind, field, mut inner) in params.nested("bsdf")? {
-            let material = Self::parse(&kind, &mut inner, &field)?;
-            inner.finish()?;
+        let declared = params.declared::<Declared>();
+        for (field, nested) in params.nested("bsdf")? {
+            let material = match (nested, declared) {
+                (Nested::Document(kind, mut inner), _) => {
+                    let material = Self::parse(&kind, &mut inner, &field)?;
+                    inner.finish()?;
+                    Arc::new(material)
+                }
+                (Nested::Reference(id), Some(declared)) => {
+                    declared.get(&id).cloned().ok_or_else(|| {
+                        SceneError::invalid(
+                            &field,
+                            format!("no material {id:?} is declared before this one"),
+                        )
+                    })?
+                }
+                // Only the parameters' names are wanted: any material
+                // stands in for the one named.
+                (Nested::Reference(_), None) => Arc::new(Material::Diffuse {
+                    reflectance: Texture::Constant([0.5; 3]),
+                }),
+            };
             out.push((field, material));
         }
         Ok(out)

@@ -480,7 +480,8 @@ impl Scene {
     }
 
     /// Bytes the scene holds on the heap (geometry, acceleration structures,
-    /// environment map), counted from its allocations; small per-material and
+    /// every image: textures of materials and emitters, the environment
+    /// map), counted from its allocations; small per-material and
     /// per-emitter data are left out.
     pub fn heap_bytes(&self) -> u64 {
         fn bytes<T>(v: &Vec<T>) -> u64 {
@@ -494,12 +495,18 @@ impl Scene {
                 _ => 0,
             })
             .sum();
-        // Each image once, however many textures share it.
+        // Each image once, however many textures (materials' and area
+        // emitters') share it.
         let mut seen = std::collections::HashSet::new();
+        let emitted = self.emitters.iter().filter_map(|e| match e {
+            Emitter::Area { radiance, .. } => Some(radiance),
+            _ => None,
+        });
         let textures: u64 = self
             .materials
             .iter()
             .flat_map(Material::textures)
+            .chain(emitted)
             .filter_map(|t| match t {
                 texture::Texture::Bitmap(b) => Some(b),
                 _ => None,

@@ -2,6 +2,8 @@
 //! one by the plugin that parses them; whatever no plugin took is refused
 //! by [`Params::finish`], naming its field.
 
+use std::any::Any;
+
 use serde_json::{Map, Value};
 
 use super::bitmap::Bitmaps;
@@ -18,6 +20,19 @@ pub(crate) struct Params<'a> {
     /// Where bitmap textures are read; `None` when only the parameters'
     /// names are wanted.
     bitmaps: Option<&'a Bitmaps<'a>>,
+    /// What the document declared before this plugin that its parameters
+    /// may name (the materials before this one, for nested references),
+    /// opaque here: the plugin that reads such a parameter knows its type
+    /// ([`Params::declared`]). `None` when only the names are wanted.
+    declared: Option<&'a (dyn Any + Sync)>,
+}
+
+/// One entry of a list of nested plugin documents ([`Params::nested`]).
+pub(crate) enum Nested<'a> {
+    /// A document: its `type` and parameters.
+    Document(String, Params<'a>),
+    /// The id of something declared before, shared rather than copied.
+    Reference(String),
 }
 
 impl<'a> Params<'a> {
@@ -26,7 +41,21 @@ impl<'a> Params<'a> {
             field: field.to_string(),
             map,
             bitmaps: None,
+            declared: None,
         }
+    }
+
+    /// Parameters that may name what `declared` holds.
+    pub fn with_declared(mut self, declared: &'a (dyn Any + Sync)) -> Self {
+        self.declared = Some(declared);
+        self
+    }
+
+    /// What the document declared before, if it is a `T`; `None` when only
+    /// the parameters' names are wanted.
+    pub fn declared<T: Any>(&self) -> Option<&'a T> {
+        let declared: &'a dyn Any = self.declared?;
+        declared.downcast_ref()
     }
 
     /// Parameters whose bitmap textures are read through `bitmaps`.
@@ -41,6 +70,7 @@ impl<'a> Params<'a> {
             field: field.to_string(),
             map,
             bitmaps: self.bitmaps,
+            declared: self.declared,
         }
     }
 
@@ -193,9 +223,10 @@ impl<'a> Params<'a> {
         }
     }
 
-    /// The BSDFs nested under `name` (an object or a list of objects, each
-    /// with its own `type`), with their paths.
-    pub fn nested(&mut self, name: &str) -> Result<Vec<(String, String, Params<'a>)>, SceneError> {
+    /// The plugins nested under `name` (an object or a list whose items are
+    /// objects, each with its own `type`, or ids of what was declared
+    /// before), with their paths.
+    pub fn nested(&mut self, name: &str) -> Result<Vec<(String, Nested<'a>)>, SceneError> {
         let items = match self.take(name) {
             None => Vec::new(),
             Some(Value::Array(items)) => items,
@@ -206,14 +237,22 @@ impl<'a> Params<'a> {
             .enumerate()
             .map(|(i, item)| {
                 let field = format!("{}[{i}]", self.field(name));
-                let Value::Object(mut map) = item else {
-                    return Err(SceneError::invalid(field, "not a material object"));
+                let mut map = match item {
+                    Value::Object(map) => map,
+                    Value::String(id) => return Ok((field, Nested::Reference(id))),
+                    _ => {
+                        return Err(SceneError::invalid(
+                            field,
+                            "neither a material object nor the id of one declared before",
+                        ));
+                    }
                 };
                 let kind = match map.remove("type") {
                     Some(Value::String(kind)) => kind,
                     _ => return Err(SceneError::invalid(field, "missing field `type`")),
                 };
-                Ok((kind, field.clone(), self.nested_params(&field, map)))
+                let params = self.nested_params(&field, map);
+                Ok((field, Nested::Document(kind, params)))
             })
             .collect()
     }

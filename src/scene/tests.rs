@@ -784,3 +784,65 @@ mod fuzz {
         }
     }
 }
+
+#[test]
+fn emitter_textures_count_in_the_scenes_bytes_and_budget() {
+    let dir = TempDir::new("emitter-texture");
+    image::RgbImage::from_pixel(128, 64, image::Rgb([200, 100, 50]))
+        .save(dir.0.join("glow.png"))
+        .unwrap();
+    let text = scene_json(
+        r#"{"type": "rectangle", "material": "m",
+            "emitter": {"type": "area", "radiance": {"type": "bitmap", "filename": "glow.png"}}}"#,
+        "",
+    );
+    let scene = from_str(&text, &dir.0).unwrap();
+    let texels = 128 * 64 * 12;
+    assert!(scene.heap_bytes() >= texels, "{}", scene.heap_bytes());
+    // Decoding it would take the load past its budget: refused first.
+    let limits = LoadLimits {
+        max_bytes: texels,
+        budget: "scenes.max_scene_bytes",
+        ..LoadLimits::default()
+    };
+    let loaded = loader::from_json_str(&text, "glow.json", &dir.0, &dir.0, &limits);
+    let Err(e) = loaded else {
+        panic!("loaded within {texels} bytes")
+    };
+    assert!(matches!(e, SceneError::OverBudget { .. }), "{e}");
+    assert_eq!(e.field(), Some("shapes[0].emitter.radiance.filename"));
+}
+
+#[test]
+fn nested_materials_may_name_earlier_ones_by_id() {
+    let doc = |materials: &str| {
+        format!(
+            r#"{{ "materials": [{materials}],
+                 "shapes": [{{"type": "rectangle", "material": "top"}}],
+                 "camera": {{"fov": 40, "width": 8, "height": 8,
+                             "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}} }}"#
+        )
+    };
+    let base = r#"{"id": "base", "type": "diffuse", "reflectance": 0.5}"#;
+    let scene = from_str(
+        &doc(&format!(
+            r#"{base}, {{"id": "top", "type": "blendbsdf", "bsdf": ["base", {{"type": "conductor"}}]}}"#
+        )),
+        &scenes_dir(),
+    )
+    .unwrap();
+    let Material::Blend { bsdfs, .. } = &scene.materials[1] else {
+        panic!("{:?}", scene.materials[1])
+    };
+    assert_eq!(*bsdfs[0], scene.materials[0]);
+    // Only materials declared before may be named.
+    let e = from_str(
+        &doc(&format!(
+            r#"{{"id": "top", "type": "twosided", "bsdf": ["base"]}}, {base}"#
+        )),
+        &scenes_dir(),
+    )
+    .err()
+    .unwrap();
+    assert_eq!(e.field(), Some("materials[0].bsdf[0]"), "{e}");
+}

@@ -4,6 +4,8 @@
 //! irradiance cache assumes. The models' own files test reciprocity,
 //! chi-square sampling and agreement with Mitsuba 3.
 
+use std::sync::Arc;
+
 use crate::scene::texture::Texture;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -92,42 +94,42 @@ fn materials() -> Vec<(&'static str, Material)> {
             "blend",
             Material::Blend {
                 weight: Texture::from([0.3; 3]),
-                bsdfs: Box::new([
-                    Material::Conductor {
+                bsdfs: [
+                    Arc::new(Material::Conductor {
                         eta: [0.0; 3],
                         k: [1.0; 3],
                         specular_reflectance: Texture::from(white),
                         roughness: Some(ggx(0.3)),
-                    },
-                    plastic.clone(),
-                ]),
+                    }),
+                    Arc::new(plastic.clone()),
+                ],
             },
         ),
         (
             "mask",
             Material::Mask {
                 opacity: Texture::from([0.6; 3]),
-                bsdf: Box::new(Material::Blend {
+                bsdf: Arc::new(Material::Blend {
                     weight: Texture::from([0.5; 3]),
-                    bsdfs: Box::new([
-                        Material::Diffuse {
+                    bsdfs: [
+                        Arc::new(Material::Diffuse {
                             reflectance: Texture::from(white),
-                        },
-                        Material::Conductor {
+                        }),
+                        Arc::new(Material::Conductor {
                             eta: [0.0; 3],
                             k: [1.0; 3],
                             specular_reflectance: Texture::from(white),
                             roughness: None,
-                        },
-                    ]),
+                        }),
+                    ],
                 }),
             },
         ),
         (
             "two-sided",
             Material::TwoSided {
-                front: Box::new(plastic),
-                back: Box::new(Material::Diffuse {
+                front: Arc::new(plastic),
+                back: Arc::new(Material::Diffuse {
                     reflectance: Texture::from(white),
                 }),
             },
@@ -256,8 +258,8 @@ fn two_sided_materials_see_the_surface_turned_around() {
         reflectance: Texture::from([0.7, 0.1, 0.1]),
     };
     let both = Bsdf::from(&Material::TwoSided {
-        front: Box::new(front.clone()),
-        back: Box::new(back.clone()),
+        front: Arc::new(front.clone()),
+        back: Arc::new(back.clone()),
     });
     let (front, back) = (Bsdf::from(&front), Bsdf::from(&back));
     let (wo, wi) = (

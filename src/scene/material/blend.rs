@@ -11,15 +11,12 @@ use crate::scene::texture;
 
 pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
     let weight = texture::albedo(params, "weight", [0.5; 3])?;
-    let nested: Vec<Material> = Material::nested(params)?
+    let nested: Vec<_> = Material::nested(params)?
         .into_iter()
         .map(|(_, m)| m)
         .collect();
-    let Ok(bsdfs) = <[Material; 2]>::try_from(nested) else {
+    let Ok(bsdfs) = <[_; 2]>::try_from(nested) else {
         return Err(params.invalid("bsdf", "a blend needs exactly two nested materials"));
     };
-    Ok(Material::Blend {
-        weight,
-        bsdfs: Box::new(bsdfs),
-    })
+    Ok(Material::Blend { weight, bsdfs })
 }

@@ -12,15 +12,12 @@ use crate::scene::texture;
 
 pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
     let opacity = texture::albedo(params, "opacity", [0.5; 3])?;
-    let nested: Vec<Material> = Material::nested(params)?
+    let nested: Vec<_> = Material::nested(params)?
         .into_iter()
         .map(|(_, m)| m)
         .collect();
-    let Ok([bsdf]) = <[Material; 1]>::try_from(nested) else {
+    let Ok([bsdf]) = <[_; 1]>::try_from(nested) else {
         return Err(params.invalid("bsdf", "a mask needs exactly one nested material"));
     };
-    Ok(Material::Mask {
-        opacity,
-        bsdf: Box::new(bsdf),
-    })
+    Ok(Material::Mask { opacity, bsdf })
 }

@@ -10,7 +10,13 @@ fn parse(doc: serde_json::Value) -> Result<Material, SceneError> {
     let dir = std::env::temp_dir();
     let files = crate::scene::files::Files::new(&dir, &dir).unwrap();
     let budget = Budget::new(&LoadLimits::default());
-    Material::from_doc(&doc, "materials[3]", &Bitmaps::new(&files, &budget))
+    let declared = crate::scene::material::Declared::new();
+    Material::from_doc(
+        &doc,
+        "materials[3]",
+        &Bitmaps::new(&files, &budget),
+        &declared,
+    )
 }
 
 fn field_of(doc: serde_json::Value) -> String {

@@ -12,7 +12,7 @@ pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
     let mut sides = Vec::new();
     for (field, material) in Material::nested(params)? {
         if matches!(
-            material,
+            *material,
             Material::TwoSided { .. } | Material::Dielectric { .. }
         ) {
             return Err(SceneError::invalid(
@@ -22,7 +22,7 @@ pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
         }
         sides.push(material);
     }
-    let (front, back) = match <[Material; 2]>::try_from(sides) {
+    let (front, back) = match <[_; 2]>::try_from(sides) {
         Ok([front, back]) => (front, back),
         Err(sides) if sides.len() == 1 => (sides[0].clone(), sides[0].clone()),
         Err(sides) => {
@@ -32,8 +32,5 @@ pub(super) fn parse(params: &mut Params) -> Result<Material, SceneError> {
             ));
         }
     };
-    Ok(Material::TwoSided {
-        front: Box::new(front),
-        back: Box::new(back),
-    })
+    Ok(Material::TwoSided { front, back })
 }

@@ -1,8 +1,8 @@
 //! Mitsuba BSDFs → the scene model's materials. The scene model takes
 //! Mitsuba's plugin and parameter names (`scene::material`), so a `<bsdf>`
 //! of a supported plugin becomes a material document by copying its
-//! properties (colours, numbers, strings, booleans and nested BSDFs); the
-//! scene loader validates them, and its errors point back at the property's
+//! properties (colours, numbers, strings, booleans and nested BSDFs, a
+//! referenced one by its id); the scene loader validates them, and its errors point back at the property's
 //! element. A plugin the scene model lacks is refused, or with `lenient`
 //! becomes Mitsuba's default diffuse.
 
@@ -114,9 +114,19 @@ fn describe<'a>(
         let target = ctx.deref(child)?;
         if target.tag == "bsdf" {
             let path = format!("{field}.bsdf[{}]", nested.len());
-            let (kind, mut inner) = describe(ctx, target, &path)?;
-            inner.insert("type".into(), Value::from(kind));
-            nested.push(Value::Object(inner));
+            if child.tag == "ref" {
+                // A referenced BSDF becomes a material of its own, named
+                // by its id wherever it is used: shared, not copied, so a
+                // chain of references that doubles is not a document that
+                // doubles.
+                let id = material(ctx, target)?;
+                ctx.origin(path, child);
+                nested.push(Value::from(id));
+            } else {
+                let (kind, mut inner) = describe(ctx, target, &path)?;
+                inner.insert("type".into(), Value::from(kind));
+                nested.push(Value::Object(inner));
+            }
             continue;
         }
         let Some(name) = child.attr("name") else {

@@ -241,8 +241,8 @@ fn bsdf_mappings() {
     assert_eq!(
         by_id("two"),
         Material::TwoSided {
-            front: Box::new(grey.clone()),
-            back: Box::new(grey)
+            front: std::sync::Arc::new(grey.clone()),
+            back: std::sync::Arc::new(grey)
         }
     );
     assert_eq!(
@@ -792,23 +792,25 @@ fn reference_errors() {
            <bsdf type="diffuse"><ref name="reflectance" id="t"/></bsdf>"#,
     );
     assert!(e.contains("cycle"), "{e}");
-    // A long chain of references is capped like deep nesting.
-    let chain: String = (0..1000)
+    // A long chain of references, each naming one declared after it, is
+    // capped like deep nesting; declared the other way round, each is read
+    // once and named, and the chain's plugins are counted.
+    let chain: Vec<String> = (0..1000)
         .map(|i| {
             format!(
-                r#"<bsdf type="twosided" id="c{i}"><ref id="c{}"/></bsdf>"#,
+                r#"<bsdf type="mask" id="c{i}"><ref id="c{}"/></bsdf>"#,
                 i + 1
             )
         })
         .chain(std::iter::once(
             r#"<bsdf type="diffuse" id="c1000"/>"#.to_string(),
         ))
-        .collect::<Vec<_>>()
-        .into_iter()
-        .rev()
         .collect();
-    let e = err(&chain);
+    let e = err(&(chain.concat() + r#"<shape type="rectangle"><ref id="c0"/></shape>"#));
     assert!(e.contains("deeper than"), "{e}");
+    let bottom_up: String = chain.iter().rev().map(String::as_str).collect();
+    let e = err(&(bottom_up + r#"<shape type="rectangle"><ref id="c0"/></shape>"#));
+    assert!(e.contains("MAX_MATERIAL_NODES"), "{e}");
     let e = err(r#"<shape type="rectangle"><ref id="missing"/></shape>"#);
     assert!(e.contains("missing"), "{e}");
     let e = err(r#"<bsdf type="diffuse" id="w"/>"#);
@@ -1168,4 +1170,38 @@ fn a_bsdf_no_shape_uses_never_fails_the_scene() {
     // Used, it is read and refused.
     let used = r#"<shape type="rectangle"><ref id="volumetric"/></shape>"#;
     assert!(err(&format!("{unused}\n{used}")).contains("volume"));
+}
+
+/// `b0` diffuse, each `bN` a blend of two references to `bN-1`, and a
+/// rectangle made of `b{levels}`: a few kilobytes whose tree doubles at
+/// each level.
+fn doubling_blends(levels: usize) -> String {
+    let mut body = String::from(r#"<bsdf type="diffuse" id="b0"/>"#);
+    for n in 1..=levels {
+        body += &format!(
+            r#"<bsdf type="blendbsdf" id="b{n}"><ref id="b{m}"/><ref id="b{m}"/></bsdf>"#,
+            m = n - 1
+        );
+    }
+    body += &format!(r#"<shape type="rectangle"><ref id="b{levels}"/></shape>"#);
+    wrap(&body)
+}
+
+#[test]
+fn referenced_bsdfs_are_shared_and_trees_that_double_are_refused() {
+    // Two levels: seven plugins, each referenced BSDF held once.
+    let (scene, _) = load(&doubling_blends(2)).unwrap();
+    let b2 = scene.material_ids.iter().position(|id| id == "b2").unwrap();
+    let Material::Blend { bsdfs, .. } = &scene.materials[b2] else {
+        panic!("{:?}", scene.materials[b2])
+    };
+    assert!(std::sync::Arc::ptr_eq(&bsdfs[0], &bsdfs[1]));
+    assert_eq!(scene.materials[b2].nodes_up_to(usize::MAX), 7);
+    // Thirty levels in 2 kB: 2³¹ − 1 plugins, refused before any is
+    // expanded, naming the material.
+    let text = doubling_blends(30);
+    assert!(text.len() < 4096);
+    let e = load_err(&text).to_string();
+    assert!(e.contains("MAX_MATERIAL_NODES"), "{e}");
+    assert!(e.contains(r#"<bsdf type="blendbsdf" id="b6">"#), "{e}");
 }
