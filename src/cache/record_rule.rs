@@ -67,7 +67,7 @@ use crate::bmc::{
     Density, Factorisation, Kernel, KernelKind, KernelMeanMethod, PriorMean, Quadrature,
     kernel_means,
 };
-use crate::render::{RadianceSample, Rgb};
+use crate::render::{RadianceSample, RenderError, Rgb};
 use crate::sphere::{SampleSet, SampleSetSpec};
 
 /// What a [`RecordRule`] is built from.
@@ -327,10 +327,9 @@ impl RecordRule {
             ));
         }
         if let Some(bad) = samples.iter().find(|s| !finite_rgb(s.radiance)) {
-            return Err(CacheError::invalid(
-                "radiance",
-                format!("must be finite, got {:?}", bad.radiance),
-            ));
+            return Err(CacheError::Render(RenderError::NotFinite {
+                what: format!("radiance samples ({:?})", bad.radiance),
+            }));
         }
         let mut columns = Vec::with_capacity(3 * n);
         let mut irradiance = [0.0; 3];

@@ -17,6 +17,11 @@ pub enum RenderError {
     /// The caller cancelled the work ([`super::Cancel`]) before it finished.
     #[error("cancelled before it finished")]
     Cancelled,
+    /// The scene produced a value that is not finite (`what`): a model
+    /// evaluated outside the range its parameters were validated for, the
+    /// library's fault, never the request's.
+    #[error("the scene produced {what} that is not finite")]
+    NotFinite { what: String },
 }
 
 impl RenderError {
@@ -26,7 +31,9 @@ impl RenderError {
             RenderError::InvalidPoint { field, .. } | RenderError::InvalidOption { field, .. } => {
                 Some(field)
             }
-            RenderError::PointsRow { .. } | RenderError::Cancelled => None,
+            RenderError::PointsRow { .. }
+            | RenderError::Cancelled
+            | RenderError::NotFinite { .. } => None,
         }
     }
 }

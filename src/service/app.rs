@@ -57,7 +57,7 @@ use super::metrics::{self, Metrics};
 use super::pool::CpuPool;
 use super::posted_scenes::PostedScenes;
 use super::routes;
-use super::scenes::{self, SceneRegistry};
+use super::scenes::{self, NotInserted, SceneRegistry};
 use super::server;
 use super::shared_store::SharedStore;
 use super::state::AppState;
@@ -122,7 +122,8 @@ impl Application {
         let registry = SceneRegistry::new(&config.scenes);
         for scene in loaded {
             let id = scene.id.clone();
-            if let Err(over) = registry.insert(scene) {
+            // A posted copy replaces the directory's scene of its id.
+            if let Err(NotInserted::OverBudget(over)) = registry.insert(scene, true) {
                 tracing::error!(%id, %over, "scene skipped: over the scenes budget");
             }
         }

@@ -11,6 +11,7 @@
 //! | 401 | `unauthorized` | a mutating route without the configured bearer token |
 //! | 404 | `not_found` | unknown route or unknown resource id |
 //! | 405 | `method_not_allowed` | the route exists but not for this method |
+//! | 409 | `scene_exists` | a scene posted under an id the service holds, without `replace=true` |
 //! | 413 | `payload_too_large` | body over `limits.max_body_bytes` |
 //! | 414 | `uri_too_long` | a request target over 8 KiB |
 //! | 415 | `unsupported_media_type` | a `content-type` other than JSON |
@@ -102,6 +103,13 @@ pub enum ApiError {
         "content-type must be application/json (a scene document), application/xml (Mitsuba 3), multipart/form-data (a scene with its assets) or application/zip, application/x-tar, application/gzip (a packed scene folder), got {got}"
     )]
     UnsupportedSceneMediaType { got: String },
+    /// `POST /v1/scenes` under an id the service already holds, without
+    /// `replace=true` (409); `field` is where the request gave the id
+    /// (`id`, or `name` for a JSON document).
+    #[error(
+        "a scene with id `{id}` is already loaded; delete it first, choose another id, or post with replace=true to replace it"
+    )]
+    SceneExists { field: &'static str, id: String },
 }
 
 /// The JSON error body (documented in the OpenAPI schema).
@@ -237,6 +245,7 @@ impl ApiError {
             ApiError::Internal { .. } => StatusCode::INTERNAL_SERVER_ERROR,
             ApiError::InsufficientStorage { .. } => StatusCode::INSUFFICIENT_STORAGE,
             ApiError::UnsupportedSceneMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ApiError::SceneExists { .. } => StatusCode::CONFLICT,
         }
     }
 
@@ -259,6 +268,7 @@ impl ApiError {
             ApiError::HeadersTooLarge { .. } => "headers_too_large",
             ApiError::InsufficientStorage { .. } => "insufficient_storage",
             ApiError::UnsupportedSceneMediaType { .. } => "unsupported_media_type",
+            ApiError::SceneExists { .. } => "scene_exists",
         }
     }
 
@@ -272,6 +282,7 @@ impl ApiError {
                 Some(field)
             }
             ApiError::InsufficientStorage { field, .. } => Some(field),
+            ApiError::SceneExists { field, .. } => Some(field),
             ApiError::BodyTooLarge { field, .. } => Some(field),
             ApiError::CrossOrigin { .. } => Some("Origin"),
             ApiError::UploadsBusy { .. } => Some("limits.max_concurrent_uploads"),
@@ -361,7 +372,7 @@ impl From<crate::render::RenderError> for ApiError {
             RenderError::InvalidPoint { field, .. } | RenderError::InvalidOption { field, .. } => {
                 ApiError::invalid(*field, err.to_string())
             }
-            RenderError::PointsRow { .. } => ApiError::Internal {
+            RenderError::PointsRow { .. } | RenderError::NotFinite { .. } => ApiError::Internal {
                 message: err.to_string(),
             },
             RenderError::Cancelled => ApiError::Cancelled,

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use super::error::ApiError;
 use super::posted_scenes::Posted;
-use super::scenes::{LoadedScene, SceneSource, log_warnings};
+use super::scenes::{NotInserted, LoadedScene, SceneSource, log_warnings};
 use super::shared_store::SharedEvent;
 use super::state::AppState;
 
@@ -35,6 +35,15 @@ impl AppState {
             what: "scene",
             id: id.to_owned(),
         })
+    }
+
+    /// Whether another replica posted a scene `id` this one has not
+    /// adopted (false without a shared store).
+    pub async fn shared_scene_exists(&self, id: &str) -> bool {
+        match &self.shared {
+            Some(shared) => shared.has_scene(id).await,
+            None => false,
+        }
     }
 }
 
@@ -121,7 +130,9 @@ pub async fn adopt(
     }
     let loaded = LoadedScene::new(id.to_owned(), SceneSource::Uploaded, scene);
     let generation = loaded.generation;
-    state.scenes.insert(loaded)?;
+    if let Err(NotInserted::OverBudget(over)) = state.scenes.insert(loaded, true) {
+        return Err(over.into());
+    }
     state.irradiance_caches.retire(id, Some(generation));
     let (keeper, kept) = (state.posted.clone(), id.to_owned());
     if let Ok(Err(err)) = tokio::task::spawn_blocking(move || keeper.save(&kept, &posted)).await {

@@ -8,17 +8,36 @@ use std::sync::Arc;
 
 use super::error::ApiError;
 use super::posted_scenes::Posted;
-use super::scenes::{LoadedScene, SceneSource, SceneSummary, log_warnings};
+use super::scenes::{LoadedScene, NotInserted, SceneSource, SceneSummary, log_warnings};
 use super::state::AppState;
 use crate::scene::LoadLimits;
 
-/// Adds the scene `posted` describes under `id`, replacing one with the
-/// same id; returns whether it replaced one, and its summary.
+/// Where a posted scene goes: its id, the request field that gave it
+/// (`id`, or `name` of a JSON document) and whether it may replace a scene
+/// of that id.
+pub struct Target {
+    pub id: String,
+    pub field: &'static str,
+    pub replace: bool,
+}
+
+/// Adds the scene `posted` describes under `target`'s id, replacing one
+/// with the same id if `target` says so (409 otherwise, before anything is
+/// loaded); returns whether it replaced one, and its summary.
 pub async fn post(
     state: &Arc<AppState>,
-    id: String,
+    target: Target,
     mut posted: Posted,
 ) -> Result<(bool, SceneSummary), ApiError> {
+    let Target { id, field, replace } = target;
+    let exists = || ApiError::SceneExists {
+        field,
+        id: id.clone(),
+    };
+    // Known here or to another replica: refused before any work.
+    if !replace && (state.scenes.get(&id).is_some() || state.shared_scene_exists(&id).await) {
+        return Err(exists());
+    }
     let root = state.config.scenes.dir.clone();
     let limits = state
         .scenes
@@ -49,7 +68,13 @@ pub async fn post(
     let loaded = LoadedScene::new(id, SceneSource::Uploaded, scene).approximating(&warnings);
     let summary = loaded.summary();
     let generation = loaded.generation;
-    let previous = state.scenes.insert(loaded)?;
+    let previous = state
+        .scenes
+        .insert(loaded, replace)
+        .map_err(|refused| match refused {
+            NotInserted::OverBudget(over) => over.into(),
+            NotInserted::Exists => exists(),
+        })?;
     let replaced = previous.is_some();
     // Kept for the next start (with `cache.data_dir`): a change that would
     // not survive a restart is not acknowledged, and not made.

@@ -183,6 +183,15 @@ impl From<OverBudget> for ApiError {
     }
 }
 
+/// Why [`SceneRegistry::insert`] did not insert a scene.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NotInserted {
+    /// It would take the loaded scenes over a budget.
+    OverBudget(OverBudget),
+    /// A scene holds its id, and it was not to be replaced.
+    Exists,
+}
+
 /// Scenes by id; readers share, writers (post/delete) are brief.
 pub struct SceneRegistry {
     scenes: RwLock<HashMap<String, Arc<LoadedScene>>>,
@@ -221,11 +230,19 @@ impl SceneRegistry {
         }
     }
 
-    /// Adds or replaces a scene; returns the one it replaced. A scene that
-    /// would take the loaded scenes over the budget (counting them without
-    /// the scene it replaces) is refused and nothing changes.
-    pub fn insert(&self, scene: LoadedScene) -> Result<Option<Arc<LoadedScene>>, OverBudget> {
+    /// Adds a scene, or replaces the one with its id if `replace`; returns
+    /// the one it replaced. A scene whose id is taken (without `replace`),
+    /// or that would take the loaded scenes over the budget (counting them
+    /// without the scene it replaces), is refused and nothing changes.
+    pub fn insert(
+        &self,
+        scene: LoadedScene,
+        replace: bool,
+    ) -> Result<Option<Arc<LoadedScene>>, NotInserted> {
         let mut scenes = self.scenes.write().unwrap_or_else(|p| p.into_inner());
+        if !replace && scenes.contains_key(&scene.id) {
+            return Err(NotInserted::Exists);
+        }
         let others = scenes.values().filter(|s| s.id != scene.id);
         let (count, triangles, bytes) = others
             .fold((1u64, scene.triangles as u64, scene.bytes), |acc, s| {
@@ -242,11 +259,11 @@ impl SceneRegistry {
         ];
         if let Some(&(field, total, limit)) = checks.iter().find(|(_, total, limit)| total > limit)
         {
-            return Err(OverBudget {
+            return Err(NotInserted::OverBudget(OverBudget {
                 field,
                 total,
                 limit,
-            });
+            }));
         }
         Ok(scenes.insert(scene.id.clone(), Arc::new(scene)))
     }
@@ -545,7 +562,7 @@ mod tests {
 
         let registry = SceneRegistry::new(&crate::service::Config::default_config().scenes);
         for scene in loaded {
-            assert!(registry.insert(scene).unwrap().is_none());
+            assert!(registry.insert(scene, true).unwrap().is_none());
         }
         assert_eq!(registry.len(), 1);
         let summary = &registry.summaries()[0];
@@ -568,20 +585,25 @@ mod tests {
         budget.max_triangles = 4;
         budget.max_scenes = 2;
         let registry = SceneRegistry::new(&budget);
-        assert!(registry.insert(tiny("a")).unwrap().is_none());
-        assert!(registry.insert(tiny("b")).unwrap().is_none());
-        // Replacing counts without the scene replaced.
-        assert!(registry.insert(tiny("a")).unwrap().is_some());
-        let Err(over) = registry.insert(tiny("c")) else {
+        assert!(registry.insert(tiny("a"), false).unwrap().is_none());
+        assert!(registry.insert(tiny("b"), false).unwrap().is_none());
+        // An id taken is refused unless the scene is to replace it, which
+        // counts without the scene replaced.
+        assert_eq!(
+            registry.insert(tiny("a"), false).err(),
+            Some(NotInserted::Exists)
+        );
+        assert!(registry.insert(tiny("a"), true).unwrap().is_some());
+        let Err(NotInserted::OverBudget(over)) = registry.insert(tiny("c"), false) else {
             panic!("over the budget, yet inserted")
         };
         assert_eq!(over.field, "scenes.max_scenes");
         assert_eq!((over.total, over.limit), (3, 2));
         budget.max_scenes = 10;
         let registry = SceneRegistry::new(&budget);
-        registry.insert(tiny("a")).unwrap();
-        registry.insert(tiny("b")).unwrap();
-        let Err(over) = registry.insert(tiny("c")) else {
+        registry.insert(tiny("a"), false).unwrap();
+        registry.insert(tiny("b"), false).unwrap();
+        let Err(NotInserted::OverBudget(over)) = registry.insert(tiny("c"), false) else {
             panic!("over the budget, yet inserted")
         };
         assert_eq!(over.field, "scenes.max_triangles");
@@ -591,9 +613,9 @@ mod tests {
         budget.max_triangles = 100;
         budget.max_scene_bytes = 2 * bytes;
         let registry = SceneRegistry::new(&budget);
-        registry.insert(tiny("a")).unwrap();
-        registry.insert(tiny("b")).unwrap();
-        let Err(over) = registry.insert(tiny("c")) else {
+        registry.insert(tiny("a"), false).unwrap();
+        registry.insert(tiny("b"), false).unwrap();
+        let Err(NotInserted::OverBudget(over)) = registry.insert(tiny("c"), false) else {
             panic!("over the budget, yet inserted")
         };
         assert_eq!(over.field, "scenes.max_scene_bytes");

@@ -340,6 +340,16 @@ impl SharedStore {
         self.scene_event("put", id, digest).await
     }
 
+    /// Whether Redis holds a scene `id` another replica posted (false when
+    /// it cannot be reached: this replica then knows only its own).
+    pub async fn has_scene(&self, id: &str) -> bool {
+        let mut exists = redis::cmd("EXISTS");
+        exists.arg(self.scene_key(id));
+        self.run::<u32>("looking up a shared scene", &exists)
+            .await
+            .is_some_and(|n| n > 0)
+    }
+
     /// Tells the other replicas that scene `id` is gone.
     pub async fn delete_scene(&self, id: &str) -> bool {
         let mut del = redis::cmd("DEL");

@@ -22,6 +22,7 @@ mod mitsuba_irradiance;
 mod mitsuba_xml;
 mod readme_commands;
 mod regression;
+mod scene_parameters;
 mod service_archive;
 mod service_bad_inputs;
 mod service_bad_scenes;

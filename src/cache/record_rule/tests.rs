@@ -363,5 +363,11 @@ fn wrong_sample_count_and_nan_are_typed_errors() {
         };
         8
     ];
-    assert_eq!(r.estimate(&bad).unwrap_err().field(), Some("radiance"));
+    // Not finite radiance is the scene's doing, not a field of any request.
+    let e = r.estimate(&bad).unwrap_err();
+    assert_eq!(e.field(), None);
+    assert!(
+        matches!(e, CacheError::Render(RenderError::NotFinite { .. })),
+        "{e}"
+    );
 }

@@ -12,7 +12,22 @@ use crate::scene::texture::Texture;
 /// Mitsuba's default `alpha` of rough BSDFs.
 const DEFAULT_ALPHA: f64 = 0.1;
 
-/// An index of refraction: a positive number or a named medium
+/// The indices of refraction a medium may have (`int_ior`, `ext_ior`).
+/// Mitsuba takes any positive number, but the Fresnel and coating terms
+/// overflow to NaN for relative indices far from 1 (`tests/it/
+/// scene_parameters.rs` found 1e-12 and 1e6 failing), and every real
+/// medium lies within [1, 4].
+pub const IOR_RANGE: std::ops::RangeInclusive<f64> = 0.01..=100.0;
+
+/// The bounds of a conductor's complex index `η + i k`, each channel: `η`
+/// and `k` in `[0, MAX_METAL_INDEX]` (real metals stay below 10 in the
+/// visible) and `|η + i k| ≥ MIN_METAL_MODULUS`, as the Fresnel terms
+/// divide by `(η + i k)²`.
+pub const MAX_METAL_INDEX: f64 = 100.0;
+/// See [`MAX_METAL_INDEX`].
+pub const MIN_METAL_MODULUS: f64 = 0.01;
+
+/// An index of refraction: a number in [`IOR_RANGE`] or a named medium
 /// ([`media::named_ior`]), `default` when absent.
 pub(super) fn ior(params: &mut Params, name: &str, default: f64) -> Result<f64, SceneError> {
     match params.peek(name) {
@@ -30,8 +45,15 @@ pub(super) fn ior(params: &mut Params, name: &str, default: f64) -> Result<f64, 
             })
         }
         Some(_) => match params.number(name)? {
-            Some(x) if x > 0.0 => Ok(x),
-            x => Err(params.invalid(name, format!("{x:?} is not a positive index of refraction"))),
+            Some(x) if !IOR_RANGE.contains(&x) => Err(params.invalid(
+                name,
+                format!(
+                    "{x} is not an index of refraction in [{}, {}]",
+                    IOR_RANGE.start(),
+                    IOR_RANGE.end()
+                ),
+            )),
+            x => Ok(x.unwrap_or(default)),
         },
     }
 }
@@ -58,7 +80,23 @@ pub(super) fn metal(params: &mut Params) -> Result<(Rgb, Rgb), SceneError> {
     let k = params.color("k")?;
     let named = params.string("material")?;
     match (eta, k, named) {
-        (Some(eta), Some(k), None) => Ok((eta, k)),
+        (Some(eta), Some(k), None) => {
+            let in_range = |x: f64| (0.0..=MAX_METAL_INDEX).contains(&x);
+            for (name, values) in [("eta", eta), ("k", k)] {
+                if let Some(x) = values.iter().find(|x| !in_range(**x)) {
+                    return Err(
+                        params.invalid(name, format!("{x} is not in [0, {MAX_METAL_INDEX}]"))
+                    );
+                }
+            }
+            if (0..3).any(|c| eta[c].hypot(k[c]) < MIN_METAL_MODULUS) {
+                return Err(params.invalid(
+                    "eta",
+                    format!("|eta + i k| must be at least {MIN_METAL_MODULUS} in every channel"),
+                ));
+            }
+            Ok((eta, k))
+        }
         (None, None, name) => {
             let name = name.unwrap_or_else(|| "none".to_string());
             metals::named_metal(&name).ok_or_else(|| {
