@@ -26,7 +26,7 @@
 //! on, so a bomb is stopped after a few mebibytes: a zip's per entry, a
 //! gzipped tar's over the whole stream. The headers of a tar entry (which
 //! the tar parser holds in memory) may take [`MAX_HEADER_BYTES`]. Unpacking
-//! stops within one [`CHUNK`] once its [`Cancel`] is set.
+//! stops within one [`CHUNK`] once its caller says it is cancelled.
 //!
 //! Every refusal names the entry: field `archive[i]`, its index in the
 //! archive (a tar's pax extended headers and long names belong to the entry
@@ -47,7 +47,6 @@ use std::rc::Rc;
 
 use super::bundle::{DocumentKind, SceneBundle, main_scene_file};
 use super::error::SceneError;
-use crate::render::Cancel;
 
 /// Unpacked bytes an entry (or a gzipped tar as a whole) may reach before
 /// its compression ratio is checked: small files compress as they like.
@@ -119,21 +118,21 @@ pub struct Unpacked {
 
 /// Unpacks `archive` (module docs) into a bundle of at most `max_entries`
 /// files; `file` names the scene file (module docs). Stops, with an error,
-/// once `cancel` is set.
+/// once `cancelled` says so (the service's job flag; asked every chunk).
 pub fn unpack(
     archive: std::fs::File,
     format: ArchiveFormat,
     limits: &ArchiveLimits,
     max_entries: usize,
     file: Option<&str>,
-    cancel: &Cancel,
+    cancelled: &dyn Fn() -> bool,
 ) -> Result<Unpacked, SceneError> {
     let mut sink = Sink {
         bundle: SceneBundle::new(max_entries)?,
         limits: *limits,
         total: 0,
         buffer: vec![0u8; CHUNK],
-        cancel: cancel.clone(),
+        cancelled,
     };
     match format {
         ArchiveFormat::Zip => unpack_zip(archive, &mut sink)?,
@@ -169,17 +168,18 @@ pub fn pack_folder(folder: &Path, out: impl std::io::Write) -> std::io::Result<(
 }
 
 /// Where entries go, and what they have taken so far.
-struct Sink {
+struct Sink<'a> {
     bundle: SceneBundle,
     limits: ArchiveLimits,
     /// Bytes of the entries unpacked so far, kept or skipped.
     total: u64,
     /// Bytes between an entry's reader and its file, reused by every entry.
     buffer: Vec<u8>,
-    cancel: Cancel,
+    /// Whether to stop (the request is gone).
+    cancelled: &'a dyn Fn() -> bool,
 }
 
-impl Sink {
+impl Sink<'_> {
     /// Writes entry `index` (`name`, `packed` bytes in a zip) from `reader`
     /// to the bundle; returns the bytes written.
     fn write(
@@ -211,7 +211,7 @@ impl Sink {
             |reason: String| SceneError::invalid(field(index), format!("entry {name:?}: {reason}"));
         let mut read = 0u64;
         loop {
-            if self.cancel.is_cancelled() {
+            if (self.cancelled)() {
                 return Err(SceneError::invalid(
                     "body",
                     "unpacking stopped: the request is gone",
@@ -279,7 +279,7 @@ fn is_packer_litter(name: &str) -> bool {
     name.starts_with("__MACOSX/") || file_name == ".DS_Store" || file_name.starts_with("._")
 }
 
-fn unpack_zip(archive: std::fs::File, sink: &mut Sink) -> Result<(), SceneError> {
+fn unpack_zip(archive: std::fs::File, sink: &mut Sink<'_>) -> Result<(), SceneError> {
     let mut zip = zip::ZipArchive::new(BufReader::new(archive))
         .map_err(|e| SceneError::invalid("body", format!("not a readable zip archive: {e}")))?;
     // The zip reader keeps one entry per name: which of two would be the
@@ -401,7 +401,7 @@ fn repeated_name(
 fn unpack_tar<R: Read>(
     reader: R,
     packed: Option<Rc<Cell<u64>>>,
-    sink: &mut Sink,
+    sink: &mut Sink<'_>,
 ) -> Result<(), SceneError> {
     let meter = Rc::new(TarMeter {
         limits: sink.limits,
@@ -716,7 +716,7 @@ mod tests {
         max_entries: usize,
         file: Option<&str>,
     ) -> Result<Unpacked, SceneError> {
-        super::unpack(archive, format, limits, max_entries, file, &Cancel::never())
+        super::unpack(archive, format, limits, max_entries, file, &|| false)
     }
 
     fn zip_of(entries: &[(&str, &[u8])]) -> std::fs::File {
@@ -1210,10 +1210,8 @@ mod tests {
     /// Unpacking stops once its request is gone.
     #[test]
     fn a_cancelled_unpacking_stops() {
-        let cancel = Cancel::new();
-        cancel.cancel();
         let zip = zip_of(&[("scene.xml", b"<scene/>")]);
-        let err = super::unpack(zip, ArchiveFormat::Zip, &LIMITS, 16, None, &cancel).unwrap_err();
+        let err = super::unpack(zip, ArchiveFormat::Zip, &LIMITS, 16, None, &|| true).unwrap_err();
         assert_eq!(err.field(), Some("body"), "{err}");
         assert!(err.to_string().contains("stopped"), "{err}");
     }

@@ -154,7 +154,7 @@ pub async fn post_scene(
                         &archive_limits,
                         max_assets,
                         file.as_deref(),
-                        cancel,
+                        &|| cancel.is_cancelled(),
                     )?)
                 })
                 .await??;
