@@ -1,6 +1,7 @@
 //! Test support shared by the unit tests next to the code and the
-//! integration tests in `tests/it`: the bundled-scene fixtures and the one
-//! statistical assertion. Not part of the service's interface.
+//! integration tests in `tests/it`: the bundled-scene fixtures, the one
+//! statistical assertion and a maker of crafted gzip streams (archive
+//! bombs). Not part of the service's interface.
 //!
 //! # Tolerance policy
 //! A Monte Carlo result is compared with another or with a reference by
@@ -200,11 +201,78 @@ pub fn serialized_mesh(vertices: u64, triangles: u64) -> Vec<u8> {
     out.extend(0u64.to_le_bytes());
     out.extend(1u32.to_le_bytes());
     out
+
+/// One gzip member holding `before`, then `zeros_mib` mebibytes of zeros,
+/// then `after`: the long run of zeros of a crafted archive (a bomb), made
+/// without deflating the zeros one by one. A mebibyte of zeros is deflated
+/// once and its blocks repeated: each part is deflated by a fresh
+/// compressor ending on a full flush, so it is byte-aligned and refers to
+/// nothing before it, and the parts' blocks chain into one valid stream.
+/// 8 GiB of zeros take about 8 MB, the most deflate packs them.
+pub fn gzip_with_zeros(before: &[u8], zeros_mib: u64, after: &[u8]) -> Vec<u8> {
+    use flate2::{Compress, Compression, Crc, FlushCompress, Status};
+    let deflated = |bytes: &[u8], last: bool| {
+        let flush = if last {
+            FlushCompress::Finish
+        } else {
+            FlushCompress::Full
+        };
+        let mut compress = Compress::new(Compression::best(), false);
+        let mut out = Vec::new();
+        loop {
+            out.reserve(1 << 16);
+            let read = compress.total_in() as usize;
+            let status = compress
+                .compress_vec(&bytes[read..], &mut out, flush)
+                .expect("deflates");
+            let flushed = compress.total_in() as usize == bytes.len() && out.len() < out.capacity();
+            if status == Status::StreamEnd || (!last && flushed) {
+                return out;
+            }
+        }
+    };
+    let crc_of = |bytes: &[u8]| {
+        let mut crc = Crc::new();
+        crc.update(bytes);
+        crc
+    };
+    let zeros = vec![0u8; 1 << 20];
+    let (zeros_deflated, zeros_crc) = (deflated(&zeros, false), crc_of(&zeros));
+    // The gzip header: deflate, no flags, no time, unknown system.
+    let mut gz = vec![0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 0xff];
+    gz.extend(deflated(before, false));
+    let mut crc = crc_of(before);
+    for _ in 0..zeros_mib {
+        gz.extend(&zeros_deflated);
+        crc.combine(&zeros_crc);
+    }
+    gz.extend(deflated(after, true));
+    crc.combine(&crc_of(after));
+    let length = before.len() as u64 + (zeros_mib << 20) + after.len() as u64;
+    gz.extend(crc.sum().to_le_bytes());
+    // ISIZE: the length modulo 2³².
+    gz.extend((length as u32).to_le_bytes());
+    gz
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_gzip_with_zeros_inflates_to_its_parts() {
+        use std::io::Read;
+        let gz = gzip_with_zeros(b"head", 3, b"tail");
+        assert!(gz.len() < 8 << 10, "{} bytes", gz.len());
+        let mut inflated = Vec::new();
+        flate2::read::GzDecoder::new(gz.as_slice())
+            .read_to_end(&mut inflated)
+            .unwrap();
+        assert_eq!(inflated.len(), 8 + (3 << 20));
+        assert_eq!(&inflated[..4], b"head");
+        assert!(inflated[4..4 + (3 << 20)].iter().all(|b| *b == 0));
+        assert_eq!(&inflated[4 + (3 << 20)..], b"tail");
+    }
 
     #[test]
     fn agreement_is_within_sigmas_plus_the_relative_allowance() {

@@ -1,25 +1,49 @@
 //! A scene folder packed as a zip, tar or gzipped tar, unpacked into a
 //! [`SceneBundle`] under limits that hold whatever the archive claims.
 //!
+//! What packers write is read: a zip; a tar as POSIX (ustar, pax), GNU and
+//! `git archive` write it, the tar parser applying a pax extended header or
+//! a GNU long name or link name to the entry after it, and a pax global
+//! header (`git archive`'s commit id) skipped; a gzipped tar in one gzip
+//! member or several (bgzip, parallel packers, gzips put end to end).
+//!
 //! Each entry is a regular file (written to the bundle under its name, which
-//! the bundle checks: no `..`, no absolute names) or a folder (implied by its
-//! files, skipped). Links, FIFOs and devices are refused, as are more entries
-//! than the bundle takes, an entry or a total past its unpacked-size limit
-//! and an entry that inflates more than `max_ratio` times its packed size
-//! (a zip bomb). Sizes are counted while bytes are written, never taken from
-//! the archive's headers, which a crafted archive fills as it likes; the
-//! ratio is checked from the first [`RATIO_FLOOR`] bytes on, so a bomb is
-//! stopped after a mebibyte. Every refusal names the entry: field
-//! `archive[i]` (its index in the archive), the message its name.
+//! the bundle checks: no `..`, no absolute names, no name twice) or a folder
+//! (implied by its files, skipped). Entries a packer adds on its own
+//! (`__MACOSX/`, `.DS_Store`, AppleDouble `._name` files) are skipped.
+//! Links, FIFOs, devices, other entry types and sparse files are refused, as
+//! are more entries than the bundle takes, a zip whose central directory
+//! names an entry twice (the zip reader would keep one of the two), and a
+//! tar that ends inside an entry or without its end-of-archive blocks (cut
+//! short, as GNU tar refuses it).
+//!
+//! Limits: sizes are counted while bytes are unpacked, never taken from the
+//! archive's headers, which a crafted archive fills as it likes, and what is
+//! skipped is unpacked under the same limits as what is kept (it costs the
+//! same to inflate). Each entry may reach `max_entry_bytes` and all of them
+//! `max_total_bytes`; of a tar, every byte counts, its headers included.
+//! The compression ratio is checked from the first [`RATIO_FLOOR`] bytes
+//! on, so a bomb is stopped after a few mebibytes: a zip's per entry, a
+//! gzipped tar's over the whole stream. The headers of a tar entry (which
+//! the tar parser holds in memory) may take [`MAX_HEADER_BYTES`]. Unpacking
+//! stops within one [`CHUNK`] once its caller says it is cancelled.
+//!
+//! Every refusal names the entry: field `archive[i]`, its index in the
+//! archive (a tar's pax extended headers and long names belong to the entry
+//! after them and take no index), the message its name, or for headers the
+//! name of the entry before; a tar whose end is missing is refused with
+//! field `body`, naming its last entry.
 //!
 //! The scene file is `file` when given, else the one `.xml` or `.json` file
 //! at the archive's root, or at the root of the folder that holds
 //! everything (`zip -r lego.zip lego` packs `lego/scene.xml`). Its folder
 //! becomes the bundle's root, as the scenes directory treats a scene folder.
-//! Entries a packer adds on its own (`__MACOSX/`, `.DS_Store`) are skipped.
 
-use std::io::Read;
+use std::cell::Cell;
+use std::collections::HashMap;
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 use super::bundle::{DocumentKind, SceneBundle, main_scene_file};
 use super::error::SceneError;
@@ -27,6 +51,16 @@ use super::error::SceneError;
 /// Unpacked bytes an entry (or a gzipped tar as a whole) may reach before
 /// its compression ratio is checked: small files compress as they like.
 pub const RATIO_FLOOR: u64 = 1 << 20;
+
+/// Bytes the headers of a tar entry may take: its header block, the pax
+/// extended header and GNU long name and link name entries before it (which
+/// the tar parser reads into memory) and the padding of the entry before.
+/// Real ones take a few hundred bytes.
+pub const MAX_HEADER_BYTES: u64 = 1 << 20;
+
+/// Bytes read from an entry at a time, between checks of the limits and of
+/// the cancel flag.
+pub const CHUNK: usize = 64 << 10;
 
 /// How the archive is packed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -55,9 +89,10 @@ impl ArchiveFormat {
 /// What an archive may unpack to.
 #[derive(Clone, Copy, Debug)]
 pub struct ArchiveLimits {
-    /// Largest entry, unpacked bytes.
+    /// Largest entry, unpacked bytes, whether it is kept or skipped.
     pub max_entry_bytes: u64,
-    /// Largest sum of the entries, unpacked bytes.
+    /// Largest sum of the entries, unpacked bytes (of a tar, every byte of
+    /// it, headers and skipped entries included).
     pub max_total_bytes: u64,
     /// Most unpacked bytes per packed byte of an entry (of the whole stream
     /// for a gzipped tar), checked past [`RATIO_FLOOR`].
@@ -82,27 +117,32 @@ pub struct Unpacked {
 }
 
 /// Unpacks `archive` (module docs) into a bundle of at most `max_entries`
-/// files; `file` names the scene file (module docs).
+/// files; `file` names the scene file (module docs). Stops, with an error,
+/// once `cancelled` says so (the service's job flag; asked every chunk).
 pub fn unpack(
     archive: std::fs::File,
     format: ArchiveFormat,
     limits: &ArchiveLimits,
     max_entries: usize,
     file: Option<&str>,
+    cancelled: &dyn Fn() -> bool,
 ) -> Result<Unpacked, SceneError> {
     let mut sink = Sink {
         bundle: SceneBundle::new(max_entries)?,
         limits: *limits,
         total: 0,
-        buffer: vec![0u8; 64 * 1024],
+        buffer: vec![0u8; CHUNK],
+        cancelled,
     };
     match format {
         ArchiveFormat::Zip => unpack_zip(archive, &mut sink)?,
-        ArchiveFormat::Tar => unpack_tar(archive, &mut sink, None)?,
+        ArchiveFormat::Tar => unpack_tar(BufReader::new(archive), None, &mut sink)?,
         ArchiveFormat::TarGz => {
-            let packed = Counted::new(std::io::BufReader::new(archive));
+            // The decoder buffers what it reads itself.
+            let packed = Counted::new(archive);
             let read = packed.count.clone();
-            unpack_tar(flate2::read::GzDecoder::new(packed), &mut sink, Some(read))?;
+            let inflated = flate2::read::MultiGzDecoder::new(packed);
+            unpack_tar(inflated, Some(read), &mut sink)?;
         }
     }
     scene_of(sink.bundle, file)
@@ -128,71 +168,91 @@ pub fn pack_folder(folder: &Path, out: impl std::io::Write) -> std::io::Result<(
 }
 
 /// Where entries go, and what they have taken so far.
-struct Sink {
+struct Sink<'a> {
     bundle: SceneBundle,
     limits: ArchiveLimits,
+    /// Bytes of the entries unpacked so far, kept or skipped.
     total: u64,
     /// Bytes between an entry's reader and its file, reused by every entry.
     buffer: Vec<u8>,
+    /// Whether to stop (the request is gone).
+    cancelled: &'a dyn Fn() -> bool,
 }
 
-impl Sink {
-    /// Writes entry `index` (`name`, `packed` bytes in the archive) from
-    /// `reader`; `stream_packed` counts a gzipped tar's packed bytes.
+impl Sink<'_> {
+    /// Writes entry `index` (`name`, `packed` bytes in a zip) from `reader`
+    /// to the bundle; returns the bytes written.
     fn write(
         &mut self,
         index: usize,
         name: &str,
         reader: &mut dyn Read,
         packed: Option<u64>,
-        stream_packed: Option<&std::sync::atomic::AtomicU64>,
-    ) -> Result<(), SceneError> {
-        let field = field(index);
+    ) -> Result<u64, SceneError> {
+        let out = self.bundle.create(name, &field(index))?;
+        self.drain(index, name, reader, packed, Some(out))
+    }
+
+    /// Reads entry `index` (`name`) from `reader` to its end without
+    /// keeping it, under the same limits as one kept; returns its bytes.
+    fn skip(&mut self, index: usize, name: &str, reader: &mut dyn Read) -> Result<u64, SceneError> {
+        self.drain(index, name, reader, None, None)
+    }
+
+    fn drain(
+        &mut self,
+        index: usize,
+        name: &str,
+        reader: &mut dyn Read,
+        packed: Option<u64>,
+        mut out: Option<std::fs::File>,
+    ) -> Result<u64, SceneError> {
         let refuse =
-            |reason: String| SceneError::invalid(&field, format!("entry {name:?}: {reason}"));
-        let mut out = self.bundle.create(name, &field)?;
-        let mut written = 0u64;
+            |reason: String| SceneError::invalid(field(index), format!("entry {name:?}: {reason}"));
+        let mut read = 0u64;
         loop {
-            let n = reader
-                .read(&mut self.buffer)
-                .map_err(|e| refuse(format!("cannot be unpacked: {e}")))?;
-            if n == 0 {
-                return Ok(());
+            if (self.cancelled)() {
+                return Err(SceneError::invalid(
+                    "body",
+                    "unpacking stopped: the request is gone",
+                ));
             }
-            written += n as u64;
+            let n = match reader.read(&mut self.buffer) {
+                Ok(0) => return Ok(read),
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    return Err(refuse(match refusal(&e) {
+                        Some(reason) => reason.to_owned(),
+                        None => format!("cannot be unpacked: {e}"),
+                    }));
+                }
+            };
+            read += n as u64;
             self.total += n as u64;
-            if written > self.limits.max_entry_bytes {
+            if read > self.limits.max_entry_bytes {
                 return Err(refuse(format!(
                     "unpacks to more than {} bytes (limits.max_asset_bytes)",
                     self.limits.max_entry_bytes
                 )));
             }
             if self.total > self.limits.max_total_bytes {
-                return Err(refuse(format!(
-                    "takes the archive past {} unpacked bytes (limits.max_unpacked_bytes)",
-                    self.limits.max_total_bytes
-                )));
+                return Err(refuse(past_total(self.limits.max_total_bytes)));
             }
-            let ratio = |unpacked: u64, packed: u64| unpacked / packed.max(1);
-            let inflated = match (packed, stream_packed) {
-                (Some(packed), _) if written > RATIO_FLOOR => Some(ratio(written, packed)),
-                (None, Some(read)) if self.total > RATIO_FLOOR => Some(ratio(
-                    self.total,
-                    read.load(std::sync::atomic::Ordering::Relaxed),
-                )),
-                _ => None,
-            };
-            if let Some(inflated) = inflated.filter(|r| *r > self.limits.max_ratio) {
-                return Err(refuse(format!(
-                    "inflates {inflated} times its packed size, more than {} \
-                     (limits.max_compression_ratio)",
-                    self.limits.max_ratio
-                )));
+            if let Some(packed) = packed
+                && read > RATIO_FLOOR
+            {
+                let ratio = read / packed.max(1);
+                if ratio > self.limits.max_ratio {
+                    return Err(refuse(inflates(ratio, self.limits.max_ratio)));
+                }
             }
-            std::io::Write::write_all(&mut out, &self.buffer[..n]).map_err(|e| SceneError::Io {
-                file: PathBuf::from(name),
-                source: e,
-            })?;
+            if let Some(out) = out.as_mut() {
+                std::io::Write::write_all(out, &self.buffer[..n]).map_err(|e| SceneError::Io {
+                    file: PathBuf::from(name),
+                    source: e,
+                })?;
+            }
         }
     }
 }
@@ -201,14 +261,32 @@ fn field(index: usize) -> String {
     format!("archive[{index}]")
 }
 
-/// Whether a packer added entry `name` on its own (module docs).
-fn is_packer_litter(name: &str) -> bool {
-    name.starts_with("__MACOSX/") || name == ".DS_Store" || name.ends_with("/.DS_Store")
+fn past_total(limit: u64) -> String {
+    format!("takes the archive past {limit} unpacked bytes (limits.max_unpacked_bytes)")
 }
 
-fn unpack_zip(archive: std::fs::File, sink: &mut Sink) -> Result<(), SceneError> {
-    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(archive))
+fn inflates(ratio: u64, limit: u64) -> String {
+    format!(
+        "inflates {ratio} times its packed size, more than {limit} (limits.max_compression_ratio)"
+    )
+}
+
+/// Whether a packer added entry `name` on its own (module docs): macOS's
+/// resource forks and Finder settings, in a zip's `__MACOSX/` folder or,
+/// from its tar, as `._name` beside each file.
+fn is_packer_litter(name: &str) -> bool {
+    let file_name = name.rsplit('/').next().unwrap_or(name);
+    name.starts_with("__MACOSX/") || file_name == ".DS_Store" || file_name.starts_with("._")
+}
+
+fn unpack_zip(archive: std::fs::File, sink: &mut Sink<'_>) -> Result<(), SceneError> {
+    let mut zip = zip::ZipArchive::new(BufReader::new(archive))
         .map_err(|e| SceneError::invalid("body", format!("not a readable zip archive: {e}")))?;
+    // The zip reader keeps one entry per name: which of two would be the
+    // file is the packer's guess, so neither is taken.
+    if zip.has_duplicate_names() {
+        return Err(named_twice(zip));
+    }
     // The central directory says how many entries there are: too many is
     // refused before anything is written.
     if zip.len() > sink.bundle.max_assets() {
@@ -253,36 +331,127 @@ fn unpack_zip(archive: std::fs::File, sink: &mut Sink) -> Result<(), SceneError>
                 "is a special file (FIFO or device), not a regular file",
             ));
         }
+        // A zip's entries are read where the central directory says they
+        // are: one skipped is never inflated.
         if entry.is_dir() || is_packer_litter(&name) {
             continue;
         }
         let packed = entry.compressed_size();
-        sink.write(index, &name, &mut entry, Some(packed), None)?;
+        sink.write(index, &name, &mut entry, Some(packed))?;
     }
     Ok(())
 }
 
+/// The refusal of a zip whose central directory names an entry twice: its
+/// second entry of the name, found by reading the central directory again.
+fn named_twice(zip: zip::ZipArchive<BufReader<std::fs::File>>) -> SceneError {
+    let start = zip.central_directory_start();
+    match repeated_name(&mut zip.into_inner(), start) {
+        Ok(Some((first, second, name))) => SceneError::invalid(
+            field(second),
+            format!(
+                "entry {name:?} is named twice ({} and {})",
+                field(first),
+                field(second)
+            ),
+        ),
+        // Names told apart in the central directory and made alike by an
+        // extra field (a Unicode path): no index to give.
+        _ => SceneError::invalid("body", "the zip names an entry twice"),
+    }
+}
+
+/// The first entry of the central directory at `start` named as an entry
+/// before it: (that one's index, its index, the name).
+fn repeated_name(
+    reader: &mut (impl Read + Seek),
+    start: u64,
+) -> std::io::Result<Option<(usize, usize, String)>> {
+    // A central directory header: its signature, fixed fields with the
+    // lengths of the name, extra field and comment at 28, 30 and 32, then
+    // those three.
+    const SIGNATURE: &[u8] = b"PK\x01\x02";
+    const FIXED: usize = 46;
+    reader.seek(SeekFrom::Start(start))?;
+    let mut seen: HashMap<Vec<u8>, usize> = HashMap::new();
+    let mut index = 0;
+    loop {
+        let mut fixed = [0u8; FIXED];
+        reader.read_exact(&mut fixed)?;
+        if &fixed[..4] != SIGNATURE {
+            return Ok(None);
+        }
+        let length = |at: usize| u16::from_le_bytes([fixed[at], fixed[at + 1]]);
+        let mut name = vec![0u8; length(28).into()];
+        reader.read_exact(&mut name)?;
+        reader.seek_relative(i64::from(length(30)) + i64::from(length(32)))?;
+        if let Some(first) = seen.insert(name.clone(), index) {
+            return Ok(Some((
+                first,
+                index,
+                String::from_utf8_lossy(&name).into_owned(),
+            )));
+        }
+        index += 1;
+    }
+}
+
+/// Unpacks the tar `reader` reads (inflated from the packed bytes
+/// `packed` counts, for a gzipped tar).
 fn unpack_tar<R: Read>(
     reader: R,
-    sink: &mut Sink,
-    stream_packed: Option<std::sync::Arc<std::sync::atomic::AtomicU64>>,
+    packed: Option<Rc<Cell<u64>>>,
+    sink: &mut Sink<'_>,
 ) -> Result<(), SceneError> {
-    let mut tar = tar::Archive::new(reader);
-    let entries = tar
+    let meter = Rc::new(TarMeter {
+        limits: sink.limits,
+        packed,
+        read: Cell::new(0),
+        headers_from: Cell::new(None),
+        ended: Cell::new(false),
+    });
+    let mut tar = tar::Archive::new(Metered {
+        inner: reader,
+        meter: meter.clone(),
+    });
+    let mut entries = tar
         .entries()
         .map_err(|e| SceneError::invalid("body", format!("not a readable tar archive: {e}")))?;
-    for (index, entry) in entries.enumerate() {
-        let mut entry =
-            entry.map_err(|e| SceneError::invalid(field(index), format!("cannot be read: {e}")))?;
+    let mut last: Option<String> = None;
+    for index in 0.. {
+        meter.headers_from.set(Some(meter.read.get()));
+        let Some(entry) = entries.next() else {
+            break;
+        };
+        let mut entry = entry.map_err(|e| {
+            let reason = match refusal(&e) {
+                Some(reason) => reason.to_owned(),
+                None => format!("cannot be read: {e}"),
+            };
+            let after = match &last {
+                Some(name) => format!("the entry after {name:?}"),
+                None => "the first entry".to_owned(),
+            };
+            SceneError::invalid(field(index), format!("{after}: {reason}"))
+        })?;
+        meter.headers_from.set(None);
         let raw = String::from_utf8_lossy(&entry.path_bytes()).into_owned();
         // `tar -C dir -cf x.tar .` names everything `./…`.
         let name = raw.strip_prefix("./").unwrap_or(&raw).to_owned();
         let refuse =
             |reason: &str| SceneError::invalid(field(index), format!("entry {raw:?}: {reason}"));
         use tar::EntryType as T;
-        match entry.header().entry_type() {
-            T::Regular | T::Continuous => {}
-            T::Directory => continue,
+        let kept = match entry.header().entry_type() {
+            T::Regular | T::Continuous if is_sparse(&mut entry) => {
+                return Err(refuse(
+                    "is a sparse file (`tar --sparse`), which is not read; pack it without",
+                ));
+            }
+            T::Regular | T::Continuous => !(name.is_empty() || is_packer_litter(&name)),
+            // A folder is implied by its files. A pax global header (`git
+            // archive`'s commit id) holds defaults for the headers after
+            // it, of which a scene needs none.
+            T::Directory | T::XGlobalHeader => false,
             T::Symlink | T::Link => {
                 return Err(refuse(
                     "is a link; an uploaded scene holds regular files only",
@@ -294,19 +463,132 @@ fn unpack_tar<R: Read>(
                 ));
             }
             other => return Err(refuse(&format!("has an unsupported entry type {other:?}"))),
+        };
+        let size = entry.size();
+        let read = if kept {
+            sink.write(index, &name, &mut entry, None)?
+        } else {
+            sink.skip(index, &raw, &mut entry)?
+        };
+        if read < size {
+            return Err(refuse(&format!(
+                "is cut short: the archive ends {read} bytes into its {size}"
+            )));
         }
-        if name.is_empty() || is_packer_litter(&name) {
-            continue;
-        }
-        sink.write(index, &name, &mut entry, None, stream_packed.as_deref())?;
+        last = Some(raw);
+    }
+    // The parser stops at the end-of-archive blocks, or at the end of the
+    // stream, which a whole tar never reaches.
+    if meter.ended.get() {
+        let after = match &last {
+            Some(name) => format!("after entry {name:?}"),
+            None => "before its first entry".to_owned(),
+        };
+        return Err(SceneError::invalid(
+            "body",
+            format!("the tar ends {after}, without its end-of-archive blocks: it is cut short"),
+        ));
     }
     Ok(())
+}
+
+/// Whether regular entry `entry` is a sparse file of the pax formats, whose
+/// data is a map of its holes, then the rest: its pax extended header (read
+/// with the entry's headers) has `GNU.sparse.` keys.
+fn is_sparse<R: Read>(entry: &mut tar::Entry<'_, R>) -> bool {
+    let Ok(Some(mut pax)) = entry.pax_extensions() else {
+        return false;
+    };
+    pax.any(|e| e.is_ok_and(|e| e.key_bytes().starts_with(b"GNU.sparse.")))
+}
+
+/// Why reading failed, if it was a refusal of [`Metered`].
+fn refusal(error: &std::io::Error) -> Option<&str> {
+    let refused = error.get_ref()?.downcast_ref::<Refused>()?;
+    Some(&refused.0)
+}
+
+/// A limit the tar stream passed (the reason), carried by an I/O error
+/// through the tar parser.
+#[derive(Debug)]
+struct Refused(String);
+
+impl std::fmt::Display for Refused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Refused {}
+
+/// A tar as the tar parser reads it, every byte counted by its
+/// [`TarMeter`], which refuses the read that passes a limit.
+struct Metered<R> {
+    inner: R,
+    meter: Rc<TarMeter>,
+}
+
+/// What the tar parser has read, and where the unpacking loop is (the
+/// parser hides both from it).
+struct TarMeter {
+    limits: ArchiveLimits,
+    /// Packed bytes read so far (a gzipped tar).
+    packed: Option<Rc<Cell<u64>>>,
+    /// Bytes read so far, headers and entries, kept or skipped.
+    read: Cell<u64>,
+    /// While the parser reads an entry's headers, where they began (bytes
+    /// into the tar); `None` while an entry's data is read.
+    headers_from: Cell<Option<u64>>,
+    /// Whether the stream ended (a read found nothing more).
+    ended: Cell<bool>,
+}
+
+impl TarMeter {
+    /// Why the tar may not be read past `read` bytes, if it may not.
+    fn check(&self, read: u64) -> Result<(), String> {
+        if let Some(from) = self.headers_from.get()
+            && read - from > MAX_HEADER_BYTES
+        {
+            return Err(format!(
+                "its headers (pax extended header, GNU long name or link name) \
+                 take more than {MAX_HEADER_BYTES} bytes"
+            ));
+        }
+        if read > self.limits.max_total_bytes {
+            return Err(past_total(self.limits.max_total_bytes));
+        }
+        if let Some(packed) = &self.packed
+            && read > RATIO_FLOOR
+        {
+            let ratio = read / packed.get().max(1);
+            if ratio > self.limits.max_ratio {
+                return Err(inflates(ratio, self.limits.max_ratio));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl<R: Read> Read for Metered<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        let meter = &self.meter;
+        if n == 0 && !buf.is_empty() {
+            meter.ended.set(true);
+        }
+        let read = meter.read.get() + n as u64;
+        meter.read.set(read);
+        meter
+            .check(read)
+            .map_err(|reason| std::io::Error::other(Refused(reason)))?;
+        Ok(n)
+    }
 }
 
 /// A reader that counts the bytes read through it.
 struct Counted<R> {
     inner: R,
-    count: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    count: Rc<Cell<u64>>,
 }
 
 impl<R> Counted<R> {
@@ -321,8 +603,7 @@ impl<R> Counted<R> {
 impl<R: Read> Read for Counted<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
-        self.count
-            .fetch_add(n as u64, std::sync::atomic::Ordering::Relaxed);
+        self.count.set(self.count.get() + n as u64);
         Ok(n)
     }
 }
@@ -426,6 +707,17 @@ mod tests {
         max_total_bytes: 128 << 20,
         max_ratio: 100,
     };
+
+    /// [`super::unpack`], never cancelled.
+    fn unpack(
+        archive: std::fs::File,
+        format: ArchiveFormat,
+        limits: &ArchiveLimits,
+        max_entries: usize,
+        file: Option<&str>,
+    ) -> Result<Unpacked, SceneError> {
+        super::unpack(archive, format, limits, max_entries, file, &|| false)
+    }
 
     fn zip_of(entries: &[(&str, &[u8])]) -> std::fs::File {
         let mut file = tempfile::tempfile().unwrap();
@@ -647,6 +939,281 @@ mod tests {
         packed.rewind().unwrap();
         let err = unpack(packed, ArchiveFormat::TarGz, &LIMITS, 16, None).unwrap_err();
         assert!(err.to_string().contains("is a link"), "{err}");
+    }
+
+    /// A pax record: `<length> <key>=<value>\n`, the length counting itself.
+    fn pax_record(key: &str, value: &str) -> Vec<u8> {
+        let rest = format!(" {key}={value}\n");
+        let mut length = rest.len() + 1;
+        while format!("{length}{rest}").len() != length {
+            length += 1;
+        }
+        format!("{length}{rest}").into_bytes()
+    }
+
+    /// The bytes of a tar of `entries` (name, type, data), names written raw.
+    fn tar_bytes(entries: &[(&str, tar::EntryType, &[u8])]) -> Vec<u8> {
+        let mut file = tar_of(|tar| {
+            for (name, kind, bytes) in entries {
+                append(tar, name, *kind, bytes);
+            }
+        });
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes).unwrap();
+        bytes
+    }
+
+    fn file_of(bytes: &[u8]) -> std::fs::File {
+        let mut file = tempfile::tempfile().unwrap();
+        file.write_all(bytes).unwrap();
+        file.rewind().unwrap();
+        file
+    }
+
+    /// `bytes` gzipped in members of at most `member` bytes each, then an
+    /// empty member, as bgzip and parallel packers write them.
+    fn gzip_members(bytes: &[u8], member: usize) -> Vec<u8> {
+        let mut out = Vec::new();
+        for chunk in bytes.chunks(member).chain([&[][..]]) {
+            let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            gz.write_all(chunk).unwrap();
+            out.extend(gz.finish().unwrap());
+        }
+        out
+    }
+
+    fn names(unpacked: &Unpacked) -> Vec<String> {
+        let mut names: Vec<_> = unpacked
+            .bundle
+            .names()
+            .map(|n| n.display().to_string())
+            .collect();
+        names.sort();
+        names
+    }
+
+    /// What `git archive` (a pax global header with the commit id), GNU
+    /// tar's pax format (an extended header before every entry), its GNU
+    /// format (a long name entry before a name past 100 bytes) and macOS's
+    /// tar (AppleDouble `._` files beside the others) write is read, the
+    /// headers and the litter left out.
+    #[test]
+    fn what_the_usual_packers_write_unpacks() {
+        use tar::EntryType as T;
+        let long = format!("lego/meshes/{}.ply", "m".repeat(120));
+        let global = pax_record("comment", "42f8eabaac46bf4535570586e2f3c1a5a6ff8a01");
+        let extended = pax_record("path", "lego/meshes/named-by-pax.ply");
+        let tar = tar_of(|tar| {
+            append(tar, "pax_global_header", T::XGlobalHeader, &global);
+            append(tar, "lego/", T::Directory, b"");
+            append(tar, "lego/scene.xml", T::Regular, b"<scene/>");
+            append(tar, "lego/._scene.xml", T::Regular, b"\x00\x05\x16\x07");
+            append(tar, "lego/PaxHeaders/x", T::XHeader, &extended);
+            append(tar, "lego/meshes/trunc", T::Regular, b"pax");
+            let mut header = tar::Header::new_gnu();
+            header.set_size(3);
+            header.set_mode(0o644);
+            tar.append_data(&mut header, &long, b"gnu".as_slice())
+                .unwrap();
+        });
+        let unpacked = unpack(tar, ArchiveFormat::Tar, &LIMITS, 16, None).unwrap();
+        assert_eq!(unpacked.folder.as_deref(), Some("lego"));
+        let long_inside = long.strip_prefix("lego/").unwrap();
+        let mut expected = vec!["meshes/named-by-pax.ply", long_inside, "scene.xml"];
+        expected.sort();
+        assert_eq!(names(&unpacked), expected);
+        let read = |name: &str| std::fs::read(unpacked.bundle.path_of(Path::new(name))).unwrap();
+        assert_eq!(read("meshes/named-by-pax.ply"), b"pax");
+        assert_eq!(read(long_inside), b"gnu");
+    }
+
+    /// A gzip of several members (bgzip, parallel packers, `cat a.gz b.gz`)
+    /// is read to its end, not to the end of its first member.
+    #[test]
+    fn a_gzip_of_several_members_unpacks_whole() {
+        use tar::EntryType as T;
+        let mesh: Vec<u8> = (0..200_000u32).map(|i| (i * 7 % 251) as u8).collect();
+        let tar = tar_bytes(&[
+            ("s/scene.xml", T::Regular, b"<scene/>"),
+            ("s/a.ply", T::Regular, &mesh),
+            ("s/b.ply", T::Regular, b"last"),
+        ]);
+        let gz = gzip_members(&tar, 64 << 10);
+        let unpacked = unpack(file_of(&gz), ArchiveFormat::TarGz, &LIMITS, 16, None).unwrap();
+        assert_eq!(names(&unpacked), ["a.ply", "b.ply", "scene.xml"]);
+        let read = |name: &str| std::fs::read(unpacked.bundle.path_of(Path::new(name))).unwrap();
+        assert_eq!(read("a.ply"), mesh);
+        assert_eq!(read("b.ply"), b"last");
+    }
+
+    /// A tar header of an entry of `size` bytes whose data follows.
+    fn header_bytes(name: &str, kind: tar::EntryType, size: u64) -> Vec<u8> {
+        let mut header = tar::Header::new_gnu();
+        header.set_entry_type(kind);
+        header.set_size(size);
+        header.set_mode(0o644);
+        header.as_gnu_mut().unwrap().name[..name.len()].copy_from_slice(name.as_bytes());
+        header.set_cksum();
+        header.as_bytes().to_vec()
+    }
+
+    /// A gzipped tar of a scene file, then entry `name` of `kind` holding
+    /// `mib` mebibytes of zeros, then another file and the end.
+    fn bomb(name: &str, kind: tar::EntryType, mib: u64) -> std::fs::File {
+        let scene = tar_bytes(&[("s/scene.xml", tar::EntryType::Regular, b"<scene/>")]);
+        // The scene's entry without the end-of-archive blocks.
+        let mut before = scene[..scene.len() - 1024].to_vec();
+        before.extend(header_bytes(name, kind, mib << 20));
+        let after = tar_bytes(&[("s/after.ply", tar::EntryType::Regular, b"after")]);
+        file_of(&crate::testing::gzip_with_zeros(&before, mib, &after))
+    }
+
+    /// Entries that are not unpacked (folders, a packer's litter, a pax
+    /// global header) and the headers the tar parser reads itself (a pax
+    /// extended header, held in memory) are inflated under the same limits
+    /// as files: 8 GiB of zeros packed in 8 MB is refused once a few
+    /// mebibytes are out, and a header of 64 MiB once one is.
+    #[test]
+    fn what_is_skipped_inflates_under_the_limits() {
+        use tar::EntryType as T;
+        for (name, kind, says) in [
+            ("s/.DS_Store", T::Regular, "max_compression_ratio"),
+            ("__MACOSX/s/._a", T::Regular, "max_compression_ratio"),
+            ("s/folder/", T::Directory, "max_compression_ratio"),
+            (
+                "pax_global_header",
+                T::XGlobalHeader,
+                "max_compression_ratio",
+            ),
+            ("s/PaxHeaders/a", T::XHeader, "headers"),
+            ("././@LongLink", T::GNULongName, "headers"),
+        ] {
+            let mib = if says == "headers" { 64 } else { 8 << 10 };
+            let archive = bomb(name, kind, mib);
+            let packed = archive.metadata().unwrap().len();
+            let mut read = archive.try_clone().unwrap();
+            let err = unpack(archive, ArchiveFormat::TarGz, &LIMITS, 16, None).unwrap_err();
+            assert_eq!(err.field(), Some("archive[1]"), "{name}: {err}");
+            assert!(err.to_string().contains(says), "{name}: {err}");
+            // The clone shares the file's offset: how far the packed bytes
+            // were read (the decoder reads 32 KiB at a time). Deflate
+            // inflates at most 1,032 times, so that bounds the inflation.
+            let read = read.stream_position().unwrap();
+            assert!(
+                read < 256 << 10,
+                "{name}: {read} of {packed} packed bytes read"
+            );
+        }
+        // Without compression: a pax header past its bound, and a skipped
+        // entry past an entry's.
+        let tar = tar_bytes(&[
+            ("s/scene.xml", T::Regular, b"<scene/>"),
+            ("s/PaxHeaders/a", T::XHeader, &vec![b'9'; 2 << 20]),
+            ("s/a", T::Regular, b""),
+        ]);
+        let err = unpack(file_of(&tar), ArchiveFormat::Tar, &LIMITS, 16, None).unwrap_err();
+        assert_eq!(err.field(), Some("archive[1]"), "{err}");
+        assert!(err.to_string().contains("headers"), "{err}");
+        let small = ArchiveLimits {
+            max_entry_bytes: 10,
+            ..LIMITS
+        };
+        let tar = tar_bytes(&[
+            ("s/scene.xml", T::Regular, b"<scene/>"),
+            ("s/.DS_Store", T::Regular, &[1; 11]),
+        ]);
+        let err = unpack(file_of(&tar), ArchiveFormat::Tar, &small, 16, None).unwrap_err();
+        assert_eq!(err.field(), Some("archive[1]"), "{err}");
+        assert!(err.to_string().contains("max_asset_bytes"), "{err}");
+    }
+
+    /// A zip whose central directory names an entry twice, as Python's
+    /// `zipfile` writes when asked to: refused naming the second, where
+    /// reading it would keep only one of the two.
+    #[test]
+    fn a_zip_naming_an_entry_twice_is_refused_naming_the_second() {
+        let mut bytes = Vec::new();
+        zip_of(&[
+            ("s/", b""),
+            ("s/scene.xml", b"<scene>first</scene>"),
+            ("s/scene.xmX", b"<scene>second</scene>"),
+        ])
+        .read_to_end(&mut bytes)
+        .unwrap();
+        // The writer refuses a name twice; rename the third entry in its
+        // local header and in the central directory.
+        let mut renamed = 0;
+        for at in 0..bytes.len() - 11 {
+            if &bytes[at..at + 11] == b"s/scene.xmX" {
+                bytes[at + 10] = b'l';
+                renamed += 1;
+            }
+        }
+        assert_eq!(renamed, 2);
+        let err = unpack(file_of(&bytes), ArchiveFormat::Zip, &LIMITS, 16, None).unwrap_err();
+        assert_eq!(err.field(), Some("archive[2]"), "{err}");
+        let text = err.to_string();
+        assert!(
+            text.contains("\"s/scene.xml\"") && text.contains("archive[1]"),
+            "{text}"
+        );
+    }
+
+    /// A tar that ends inside an entry, or without its end-of-archive
+    /// blocks (what keeping only a gzip's first member made of a bgzip'd
+    /// tar), is refused, as GNU tar refuses it: files may be missing.
+    #[test]
+    fn a_tar_cut_short_is_refused() {
+        use tar::EntryType as T;
+        let tar = tar_bytes(&[
+            ("s/scene.xml", T::Regular, b"<scene/>"),
+            ("s/a.ply", T::Regular, &[7; 3000]),
+        ]);
+        // Inside `a.ply`'s data.
+        let err = unpack(file_of(&tar[..2048]), ArchiveFormat::Tar, &LIMITS, 16, None).unwrap_err();
+        assert_eq!(err.field(), Some("archive[1]"), "{err}");
+        assert!(err.to_string().contains("cut short"), "{err}");
+        // After `a.ply`, before the end-of-archive blocks.
+        let end = tar.len() - 1024;
+        let err = unpack(file_of(&tar[..end]), ArchiveFormat::Tar, &LIMITS, 16, None).unwrap_err();
+        assert_eq!(err.field(), Some("body"), "{err}");
+        assert!(
+            err.to_string().contains("cut short") && err.to_string().contains("s/a.ply"),
+            "{err}"
+        );
+        // The whole tar is fine.
+        unpack(file_of(&tar), ArchiveFormat::Tar, &LIMITS, 16, None).unwrap();
+    }
+
+    /// A sparse file of the pax formats (its data a map of its holes, then
+    /// the rest) is refused, not unpacked as it is stored.
+    #[test]
+    fn a_sparse_file_is_refused_naming_it() {
+        use tar::EntryType as T;
+        let pax = [
+            pax_record("GNU.sparse.major", "1"),
+            pax_record("GNU.sparse.minor", "0"),
+            pax_record("GNU.sparse.name", "s/a.ply"),
+            pax_record("GNU.sparse.realsize", "4096"),
+        ]
+        .concat();
+        let tar = tar_bytes(&[
+            ("s/scene.xml", T::Regular, b"<scene/>"),
+            ("s/PaxHeaders/a.ply", T::XHeader, &pax),
+            ("s/GNUSparseFile.0/a.ply", T::Regular, b"1\n0\n512\n"),
+        ]);
+        let err = unpack(file_of(&tar), ArchiveFormat::Tar, &LIMITS, 16, None).unwrap_err();
+        assert_eq!(err.field(), Some("archive[1]"), "{err}");
+        assert!(err.to_string().contains("sparse"), "{err}");
+    }
+
+    /// Unpacking stops once its request is gone.
+    #[test]
+    fn a_cancelled_unpacking_stops() {
+        let zip = zip_of(&[("scene.xml", b"<scene/>")]);
+        let err = super::unpack(zip, ArchiveFormat::Zip, &LIMITS, 16, None, &|| true).unwrap_err();
+        assert_eq!(err.field(), Some("body"), "{err}");
+        assert!(err.to_string().contains("stopped"), "{err}");
     }
 
     #[test]

@@ -153,11 +153,12 @@ pub struct Limits {
     pub max_assets: usize,
     /// Largest asset of an upload once unpacked, bytes (422 naming it).
     pub max_asset_bytes: u64,
-    /// Largest sum of an archive's unpacked entries, bytes (422 naming the
-    /// entry that passes it).
+    /// Largest sum of an archive's unpacked entries, bytes, skipped ones
+    /// included (of a tar, its headers too; 422 naming the entry that
+    /// passes it).
     pub max_unpacked_bytes: u64,
-    /// Most unpacked bytes per packed byte of an archive entry past its
-    /// first MiB (422 naming it: a zip bomb).
+    /// Most unpacked bytes per packed byte of a zip's entry, or of a gzipped
+    /// tar as a whole, past the first MiB (422 naming the entry: a bomb).
     pub max_compression_ratio: u64,
     /// Uploads and records imports read at once (each up to
     /// `max_upload_bytes` in memory); more get 503 with `Retry-After`.

@@ -1,13 +1,16 @@
 //! `POST /v1/scenes` with a packed scene folder: the tutorials' Cornell box
-//! folder zipped and tarred by the system's own tools uploads in one request
-//! and renders; archives that would escape, link, hold special files, flood
-//! or explode are refused naming the entry, and the service keeps its scenes.
+//! folder zipped, tarred and `git archive`d by the system's own tools
+//! uploads in one request and renders; archives that would escape, link,
+//! hold special files, flood, explode (in a file, in an entry that is not
+//! unpacked, in a header) or name an entry twice are refused naming the
+//! entry, with the service's memory bounded, and the service keeps its
+//! scenes.
 
 use std::io::Write;
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::{TINY_SCENE, TestApp, spawn_app_with_scenes};
+use crate::common::{TINY_SCENE, TestApp, copy_dir, spawn_app_with_scenes};
 use reqwest::StatusCode;
 use serde_json::Value;
 
@@ -106,6 +109,98 @@ async fn a_zipped_or_tarred_scene_folder_uploads_in_one_request() {
     assert_eq!(error["error"]["field"], "file", "{error}");
 }
 
+/// `bytes` gzipped in members of 16 KiB each, then an empty member: what
+/// bgzip writes (in members of 64 KiB, which would hold all of this
+/// folder's tar but its padding), `cat a.gz b.gz` and parallel packers.
+fn gzip_members(bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for chunk in bytes.chunks(16 << 10).chain([&[][..]]) {
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        gz.write_all(chunk).unwrap();
+        out.extend(gz.finish().unwrap());
+    }
+    out
+}
+
+/// The tutorials' Cornell box folder packed as users pack a folder: by
+/// `git archive` of the repository that holds it (a pax global header with
+/// the commit id first), by GNU tar in its default format and in the pax
+/// format (an extended header before every entry), and GNU tar's gzipped
+/// in several members. Each uploads as the same scene; the first two
+/// render.
+#[tokio::test]
+async fn what_git_archive_and_tar_write_uploads_and_renders() {
+    let app = spawn_app_with_scenes(&[], |_| {}).await;
+    let work = tempfile::tempdir().unwrap();
+    cbox_folder(work.path());
+    let out = |name: &str| work.path().join(name);
+    run(Command::new("tar")
+        .args(["-czf", "gnu.tgz", "cbox"])
+        .current_dir(work.path()));
+    run(Command::new("tar")
+        .args(["--format=pax", "-czf", "pax.tgz", "cbox"])
+        .current_dir(work.path()));
+    run(Command::new("tar")
+        .args(["-cf", "gnu.tar", "cbox"])
+        .current_dir(work.path()));
+    // The folder as a repository of its own, archived at its commit.
+    let repo = out("repo");
+    copy_dir(&out("cbox"), &repo);
+    let git = |args: &[&str]| {
+        run(Command::new("git")
+            .args(["-c", "user.name=test", "-c", "user.email=test@example.com"])
+            .args([
+                "-c",
+                "commit.gpgsign=false",
+                "-c",
+                "init.defaultBranch=main",
+            ])
+            .args(args)
+            .env_remove("GIT_DIR")
+            .env_remove("GIT_WORK_TREE")
+            .env_remove("GIT_INDEX_FILE")
+            .current_dir(&repo))
+    };
+    git(&["init", "-q"]);
+    git(&["add", "."]);
+    git(&["commit", "-q", "-m", "The Cornell box"]);
+    git(&[
+        "archive",
+        "--format=tar.gz",
+        "--prefix=cbox/",
+        "-o",
+        "../git.tgz",
+        "HEAD",
+    ]);
+    let git_tgz = std::fs::read(out("git.tgz")).unwrap();
+    // What makes it a `git archive`: the commit id in a pax global header.
+    let mut head = Vec::new();
+    std::io::Read::read_to_end(
+        &mut flate2::read::GzDecoder::new(git_tgz.as_slice()),
+        &mut head,
+    )
+    .unwrap();
+    assert_eq!(&head[..17], b"pax_global_header");
+    assert_eq!(head[156], b'g');
+
+    let (status, summary) = post(&app, "", "application/gzip", git_tgz).await;
+    assert_eq!(status, StatusCode::CREATED, "{summary}");
+    assert_eq!(summary["id"], "cbox");
+    renders(&app, "cbox").await;
+    let members = gzip_members(&std::fs::read(out("gnu.tar")).unwrap());
+    for (id, body) in [
+        ("cbox-gnu", std::fs::read(out("gnu.tgz")).unwrap()),
+        ("cbox-pax", std::fs::read(out("pax.tgz")).unwrap()),
+        ("cbox-members", members),
+    ] {
+        let query = format!("?id={id}");
+        let (status, again) = post(&app, &query, "application/octet-stream", body).await;
+        assert_eq!(status, StatusCode::CREATED, "{id}: {again}");
+        assert_eq!(again["digest"], summary["digest"], "{id}");
+    }
+    renders(&app, "cbox-gnu").await;
+}
+
 /// A zip of `entries` (name, bytes) made by the test.
 fn zip_of(entries: impl IntoIterator<Item = (String, Vec<u8>)>) -> Vec<u8> {
     let mut out = std::io::Cursor::new(Vec::new());
@@ -168,6 +263,23 @@ async fn bad_archives_are_refused_naming_the_entry_and_nothing_is_lost() {
     let flood = zip_of(
         std::iter::once(scene()).chain((0..10_000).map(|i| (format!("f/{i}.txt"), vec![b'x']))),
     );
+    // Two `scene.json`, as Python's `zipfile` writes when asked to: the
+    // zip writer here refuses, so the second is renamed in its bytes.
+    let named = TINY_SCENE
+        .replacen('{', r#"{"name": "twice", "#, 1)
+        .into_bytes();
+    let mut twice = zip_of([
+        ("scene.json".into(), named.clone()),
+        ("scene.jsoX".into(), named),
+    ]);
+    let mut renamed = 0;
+    for at in 0..twice.len() - 10 {
+        if &twice[at..at + 10] == b"scene.jsoX" {
+            twice[at + 9] = b'n';
+            renamed += 1;
+        }
+    }
+    assert_eq!(renamed, 2, "the local header and the central directory");
     let cases: Vec<(&str, &str, Vec<u8>, &str, &str)> = vec![
         (
             "zip bomb",
@@ -203,6 +315,13 @@ async fn bad_archives_are_refused_naming_the_entry_and_nothing_is_lost() {
             flood,
             "archive[4096]",
             "max_assets",
+        ),
+        (
+            "a name twice",
+            "application/zip",
+            twice,
+            "archive[1]",
+            "\"scene.json\" is named twice",
         ),
     ];
     for (what, content_type, body, field, says) in cases {
@@ -260,4 +379,162 @@ async fn the_cli_uploads_a_scene_folder() {
         said.contains("is a link") && said.contains("archive["),
         "{said}"
     );
+}
+
+/// A tar header of entry `name` of `kind` and `size` bytes, its name
+/// written raw.
+fn header(name: &str, kind: tar::EntryType, size: u64) -> tar::Header {
+    let mut header = tar::Header::new_gnu();
+    header.set_entry_type(kind);
+    header.set_size(size);
+    header.set_mode(0o644);
+    header.as_gnu_mut().unwrap().name[..name.len()].copy_from_slice(name.as_bytes());
+    header.set_cksum();
+    header
+}
+
+/// A gzipped tar of a scene file, then entry `name` of `kind` holding `mib`
+/// mebibytes of zeros (about a kilobyte packed per mebibyte), then a file.
+fn bomb(name: &str, kind: tar::EntryType, mib: u64) -> Vec<u8> {
+    let document = TINY_SCENE.replacen('{', r#"{"name": "bomb", "#, 1);
+    let mut before = tar::Builder::new(Vec::new());
+    let scene = header("scene.json", tar::EntryType::Regular, document.len() as u64);
+    before.append(&scene, document.as_bytes()).unwrap();
+    let mut before = before.into_inner().unwrap();
+    // Without the end-of-archive blocks `into_inner` wrote.
+    before.truncate(before.len() - 1024);
+    before.extend(header(name, kind, mib << 20).as_bytes());
+    let mut after = tar::Builder::new(Vec::new());
+    after
+        .append(
+            &header("after.obj", tar::EntryType::Regular, 1),
+            b"#".as_slice(),
+        )
+        .unwrap();
+    bmc_irradiance::testing::gzip_with_zeros(&before, mib, &after.into_inner().unwrap())
+}
+
+/// A child process killed on drop.
+struct Service(std::process::Child);
+
+impl Drop for Service {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The service as a process of its own serving `scenes`, so its memory is
+/// its own; its address.
+fn serve(scenes: &Path, data: &Path) -> (Service, String) {
+    use std::io::BufRead;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
+        .args(["serve", "--bind", "127.0.0.1:0"])
+        .env("BMC_SCENES__DIR", scenes)
+        .env("BMC_CACHE__DATA_DIR", data)
+        .env("NO_COLOR", "1")
+        .env("RUST_LOG", "info")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    let addr = loop {
+        let line = lines.next().expect("the service exited").unwrap();
+        if let Some(rest) = line.split("addr=").nth(1)
+            && line.contains("listening")
+        {
+            break rest.split_whitespace().next().unwrap().to_owned();
+        }
+    };
+    std::thread::spawn(move || for _ in lines {});
+    (Service(child), addr)
+}
+
+/// The most memory process `pid` has held (`VmHWM`), bytes.
+fn peak_rss(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
+    let kib: u64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+    kib << 10
+}
+
+/// Bombs where nothing is unpacked, against the real binary: 8 GiB of
+/// zeros packed in 8 MB as a file a packer adds on its own (skipped) and as
+/// a pax global header (skipped), and a pax extended header of 1 GiB (which
+/// the tar parser holds in memory). Each is refused naming the entry after
+/// a few mebibytes of inflation; the service's memory stays far below what
+/// they claim, it stays healthy and keeps its scene.
+#[tokio::test]
+async fn bombs_in_entries_not_unpacked_are_refused_in_bounded_memory() {
+    let scenes = tempfile::tempdir().unwrap();
+    std::fs::write(scenes.path().join("tiny.json"), TINY_SCENE).unwrap();
+    let data = tempfile::tempdir().unwrap();
+    let (service, addr) = serve(scenes.path(), data.path());
+    // Only turns a hang into a failure; nothing here is timed.
+    let client = reqwest::Client::builder()
+        .timeout(std::time::Duration::from_secs(600))
+        .build()
+        .unwrap();
+    let url = |path: &str| format!("http://{addr}{path}");
+    let cases = [
+        (
+            ".DS_Store",
+            tar::EntryType::Regular,
+            8 << 10,
+            "max_compression_ratio",
+        ),
+        (
+            "pax_global_header",
+            tar::EntryType::XGlobalHeader,
+            8 << 10,
+            "max_compression_ratio",
+        ),
+        (
+            "PaxHeaders/after.obj",
+            tar::EntryType::XHeader,
+            1 << 10,
+            "headers",
+        ),
+    ];
+    for (name, kind, mib, says) in cases {
+        let body = bomb(name, kind, mib);
+        assert!(body.len() < 9 << 20, "{name}: {} bytes", body.len());
+        let started = std::time::Instant::now();
+        let response = client
+            .post(url("/v1/scenes"))
+            .header("content-type", "application/gzip")
+            .body(body)
+            .send()
+            .await
+            .unwrap();
+        let status = response.status();
+        let error: Value = response.json().await.unwrap();
+        eprintln!("{name}: {status} in {:?}", started.elapsed());
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{name}: {error}");
+        assert_eq!(error["error"]["field"], "archive[1]", "{name}: {error}");
+        let message = error["error"]["message"].as_str().unwrap();
+        assert!(message.contains(says), "{name}: {message}");
+    }
+    let peak = peak_rss(service.0.id());
+    eprintln!("peak RSS {} MiB", peak >> 20);
+    // The 1 GiB header alone would take it past this.
+    assert!(peak < 512 << 20, "peak RSS {} MiB", peak >> 20);
+    let health = client.get(url("/health")).send().await.unwrap();
+    assert_eq!(health.status(), StatusCode::OK);
+    let scenes: Value = client
+        .get(url("/v1/scenes"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let ids: Vec<_> = scenes
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| &s["id"])
+        .collect();
+    assert_eq!(ids, ["tiny"]);
 }

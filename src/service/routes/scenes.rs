@@ -72,10 +72,14 @@ pub struct PostSceneQuery {
 /// body is a packed scene folder: the scene file at its root or at the root
 /// of the one folder that holds everything (else named by `file`), beside the
 /// files it references. Its id is the `id` parameter, else (XML) that
-/// folder's name or the file's stem. Entries are checked as assets are, and
-/// links, FIFOs, devices and entries past `limits.max_asset_bytes`,
-/// `limits.max_unpacked_bytes` or `limits.max_compression_ratio` are refused,
-/// 422 naming `archive[i]` and the entry's name.
+/// folder's name or the file's stem. Tars as `tar` and `git archive` write
+/// them and gzips of several members are read (`scene::archive` says what
+/// is). Entries are checked as assets are, and links, FIFOs, devices, a zip
+/// naming an entry twice, a tar cut short and entries (skipped ones too)
+/// past `limits.max_asset_bytes`, `limits.max_unpacked_bytes` or
+/// `limits.max_compression_ratio` are refused, 422 naming `archive[i]` and
+/// the entry's name. The archive is unpacked on the CPU pool (503 with
+/// `Retry-After` when it is full).
 /// Otherwise files the scene references must already be in the scenes directory.
 /// `param.NAME=VALUE` query parameters set an XML scene's `$NAME` (overriding
 /// its `<default>`, like `mitsuba -D`); with a JSON scene they are refused.
@@ -135,20 +139,25 @@ pub async fn post_scene(
             };
             let max_assets = limits.max_assets;
             let file = query.file.clone();
-            let unpacked = tokio::task::spawn_blocking(move || {
-                let format = match format {
-                    Some(format) => format,
-                    None => sniff(&archive)?,
-                };
-                Ok::<_, ApiError>(archive::unpack(
-                    archive,
-                    format,
-                    &archive_limits,
-                    max_assets,
-                    file.as_deref(),
-                )?)
-            })
-            .await??;
+            // On the CPU pool, as other heavy work: inflating is bounded by
+            // its slots and stops when the request is gone.
+            let unpacked = state
+                .pool
+                .run(move |cancel| {
+                    let format = match format {
+                        Some(format) => format,
+                        None => sniff(&archive)?,
+                    };
+                    Ok::<_, ApiError>(archive::unpack(
+                        archive,
+                        format,
+                        &archive_limits,
+                        max_assets,
+                        file.as_deref(),
+                        &|| cancel.is_cancelled(),
+                    )?)
+                })
+                .await??;
             drop(reading);
             if !unpacked.outside.is_empty() {
                 tracing::info!(file = %unpacked.file, left_out = ?unpacked.outside,
