@@ -201,6 +201,7 @@ pub fn serialized_mesh(vertices: u64, triangles: u64) -> Vec<u8> {
     out.extend(0u64.to_le_bytes());
     out.extend(1u32.to_le_bytes());
     out
+}
 
 /// One gzip member holding `before`, then `zeros_mib` mebibytes of zeros,
 /// then `after`: the long run of zeros of a crafted archive (a bomb), made

@@ -70,6 +70,11 @@ def test_upload_json_and_xml_then_delete(client: Client, tmp_path: Path) -> None
         client.upload(SCENES / "cornell-box.json", params={"spp": 4})
     ids = {s["id"] for s in client.scenes()}
     assert {"box-copy", "box-xml-text", "box-from-file"} <= ids
+    # An id the service holds is replaced only when asked to.
+    with pytest.raises(ServiceError) as taken:
+        client.upload(SCENES / "cornell-box.json", id="box-copy")
+    assert (taken.value.status, taken.value.code, taken.value.field) == (409, "scene_exists", "name")
+    assert client.upload(SCENES / "cornell-box.json", id="box-copy", replace=True)["id"] == "box-copy"
 
     for scene in ("box-copy", "box-xml-text", "box-from-file"):
         client.delete(scene)
@@ -151,6 +156,34 @@ def test_upload_with_assets_found_in_the_document(client: Client, tmp_path: Path
     assert refused.value.status == 422
     assert refused.value.field == "assets[0]"
     client.delete("carried-mesh")
+
+
+def test_xml_assets_are_found_in_either_attribute_order_and_through_parameters(
+    client: Client, tmp_path: Path
+) -> None:
+    """``assets="auto"`` finds ``<string value=… name="filename">`` and file
+    names made of ``$NAME`` parameters, from ``params`` or the document's
+    ``<default>``."""
+    scene_dir = tmp_path / "params"
+    (scene_dir / "meshes").mkdir(parents=True)
+    blob = (SCENES / "meshes" / "blob.obj").read_bytes()
+    (scene_dir / "meshes" / "blob.obj").write_bytes(blob)
+    (scene_dir / "meshes" / "other.obj").write_bytes(blob)
+    path = scene_dir / "blobs.xml"
+    path.write_text(
+        """<scene version="3.0.0">
+  <default name="mesh" value="blob"/>
+  <sensor type="perspective"><film type="hdrfilm">
+    <integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+  <shape type="obj"><string value="meshes/$mesh.obj" name="filename"/></shape>
+  <shape type="obj"><string name='filename' value='meshes/blob.obj'/></shape>
+</scene>"""
+    )
+    summary = client.upload(path, id="xml-assets", assets="auto")
+    assert summary["triangles"] == 2 * client.scene("mesh")["triangles"]
+    other = client.upload(path, id="xml-assets", assets="auto", params={"mesh": "other"}, replace=True)
+    assert other["triangles"] == summary["triangles"]
+    client.delete("xml-assets")
 
 
 def test_an_upload_refused_while_sending_raises_the_services_error(

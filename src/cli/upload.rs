@@ -19,13 +19,17 @@ pub struct UploadArgs {
     /// Base URL of the service.
     #[arg(long, default_value = "http://127.0.0.1:8080")]
     pub url: String,
-    /// The scene's id (default: an XML scene's folder name or file stem, a
-    /// JSON scene's `name`).
+    /// The scene's id (default: an XML scene's file stem when `--file`
+    /// names it, else its folder's name; a JSON scene's `name`).
     #[arg(long)]
     pub id: Option<String>,
     /// The scene file, when the folder holds several (`scene_box.xml`).
     #[arg(long)]
     pub file: Option<String>,
+    /// Replace the service's scene of the same id; without it an id the
+    /// service holds is refused (409) and nothing changes.
+    #[arg(long)]
+    pub replace: bool,
     /// Approximate what the scene model cannot represent instead of refusing.
     #[arg(long)]
     pub lenient: bool,
@@ -52,8 +56,10 @@ pub fn run_upload(args: &UploadArgs, out: &mut dyn Write) -> anyhow::Result<()> 
     let mut query: Vec<(String, String)> = Vec::new();
     query.extend(args.id.iter().map(|id| ("id".into(), id.clone())));
     query.extend(args.file.iter().map(|f| ("file".into(), f.clone())));
-    if args.lenient {
-        query.push(("lenient".into(), "true".into()));
+    for (flag, set) in [("lenient", args.lenient), ("replace", args.replace)] {
+        if set {
+            query.push((flag.into(), "true".into()));
+        }
     }
     query.extend(
         args.params

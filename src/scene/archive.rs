@@ -26,7 +26,7 @@
 //! on, so a bomb is stopped after a few mebibytes: a zip's per entry, a
 //! gzipped tar's over the whole stream. The headers of a tar entry (which
 //! the tar parser holds in memory) may take [`MAX_HEADER_BYTES`]. Unpacking
-//! stops within one [`CHUNK`] once its caller says it is cancelled.
+//! stops within one [`CHUNK`] once its cancel flag is set.
 //!
 //! Every refusal names the entry: field `archive[i]`, its index in the
 //! archive (a tar's pax extended headers and long names belong to the entry
@@ -47,6 +47,7 @@ use std::rc::Rc;
 
 use super::bundle::{DocumentKind, SceneBundle, main_scene_file};
 use super::error::SceneError;
+use crate::cancel::Cancel;
 
 /// Unpacked bytes an entry (or a gzipped tar as a whole) may reach before
 /// its compression ratio is checked: small files compress as they like.
@@ -117,22 +118,22 @@ pub struct Unpacked {
 }
 
 /// Unpacks `archive` (module docs) into a bundle of at most `max_entries`
-/// files; `file` names the scene file (module docs). Stops, with an error,
-/// once `cancelled` says so (the service's job flag; asked every chunk).
+/// files; `file` names the scene file (module docs). Stops, with
+/// [`SceneError::Cancelled`], once `cancel` is set (asked every chunk).
 pub fn unpack(
     archive: std::fs::File,
     format: ArchiveFormat,
     limits: &ArchiveLimits,
     max_entries: usize,
     file: Option<&str>,
-    cancelled: &dyn Fn() -> bool,
+    cancel: &Cancel,
 ) -> Result<Unpacked, SceneError> {
     let mut sink = Sink {
         bundle: SceneBundle::new(max_entries)?,
         limits: *limits,
         total: 0,
         buffer: vec![0u8; CHUNK],
-        cancelled,
+        cancel,
     };
     match format {
         ArchiveFormat::Zip => unpack_zip(archive, &mut sink)?,
@@ -175,8 +176,8 @@ struct Sink<'a> {
     total: u64,
     /// Bytes between an entry's reader and its file, reused by every entry.
     buffer: Vec<u8>,
-    /// Whether to stop (the request is gone).
-    cancelled: &'a dyn Fn() -> bool,
+    /// Set when the request is gone.
+    cancel: &'a Cancel,
 }
 
 impl Sink<'_> {
@@ -211,11 +212,8 @@ impl Sink<'_> {
             |reason: String| SceneError::invalid(field(index), format!("entry {name:?}: {reason}"));
         let mut read = 0u64;
         loop {
-            if (self.cancelled)() {
-                return Err(SceneError::invalid(
-                    "body",
-                    "unpacking stopped: the request is gone",
-                ));
+            if self.cancel.is_cancelled() {
+                return Err(SceneError::Cancelled);
             }
             let n = match reader.read(&mut self.buffer) {
                 Ok(0) => return Ok(read),
@@ -716,7 +714,7 @@ mod tests {
         max_entries: usize,
         file: Option<&str>,
     ) -> Result<Unpacked, SceneError> {
-        super::unpack(archive, format, limits, max_entries, file, &|| false)
+        super::unpack(archive, format, limits, max_entries, file, &Cancel::never())
     }
 
     fn zip_of(entries: &[(&str, &[u8])]) -> std::fs::File {
@@ -1211,9 +1209,10 @@ mod tests {
     #[test]
     fn a_cancelled_unpacking_stops() {
         let zip = zip_of(&[("scene.xml", b"<scene/>")]);
-        let err = super::unpack(zip, ArchiveFormat::Zip, &LIMITS, 16, None, &|| true).unwrap_err();
-        assert_eq!(err.field(), Some("body"), "{err}");
-        assert!(err.to_string().contains("stopped"), "{err}");
+        let cancel = Cancel::new();
+        cancel.cancel();
+        let err = super::unpack(zip, ArchiveFormat::Zip, &LIMITS, 16, None, &cancel).unwrap_err();
+        assert!(matches!(err, SceneError::Cancelled), "{err}");
     }
 
     #[test]

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use super::error::ApiError;
 use super::posted_scenes::Posted;
-use super::scenes::{NotInserted, LoadedScene, SceneSource, log_warnings};
+use super::scenes::{LoadedScene, NotInserted, SceneSource, log_warnings};
 use super::shared_store::SharedEvent;
 use super::state::AppState;
 

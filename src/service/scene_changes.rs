@@ -30,13 +30,13 @@ pub async fn post(
     mut posted: Posted,
 ) -> Result<(bool, SceneSummary), ApiError> {
     let Target { id, field, replace } = target;
-    let exists = || ApiError::SceneExists {
+    let exists = |id: &str| ApiError::SceneExists {
         field,
-        id: id.clone(),
+        id: id.to_owned(),
     };
     // Known here or to another replica: refused before any work.
     if !replace && (state.scenes.get(&id).is_some() || state.shared_scene_exists(&id).await) {
-        return Err(exists());
+        return Err(exists(&id));
     }
     let root = state.config.scenes.dir.clone();
     let limits = state
@@ -73,7 +73,7 @@ pub async fn post(
         .insert(loaded, replace)
         .map_err(|refused| match refused {
             NotInserted::OverBudget(over) => over.into(),
-            NotInserted::Exists => exists(),
+            NotInserted::Exists => exists(&summary.id),
         })?;
     let replaced = previous.is_some();
     // Kept for the next start (with `cache.data_dir`): a change that would

@@ -171,7 +171,7 @@ fn scene(material: Value, light: Option<(&str, Value)>) -> Value {
 
 /// What went wrong with one scene, if anything.
 async fn check(app: &TestApp, doc: &Value, place: &str) -> Option<String> {
-    let posted = app.post_json("/v1/scenes", doc).await;
+    let posted = app.post_json("/v1/scenes?replace=true", doc).await;
     let status = posted.status();
     let body: Value = posted.json().await.unwrap();
     if status == StatusCode::UNPROCESSABLE_ENTITY {

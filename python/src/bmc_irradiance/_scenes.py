@@ -34,8 +34,11 @@ class _Scenes(_Resource):
         lenient: bool = False,
         params: Mapping[str, str | int | float] | None = None,
         assets: str | Sequence[str] | Mapping[str, bytes | os.PathLike[str]] | None = None,
+        replace: bool = False,
     ) -> dict[str, Any]:
-        """``POST /v1/scenes``: adds a scene, or replaces the one with the same id.
+        """``POST /v1/scenes``: adds a scene; with ``replace`` replaces the one
+        with the same id (without it the service refuses an id it holds:
+        :class:`ServiceError` with status 409 and code ``scene_exists``).
 
         ``scene`` is a path to a JSON scene document or a Mitsuba 3 XML file,
         or the document's text. A JSON document's id is its ``name``; ``id``
@@ -50,8 +53,10 @@ class _Scenes(_Resource):
         With ``assets`` they travel with it (``multipart/form-data``):
 
         - ``"auto"``: every file the document names (``"filename"`` values
-          of a JSON document, ``<string name="filename" value=…>`` of XML),
-          read relative to the scene file's directory;
+          of a JSON document, ``<string name="filename" value=…>`` of XML in
+          either attribute order, its ``$NAME`` parameters filled in from
+          ``params`` and the file's ``<default>`` values), read relative to
+          the scene file's directory;
         - a list of such relative names;
         - a mapping from relative name to bytes or a local path.
 
@@ -64,7 +69,7 @@ class _Scenes(_Resource):
         if first not in ("{", "<"):
             raise ValueError("the scene is neither a JSON document nor Mitsuba XML")
         xml = first == "<"
-        query: dict[str, Any] = {}
+        query: dict[str, Any] = {"replace": True if replace else None}
         if first == "{" and id is not None:
             document = json.loads(text)
             document["name"] = id
@@ -73,7 +78,7 @@ class _Scenes(_Resource):
             scene_id = id if id is not None else path.stem if path is not None else None
             if scene_id is None:
                 raise ValueError("an XML scene given as text needs an id")
-            query = {"id": scene_id, "lenient": True if lenient else None}
+            query |= {"id": scene_id, "lenient": True if lenient else None}
             for name, value in (params or {}).items():
                 query[f"param.{name}"] = str(value)
         elif params:
@@ -88,9 +93,13 @@ class _Scenes(_Resource):
             )
             return dict(answer.json())
         # A scene given as a path: names resolve beside it.
-        files = _asset_files(text, xml, assets, None if path is None else path.parent)
+        files = _asset_files(
+            text, xml, assets, None if path is None else path.parent, params or {}
+        )
         boundary = "bmc-" + os.urandom(12).hex()
-        parts = [("scene", "scene.xml" if xml else "scene.json", text.encode("utf-8"))]
+        # The service names the document by this in its messages.
+        document = path.name if path is not None else "scene.xml" if xml else "scene.json"
+        parts = [("scene", document, text.encode("utf-8"))]
         parts += [("asset", name, data) for name, data in files]
         answer = self._http.request(
             "POST",
@@ -109,6 +118,7 @@ class _Scenes(_Resource):
         file: str | None = None,
         lenient: bool = False,
         params: Mapping[str, str | int | float] | None = None,
+        replace: bool = False,
     ) -> dict[str, Any]:
         """``POST /v1/scenes`` with a packed scene folder: a zip, tar or
         gzipped tar (a path, or its bytes), holding the scene file at its root
@@ -117,9 +127,10 @@ class _Scenes(_Resource):
 
         The scene file is the only ``.xml``/``.json`` there, or the one named
         ``scene`` or after the folder, else ``file`` (``"scene_box.xml"``).
-        An XML scene's id is ``id``, by default the folder's name (``lego``
-        for ``zip -r lego.zip lego``) or the file's stem; a JSON scene's is its
-        ``name``. ``lenient`` and ``params`` are as for :meth:`upload`. An
+        An XML scene's id is ``id``, by default the stem of ``file`` when it is
+        given, else the folder's name (``lego`` for ``zip -r lego.zip lego``)
+        or the file's stem; a JSON scene's is its ``name``. ``lenient``,
+        ``params`` and ``replace`` are as for :meth:`upload`. An
         entry the service refuses (``..``, a link, a FIFO, a zip bomb, more
         than its ``limits.max_assets``) raises :class:`ServiceError` naming
         ``archive[i]``. Returns the scene's summary.
@@ -129,6 +140,7 @@ class _Scenes(_Resource):
             "id": id,
             "file": file,
             "lenient": True if lenient else None,
+            "replace": True if replace else None,
         }
         for name, value in (params or {}).items():
             query[f"param.{name}"] = str(value)
@@ -149,6 +161,7 @@ class _Scenes(_Resource):
         file: str | None = None,
         lenient: bool = False,
         params: Mapping[str, str | int | float] | None = None,
+        replace: bool = False,
     ) -> dict[str, Any]:
         """``POST /v1/scenes`` with a whole scene folder (Mitsuba's ``lego/``
         with its ``scene.xml``, ``meshes/`` and ``textures/``), zipped in
@@ -166,7 +179,9 @@ class _Scenes(_Resource):
                     raise ValueError(f"{path} is a link or a special file, not a regular file")
                 if path.is_file():
                     out.write(path, f"{root.resolve().name}/{path.relative_to(root).as_posix()}")
-        return self.upload_archive(packed.getvalue(), id, file=file, lenient=lenient, params=params)
+        return self.upload_archive(
+            packed.getvalue(), id, file=file, lenient=lenient, params=params, replace=replace
+        )
 
     def delete(self, id: str) -> None:
         """``DELETE /v1/scenes/{id}``; requests already using the scene finish normally."""
@@ -188,12 +203,27 @@ def _archive_type(archive: bytes | os.PathLike[str] | str) -> str:
     return "application/octet-stream"
 
 
-def _referenced_files(text: str, xml: bool) -> list[str]:
-    """The files a scene document names, each once, in order."""
+def _referenced_files(text: str, xml: bool, params: Mapping[str, str | int | float]) -> list[str]:
+    """The files a scene document names, each once, in order; in XML, its
+    ``$NAME`` parameters are filled in from ``params``, else from the
+    document's ``<default name=… value=…>``."""
+    names: list[str] = []
     if xml:
-        names = re.findall(r'<string\s+name="filename"\s+value="([^"]*)"', text)
+        values: dict[str, str] = {}
+        for tag in re.findall(r"<default\b[^>]*>", text):
+            name, value = _attribute(tag, "name"), _attribute(tag, "value")
+            if name is not None and value is not None:
+                values[name] = value
+        values |= {name: str(value) for name, value in params.items()}
+        for tag in re.findall(r"<string\b[^>]*>", text):
+            value = _attribute(tag, "value")
+            if _attribute(tag, "name") == "filename" and value is not None:
+                names.append(
+                    re.sub(
+                        r"\$(\w+)", lambda m: values.get(m.group(1), m.group(0)), value
+                    )
+                )
     else:
-        names = []
 
         def walk(value: Any) -> None:
             if isinstance(value, dict):
@@ -210,11 +240,18 @@ def _referenced_files(text: str, xml: bool) -> list[str]:
     return list(dict.fromkeys(names))
 
 
+def _attribute(tag: str, name: str) -> str | None:
+    """The value of attribute ``name`` of an XML start tag, in either quotes."""
+    found = re.search(rf"""\b{name}\s*=\s*(?:"([^"]*)"|'([^']*)')""", tag)
+    return None if found is None else found.group(1) if found.group(1) is not None else found.group(2)
+
+
 def _asset_files(
     text: str,
     xml: bool,
     assets: str | Sequence[str] | Mapping[str, bytes | os.PathLike[str]],
     base: Path | None,
+    params: Mapping[str, str | int | float],
 ) -> list[tuple[str, bytes]]:
     """``(relative name, bytes)`` of the assets to upload (see ``upload``)."""
     if isinstance(assets, Mapping):
@@ -222,7 +259,7 @@ def _asset_files(
             (name, data if isinstance(data, bytes) else Path(data).read_bytes())
             for name, data in assets.items()
         ]
-    names = _referenced_files(text, xml) if assets == "auto" else list(assets)
+    names = _referenced_files(text, xml, params) if assets == "auto" else list(assets)
     if names and base is None:
         raise ValueError("assets by name need the scene as a file path (or pass a mapping)")
     return [(name, (base / name).read_bytes()) for name in names] if base else []

@@ -16,7 +16,7 @@ use crate::service::extract::{
     body_media_type, content_type_text, parse_json,
 };
 use crate::service::posted_scenes::Posted;
-use crate::service::scene_changes;
+use crate::service::scene_changes::{self, Target};
 use crate::service::scenes::{SceneSummary, validate_id};
 use crate::service::state::AppState;
 
@@ -52,13 +52,21 @@ pub struct PostSceneQuery {
     #[serde(default)]
     pub lenient: bool,
     /// The scene file of an uploaded archive, when its root holds several
-    /// (or none): `scene.xml`, or `lego/scene.xml`. Refused with other bodies.
+    /// (or none): `scene.xml`, or `lego/scene.xml`; an XML scene named so
+    /// takes the file's stem as its id unless `id` gives one. Refused with
+    /// other bodies.
     pub file: Option<String>,
+    /// Replace the scene of the same id if there is one (200); without it,
+    /// posting under an id the service holds is refused, 409 naming `id`
+    /// (or `name`), and nothing changes.
+    #[serde(default)]
+    pub replace: bool,
     // `param.NAME=VALUE` pairs (the XML scene's `$NAME` values, overriding
     // its `<default>`s) are taken apart by `ApiQueryWithParameters`.
 }
 
-/// Adds a scene and replaces one with the same id. The body is either a scene
+/// Adds a scene, or with `replace=true` replaces the one with the same id
+/// (409 `scene_exists` without it). The body is either a scene
 /// document (`application/json`, `docs/scene-format.md`) whose `name` becomes
 /// its id (an `id` query parameter with it is refused, 422), or a Mitsuba 3
 /// scene (`application/xml`) whose id, and name, is the `id` query parameter.
@@ -90,6 +98,7 @@ pub struct PostSceneQuery {
                  content_type = "application/json"),
     responses((status = 201, description = "Scene added", body = SceneSummary),
                (status = 200, description = "Scene replaced", body = SceneSummary),
+               (status = 409, description = "A scene holds the id and `replace` is not set", body = ErrorBody),
                (status = 415, description = "Neither JSON, XML nor multipart", body = ErrorBody),
                (status = 422, description = "Invalid scene", body = ErrorBody),
                (status = 507, description = "Over a scenes budget", body = ErrorBody)))]
@@ -154,7 +163,7 @@ pub async fn post_scene(
                         &archive_limits,
                         max_assets,
                         file.as_deref(),
-                        &|| cancel.is_cancelled(),
+                        cancel,
                     )?)
                 })
                 .await??;
@@ -163,14 +172,19 @@ pub async fn post_scene(
                 tracing::info!(file = %unpacked.file, left_out = ?unpacked.outside,
                     "archive entries outside the scene file's folder left out");
             }
-            let id = match (unpacked.kind, query.id) {
+            let id = match (unpacked.kind, query.id.clone()) {
                 (DocumentKind::MitsubaXml, None) => {
-                    let id = unpacked.folder.clone().unwrap_or_else(|| {
-                        let file = std::path::Path::new(&unpacked.file);
-                        file.file_stem()
-                            .map(|s| s.to_string_lossy().into_owned())
-                            .unwrap_or_default()
-                    });
+                    // The named scene file's stem (several scenes of one
+                    // folder are several ids), else the folder's name, as
+                    // the scenes directory names a scene folder.
+                    let stem = std::path::Path::new(&unpacked.file)
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    let id = match (&query.file, &unpacked.folder) {
+                        (None, Some(folder)) => folder.clone(),
+                        _ => stem,
+                    };
                     validate_id(&id).at("id")?;
                     id
                 }
@@ -209,7 +223,15 @@ pub async fn post_scene(
         parameters,
         bundle,
     };
-    let (replaced, summary) = scene_changes::post(&state, id, posted).await?;
+    let target = Target {
+        id,
+        field: match kind {
+            DocumentKind::Json => "name",
+            DocumentKind::MitsubaXml => "id",
+        },
+        replace: query.replace,
+    };
+    let (replaced, summary) = scene_changes::post(&state, target, posted).await?;
     let status = if replaced {
         StatusCode::OK
     } else {
