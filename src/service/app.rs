@@ -154,6 +154,7 @@ impl Application {
             tiles,
             posted,
             shared,
+            import_key: rand::random(),
         });
         let router = router(state.clone());
         Ok(Application {
