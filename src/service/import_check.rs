@@ -47,7 +47,6 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::tile_store::{DecodedImport, ImportError};
 use crate::cache::Record;
 use crate::estimators::calibration::unseen_light;
 use crate::integrator::cached::indirect_paths;
@@ -102,18 +101,28 @@ pub struct Picked {
     pub camera_depth: PathDepth,
 }
 
-/// The records of `import` that the check compares with the scene: all
-/// records of the tiles it would add if there are at most
-/// [`CHECKED_RECORDS`], else that many drawn uniformly without replacement
-/// by a generator seeded with the BLAKE3 of `body` keyed by `key`; in the
-/// import's order. A record whose place is no query point is refused.
-pub fn pick(
-    import: &DecodedImport,
+/// A record whose place is no query point (a position beyond the scene
+/// model's coordinates), which no computation places; `entry` and `record`
+/// name it in the import.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Unplaced {
+    pub entry: usize,
+    pub record: usize,
+    pub reason: String,
+}
+
+/// The records that the check compares with the scene, of `tiles` (the
+/// tiles an import would add: their index in the import, records and camera
+/// depth): all of them if there are at most [`CHECKED_RECORDS`], else that
+/// many drawn uniformly without replacement by a generator seeded with the
+/// BLAKE3 of the import's `body` keyed by `key`; in the import's order.
+pub fn pick<'a>(
+    tiles: impl IntoIterator<Item = (usize, &'a [Record], PathDepth)>,
     body: &[u8],
     key: &[u8; 32],
-) -> Result<Vec<Picked>, ImportError> {
-    let tiles: Vec<_> = import.new_tiles().collect();
-    let total: usize = tiles.iter().map(|(_, t)| t.records.len()).sum();
+) -> Result<Vec<Picked>, Unplaced> {
+    let tiles: Vec<_> = tiles.into_iter().collect();
+    let total: usize = tiles.iter().map(|(_, records, _)| records.len()).sum();
     let mut chosen: Vec<usize> = if total <= CHECKED_RECORDS {
         (0..total).collect()
     } else {
@@ -123,25 +132,23 @@ pub fn pick(
     chosen.sort_unstable();
     let mut picked = Vec::with_capacity(chosen.len());
     let (mut next, mut before) = (chosen.iter().peekable(), 0);
-    for (entry, tile) in tiles {
-        let count = tile.records.len();
+    for (entry, records, camera_depth) in tiles {
+        let count = records.len();
         while let Some(&&at) = next.peek().filter(|&&&at| at < before + count) {
             next.next();
             let record = at - before;
-            let value = tile.records[record];
-            let point = QueryPoint::new(value.position, value.normal).map_err(|e| {
-                ImportError::InvalidRecord {
-                    entry,
-                    record,
-                    reason: e.to_string(),
-                }
+            let value = records[record];
+            let point = QueryPoint::new(value.position, value.normal).map_err(|e| Unplaced {
+                entry,
+                record,
+                reason: e.to_string(),
             })?;
             picked.push(Picked {
                 entry,
                 record,
                 value,
                 point,
-                camera_depth: tile.max_depth,
+                camera_depth,
             });
         }
         before += count;
@@ -233,14 +240,15 @@ fn refusing_count(checked: usize) -> Option<usize> {
     })
 }
 
-/// What the check found.
+/// What the check found; made by [`check`] only (its fields are private),
+/// so that what takes one as a proof of a check (`TileStore`'s import) gets
+/// one that ran.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Verdict {
-    /// Records compared, and those that disagreed.
-    pub checked: usize,
-    pub disagreeing: usize,
+    checked: usize,
+    disagreeing: usize,
     /// The first record (in the import's order) that disagreed, if any.
-    pub first: Option<Disagreement>,
+    first: Option<Disagreement>,
 }
 
 /// A record that disagreed, with what the scene gave at its place.
@@ -255,54 +263,48 @@ pub struct Disagreement {
     pub std_error: Rgb,
 }
 
-/// A decoded import whose check passed: the only form of an import that
-/// `TileStore::add_import` takes, so none reaches the store, its log or the
-/// other replicas unchecked.
-pub struct CheckedImport {
-    decoded: DecodedImport,
-    verdict: Verdict,
-}
-
-impl CheckedImport {
-    /// The import and what its check found.
-    pub fn into_parts(self) -> (DecodedImport, Verdict) {
-        (self.decoded, self.verdict)
-    }
-
-    /// An import taken as checked, for tests of the store alone.
-    #[cfg(test)]
-    pub fn unchecked_for_tests(decoded: DecodedImport) -> Self {
-        Self {
-            decoded,
-            verdict: Verdict {
-                checked: 0,
-                disagreeing: 0,
-                first: None,
-            },
-        }
-    }
+/// Why an import is refused: `disagreeing` of the `checked` records
+/// disagreed, more than the `allowed`; `entry` and `record` name the first,
+/// and `detail` says what it holds against what the scene gave.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Refused {
+    pub entry: usize,
+    pub record: usize,
+    pub checked: usize,
+    pub disagreeing: usize,
+    pub allowed: usize,
+    pub detail: String,
 }
 
 impl Verdict {
-    /// `decoded`, whose picked records this verdict is of, ready to add; or
-    /// its refusal ([`Self::refusal`]).
-    pub fn accept(self, decoded: DecodedImport) -> Result<CheckedImport, ImportError> {
-        match self.refusal() {
-            Some(refusal) => Err(refusal),
-            None => Ok(CheckedImport {
-                decoded,
-                verdict: self,
-            }),
+    /// Records compared with fresh estimates.
+    pub fn checked(&self) -> usize {
+        self.checked
+    }
+
+    /// Of those, the records that disagreed.
+    pub fn disagreeing(&self) -> usize {
+        self.disagreeing
+    }
+
+    /// The verdict on an import with no record checked, for tests of what
+    /// takes a verdict.
+    #[cfg(test)]
+    pub fn nothing_checked() -> Self {
+        Self {
+            checked: 0,
+            disagreeing: 0,
+            first: None,
         }
     }
 
     /// The refusal of the import, when at least [`refusing_count`] of the
     /// records checked disagreed.
-    pub fn refusal(&self) -> Option<ImportError> {
+    pub fn refusal(&self) -> Option<Refused> {
         let refusing = refusing_count(self.checked)?;
         let first = self.first.filter(|_| self.disagreeing >= refusing)?;
         let rgb = |c: Rgb| format!("[{:.4e}, {:.4e}, {:.4e}]", c.r, c.g, c.b);
-        Some(ImportError::Disagrees {
+        Some(Refused {
             entry: first.entry,
             record: first.record,
             checked: self.checked,

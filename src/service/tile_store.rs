@@ -44,7 +44,7 @@ use std::sync::Arc;
 use moka::sync::Cache;
 
 use super::error::ApiError;
-use super::import_check::CheckedImport;
+use super::import_check::{Refused, Verdict};
 use super::shared_store::Outbox;
 use crate::cache::log::{self, AppendLog, LogEntry, LogReport};
 use crate::cache::{CacheConfig, MAX_IRRADIANCE, RECORD_BYTES, RadiusLimits, Record};
@@ -140,6 +140,19 @@ pub enum ImportError {
     },
 }
 
+impl From<Refused> for ImportError {
+    fn from(r: Refused) -> Self {
+        ImportError::Disagrees {
+            entry: r.entry,
+            record: r.record,
+            checked: r.checked,
+            disagreeing: r.disagreeing,
+            allowed: r.allowed,
+            detail: r.detail,
+        }
+    }
+}
+
 /// An import names the entry it refuses (422): `body` when the body is not
 /// an export at all, `entries[i]` otherwise.
 impl From<ImportError> for ApiError {
@@ -192,6 +205,30 @@ impl DecodedImport {
             .filter(|(_, (_, _, held))| !held)
             .map(|(i, (_, tile, _))| (i, tile))
     }
+
+    /// This import, ready to add, if `verdict` (the check of records picked
+    /// from [`Self::new_tiles`], `service::import_check`) does not refuse it.
+    pub fn accept(self, verdict: &Verdict) -> Result<CheckedImport, ImportError> {
+        if let Some(refusal) = verdict.refusal() {
+            return Err(refusal.into());
+        }
+        Ok(CheckedImport {
+            decoded: self,
+            checked: verdict.checked() as u64,
+            disagreeing: verdict.disagreeing() as u64,
+        })
+    }
+}
+
+/// A decoded import whose check passed ([`DecodedImport::accept`], from a
+/// `Verdict` that only the check makes): the only form of an import that
+/// [`TileStore::add_import`] takes, so none reaches the store, its log or
+/// the other replicas unchecked.
+pub struct CheckedImport {
+    decoded: DecodedImport,
+    /// Records checked, and those that disagreed.
+    checked: u64,
+    disagreeing: u64,
 }
 
 /// What `/health` reports about the store.
@@ -437,17 +474,15 @@ impl TileStore {
     /// Adds the tiles of an import that this store does not hold (held ones
     /// are kept as they are), logging them and sending them to the other
     /// replicas. Only an import whose records agreed with the scene is
-    /// added (`service::import_check`, whose [`CheckedImport`] no one else
-    /// makes): what is added here is served under the ETags of computed
-    /// tiles, here and on every replica.
+    /// added ([`CheckedImport`]): what is added here is served under the
+    /// ETags of computed tiles, here and on every replica.
     pub fn add_import(&self, import: CheckedImport) -> ImportReport {
-        let (decoded, verdict) = import.into_parts();
         let mut report = ImportReport {
-            checked: verdict.checked as u64,
-            disagreeing: verdict.disagreeing as u64,
+            checked: import.checked,
+            disagreeing: import.disagreeing,
             ..ImportReport::default()
         };
-        for (entry, tile, held) in decoded.entries {
+        for (entry, tile, held) in import.decoded.entries {
             // An entry held when the import was decoded was not among those
             // checked: it stays out even if it has been evicted since.
             if held || self.records.contains_key(&entry.key) {

@@ -123,7 +123,16 @@ pub async fn import_records(
     let keeper = state.clone();
     let (decoded, picked) = tokio::task::spawn_blocking(move || {
         let decoded = keeper.tiles.decode_import(&digest, bounds, &body)?;
-        let picked = import_check::pick(&decoded, &body, &keeper.import_key)?;
+        let tiles = decoded
+            .new_tiles()
+            .map(|(i, tile)| (i, tile.records.as_slice(), tile.max_depth));
+        let picked = import_check::pick(tiles, &body, &keeper.import_key).map_err(|u| {
+            ImportError::InvalidRecord {
+                entry: u.entry,
+                record: u.record,
+                reason: u.reason,
+            }
+        })?;
         Ok::<_, ImportError>((decoded, picked))
     })
     .await??;
@@ -131,8 +140,8 @@ pub async fn import_records(
         .pool
         .run(move |cancel| import_check::check(&scene.transport, &picked, cancel))
         .await??;
-    let (checked, disagreeing) = (verdict.checked, verdict.disagreeing);
-    let import = verdict.accept(decoded).inspect_err(|_| {
+    let import = decoded.accept(&verdict).inspect_err(|_| {
+        let (checked, disagreeing) = (verdict.checked(), verdict.disagreeing());
         tracing::warn!(%id, checked, disagreeing, "records import refused");
     })?;
     let keeper = state.clone();

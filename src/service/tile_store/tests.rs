@@ -85,7 +85,7 @@ fn a_scene_s_records_export_and_import_and_nothing_else() {
     );
     // Decoding adds nothing.
     assert_eq!(other.stats().tiles, 0);
-    let report = other.add_import(CheckedImport::unchecked_for_tests(decoded));
+    let report = other.add_import(decoded.accept(&Verdict::nothing_checked()).unwrap());
     assert_eq!(
         (report.imported, report.already_held, report.records),
         (2, 0, 6)
@@ -98,7 +98,7 @@ fn a_scene_s_records_export_and_import_and_nothing_else() {
     assert_eq!(again.new_tiles().count(), 0, "held tiles are not new");
     assert_eq!(
         other
-            .add_import(CheckedImport::unchecked_for_tests(again))
+            .add_import(again.accept(&Verdict::nothing_checked()).unwrap())
             .already_held,
         2
     );
@@ -106,7 +106,7 @@ fn a_scene_s_records_export_and_import_and_nothing_else() {
     // stays out even if evicted before the import is added.
     let stale = other.decode_import(&[7; 32], BOUNDS, &export).unwrap();
     other.records.invalidate(&[1; 32]);
-    let report = other.add_import(CheckedImport::unchecked_for_tests(stale));
+    let report = other.add_import(stale.accept(&Verdict::nothing_checked()).unwrap());
     assert_eq!((report.imported, report.already_held), (0, 2));
     assert!(other.records.get(&[1; 32]).is_none());
     // Refused whole: another scene's content, damage, not an export.
