@@ -84,10 +84,12 @@ curl -s -o /dev/null -w '%{http_code}\n' -H "If-None-Match: $(curl -sI \
      "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview"     # → 304
 # The records of the scene's reproducible tiles, for a backup or to seed another service
 # (the tile log's format, application/vnd.bmc-records); POST adds them, all or nothing
-# (422 naming entries[i] when one is damaged or of another scene's content):
+# (422 naming entries[i] when one is damaged or of another scene's content, and
+# entries[i].records[j] when too many of up to 64 of the records it would add disagree
+# with fresh estimates of the scene, docs/math.md §9.8; tiles held here are not checked):
 curl "$BASE/v1/scenes/cornell-box/records" -o cornell-box.records
 curl -X POST "$BASE/v1/scenes/cornell-box/records" --data-binary @cornell-box.records
-# → {"imported": 0, "already_held": 1, "records": 0}
+# → {"imported": 0, "already_held": 1, "records": 0, "checked": 0, "disagreeing": 0}
 # Any rectangle by POST, the same knobs in the body (explicit ones override the preset;
 # an explicit samples_per_pixel renders one pass of that many rays):
 curl -X POST "$BASE/v1/scenes/cornell-box/tiles" -H 'content-type: application/json' \

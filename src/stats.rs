@@ -3,7 +3,9 @@
 //! scalars (`bmc::estimator`) and RGB values (`render`) alike; and the
 //! standard normal quantile that turns a confidence into a number of
 //! standard deviations (docs/math.md §10.6); the inverse error function and
-//! the root finder the samplers invert their CDFs with.
+//! the root finder the samplers invert their CDFs with; and the binomial
+//! upper tail that bounds how many genuine imported records may disagree
+//! with fresh estimates (docs/math.md §9.8).
 
 use std::f64::consts::PI;
 use std::ops::{Add, Div, Mul, Sub};
@@ -186,9 +188,71 @@ pub fn two_sided_normal_quantile(confidence: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
+/// `P(X ≥ k)` for `X ~ Binomial(n, p)`, `p` in `[0, 1]`: the sum over
+/// `j ≥ k` of `C(n, j) p^j (1 − p)^(n − j)`, each term's logarithm built from
+/// the previous one's by `ln((n − j)/(j + 1)) + ln(p/(1 − p))`, so no
+/// binomial coefficient overflows (docs/math.md §9.8 bounds a count of
+/// disagreeing records with it). 1 for `k = 0`, 0 for `k > n`.
+pub fn binomial_upper_tail(n: u64, p: f64, k: u64) -> f64 {
+    if k == 0 {
+        return 1.0;
+    }
+    if k > n || p <= 0.0 {
+        return 0.0;
+    }
+    if p >= 1.0 {
+        return 1.0;
+    }
+    let odds = (p / (1.0 - p)).ln();
+    // ln of the term j = 0, then up to j = k − 1.
+    let mut log_term = n as f64 * (-p).ln_1p();
+    for j in 0..k {
+        log_term += ((n - j) as f64 / (j + 1) as f64).ln() + odds;
+    }
+    let mut tail = 0.0;
+    for j in k..=n {
+        tail += log_term.exp();
+        if j < n {
+            log_term += ((n - j) as f64 / (j + 1) as f64).ln() + odds;
+        }
+    }
+    tail.min(1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Against sums of exact binomial coefficients.
+    #[test]
+    fn binomial_tails_match_their_definition() {
+        let exact = |n: u64, p: f64, k: u64| -> f64 {
+            (k..=n)
+                .map(|j| {
+                    let c = (0..j).fold(1.0, |c, i| c * (n - i) as f64 / (i + 1) as f64);
+                    c * p.powi(j as i32) * (1.0 - p).powi((n - j) as i32)
+                })
+                .sum()
+        };
+        for (n, p, k) in [
+            (10, 0.05, 8),
+            (64, 0.05, 19),
+            (64, 0.5, 32),
+            (5, 0.3, 1),
+            (1, 0.05, 1),
+        ] {
+            let (got, want) = (binomial_upper_tail(n, p, k), exact(n, p, k));
+            assert!(
+                (got - want).abs() <= 1e-12 * want,
+                "{n} {p} {k}: {got} vs {want}"
+            );
+        }
+        assert_eq!(binomial_upper_tail(64, 0.05, 0), 1.0);
+        assert_eq!(binomial_upper_tail(64, 0.05, 65), 0.0);
+        assert_eq!(binomial_upper_tail(3, 0.0, 1), 0.0);
+        // All of n: p^n.
+        assert!((binomial_upper_tail(7, 0.05, 7) - 0.05f64.powi(7)).abs() < 1e-22);
+    }
 
     #[test]
     fn matches_the_textbook_formulas() {

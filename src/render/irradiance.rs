@@ -439,8 +439,12 @@ impl Transport {
     }
 
     /// Hemisphere estimate of `∫_H L cos θ dω` with `samples` cosine-weighted
-    /// random directions: `π · mean(L)`.
-    fn cosine_hemisphere_irradiance<R: Rng + ?Sized>(
+    /// random directions: `π · mean(L)` (docs/math.md §1), the paths along
+    /// them summing `limits`, with the unbiased variance of that mean
+    /// (`crate::stats::RunningMean`). Independent directions, so the
+    /// variance is estimated from their spread; the plain Monte Carlo
+    /// estimate that checks imported records (`service::import_check`).
+    pub fn cosine_hemisphere_irradiance<R: Rng + ?Sized>(
         &self,
         point: &QueryPoint,
         samples: u32,

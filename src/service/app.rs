@@ -162,6 +162,7 @@ impl Application {
             tiles,
             posted,
             shared,
+            import_key: rand::random(),
         });
         let router = router(state.clone());
         Ok(Application {

@@ -161,7 +161,8 @@ pub struct Limits {
     /// tar as a whole, past the first MiB (422 naming the entry: a bomb).
     pub max_compression_ratio: u64,
     /// Uploads and records imports read at once (each up to
-    /// `max_upload_bytes` in memory); more get 503 with `Retry-After`.
+    /// `max_upload_bytes` in memory, an import until its records are
+    /// checked and added); more get 503 with `Retry-After`.
     pub max_concurrent_uploads: usize,
     /// Most points in one point query.
     pub max_points: usize,

@@ -19,6 +19,8 @@
 //! - `metrics`: Prometheus names, recorder and per-route middleware;
 //! - `scenes`: the scene registry and startup loading;
 //! - `tile_store`, `tile_render`: reproducible tiles' memoised parts and passes;
+//! - `import_check`: an import's records checked against fresh estimates
+//!   of the scene before they are added;
 //! - `posted_scenes`: scenes posted at runtime, kept across restarts;
 //! - `shared_store`, `replicas`: sharing with other replicas through Redis;
 //! - `routes`: one file per resource.
@@ -27,6 +29,7 @@ mod app;
 pub mod config;
 mod error;
 mod extract;
+mod import_check;
 mod integrator;
 mod irradiance_caches;
 mod metrics;

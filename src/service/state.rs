@@ -40,9 +40,13 @@ pub struct AppState {
     pub posted: PostedScenes,
     /// The Redis shared with other replicas (`cluster.redis_url`), if any.
     pub shared: Option<Arc<SharedStore>>,
-    /// One permit per upload or records import being read
+    /// One permit per upload, or records import being read and checked
     /// (`limits.max_concurrent_uploads`).
     pub uploads: Arc<tokio::sync::Semaphore>,
+    /// A secret drawn at startup that keys which records of an import are
+    /// checked (`service::import_check`), so a forger cannot aim at the
+    /// records left unchecked.
+    pub import_key: [u8; 32],
 }
 
 impl AppState {

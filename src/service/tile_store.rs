@@ -27,8 +27,11 @@
 //! computed, bit for bit.
 //!
 //! A scene's records can be exported as a log image and imported into
-//! another service ([`TileStore::export`], [`TileStore::import`]); each
-//! records entry names the scene content it belongs to.
+//! another service ([`TileStore::export`], [`TileStore::decode_import`],
+//! [`TileStore::add_import`]); each records entry names the scene content
+//! it belongs to, and an import's records are checked against fresh
+//! estimates of the scene before they are added (`service::import_check`),
+//! as an imported tile is served under the ETag of a computed one.
 //!
 //! Tiles rendered through the shared cache (`reproducible: false`) depend
 //! on what ran before and are not kept here; their records live in the
@@ -41,6 +44,7 @@ use std::sync::Arc;
 use moka::sync::Cache;
 
 use super::error::ApiError;
+use super::import_check::{Refused, Verdict};
 use super::shared_store::Outbox;
 use crate::cache::log::{self, AppendLog, LogEntry, LogReport};
 use crate::cache::{CacheConfig, MAX_IRRADIANCE, RECORD_BYTES, RadiusLimits, Record};
@@ -120,6 +124,33 @@ pub enum ImportError {
         record: usize,
         reason: String,
     },
+    /// Too many of the records checked against fresh estimates of the scene
+    /// disagree with them (`service::import_check`); `entry` and `record`
+    /// name the first that does.
+    #[error(
+        "entry {entry}, record {record}: {disagreeing} of the {checked} records checked disagree with fresh estimates of the scene's indirect irradiance (at most {allowed} may; docs/math.md §9.8); this one: {detail}"
+    )]
+    Disagrees {
+        entry: usize,
+        record: usize,
+        checked: usize,
+        disagreeing: usize,
+        allowed: usize,
+        detail: String,
+    },
+}
+
+impl From<Refused> for ImportError {
+    fn from(r: Refused) -> Self {
+        ImportError::Disagrees {
+            entry: r.entry,
+            record: r.record,
+            checked: r.checked,
+            disagreeing: r.disagreeing,
+            allowed: r.allowed,
+            detail: r.detail,
+        }
+    }
 }
 
 /// An import names the entry it refuses (422): `body` when the body is not
@@ -132,7 +163,8 @@ impl From<ImportError> for ApiError {
             | ImportError::NotRecords { entry, .. }
             | ImportError::Malformed { entry }
             | ImportError::OtherScene { entry, .. } => format!("entries[{entry}]"),
-            ImportError::InvalidRecord { entry, record, .. } => {
+            ImportError::InvalidRecord { entry, record, .. }
+            | ImportError::Disagrees { entry, record, .. } => {
                 format!("entries[{entry}].records[{record}]")
             }
         };
@@ -148,6 +180,55 @@ pub struct ImportReport {
     pub already_held: u64,
     /// Records in the added tiles.
     pub records: u64,
+    /// Records of the added tiles checked against fresh estimates of the
+    /// scene, and those of them that disagreed (docs/math.md §9.8; fewer
+    /// than refuse an import).
+    pub checked: u64,
+    pub disagreeing: u64,
+}
+
+/// An import decoded and every record checked as computed records hold
+/// ([`TileStore::decode_import`]), not added yet ([`TileStore::add_import`]).
+pub struct DecodedImport {
+    /// Each entry with its records, in the import's order, and whether this
+    /// store held its key when it was decoded.
+    entries: Vec<(LogEntry, TileRecords, bool)>,
+}
+
+impl DecodedImport {
+    /// The entries this store did not hold when the import was decoded (what
+    /// adding it would add), with their index in the import.
+    pub fn new_tiles(&self) -> impl Iterator<Item = (usize, &TileRecords)> {
+        self.entries
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, _, held))| !held)
+            .map(|(i, (_, tile, _))| (i, tile))
+    }
+
+    /// This import, ready to add, if `verdict` (the check of records picked
+    /// from [`Self::new_tiles`], `service::import_check`) does not refuse it.
+    pub fn accept(self, verdict: &Verdict) -> Result<CheckedImport, ImportError> {
+        if let Some(refusal) = verdict.refusal() {
+            return Err(refusal.into());
+        }
+        Ok(CheckedImport {
+            decoded: self,
+            checked: verdict.checked() as u64,
+            disagreeing: verdict.disagreeing() as u64,
+        })
+    }
+}
+
+/// A decoded import whose check passed ([`DecodedImport::accept`], from a
+/// `Verdict` that only the check makes): the only form of an import that
+/// [`TileStore::add_import`] takes, so none reaches the store, its log or
+/// the other replicas unchecked.
+pub struct CheckedImport {
+    decoded: DecodedImport,
+    /// Records checked, and those that disagreed.
+    checked: u64,
+    disagreeing: u64,
 }
 
 /// What `/health` reports about the store.
@@ -321,17 +402,20 @@ impl TileStore {
         image
     }
 
-    /// Adds the records entries of an export (`Self::export`) of the scene
-    /// content `scene`, whose bounding box is `bounds`; all or nothing: any
-    /// entry that is damaged, not records, of another scene content, or with
-    /// a record computed records could not be (outside `bounds`, or failing
-    /// [`Record::validate_received`]) refuses the whole import.
-    pub fn import(
+    /// Decodes the records entries of an export (`Self::export`) of the
+    /// scene content `scene`, whose bounding box is `bounds`, for
+    /// [`Self::add_import`]; all or nothing: any entry that is damaged, not
+    /// records, of another scene content, or with a record computed records
+    /// could not be (outside `bounds`, or failing
+    /// [`Record::validate_received`]) refuses the whole import. Whether the
+    /// records agree with the scene is `service::import_check`'s to say,
+    /// between the two.
+    pub fn decode_import(
         &self,
         scene: &[u8; 32],
         bounds: (glam::DVec3, glam::DVec3),
         image: &[u8],
-    ) -> Result<ImportReport, ImportError> {
+    ) -> Result<DecodedImport, ImportError> {
         let entries = log::decode_log(image).map_err(|entry| {
             if entry == 0 && !image.starts_with(log::MAGIC) {
                 ImportError::NotALog
@@ -339,8 +423,8 @@ impl TileStore {
                 ImportError::Damaged { entry }
             }
         })?;
-        let mut tiles = Vec::with_capacity(entries.len());
-        for (i, entry) in entries.iter().enumerate() {
+        let mut decoded = Vec::with_capacity(entries.len());
+        for (i, entry) in entries.into_iter().enumerate() {
             if entry.kind != RECORDS {
                 return Err(ImportError::NotRecords {
                     entry: i,
@@ -381,11 +465,27 @@ impl TileStore {
                     ),
                 });
             }
-            tiles.push((entry, tile));
+            let held = self.records.contains_key(&entry.key);
+            decoded.push((entry, tile, held));
         }
-        let mut report = ImportReport::default();
-        for (entry, tile) in tiles {
-            if self.records.contains_key(&entry.key) {
+        Ok(DecodedImport { entries: decoded })
+    }
+
+    /// Adds the tiles of an import that this store does not hold (held ones
+    /// are kept as they are), logging them and sending them to the other
+    /// replicas. Only an import whose records agreed with the scene is
+    /// added ([`CheckedImport`]): what is added here is served under the
+    /// ETags of computed tiles, here and on every replica.
+    pub fn add_import(&self, import: CheckedImport) -> ImportReport {
+        let mut report = ImportReport {
+            checked: import.checked,
+            disagreeing: import.disagreeing,
+            ..ImportReport::default()
+        };
+        for (entry, tile, held) in import.decoded.entries {
+            // An entry held when the import was decoded was not among those
+            // checked: it stays out even if it has been evicted since.
+            if held || self.records.contains_key(&entry.key) {
                 report.already_held += 1;
                 continue;
             }
@@ -394,7 +494,7 @@ impl TileStore {
             self.records.insert(entry.key, Arc::new(tile));
             self.persist(RECORDS, &entry.key, || Cow::Borrowed(&entry.payload), true);
         }
-        Ok(report)
+        report
     }
 
     /// The records of an entry's payload (`encode_records`), each checked

@@ -363,8 +363,13 @@ fn framed(body: &[u8]) -> Vec<u8> {
 #[tokio::test]
 async fn an_export_nobody_reads_is_cut_off() {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    let app = spawn_app_in(scenes_dir(), |c| c.server.header_read_timeout_secs = 2).await;
-    let summary: Value = app.get("/v1/scenes/box").await.json().await.unwrap();
+    // A lone rectangle under a sky: no light reaches it by a reflection, so
+    // records of zero indirect irradiance are what the scene gives, and an
+    // import of many of them passes the check against fresh estimates.
+    let dir = scenes_dir();
+    std::fs::write(dir.path().join("tiny.json"), crate::common::TINY_SCENE).unwrap();
+    let app = spawn_app_in(dir, |c| c.server.header_read_timeout_secs = 2).await;
+    let summary: Value = app.get("/v1/scenes/tiny").await.json().await.unwrap();
     let hex = summary["digest"].as_str().unwrap();
     let digest: Vec<u8> = (0..32)
         .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).unwrap())
@@ -379,8 +384,7 @@ async fn an_export_nobody_reads_is_cut_off() {
         for i in 0..4000 {
             let (x, y) = (f64::from(i % 100) / 100.0, f64::from(i / 100) / 40.0);
             let mut record = [0.0; 31];
-            record[..6].copy_from_slice(&[1.8 * x - 0.9, 1.8 * y - 0.9, -0.999, 0.0, 0.0, 1.0]);
-            record[6..12].copy_from_slice(&[1.0, 1.0, 1.0, 0.01, 0.01, 0.01]);
+            record[..6].copy_from_slice(&[1.8 * x - 0.9, 1.8 * y - 0.9, 0.0, 0.0, 0.0, 1.0]);
             record[12] = 0.1;
             body.extend(record.iter().flat_map(|v| v.to_le_bytes()));
         }
@@ -388,7 +392,7 @@ async fn an_export_nobody_reads_is_cut_off() {
     }
     let imported = app
         .client
-        .post(app.url("/v1/scenes/box/records"))
+        .post(app.url("/v1/scenes/tiny/records"))
         .body(image.clone())
         .send()
         .await
@@ -396,11 +400,19 @@ async fn an_export_nobody_reads_is_cut_off() {
     assert_eq!(imported.status(), 200);
     let imported: Value = imported.json().await.unwrap();
     assert_eq!(imported["imported"], 40, "{imported}");
+    assert_eq!(
+        (
+            imported["checked"].as_u64(),
+            imported["disagreeing"].as_u64()
+        ),
+        (Some(64), Some(0)),
+        "{imported}"
+    );
 
     let addr = app.base.trim_start_matches("http://").to_owned();
     let mut stalled = tokio::net::TcpStream::connect(&addr).await.unwrap();
     stalled
-        .write_all(b"GET /v1/scenes/box/records HTTP/1.1\r\nHost: x\r\n\r\n")
+        .write_all(b"GET /v1/scenes/tiny/records HTTP/1.1\r\nHost: x\r\n\r\n")
         .await
         .unwrap();
     tokio::time::sleep(std::time::Duration::from_secs(6)).await;
@@ -508,6 +520,134 @@ async fn poisoned_records_imports_are_refused() {
     assert_eq!(imported["imported"], 4, "{imported}");
     let url = "/v1/scenes/box/tiles/0/0.png?size=32&preset=draft";
     assert_eq!(second.get(url).await.bytes().await.unwrap(), images[0]);
+}
+
+/// Every record of an export scaled by 1,000, its variance by 10⁶ and its
+/// gradients with it: each record is one computed records could be (finite,
+/// under `MAX_IRRADIANCE`, gradients within their clamp), framed with valid
+/// checksums, and tiles shaded from them would be hundreds of times too
+/// bright under the genuine ETags. The import is refused naming a record,
+/// by its disagreement with fresh estimates of the scene (docs/math.md
+/// §9.8); nothing of it is kept, what the service held is, and the genuine
+/// export still imports and serves the first service's bytes.
+#[tokio::test]
+async fn records_scaled_by_a_thousand_are_refused() {
+    let first = spawn_app_in(scenes_dir(), |_| {}).await;
+    let (images, _, _) = render_all(&first).await;
+    let export = first
+        .get("/v1/scenes/box/records")
+        .await
+        .bytes()
+        .await
+        .unwrap()
+        .to_vec();
+    let second = spawn_app_in(scenes_dir(), |_| {}).await;
+    // Held before the import: the first tile, computed here.
+    let url =
+        |(tx, ty): (u32, u32)| format!("/v1/scenes/box/tiles/{tx}/{ty}.png?size=32&preset=draft");
+    let held = second.get(&url(TILES[0])).await;
+    assert_eq!(held.bytes().await.unwrap(), images[0]);
+    let post = |body: Vec<u8>| {
+        second
+            .client
+            .post(second.url("/v1/scenes/box/records"))
+            .header("content-type", "application/vnd.bmc-records")
+            .body(body)
+            .send()
+    };
+    let response = post(scaled(&export, 1000.0)).await.unwrap();
+    assert_eq!(response.status(), 422);
+    let (body, _) = crate::common::error_json(response).await;
+    let error = &body["error"];
+    assert_eq!(error["code"], "invalid_field", "{body}");
+    let field = error["field"].as_str().unwrap();
+    assert!(
+        field.starts_with("entries[") && field.contains("].records["),
+        "{body}"
+    );
+    assert!(
+        error["message"]
+            .as_str()
+            .unwrap()
+            .contains("fresh estimates"),
+        "{body}"
+    );
+    // Healthy, the tile it held kept, nothing of the import added: the
+    // other tiles are computed, as the first service computed them.
+    let health: Value = second.get("/health").await.json().await.unwrap();
+    assert_eq!(health["status"], "ok", "{health}");
+    assert_eq!(health["tiles"]["tiles"], 1, "{health}");
+    for (i, tile) in TILES.into_iter().enumerate() {
+        let response = second.get(&url(tile)).await;
+        let created = response.headers()["x-records-created"]
+            .to_str()
+            .unwrap()
+            .to_owned();
+        assert_eq!(
+            created == "0",
+            i == 0,
+            "{tile:?}: {created} records created"
+        );
+        assert_eq!(response.bytes().await.unwrap(), images[i], "{tile:?}");
+    }
+    // The genuine export (from another run, into a service that holds part
+    // of it) is checked and added.
+    let third = spawn_app_in(scenes_dir(), |_| {}).await;
+    assert_eq!(third.get(&url(TILES[0])).await.status(), 200);
+    let imported = third
+        .client
+        .post(third.url("/v1/scenes/box/records"))
+        .header("content-type", "application/vnd.bmc-records")
+        .body(export)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(imported.status(), 200);
+    let imported: Value = imported.json().await.unwrap();
+    assert_eq!(
+        (
+            imported["imported"].as_u64(),
+            imported["already_held"].as_u64()
+        ),
+        (Some(3), Some(1)),
+        "{imported}"
+    );
+    assert!(imported["checked"].as_u64().unwrap() > 0, "{imported}");
+    for (i, tile) in TILES.into_iter().enumerate() {
+        let response = third.get(&url(tile)).await;
+        assert_eq!(response.headers()["x-records-created"], "0", "{tile:?}");
+        assert_eq!(response.bytes().await.unwrap(), images[i], "{tile:?}");
+    }
+}
+
+/// An export with every record of every entry scaled by `factor` (its
+/// irradiance, its variance by the square, both gradients), each entry
+/// framed again with a valid checksum (the format of [`forged`]).
+fn scaled(export: &[u8], factor: f64) -> Vec<u8> {
+    let mut out = b"BMCLOG01".to_vec();
+    let mut at = 8;
+    while at < export.len() {
+        let length = u32::from_le_bytes(export[at..at + 4].try_into().unwrap()) as usize;
+        let body = &export[at + 12..at + 12 + length];
+        let (head, payload) = body.split_at(33 + 32 + 4);
+        let mut body = head.to_vec();
+        for record in payload.chunks_exact(31 * 8) {
+            for (i, v) in record.chunks_exact(8).enumerate() {
+                let v = f64::from_le_bytes(v.try_into().unwrap());
+                // Position and normal 0..6, irradiance 6..9, variance 9..12,
+                // radius 12, gradients 13..31.
+                let v = match i {
+                    6..=8 | 13..=30 => v * factor,
+                    9..=11 => v * factor * factor,
+                    _ => v,
+                };
+                body.extend(v.to_le_bytes());
+            }
+        }
+        out.extend(framed(&body));
+        at += 12 + length;
+    }
+    out
 }
 
 /// A tmpfs of `bytes` mounted on a fresh directory, unmounted on drop: a

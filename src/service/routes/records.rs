@@ -6,8 +6,11 @@
 //! one checksummed entry per tile, whose payload starts with the content
 //! digest of the scene it belongs to (`service::tile_store`). Records are
 //! tied to the scene's content and to the release that computed them (their
-//! keys include both), so an import into another release is accepted but
-//! never read.
+//! keys include both), so the tiles of an import into another release are
+//! never read (point queries gather records by scene content, and do meet
+//! them). An import's records are checked against fresh estimates of the
+//! scene before anything is added (`service::import_check`, docs/math.md
+//! §9.8): what is added serves tiles under the ETags of computed ones.
 
 use std::sync::Arc;
 
@@ -24,8 +27,9 @@ use axum::response::IntoResponse;
 
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{SceneId, body_up_to};
+use crate::service::import_check;
 use crate::service::state::AppState;
-use crate::service::tile_store::ImportReport;
+use crate::service::tile_store::{ImportError, ImportReport};
 
 /// Tile entries an export has encoded ahead of what the client has read.
 const EXPORT_ENTRIES_IN_FLIGHT: usize = 2;
@@ -90,30 +94,58 @@ pub async fn export_records(
 
 /// Adds the records of an export of the same scene content (all or
 /// nothing: a damaged entry, or one of another scene content, refuses the
-/// whole body with 422 naming `entries[i]`, and a record that computed ones
+/// whole body with 422 naming `entries[i]`, a record that computed ones
 /// could not be (non-finite, negative, huge, outside the scene, repeated)
-/// with 422 naming `entries[i].records[j]`); tiles already held are kept.
-/// The body may be up to `limits.max_upload_bytes`.
+/// with 422 naming `entries[i].records[j]`, and records of which too many
+/// disagree with fresh estimates of the scene (docs/math.md §9.8) with 422
+/// naming the first that does); tiles already held are kept. The body may
+/// be up to `limits.max_upload_bytes`; the check runs on the CPU pool (503
+/// when it is full).
 #[utoipa::path(post, path = "/v1/scenes/{id}/records", tag = "scenes",
     params(("id" = String, Path, description = "Scene id")),
     request_body(content = Vec<u8>, description = "An export of this scene's records", content_type = "application/vnd.bmc-records"),
     responses((status = 200, body = ImportReport),
                (status = 404, description = "Unknown scene", body = ErrorBody),
-               (status = 422, description = "Not an export of this scene", body = ErrorBody)))]
+               (status = 422, description = "Not an export of this scene, or records that disagree with it", body = ErrorBody),
+               (status = 503, description = "CPU queue full; see Retry-After", body = ErrorBody)))]
 pub async fn import_records(
     State(state): State<Arc<AppState>>,
     SceneId(id): SceneId,
     request: Request,
 ) -> Result<Json<ImportReport>, ApiError> {
     let scene = state.scene(&id).await?;
-    let reading = state.upload_permit()?;
+    // Held until the import is added: the body and its decoded records stay
+    // in memory through the check.
+    let _reading = state.upload_permit()?;
     let body = body_up_to(request, state.config.limits.max_upload_bytes).await?;
-    drop(reading);
     let digest = *scene.transport.scene().digest.as_bytes();
     let bounds = scene.transport.scene().bounds();
     let keeper = state.clone();
-    let report =
-        tokio::task::spawn_blocking(move || keeper.tiles.import(&digest, bounds, &body)).await??;
-    tracing::info!(%id, imported = report.imported, records = report.records, "records imported");
+    let (decoded, picked) = tokio::task::spawn_blocking(move || {
+        let decoded = keeper.tiles.decode_import(&digest, bounds, &body)?;
+        let tiles = decoded
+            .new_tiles()
+            .map(|(i, tile)| (i, tile.records.as_slice(), tile.max_depth));
+        let picked = import_check::pick(tiles, &body, &keeper.import_key).map_err(|u| {
+            ImportError::InvalidRecord {
+                entry: u.entry,
+                record: u.record,
+                reason: u.reason,
+            }
+        })?;
+        Ok::<_, ImportError>((decoded, picked))
+    })
+    .await??;
+    let verdict = state
+        .pool
+        .run(move |cancel| import_check::check(&scene.transport, &picked, cancel))
+        .await??;
+    let import = decoded.accept(&verdict).inspect_err(|_| {
+        let (checked, disagreeing) = (verdict.checked(), verdict.disagreeing());
+        tracing::warn!(%id, checked, disagreeing, "records import refused");
+    })?;
+    let keeper = state.clone();
+    let report = tokio::task::spawn_blocking(move || keeper.tiles.add_import(import)).await?;
+    tracing::info!(%id, imported = report.imported, records = report.records, checked = report.checked, "records imported");
     Ok(Json(report))
 }

@@ -75,7 +75,17 @@ fn a_scene_s_records_export_and_import_and_nothing_else() {
     assert_eq!(log::decode_log(&export).unwrap().len(), 2);
 
     let other = TileStore::new(1 << 20, 4096);
-    let report = other.import(&[7; 32], BOUNDS, &export).unwrap();
+    let decoded = other.decode_import(&[7; 32], BOUNDS, &export).unwrap();
+    assert_eq!(
+        decoded
+            .new_tiles()
+            .map(|(i, t)| (i, t.records.len()))
+            .collect::<Vec<_>>(),
+        [(0, 3), (1, 3)]
+    );
+    // Decoding adds nothing.
+    assert_eq!(other.stats().tiles, 0);
+    let report = other.add_import(decoded.accept(&Verdict::nothing_checked()).unwrap());
     assert_eq!(
         (report.imported, report.already_held, report.records),
         (2, 0, 6)
@@ -84,27 +94,35 @@ fn a_scene_s_records_export_and_import_and_nothing_else() {
         .records_or::<()>([2; 32], || panic!("not imported"))
         .unwrap();
     assert_eq!(back.records, tile(7).records);
+    let again = other.decode_import(&[7; 32], BOUNDS, &export).unwrap();
+    assert_eq!(again.new_tiles().count(), 0, "held tiles are not new");
     assert_eq!(
         other
-            .import(&[7; 32], BOUNDS, &export)
-            .unwrap()
+            .add_import(again.accept(&Verdict::nothing_checked()).unwrap())
             .already_held,
         2
     );
+    // A tile held when the import was decoded was not checked with it: it
+    // stays out even if evicted before the import is added.
+    let stale = other.decode_import(&[7; 32], BOUNDS, &export).unwrap();
+    other.records.invalidate(&[1; 32]);
+    let report = other.add_import(stale.accept(&Verdict::nothing_checked()).unwrap());
+    assert_eq!((report.imported, report.already_held), (0, 2));
+    assert!(other.records.get(&[1; 32]).is_none());
     // Refused whole: another scene's content, damage, not an export.
     let fresh = TileStore::new(1 << 20, 4096);
     assert!(matches!(
-        fresh.import(&[8; 32], BOUNDS, &export),
+        fresh.decode_import(&[8; 32], BOUNDS, &export),
         Err(ImportError::OtherScene { entry: 0, .. })
     ));
     assert_eq!(
         fresh
-            .import(&[7; 32], BOUNDS, &export[..export.len() - 3])
+            .decode_import(&[7; 32], BOUNDS, &export[..export.len() - 3])
             .err(),
         Some(ImportError::Damaged { entry: 1 })
     );
     assert_eq!(
-        fresh.import(&[7; 32], BOUNDS, b"{}").err(),
+        fresh.decode_import(&[7; 32], BOUNDS, b"{}").err(),
         Some(ImportError::NotALog)
     );
     assert_eq!(fresh.stats().tiles, 0);
