@@ -5,8 +5,9 @@
 #   cargo run --release -- serve          # in one terminal, from the repository root
 #   bash examples/walkthrough.sh [BASE]   # in another; BASE defaults to http://127.0.0.1:8080
 #
-# It reads the scene files in scenes/ beside this script and writes tile.png
-# into the current directory. It changes nothing it did not add: the scenes it
+# It reads the scene files in scenes/ beside this script and writes what it
+# fetches into a temporary folder it removes at the end, so it leaves no
+# file behind. It changes nothing it did not add: the scenes it
 # uploads (my-box, my-box-xml, my-sky, my-studio) are deleted at the end, and the bundled
 # cornell-box is only queried (its irradiance cache is cleared, which the next
 # request refills). With server.auth_token set, export BMC_TOKEN. Any HTTP
@@ -32,15 +33,17 @@ curl() {
 # --- walkthrough (the README shows from here to the end) ---
 BASE="${1:-http://127.0.0.1:8080}" # where the service listens
 SCENES="${SCENES:-scenes}"         # the bundled scenes (pasted by hand: from the repository root)
+WORK="$(mktemp -d)"                # what the tour fetches goes here, removed at the end
 
-curl "$BASE/health"                # {"status":"ok","version":"0.1.0","scenes":5,"cpu":{...}}
+curl "$BASE/health"                # {"status":"ok","version":"0.1.0","scenes":6,"cpu":{...}}
 curl "$BASE/ready"                 # 200 when it should get work, 503 when wedged or saturated
 curl "$BASE/metrics" | grep '^http_requests_total' # Prometheus text: latency histograms, rays_traced_total, ...
 curl "$BASE/openapi.json" | grep -o '"/[^" ]*"' | sort -u # OpenAPI 3 document of every route (its paths)
 curl "$BASE/v1/scenes"             # summaries of the loaded scenes
 curl "$BASE/v1/scenes/cornell-box" # one scene: shapes, triangles, camera resolution, bounds
 
-# Add a scene (or replace one): a JSON document's "name" is its id; here a renamed copy.
+# Add a scene: a JSON document's "name" is its id; here a renamed copy. An id the service holds
+# is refused (409 scene_exists) unless the POST says ?replace=true.
 sed 's/"name": "cornell-box"/"name": "my-box"/' "$SCENES/cornell-box.json" |
     curl -X POST "$BASE/v1/scenes" -H 'content-type: application/json' --data-binary @-
 # A Mitsuba 3 scene: the id comes from the query.
@@ -69,7 +72,8 @@ curl -X POST "$BASE/v1/scenes/cornell-box/irradiance" -H 'content-type: applicat
 
 curl "$BASE/v1/presets"   # draft, preview (the default), interactive, standard, final: every knob each sets
 # Tile (tx, ty) of 64-pixel tiles of the camera image, reproducible and cacheable by HTTP:
-curl "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" -o tile.png
+curl "$BASE/v1/scenes/cornell-box/tiles/1/1.png?preset=preview" -o "$WORK/tile.png" \
+     -w '%{content_type}, %{size_download} bytes\n'   # → image/png, … bytes
 # ?size=64 (tile side) &preset=draft|preview|interactive|standard|final &pass=k (mean of passes 0..k; default the
 # last) &seed=1 &exposure=0 (PNG) &aov=radiance|std_dev|records &scale=0.2 (std_dev PNG);
 # .exr: R, G, B and per-pixel variance; .json: {"width","height","rgb","variance"}.
@@ -87,8 +91,8 @@ curl -s -o /dev/null -w '%{http_code}\n' -H "If-None-Match: $(curl -sI \
 # (422 naming entries[i] when one is damaged or of another scene's content, and
 # entries[i].records[j] when too many of up to 64 of the records it would add disagree
 # with fresh estimates of the scene, docs/math.md §9.8; tiles held here are not checked):
-curl "$BASE/v1/scenes/cornell-box/records" -o cornell-box.records
-curl -X POST "$BASE/v1/scenes/cornell-box/records" --data-binary @cornell-box.records
+curl "$BASE/v1/scenes/cornell-box/records" -o "$WORK/cornell-box.records"
+curl -X POST "$BASE/v1/scenes/cornell-box/records" --data-binary @"$WORK/cornell-box.records"
 # → {"imported": 0, "already_held": 1, "records": 0, "checked": 0, "disagreeing": 0}
 # Any rectangle by POST, the same knobs in the body (explicit ones override the preset;
 # an explicit samples_per_pixel renders one pass of that many rays):
@@ -158,3 +162,4 @@ curl -X DELETE "$BASE/v1/scenes/my-box"
 curl -X DELETE "$BASE/v1/scenes/my-box-xml"
 curl -X DELETE "$BASE/v1/scenes/my-sky"
 curl -X DELETE "$BASE/v1/scenes/my-studio"
+rm -r "$WORK"

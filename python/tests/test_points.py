@@ -31,6 +31,22 @@ def point_docs(positions: np.ndarray, normals: np.ndarray) -> list[dict[str, Any
 UP = np.array([0.0, 1.0, 0.0])
 
 
+def test_the_client_and_the_service_default_alike(client: Client, server: Server) -> None:
+    """With no estimator, samples or seed, the client asks what the service
+    answers to a request that names none: one default for both, in W/m²."""
+    positions = floor_points(3, seed=4)
+    result = client.irradiance("cornell-box", positions, UP)
+    status, doc, _ = raw(
+        f"{server.url}/v1/scenes/cornell-box/irradiance",
+        "POST",
+        {"points": point_docs(positions, np.tile(UP, (3, 1)))},
+    )
+    assert status == 200, doc
+    assert doc["unit"] == "W/m²"
+    assert np.array_equal(result.value, np.array(doc["irradiance"]))
+    assert np.array_equal(result.std_dev, np.array(doc["std_dev"]))
+
+
 @pytest.mark.parametrize("method", ["mc", "qmc", "bmc"])
 def test_irradiance_equals_the_raw_response(client: Client, server: Server, method: str) -> None:
     positions = floor_points(5, seed=1)

@@ -17,8 +17,8 @@ use crate::estimators::calibration::Calibrations;
 use crate::estimators::lengthscale::FittedKernels;
 use crate::estimators::points_csv::{parse_points, write_irradiance};
 use crate::estimators::{
-    AmortisedRays, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale,
-    RecordsPriorMode,
+    AmortisedRays, DEFAULT_METHOD, DEFAULT_SAMPLES, EstimatorCaches, EstimatorMethod,
+    EstimatorSpec, KernelSpec, Lengthscale, RecordsPriorMode,
 };
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{Cancel, IrradianceMethod, IrradianceOptions, PathDepth, Transport};
@@ -32,8 +32,8 @@ pub struct IrradianceArgs {
     /// CSV of query points, rows `x,y,z,nx,ny,nz` (header optional).
     #[arg(long)]
     pub points: PathBuf,
-    /// Hemisphere directions per point.
-    #[arg(long, default_value_t = 4096)]
+    /// Hemisphere directions per point (the service's default too).
+    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
     pub samples: u32,
     /// Light samples per point for the split direct part (default:
     /// `--samples`); each is one shadow ray.
@@ -57,8 +57,9 @@ pub struct IrradianceArgs {
     #[arg(long, value_enum)]
     pub prior: Option<PriorChoice>,
     /// Hemisphere estimator: `mc` (cosine-weighted random directions), `qmc`
-    /// (spherical Fibonacci, equal weights) or `bmc` (Bayesian quadrature).
-    #[arg(long, value_enum, default_value_t = EstimatorMethod::Mc)]
+    /// (spherical Fibonacci, equal weights) or `bmc` (Bayesian quadrature;
+    /// the service's default too).
+    #[arg(long, value_enum, default_value_t = DEFAULT_METHOD)]
     pub estimator: EstimatorMethod,
     /// `qmc` and `bmc`: the sample set (default fibonacci-cosine).
     #[arg(long, value_enum)]
@@ -80,8 +81,9 @@ pub struct IrradianceArgs {
     /// Reference mode: 65536 samples and depth 64 (overrides both).
     #[arg(long, conflicts_with_all = ["samples", "max_depth"])]
     pub reference: bool,
-    /// Seed of all random streams; same seed, same numbers.
-    #[arg(long, default_value_t = 1)]
+    /// Seed of all random streams; same seed, same numbers (the service's
+    /// default too).
+    #[arg(long, default_value_t = IrradianceOptions::default().seed)]
     pub seed: u64,
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
@@ -251,8 +253,14 @@ mod tests {
 
     #[test]
     fn estimator_arguments_map_to_the_library_spec() {
-        let args = parse("--scene s.json --points p.csv --samples 64").expect("valid");
-        assert_eq!(args.estimator().method, EstimatorMethod::Mc);
+        // Without options, the service's defaults.
+        let args = parse("--scene s.json --points p.csv").expect("valid");
+        let spec = args.estimator();
+        assert_eq!(
+            (spec.method, spec.samples),
+            (DEFAULT_METHOD, DEFAULT_SAMPLES)
+        );
+        assert_eq!(args.seed, IrradianceOptions::default().seed);
         let args = parse(
             "--scene s.json --points p.csv --samples 64 --estimator bmc --sample-set fibonacci \
              --kernel matern52 --lengthscale 0.5",

@@ -307,10 +307,14 @@ pub fn run_compare(args: &CompareArgs, out: &mut dyn Write) -> anyhow::Result<()
         let diff = crate::image::Image::from_parts(image.width(), image.height(), rgb, None)?;
         write_png(&diff, ToneMap::default(), path)?;
     }
+    // A channel the reference is black in has no relative error: "-".
+    let [r, g, b] = e
+        .per_channel
+        .map(|c| c.map_or_else(|| "-".to_owned(), |c| format!("{c:.5}")));
     writeln!(
         out,
-        "relative RMSE {:.5} (R {:.5}, G {:.5}, B {:.5}) over {} pixels; mean ratio {:.5}",
-        e.overall, e.per_channel[0], e.per_channel[1], e.per_channel[2], e.pixels, e.mean_ratio
+        "relative RMSE {:.5} (R {r}, G {g}, B {b}) over {} pixels; mean ratio {:.5}",
+        e.overall, e.pixels, e.mean_ratio
     )?;
     if let Some(expected) = e.expected_from_variance {
         writeln!(

@@ -35,6 +35,6 @@ pub use point_estimator::{
     BmcSetup, Estimates, EstimatorCaches, PointEstimator, PointRule, PriorsCombined,
 };
 pub use spec::{
-    DEFAULT_KERNEL, DEFAULT_NOISE, DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod,
-    EstimatorSpec, KernelSpec, Lengthscale, RecordsPriorMode,
+    DEFAULT_KERNEL, DEFAULT_METHOD, DEFAULT_NOISE, DEFAULT_SAMPLE_SET, DEFAULT_SAMPLES,
+    DEFAULT_VARIANCE, EstimatorMethod, EstimatorSpec, KernelSpec, Lengthscale, RecordsPriorMode,
 };

@@ -6,6 +6,12 @@ use crate::bmc::KernelKind;
 use crate::render::environment_prior::PriorChoice;
 use crate::sphere::SampleSetKind;
 
+/// The estimator a point query uses when it names none: the Bayesian one,
+/// which the service, the command line and the Python client all default to.
+pub const DEFAULT_METHOD: EstimatorMethod = EstimatorMethod::Bmc;
+/// Hemisphere samples per point when a query gives no number.
+pub const DEFAULT_SAMPLES: u32 = 64;
+
 /// Sample set of `qmc` and `bmc` when none is named.
 pub const DEFAULT_SAMPLE_SET: SampleSetKind = SampleSetKind::FibonacciCosine;
 /// Kernel family of `bmc` when none is named and the lengthscale is a

@@ -15,8 +15,9 @@ use super::{Image, ImageError};
 pub struct RelativeRmse {
     /// Over all three channels.
     pub overall: f64,
-    /// R, G, B separately.
-    pub per_channel: [f64; 3],
+    /// R, G, B separately; `None` for a channel the reference is zero in
+    /// over the compared pixels, where a relative error means nothing.
+    pub per_channel: [Option<f64>; 3],
     /// Pixels compared (those the mask selects).
     pub pixels: usize,
     /// The reference's mean over those pixels and the three channels.
@@ -85,7 +86,8 @@ pub fn relative_rmse(
     let n = pixels as f64;
     let mean = total / (3.0 * n);
     let overall = (squared.iter().sum::<f64>() / (3.0 * n)).sqrt() / mean;
-    let per_channel = [0, 1, 2].map(|c| (squared[c] / n).sqrt() / (sum[c] / n));
+    let per_channel =
+        [0, 1, 2].map(|c| (sum[c] > 0.0).then(|| (squared[c] / n).sqrt() / (sum[c] / n)));
     // `variance` is already the mean over channels, so its pixel mean is
     // the mean over pixels and channels, like the squared errors.
     let expected_from_variance = image.variance().map(|_| (variance / n).sqrt() / mean);
@@ -114,8 +116,12 @@ mod tests {
         let e = relative_rmse(&a, &reference, None).expect("comparable");
         // Squared errors 0.25 + 0.25 over 6 values; mean of the reference 2.
         assert!((e.overall - (0.5f64 / 6.0).sqrt() / 2.0).abs() < 1e-12);
-        assert!((e.per_channel[0] - (0.25f64 / 2.0).sqrt() / 2.0).abs() < 1e-12);
-        assert_eq!(e.per_channel[1], 0.0);
+        assert!((e.per_channel[0].unwrap() - (0.25f64 / 2.0).sqrt() / 2.0).abs() < 1e-12);
+        assert_eq!(e.per_channel[1], Some(0.0));
+        // A channel the reference is black in has no relative error.
+        let red = image(vec![[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]);
+        let e = relative_rmse(&red, &red, None).expect("comparable");
+        assert_eq!(e.per_channel, [Some(0.0), None, None]);
         assert_eq!(e.pixels, 2);
         // Both sum to 12.
         assert!((e.mean_ratio - 1.0).abs() < 1e-12);

@@ -117,19 +117,20 @@ pub struct Unpacked {
     pub outside: Vec<String>,
 }
 
-/// Unpacks `archive` (module docs) into a bundle of at most `max_entries`
-/// files; `file` names the scene file (module docs). Stops, with
-/// [`SceneError::Cancelled`], once `cancel` is set (asked every chunk).
+/// Unpacks `archive` (module docs) into `bundle`, an empty one, whose
+/// `max_assets` bounds the entries; `file` names the scene file (module
+/// docs). Stops, with [`SceneError::Cancelled`], once `cancel` is set
+/// (asked every chunk).
 pub fn unpack(
     archive: std::fs::File,
     format: ArchiveFormat,
     limits: &ArchiveLimits,
-    max_entries: usize,
+    bundle: SceneBundle,
     file: Option<&str>,
     cancel: &Cancel,
 ) -> Result<Unpacked, SceneError> {
     let mut sink = Sink {
-        bundle: SceneBundle::new(max_entries)?,
+        bundle,
         limits: *limits,
         total: 0,
         buffer: vec![0u8; CHUNK],
@@ -714,7 +715,8 @@ mod tests {
         max_entries: usize,
         file: Option<&str>,
     ) -> Result<Unpacked, SceneError> {
-        super::unpack(archive, format, limits, max_entries, file, &Cancel::never())
+        let bundle = SceneBundle::new(max_entries)?;
+        super::unpack(archive, format, limits, bundle, file, &Cancel::never())
     }
 
     fn zip_of(entries: &[(&str, &[u8])]) -> std::fs::File {
@@ -1211,7 +1213,9 @@ mod tests {
         let zip = zip_of(&[("scene.xml", b"<scene/>")]);
         let cancel = Cancel::new();
         cancel.cancel();
-        let err = super::unpack(zip, ArchiveFormat::Zip, &LIMITS, 16, None, &cancel).unwrap_err();
+        let bundle = SceneBundle::new(16).unwrap();
+        let err =
+            super::unpack(zip, ArchiveFormat::Zip, &LIMITS, bundle, None, &cancel).unwrap_err();
         assert!(matches!(err, SceneError::Cancelled), "{err}");
     }
 

@@ -83,12 +83,22 @@ pub struct SceneBundle {
 
 impl SceneBundle {
     /// An empty bundle of at most `max_assets` assets in a fresh private
-    /// directory.
+    /// directory of the system's temporary one.
     pub fn new(max_assets: usize) -> Result<SceneBundle, SceneError> {
-        let dir = tempfile::Builder::new()
-            .prefix("bmc-upload-")
-            .tempdir()
-            .map_err(|e| io_error(Path::new("<upload directory>"), e))?;
+        Self::new_in(max_assets, None)
+    }
+
+    /// [`SceneBundle::new`] in a fresh directory under `parent` when given
+    /// (a folder its owner clears at startup, so that a bundle whose process
+    /// ended before dropping it does not stay on disk for ever).
+    pub fn new_in(max_assets: usize, parent: Option<&Path>) -> Result<SceneBundle, SceneError> {
+        let mut builder = tempfile::Builder::new();
+        builder.prefix("bmc-upload-");
+        let dir = match parent {
+            Some(parent) => builder.tempdir_in(parent),
+            None => builder.tempdir(),
+        }
+        .map_err(|e| io_error(Path::new("<upload directory>"), e))?;
         Ok(SceneBundle {
             dir,
             assets: Vec::new(),

@@ -28,8 +28,9 @@ pub enum SceneError {
     /// unknown material id, a limit exceeded, ...).
     #[error("{field}: {message}")]
     Invalid { field: String, message: String },
-    /// A referenced file resolves outside the scenes directory.
-    #[error("{field}: {path:?} escapes the scenes directory {root}")]
+    /// A referenced file resolves outside the scenes directory (`root`,
+    /// which the message leaves out: it is the server's business).
+    #[error("{field}: {path:?} is outside the folder the scene's files must stay in")]
     PathEscape {
         field: String,
         path: String,

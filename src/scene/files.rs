@@ -55,6 +55,28 @@ impl Files {
             .collect()
     }
 
+    /// `e` naming files as the scene names them, relative to the scenes
+    /// root: its messages reach clients, who know the scene's own names and
+    /// not the server's directories (an upload's private folder, the scenes
+    /// directory).
+    pub(super) fn relative(&self, e: SceneError) -> SceneError {
+        match e {
+            SceneError::File {
+                field,
+                file,
+                message,
+            } => SceneError::File {
+                field,
+                file: file
+                    .strip_prefix(&self.root)
+                    .map(Path::to_path_buf)
+                    .unwrap_or(file),
+                message,
+            },
+            other => other,
+        }
+    }
+
     pub(super) fn resolve(&self, name: &str, field: &str) -> Result<PathBuf, SceneError> {
         let escape = || SceneError::PathEscape {
             field: field.to_string(),

@@ -92,7 +92,7 @@ pub(super) fn from_json_str(
     de.end().map_err(|e| syntax(".".into(), &e))?;
     let files = Files::new(base_dir, scenes_root)?;
     let budget = Budget::new(limits);
-    build(doc, &files, &Bitmaps::new(&files, &budget))
+    build(doc, &files, &Bitmaps::new(&files, &budget)).map_err(|e| files.relative(e))
 }
 
 /// Errors if any of the named optional fields is present.

@@ -300,13 +300,37 @@ impl Material {
                 return found;
             };
             let name = e.field().and_then(|f| f.strip_prefix('.'));
-            match name.filter(|n| params.get(*n).is_some_and(|v| v.is_object())) {
-                Some(name) if !found.iter().any(|f| f == name) => {
-                    found.push(name.to_string());
-                    params.insert(name.to_string(), serde_json::Value::from(0.5));
-                }
-                _ => return found,
+            let Some(name) = name.filter(|n| params.get(*n).is_some_and(|v| v.is_object())) else {
+                return found;
+            };
+            if found.iter().any(|f| f == name) {
+                return found;
             }
+            // A texture of plain grey where the given one failed: if that
+            // parses, the parameter takes textures and what failed is the
+            // texture's values (a colour above 1), which is no case here.
+            let texture = serde_json::json!({"type": "checkerboard", "color0": 0.5, "color1": 0.5});
+            if Self::accepts(kind, &params, name, texture) {
+                return found;
+            }
+            found.push(name.to_string());
+            params.insert(name.to_string(), serde_json::Value::from(0.5));
+        }
+    }
+
+    /// Whether a `kind` document `params` with `value` as parameter `name`
+    /// parses without an error about `name` (name-only: no file is read).
+    pub(crate) fn accepts(
+        kind: &str,
+        params: &serde_json::Map<String, serde_json::Value>,
+        name: &str,
+        value: serde_json::Value,
+    ) -> bool {
+        let mut params = params.clone();
+        params.insert(name.to_string(), value);
+        match Self::parse(kind, &mut Params::new("", params), "") {
+            Err(e) => e.field().and_then(|f| f.strip_prefix('.')) != Some(name),
+            Ok(_) => true,
         }
     }
 

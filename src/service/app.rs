@@ -138,6 +138,9 @@ impl Application {
         let quadratures = Arc::new(QuadratureCache::new(config.cache.factorisation_bytes));
         let shared = SharedStore::connect(&config.cluster).context("cluster.redis_url")?;
         let mut tiles = open_tile_store(&config.cache, config.limits.max_tile_area)?;
+        // The data directory is this process's now (the tile log's lock):
+        // what uploads of an earlier run left behind can go.
+        posted.clear_incoming();
         if let Some(shared) = &shared {
             tiles = tiles.sharing_through(shared.outbox());
             if !shared.signs() {

@@ -85,8 +85,36 @@ fn query_as<T: DeserializeOwned>(query: &str) -> Result<T, ApiError> {
             None => err.path().to_string(),
         };
         let field = if field == "." { String::new() } else { field };
+        // A number's parser says what is wrong with some text ("invalid
+        // digit found in string"); say which text, and what was wanted.
+        let given = url::form_urlencoded::parse(query.as_bytes())
+            .find(|(name, _)| *name == field)
+            .map(|(_, value)| value.into_owned());
+        let message = match given {
+            Some(value) if is_number_error(&message) => {
+                let wanted = match message.as_str() {
+                    "invalid float literal" => "a number",
+                    _ => "a whole number in its range",
+                };
+                format!("{value:?} is not a {field}: expected {wanted} ({message})")
+            }
+            _ => message,
+        };
         ApiError::invalid(field, message)
     })
+}
+
+/// Whether `message` is what Rust's integer or float parsers say of text
+/// that is not a number of the type.
+fn is_number_error(message: &str) -> bool {
+    [
+        "invalid digit found in string",
+        "number too large to fit in target type",
+        "number too small to fit in target type",
+        "cannot parse integer from empty string",
+        "invalid float literal",
+    ]
+    .contains(&message)
 }
 
 /// Prefix of a query parameter that sets a Mitsuba scene's `$NAME`.

@@ -15,6 +15,11 @@
 //!    job's task), so old jobs could not finish before new ones and waited
 //!    past their deadline while later ones were served.
 //!
+//! Writes (loading and unpacking a posted scene, [`CpuPool::run_first`])
+//! skip the expected-wait test and the queue: one at a time, each takes the
+//! next free worker thread. A scene posted under 32 clients reading tiles
+//! was otherwise refused with 503 for as long as they read.
+//!
 //! Cancellation: the request deadline (504, see `app.rs`) and client
 //! disconnects drop the handler's future. A job still waiting in the queue
 //! leaves it; a running job's [`Cancel`] flag is set, and the library checks
@@ -56,6 +61,8 @@ pub struct CpuPool {
     /// One permit per worker thread: the running jobs. Tokio's semaphore
     /// grants permits in request order, which makes the queue FIFO.
     running: Arc<Semaphore>,
+    /// One permit: the job started ahead of the queue ([`CpuPool::run_first`]).
+    first: Arc<Semaphore>,
     /// Total number of slots, for error messages and the in-flight gauge.
     capacity: usize,
     /// Worker threads (= most jobs running at once).
@@ -152,6 +159,7 @@ impl CpuPool {
             threads: Arc::new(pool),
             slots: Arc::new(Semaphore::new(capacity)),
             running: Arc::new(Semaphore::new(workers)),
+            first: Arc::new(Semaphore::new(1)),
             capacity,
             workers,
             max_wait_secs,
@@ -172,10 +180,33 @@ impl CpuPool {
         F: FnOnce(&Cancel) -> T + Send + 'static,
         T: Send + 'static,
     {
+        self.submit(work, Turn::Queue).await
+    }
+
+    /// [`CpuPool::run`] for the rare jobs that change what the service
+    /// holds (loading a posted scene, unpacking it): admitted whatever the
+    /// queue's expected wait (a slot is still needed), and started ahead of
+    /// every queued job, one such job at a time, as soon as a worker
+    /// thread is free. Under a steady load of reads, a write would
+    /// otherwise be refused for as long as the load lasts.
+    pub async fn run_first<T, F>(&self, work: F) -> Result<T, ApiError>
+    where
+        F: FnOnce(&Cancel) -> T + Send + 'static,
+        T: Send + 'static,
+    {
+        self.submit(work, Turn::First).await
+    }
+
+    async fn submit<T, F>(&self, work: F, turn: Turn) -> Result<T, ApiError>
+    where
+        F: FnOnce(&Cancel) -> T + Send + 'static,
+        T: Send + 'static,
+    {
         // The wait of the jobs already admitted, before this one takes a slot.
         let wait = self.expected_wait_secs();
+        let admitted = turn == Turn::First || wait <= self.max_wait_secs;
         let slot = match self.slots.clone().try_acquire_owned() {
-            Ok(slot) if wait <= self.max_wait_secs => slot,
+            Ok(slot) if admitted => slot,
             _ => {
                 ::metrics::counter!(metrics::CPU_JOBS_REJECTED).increment(1);
                 return Err(ApiError::Overloaded {
@@ -186,8 +217,15 @@ impl CpuPool {
         };
         self.record_in_flight();
         let _gauge = GaugeOnDrop(self);
-        let turn = self
-            .running
+        // A queued job waits for a worker's permit in FIFO order; a first
+        // one waits only behind the other first ones, and its task enters
+        // rayon's queue at once, where the next free thread takes it before
+        // any job whose permit comes later.
+        let semaphore = match turn {
+            Turn::Queue => &self.running,
+            Turn::First => &self.first,
+        };
+        let turn = semaphore
             .clone()
             .acquire_owned()
             .await
@@ -248,6 +286,13 @@ impl CpuPool {
     fn record_in_flight(&self) {
         ::metrics::gauge!(metrics::CPU_JOBS_IN_FLIGHT).set(self.in_flight() as f64);
     }
+}
+
+/// How a job waits for a worker ([`CpuPool::run`], [`CpuPool::run_first`]).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Turn {
+    Queue,
+    First,
 }
 
 /// `Retry-After` for an expected wait: whole seconds within bounds.
@@ -373,6 +418,44 @@ mod tests {
             release.send(()).unwrap();
             handle.await.unwrap().unwrap();
         }
+    }
+
+    /// A write under a steady load of reads: admitted though the queue's
+    /// wait is past the limit, and run before the reads queued ahead of it.
+    #[tokio::test]
+    async fn a_first_job_is_admitted_and_runs_ahead_of_the_queue() {
+        let pool = CpuPool::new(1, 8, 3.0).unwrap();
+        pool.board
+            .mean_secs
+            .store(2f64.to_bits(), Ordering::Relaxed);
+        let (release_a, a) = blocking_job(&pool);
+        wait_until_running(&pool, 1).await;
+        let order = Arc::new(Mutex::new(Vec::new()));
+        let queued = {
+            let (pool, order) = (pool.clone(), order.clone());
+            tokio::spawn(async move { pool.run(move |_| order.lock().unwrap().push("read")).await })
+        };
+        // One job of 2 s ahead: admitted.
+        wait_until_in_flight(&pool, 2).await;
+        // Two jobs of 2 s ahead on one worker: a read is refused ...
+        assert!(matches!(
+            pool.run(|_| ()).await,
+            Err(ApiError::Overloaded { .. })
+        ));
+        // ... a write is not, and runs first once the worker is free.
+        let first = {
+            let (pool, order) = (pool.clone(), order.clone());
+            tokio::spawn(async move {
+                pool.run_first(move |_| order.lock().unwrap().push("write"))
+                    .await
+            })
+        };
+        wait_until_in_flight(&pool, 3).await;
+        release_a.send(()).unwrap();
+        a.await.unwrap().unwrap();
+        first.await.unwrap().unwrap();
+        queued.await.unwrap().unwrap();
+        assert_eq!(*order.lock().unwrap(), ["write", "read"]);
     }
 
     #[tokio::test]

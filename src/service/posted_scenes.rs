@@ -178,6 +178,26 @@ impl PostedScenes {
         }
     }
 
+    /// Where uploads are written while they arrive and load
+    /// (`data_dir/uploads`), created on demand; `None` when nothing is kept.
+    pub fn incoming(&self) -> Option<PathBuf> {
+        let dir = self.dir.as_ref()?.with_file_name("uploads");
+        std::fs::create_dir_all(&dir).ok()?;
+        Some(dir)
+    }
+
+    /// Removes what uploads left in [`Self::incoming`]: called once at
+    /// startup, when no upload can be under way, so that one a stopped
+    /// process never finished does not stay on disk.
+    pub fn clear_incoming(&self) {
+        if let Some(dir) = self.dir.as_ref().map(|d| d.with_file_name("uploads"))
+            && let Err(err) = std::fs::remove_dir_all(&dir)
+            && err.kind() != std::io::ErrorKind::NotFound
+        {
+            tracing::warn!(dir = %dir.display(), %err, "uploads of an earlier run not removed");
+        }
+    }
+
     /// Bytes the kept scenes would take on disk with `posted` kept as `id`
     /// (replacing an earlier copy of `id`).
     pub fn bytes_with(&self, id: &str, posted: &Posted) -> std::io::Result<u64> {

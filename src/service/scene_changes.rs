@@ -42,9 +42,10 @@ pub async fn post(
     let limits = state
         .scenes
         .load_limits(&id, crate::cancel::Cancel::never());
+    // Ahead of the queue: a write must not wait out a load of reads.
     let (loaded, returned) = state
         .pool
-        .run(move |cancel| {
+        .run_first(move |cancel| {
             let limits = LoadLimits {
                 cancel: cancel.clone(),
                 ..limits

@@ -50,6 +50,19 @@ pub struct AppState {
 }
 
 impl AppState {
+    /// An empty bundle for an upload's assets, of at most
+    /// `limits.max_assets`, in `PostedScenes::incoming` when the service
+    /// keeps a data directory (cleared at startup: a bundle whose process
+    /// was stopped mid-upload is not left behind), else in the system's
+    /// temporary directory.
+    pub fn new_bundle(&self) -> Result<crate::scene::bundle::SceneBundle, ApiError> {
+        let incoming = self.posted.incoming();
+        Ok(crate::scene::bundle::SceneBundle::new_in(
+            self.config.limits.max_assets,
+            incoming.as_deref(),
+        )?)
+    }
+
     /// A permit to read an upload or import body, or 503 (retry in a second)
     /// when `limits.max_concurrent_uploads` are being read.
     pub fn upload_permit(&self) -> Result<tokio::sync::OwnedSemaphorePermit, ApiError> {

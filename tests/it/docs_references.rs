@@ -1,6 +1,7 @@
 //! The repository is self-contained: every `docs/math.md §n` cited in the
 //! code resolves to a heading of `docs/math.md`, and nothing points at files
-//! outside the repository.
+//! outside the repository; and what the READMEs list (the presets) is what
+//! the code has.
 
 use std::path::{Path, PathBuf};
 
@@ -93,5 +94,47 @@ fn nothing_points_outside_the_repository() {
                 path.display()
             );
         }
+    }
+}
+
+/// The README's preset table and the Python README name every preset the
+/// service has, in its order, and no other; the default is the one marked.
+#[test]
+fn the_docs_name_every_preset() {
+    use bmc_irradiance::Preset;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let names: Vec<String> = Preset::ALL
+        .iter()
+        .map(|p| {
+            serde_json::to_value(p)
+                .unwrap()
+                .as_str()
+                .unwrap()
+                .to_owned()
+        })
+        .collect();
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let table = &readme[readme.find("| preset |").expect("the preset table")..];
+    let rows: Vec<&str> = table
+        .lines()
+        .skip(2)
+        .take_while(|line| line.starts_with('|'))
+        .collect();
+    let listed: Vec<String> = rows
+        .iter()
+        .map(|row| row.split('`').nth(1).unwrap_or_default().to_owned())
+        .collect();
+    assert_eq!(listed, names, "README.md's preset table");
+    let default = serde_json::to_value(Preset::default()).unwrap();
+    let marked: Vec<&&str> = rows.iter().filter(|r| r.contains("(default)")).collect();
+    assert_eq!(marked.len(), 1, "{marked:?}");
+    assert!(marked[0].contains(&format!("`{}`", default.as_str().unwrap())));
+    let python = std::fs::read_to_string(root.join("python/README.md")).unwrap();
+    let line = python
+        .lines()
+        .find(|l| l.starts_with("client.presets()"))
+        .expect("python/README.md shows client.presets()");
+    for name in &names {
+        assert!(line.contains(name.as_str()), "python/README.md: {line}");
     }
 }

@@ -90,7 +90,9 @@ fn bad_rows_and_bad_options_fail_with_a_message() {
 }
 
 /// The CLI and `POST /v1/scenes/{id}/irradiance` translate into the same
-/// library estimator, so the same options and seed give the same numbers.
+/// library estimator, so the same options and seed give the same numbers,
+/// and so do their defaults: a command line and a request that name no
+/// estimator, samples or seed.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cli_and_http_give_the_same_numbers_for_each_estimator() {
     let cornell = include_str!("../../scenes/cornell-box.json");
@@ -106,6 +108,7 @@ async fn cli_and_http_give_the_same_numbers_for_each_estimator() {
         .collect();
     let points = write_points("cli-vs-http", &csv);
     let cases = [
+        ("", serde_json::Value::Null),
         (
             "--estimator bmc --samples 64 --lengthscale 0.5 --seed 3",
             serde_json::json!({"method": "bmc", "samples": 64,
@@ -134,12 +137,14 @@ async fn cli_and_http_give_the_same_numbers_for_each_estimator() {
         })
         .await
         .unwrap();
-        let body = serde_json::json!({
+        let mut body = serde_json::json!({
             "points": rows.iter().map(|r| serde_json::json!({
                 "position": [r[0], r[1], r[2]], "normal": [r[3], r[4], r[5]]})).collect::<Vec<_>>(),
-            "estimator": estimator,
-            "seed": 3,
         });
+        if !estimator.is_null() {
+            body["estimator"] = estimator;
+            body["seed"] = serde_json::json!(3);
+        }
         let response = app
             .post_json("/v1/scenes/cornell-box/irradiance", &body)
             .await;

@@ -12,6 +12,7 @@ mod concurrent_first_requests;
 mod docs_references;
 mod first_run;
 mod fuzz_requests;
+mod hostile_scenes;
 mod irradiance_cache;
 mod irradiance_cli;
 mod layering;

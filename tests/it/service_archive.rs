@@ -10,7 +10,7 @@ use std::io::Write;
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::{TINY_SCENE, TestApp, copy_dir, spawn_app_with_scenes};
+use crate::common::{TINY_SCENE, TestApp, copy_dir, peak_rss, serve, spawn_app_with_scenes};
 use reqwest::StatusCode;
 use serde_json::Value;
 
@@ -412,51 +412,6 @@ fn bomb(name: &str, kind: tar::EntryType, mib: u64) -> Vec<u8> {
         )
         .unwrap();
     bmc_irradiance::testing::gzip_with_zeros(&before, mib, &after.into_inner().unwrap())
-}
-
-/// A child process killed on drop.
-struct Service(std::process::Child);
-
-impl Drop for Service {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// The service as a process of its own serving `scenes`, so its memory is
-/// its own; its address.
-fn serve(scenes: &Path, data: &Path) -> (Service, String) {
-    use std::io::BufRead;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
-        .args(["serve", "--bind", "127.0.0.1:0"])
-        .env("BMC_SCENES__DIR", scenes)
-        .env("BMC_CACHE__DATA_DIR", data)
-        .env("NO_COLOR", "1")
-        .env("RUST_LOG", "info")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
-    let addr = loop {
-        let line = lines.next().expect("the service exited").unwrap();
-        if let Some(rest) = line.split("addr=").nth(1)
-            && line.contains("listening")
-        {
-            break rest.split_whitespace().next().unwrap().to_owned();
-        }
-    };
-    std::thread::spawn(move || for _ in lines {});
-    (Service(child), addr)
-}
-
-/// The most memory process `pid` has held (`VmHWM`), bytes.
-fn peak_rss(pid: u32) -> u64 {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
-    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
-    let kib: u64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
-    kib << 10
 }
 
 /// Bombs where nothing is unpacked, against the real binary: 8 GiB of

@@ -264,7 +264,13 @@ async fn meshes_are_shared_and_scenes_are_budgeted() {
     assert_eq!(code, "insufficient_storage");
     assert_eq!(field, "scenes.max_triangles");
     // Replacing a scene counts the budget net of the scene it replaces.
-    assert_eq!(post_json(&app, &two).await.status(), StatusCode::OK);
+    let replace = post(
+        &app,
+        "/v1/scenes?replace=true",
+        "application/json",
+        two.to_string().into_bytes(),
+    );
+    assert_eq!(replace.await.status(), StatusCode::OK);
 
     // Over the scene count.
     let tiny = |name: &str| scene(name, json!([{"type": "rectangle", "material": "white"}]));

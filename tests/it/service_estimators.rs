@@ -197,7 +197,7 @@ async fn auto_lengthscale_is_fitted_once_reported_and_dropped_with_the_scene() {
     // Posting the scene again replaces it: the new one starts without fits.
     let replaced = app
         .post_json(
-            "/v1/scenes",
+            "/v1/scenes?replace=true",
             &serde_json::from_str::<Value>(CORNELL).unwrap(),
         )
         .await;

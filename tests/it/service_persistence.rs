@@ -762,7 +762,7 @@ async fn a_full_or_read_only_data_directory_loses_nothing_acknowledged() {
         other["name"] = json!("other");
         other
     }] {
-        let refused = app.post_json("/v1/scenes", &body).await;
+        let refused = app.post_json("/v1/scenes?replace=true", &body).await;
         assert_eq!(refused.status(), 507, "{body}");
         let (code, field) = crate::common::error_of(refused).await;
         assert_eq!(

@@ -46,7 +46,16 @@ async fn posted_scene_can_be_read_replaced_and_deleted() {
     assert_eq!(summary["id"], "posted");
     assert_eq!(summary["source"], "uploaded");
 
-    let again = app.post_json("/v1/scenes", &tiny_named("posted")).await;
+    // The id is taken: refused naming it, unless the post replaces it.
+    let taken = app.post_json("/v1/scenes", &tiny_named("posted")).await;
+    assert_eq!(taken.status(), StatusCode::CONFLICT);
+    assert_eq!(
+        error_of(taken).await,
+        ("scene_exists".into(), Some("name".into()))
+    );
+    let again = app
+        .post_json("/v1/scenes?replace=true", &tiny_named("posted"))
+        .await;
     assert_eq!(again.status(), StatusCode::OK);
     assert_eq!(app.get("/v1/scenes/posted").await.status(), StatusCode::OK);
 
@@ -216,9 +225,13 @@ async fn posted_xml_takes_its_parameters_from_the_query() {
     };
     let plain = post("?id=p", "application/xml", xml.into()).await.unwrap();
     assert_eq!(resolution(plain).await, json!([8, 8]));
-    let set = post("?id=p&param.res=16", "application/xml", xml.into())
-        .await
-        .unwrap();
+    let set = post(
+        "?id=p&replace=true&param.res=16",
+        "application/xml",
+        xml.into(),
+    )
+    .await
+    .unwrap();
     assert_eq!(resolution(set).await, json!([16, 16]));
     for (query, field) in [
         ("?id=q&param.r%20s=1", "param.r s"),

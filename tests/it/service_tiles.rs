@@ -230,7 +230,9 @@ async fn bmc_tiles_fill_the_shared_cache_and_reuse_it() {
     let mut doc: Value = serde_json::from_str(&small_cornell(16)).unwrap();
     doc["name"] = json!("box");
     assert_eq!(
-        app.post_json("/v1/scenes", &doc).await.status(),
+        app.post_json("/v1/scenes?replace=true", &doc)
+            .await
+            .status(),
         StatusCode::OK
     );
     assert!(

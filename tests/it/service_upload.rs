@@ -27,7 +27,7 @@ const OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 1 0\n\
                    f 1 2 3\nf 1 3 4\nf 1 2 5\nf 2 3 5\n";
 
 /// A multipart body of `parts`: (name, filename, content type, bytes).
-fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
+pub(crate) fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
     let mut body = Vec::new();
     for (name, filename, content_type, bytes) in parts {
         body.extend(format!("--{BOUNDARY}\r\n").bytes());
@@ -106,8 +106,8 @@ async fn a_scene_uploaded_with_its_mesh_and_map_renders() {
         .filter(|p| p[0].as_f64().unwrap() > 0.0)
         .count();
     assert!(lit > 100, "{lit} of 256 pixels lit");
-    // The same upload again: the same content digest (a replacement, 200).
-    let again = upload(&app, "", body).await;
+    // The same upload again, replacing it: the same content digest (200).
+    let again = upload(&app, "?replace=true", body).await;
     assert_eq!(again.status(), StatusCode::OK);
     let again: Value = again.json().await.unwrap();
     assert_eq!(again["digest"], digest.as_str());

@@ -1,6 +1,7 @@
 //! The README's curl walkthrough is `examples/walkthrough.sh`: it runs top to
 //! bottom against a real server with the bundled scenes, leaves the scenes it
-//! did not add alone, and the README shows its commands verbatim.
+//! did not add alone and no file behind, and the README shows its commands
+//! verbatim, with the answers it shows (the bundled scenes' count).
 
 use std::path::Path;
 
@@ -24,12 +25,14 @@ async fn run_walkthrough(token: Option<&str>) {
     let bundled = app.scene_ids().await;
     assert!(bundled.iter().any(|id| id == "cornell-box"), "{bundled:?}");
 
-    let out = tempfile::tempdir().unwrap();
+    // Where it runs, and where its temporary folder goes.
+    let (out, tmp) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     let mut command = tokio::process::Command::new("bash");
     command
         .arg(root().join("examples/walkthrough.sh"))
         .arg(&app.base)
         .current_dir(out.path())
+        .env("TMPDIR", tmp.path())
         .env_remove("BMC_TOKEN");
     if let Some(token) = token {
         command.env("BMC_TOKEN", token);
@@ -46,13 +49,25 @@ async fn run_walkthrough(token: Option<&str>) {
         String::from_utf8_lossy(&run.stderr)
     );
     let stdout = String::from_utf8_lossy(&run.stdout);
+    // The health line shows as many scenes as the README says it does.
+    let scenes = format!(r#""scenes":{},"#, bundled.len());
+    assert!(stdout.contains(&scenes), "{stdout}");
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    assert!(
+        readme.contains(&scenes),
+        "README.md's health example: {scenes}"
+    );
     assert!(stdout.contains(r#""status":"ok""#), "{stdout}");
+    assert!(stdout.contains("image/png, "), "{stdout}");
     assert!(stdout.contains(r#""irradiance""#), "{stdout}");
     assert!(stdout.contains(r#""radiance""#), "{stdout}");
-    let tile = image::open(out.path().join("tile.png")).expect("tile.png is a PNG");
-    assert_eq!((tile.width(), tile.height()), (64, 64));
-    // The uploaded scenes are gone again, the bundled ones untouched.
+    // The uploaded scenes are gone again, the bundled ones untouched, and
+    // nothing is left where it ran.
     assert_eq!(app.scene_ids().await, bundled);
+    for dir in [out.path(), tmp.path()] {
+        let left: Vec<_> = std::fs::read_dir(dir).unwrap().collect();
+        assert!(left.is_empty(), "{left:?}");
+    }
 }
 
 #[tokio::test]

@@ -59,8 +59,8 @@ class _Points(_Chunking):
         scene: str,
         positions: Vectors,
         normals: Vectors,
-        method: str = "bmc",
-        samples: int = 64,
+        method: str | None = None,
+        samples: int | None = None,
         *,
         light_samples: int | None = None,
         decomposition: str | None = None,
@@ -78,7 +78,8 @@ class _Points(_Chunking):
 
         ``positions`` and ``normals`` are N×3 (a single normal applies to all
         points; normals need not be unit length). ``method`` is ``"mc"``,
-        ``"qmc"`` or ``"bmc"`` with ``samples`` hemisphere samples per point;
+        ``"qmc"`` or ``"bmc"`` with ``samples`` hemisphere samples per point
+        (both default to the service's: ``"bmc"`` with 64);
         ``light_samples`` (default ``samples``) are the split direct part's
         samples, a shadow ray each; ``decomposition`` (``"auto"``, ``"split"``, ``"hemisphere"``),
         ``prior`` (``"environment"``, ``"none"``), ``calibrate``,
@@ -113,7 +114,11 @@ class _Points(_Chunking):
         normals = _vectors("normals", normals, count)
         if count == 0:
             raise ValueError("no points")
-        estimator: dict[str, Any] = {"method": method, "samples": int(samples)}
+        estimator: dict[str, Any] = {}
+        if method is not None:
+            estimator["method"] = method
+        if samples is not None:
+            estimator["samples"] = int(samples)
         if light_samples is not None:
             estimator["light_samples"] = int(light_samples)
         if decomposition is not None:
@@ -135,7 +140,9 @@ class _Points(_Chunking):
         base: dict[str, Any] = {"estimator": estimator}
         if max_depth is not None:
             base["max_depth"] = int(max_depth)
-        paths_per_point = int(samples)
+        # Requests are split by the paths they may trace: without a number,
+        # the most the service lets a point take bounds its default.
+        paths_per_point = int(samples) if samples is not None else self.max_samples
         if target is not None:
             target_doc = target.to_json() if isinstance(target, ErrorTarget) else dict(target)
             base["target"] = target_doc

@@ -177,10 +177,13 @@ fn describe<'a>(
             )?;
             let texture = ctx.deref(child)?;
             let mean = mean(ctx, texture)?;
-            // A grey mean as a number, which scalar parameters take too.
-            let value = match mean {
-                [r, g, b] if r == g && g == b => Value::from(r),
-                rgb => Value::from(rgb.to_vec()),
+            // A colour where the plugin takes one; else (a scalar such as
+            // an index of refraction) the channels' mean, as a grey mean is.
+            let rgb = Value::from(mean.to_vec());
+            let coloured = mean[0] != mean[1] || mean[1] != mean[2];
+            let value = match coloured && Material::accepts(kind, &params, &name, rgb.clone()) {
+                true => rgb,
+                false => Value::from((mean[0] + mean[1] + mean[2]) / 3.0),
             };
             params.insert(name, value);
         }

@@ -318,7 +318,7 @@ impl<'a> Ctx<'a> {
 
 /// Parses Mitsuba XML `text` (named `file` in messages) and builds the scene
 /// within `limits`. Relative file names resolve against `base_dir` and must
-/// stay inside `scenes_root`.
+/// stay inside `scenes_root`; messages name them relative to it.
 pub(crate) fn from_str(
     text: &str,
     file: &str,
@@ -328,8 +328,18 @@ pub(crate) fn from_str(
     limits: &LoadLimits,
 ) -> Result<(Scene, Warnings), SceneError> {
     let files = Files::new(base_dir, scenes_root)?;
+    translate_and_build(text, file, &files, options, limits).map_err(|e| files.relative(e))
+}
+
+fn translate_and_build(
+    text: &str,
+    file: &str,
+    files: &Files,
+    options: &MitsubaOptions,
+    limits: &LoadLimits,
+) -> Result<(Scene, Warnings), SceneError> {
     let budget = Budget::new(limits);
-    let bitmaps = Bitmaps::new(&files, &budget);
+    let bitmaps = Bitmaps::new(files, &budget);
     let scene_el = parse::parse(text, &options.parameters).map_err(|e| e.into_scene_error(file))?;
     let ids = parse::index_ids(&scene_el).map_err(|e| e.into_scene_error(file))?;
     budget.check_cancel()?;
@@ -344,7 +354,7 @@ pub(crate) fn from_str(
     let Ctx {
         origins, warnings, ..
     } = ctx;
-    let scene = loader::build(doc, &files, &bitmaps).map_err(|e| locate(e, file, &origins))?;
+    let scene = loader::build(doc, files, &bitmaps).map_err(|e| locate(e, file, &origins))?;
     Ok((scene, warnings))
 }
 

@@ -1205,3 +1205,55 @@ fn referenced_bsdfs_are_shared_and_trees_that_double_are_refused() {
     assert!(e.contains("MAX_MATERIAL_NODES"), "{e}");
     assert!(e.contains(r#"<bsdf type="blendbsdf" id="b6">"#), "{e}");
 }
+
+/// Thirty dielectrics whose `int_ior` is one 1024² PNG (12 MiB decoded):
+/// a strict load refuses them without decoding it (under a budget too small
+/// for one decoding), a lenient one decodes it once for all thirty (under a
+/// budget too small for two).
+#[test]
+fn a_texture_where_a_number_is_wanted_is_decoded_once_if_at_all() {
+    let dir = Scratch::new("ior-texture");
+    image::RgbImage::from_pixel(1024, 1024, image::Rgb([200, 150, 100]))
+        .save(dir.0.join("ior.png"))
+        .unwrap();
+    let shapes: String = (0..30)
+        .map(|i| {
+            format!(
+                r#"<shape type="sphere"><point name="center" x="{i}" y="0" z="0"/>
+                   <bsdf type="dielectric"><ref name="int_ior" id="t"/></bsdf></shape>"#
+            )
+        })
+        .collect();
+    let text = wrap(&format!(
+        r#"<texture type="bitmap" id="t"><string name="filename" value="ior.png"/></texture>{shapes}"#
+    ));
+    let load = |lenient: bool, max_bytes: u64| {
+        let limits = crate::scene::LoadLimits {
+            max_bytes,
+            ..Default::default()
+        };
+        super::from_str(&text, "ior.xml", &dir.0, &dir.0, &options(lenient), &limits)
+    };
+    let e = load(false, 1 << 20).err().unwrap();
+    assert!(e.to_string().contains("as a constant"), "{e}");
+    let (scene, warnings) = load(true, 48 << 20).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(warnings.total(), 30);
+    assert_eq!(scene.files, [std::path::PathBuf::from("ior.png")]);
+}
+
+#[test]
+fn a_cancelled_load_stops() {
+    let cancel = crate::cancel::Cancel::new();
+    cancel.cancel();
+    let limits = crate::scene::LoadLimits {
+        cancel,
+        ..Default::default()
+    };
+    let dir = scenes_dir();
+    for file in ["cornell-box.xml", "studio.xml"] {
+        let loaded = Scene::load_within(&dir.join(file), &dir, &options(false), &limits);
+        assert!(matches!(loaded, Err(SceneError::Cancelled)), "{file}");
+    }
+    let json = Scene::load_within(&dir.join("mesh.json"), &dir, &options(false), &limits);
+    assert!(matches!(json, Err(SceneError::Cancelled)));
+}

@@ -19,8 +19,8 @@ use crate::cache::RecordsPrior;
 use crate::estimators::calibration::ErrorCalibration;
 use crate::estimators::error_target::ErrorTarget;
 use crate::estimators::{
-    AmortisedRays, Estimates, EstimatorCaches, EstimatorMethod, EstimatorSpec, KernelSpec,
-    Lengthscale, RecordsPriorMode,
+    AmortisedRays, DEFAULT_METHOD, DEFAULT_SAMPLES, Estimates, EstimatorCaches, EstimatorMethod,
+    EstimatorSpec, KernelSpec, Lengthscale, RecordsPriorMode,
 };
 use crate::integrator::cached::{DirectPrior, point_priors};
 use crate::render::environment_prior::PriorChoice;
@@ -42,14 +42,17 @@ pub struct PointDoc {
     pub normal: [f64; 3],
 }
 
-#[derive(Debug, Deserialize, ToSchema)]
+/// The estimator of a point query; every field has a default, so `{}` (or
+/// no `estimator` at all) is `bmc` with 64 samples, as on the command line
+/// and in the Python client.
+#[derive(Debug, Default, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct EstimatorDoc {
-    /// `mc`, `qmc` or `bmc`.
-    #[schema(value_type = String, example = "bmc")]
-    pub method: EstimatorMethod,
-    /// Hemisphere samples per point, 1..=`limits.max_samples`.
-    pub samples: u32,
+    /// `mc`, `qmc` or `bmc` (default).
+    #[schema(value_type = Option<String>, example = "bmc")]
+    pub method: Option<EstimatorMethod>,
+    /// Hemisphere samples per point, 1..=`limits.max_samples`; default 64.
+    pub samples: Option<u32>,
     /// Light samples per point for the direct part under the `split`
     /// decomposition, 1..=`limits.max_samples` (default: `samples`). Each is
     /// one shadow ray, where a hemisphere sample is a path, so where the
@@ -145,6 +148,8 @@ pub struct EstimatorKernelDoc {
 pub struct IrradianceRequest {
     /// 1..=`limits.max_points` points.
     pub points: Vec<PointDoc>,
+    /// Default: `bmc` with 64 samples and every other option its default.
+    #[serde(default)]
     pub estimator: EstimatorDoc,
     /// Longest path in segments from the point (1 = direct light only);
     /// default the scene's depth less the camera's segment (Mitsuba's
@@ -186,6 +191,8 @@ fn default_seed() -> u64 {
 
 #[derive(Debug, Serialize, Deserialize, ToSchema)]
 pub struct IrradianceResponse {
+    /// The unit of `irradiance` and `std_dev`: `W/m²`.
+    pub unit: String,
     /// Irradiance per point, `[r, g, b]` in W/m².
     pub irradiance: Vec<[f64; 3]>,
     /// Standard error of each estimate, `[r, g, b]` in W/m².
@@ -272,7 +279,7 @@ pub async fn irradiance(
     )?;
     ApiError::check_limit(
         "estimator.samples",
-        u64::from(request.estimator.samples),
+        u64::from(request.estimator.samples()),
         limits.max_samples as u64,
     )?;
     if let Some(light_samples) = request.estimator.light_samples {
@@ -312,7 +319,7 @@ pub async fn irradiance(
     // One path per point and hemisphere sample, at most `max_samples` of
     // them per point under a target; a light sample is a shadow ray, no
     // more than a path, and every batch of a target draws them again.
-    let samples = u64::from(request.estimator.samples);
+    let samples = u64::from(request.estimator.samples());
     let paths = target.map_or(samples, |t| u64::from(t.max_samples));
     let light = request
         .estimator
@@ -331,7 +338,7 @@ pub async fn irradiance(
     let estimator = &request.estimator;
     // The sample count was checked with the estimator.
     let options = IrradianceOptions {
-        samples: estimator.samples,
+        samples: estimator.samples(),
         light_samples: estimator.light_samples,
         max_depth: request.max_depth.map_or_else(
             || Ok(PathDepth::for_points(scene.transport.scene())),
@@ -450,6 +457,7 @@ pub async fn irradiance(
     ::metrics::counter!(RAYS_TRACED).increment(rays);
     let rgb = |c: Rgb| [c.r, c.g, c.b];
     Ok(Json(IrradianceResponse {
+        unit: "W/m²".into(),
         irradiance: estimates.iter().map(|e| rgb(e.irradiance)).collect(),
         std_dev: estimates.iter().map(|e| rgb(e.std_error)).collect(),
         rays,
@@ -489,11 +497,16 @@ pub struct PointPriors {
 }
 
 impl EstimatorDoc {
+    /// `samples`, or the library's default.
+    fn samples(&self) -> u32 {
+        self.samples.unwrap_or(DEFAULT_SAMPLES)
+    }
+
     /// The library spec this document names.
     fn spec(&self) -> EstimatorSpec {
         EstimatorSpec {
-            method: self.method,
-            samples: self.samples,
+            method: self.method.unwrap_or(DEFAULT_METHOD),
+            samples: self.samples(),
             sample_set: self.sample_set.map(|set| (set.kind, set.seed)),
             kernel: self.kernel.map(|k| KernelSpec {
                 kind: k.kind,

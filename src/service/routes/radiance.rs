@@ -66,6 +66,8 @@ fn default_seed() -> u64 {
 
 #[derive(Debug, Serialize, Deserialize, ToSchema)]
 pub struct RadianceResponse {
+    /// The unit of `radiance` and `std_dev`: `W/(m²·sr)`.
+    pub unit: String,
     /// Outgoing radiance per point, `[r, g, b]` in W/(m²·sr).
     pub radiance: Vec<[f64; 3]>,
     /// Standard error per point: the repeats' spread plus, through the
@@ -158,6 +160,7 @@ pub async fn radiance(
     ::metrics::counter!(RAYS_TRACED).increment(rays);
     let rgb = |c: Rgb| [c.r, c.g, c.b];
     Ok(Json(RadianceResponse {
+        unit: "W/(m²·sr)".into(),
         radiance: estimates.iter().map(|e| rgb(e.radiance)).collect(),
         std_dev: estimates.iter().map(|e| rgb(e.std_error)).collect(),
         rays,

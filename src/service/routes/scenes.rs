@@ -131,7 +131,8 @@ pub async fn post_scene(
         }
         MediaType::Multipart => {
             let reading = state.upload_permit()?;
-            let upload = read_upload(request, &state.config.limits).await?;
+            let bundle = state.new_bundle()?;
+            let upload = read_upload(request, &state.config.limits, bundle).await?;
             drop(reading);
             let id = posted_id(upload.kind, query.id, upload.document.as_bytes())?;
             let name = upload.name;
@@ -146,13 +147,14 @@ pub async fn post_scene(
                 max_total_bytes: limits.max_unpacked_bytes,
                 max_ratio: limits.max_compression_ratio,
             };
-            let max_assets = limits.max_assets;
+            let bundle = state.new_bundle()?;
             let file = query.file.clone();
             // On the CPU pool, as other heavy work: inflating is bounded by
-            // its slots and stops when the request is gone.
+            // its slots and stops when the request is gone; ahead of the
+            // queue, as the load that follows it.
             let unpacked = state
                 .pool
-                .run(move |cancel| {
+                .run_first(move |cancel| {
                     let format = match format {
                         Some(format) => format,
                         None => sniff(&archive)?,
@@ -161,7 +163,7 @@ pub async fn post_scene(
                         archive,
                         format,
                         &archive_limits,
-                        max_assets,
+                        bundle,
                         file.as_deref(),
                         cancel,
                     )?)
@@ -343,8 +345,13 @@ struct Upload {
 /// bytes, each asset at most `limits.max_asset_bytes`: one part
 /// named `scene` (the document; `.xml` file name or an XML content type
 /// means Mitsuba XML, JSON otherwise) and any number named `asset`, each
-/// with a `filename` that is the relative path the document uses.
-async fn read_upload(request: Request, limits: &Limits) -> Result<Upload, ApiError> {
+/// with a `filename` that is the relative path the document uses, written
+/// to `bundle`.
+async fn read_upload(
+    request: Request,
+    limits: &Limits,
+    mut bundle: SceneBundle,
+) -> Result<Upload, ApiError> {
     let (limit, max_asset_bytes) = (limits.max_upload_bytes, limits.max_asset_bytes);
     let content_type = content_type_text(&request);
     let boundary = multer::parse_boundary(&content_type)?;
@@ -355,7 +362,7 @@ async fn read_upload(request: Request, limits: &Limits) -> Result<Upload, ApiErr
         boundary,
         constraints,
     );
-    let (mut document, mut bundle) = (None, SceneBundle::new(limits.max_assets)?);
+    let mut document = None;
     while let Some(part) = parts.next_field().await? {
         match part.name() {
             Some("scene") => {

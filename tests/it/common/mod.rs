@@ -192,3 +192,58 @@ pub fn assert_same_answer_without_the_kept_work(
         "{first} then {again}"
     );
 }
+
+/// A child process killed on drop.
+pub struct Service(pub std::process::Child);
+
+impl Drop for Service {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The service as a process of its own serving `scenes`, so its memory is
+/// its own; its address.
+pub fn serve(scenes: &std::path::Path, data: &std::path::Path) -> (Service, String) {
+    serve_with(scenes, data, &[])
+}
+
+/// [`serve`] with more `BMC_…` settings in the environment.
+pub fn serve_with(
+    scenes: &std::path::Path,
+    data: &std::path::Path,
+    env: &[(&str, &str)],
+) -> (Service, String) {
+    use std::io::BufRead;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
+        .args(["serve", "--bind", "127.0.0.1:0"])
+        .env("BMC_SCENES__DIR", scenes)
+        .env("BMC_CACHE__DATA_DIR", data)
+        .env("NO_COLOR", "1")
+        .env("RUST_LOG", "info")
+        .envs(env.iter().copied())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    let addr = loop {
+        let line = lines.next().expect("the service exited").unwrap();
+        if let Some(rest) = line.split("addr=").nth(1)
+            && line.contains("listening")
+        {
+            break rest.split_whitespace().next().unwrap().to_owned();
+        }
+    };
+    std::thread::spawn(move || for _ in lines {});
+    (Service(child), addr)
+}
+
+/// The most memory process `pid` has held (`VmHWM`), bytes.
+pub fn peak_rss(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
+    let kib: u64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+    kib << 10
+}

@@ -1,0 +1,271 @@
+//! Small files that claim large payloads, against the real binary with its
+//! memory measured: each upload of a few kilobytes is refused with a 4xx
+//! naming the field, before the memory it claims is taken; the service
+//! stays healthy, keeps what it held, and its peak memory stays far below
+//! any of the claims. Before these held, a 100 KB EXR aborted the process
+//! (480 GB allocation), a 244-byte PLY grew memory without bound, a 1.9 MB
+//! serialized mesh took 3.7 GB, 2 kB of `<ref>` doubling held a worker
+//! past its deadline at 2.9 GB, and a 631-byte JPEG cost 1.17 GB.
+
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+use crate::common::{TINY_SCENE, peak_rss, serve_with};
+use crate::service_upload::{BOUNDARY, multipart};
+
+/// A scene document (JSON) with one shape and `extra` fields, as a
+/// multipart upload with `assets`.
+fn upload(shape: Value, extra: Value, assets: Vec<(&str, Vec<u8>)>) -> Vec<u8> {
+    let mut doc = json!({
+        "name": "hostile",
+        "materials": [{"id": "m", "type": "diffuse", "reflectance": 0.5}],
+        "shapes": [shape],
+        "camera": {"fov": 40, "width": 8, "height": 8,
+                   "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}
+    });
+    for (key, value) in extra.as_object().unwrap() {
+        doc[key] = value.clone();
+    }
+    let mut parts = vec![(
+        "scene",
+        Some("hostile.json"),
+        "application/json",
+        doc.to_string().into_bytes(),
+    )];
+    for (name, bytes) in assets {
+        parts.push(("asset", Some(name), "application/octet-stream", bytes));
+    }
+    multipart(&parts)
+}
+
+fn rectangle() -> Value {
+    json!({"type": "rectangle", "material": "m"})
+}
+
+/// A JPEG of `width × height` texels by its header, 8×8 by its data.
+fn jpeg_claiming(width: u16, height: u16) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new(&mut bytes)
+        .encode(&[128u8; 8 * 8 * 3], 8, 8, image::ExtendedColorType::Rgb8)
+        .unwrap();
+    // The baseline frame header: FF C0, length, precision, height, width.
+    let sof = bytes.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap();
+    bytes[sof + 5..sof + 7].copy_from_slice(&height.to_be_bytes());
+    bytes[sof + 7..sof + 9].copy_from_slice(&width.to_be_bytes());
+    bytes
+}
+
+/// A Mitsuba scene whose BSDF `b{levels}` doubles `levels` times through
+/// `<ref>`s: a few lines, 2^levels plugins if copied.
+fn doubling_xml(levels: usize) -> String {
+    let mut body = String::from(r#"<bsdf type="diffuse" id="b0"/>"#);
+    for n in 1..=levels {
+        body += &format!(
+            r#"<bsdf type="blendbsdf" id="b{n}"><ref id="b{m}"/><ref id="b{m}"/></bsdf>"#,
+            m = n - 1
+        );
+    }
+    format!(
+        r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm">
+        <integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+        {body}<shape type="rectangle"><ref id="b{levels}"/></shape></scene>"#
+    )
+}
+
+#[tokio::test]
+async fn small_files_claiming_large_payloads_are_refused_in_bounded_memory() {
+    let scenes = tempfile::tempdir().unwrap();
+    std::fs::write(scenes.path().join("tiny.json"), TINY_SCENE).unwrap();
+    let data = tempfile::tempdir().unwrap();
+    // A scenes budget of 64 MiB: two 2048² emitter textures (48 MiB each
+    // decoded) do not fit beside each other.
+    let budget = (64u64 << 20).to_string();
+    let (service, addr) = serve_with(
+        scenes.path(),
+        data.path(),
+        &[("BMC_SCENES__MAX_SCENE_BYTES", budget.as_str())],
+    );
+    // Only turns a hang into a failure; nothing here is timed.
+    let client = reqwest::Client::builder()
+        .timeout(std::time::Duration::from_secs(300))
+        .build()
+        .unwrap();
+    let url = |path: &str| format!("http://{addr}{path}");
+    let ascii_junk = "ply\nformat ascii 1.0\nelement junk 100000000000\nelement vertex 3\n\
+        property float x\nproperty float y\nproperty float z\nelement face 1\n\
+        property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    let glow = {
+        let mut png = Vec::new();
+        image::RgbImage::from_pixel(2048, 2048, image::Rgb([200, 150, 100]))
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        png
+    };
+    let glowing = |file: &str| {
+        json!({"type": "rectangle", "material": "m",
+               "emitter": {"type": "area", "radiance": {"type": "bitmap", "filename": file}}})
+    };
+    let exr = bmc_irradiance::testing::two_part_exr(200_000);
+    let cases: Vec<(&str, Vec<u8>, StatusCode, &str, &str)> = vec![
+        (
+            "a 1×1 EXR part in front of a 200000² one, as an environment map",
+            upload(
+                rectangle(),
+                json!({"environment": {"type": "envmap", "filename": "sky.exr"}}),
+                vec![("sky.exr", exr.clone())],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "environment.filename",
+            "part 1 is 200000×200000",
+        ),
+        (
+            "the same EXR as a texture",
+            upload(
+                rectangle(),
+                json!({"materials": [{"id": "m", "type": "diffuse",
+                       "reflectance": {"type": "bitmap", "filename": "t.exr"}}]}),
+                vec![("t.exr", exr)],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "materials[0].reflectance.filename",
+            "part 1 is 200000×200000",
+        ),
+        (
+            "a PLY claiming 10¹¹ elements of another kind",
+            upload(
+                json!({"type": "ply", "filename": "junk.ply", "material": "m"}),
+                json!({}),
+                vec![("junk.ply", ascii_junk.as_bytes().to_vec())],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "shapes[0].filename",
+            "claims 100000000000 entries",
+        ),
+        (
+            "a serialized mesh of 30 million vertices and one triangle",
+            upload(
+                json!({"type": "serialized", "filename": "bomb.serialized", "material": "m"}),
+                json!({}),
+                vec![(
+                    "bomb.serialized",
+                    bmc_irradiance::testing::serialized_mesh(30_000_000, 1),
+                )],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "shapes[0].filename",
+            "30000000 vertices for 1 triangles",
+        ),
+        (
+            "a serialized mesh of 6 million vertices, over the scenes budget",
+            upload(
+                json!({"type": "serialized", "filename": "big.serialized", "material": "m"}),
+                json!({}),
+                vec![(
+                    "big.serialized",
+                    bmc_irradiance::testing::serialized_mesh(6_000_000, 2_000_000),
+                )],
+            ),
+            StatusCode::INSUFFICIENT_STORAGE,
+            "scenes.max_scene_bytes",
+            "shapes[0].filename",
+        ),
+        (
+            "two emitter textures that do not fit the scenes budget together",
+            upload(
+                glowing("a.png"),
+                json!({"shapes": [glowing("a.png"), glowing("b.png")]}),
+                vec![("a.png", glow.clone()), ("b.png", glow)],
+            ),
+            StatusCode::INSUFFICIENT_STORAGE,
+            "scenes.max_scene_bytes",
+            "shapes[1].emitter.radiance.filename",
+        ),
+        (
+            "a 600-byte JPEG claiming 16384×2048 texels, as an environment map",
+            upload(
+                rectangle(),
+                json!({"environment": {"type": "envmap", "filename": "sky.jpg"}}),
+                vec![("sky.jpg", jpeg_claiming(16384, 2048))],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "environment.filename",
+            "a truncated or crafted file",
+        ),
+        (
+            "an index of refraction of 1e300 over 1e-300",
+            upload(
+                rectangle(),
+                json!({"materials": [{"id": "m", "type": "dielectric",
+                                      "int_ior": 1e300, "ext_ior": 1e-300}]}),
+                vec![],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "materials[0].int_ior",
+            "not an index of refraction",
+        ),
+    ];
+    for (name, body, status, field, says) in cases {
+        let response = client
+            .post(url("/v1/scenes"))
+            .header(
+                "content-type",
+                format!("multipart/form-data; boundary={BOUNDARY}"),
+            )
+            .body(body)
+            .send()
+            .await
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(response.status(), status, "{name}");
+        let error: Value = response.json().await.unwrap();
+        assert_eq!(error["error"]["field"], field, "{name}: {error}");
+        let message = error["error"]["message"].as_str().unwrap();
+        assert!(message.contains(says), "{name}: {message}");
+        // Messages name the files as the scene does, not where the server
+        // keeps them.
+        assert!(!message.contains("bmc-upload-"), "{name}: {message}");
+    }
+    // `<ref>` doubling, 30 levels in 2 kB.
+    let xml = doubling_xml(30);
+    assert!(xml.len() < 4096);
+    let response = client
+        .post(url("/v1/scenes?id=doubling"))
+        .header("content-type", "application/xml")
+        .body(xml)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    let error: Value = response.json().await.unwrap();
+    let message = error["error"]["message"].as_str().unwrap();
+    assert!(message.contains("MAX_MATERIAL_NODES"), "{message}");
+    assert!(message.starts_with("body:"), "{message}");
+
+    let peak = peak_rss(service.0.id());
+    eprintln!("peak RSS {} MiB", peak >> 20);
+    // Any one of the claims would take it past this.
+    assert!(peak < 512 << 20, "peak RSS {} MiB", peak >> 20);
+    let health: Value = client
+        .get(url("/health"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(health["status"], "ok", "{health}");
+    let scenes: Value = client
+        .get(url("/v1/scenes"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let ids: Vec<_> = scenes
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| &s["id"])
+        .collect();
+    assert_eq!(ids, ["tiny"]);
+}
