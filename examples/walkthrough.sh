@@ -98,7 +98,7 @@ curl -X POST "$BASE/v1/scenes/cornell-box/records" --data-binary @"$WORK/cornell
 # an explicit samples_per_pixel renders one pass of that many rays):
 curl -X POST "$BASE/v1/scenes/cornell-box/tiles" -H 'content-type: application/json' \
      -d '{"x": 0, "y": 0, "width": 32, "height": 32, "format": "json", "preset": "draft",
-          "estimator": {"method": "path"}, "samples_per_pixel": 16}' -o tile.json
+          "estimator": {"method": "path"}, "samples_per_pixel": 16}' -o "$WORK/tile.json"
 # estimator: {"method": "cache"} (default: the Bayesian irradiance cache; options samples,
 #   glossy_samples, lengthscale, noise, accuracy, relative_error_target, occlusion_check,
 #   light_samples, paths_per_direction, ambient_bounces, secondary_cache (records' rays read

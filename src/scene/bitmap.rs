@@ -173,10 +173,17 @@ pub const MAX_TEXELS_PER_FILE_BYTE: u64 = 1024;
 
 /// Bytes a decoded texel is held in ([`Bitmap`]'s `[f32; 3]`).
 const TEXEL_BYTES: u64 = std::mem::size_of::<[f32; 3]>() as u64;
-/// Bytes a texel takes while a PNG, JPEG or HDR file is decoded, beside
-/// the one it is kept in: the image in its own format (at most RGBA f32)
-/// and the f32 RGB copy made from it.
-const DECODING_BYTES: u64 = 16 + 12;
+/// Bytes a texel takes while a PNG, JPEG or HDR file of `color` is
+/// decoded, beside the one it is kept in: the image in its own format and,
+/// unless that is already f32 RGB, the f32 RGB copy made from it.
+fn decoding_bytes(color: image::ColorType) -> u64 {
+    let copy = if color == image::ColorType::Rgb32F {
+        0
+    } else {
+        TEXEL_BYTES
+    };
+    u64::from(color.bytes_per_pixel()) + copy
+}
 
 /// Decodes an image file to linear RGB: EXR and HDR as stored, 8- and
 /// 16-bit formats from sRGB unless `raw` (alpha is ignored). Its texels are
@@ -199,7 +206,7 @@ pub(crate) fn read_bitmap(
         budget.reserve(
             texels * bytes_per_texel,
             field,
-            &format!("the {width}×{height} texels of {}", path.display()),
+            &format!("its {width}×{height} texels"),
         )
     };
     if extension.as_deref() == Some("exr") {
@@ -216,16 +223,12 @@ pub(crate) fn read_bitmap(
         .fill_buf()
         .map_err(|e| err(format!("cannot read: {e}")))?
         .starts_with(b"#?");
-    let admit = |width: u32, height: u32| -> Result<Result<(), String>, SceneError> {
+    let admit = |width: u32, height: u32, color| -> Result<Result<(), String>, SceneError> {
         if let Err(why) = check_claimed_size(width, height, file_bytes) {
             return Ok(Err(why));
         }
-        reserve(
-            width as usize,
-            height as usize,
-            TEXEL_BYTES + DECODING_BYTES,
-        )
-        .map(Ok)
+        let bytes_per_texel = TEXEL_BYTES + decoding_bytes(color);
+        reserve(width as usize, height as usize, bytes_per_texel).map(Ok)
     };
     let decoded = if radiance {
         // A Radiance file opens with `#?` and the writing program's name;
@@ -251,7 +254,7 @@ pub(crate) fn read_bitmap(
             .map_err(|e| err(format!("not a readable image: {e}")))?;
         decode(decoder, &admit)?.map_err(err)?
     };
-    let (width, height) = (decoded.width(), decoded.height());
+    let (width, height, color) = (decoded.width(), decoded.height(), decoded.color());
     let linear_file = matches!(
         decoded,
         image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_)
@@ -266,7 +269,7 @@ pub(crate) fn read_bitmap(
     };
     let texels: Vec<[f32; 3]> = rgb.pixels().map(|p| p.0.map(decode)).collect();
     drop(rgb);
-    budget.release(u64::from(width) * u64::from(height) * DECODING_BYTES);
+    budget.release(u64::from(width) * u64::from(height) * decoding_bytes(color));
     Bitmap::new(width as usize, height as usize, texels)
         .ok_or_else(|| err("an empty image or a texel that is negative or not finite".into()))
 }
@@ -297,10 +300,10 @@ fn check_claimed_size(width: u32, height: u32, file_bytes: u64) -> Result<(), St
 /// outer error is the budget's refusal, the inner one the file's.
 fn decode(
     mut decoder: impl image::ImageDecoder,
-    admit: &dyn Fn(u32, u32) -> Result<Result<(), String>, SceneError>,
+    admit: &dyn Fn(u32, u32, image::ColorType) -> Result<Result<(), String>, SceneError>,
 ) -> Result<Result<image::DynamicImage, String>, SceneError> {
     let (width, height) = decoder.dimensions();
-    if let Err(why) = admit(width, height)? {
+    if let Err(why) = admit(width, height, decoder.color_type())? {
         return Ok(Err(why));
     }
     let mut limits = image::Limits::default();

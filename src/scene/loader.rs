@@ -316,11 +316,7 @@ impl MeshFiles {
                     )?,
                     _ => mesh::load_obj(&path, &field, max_triangles)?,
                 };
-                budget.reserve(
-                    mesh.heap_bytes(),
-                    &field,
-                    &format!("the mesh of {}", path.display()),
-                )?;
+                budget.reserve(mesh.heap_bytes(), &field, "its mesh")?;
                 Ok(((path, index), Arc::new(mesh)))
             })
             .collect();

@@ -239,10 +239,9 @@ pub(crate) fn read_ply(
         records,
         field,
         &format!(
-            "the {} vertices and {} faces of {}",
+            "its {} vertices and {} faces",
             count("vertex"),
-            count("face"),
-            path.display()
+            count("face")
         ),
     )?;
     // Elements are read in the header's order, each by the record type
@@ -416,6 +415,6 @@ mod tests {
             ..LoadLimits::default()
         };
         let e = read(&header("", ""), QUAD.as_bytes(), &limits).unwrap_err();
-        assert!(e.contains("the 4 vertices and 2 faces"), "{e}");
+        assert!(e.contains("its 4 vertices and 2 faces"), "{e}");
     }
 }

@@ -77,9 +77,9 @@ async fn small_files_claiming_large_payloads_are_refused_in_bounded_memory() {
     let scenes = tempfile::tempdir().unwrap();
     std::fs::write(scenes.path().join("tiny.json"), TINY_SCENE).unwrap();
     let data = tempfile::tempdir().unwrap();
-    // A scenes budget of 64 MiB: two 2048² emitter textures (48 MiB each
-    // decoded) do not fit beside each other.
-    let budget = (64u64 << 20).to_string();
+    // A scenes budget of 32 MiB: a 1024² emitter texture fits (12 MiB
+    // kept, 15 MiB more while it is decoded), a second beside it does not.
+    let budget = (32u64 << 20).to_string();
     let (service, addr) = serve_with(
         scenes.path(),
         data.path(),
@@ -96,7 +96,7 @@ async fn small_files_claiming_large_payloads_are_refused_in_bounded_memory() {
         property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
     let glow = {
         let mut png = Vec::new();
-        image::RgbImage::from_pixel(2048, 2048, image::Rgb([200, 150, 100]))
+        image::RgbImage::from_pixel(1024, 1024, image::Rgb([200, 150, 100]))
             .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .unwrap();
         png

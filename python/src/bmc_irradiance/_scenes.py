@@ -93,9 +93,7 @@ class _Scenes(_Resource):
             )
             return dict(answer.json())
         # A scene given as a path: names resolve beside it.
-        files = _asset_files(
-            text, xml, assets, None if path is None else path.parent, params or {}
-        )
+        files = _asset_files(text, xml, assets, None if path is None else path.parent, params or {})
         boundary = "bmc-" + os.urandom(12).hex()
         # The service names the document by this in its messages.
         document = path.name if path is not None else "scene.xml" if xml else "scene.json"
@@ -219,9 +217,7 @@ def _referenced_files(text: str, xml: bool, params: Mapping[str, str | int | flo
             value = _attribute(tag, "value")
             if _attribute(tag, "name") == "filename" and value is not None:
                 names.append(
-                    re.sub(
-                        r"\$(\w+)", lambda m: values.get(m.group(1), m.group(0)), value
-                    )
+                    re.sub(r"\$(\w+)", lambda m: values.get(m.group(1), m.group(0)), value)
                 )
     else:
 
@@ -243,7 +239,9 @@ def _referenced_files(text: str, xml: bool, params: Mapping[str, str | int | flo
 def _attribute(tag: str, name: str) -> str | None:
     """The value of attribute ``name`` of an XML start tag, in either quotes."""
     found = re.search(rf"""\b{name}\s*=\s*(?:"([^"]*)"|'([^']*)')""", tag)
-    return None if found is None else found.group(1) if found.group(1) is not None else found.group(2)
+    if found is None:
+        return None
+    return found.group(1) if found.group(1) is not None else found.group(2)
 
 
 def _asset_files(

@@ -350,8 +350,18 @@
     if (!item) return;
     const [body, type, query, label] = await uploadOf(item.webkitGetAsEntry?.(), item.getAsFile());
     $("progress").textContent = `uploading ${label}…`;
-    const response = await fetch(`/v1/scenes${query}`, { method: "POST", headers: { "content-type": type }, body });
-    const answer = await response.json().catch(() => ({}));
+    const post = (extra) => {
+      const url = `/v1/scenes${query}${extra ? (query ? "&" : "?") + extra : ""}`;
+      return fetch(url, { method: "POST", headers: { "content-type": type }, body });
+    };
+    let response = await post("");
+    let answer = await response.json().catch(() => ({}));
+    // A scene of that id is loaded: replaced only if the user says so.
+    if (response.status === 409 && answer.error?.code === "scene_exists"
+        && window.confirm(`${answer.error.message}\n\nReplace it with ${label}?`)) {
+      response = await post("replace=true");
+      answer = await response.json().catch(() => ({}));
+    }
     if (!response.ok) {
       const e = answer.error;
       throw new Error(e ? `${label}: ${e.message}${e.field ? ` (${e.field})` : ""}` : `${label}: HTTP ${response.status}`);
