@@ -269,3 +269,66 @@ async fn small_files_claiming_large_payloads_are_refused_in_bounded_memory() {
         .collect();
     assert_eq!(ids, ["tiny"]);
 }
+
+/// Uploads are written under the data directory's `uploads/`, and what a
+/// stopped service left there (an upload cut off by SIGTERM, or a scene
+/// load still running when the process ended, whose folder was never
+/// dropped) is cleared at the next start.
+#[test]
+fn uploads_a_stopped_service_left_are_cleared_at_its_next_start() {
+    use std::io::Write;
+    let scenes = tempfile::tempdir().unwrap();
+    std::fs::write(scenes.path().join("tiny.json"), TINY_SCENE).unwrap();
+    let data = tempfile::tempdir().unwrap();
+    let uploads = data.path().join("uploads");
+    // What an earlier process left.
+    std::fs::create_dir_all(uploads.join("bmc-upload-left")).unwrap();
+    std::fs::write(uploads.join("bmc-upload-left/mesh.obj"), "#").unwrap();
+    let grace = [("BMC_SERVER__SHUTDOWN_GRACE_SECS", "1")];
+    let (mut service, addr) = serve_with(scenes.path(), data.path(), &grace);
+    // The scene part and the start of an asset, then nothing more.
+    let body = upload(rectangle(), json!({}), vec![("mesh.obj", vec![b'#'; 1 << 16])]);
+    let sent = body.len() - 1024;
+    let mut stream = std::net::TcpStream::connect(&addr).unwrap();
+    write!(
+        stream,
+        "POST /v1/scenes HTTP/1.1\r\nHost: {addr}\r\n\
+         Content-Type: multipart/form-data; boundary={BOUNDARY}\r\nContent-Length: {}\r\n\r\n",
+        body.len()
+    )
+    .unwrap();
+    stream.write_all(&body[..sent]).unwrap();
+    stream.flush().unwrap();
+    // The start cleared what was left; this upload's asset is being written
+    // once a file appears there again.
+    let holds_a_file = |dir: &std::path::Path| walk(dir).iter().any(|p| p.is_file());
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while !holds_a_file(&uploads) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the upload never reached uploads/"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(!uploads.join("bmc-upload-left").exists());
+    // SAFETY: a signal to a child process this test started.
+    unsafe { libc::kill(service.0.id() as i32, libc::SIGTERM) };
+    let exited = service.0.wait().unwrap();
+    assert!(exited.success(), "{exited}");
+    drop(stream);
+    let (_again, _) = serve_with(scenes.path(), data.path(), &grace);
+    assert!(walk(&uploads).is_empty(), "{:?}", walk(&uploads));
+}
+
+/// Everything under `dir` (nothing if it does not exist).
+fn walk(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            out.extend(walk(&path));
+        }
+        out.push(path);
+    }
+    out
+}
