@@ -17,10 +17,12 @@ use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use bmc_irradiance::testing::{TINY_SCENE, serialized_mesh, two_part_exr};
+use bmc_irradiance::testing::{
+    BOUNDARY, TINY_SCENE, jpeg_claiming, multipart, ply_with_junk_element, ref_doubling_xml,
+    scene_upload, serialized_mesh, two_part_exr,
+};
 use serde_json::{Value, json};
 
-const BOUNDARY: &str = "hostile-inputs-boundary";
 /// How long a case may take before it counts as no answer.
 const PATIENCE: Duration = Duration::from_secs(60);
 
@@ -35,32 +37,11 @@ struct Case {
 /// A multipart upload of a JSON scene of one shape, `extra` fields and
 /// `assets`.
 fn upload(name: &'static str, shape: Value, extra: Value, assets: Vec<(&str, Vec<u8>)>) -> Case {
-    let mut doc = json!({
-        "name": "hostile",
-        "materials": [{"id": "m", "type": "diffuse", "reflectance": 0.5}],
-        "shapes": [shape],
-        "camera": {"fov": 40, "width": 8, "height": 8,
-                   "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}
-    });
-    for (key, value) in extra.as_object().expect("an object") {
-        doc[key] = value.clone();
-    }
-    let mut body = Vec::new();
-    let mut part = |field: &str, file: &str, bytes: &[u8]| {
-        body.extend(format!("--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"{field}\"; filename=\"{file}\"\r\nContent-Type: application/octet-stream\r\n\r\n").bytes());
-        body.extend(bytes);
-        body.extend(b"\r\n");
-    };
-    part("scene", "hostile.json", doc.to_string().as_bytes());
-    for (file, bytes) in &assets {
-        part("asset", file, bytes);
-    }
-    body.extend(format!("--{BOUNDARY}--\r\n").bytes());
     Case {
         name,
         path: "/v1/scenes".into(),
         content_type: format!("multipart/form-data; boundary={BOUNDARY}"),
-        body,
+        body: scene_upload(shape, extra, assets),
     }
 }
 
@@ -77,34 +58,6 @@ fn png(width: u32, height: u32) -> Vec<u8> {
 
 fn cases() -> Vec<Case> {
     let rectangle = json!({"type": "rectangle", "material": "m"});
-    let mut jpeg = Vec::new();
-    image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
-        .encode(&[128u8; 8 * 8 * 3], 8, 8, image::ExtendedColorType::Rgb8)
-        .expect("in memory");
-    let sof = jpeg
-        .windows(2)
-        .position(|w| w == [0xFF, 0xC0])
-        .expect("SOF0");
-    jpeg[sof + 5..sof + 7].copy_from_slice(&2048u16.to_be_bytes());
-    jpeg[sof + 7..sof + 9].copy_from_slice(&16384u16.to_be_bytes());
-    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement junk 100000000000\n\
-        element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
-        element face 1\nproperty list uchar int vertex_indices\nend_header\n"
-        .to_vec();
-    ply.extend([0u8; 36]);
-    ply.extend([3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
-    let doubling = |levels: usize| {
-        let mut body = String::from(r#"<bsdf type="diffuse" id="b0"/>"#);
-        for n in 1..=levels {
-            body += &format!(
-                r#"<bsdf type="blendbsdf" id="b{n}"><ref id="b{m}"/><ref id="b{m}"/></bsdf>"#,
-                m = n - 1
-            );
-        }
-        format!(
-            r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>{body}<shape type="rectangle"><ref id="b{levels}"/></shape></scene>"#
-        )
-    };
     let ior_texture = {
         let shapes: String = (0..30)
             .map(|i| format!(r#"<shape type="sphere"><point name="center" x="{i}" y="0" z="0"/><bsdf type="dielectric"><ref name="int_ior" id="t"/></bsdf></shape>"#))
@@ -113,16 +66,15 @@ fn cases() -> Vec<Case> {
             r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film></sensor><texture type="bitmap" id="t"><string name="filename" value="ior.png"/></texture>{shapes}</scene>"#
         )
     };
-    let mut ior_upload = Vec::new();
-    for (field, file, bytes) in [
-        ("scene", "ior.xml", ior_texture.into_bytes()),
-        ("asset", "ior.png", png(8192, 4096)),
-    ] {
-        ior_upload.extend(format!("--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"{field}\"; filename=\"{file}\"\r\nContent-Type: application/octet-stream\r\n\r\n").bytes());
-        ior_upload.extend(bytes);
-        ior_upload.extend(b"\r\n");
-    }
-    ior_upload.extend(format!("--{BOUNDARY}--\r\n").bytes());
+    let ior_upload = multipart(&[
+        (
+            "scene",
+            Some("ior.xml"),
+            "application/xml",
+            ior_texture.into_bytes(),
+        ),
+        ("asset", Some("ior.png"), "image/png", png(8192, 4096)),
+    ]);
     let glowing = |file: &str| {
         json!({"type": "rectangle", "material": "m",
                "emitter": {"type": "area", "radiance": {"type": "bitmap", "filename": file}}})
@@ -139,7 +91,7 @@ fn cases() -> Vec<Case> {
             "2. PLY of 244 bytes: element junk 10^11",
             json!({"type": "ply", "filename": "junk.ply", "material": "m"}),
             json!({}),
-            vec![("junk.ply", ply)],
+            vec![("junk.ply", ply_with_junk_element())],
         ),
         upload(
             "3. serialized: 30 M vertices, 1 triangle",
@@ -151,7 +103,7 @@ fn cases() -> Vec<Case> {
             name: "4. <ref> doubling, 24 levels",
             path: "/v1/scenes?id=doubling".into(),
             content_type: "application/xml".into(),
-            body: doubling(24).into_bytes(),
+            body: ref_doubling_xml(24).into_bytes(),
         },
         Case {
             name: "5. 30 int_ior = one 8192×4096 PNG (lenient)",
@@ -175,7 +127,7 @@ fn cases() -> Vec<Case> {
             "11. JPEG of ~600 bytes claiming 16384×2048 (envmap)",
             rectangle,
             json!({"environment": {"type": "envmap", "filename": "sky.jpg"}}),
-            vec![("sky.jpg", jpeg)],
+            vec![("sky.jpg", jpeg_claiming(16384, 2048))],
         ),
     ]
 }

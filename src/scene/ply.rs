@@ -367,13 +367,12 @@ mod tests {
         let limits = LoadLimits::default();
         // 244 bytes claiming 10¹¹ elements of nothing: read one by one, they
         // grew memory without bound.
-        let junk = "ply\nformat binary_little_endian 1.0\nelement junk 100000000000\n\
-                    element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
-                    element face 1\nproperty list uchar int vertex_indices\nend_header\n";
-        let mut payload = vec![0u8; 36];
-        payload.extend([3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+        let junk = crate::testing::ply_with_junk_element();
+        let end = b"end_header\n";
+        let at = junk.windows(end.len()).position(|w| w == end).unwrap() + end.len();
+        let (junk, payload) = (std::str::from_utf8(&junk[..at]).unwrap(), &junk[at..]);
         // Binary elements of no bytes take nothing to read past.
-        assert_eq!(read(junk, &payload, &limits).unwrap().indices.len(), 1);
+        assert_eq!(read(junk, payload, &limits).unwrap().indices.len(), 1);
         let ascii_junk = header("element junk 100000000000\n", "");
         let e = read(&ascii_junk, QUAD.as_bytes(), &limits).unwrap_err();
         assert!(e.contains("\"junk\" claims 100000000000 entries"), "{e}");

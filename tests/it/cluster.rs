@@ -22,7 +22,8 @@ use std::time::Duration;
 use tokio::sync::Mutex;
 
 use crate::common::spawn_app_in;
-use crate::service_upload::{BOUNDARY, with_mesh_and_map};
+use crate::service_upload::with_mesh_and_map;
+use bmc_irradiance::testing::BOUNDARY;
 
 const BIN: &str = env!("CARGO_BIN_EXE_bmc-irradiance");
 

@@ -10,66 +10,13 @@
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::common::{TINY_SCENE, peak_rss, serve_with};
-use crate::service_upload::{BOUNDARY, multipart};
-
-/// A scene document (JSON) with one shape and `extra` fields, as a
-/// multipart upload with `assets`.
-fn upload(shape: Value, extra: Value, assets: Vec<(&str, Vec<u8>)>) -> Vec<u8> {
-    let mut doc = json!({
-        "name": "hostile",
-        "materials": [{"id": "m", "type": "diffuse", "reflectance": 0.5}],
-        "shapes": [shape],
-        "camera": {"fov": 40, "width": 8, "height": 8,
-                   "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}
-    });
-    for (key, value) in extra.as_object().unwrap() {
-        doc[key] = value.clone();
-    }
-    let mut parts = vec![(
-        "scene",
-        Some("hostile.json"),
-        "application/json",
-        doc.to_string().into_bytes(),
-    )];
-    for (name, bytes) in assets {
-        parts.push(("asset", Some(name), "application/octet-stream", bytes));
-    }
-    multipart(&parts)
-}
+use crate::common::{TINY_SCENE, peak_rss, scene_ids_at, serve_with};
+use bmc_irradiance::testing::{
+    BOUNDARY, jpeg_claiming, ref_doubling_xml, scene_upload as upload, two_part_exr,
+};
 
 fn rectangle() -> Value {
     json!({"type": "rectangle", "material": "m"})
-}
-
-/// A JPEG of `width × height` texels by its header, 8×8 by its data.
-fn jpeg_claiming(width: u16, height: u16) -> Vec<u8> {
-    let mut bytes = Vec::new();
-    image::codecs::jpeg::JpegEncoder::new(&mut bytes)
-        .encode(&[128u8; 8 * 8 * 3], 8, 8, image::ExtendedColorType::Rgb8)
-        .unwrap();
-    // The baseline frame header: FF C0, length, precision, height, width.
-    let sof = bytes.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap();
-    bytes[sof + 5..sof + 7].copy_from_slice(&height.to_be_bytes());
-    bytes[sof + 7..sof + 9].copy_from_slice(&width.to_be_bytes());
-    bytes
-}
-
-/// A Mitsuba scene whose BSDF `b{levels}` doubles `levels` times through
-/// `<ref>`s: a few lines, 2^levels plugins if copied.
-fn doubling_xml(levels: usize) -> String {
-    let mut body = String::from(r#"<bsdf type="diffuse" id="b0"/>"#);
-    for n in 1..=levels {
-        body += &format!(
-            r#"<bsdf type="blendbsdf" id="b{n}"><ref id="b{m}"/><ref id="b{m}"/></bsdf>"#,
-            m = n - 1
-        );
-    }
-    format!(
-        r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm">
-        <integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
-        {body}<shape type="rectangle"><ref id="b{levels}"/></shape></scene>"#
-    )
 }
 
 #[tokio::test]
@@ -105,7 +52,7 @@ async fn small_files_claiming_large_payloads_are_refused_in_bounded_memory() {
         json!({"type": "rectangle", "material": "m",
                "emitter": {"type": "area", "radiance": {"type": "bitmap", "filename": file}}})
     };
-    let exr = bmc_irradiance::testing::two_part_exr(200_000);
+    let exr = two_part_exr(200_000);
     let cases: Vec<(&str, Vec<u8>, StatusCode, &str, &str)> = vec![
         (
             "a 1×1 EXR part in front of a 200000² one, as an environment map",
@@ -225,7 +172,7 @@ async fn small_files_claiming_large_payloads_are_refused_in_bounded_memory() {
         assert!(!message.contains("bmc-upload-"), "{name}: {message}");
     }
     // `<ref>` doubling, 30 levels in 2 kB.
-    let xml = doubling_xml(30);
+    let xml = ref_doubling_xml(30);
     assert!(xml.len() < 4096);
     let response = client
         .post(url("/v1/scenes?id=doubling"))
@@ -253,21 +200,7 @@ async fn small_files_claiming_large_payloads_are_refused_in_bounded_memory() {
         .await
         .unwrap();
     assert_eq!(health["status"], "ok", "{health}");
-    let scenes: Value = client
-        .get(url("/v1/scenes"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let ids: Vec<_> = scenes
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| &s["id"])
-        .collect();
-    assert_eq!(ids, ["tiny"]);
+    assert_eq!(scene_ids_at(&client, &url("")).await, ["tiny"]);
 }
 
 /// Uploads are written under the data directory's `uploads/`, and what a
@@ -287,7 +220,11 @@ fn uploads_a_stopped_service_left_are_cleared_at_its_next_start() {
     let grace = [("BMC_SERVER__SHUTDOWN_GRACE_SECS", "1")];
     let (mut service, addr) = serve_with(scenes.path(), data.path(), &grace);
     // The scene part and the start of an asset, then nothing more.
-    let body = upload(rectangle(), json!({}), vec![("mesh.obj", vec![b'#'; 1 << 16])]);
+    let body = upload(
+        rectangle(),
+        json!({}),
+        vec![("mesh.obj", vec![b'#'; 1 << 16])],
+    );
     let sent = body.len() - 1024;
     let mut stream = std::net::TcpStream::connect(&addr).unwrap();
     write!(

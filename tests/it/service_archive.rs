@@ -10,7 +10,9 @@ use std::io::Write;
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::{TINY_SCENE, TestApp, copy_dir, peak_rss, serve, spawn_app_with_scenes};
+use crate::common::{
+    TINY_SCENE, TestApp, copy_dir, peak_rss, scene_ids_at, serve, spawn_app_with_scenes,
+};
 use reqwest::StatusCode;
 use serde_json::Value;
 
@@ -477,19 +479,5 @@ async fn bombs_in_entries_not_unpacked_are_refused_in_bounded_memory() {
     assert!(peak < 512 << 20, "peak RSS {} MiB", peak >> 20);
     let health = client.get(url("/health")).send().await.unwrap();
     assert_eq!(health.status(), StatusCode::OK);
-    let scenes: Value = client
-        .get(url("/v1/scenes"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let ids: Vec<_> = scenes
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| &s["id"])
-        .collect();
-    assert_eq!(ids, ["tiny"]);
+    assert_eq!(scene_ids_at(&client, &url("")).await, ["tiny"]);
 }

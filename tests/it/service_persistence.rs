@@ -267,14 +267,7 @@ async fn records_export_from_one_service_and_import_into_another() {
     assert!(export.starts_with(b"BMCLOG01"));
 
     let second = spawn_app_in(scenes_dir(), |_| {}).await;
-    let post = |app: &TestApp, id: &str, body: Vec<u8>| {
-        app.client
-            .post(app.url(&format!("/v1/scenes/{id}/records")))
-            .header("content-type", "application/vnd.bmc-records")
-            .body(body)
-            .send()
-    };
-    let imported: Value = post(&second, "box", export.clone())
+    let imported: Value = post_records(&second, "box", export.clone())
         .await
         .unwrap()
         .json()
@@ -290,7 +283,7 @@ async fn records_export_from_one_service_and_import_into_another() {
         assert_eq!(response.headers()["x-records-created"], "0", "{url}");
         assert_eq!(response.bytes().await.unwrap(), images[i], "{url}");
     }
-    let again: Value = post(&second, "box", export.clone())
+    let again: Value = post_records(&second, "box", export.clone())
         .await
         .unwrap()
         .json()
@@ -312,12 +305,12 @@ async fn records_export_from_one_service_and_import_into_another() {
         ("box", export[..export.len() - 5].to_vec(), "entries[3]"),
         ("box", b"not an export".to_vec(), "body"),
     ] {
-        let response = post(&second, id, body).await.unwrap();
+        let response = post_records(&second, id, body).await.unwrap();
         assert_eq!(response.status(), 422);
         let (_, named) = crate::common::error_of(response).await;
         assert_eq!(named.as_deref(), Some(field));
     }
-    let response = post(&second, "missing", export).await.unwrap();
+    let response = post_records(&second, "missing", export).await.unwrap();
     assert_eq!(response.status(), 404);
 }
 
@@ -439,11 +432,9 @@ async fn an_export_nobody_reads_is_cut_off() {
     assert_eq!(app.get("/health").await.status(), 200);
 }
 
-/// Records that no computation could produce are refused whole, naming the
-/// entry and record, although their checksums are valid; nothing of them is
-/// kept, and the tiles stay finite.
-#[tokio::test]
-async fn poisoned_records_imports_are_refused() {
+/// The tiles a first service rendered ([`render_all`]), its records'
+/// export, and a second service on the same scenes holding nothing.
+async fn exported_and_another() -> (Vec<Vec<u8>>, Vec<u8>, TestApp) {
     let first = spawn_app_in(scenes_dir(), |_| {}).await;
     let (images, _, _) = render_all(&first).await;
     let export = first
@@ -453,15 +444,29 @@ async fn poisoned_records_imports_are_refused() {
         .await
         .unwrap()
         .to_vec();
-    let second = spawn_app_in(scenes_dir(), |_| {}).await;
-    let post = |body: Vec<u8>| {
-        second
-            .client
-            .post(second.url("/v1/scenes/box/records"))
-            .header("content-type", "application/vnd.bmc-records")
-            .body(body)
-            .send()
-    };
+    (images, export, spawn_app_in(scenes_dir(), |_| {}).await)
+}
+
+/// `POST /v1/scenes/{id}/records` of `body` to `app`.
+fn post_records(
+    app: &TestApp,
+    id: &str,
+    body: Vec<u8>,
+) -> impl std::future::Future<Output = reqwest::Result<reqwest::Response>> {
+    app.client
+        .post(app.url(&format!("/v1/scenes/{id}/records")))
+        .header("content-type", "application/vnd.bmc-records")
+        .body(body)
+        .send()
+}
+
+/// Records that no computation could produce are refused whole, naming the
+/// entry and record, although their checksums are valid; nothing of them is
+/// kept, and the tiles stay finite.
+#[tokio::test]
+async fn poisoned_records_imports_are_refused() {
+    let (images, export, second) = exported_and_another().await;
+    let post = |body: Vec<u8>| post_records(&second, "box", body);
     // Field offsets within a record: position 0, irradiance 6, variance 9, radius 12.
     let cases: Vec<(&str, Vec<u8>, &str)> = vec![
         (
@@ -532,29 +537,13 @@ async fn poisoned_records_imports_are_refused() {
 /// export still imports and serves the first service's bytes.
 #[tokio::test]
 async fn records_scaled_by_a_thousand_are_refused() {
-    let first = spawn_app_in(scenes_dir(), |_| {}).await;
-    let (images, _, _) = render_all(&first).await;
-    let export = first
-        .get("/v1/scenes/box/records")
-        .await
-        .bytes()
-        .await
-        .unwrap()
-        .to_vec();
-    let second = spawn_app_in(scenes_dir(), |_| {}).await;
+    let (images, export, second) = exported_and_another().await;
     // Held before the import: the first tile, computed here.
     let url =
         |(tx, ty): (u32, u32)| format!("/v1/scenes/box/tiles/{tx}/{ty}.png?size=32&preset=draft");
     let held = second.get(&url(TILES[0])).await;
     assert_eq!(held.bytes().await.unwrap(), images[0]);
-    let post = |body: Vec<u8>| {
-        second
-            .client
-            .post(second.url("/v1/scenes/box/records"))
-            .header("content-type", "application/vnd.bmc-records")
-            .body(body)
-            .send()
-    };
+    let post = |body: Vec<u8>| post_records(&second, "box", body);
     let response = post(scaled(&export, 1000.0)).await.unwrap();
     assert_eq!(response.status(), 422);
     let (body, _) = crate::common::error_json(response).await;
@@ -594,14 +583,7 @@ async fn records_scaled_by_a_thousand_are_refused() {
     // of it) is checked and added.
     let third = spawn_app_in(scenes_dir(), |_| {}).await;
     assert_eq!(third.get(&url(TILES[0])).await.status(), 200);
-    let imported = third
-        .client
-        .post(third.url("/v1/scenes/box/records"))
-        .header("content-type", "application/vnd.bmc-records")
-        .body(export)
-        .send()
-        .await
-        .unwrap();
+    let imported = post_records(&third, "box", export).await.unwrap();
     assert_eq!(imported.status(), 200);
     let imported: Value = imported.json().await.unwrap();
     assert_eq!(
@@ -894,34 +876,6 @@ async fn special_files_in_the_data_directory_never_hang_startup() {
     assert!(format!("{err:#}").contains("not a regular file"), "{err:#}");
 }
 
-/// The service as a process of its own (so it can be killed), on the data
-/// directory `data` with the scenes of [`scenes_dir`]; its address.
-fn serve_process(data: &Path, scenes: &Path) -> (std::process::Child, String) {
-    use std::io::BufRead;
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
-        .args(["serve", "--bind", "127.0.0.1:0"])
-        .env("BMC_SCENES__DIR", scenes)
-        .env("BMC_CACHE__DATA_DIR", data)
-        .env("BMC_LIMITS__MAX_QUEUE_WAIT_SECS", "3600")
-        .env("NO_COLOR", "1")
-        .env("RUST_LOG", "info")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
-    let addr = loop {
-        let line = lines.next().expect("the service exited").unwrap();
-        if let Some(rest) = line.split("addr=").nth(1)
-            && line.contains("listening")
-        {
-            break rest.split_whitespace().next().unwrap().to_owned();
-        }
-    };
-    std::thread::spawn(move || for _ in lines {});
-    (child, addr)
-}
-
 /// Killed with SIGKILL while tiles are being computed and appended: after a
 /// restart every tile whose answer had been received is served from the log
 /// (no ray traced) with the same bytes.
@@ -929,7 +883,11 @@ fn serve_process(data: &Path, scenes: &Path) -> (std::process::Child, String) {
 async fn a_kill_during_appends_loses_nothing_acknowledged() {
     let data = tempfile::tempdir().unwrap();
     let scenes = scenes_dir();
-    let (mut child, addr) = serve_process(data.path(), scenes.path());
+    let (mut service, addr) = crate::common::serve_with(
+        scenes.path(),
+        data.path(),
+        &[("BMC_LIMITS__MAX_QUEUE_WAIT_SECS", "3600")],
+    );
     let client = reqwest::Client::new();
     let acknowledged = Arc::new(std::sync::Mutex::new(Vec::<(String, Vec<u8>)>::new()));
     let mut clients = tokio::task::JoinSet::new();
@@ -956,8 +914,8 @@ async fn a_kill_during_appends_loses_nothing_acknowledged() {
     while acknowledged.lock().unwrap().len() < 6 {
         tokio::time::sleep(std::time::Duration::from_millis(20)).await;
     }
-    child.kill().unwrap();
-    child.wait().unwrap();
+    service.0.kill().unwrap();
+    service.0.wait().unwrap();
     clients.join_all().await;
     let acknowledged = acknowledged.lock().unwrap().clone();
     assert!(acknowledged.len() >= 6);

@@ -5,10 +5,9 @@
 use std::path::Path;
 
 use crate::common::{TestApp, spawn_app_with};
+use bmc_irradiance::testing::{BOUNDARY, multipart};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
-
-pub(crate) const BOUNDARY: &str = "bmc-test-boundary-7f3a";
 
 /// A document with a mesh under `meshes/` and the bundled sky map.
 fn document(mesh: &str) -> String {
@@ -25,24 +24,6 @@ fn document(mesh: &str) -> String {
 
 const OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 1 0\n\
                    f 1 2 3\nf 1 3 4\nf 1 2 5\nf 2 3 5\n";
-
-/// A multipart body of `parts`: (name, filename, content type, bytes).
-pub(crate) fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
-    let mut body = Vec::new();
-    for (name, filename, content_type, bytes) in parts {
-        body.extend(format!("--{BOUNDARY}\r\n").bytes());
-        let disposition = match filename {
-            Some(f) => format!("form-data; name=\"{name}\"; filename=\"{f}\""),
-            None => format!("form-data; name=\"{name}\""),
-        };
-        body.extend(format!("Content-Disposition: {disposition}\r\n").bytes());
-        body.extend(format!("Content-Type: {content_type}\r\n\r\n").bytes());
-        body.extend(bytes);
-        body.extend(b"\r\n");
-    }
-    body.extend(format!("--{BOUNDARY}--\r\n").bytes());
-    body
-}
 
 /// The scene `uploaded` with its mesh under `meshes/` and the sky map, as
 /// one multipart body.

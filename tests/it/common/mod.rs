@@ -23,13 +23,7 @@ impl TestApp {
 
     /// The ids of the scenes the service holds (`GET /v1/scenes`), sorted.
     pub async fn scene_ids(&self) -> Vec<String> {
-        let scenes: serde_json::Value = self.get("/v1/scenes").await.json().await.unwrap();
-        scenes
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|s| s["id"].as_str().unwrap().to_owned())
-            .collect()
+        scene_ids_at(&self.client, &self.base).await
     }
 
     pub async fn get(&self, path: &str) -> reqwest::Response {
@@ -191,6 +185,24 @@ pub fn assert_same_answer_without_the_kept_work(
         again_rays + first_amortised,
         "{first} then {again}"
     );
+}
+
+/// The ids of the scenes the service at `base` (`http://…`) holds, sorted.
+pub async fn scene_ids_at(client: &reqwest::Client, base: &str) -> Vec<String> {
+    let scenes: serde_json::Value = client
+        .get(format!("{base}/v1/scenes"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    scenes
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["id"].as_str().unwrap().to_owned())
+        .collect()
 }
 
 /// A child process killed on drop.

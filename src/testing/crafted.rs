@@ -1,113 +1,8 @@
-//! Test support shared by the unit tests next to the code and the
-//! integration tests in `tests/it`: the bundled-scene fixtures, the one
-//! statistical assertion and a maker of crafted gzip streams (archive
-//! bombs). Not part of the service's interface.
-//!
-//! # Tolerance policy
-//! A Monte Carlo result is compared with another or with a reference by
-//! [`agrees`]: `|a − b| ≤ k·se + rel·|b|`, where `se` is the standard error of
-//! the difference (the two errors combined in quadrature when both are
-//! random) and
-//! - `k = 4` by default: a correct estimator fails a single check with
-//!   probability 6·10⁻⁵, so a suite of a few hundred such checks stays green;
-//!   `k = 5` where one test makes many comparisons at once;
-//! - `rel` is zero for unbiased comparisons. It is non-zero only where a
-//!   method has a known, bounded bias (interpolation from cache records, BMC
-//!   glossy weights interpolated in `θ_r`), and then the test says which
-//!   bias and how large it is allowed to be.
-//!
-//! Deterministic quantities (closed forms, identities) are compared with
-//! plain absolute or relative bounds instead.
+//! Crafted files and uploads, as an attacker or a careless client sends
+//! them: small files whose headers claim large payloads, archive bombs,
+//! `<ref>` doubling, and the multipart bodies that carry them.
 
-use std::path::Path;
-use std::sync::Arc;
-
-use glam::DVec3;
-
-use crate::cache::Record;
-use crate::render::{Rgb, Transport};
-use crate::scene::Scene;
-
-/// A small valid scene document: a diffuse unit rectangle under a constant
-/// white sky, seen by an 8² camera.
-pub const TINY_SCENE: &str = r#"{
-    "materials": [{"id": "white", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
-    "shapes": [{"type": "rectangle", "material": "white"}],
-    "environment": {"type": "constant", "radiance": [1, 1, 1]},
-    "camera": {"type": "perspective", "fov": 40, "origin": [0, 0, 3], "target": [0, 0, 0],
-               "up": [0, 1, 0], "width": 8, "height": 8}
-}"#;
-
-/// Whether `a` and `b` agree within `sigmas` standard errors `se` of their
-/// difference plus a relative allowance `rel·|b|` (module docs).
-pub fn agrees(a: f64, b: f64, se: f64, sigmas: f64, rel: f64) -> bool {
-    (a - b).abs() <= sigmas * se + rel * b.abs()
-}
-
-/// The bundled Cornell box, with its camera resized to `side`² pixels.
-pub fn cornell(side: u32) -> Transport {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-    let text = std::fs::read_to_string(dir.join("cornell-box.json")).expect("bundled scene");
-    let mut doc: serde_json::Value = serde_json::from_str(&text).expect("JSON");
-    doc["camera"]["width"] = side.into();
-    doc["camera"]["height"] = side.into();
-    let scene = Scene::from_json_str(&doc.to_string(), &dir, &dir).expect("loads");
-    Transport::new(Arc::new(scene))
-}
-
-/// A ground plane (z = 0, facing +z) under a square occluder of half-side
-/// ¼ at height 1, lit by a point light of intensity 4 at height 2 above the
-/// origin, whose shadow on the ground is the square of half-side ½, and by
-/// a constant sky of radiance `sky` (none if 0).
-pub fn occluded_ground(sky: f64) -> Transport {
-    let mut doc = serde_json::json!({
-        "materials": [{"id": "grey", "type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}],
-        "shapes": [
-            {"type": "rectangle", "material": "grey", "to_world": [{"scale": [10, 10, 1]}]},
-            {"type": "rectangle", "material": "grey",
-             "to_world": [{"scale": [0.25, 0.25, 1]}, {"translate": [0, 0, 1]}]}
-        ],
-        "lights": [{"type": "point", "position": [0, 0, 2], "intensity": [4, 4, 4]}],
-        "camera": {"type": "perspective", "fov": 30, "origin": [0, 0, 6],
-                   "target": [0, 0, 0], "up": [0, 1, 0], "width": 4, "height": 4}
-    });
-    if sky > 0.0 {
-        doc["environment"] = serde_json::json!({"type": "constant", "radiance": [sky, sky, sky]});
-    }
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let scene = Scene::from_json_str(&doc.to_string(), dir, dir).expect("loads");
-    Transport::new(Arc::new(scene))
-}
-
-/// A record holding `irradiance` at `position` within `radius`, with no
-/// variance and no gradients (the place and value a test needs).
-pub fn flat_record(position: DVec3, normal: DVec3, irradiance: Rgb, radius: f64) -> Record {
-    Record {
-        position,
-        normal,
-        irradiance,
-        variance: Rgb::BLACK,
-        radius,
-        rotation_gradient: [DVec3::ZERO; 3],
-        translation_gradient: [DVec3::ZERO; 3],
-    }
-}
-
-/// A standard normal variate by Box–Muller (`1 − U` keeps the logarithm finite).
-pub fn standard_normal<R: rand::Rng + ?Sized>(rng: &mut R) -> f64 {
-    use rand::RngExt;
-    let (u, v): (f64, f64) = (rng.random(), rng.random());
-    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-}
-
-/// Runs `f` on a rayon pool of `threads` threads (results must not depend on it).
-pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("a thread pool")
-        .install(f)
-}
+use serde_json::{Value, json};
 
 /// A two-part EXR file: a 1×1 depth part in front of an RGB part that
 /// claims `side`² pixels (ZIP-compressed, 16 rows a chunk), as an
@@ -256,6 +151,100 @@ pub fn gzip_with_zeros(before: &[u8], zeros_mib: u64, after: &[u8]) -> Vec<u8> {
     gz
 }
 
+/// The boundary of [`multipart`] bodies.
+pub const BOUNDARY: &str = "bmc-test-boundary-7f3a";
+
+/// A `multipart/form-data` body (boundary [`BOUNDARY`]) of `parts`:
+/// (field name, file name, content type, bytes).
+pub fn multipart(parts: &[(&str, Option<&str>, &str, Vec<u8>)]) -> Vec<u8> {
+    let mut body = Vec::new();
+    for (name, filename, content_type, bytes) in parts {
+        body.extend(format!("--{BOUNDARY}\r\n").bytes());
+        let disposition = match filename {
+            Some(f) => format!("form-data; name=\"{name}\"; filename=\"{f}\""),
+            None => format!("form-data; name=\"{name}\""),
+        };
+        body.extend(format!("Content-Disposition: {disposition}\r\n").bytes());
+        body.extend(format!("Content-Type: {content_type}\r\n\r\n").bytes());
+        body.extend(bytes);
+        body.extend(b"\r\n");
+    }
+    body.extend(format!("--{BOUNDARY}--\r\n").bytes());
+    body
+}
+
+/// A JSON scene `hostile` of one `shape` (material `m`, diffuse) seen by an
+/// 8² camera, with `extra` top-level fields replacing its own, uploaded as
+/// a [`multipart`] body with `assets` (file name, bytes).
+pub fn scene_upload(shape: Value, extra: Value, assets: Vec<(&str, Vec<u8>)>) -> Vec<u8> {
+    let mut doc = json!({
+        "name": "hostile",
+        "materials": [{"id": "m", "type": "diffuse", "reflectance": 0.5}],
+        "shapes": [shape],
+        "camera": {"fov": 40, "width": 8, "height": 8,
+                   "origin": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}
+    });
+    for (key, value) in extra.as_object().expect("extra is an object") {
+        doc[key] = value.clone();
+    }
+    let mut parts = vec![(
+        "scene",
+        Some("hostile.json"),
+        "application/json",
+        doc.to_string().into_bytes(),
+    )];
+    for (name, bytes) in assets {
+        parts.push(("asset", Some(name), "application/octet-stream", bytes));
+    }
+    multipart(&parts)
+}
+
+/// A baseline JPEG of `width × height` texels by its header, 8×8 by its
+/// data (about 600 bytes).
+pub fn jpeg_claiming(width: u16, height: u16) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new(&mut bytes)
+        .encode(&[128u8; 8 * 8 * 3], 8, 8, image::ExtendedColorType::Rgb8)
+        .expect("in memory");
+    // The baseline frame header: FF C0, length, precision, height, width.
+    let sof = bytes
+        .windows(2)
+        .position(|w| w == [0xFF, 0xC0])
+        .expect("a baseline frame");
+    bytes[sof + 5..sof + 7].copy_from_slice(&height.to_be_bytes());
+    bytes[sof + 7..sof + 9].copy_from_slice(&width.to_be_bytes());
+    bytes
+}
+
+/// A binary PLY of one triangle whose header first declares an element
+/// `junk` of 10¹¹ entries without properties (244 bytes).
+pub fn ply_with_junk_element() -> Vec<u8> {
+    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement junk 100000000000\n\
+        element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+        element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        .to_vec();
+    ply.extend([0u8; 36]);
+    ply.extend([3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+    ply
+}
+
+/// A Mitsuba scene whose BSDF `b{levels}` doubles `levels` times through
+/// `<ref>`s: a few lines, 2^levels plugins if copied.
+pub fn ref_doubling_xml(levels: usize) -> String {
+    let mut body = String::from(r#"<bsdf type="diffuse" id="b0"/>"#);
+    for n in 1..=levels {
+        body += &format!(
+            r#"<bsdf type="blendbsdf" id="b{n}"><ref id="b{m}"/><ref id="b{m}"/></bsdf>"#,
+            m = n - 1
+        );
+    }
+    format!(
+        r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm">
+        <integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+        {body}<shape type="rectangle"><ref id="b{levels}"/></shape></scene>"#
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -273,12 +262,5 @@ mod tests {
         assert_eq!(&inflated[..4], b"head");
         assert!(inflated[4..4 + (3 << 20)].iter().all(|b| *b == 0));
         assert_eq!(&inflated[4 + (3 << 20)..], b"tail");
-    }
-
-    #[test]
-    fn agreement_is_within_sigmas_plus_the_relative_allowance() {
-        assert!(agrees(10.0, 10.3, 0.1, 4.0, 0.0));
-        assert!(!agrees(10.0, 10.5, 0.1, 4.0, 0.0));
-        assert!(agrees(10.0, 10.5, 0.1, 4.0, 0.02));
     }
 }
