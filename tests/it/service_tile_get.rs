@@ -302,6 +302,14 @@ async fn bad_tile_parameters_are_named() {
         assert_eq!(code, "invalid_field", "{url}");
         assert_eq!(got.as_deref(), Some(field), "{url}");
     }
+    // A number the parser cannot read is quoted, with what was wanted.
+    let response = app.get("/v1/scenes/box/tiles/0/0.png?pass=-1").await;
+    let (error, _) = crate::common::error_json(response).await;
+    let message = error["error"]["message"].as_str().unwrap();
+    assert!(
+        message.starts_with(r#""-1" is not a pass: expected a whole number"#),
+        "{message}"
+    );
     let response = app.get("/v1/scenes/nope/tiles/0/0.png").await;
     assert_eq!(response.status(), StatusCode::NOT_FOUND);
     let health: Value = app.get("/health").await.json().await.unwrap();

@@ -201,4 +201,13 @@ fn roughness_maps_are_textures_on_conductors_and_dielectrics_only() {
     let e = parse(json!({"id": "p", "type": "roughplastic", "alpha": checker})).unwrap_err();
     assert_eq!(e.field(), Some("materials[3].alpha"), "{e}");
     assert!(e.to_string().contains("not a texture"), "{e}");
+    // A reflectance texture past 1 is refused for that, naming the field.
+    let bright = json!({"type": "checkerboard", "color0": 5.0, "color1": 0.4});
+    let e = parse(json!({"id": "b", "type": "diffuse", "reflectance": bright})).unwrap_err();
+    assert_eq!(e.field(), Some("materials[3].reflectance"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("the texture reaches 5, not an albedo in [0, 1]"),
+        "{e}"
+    );
 }
