@@ -55,6 +55,7 @@ pub mod bmc;
 pub mod cache;
 pub mod cancel;
 pub mod cli;
+pub mod color;
 pub mod estimators;
 pub mod image;
 pub mod integrator;

@@ -23,6 +23,26 @@ pub(crate) fn clear_upper_vector_state() {
     }
 }
 
+/// `a·b` over the shorter length, with four partial sums, which the
+/// compiler can keep in vector registers (a single running sum forces
+/// sequential additions).
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut acc = [0.0; 4];
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    acc.iter().sum::<f64>() + tail
+}
+
 /// `M X` for a symmetric `n × n` matrix `M` (row-major, hence also
 /// column-major) and `X` column-major with `n` rows: column-major, as many
 /// columns as `X`. One pass over `M` serves every column.

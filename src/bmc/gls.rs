@@ -5,6 +5,7 @@
 //! The one home of `Q⁻¹1`: the weights, the amplitude fits of estimates and
 //! records, and the marginal likelihood all use it.
 
+use super::dense::dot;
 use super::factorisation::Factorisation;
 
 /// `u = Q⁻¹1` and `s = 1ᵀQ⁻¹1` of one factorisation.
@@ -53,10 +54,6 @@ impl Gls {
     pub fn size_bytes(&self) -> usize {
         self.ones_solved.len() * std::mem::size_of::<f64>()
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]

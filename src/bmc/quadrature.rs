@@ -5,6 +5,7 @@
 //! never on the observations, so one [`Quadrature`] serves every shading
 //! point that uses the same (rotated) sample set.
 
+use super::dense::dot;
 use serde::{Deserialize, Serialize};
 
 use super::density::Density;
@@ -143,10 +144,6 @@ impl Quadrature {
         std::mem::size_of::<Self>()
             + (self.kernel_means.len() + self.weights.len()) * std::mem::size_of::<f64>()
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]

@@ -55,6 +55,7 @@
 //! against the closed form for a linear radiance field, and the occlusion
 //! speeds against the analytic gradient at an occluding edge.
 
+use crate::bmc::dense::dot;
 use std::f64::consts::PI;
 
 use glam::DVec3;
@@ -326,7 +327,7 @@ impl RecordRule {
                 format!("expected {n} radiance samples, got {}", samples.len()),
             ));
         }
-        if let Some(bad) = samples.iter().find(|s| !finite_rgb(s.radiance)) {
+        if let Some(bad) = samples.iter().find(|s| !s.radiance.is_finite()) {
             return Err(CacheError::Render(RenderError::NotFinite {
                 what: format!("radiance samples ({:?})", bad.radiance),
             }));
@@ -565,29 +566,6 @@ struct SpeedProducts<'a> {
     a_w_s: &'a [f64],
     /// `B(w∘s∘u_e)` for local x and y.
     b_w_s_u: [&'a [f64]; 2],
-}
-
-fn finite_rgb(c: Rgb) -> bool {
-    c.r.is_finite() && c.g.is_finite() && c.b.is_finite()
-}
-
-/// `a·b` with four partial sums, which the compiler can keep in vector
-/// registers (a single running sum forces sequential additions).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    let mut acc = [0.0; 4];
-    for (x, y) in ca.zip(cb) {
-        for k in 0..4 {
-            acc[k] += x[k] * y[k];
-        }
-    }
-    acc.iter().sum::<f64>() + tail
 }
 
 /// `∂k/∂c` with `c = ω·ω'` for chordal distance `d = sqrt(2 − 2c) > 0`

@@ -27,7 +27,7 @@ use super::bsdfs::rough_dielectric::RoughDielectric;
 use super::bsdfs::rough_plastic::RoughPlastic;
 use super::bsdfs::thin_dielectric::ThinDielectric;
 use super::microfacet::{MIN_ALPHA, Microfacet, MicrofacetKind};
-use super::rgb::Rgb;
+use crate::color::Rgb;
 use crate::scene::Material;
 use crate::scene::material::{Distribution, Roughness};
 use crate::scene::texture::Texture;

@@ -18,7 +18,7 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-use super::rgb::Rgb;
+use crate::color::Rgb;
 use crate::scene::Environment;
 
 /// Number of spherical-harmonic bands (`l = 0..PRIOR_BANDS`). Eight bands

@@ -6,7 +6,7 @@
 
 use num_complex::Complex64;
 
-use super::rgb::Rgb;
+use crate::color::Rgb;
 
 /// Reflectance at a dielectric interface, with what refraction needs.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -35,11 +35,11 @@ use super::path::{
     power_heuristic,
 };
 use super::query::QueryPoint;
-use super::rgb::Rgb;
 use super::seed::point_rng;
 use super::strata::SharedStrata;
 use super::transport::Transport;
 use super::warp;
+use crate::color::Rgb;
 use crate::sphere::Frame;
 use std::f64::consts::PI;
 

@@ -27,8 +27,8 @@
 use glam::DVec3;
 
 use super::environment_sampling::{EnvironmentSampler, environment_mean_luminance};
-use super::rgb::Rgb;
 use super::trace_stats::TraceStats;
+use crate::color::Rgb;
 use crate::scene::{Emitter, Scene, SurfaceHit};
 
 /// A direction towards a light with what it carries.

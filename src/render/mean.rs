@@ -1,6 +1,6 @@
 //! The mean of RGB samples with the variance of that mean.
 
-use super::rgb::Rgb;
+use crate::color::Rgb;
 use crate::stats::RunningMean;
 
 /// One estimate of an RGB quantity and the variances its estimator reports

@@ -35,7 +35,6 @@ mod pixel_variance;
 #[doc(hidden)]
 pub mod polygon;
 mod query;
-mod rgb;
 mod sample_plan;
 pub mod seed;
 mod shadow_probe;
@@ -46,6 +45,7 @@ mod transport;
 #[doc(hidden)]
 pub mod warp;
 
+pub use crate::color::Rgb;
 pub use bsdf::{Bsdf, BsdfFlags, LobeSample};
 pub use cancel::Cancel;
 pub use error::RenderError;
@@ -60,7 +60,6 @@ pub use path::{
     SharedFirstVertex, TraceStats, power_heuristic,
 };
 pub use query::QueryPoint;
-pub use rgb::Rgb;
 pub use sample_plan::SamplePlan;
 pub use shadow_probe::SHADOW_PROBES;
 pub use tile::{

@@ -21,11 +21,11 @@ use rand::{Rng, RngExt};
 use super::error::RenderError;
 use super::lights::{emitted_radiance, environment_radiance};
 use super::mean::MeanEstimate;
-use super::rgb::Rgb;
 use super::seed::mix;
 use super::strata::{GridStrata, SharedStrata};
 pub use super::trace_stats::TraceStats;
 use super::transport::Transport;
+use crate::color::Rgb;
 use crate::scene::{Ray, Scene, SurfaceHit};
 
 /// Russian roulette starts once a path has this many segments: the first

@@ -31,7 +31,7 @@ impl PixelVariances {
     /// (docs/math.md §16.4). Only pixels of the tile pool, so a tile's
     /// output depends on the tile alone.
     pub fn of_tile(width: usize, pixels: &[MeanEstimate]) -> Self {
-        let mean_rgb = |v: super::rgb::Rgb| (v.r + v.g + v.b) / 3.0;
+        let mean_rgb = |v: crate::color::Rgb| (v.r + v.g + v.b) / 3.0;
         let own: Vec<f64> = pixels
             .iter()
             .map(|e| mean_rgb(e.variance_of_mean - e.shared).max(0.0))
@@ -65,7 +65,7 @@ impl PixelVariances {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::rgb::Rgb;
+    use crate::color::Rgb;
 
     fn estimate(own: f64, shared: f64) -> MeanEstimate {
         MeanEstimate {

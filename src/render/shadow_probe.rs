@@ -11,8 +11,8 @@ use rand::SeedableRng;
 
 use super::path::TraceStats;
 use super::query::QueryPoint;
-use super::rgb::Rgb;
 use super::transport::Transport;
+use crate::color::Rgb;
 
 /// Samples per probe (each a light sample, and a cosine direction where an
 /// environment shines, as [`Transport::direct_irradiance`] draws them).

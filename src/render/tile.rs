@@ -314,7 +314,7 @@ pub fn render_tile_with(
                 };
                 match visible(shader.scene(), ray, &mut stats) {
                     Some(ray) => shader.radiance(ray, sample, &mut rng, &mut stats),
-                    None => Evaluation::of(super::rgb::Rgb::BLACK),
+                    None => Evaluation::of(crate::color::Rgb::BLACK),
                 }
             });
             Some((MeanEstimate::of_evaluations(samples), stats.rays))
@@ -408,7 +408,7 @@ pub(crate) mod tests {
         ) -> Evaluation {
             let (x, y, _) = self.camera.raster(ray.at(1.0)).expect("in view");
             self.seen.lock().unwrap().push((sample, [x, y]));
-            Evaluation::of(super::super::rgb::Rgb::BLACK)
+            Evaluation::of(crate::color::Rgb::BLACK)
         }
     }
 

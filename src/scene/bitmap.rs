@@ -13,7 +13,7 @@ use super::files::Files;
 use super::read;
 
 /// A linear RGB triple.
-type Rgb = [f64; 3];
+use crate::color::RgbArray;
 
 /// Largest image file read, bytes: a 16-bit RGBA PNG of the largest
 /// accepted size stored uncompressed, plus headers.
@@ -25,7 +25,7 @@ pub struct Bitmap {
     width: usize,
     height: usize,
     texels: Vec<[f32; 3]>,
-    mean: Rgb,
+    mean: RgbArray,
     max: f64,
 }
 
@@ -58,7 +58,7 @@ impl Bitmap {
     }
 
     /// The mean of the texels.
-    pub fn mean(&self) -> Rgb {
+    pub fn mean(&self) -> RgbArray {
         self.mean
     }
 
@@ -81,7 +81,7 @@ impl Bitmap {
     }
 
     /// Texel `(x, y)`, row `y = 0` at the top.
-    pub fn texel(&self, x: usize, y: usize) -> Rgb {
+    pub fn texel(&self, x: usize, y: usize) -> RgbArray {
         self.texels[y * self.width + x].map(f64::from)
     }
 

@@ -11,7 +11,7 @@ use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
 use serde::de::{MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize};
 
-pub type Rgb = [f64; 3];
+pub use crate::color::RgbArray;
 pub type Vec3 = [f64; 3];
 
 /// Top level of a scene file.
@@ -140,7 +140,7 @@ pub struct EnvironmentDoc {
     #[serde(rename = "type")]
     pub kind: EnvironmentKind,
     /// constant: radiance from every direction.
-    pub radiance: Option<Rgb>,
+    pub radiance: Option<RgbArray>,
     /// envmap: lat-long EXR, relative to the scene file.
     pub filename: Option<String>,
     /// envmap: multiplier on the texels (default 1).

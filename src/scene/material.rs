@@ -54,7 +54,7 @@ pub(crate) type Declared = std::collections::HashMap<String, std::sync::Arc<Mate
 pub const MAX_PHONG_EXPONENT: f64 = 1e6;
 
 /// A linear RGB triple.
-pub type Rgb = [f64; 3];
+pub use crate::color::RgbArray;
 
 /// Microfacet normal distributions (Walter et al. 2007).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,14 +103,14 @@ pub enum Material {
     /// Diffuse albedo plus a normalised Phong lobe with albedo `specular`
     /// (at normal incidence) and exponent `exponent ≥ 0`.
     Glossy {
-        diffuse: Rgb,
-        specular: Rgb,
+        diffuse: RgbArray,
+        specular: RgbArray,
         exponent: f64,
     },
     /// A metal: smooth (`roughness: None`, a mirror) or microfacet.
     Conductor {
-        eta: Rgb,
-        k: Rgb,
+        eta: RgbArray,
+        k: RgbArray,
         specular_reflectance: Texture,
         roughness: Option<Roughness>,
     },

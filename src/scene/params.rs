@@ -10,7 +10,7 @@ use super::bitmap::Bitmaps;
 use super::error::SceneError;
 
 /// A linear RGB triple.
-type Rgb = [f64; 3];
+use crate::color::RgbArray;
 
 /// The parameters of one plugin document (or of a BSDF nested in one),
 /// `field` its path for messages.
@@ -151,7 +151,7 @@ impl<'a> Params<'a> {
     }
 
     /// A colour: a number (grey) or `[r, g, b]`, each finite and ≥ 0.
-    pub fn color(&mut self, name: &str) -> Result<Option<Rgb>, SceneError> {
+    pub fn color(&mut self, name: &str) -> Result<Option<RgbArray>, SceneError> {
         let Some(v) = self.take(name) else {
             return Ok(None);
         };
@@ -179,7 +179,7 @@ impl<'a> Params<'a> {
 
     /// A colour that scales reflected or transmitted light: in [0, 1] per
     /// channel, `default` when absent.
-    pub fn albedo(&mut self, name: &str, default: Rgb) -> Result<Rgb, SceneError> {
+    pub fn albedo(&mut self, name: &str, default: RgbArray) -> Result<RgbArray, SceneError> {
         let Some(rgb) = self.color(name)? else {
             return Ok(default);
         };
@@ -198,7 +198,7 @@ impl<'a> Params<'a> {
     }
 
     /// [`Self::albedo`] that must be given.
-    pub fn required_albedo(&mut self, name: &str) -> Result<Rgb, SceneError> {
+    pub fn required_albedo(&mut self, name: &str) -> Result<RgbArray, SceneError> {
         if !self.map.contains_key(name) {
             return Err(self.missing(name));
         }

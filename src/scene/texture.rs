@@ -27,25 +27,25 @@ use super::format::TransformDoc;
 use super::params::Params;
 
 /// A linear RGB triple.
-type Rgb = [f64; 3];
+use crate::color::{RgbArray, luminance};
 
 /// A colour over a surface: linear RGB as a function of `(u, v)`.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texture {
-    Constant(Rgb),
+    Constant(RgbArray),
     Bitmap(BitmapTexture),
     Checkerboard(Checkerboard),
 }
 
-impl From<Rgb> for Texture {
-    fn from(rgb: Rgb) -> Self {
+impl From<RgbArray> for Texture {
+    fn from(rgb: RgbArray) -> Self {
         Texture::Constant(rgb)
     }
 }
 
 impl Texture {
     /// The colour at texture coordinates `uv`.
-    pub fn eval(&self, uv: DVec2) -> Rgb {
+    pub fn eval(&self, uv: DVec2) -> RgbArray {
         match self {
             Texture::Constant(c) => *c,
             Texture::Bitmap(b) => b.eval(uv),
@@ -71,7 +71,7 @@ impl Texture {
 
     /// The mean colour over the unit square of texture coordinates (what
     /// stands for the texture where no surface point is at hand).
-    pub fn mean(&self) -> Rgb {
+    pub fn mean(&self) -> RgbArray {
         match self {
             Texture::Constant(c) => *c,
             Texture::Bitmap(b) => b.mean(),
@@ -81,7 +81,7 @@ impl Texture {
 
     /// The largest channel value anywhere.
     pub fn max(&self) -> f64 {
-        let max = |c: Rgb| c.into_iter().fold(0.0, f64::max);
+        let max = |c: RgbArray| c.into_iter().fold(0.0, f64::max);
         match self {
             Texture::Constant(c) => max(*c),
             Texture::Bitmap(b) => b.max(),
@@ -90,7 +90,7 @@ impl Texture {
     }
 
     /// The value if it does not vary.
-    pub fn constant(&self) -> Option<Rgb> {
+    pub fn constant(&self) -> Option<RgbArray> {
         match self {
             Texture::Constant(c) => Some(*c),
             _ => None,
@@ -131,7 +131,11 @@ impl Texture {
 /// Parameter `name` of `params` as a colour that scales reflected or
 /// transmitted light, constant or a texture: in [0, 1] everywhere,
 /// `default` when absent.
-pub(crate) fn albedo(params: &mut Params, name: &str, default: Rgb) -> Result<Texture, SceneError> {
+pub(crate) fn albedo(
+    params: &mut Params,
+    name: &str,
+    default: RgbArray,
+) -> Result<Texture, SceneError> {
     if !params.peek(name).is_some_and(Value::is_object) {
         return Ok(Texture::Constant(params.albedo(name, default)?));
     }
@@ -152,12 +156,6 @@ pub(crate) fn required_albedo(params: &mut Params, name: &str) -> Result<Texture
         return Err(params.missing(name));
     }
     albedo(params, name, [0.0; 3])
-}
-
-/// The luminance of linear sRGB as Mitsuba 3 computes it (the CIE Y of
-/// the sRGB primaries).
-fn luminance(c: Rgb) -> f64 {
-    0.212671 * c[0] + 0.715160 * c[1] + 0.072169 * c[2]
 }
 
 /// A plugin's parser: its parameters to a texture.

@@ -326,7 +326,7 @@ fn lower_layers_never_name_upper_ones() {
     // errors); point estimators sit above light transport and below the
     // record store, whose records serve them as a prior.
     let layers: [&[&str]; 8] = [
-        &["stats"],
+        &["stats", "color"],
         &["sphere", "bmc"],
         &["scene"],
         &["render"],

@@ -89,7 +89,7 @@ impl PlacementReport {
 
 /// Whether the variance target asks for another record here.
 fn too_uncertain(found: &Interpolated, target: f64) -> bool {
-    const Y: [f64; 3] = [0.2126, 0.7152, 0.0722];
+    const Y: [f64; 3] = crate::color::LUMINANCE_WEIGHTS;
     let e = found.irradiance.to_array();
     let v = found.variance.to_array();
     let lum: f64 = (0..3).map(|c| Y[c] * e[c]).sum();

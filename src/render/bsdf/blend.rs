@@ -6,7 +6,7 @@
 use glam::DVec3;
 
 use super::{Bsdf, BsdfFlags, LobeSample};
-use crate::render::rgb::Rgb;
+use crate::color::Rgb;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Blend {

@@ -8,8 +8,8 @@ use serde::Deserialize;
 
 use super::rough_conductor::RoughConductor;
 use super::rough_dielectric::RoughDielectric;
+use crate::color::Rgb;
 use crate::render::microfacet::{Microfacet, MicrofacetKind};
-use crate::render::rgb::Rgb;
 
 #[derive(Deserialize)]
 struct Reference {

@@ -18,7 +18,7 @@ mod mitsuba_agreement;
 
 use glam::DVec3;
 
-use super::rgb::Rgb;
+use crate::color::Rgb;
 
 /// A direction drawn by a lobe's `sample`, with its BSDF value and density.
 ///

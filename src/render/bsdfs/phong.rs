@@ -16,7 +16,7 @@
 use glam::DVec3;
 
 use super::LobeSample;
-use crate::render::rgb::Rgb;
+use crate::color::Rgb;
 use crate::render::warp;
 use crate::sphere::Frame;
 use std::f64::consts::{FRAC_1_PI, TAU};

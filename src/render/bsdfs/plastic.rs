@@ -26,8 +26,8 @@ use glam::DVec3;
 use super::LobeSample;
 use gauss_quad::legendre::GaussLegendre;
 
+use crate::color::Rgb;
 use crate::render::fresnel;
-use crate::render::rgb::Rgb;
 use crate::render::warp;
 
 /// A smooth plastic; see the module docs.

@@ -27,9 +27,9 @@
 use glam::DVec3;
 
 use super::{LobeSample, reflect};
+use crate::color::Rgb;
 use crate::render::fresnel;
 use crate::render::microfacet::Microfacet;
-use crate::render::rgb::Rgb;
 
 /// A rough dielectric interface; see the module docs.
 #[derive(Clone, Copy, Debug, PartialEq)]

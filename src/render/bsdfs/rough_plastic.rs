@@ -34,9 +34,9 @@ use glam::DVec3;
 
 use super::plastic::coated_base;
 use super::{LobeSample, reflect};
+use crate::color::Rgb;
 use crate::render::fresnel;
 use crate::render::microfacet::Microfacet;
-use crate::render::rgb::Rgb;
 use crate::render::warp;
 
 /// Cosines at which the coating's transmittance is tabulated (Mitsuba's

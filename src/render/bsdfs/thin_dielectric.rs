@@ -13,8 +13,8 @@
 use glam::DVec3;
 
 use super::LobeSample;
+use crate::color::Rgb;
 use crate::render::fresnel;
-use crate::render::rgb::Rgb;
 
 /// A thin dielectric slab; see the module docs.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -5,7 +5,8 @@
 
 use serde_json::Value;
 
-use super::{Distribution, Params, Rgb, Roughness, ior as media, metals};
+use super::{Distribution, Params, Roughness, ior as media, metals};
+use crate::color::RgbArray;
 use crate::scene::error::SceneError;
 use crate::scene::texture::Texture;
 
@@ -75,7 +76,7 @@ pub(super) fn relative_ior(params: &mut Params, int_default: f64) -> Result<f64,
 /// A conductor's complex index `(eta, k)`: both as colours, or a named
 /// metal `material` ([`metals::named_metal`]); Mitsuba's default is
 /// the perfect mirror `none`.
-pub(super) fn metal(params: &mut Params) -> Result<(Rgb, Rgb), SceneError> {
+pub(super) fn metal(params: &mut Params) -> Result<(RgbArray, RgbArray), SceneError> {
     let eta = params.color("eta")?;
     let k = params.color("k")?;
     let named = params.string("material")?;

@@ -8,7 +8,8 @@
 
 use serde_json::{Map, Value};
 
-use crate::scene::format::{MaterialDoc, Rgb};
+use crate::color::RgbArray;
+use crate::scene::format::MaterialDoc;
 use crate::scene::material::{Material, plugin_names};
 
 use super::parse::{Element, quote};
@@ -62,7 +63,7 @@ pub(crate) fn default_material(ctx: &mut Ctx, emits: bool) -> String {
 }
 
 /// A diffuse material the translation itself needs, added once under `id`.
-pub(crate) fn builtin_diffuse(ctx: &mut Ctx, id: &str, reflectance: Rgb) -> String {
+pub(crate) fn builtin_diffuse(ctx: &mut Ctx, id: &str, reflectance: RgbArray) -> String {
     if !ctx.materials.iter().any(|m| m.id == id) {
         ctx.materials.push(MaterialDoc {
             id: id.to_string(),
@@ -72,7 +73,7 @@ pub(crate) fn builtin_diffuse(ctx: &mut Ctx, id: &str, reflectance: Rgb) -> Stri
     id.to_string()
 }
 
-fn diffuse(reflectance: Rgb) -> MaterialDoc {
+fn diffuse(reflectance: RgbArray) -> MaterialDoc {
     let mut params = Map::new();
     params.insert("reflectance".into(), Value::from(reflectance.to_vec()));
     MaterialDoc {

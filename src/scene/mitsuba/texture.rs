@@ -9,7 +9,7 @@
 
 use serde_json::{Map, Value};
 
-use crate::scene::format::Rgb;
+use crate::color::RgbArray;
 
 use super::parse::{Element, quote};
 use super::props::{Props, numbers};
@@ -18,7 +18,7 @@ use super::{Ctx, XmlError};
 
 /// Mitsuba's default for unspecified reflectances, used as the lenient
 /// stand-in for textures that have no sensible mean.
-const GREY: Rgb = [0.5; 3];
+const GREY: RgbArray = [0.5; 3];
 
 /// The texture plugins the scene model has (`scene::texture`).
 const TEXTURES: &[&str] = &["bitmap", "checkerboard"];
@@ -28,8 +28,8 @@ pub(crate) fn color<'a>(
     ctx: &mut Ctx<'a>,
     props: &mut Props<'a>,
     name: &str,
-    default: Rgb,
-) -> Result<Rgb, XmlError> {
+    default: RgbArray,
+) -> Result<RgbArray, XmlError> {
     match props.get(name)? {
         Some(el) => value(ctx, el),
         None => Ok(default),
@@ -80,7 +80,7 @@ pub(crate) fn parameter<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Value,
 }
 
 /// The RGB value of a colour element (following `<ref>`s).
-pub(crate) fn value<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlError> {
+pub(crate) fn value<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<RgbArray, XmlError> {
     let target = ctx.deref(el)?;
     ctx.enter(target)?;
     let out = match target.tag.as_str() {
@@ -122,7 +122,7 @@ pub(crate) fn value<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlEr
     out
 }
 
-fn spectrum(ctx: &mut Ctx, el: &Element) -> Result<Rgb, XmlError> {
+fn spectrum(ctx: &mut Ctx, el: &Element) -> Result<RgbArray, XmlError> {
     if el.attr("filename").is_some() {
         ctx.unsupported(
             el,
@@ -168,7 +168,7 @@ fn spectrum(ctx: &mut Ctx, el: &Element) -> Result<Rgb, XmlError> {
 /// whole load, within its budget), a checkerboard's two colours; mid grey
 /// for other types. A strict document fails where a stand-in is needed,
 /// so it gets mid grey without any image being decoded.
-pub(crate) fn mean<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Rgb, XmlError> {
+pub(crate) fn mean<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<RgbArray, XmlError> {
     if !ctx.lenient {
         return Ok(GREY);
     }

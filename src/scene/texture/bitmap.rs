@@ -15,7 +15,8 @@
 
 use glam::{DAffine2, DVec2};
 
-use super::{Rgb, SharedBitmap, Texture};
+use super::{SharedBitmap, Texture};
+use crate::color::RgbArray;
 use crate::scene::error::SceneError;
 use crate::scene::params::Params;
 
@@ -64,7 +65,7 @@ pub struct BitmapTexture {
 
 impl BitmapTexture {
     /// The filtered colour at texture coordinates `uv`.
-    pub fn eval(&self, uv: DVec2) -> Rgb {
+    pub fn eval(&self, uv: DVec2) -> RgbArray {
         let b = &*self.bitmap;
         let (width, height) = (b.width(), b.height());
         let uv = self.to_uv.transform_point2(uv);
@@ -89,7 +90,7 @@ impl BitmapTexture {
     }
 
     /// The mean of the texels.
-    pub fn mean(&self) -> Rgb {
+    pub fn mean(&self) -> RgbArray {
         self.bitmap.mean()
     }
 

@@ -8,19 +8,20 @@
 
 use glam::{DAffine2, DVec2};
 
-use super::{Rgb, Texture};
+use super::Texture;
+use crate::color::RgbArray;
 use crate::scene::error::SceneError;
 use crate::scene::params::Params;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Checkerboard {
-    pub color0: Rgb,
-    pub color1: Rgb,
+    pub color0: RgbArray,
+    pub color1: RgbArray,
     pub to_uv: DAffine2,
 }
 
 impl Checkerboard {
-    pub fn eval(&self, uv: DVec2) -> Rgb {
+    pub fn eval(&self, uv: DVec2) -> RgbArray {
         if self.is_color0(uv) {
             self.color0
         } else {
@@ -29,7 +30,7 @@ impl Checkerboard {
     }
 
     /// The pattern with its colours swapped (Mitsuba's scalar lookup).
-    pub fn eval_swapped(&self, uv: DVec2) -> Rgb {
+    pub fn eval_swapped(&self, uv: DVec2) -> RgbArray {
         if self.is_color0(uv) {
             self.color1
         } else {
@@ -44,7 +45,7 @@ impl Checkerboard {
     }
 
     /// Both colours cover half of every period.
-    pub fn mean(&self) -> Rgb {
+    pub fn mean(&self) -> RgbArray {
         std::array::from_fn(|i| 0.5 * (self.color0[i] + self.color1[i]))
     }
 }

@@ -1,4 +1,6 @@
-//! Linear RGB triples for radiance, irradiance, reflectance and path throughput.
+//! Colour: linear RGB triples for radiance, irradiance, reflectance and
+//! path throughput, and their luminance. The lowest layer: the scene
+//! description, light transport and the estimators all read it.
 //!
 //! A dedicated type rather than `glam::DVec3` so that colours and geometric
 //! vectors cannot be mixed up by accident: a direction never gets multiplied
@@ -6,6 +8,22 @@
 //! e.g. W/(m²·sr) for radiance and W/m² for irradiance.
 
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Sub};
+
+/// Linear RGB as three numbers in channel order: the form scene documents
+/// are parsed into and textures store ([`Rgb`] once shading starts).
+pub type RgbArray = [f64; 3];
+
+/// The weights of luminance `Y = w·(r, g, b)`: the CIE Y of the linear sRGB
+/// (Rec. 709) primaries with a D65 white, as Mitsuba 3 computes it
+/// (`luminance()` in its `core/spectrum.h`). They sum to 1, so white has
+/// unit luminance.
+pub const LUMINANCE_WEIGHTS: RgbArray = [0.212671, 0.715160, 0.072169];
+
+/// Luminance of linear RGB `c` ([`LUMINANCE_WEIGHTS`]); used to weigh light
+/// sources, lobes and textures' means, never for output.
+pub fn luminance(c: RgbArray) -> f64 {
+    (0..3).map(|i| LUMINANCE_WEIGHTS[i] * c[i]).sum()
+}
 
 /// Linear RGB value; arithmetic is per channel.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -35,10 +53,9 @@ impl Rgb {
         [self.r, self.g, self.b]
     }
 
-    /// Relative luminance with the Rec. 709 / sRGB primaries (ITU-R BT.709-6),
-    /// used to weigh light sources and lobes; never used for output.
+    /// Luminance ([`luminance`]).
     pub fn luminance(self) -> f64 {
-        0.2126 * self.r + 0.7152 * self.g + 0.0722 * self.b
+        luminance(self.to_array())
     }
 
     pub fn max_component(self) -> f64 {
