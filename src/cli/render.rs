@@ -17,8 +17,11 @@ use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
 use crate::integrator::cached::{CachedSpec, CachedTileReport};
-use crate::integrator::{IntegratorSpec, Method};
-use crate::render::{Cancel, ImageSettings, PathDepth, Transport};
+use crate::integrator::progressive::{TileParams, Unmemoised, render_progressive};
+use crate::integrator::{BoundIntegrator, IntegratorSpec, Method, Preset};
+use crate::render::{
+    Cancel, ImageSettings, PathDepth, RenderError, RenderedTile, TileRequest, Transport,
+};
 use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance render`.
@@ -31,9 +34,17 @@ pub struct RenderArgs {
     /// How camera rays are shaded.
     #[arg(long, value_enum, default_value_t = Method::Path)]
     pub method: Method,
-    /// Camera rays per pixel.
-    #[arg(long, default_value_t = 64)]
-    pub spp: u32,
+    /// Render every tile as the service's tiles of this preset are (the
+    /// cache integrator, the preset's passes averaged; with the same
+    /// `--tile` as the tiles' `size`, the same image as `GET …/tiles` of
+    /// the preset). `--spp`, `--max-depth` and the cache settings override
+    /// the preset's, as they do on a tile request.
+    #[arg(long, value_enum, conflicts_with_all = ["method", "repeat"])]
+    pub preset: Option<Preset>,
+    /// Camera rays per pixel (default 64; with `--preset`, the preset's
+    /// passes, or one pass of this many rays).
+    #[arg(long)]
+    pub spp: Option<u32>,
     /// Longest light path in segments (1 = emitters seen directly only);
     /// default: the scene's (its Mitsuba integrator's `max_depth`), else the
     /// service's (16).
@@ -53,10 +64,13 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub cache: CachedSpec,
     /// Render the image this many times on the same cache (2 times the
-    /// warm cache); the first pass's image is written.
-    #[arg(long, default_value_t = 1)]
-    pub passes: u32,
+    /// warm cache); the first render's image is written.
+    #[arg(long, default_value_t = 1, alias = "passes")]
+    pub repeat: u32,
 }
+
+/// Camera rays per pixel without `--spp` or `--preset`.
+const DEFAULT_SPP: u32 = 64;
 
 /// Byte bound of the CLI's glossy quadrature cache.
 const QUADRATURE_BYTES: u64 = 256 << 20;
@@ -65,7 +79,7 @@ impl RenderArgs {
     /// The image settings on `scene`.
     pub fn settings(&self, scene: &Scene) -> ImageSettings {
         ImageSettings {
-            samples_per_pixel: self.spp,
+            samples_per_pixel: self.spp.unwrap_or(DEFAULT_SPP),
             max_depth: self
                 .max_depth
                 .unwrap_or_else(|| PathDepth::for_camera(scene, PathDepth::default())),
@@ -99,7 +113,32 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
             .context("progress bar template")?,
     );
     let start = Instant::now();
-    let integrator = IntegratorSpec::with_knobs(args.method, args.cache)?.resolve()?;
+    // With a preset, each tile is its progressive job (the preset's knobs
+    // under the arguments'), all of one integrator.
+    let tile_params = args.preset.map(|preset| TileParams {
+        x: 0,
+        y: 0,
+        width,
+        height,
+        preset,
+        samples_per_pixel: args.spp,
+        pass: None,
+        max_depth: args.max_depth.map(PathDepth::get),
+        seed: args.seed,
+        estimator: IntegratorSpec::Cache(args.cache),
+        denoise: false,
+    });
+    let (integrator, spp) = match &tile_params {
+        Some(params) => {
+            let job = params.job(transport.scene())?;
+            let r = job.request;
+            (job.integrator, r.samples_per_pixel * (r.pass + 1))
+        }
+        None => (
+            IntegratorSpec::with_knobs(args.method, args.cache)?.resolve()?,
+            settings.samples_per_pixel,
+        ),
+    };
     let cache = IrradianceCache::new(CacheConfig::default())?;
     let quadratures = Arc::new(QuadratureCache::new(QUADRATURE_BYTES));
     let shading = integrator
@@ -108,13 +147,16 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
         .transpose()?;
     let bound = integrator.bind(&transport, shading.as_ref().map(|s| (&cache, s)))?;
     let mut first = None;
-    for pass in 1..=args.passes.max(1) {
+    for pass in 1..=args.repeat.max(1) {
         progress.reset();
         let pass_start = Instant::now();
         let report = Mutex::new(CachedTileReport::default());
         let render = || {
             transport.render_image_by(&settings, args.tile, &|request| {
-                let (tile, r) = bound.render_tile(request, None, &Cancel::never())?;
+                let (tile, r) = match &tile_params {
+                    Some(params) => preset_tile(&transport, &bound, params, request)?,
+                    None => bound.render_tile(request, None, &Cancel::never())?,
+                };
                 report.lock().unwrap_or_else(|e| e.into_inner()).add(&r);
                 progress.inc(u64::from(tile.image.width()) * u64::from(tile.image.height()));
                 Ok(tile)
@@ -162,11 +204,41 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
     writeln!(
         out,
         "rendered {width}×{height} at {} spp in {seconds:.2} s: {} rays, {:.3} Mrays/s",
-        args.spp,
+        spp,
         rendered.rays,
         rendered.rays as f64 / seconds / 1e6
     )?;
     Ok(())
+}
+
+/// The tile `request` names as the progressive job of `params` (its
+/// rectangle), and the records' report when it placed any.
+fn preset_tile(
+    transport: &Transport,
+    bound: &BoundIntegrator,
+    params: &TileParams,
+    request: &TileRequest,
+) -> Result<(RenderedTile, CachedTileReport), RenderError> {
+    let job = TileParams {
+        x: request.x,
+        y: request.y,
+        width: request.width,
+        height: request.height,
+        ..*params
+    }
+    .job(transport.scene())?;
+    let tile = render_progressive(transport, bound, &job, &Unmemoised, &Cancel::never())?;
+    let report = tile.records.map(|r| r.report.clone()).unwrap_or_default();
+    Ok((
+        RenderedTile {
+            x: request.x,
+            y: request.y,
+            image: tile.image,
+            shared: Vec::new(),
+            rays: tile.rays,
+        },
+        report,
+    ))
 }
 
 /// Where a rendered image goes: an EXR or a PNG (by `--out`'s extension),
@@ -413,7 +485,7 @@ mod tests {
         let (exr, png) = (dir.join("c.exr"), dir.join("c.png"));
         let line = format!(
             "render --scene {} --out {} --png {} --method cache --spp 1 --light-samples 2 \
-             --samples 16 --max-depth 4 --passes 2 --threads 1 --tile 4",
+             --samples 16 --max-depth 4 --repeat 2 --threads 1 --tile 4",
             scene.display(),
             exr.display(),
             png.display()

@@ -19,6 +19,7 @@ pub mod cached;
 mod method;
 pub mod path;
 mod preset;
+pub mod progressive;
 mod radiance;
 mod resolved;
 mod spec;

@@ -22,6 +22,19 @@ pub enum RenderError {
     /// library's fault, never the request's.
     #[error("the scene produced {what} that is not finite")]
     NotFinite { what: String },
+    /// An image could not be built or filtered from what was rendered
+    /// (passes of different sizes, guides that do not fit): the library's
+    /// fault, never the request's.
+    #[error("image: {reason}")]
+    Image { reason: String },
+}
+
+impl From<crate::image::ImageError> for RenderError {
+    fn from(err: crate::image::ImageError) -> Self {
+        RenderError::Image {
+            reason: err.to_string(),
+        }
+    }
 }
 
 impl RenderError {
@@ -33,7 +46,8 @@ impl RenderError {
             }
             RenderError::PointsRow { .. }
             | RenderError::Cancelled
-            | RenderError::NotFinite { .. } => None,
+            | RenderError::NotFinite { .. }
+            | RenderError::Image { .. } => None,
         }
     }
 }

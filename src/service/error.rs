@@ -372,7 +372,9 @@ impl From<crate::render::RenderError> for ApiError {
             RenderError::InvalidPoint { field, .. } | RenderError::InvalidOption { field, .. } => {
                 ApiError::invalid(*field, err.to_string())
             }
-            RenderError::PointsRow { .. } | RenderError::NotFinite { .. } => ApiError::Internal {
+            RenderError::PointsRow { .. }
+            | RenderError::NotFinite { .. }
+            | RenderError::Image { .. } => ApiError::Internal {
                 message: err.to_string(),
             },
             RenderError::Cancelled => ApiError::Cancelled,

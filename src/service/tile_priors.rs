@@ -26,12 +26,12 @@ use moka::sync::Cache;
 
 use super::irradiance_caches::{PriorSource, SceneCache};
 use super::scenes::LoadedScene;
-use super::tile_store::TileRecords;
 use super::tile_store::{Key, TileStore};
 use crate::bmc::cache::QuadratureCache;
 use crate::cache::{CacheConfig, CacheError};
 use crate::estimators::calibration::calibration_points;
 use crate::integrator::cached::{CachedShading, CachedSpec, CachedTileReport, point_records};
+use crate::integrator::progressive::TileRecords;
 use crate::render::{Cancel, PathDepth, QueryPoint, RenderError};
 
 /// Directions of the rule that makes the gathered records' direct-light

@@ -3,8 +3,8 @@
 
 use axum::http::{HeaderMap, HeaderName, HeaderValue, header};
 
-use super::tile_render::{ProgressiveTile, TileJob};
 use crate::image::ImageEncoding;
+use crate::integrator::progressive::{ProgressiveTile, TileJob};
 
 /// Column of the tile's left edge, pixels.
 pub const X_TILE_X: HeaderName = HeaderName::from_static("x-tile-x");

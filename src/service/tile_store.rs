@@ -50,36 +50,11 @@ use crate::cache::log::{self, AppendLog, LogEntry, LogReport};
 use crate::cache::{CacheConfig, MAX_IRRADIANCE, RECORD_BYTES, RadiusLimits, Record};
 use crate::image::Image;
 use crate::integrator::cached::CachedTileReport;
+use crate::integrator::progressive::{RenderedPass, TileRecords};
 use crate::render::PathDepth;
 
 /// A content key (BLAKE3 of a canonical description).
 pub type Key = [u8; 32];
-
-/// The records a reproducible tile placed, and what placing them took.
-pub struct TileRecords {
-    /// The content digest of the scene they belong to (`scene::SceneDigest`).
-    pub scene: [u8; 32],
-    /// Path segments the records' camera paths had, the camera's included
-    /// (what point queries need to know to use them as a prior).
-    pub max_depth: PathDepth,
-    pub records: Vec<Record>,
-    pub report: CachedTileReport,
-}
-
-/// One rendered pass of a tile.
-pub struct RenderedPass {
-    pub image: Image,
-    /// Per pixel, the part of the image's variance its rays share
-    /// (`render::RenderedTile::shared`); empty for an image without one.
-    pub shared: Vec<f32>,
-    /// Per pixel, the rays of an adaptive pass (`render::SamplePlan`);
-    /// empty when every pixel took the request's `samples_per_pixel`.
-    pub counts: Vec<u32>,
-    /// Rays the pass traced (camera and shading rays).
-    pub rays: u64,
-    /// Diffuse shading points served by records.
-    pub cache_hits: u64,
-}
 
 /// Memoised parts of reproducible tiles (module docs), kept on disk too
 /// when the store was opened on a log.

@@ -315,3 +315,60 @@ async fn bad_tile_parameters_are_named() {
     let health: Value = app.get("/health").await.json().await.unwrap();
     assert_eq!(health["status"], "ok");
 }
+
+/// `render --preset final` on the command line renders every tile as the
+/// service's GET tiles of that preset do: with `--tile` equal to the
+/// tiles' `size`, the same values and variances, bit for bit.
+#[tokio::test]
+async fn the_cli_renders_a_preset_as_the_get_tiles_do() {
+    let app = spawn().await;
+    let out = tempfile::tempdir().unwrap();
+    let exr = out.path().join("final.exr");
+    let scene = app.scenes_dir.path().join("box.json");
+    let rendered = tokio::task::spawn_blocking({
+        let (scene, exr) = (scene.clone(), exr.clone());
+        move || {
+            std::process::Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
+                .args([
+                    "render",
+                    "--preset",
+                    "final",
+                    "--tile",
+                    "32",
+                    "--threads",
+                    "2",
+                ])
+                .arg("--scene")
+                .arg(&scene)
+                .arg("--out")
+                .arg(&exr)
+                .output()
+                .unwrap()
+        }
+    })
+    .await
+    .unwrap();
+    assert!(
+        rendered.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rendered.stderr)
+    );
+    let cli = bmc_irradiance::image::read_exr(&exr).unwrap();
+    assert_eq!((cli.width(), cli.height()), (48, 40));
+    let cli_variance = cli.variance().expect("the mean's variance");
+    for (tx, ty) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        let url = format!("/v1/scenes/box/tiles/{tx}/{ty}.exr?size=32&preset=final");
+        let (status, _, bytes) = fetch(&app, &url).await;
+        assert_eq!(status, StatusCode::OK, "{url}");
+        let tile = bmc_irradiance::image::decode_exr(&bytes).unwrap();
+        let tile_variance = tile.variance().expect("the tile's variance");
+        for y in 0..tile.height() {
+            for x in 0..tile.width() {
+                let (cx, cy) = (32 * tx + x, 32 * ty + y);
+                let (i, j) = ((y * tile.width() + x) as usize, (cy * 48 + cx) as usize);
+                assert_eq!(tile.rgb()[i], cli.rgb()[j], "pixel ({cx}, {cy})");
+                assert_eq!(tile_variance[i], cli_variance[j], "pixel ({cx}, {cy})");
+            }
+        }
+    }
+}

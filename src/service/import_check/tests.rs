@@ -5,8 +5,9 @@ use crate::bmc::cache::QuadratureCache;
 use crate::cache::{CacheConfig, IrradianceCache};
 use crate::integrator::cached::{CacheShadingOptions, CachedIntegrator, CachedShading};
 use crate::integrator::cached::{CachedTileReport, default_rule_spec};
+use crate::integrator::progressive::TileRecords;
 use crate::render::TileRequest;
-use crate::service::tile_store::{DecodedImport, ImportError, TileRecords, TileStore};
+use crate::service::tile_store::{DecodedImport, ImportError, TileStore};
 use crate::testing::cornell;
 
 /// The bound of docs/math.md §9.8 at the check's sizes: 19 of 64 refuse,

@@ -38,12 +38,13 @@ use utoipa::{IntoParams, ToSchema};
 
 use crate::image::{ImageEncoding, ToneMap, png_io};
 use crate::integrator::cached::{record_overlay, record_views};
+use crate::integrator::progressive::TileParams;
 use crate::integrator::{IntegratorSpec, Preset};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::ApiQuery;
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::state::AppState;
-use crate::service::tile_render::{TileParams, render_progressive};
+use crate::service::tile_render::{check_work, render_progressive, tile_job};
 use crate::service::tile_response::{SERVER_TIMING, X_RECORDS, X_STD_DEV_SCALE, tile_headers};
 
 /// Tile side when `size` is not given, pixels.
@@ -224,7 +225,7 @@ pub async fn get_tile(
         estimator: IntegratorSpec::default(),
         denoise: query.denoise.unwrap_or(false),
     };
-    let job = params.job(scene.transport.scene(), limits)?;
+    let job = tile_job(&params, scene.transport.scene(), limits)?;
     let etag = entity_tag(&[
         env!("CARGO_PKG_VERSION"),
         &scene.transport.scene().digest.to_string(),
@@ -241,7 +242,7 @@ pub async fn get_tile(
     if if_none_match(&headers, &etag) {
         return Ok((StatusCode::NOT_MODIFIED, common).into_response());
     }
-    job.check_work(limits)?;
+    check_work(&job, limits)?;
     let shared = state.clone();
     let (tile, body, views_count) = state
         .pool

@@ -15,12 +15,13 @@ use serde::Deserialize;
 use utoipa::ToSchema;
 
 use crate::image::{ImageEncoding, ToneMap};
+use crate::integrator::progressive::TileParams;
 use crate::integrator::{IntegratorSpec, Preset};
 use crate::service::error::{ApiError, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::metrics::RAYS_TRACED;
 use crate::service::state::AppState;
-use crate::service::tile_render::{TileParams, render_progressive};
+use crate::service::tile_render::{check_work, render_progressive, tile_job};
 use crate::service::tile_response::tile_headers;
 
 #[derive(Debug, Deserialize, ToSchema)]
@@ -116,8 +117,8 @@ pub async fn tile(
         estimator: doc.estimator,
         denoise: doc.denoise,
     };
-    let job = params.job(scene.transport.scene(), limits)?;
-    job.check_work(limits)?;
+    let job = tile_job(&params, scene.transport.scene(), limits)?;
+    check_work(&job, limits)?;
     let format = doc.format;
     let shared = state.clone();
     let (tile, body) = state

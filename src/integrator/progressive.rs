@@ -1,0 +1,412 @@
+//! Progressive tiles: the passes of a preset (or of explicit knobs) up to a
+//! requested one, averaged (docs/math.md §16.5), the same for the service's
+//! tile routes and the command line's `render --preset`.
+//!
+//! A reproducible tile's records are placed once and shared by its passes;
+//! what a caller keeps of them and of the passes between requests (the
+//! service's tile store) is a [`PassMemo`], [`Unmemoised`] for none.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+
+use super::{BoundIntegrator, Integrator, IntegratorSpec, Preset};
+use crate::cache::Record;
+use crate::image::{Image, denoise};
+use crate::integrator::cached::CachedTileReport;
+use crate::render::{Cancel, PathDepth, RenderError, SamplePlan, TileRequest, Transport};
+use crate::scene::Scene;
+
+/// A tile as a caller names it, before any check: the rectangle, the
+/// preset and the knobs that override it.
+#[derive(Clone, Copy, Debug)]
+pub struct TileParams {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+    pub preset: Preset,
+    /// Camera rays per pixel of one pass; `None`: the preset's passes.
+    pub samples_per_pixel: Option<u32>,
+    /// The last pass averaged; `None`: the last of them.
+    pub pass: Option<u32>,
+    /// Longest path in segments; `None`: the scene's, else the preset's.
+    pub max_depth: Option<u32>,
+    pub seed: u64,
+    /// The integrator's knobs over the preset's.
+    pub estimator: IntegratorSpec,
+    /// Filter the averaged passes with the tile's guides (docs/math.md §16.6).
+    pub denoise: bool,
+}
+
+impl TileParams {
+    /// The rectangle, samples and passes on `scene`, checked against its
+    /// camera's resolution (errors name the field). An explicit sample
+    /// count is one pass of that many rays, otherwise the preset's passes
+    /// up to `pass`. The depth is the request's, else the scene's (what the
+    /// scene's author rendered it with), else the preset's.
+    pub fn request(&self, scene: &Scene) -> Result<TileRequest, RenderError> {
+        let settings = self.preset.settings();
+        let passes = match self.samples_per_pixel {
+            Some(_) => 1,
+            None => settings.passes,
+        };
+        let rectangle = TileRequest {
+            x: self.x,
+            y: self.y,
+            width: self.width,
+            height: self.height,
+            samples_per_pixel: self.samples_per_pixel.unwrap_or(settings.samples_per_pixel),
+            max_depth: settings.max_depth,
+            seed: self.seed,
+            pass: self.pass.unwrap_or(passes - 1),
+            passes,
+        };
+        // The rectangle first, so a request with several bad fields is told of it.
+        rectangle.validate(scene.camera.resolution())?;
+        let default_depth = PathDepth::for_camera(scene, settings.max_depth);
+        Ok(TileRequest {
+            max_depth: self.max_depth.map_or(Ok(default_depth), PathDepth::new)?,
+            ..rectangle
+        })
+    }
+
+    /// The integrator's knobs: the request's over the preset's.
+    pub fn integrator_spec(&self) -> IntegratorSpec {
+        self.estimator.over(self.preset.settings().integrator)
+    }
+
+    /// The job on `scene`, every field checked (errors name the field).
+    pub fn job(&self, scene: &Scene) -> Result<TileJob, RenderError> {
+        Ok(TileJob {
+            request: self.request(scene)?,
+            integrator: self.integrator_spec().resolve()?,
+            denoise: self.denoise,
+        })
+    }
+}
+
+/// One progressive tile, resolved and checked.
+#[derive(Clone, Copy, Debug)]
+pub struct TileJob {
+    /// The rectangle, depth, seed and samples per pixel of each pass;
+    /// `pass` is the last pass averaged (passes `0..=pass` are rendered) of
+    /// `passes`, the preset's (1 with explicit samples per pixel).
+    pub request: TileRequest,
+    pub integrator: Integrator,
+    /// Whether the averaged passes are denoised ([`crate::image::denoise`]).
+    pub denoise: bool,
+}
+
+impl TileJob {
+    /// Whether the output depends only on the scene's content and the job.
+    pub fn reproducible(&self) -> bool {
+        self.integrator.reproducible()
+    }
+
+    /// Camera paths of every pass plus at most one record per pixel: what
+    /// a work budget weighs.
+    pub fn estimated_paths(&self) -> u64 {
+        let r = &self.request;
+        let area = u64::from(r.width) * u64::from(r.height);
+        let camera = area
+            .saturating_mul(u64::from(r.samples_per_pixel))
+            .saturating_mul(u64::from(r.pass) + 1);
+        self.integrator.estimated_paths(camera, area)
+    }
+
+    /// The rays per pixel of the pass after `before` (docs/math.md §16.5):
+    /// none for a single pass (every pixel its `samples_per_pixel`); for a
+    /// preset's ladder of passes, `samples_per_pixel` each in the first,
+    /// then as the first pass's standard errors around each pixel ask.
+    pub fn plan(&self, before: &[Arc<RenderedPass>]) -> Result<Option<SamplePlan>, RenderError> {
+        let r = &self.request;
+        if r.passes < 2 {
+            return Ok(None);
+        }
+        let area = r.width as usize * r.height as usize;
+        if before.is_empty() {
+            return Ok(Some(SamplePlan::uniform(
+                area,
+                r.samples_per_pixel,
+                r.passes,
+            )));
+        }
+        let first = mean_of_passes(&before[..1], r.samples_per_pixel)?;
+        let rays = mean_of_passes(before, r.samples_per_pixel)?.rays;
+        Ok(Some(SamplePlan::adaptive(
+            r.samples_per_pixel,
+            r.passes,
+            r.width as usize,
+            &first.own_variance,
+            &rays,
+        )))
+    }
+}
+
+/// The records a reproducible tile placed, and what placing them took.
+pub struct TileRecords {
+    /// The content digest of the scene they belong to (`scene::SceneDigest`).
+    pub scene: [u8; 32],
+    /// Path segments the records' camera paths had, the camera's included
+    /// (what point queries need to know to use them as a prior).
+    pub max_depth: PathDepth,
+    pub records: Vec<Record>,
+    pub report: CachedTileReport,
+}
+
+/// One rendered pass of a tile.
+pub struct RenderedPass {
+    pub image: Image,
+    /// Per pixel, the part of the image's variance its rays share
+    /// (`render::RenderedTile::shared`); empty for an image without one.
+    pub shared: Vec<f32>,
+    /// Per pixel, the rays of an adaptive pass (`render::SamplePlan`);
+    /// empty when every pixel took the request's `samples_per_pixel`.
+    pub counts: Vec<u32>,
+    /// Rays the pass traced (camera and shading rays).
+    pub rays: u64,
+    /// Diffuse shading points served by records.
+    pub cache_hits: u64,
+}
+
+/// What a caller keeps of a reproducible tile's work between requests:
+/// its records and each pass, computed by the closure given when not kept.
+/// Only reproducible jobs consult it (their output is a function of the
+/// scene and the job).
+pub trait PassMemo {
+    /// The tile's records, placed by `place` unless kept.
+    fn records_or(
+        &self,
+        place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
+    ) -> Result<Arc<TileRecords>, RenderError>;
+
+    /// Pass `pass`, rendered by `render` unless kept.
+    fn pass_or(
+        &self,
+        pass: u32,
+        render: impl FnOnce() -> Result<RenderedPass, RenderError> + Send,
+    ) -> Result<Arc<RenderedPass>, RenderError>;
+}
+
+/// Keeps nothing: every part is computed.
+pub struct Unmemoised;
+
+impl PassMemo for Unmemoised {
+    fn records_or(
+        &self,
+        place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
+    ) -> Result<Arc<TileRecords>, RenderError> {
+        place().map(Arc::new)
+    }
+
+    fn pass_or(
+        &self,
+        _pass: u32,
+        render: impl FnOnce() -> Result<RenderedPass, RenderError> + Send,
+    ) -> Result<Arc<RenderedPass>, RenderError> {
+        render().map(Arc::new)
+    }
+}
+
+/// A progressive tile and the work this call did for it.
+pub struct ProgressiveTile {
+    /// The mean of passes `0..=pass`.
+    pub image: Image,
+    /// The tile's own records (reproducible cache tiles only).
+    pub records: Option<Arc<TileRecords>>,
+    /// Rays traced by this call (kept parts cost none).
+    pub rays: u64,
+    /// Records this call placed.
+    pub records_created: u64,
+    /// Diffuse shading points served by records, over the passes.
+    pub cache_hits: u64,
+    /// Passes this call rendered (the rest were kept by `memo`).
+    pub passes_rendered: u32,
+}
+
+/// Renders `job` with `bound` (its integrator bound to `transport`) on the
+/// calling thread, consulting `memo` for a reproducible job's records and
+/// passes; stops once `cancel` is set.
+pub fn render_progressive(
+    transport: &Transport,
+    bound: &BoundIntegrator,
+    job: &TileJob,
+    memo: &impl PassMemo,
+    cancel: &Cancel,
+) -> Result<ProgressiveTile, RenderError> {
+    let (mut rays, mut cache_hits, mut passes_rendered) = (0, 0, 0);
+    let reproducible = job.reproducible();
+    // Atomics, as the closures that set them may run on a pool of their own.
+    let created = AtomicU64::new(0);
+    // The tile's records, once for every pass.
+    let records = match (bound.cached(), reproducible) {
+        (Some(integrator), true) => Some(memo.records_or(|| {
+            let (records, report) = integrator.tile_records(&job.request, cancel)?;
+            rays += report.placement.rays + report.secondary.rays;
+            created.store(report.placement.records_created, Relaxed);
+            Ok(TileRecords {
+                scene: *transport.scene().digest.as_bytes(),
+                max_depth: job.request.max_depth,
+                records,
+                report,
+            })
+        })?),
+        _ => None,
+    };
+    let mut passes = Vec::with_capacity(job.request.pass as usize + 1);
+    for pass in 0..=job.request.pass {
+        let request = TileRequest {
+            pass,
+            ..job.request
+        };
+        let rendered = AtomicBool::new(false);
+        let render = || -> Result<RenderedPass, RenderError> {
+            rendered.store(true, Relaxed);
+            let plan = job.plan(&passes)?;
+            let plan = plan.as_ref();
+            let (tile, cache_hits) = match (bound.cached(), &records) {
+                (Some(i), Some(records)) => {
+                    let dense = records.report.dense();
+                    let (tile, stats) = i.render_tile_from_records(
+                        &request,
+                        plan,
+                        &records.records,
+                        dense,
+                        cancel,
+                    )?;
+                    (tile, stats.cache_hits)
+                }
+                _ => {
+                    let (tile, report) = bound.render_tile(&request, plan, cancel)?;
+                    created.fetch_add(report.placement.records_created, Relaxed);
+                    (tile, report.shading.cache_hits)
+                }
+            };
+            Ok(RenderedPass {
+                image: tile.image,
+                shared: tile.shared,
+                counts: plan.map(|p| p.counts.clone()).unwrap_or_default(),
+                rays: tile.rays,
+                cache_hits,
+            })
+        };
+        let pass_image = if reproducible {
+            memo.pass_or(pass, render)?
+        } else {
+            Arc::new(render()?)
+        };
+        if rendered.load(Relaxed) {
+            rays += pass_image.rays;
+            passes_rendered += 1;
+        }
+        cache_hits += pass_image.cache_hits;
+        passes.push(pass_image);
+    }
+    let records_created = created.into_inner();
+    let mut image = mean_of_passes(&passes, job.request.samples_per_pixel)?.image;
+    if job.denoise {
+        cancel.check()?;
+        let r = &job.request;
+        let (guides, guide_rays) = transport.guide_buffers(r.x, r.y, r.width, r.height);
+        rays += guide_rays;
+        image = denoise(&image, &guides)?;
+    }
+    Ok(ProgressiveTile {
+        image,
+        records,
+        rays,
+        records_created,
+        cache_hits,
+        passes_rendered,
+    })
+}
+
+/// The mean of a tile's passes: each pixel's rays over all of them
+/// averaged (passes weighted by the rays they gave the pixel), its own noise
+/// averaging out as `Σ_k n_k² own_k / N²` but at least the per-ray variance
+/// of its passes of two rays or more over `N` (an adaptive pass's one-ray
+/// pixels measure no spread of their own), and the records' error the
+/// passes share weighted as `Σ_k n_k shared_k / N` (it does not average
+/// out, docs/math.md §16.3, §16.5). Equal rays give the plain mean of the
+/// images.
+struct PassesMean {
+    image: Image,
+    /// Per pixel, the variance of the mean's own noise (its shared part
+    /// left out), what more rays lower.
+    own_variance: Vec<f32>,
+    /// Per pixel, the rays over all passes.
+    rays: Vec<u32>,
+}
+
+/// [`PassesMean`] of `passes`, a pass without per-pixel counts having
+/// `spp` rays in every pixel.
+fn mean_of_passes(passes: &[Arc<RenderedPass>], spp: u32) -> Result<PassesMean, RenderError> {
+    let Some(first) = passes.first() else {
+        return Err(RenderError::InvalidOption {
+            field: "pass",
+            reason: "no pass to average".into(),
+        });
+    };
+    let (width, height) = (first.image.width(), first.image.height());
+    // Passes of one tile share its size; a pass read from elsewhere (the
+    // log, another replica) that does not is refused, not indexed past.
+    if let Some(other) = passes
+        .iter()
+        .find(|p| (p.image.width(), p.image.height()) != (width, height))
+    {
+        return Err(RenderError::Image {
+            reason: format!(
+                "passes of {width}×{height} and {}×{} differ",
+                other.image.width(),
+                other.image.height()
+            ),
+        });
+    }
+    let area = first.image.rgb().len();
+    let rays_of = |p: &RenderedPass, i: usize| f64::from(p.counts.get(i).copied().unwrap_or(spp));
+    let mut rgb = Vec::with_capacity(area);
+    let mut variance = Vec::with_capacity(area);
+    let mut own_variance = Vec::with_capacity(area);
+    let mut rays = Vec::with_capacity(area);
+    for i in 0..area {
+        let total: f64 = passes.iter().map(|p| rays_of(p, i)).sum();
+        let mut value = [0.0f64; 3];
+        let (mut own, mut shared) = (0.0f64, 0.0f64);
+        // The per-ray variance over the passes of two rays or more, weighted
+        // by their degrees of freedom: a pass of one ray measures none.
+        let (mut per_ray, mut dof) = (0.0f64, 0.0f64);
+        for p in passes {
+            let n = rays_of(p, i);
+            for (c, v) in value.iter_mut().enumerate() {
+                *v += n * f64::from(p.image.rgb()[i][c]);
+            }
+            let s = f64::from(p.shared.get(i).copied().unwrap_or(0.0));
+            let v = p.image.variance().map_or(0.0, |v| f64::from(v[i]));
+            own += n * n * (v - s).max(0.0);
+            shared += n * s;
+            if n >= 2.0 {
+                per_ray += (n - 1.0) * n * (v - s).max(0.0);
+                dof += n - 1.0;
+            }
+        }
+        rgb.push(value.map(|v| (v / total) as f32));
+        own /= total * total;
+        if dof > 0.0 {
+            own = own.max(per_ray / dof / total);
+        }
+        shared /= total;
+        variance.push((own + shared) as f32);
+        own_variance.push(own as f32);
+        rays.push(total as u32);
+    }
+    let has_variance = passes.iter().all(|p| p.image.variance().is_some());
+    let image = Image::from_parts(width, height, rgb, has_variance.then_some(variance))?;
+    Ok(PassesMean {
+        image,
+        own_variance,
+        rays,
+    })
+}
+
+#[cfg(test)]
+mod tests;
