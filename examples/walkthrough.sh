@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A tour of the HTTP service with curl that runs top to bottom on the bundled
-# scenes; the README shows the same commands.
+# scenes; docs/service.md describes it and lists the routes.
 #
 #   cargo run --release -- serve          # in one terminal, from the repository root
 #   bash examples/walkthrough.sh [BASE]   # in another; BASE defaults to http://127.0.0.1:8080
@@ -30,7 +30,7 @@ curl() {
     echo
 }
 
-# --- walkthrough (the README shows from here to the end) ---
+# --- walkthrough: from here on, the commands also work pasted into a shell at the repository root ---
 BASE="${1:-http://127.0.0.1:8080}" # where the service listens
 SCENES="${SCENES:-scenes}"         # the bundled scenes (pasted by hand: from the repository root)
 WORK="$(mktemp -d)"                # what the tour fetches goes here, removed at the end

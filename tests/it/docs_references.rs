@@ -138,3 +138,212 @@ fn the_docs_name_every_preset() {
         assert!(line.contains(name.as_str()), "python/README.md: {line}");
     }
 }
+
+/// Every file and folder under the repository root (relative, `/`-separated;
+/// folders with a trailing `/`), without `target/` and hidden ones.
+fn repository_paths(dir: &Path, root: &Path, out: &mut Vec<String>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy();
+        if name.starts_with('.') || path == root.join("target") {
+            continue;
+        }
+        let relative = path.strip_prefix(root).unwrap().to_string_lossy();
+        if path.is_dir() {
+            out.push(format!("{relative}/"));
+            repository_paths(&path, root, out);
+        } else {
+            out.push(relative.into_owned());
+        }
+    }
+}
+
+/// The backticked spans of a Markdown text outside fenced code blocks.
+fn backticked(text: &str) -> Vec<String> {
+    let mut spans = Vec::new();
+    let mut fenced = false;
+    for line in text.lines() {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+            continue;
+        }
+        if !fenced {
+            spans.extend(line.split('`').skip(1).step_by(2).map(str::to_owned));
+        }
+    }
+    spans
+}
+
+fn is_identifier(s: &str) -> bool {
+    let mut chars = s.chars();
+    chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// The code of `src/` (comment lines left out), one string per file, and the
+/// names of its modules (file and folder names).
+fn source_code() -> (Vec<String>, Vec<String>) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut paths = Vec::new();
+    files(&root.join("src"), &mut paths);
+    let mut modules = Vec::new();
+    let mut code = Vec::new();
+    for path in paths
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+    {
+        let relative = path.strip_prefix(root.join("src")).unwrap();
+        modules.extend(
+            relative
+                .with_extension("")
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned()),
+        );
+        let text = std::fs::read_to_string(path).unwrap();
+        code.push(
+            text.lines()
+                .filter(|l| !l.trim_start().starts_with("//"))
+                .collect::<Vec<_>>()
+                .join("\n"),
+        );
+    }
+    (code, modules)
+}
+
+/// Whether `name` is defined in `code`: an item (`fn`, `struct`, `enum`,
+/// `trait`, `type`, `const`, `static`, `mod`, `macro_rules!`), or a line
+/// opening with it as an enum variant or a field does (`Name(`, `Name {`,
+/// `Name,`, `name:`, after an optional `pub`).
+fn defined(name: &str, code: &[String]) -> bool {
+    let is_word_end =
+        |rest: &str| !rest.starts_with(|c: char| c.is_ascii_alphanumeric() || c == '_');
+    code.iter().flat_map(|file| file.lines()).any(|line| {
+        let line = line.trim_start();
+        let line = line.strip_prefix("pub(crate) ").unwrap_or(line);
+        let line = line.strip_prefix("pub(super) ").unwrap_or(line);
+        let line = line.strip_prefix("pub ").unwrap_or(line);
+        if let Some(rest) = line.strip_prefix(name) {
+            let rest = rest.trim_start();
+            let variant = name.starts_with(|c: char| c.is_ascii_uppercase())
+                && (rest.is_empty() || rest.starts_with(['(', '{', ',']));
+            if variant || rest.starts_with(':') && !rest.starts_with("::") {
+                return true;
+            }
+        }
+        [
+            "fn ",
+            "struct ",
+            "enum ",
+            "trait ",
+            "type ",
+            "const ",
+            "static ",
+            "mod ",
+            "macro_rules! ",
+        ]
+        .iter()
+        .any(|keyword| {
+            line.match_indices(&format!("{keyword}{name}"))
+                .any(|(at, _)| {
+                    let before = line[..at].chars().next_back();
+                    !before.is_some_and(|c| c.is_ascii_alphanumeric() || c == '_')
+                        && is_word_end(&line[at + keyword.len() + name.len()..])
+                })
+        })
+    })
+}
+
+/// Whether `word` occurs in `code` as a whole word.
+fn occurs(word: &str, code: &[String]) -> bool {
+    let is_word = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    code.iter().any(|file| {
+        file.match_indices(word).any(|(at, _)| {
+            !file[..at].chars().next_back().is_some_and(is_word)
+                && !file[at + word.len()..].starts_with(is_word)
+        })
+    })
+}
+
+/// Whether `code` calls `name` as a method (`.name(`): a method of a type
+/// from outside the crate that the code uses (axum's `route_layer`).
+fn called(name: &str, code: &[String]) -> bool {
+    let needle = format!(".{name}(");
+    code.iter().any(|file| file.contains(&needle))
+}
+
+/// Names in `docs/ARCHITECTURE.md` that are not this crate's: the standard
+/// library's trait and an HTTP header.
+const FROM_ELSEWHERE: &[&str] = &["From", "ETag"];
+
+/// `docs/ARCHITECTURE.md` names only what exists: each backticked path is a
+/// file or folder of the repository (as written from the root, or ending a
+/// longer path: `service/server.rs`), each `A::b` has every segment defined
+/// in `src/` (a module, an item, a variant or a field), each other Rust name
+/// is defined in `src/` (or called there as a method), each macro is invoked
+/// there, and each plain lower-case word occurs in its code; spans that are none of these (HTTP routes, JSON, expressions) are
+/// not checked.
+#[test]
+fn architecture_names_what_the_code_has() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("docs/ARCHITECTURE.md")).unwrap();
+    let mut paths = Vec::new();
+    repository_paths(root, root, &mut paths);
+    let (code, modules) = source_code();
+    let is_defined = |name: &str| modules.iter().any(|m| m == name) || defined(name, &code);
+    let mut missing = Vec::new();
+    let mut checked = 0;
+    for span in backticked(&text) {
+        // `&Cancel`, `.at(path)`, `point_rng(seed, i)`, `PathDepth::default()`.
+        let mut name = span.trim_start_matches(['&', '.']).trim_end_matches('?');
+        if name.ends_with(')')
+            && let Some(open) = name.find('(')
+        {
+            name = &name[..open];
+        }
+        let name = name.trim_end_matches("::");
+        let found = if name.contains('/')
+            && !name.starts_with('/')
+            && name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '/'))
+        {
+            paths.iter().any(|p| {
+                let p = p.as_str();
+                let dir = p.strip_suffix('/').unwrap_or(p);
+                let name = name.trim_end_matches('/');
+                dir == name || dir.ends_with(&format!("/{name}"))
+            })
+        } else if name.contains("::") && name.split("::").all(is_identifier) {
+            name.split("::")
+                .filter(|s| !matches!(*s, "crate" | "self" | "super"))
+                .all(is_defined)
+        } else if let Some(inner) = name.strip_suffix('!').filter(|n| is_identifier(n)) {
+            code.iter().any(|file| file.contains(&format!("{inner}!")))
+        } else if let Some((outer, inner)) = name
+            .strip_suffix('>')
+            .and_then(|n| n.split_once('<'))
+            .filter(|(o, i)| is_identifier(o) && is_identifier(i))
+        {
+            is_defined(outer) && is_defined(inner)
+        } else if is_identifier(name) && name.contains(|c: char| c.is_ascii_uppercase() || c == '_')
+        {
+            FROM_ELSEWHERE.contains(&name) || is_defined(name) || called(name, &code)
+        } else if is_identifier(name) {
+            // A plain lower-case word (`lookup`, `eval`, `k`): in the code.
+            is_defined(name) || occurs(name, &code)
+        } else {
+            continue;
+        };
+        checked += 1;
+        if !found {
+            missing.push(span);
+        }
+    }
+    assert!(checked >= 150, "only {checked} names checked");
+    assert!(
+        missing.is_empty(),
+        "docs/ARCHITECTURE.md names what the repository does not have: {missing:?}"
+    );
+}

@@ -141,7 +141,7 @@ fn readme_commands_work_on_a_fresh_clone() {
     }
 
     // 1. The service's command, verbatim, on an ephemeral port (set by the
-    // environment, as the README's configuration section allows). Its
+    // environment, as docs/service.md's configuration section allows). Its
     // release build is made cheap through cargo's own environment overrides
     // of the profile: what is tested is the command on a fresh clone, not
     // the optimiser, and a full optimised build would double CI's time.

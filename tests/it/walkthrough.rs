@@ -1,13 +1,12 @@
-//! The README's curl walkthrough is `examples/walkthrough.sh`: it runs top to
-//! bottom against a real server with the bundled scenes, leaves the scenes it
-//! did not add alone and no file behind, and the README shows its commands
-//! verbatim, with the answers it shows (the bundled scenes' count).
+//! The curl walkthrough `examples/walkthrough.sh` (described in
+//! `docs/service.md`) runs top to bottom against a real server with the
+//! bundled scenes, leaves the scenes it did not add alone and no file behind,
+//! and gives the answer `docs/service.md` shows (the bundled scenes' count);
+//! `docs/service.md` lists every route the service documents.
 
 use std::path::Path;
 
-use crate::common::{copy_dir, spawn_app_in};
-
-const MARKER: &str = "# --- walkthrough";
+use crate::common::{copy_dir, spawn_app, spawn_app_in};
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -49,13 +48,13 @@ async fn run_walkthrough(token: Option<&str>) {
         String::from_utf8_lossy(&run.stderr)
     );
     let stdout = String::from_utf8_lossy(&run.stdout);
-    // The health line shows as many scenes as the README says it does.
+    // The health line shows as many scenes as docs/service.md says it does.
     let scenes = format!(r#""scenes":{},"#, bundled.len());
     assert!(stdout.contains(&scenes), "{stdout}");
-    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let doc = std::fs::read_to_string(root().join("docs/service.md")).unwrap();
     assert!(
-        readme.contains(&scenes),
-        "README.md's health example: {scenes}"
+        doc.contains(&scenes),
+        "docs/service.md's health example: {scenes}"
     );
     assert!(stdout.contains(r#""status":"ok""#), "{stdout}");
     assert!(stdout.contains("image/png, "), "{stdout}");
@@ -80,25 +79,27 @@ async fn the_walkthrough_passes_bmc_token_to_a_guarded_service() {
     run_walkthrough(Some("walkthrough-token")).await;
 }
 
-#[test]
-fn the_readme_shows_the_walkthrough() {
-    let script = std::fs::read_to_string(root().join("examples/walkthrough.sh")).unwrap();
-    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
-    let start = script.find(MARKER).expect("the script has the marker");
-    let body = &script[script[start..].find('\n').unwrap() + start + 1..];
-    // The README indents code blocks by four spaces.
-    let shown: String = body
+/// `docs/service.md`'s route table has a row for every method and path of
+/// the service's OpenAPI document, and no other.
+#[tokio::test]
+async fn the_service_doc_lists_every_route() {
+    let app = spawn_app().await;
+    let openapi: serde_json::Value = app.get("/openapi.json").await.json().await.unwrap();
+    let mut routes: Vec<String> = Vec::new();
+    for (path, item) in openapi["paths"].as_object().unwrap() {
+        // The GET tile's last segment is `{ty}.{format}` in the document.
+        let path = path.replace("{ty_format}", "{ty}.{format}");
+        for method in item.as_object().unwrap().keys() {
+            routes.push(format!("{} {path}", method.to_uppercase()));
+        }
+    }
+    let doc = std::fs::read_to_string(root().join("docs/service.md")).unwrap();
+    let mut rows: Vec<String> = doc
         .lines()
-        .map(|line| {
-            if line.is_empty() {
-                "\n".to_owned()
-            } else {
-                format!("    {line}\n")
-            }
-        })
+        .filter_map(|line| line.strip_prefix("| `"))
+        .filter_map(|row| row.split_once('`').map(|(route, _)| route.to_owned()))
         .collect();
-    assert!(
-        readme.contains(&shown),
-        "README.md must show examples/walkthrough.sh from its marker on, indented by four spaces"
-    );
+    routes.sort();
+    rows.sort();
+    assert_eq!(rows, routes, "docs/service.md's route table");
 }
