@@ -228,7 +228,7 @@ fn preset_tile(
     }
     .job(transport.scene())?;
     let tile = render_progressive(transport, bound, &job, &Unmemoised, &Cancel::never())?;
-    let report = tile.records.map(|r| r.report.clone()).unwrap_or_default();
+    let report = tile.records.map(|r| r.report).unwrap_or_default();
     Ok((
         RenderedTile {
             x: request.x,
