@@ -55,6 +55,15 @@ pub const MIN_POINTS_FOR_RECORDS: usize = 64;
 /// so a request's seed changes its own samples, not the records).
 const POINT_RECORDS_SEED: u64 = 0x9017_5EC0;
 
+/// A scene's records as the tile store holds them, and the quadrature
+/// cache the rules made for them use: what gathering and placing read.
+#[derive(Clone, Copy)]
+pub struct SceneRecords<'a> {
+    pub scene: &'a LoadedScene,
+    pub tiles: &'a TileStore,
+    pub quadratures: &'a Arc<QuadratureCache>,
+}
+
 /// Gatherings of the tile store's records: reproducible tiles' and those
 /// placed among query points (module docs).
 pub struct TilePriors {
@@ -86,12 +95,12 @@ impl TilePriors {
 
     /// The gatherings of the records entries `tiles` holds for `scene`'s
     /// content (tiles' and query points'), one per camera depth.
-    pub fn sources(
-        &self,
-        scene: &LoadedScene,
-        tiles: &TileStore,
-        quadratures: &Arc<QuadratureCache>,
-    ) -> Result<Vec<PriorSource>, CacheError> {
+    pub fn sources(&self, at: SceneRecords) -> Result<Vec<PriorSource>, CacheError> {
+        let SceneRecords {
+            scene,
+            tiles,
+            quadratures,
+        } = at;
         let digest = scene.transport.scene().digest.as_bytes();
         let mut by_depth: BTreeMap<u32, Vec<_>> = BTreeMap::new();
         for (key, tile) in tiles.tiles_of(digest) {
@@ -143,17 +152,19 @@ impl TilePriors {
     /// from the point (at least 2, so a query of direct light only still
     /// leaves places for twins); each set once per scene content, kept in
     /// `tiles`. Returns the rays traced now.
-    #[allow(clippy::too_many_arguments)]
     pub fn place_among(
         &self,
-        scene: &LoadedScene,
-        tiles: &TileStore,
-        quadratures: &Arc<QuadratureCache>,
+        at: SceneRecords,
         points: &[QueryPoint],
         from_point: PathDepth,
         max_records: usize,
         cancel: &Cancel,
     ) -> Result<u64, RenderError> {
+        let SceneRecords {
+            scene,
+            tiles,
+            quadratures,
+        } = at;
         if points.len() < MIN_POINTS_FOR_RECORDS || points.len() > max_records {
             return Ok(0);
         }

@@ -71,17 +71,13 @@ async fn released(data: &Path) {
     panic!("the stopped service still holds {}", log.display());
 }
 
-async fn health(app: &TestApp) -> Value {
-    app.get("/health").await.json().await.unwrap()
-}
-
 #[tokio::test]
 async fn tiles_survive_a_restart_and_a_torn_log() {
     let data = tempfile::tempdir().unwrap();
     let first = spawn(data.path()).await;
     let (images, records, rays) = render_all(&first).await;
     assert!(rays > 0);
-    let stored = health(&first).await["tiles"].clone();
+    let stored = first.health().await["tiles"].clone();
     assert_eq!(stored["tiles"], json!(4), "{stored}");
     assert!(stored["log_bytes"].as_u64().unwrap() > 0);
     drop(first);
@@ -90,7 +86,7 @@ async fn tiles_survive_a_restart_and_a_torn_log() {
     // Restarted: everything from the log, nothing traced, the same bytes
     // and the same records.
     let second = spawn(data.path()).await;
-    let loaded = health(&second).await["tiles"].clone();
+    let loaded = second.health().await["tiles"].clone();
     assert_eq!(loaded["dropped_bytes"], json!(0), "{loaded}");
     assert_eq!(loaded["tiles"], json!(4), "{loaded}");
     let (again, records_again, rays_again) = render_all(&second).await;
@@ -108,7 +104,7 @@ async fn tiles_survive_a_restart_and_a_torn_log() {
     let cut = bytes.len() * 5 / 7 + 3;
     std::fs::write(&log, &bytes[..cut]).unwrap();
     let third = spawn(data.path()).await;
-    let report = health(&third).await;
+    let report = third.health().await;
     assert_eq!(report["status"], "ok");
     let tiles = &report["tiles"];
     let kept = tiles["loaded_entries"].as_u64().unwrap();
@@ -777,7 +773,7 @@ async fn a_full_or_read_only_data_directory_loses_nothing_acknowledged() {
     // Restarted: the acknowledged scene, every kept part intact, the part
     // computed while the disk was full computed again with the same bytes.
     let again = spawn(&data).await;
-    let report = health(&again).await;
+    let report = again.health().await;
     assert_eq!(report["tiles"]["dropped_bytes"], 0, "{report}");
     let kept: Value = again.get("/v1/scenes/posted").await.json().await.unwrap();
     assert_eq!(kept["digest"], digest);
@@ -807,8 +803,8 @@ async fn a_flipped_bit_mid_log_costs_one_entry() {
     let data = tempfile::tempdir().unwrap();
     let first = spawn(data.path()).await;
     let (images, _, _) = render_all(&first).await;
-    let entries = health(&first).await["tiles"]["tiles"].as_u64().unwrap()
-        + health(&first).await["tiles"]["passes"].as_u64().unwrap();
+    let entries = first.health().await["tiles"]["tiles"].as_u64().unwrap()
+        + first.health().await["tiles"]["passes"].as_u64().unwrap();
     drop(first);
     released(data.path()).await;
     let log = data.path().join("tiles.log");
@@ -817,7 +813,7 @@ async fn a_flipped_bit_mid_log_costs_one_entry() {
     bytes[8 + 12 + 33 + 100] ^= 0x04;
     std::fs::write(&log, &bytes).unwrap();
     let second = spawn(data.path()).await;
-    let report = health(&second).await["tiles"].clone();
+    let report = second.health().await["tiles"].clone();
     assert_eq!(
         report["loaded_entries"].as_u64().unwrap(),
         entries - 1,

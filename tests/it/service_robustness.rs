@@ -14,13 +14,6 @@ use tokio::net::TcpStream;
 
 const CORNELL: &str = include_str!("../../scenes/cornell-box.json");
 
-/// `/health` as JSON, asserting it answers 200.
-async fn health(app: &crate::common::TestApp) -> Value {
-    let response = app.get("/health").await;
-    assert_eq!(response.status(), StatusCode::OK);
-    response.json().await.unwrap()
-}
-
 /// Irradiance at `n` points on the Cornell box's floor with 4096 samples
 /// each: minutes of work on two cores.
 fn slow_irradiance(n: usize) -> Value {
@@ -37,7 +30,7 @@ fn slow_irradiance(n: usize) -> Value {
 async fn until_idle(app: &crate::common::TestApp) -> Duration {
     let start = Instant::now();
     loop {
-        let body = health(app).await;
+        let body = app.health().await;
         if body["cpu"]["running"] == 0 && body["cpu"]["queued"] == 0 {
             return start.elapsed();
         }
@@ -85,7 +78,7 @@ async fn work_stops_when_its_deadline_passes_or_its_client_leaves() {
         .post_json("/v1/scenes/cornell-box/irradiance", &small)
         .await;
     assert_eq!(response.status(), StatusCode::OK);
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
 }
 
 /// Reads from `stream` until the server closes it; false if it stays open for `wait`.
@@ -130,7 +123,7 @@ async fn silent_and_half_sent_connections_are_closed_and_capped() {
         .unwrap();
     assert!(closed_within(&mut idle, Duration::from_secs(5)).await);
 
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
     let metrics = app.get("/metrics").await.text().await.unwrap();
     assert!(
         metrics.contains("http_connections_refused_total"),
@@ -190,7 +183,7 @@ async fn made_up_methods_do_not_grow_the_metrics() {
         "{before} → {} bytes",
         metrics.len()
     );
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
 }
 
 #[tokio::test]
@@ -213,7 +206,7 @@ async fn oversized_request_heads_get_json_errors() {
         StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE
     );
     assert_eq!(error_of(response).await.0, "headers_too_large");
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
 }
 
 #[tokio::test]
@@ -254,7 +247,7 @@ async fn mutating_routes_need_the_configured_token() {
         }
     }
     // Nothing changed; reads and queries need no token.
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
     let query = json!({"points": [{"position": [0, 0, 0], "normal": [0, 0, 1]}],
                        "estimator": {"method": "mc", "samples": 4}});
     let response = app.post_json("/v1/scenes/tiny/irradiance", &query).await;
@@ -277,7 +270,7 @@ async fn mutating_routes_need_the_configured_token() {
         .await
         .unwrap();
     assert!(response.status().is_success());
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
 }
 
 /// The queries: POST routes that compute and change nothing a client can
@@ -332,7 +325,7 @@ async fn every_route_with_a_mutating_method_refuses_a_missing_token() {
             "POST /v1/scenes/{id}/records",
         ]
     );
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
 }
 
 /// Pages of other sites cannot change state, token or not: browsers send a
@@ -385,7 +378,7 @@ async fn pages_of_other_origins_cannot_change_state() {
             assert_eq!(field.as_deref(), Some("Origin"));
         }
     }
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
     // Reads and queries from any page still work.
     let query = json!({"points": [{"position": [0, 0, 0], "normal": [0, 0, 1]}],
                        "estimator": {"method": "mc", "samples": 4}});
@@ -426,7 +419,7 @@ async fn pages_of_other_origins_cannot_change_state() {
             "{origin:?}"
         );
     }
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
 }
 
 #[tokio::test]
@@ -569,7 +562,7 @@ async fn a_slow_upload_keeps_its_deadline_and_a_stalled_one_is_cut_off() {
     let status = send_slowly(&addr, head(body.len()), half, 1, Duration::ZERO).await;
     assert!((400..500).contains(&status), "{status}");
     assert!(started.elapsed() < Duration::from_secs(10));
-    assert_eq!(health(&app).await["scenes"], 2);
+    assert_eq!(app.health().await["scenes"], 2);
 }
 
 /// A request hyper cannot parse (a `<` in the path) is answered by hyper
@@ -596,5 +589,5 @@ async fn an_unparsable_request_line_gets_a_json_error() {
         let body: Value = serde_json::from_str(answer.split("\r\n\r\n").nth(1).unwrap()).unwrap();
         assert_eq!(body["error"]["code"], "malformed_request", "{body}");
     }
-    assert_eq!(health(&app).await["scenes"], 1);
+    assert_eq!(app.health().await["scenes"], 1);
 }

@@ -31,6 +31,7 @@ use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{ApiJson, SceneId};
 use crate::service::metrics::{self, RAYS_TRACED};
 use crate::service::state::AppState;
+use crate::service::tile_priors::SceneRecords;
 use crate::sphere::SampleSetKind;
 
 /// A shading point: world position and the normal of the hemisphere of interest.
@@ -361,19 +362,19 @@ pub async fn irradiance(
             // points), then its reproducible tiles' and its shared caches'.
             let mut sources = Vec::new();
             if records_prior {
+                let at = SceneRecords {
+                    scene: &scene,
+                    tiles: &worker.tiles,
+                    quadratures: &worker.quadratures,
+                };
                 spent.add(worker.tile_priors.place_among(
-                    &scene,
-                    &worker.tiles,
-                    &worker.quadratures,
+                    at,
                     &points,
                     options.max_depth,
                     worker.config.limits.max_tile_area,
                     cancel,
                 )?);
-                sources = worker
-                    .tile_priors
-                    .sources(&scene, &worker.tiles, &worker.quadratures)
-                    .map_err(RenderError::from)?;
+                sources = worker.tile_priors.sources(at).map_err(RenderError::from)?;
                 sources.extend(worker.irradiance_caches.prior_sources(&scene));
             }
             let priors = point_priors(

@@ -30,6 +30,18 @@ impl TestApp {
         self.client.get(self.url(path)).send().await.unwrap()
     }
 
+    /// `GET path` as JSON, asserting it answers 200.
+    pub async fn get_json(&self, path: &str) -> serde_json::Value {
+        let response = self.get(path).await;
+        assert_eq!(response.status(), reqwest::StatusCode::OK, "{path}");
+        response.json().await.unwrap()
+    }
+
+    /// `/health` as JSON, asserting it answers 200.
+    pub async fn health(&self) -> serde_json::Value {
+        self.get_json("/health").await
+    }
+
     pub async fn delete(&self, path: &str) -> reqwest::Response {
         self.client.delete(self.url(path)).send().await.unwrap()
     }
