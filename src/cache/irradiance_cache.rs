@@ -104,7 +104,7 @@ impl CacheConfig {
 
 /// Ward's accuracy `a ∈ (0, 1]`: records are used where `w_k > 1/a`, i.e.
 /// within `a R_k` (smaller = more records, more accurate).
-#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+#[derive(Clone, Copy, Debug, PartialEq, PartialOrd, Serialize)]
 pub struct Accuracy(f64);
 
 impl Accuracy {

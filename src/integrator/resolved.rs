@@ -10,7 +10,8 @@ use crate::cache::IrradianceCache;
 use crate::render::{Cancel, RenderError, RenderedTile, SamplePlan, TileRequest, Transport};
 
 /// A checked integrator: [`super::IntegratorSpec::resolve`]'s result.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Integrator {
     Path,
     Cache(CachedConfig),
@@ -48,9 +49,10 @@ impl Integrator {
     }
 
     /// Text naming everything the integrator's output depends on, for
-    /// content keys of memoised work.
+    /// content keys of memoised work: its canonical JSON (every field, in
+    /// declaration order; a field added changes the keys, as it should).
     pub fn content_key(&self) -> String {
-        format!("{self:?}")
+        serde_json::to_string(self).expect("an integrator serialises")
     }
 
     /// The integrator on `transport`'s scene; the cache integrator reads

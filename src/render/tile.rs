@@ -54,7 +54,7 @@ pub const MAX_TILE_PIXELS: u64 = 1 << 22;
 pub const MAX_SAMPLES_PER_PIXEL: u32 = 1 << 20;
 
 /// A rectangle of the camera image and the work to spend on it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct TileRequest {
     /// Column of the tile's left edge, pixels from the image's left.
     pub x: u32,

@@ -127,7 +127,7 @@ pub struct CachedSpec {
 }
 
 /// A checked configuration of the cache integrator.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct CachedConfig {
     /// The records' (and glossy BMC's) rule.
     pub rule: RecordRuleSpec,

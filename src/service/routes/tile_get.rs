@@ -33,7 +33,7 @@ use axum::extract::{FromRequestParts, Path, State};
 use axum::http::request::Parts;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::image::{ImageEncoding, ToneMap, png_io};
@@ -56,7 +56,7 @@ pub const DEFAULT_STD_DEV_SCALE: f64 = 0.2;
 const CACHE_CONTROL: &str = "public, max-age=300";
 
 /// What a GET tile shows.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, ToSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Aov {
     /// The rendered radiance.
@@ -226,12 +226,20 @@ pub async fn get_tile(
         denoise: query.denoise.unwrap_or(false),
     };
     let job = tile_job(&params, scene.transport.scene(), limits)?;
+    // Everything the bytes depend on, as canonical JSON.
+    let shown = serde_json::json!({
+        "request": job.request,
+        "denoise": job.denoise,
+        "aov": aov,
+        "format": format,
+        "exposure": exposure,
+        "scale": scale,
+    });
     let etag = entity_tag(&[
         env!("CARGO_PKG_VERSION"),
         &scene.transport.scene().digest.to_string(),
         &job.integrator.content_key(),
-        &format!("{:?} denoise {}", job.request, job.denoise),
-        &format!("{aov:?} {format:?} {exposure} {scale}"),
+        &shown.to_string(),
     ]);
     let mut common = HeaderMap::new();
     common.insert(header::ETAG, etag.clone());
