@@ -237,6 +237,22 @@ mod tests {
         assert_eq!(args.options(PathDepth::constant(5)).max_depth.get(), 5);
     }
 
+    /// The rule the service's route applies, from the library: the
+    /// hemisphere decomposition takes no light samples, `auto` ignores them.
+    #[test]
+    fn light_samples_need_a_decomposition_that_takes_them() {
+        let options = |line: &str| parse(line).expect("valid").options(PathDepth::default());
+        let base = "--scene s.json --points p.csv --light-samples 8";
+        let refused = options(&format!("{base} --decomposition hemisphere")).validate();
+        assert_eq!(refused.unwrap_err().field(), Some("light_samples"));
+        assert!(options(base).validate().is_ok());
+        assert!(
+            options(&format!("{base} --decomposition split"))
+                .validate()
+                .is_ok()
+        );
+    }
+
     #[test]
     fn reference_mode_conflicts_with_explicit_budgets() {
         assert!(parse("--scene s.json --points p.csv --reference --samples 5").is_err());

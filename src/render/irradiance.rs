@@ -178,8 +178,17 @@ impl IrradianceOptions {
         self.light_samples.unwrap_or(self.samples)
     }
 
-    /// Checks the sample counts (the depth is valid by construction).
+    /// Checks the sample counts (the depth is valid by construction), and
+    /// that light samples come with a decomposition that takes them: the
+    /// hemisphere decomposition has no light-sampled part (`auto` may
+    /// resolve to it, and then ignores them).
     pub fn validate(&self) -> Result<(), RenderError> {
+        if self.method == IrradianceMethod::Hemisphere && self.light_samples.is_some() {
+            return Err(RenderError::InvalidOption {
+                field: "light_samples",
+                reason: "the hemisphere decomposition takes no light samples".into(),
+            });
+        }
         for (field, count) in [
             ("samples", self.samples),
             ("light_samples", self.light_samples()),

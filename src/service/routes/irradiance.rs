@@ -289,12 +289,6 @@ pub async fn irradiance(
             u64::from(light_samples),
             limits.max_samples as u64,
         )?;
-        if request.estimator.decomposition == IrradianceMethod::Hemisphere {
-            return Err(ApiError::invalid(
-                "estimator.light_samples",
-                "the hemisphere decomposition takes no light samples",
-            ));
-        }
     }
     let point_estimator = request.estimator.spec().resolve()?;
     let target = request
@@ -349,6 +343,7 @@ pub async fn irradiance(
         method: estimator.decomposition,
         seed: request.seed,
     };
+    options.validate().at("estimator")?;
 
     let worker = state.clone();
     let amortised = Arc::new(AmortisedRays::default());
