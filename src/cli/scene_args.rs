@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
+use crate::scene::formats::DocumentKind;
 use crate::scene::{MitsubaOptions, Scene};
 
 /// Which scene file to load, and how.
@@ -49,9 +50,7 @@ impl SceneArgs {
     }
 
     fn is_xml(&self) -> bool {
-        self.scene
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("xml"))
+        DocumentKind::of_file_name(&self.scene) == Some(DocumentKind::MitsubaXml)
     }
 
     /// Loads the scene; the approximations `--lenient` made go to `warnings`,

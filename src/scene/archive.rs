@@ -45,8 +45,9 @@ use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
-use super::bundle::{DocumentKind, SceneBundle, main_scene_file};
+use super::bundle::{SceneBundle, main_scene_file};
 use super::error::SceneError;
+use super::formats::DocumentKind;
 use crate::cancel::Cancel;
 
 /// Unpacked bytes an entry (or a gzipped tar as a whole) may reach before

@@ -19,31 +19,13 @@ use std::path::{Component, Path, PathBuf};
 use super::Scene;
 use super::budget::LoadLimits;
 use super::error::SceneError;
+use super::formats::DocumentKind;
 use super::mitsuba::{MitsubaOptions, Warnings};
 
 /// Longest asset name, bytes.
 pub const MAX_NAME_BYTES: usize = 255;
 /// Most directory levels in an asset name.
 pub const MAX_DEPTH: usize = 8;
-
-/// The document's format.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DocumentKind {
-    Json,
-    MitsubaXml,
-}
-
-impl DocumentKind {
-    /// The kind of scene file `path` is by its extension (`.json`, `.xml`),
-    /// or `None`: not a scene file.
-    pub fn of_file_name(path: &Path) -> Option<DocumentKind> {
-        match path.extension()?.to_str()? {
-            "json" => Some(DocumentKind::Json),
-            "xml" => Some(DocumentKind::MitsubaXml),
-            _ => None,
-        }
-    }
-}
 
 /// The scene file of a folder named `folder` whose root holds the scene
 /// files `candidates`: the only one, else the one conventionally its scene
@@ -277,14 +259,9 @@ pub fn load_document(
     root: &Path,
     limits: &LoadLimits,
 ) -> Result<(Scene, Warnings), SceneError> {
-    let (text, name) = (&document.text, &document.name);
-    match document.kind {
-        DocumentKind::Json => super::loader::from_json_str(text, name, root, root, limits)
-            .map(|s| (s, Warnings::default())),
-        DocumentKind::MitsubaXml => {
-            super::mitsuba::from_str(text, name, root, root, options, limits)
-        }
-    }
+    document
+        .kind
+        .load_text(&document.text, &document.name, root, root, options, limits)
 }
 
 /// `path` in lower case and its folders, as a case-insensitive file system

@@ -17,7 +17,7 @@ mod environment;
 mod error;
 mod files;
 mod format;
-mod formats;
+pub(crate) mod formats;
 #[doc(hidden)]
 pub mod generate;
 mod loader;

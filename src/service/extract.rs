@@ -17,6 +17,7 @@ use serde::de::{DeserializeOwned, IgnoredAny};
 
 use super::error::ApiError;
 use crate::scene::archive::ArchiveFormat;
+use crate::scene::formats::DocumentKind;
 
 /// A JSON request body of type `T`; see the module docs for how failures map to errors.
 #[derive(Debug, Clone)]
@@ -45,12 +46,15 @@ where
 
     async fn from_request(req: Request, state: &S) -> Result<Self, ApiError> {
         match body_media_type(&req) {
-            MediaType::Json => parse_json(&body_bytes(req, state).await?).map(ApiJson),
-            MediaType::Xml | MediaType::Multipart | MediaType::Archive(_) | MediaType::Other => {
-                Err(ApiError::UnsupportedMediaType {
-                    got: content_type_text(&req),
-                })
+            MediaType::Document(DocumentKind::Json) => {
+                parse_json(&body_bytes(req, state).await?).map(ApiJson)
             }
+            MediaType::Document(DocumentKind::MitsubaXml)
+            | MediaType::Multipart
+            | MediaType::Archive(_)
+            | MediaType::Other => Err(ApiError::UnsupportedMediaType {
+                got: content_type_text(&req),
+            }),
         }
     }
 }
@@ -168,10 +172,9 @@ where
 /// What a request body's `content-type` declares; a missing header counts as JSON.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MediaType {
-    /// `application/json` or any `+json` type (or no header at all).
-    Json,
-    /// `application/xml`, `text/xml` or any `+xml` type.
-    Xml,
+    /// A scene document ([`DocumentKind::of_media_type`]; JSON when there
+    /// is no header at all).
+    Document(DocumentKind),
     /// `multipart/form-data` (a scene with its assets).
     Multipart,
     /// A packed scene folder: `application/zip`, `application/x-tar`,
@@ -185,14 +188,12 @@ pub enum MediaType {
 /// Classifies the request's `content-type` (parameters such as `charset` ignored).
 pub fn body_media_type(req: &Request) -> MediaType {
     if req.headers().get(header::CONTENT_TYPE).is_none() {
-        return MediaType::Json;
+        return MediaType::Document(DocumentKind::Json);
     }
     let text = content_type_text(req).to_ascii_lowercase();
     let essence = text.split(';').next().unwrap_or("").trim();
-    if essence == "application/json" || essence.ends_with("+json") {
-        MediaType::Json
-    } else if essence == "application/xml" || essence == "text/xml" || essence.ends_with("+xml") {
-        MediaType::Xml
+    if let Some(kind) = DocumentKind::of_media_type(essence) {
+        MediaType::Document(kind)
     } else if essence == "multipart/form-data" {
         MediaType::Multipart
     } else if let Some(format) = archive_format(essence) {

@@ -16,7 +16,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::scenes::{LoadedScene, SceneSource, log_warnings, validate_id};
-use crate::scene::bundle::{Document, DocumentKind, SceneBundle, load_document};
+use crate::scene::bundle::{Document, SceneBundle, load_document};
+use crate::scene::formats::DocumentKind;
 use crate::scene::{LoadLimits, MitsubaOptions, Scene, SceneError, Warnings};
 
 /// First bytes of a posted scene's blob.
@@ -153,10 +154,11 @@ struct PostRecord {
 /// (what the file it is kept in is called, for copies kept before names
 /// were).
 fn kept_document(text: String, xml: bool, name: Option<String>) -> Document {
-    let (kind, file) = match xml {
-        true => (DocumentKind::MitsubaXml, "scene.xml"),
-        false => (DocumentKind::Json, "scene.json"),
+    let kind = match xml {
+        true => DocumentKind::MitsubaXml,
+        false => DocumentKind::Json,
     };
+    let file = kind.file_name();
     Document {
         text,
         kind,
@@ -228,7 +230,7 @@ impl PostedScenes {
             .prefix(".posting-")
             .tempdir_in(dir)?;
         let xml = posted.document.kind == DocumentKind::MitsubaXml;
-        let name = if xml { "scene.xml" } else { "scene.json" };
+        let name = posted.document.kind.file_name();
         std::fs::write(staging.path().join(name), &posted.document.text)?;
         let record = PostRecord {
             xml,

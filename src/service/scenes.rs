@@ -9,7 +9,8 @@
 //! is logged and skipped at startup, never fatal: one bad file must not keep the
 //! other scenes from being served.
 
-use crate::scene::bundle::{DocumentKind, main_scene_file};
+use crate::scene::bundle::main_scene_file;
+use crate::scene::formats::DocumentKind;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -383,7 +384,7 @@ fn find_scenes(dir: &Path) -> std::io::Result<Vec<Found>> {
         .iter()
         .filter_map(|path| {
             let stem = path.file_stem()?.to_string_lossy().into_owned();
-            let is_xml = path.extension().is_some_and(|ext| ext == "xml");
+            let is_xml = DocumentKind::of_file_name(path) == Some(DocumentKind::MitsubaXml);
             let id = if is_xml && has_json_twin(path) {
                 format!("{stem}-xml")
             } else {

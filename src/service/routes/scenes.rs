@@ -8,7 +8,8 @@ use axum::http::StatusCode;
 use tokio::io::AsyncWriteExt;
 
 use crate::scene::archive::{self, ArchiveFormat, ArchiveLimits};
-use crate::scene::bundle::{Document, DocumentKind, SceneBundle};
+use crate::scene::bundle::{Document, SceneBundle};
+use crate::scene::formats::DocumentKind;
 use crate::service::config::Limits;
 use crate::service::error::{ApiError, AtField, ErrorBody};
 use crate::service::extract::{
@@ -117,17 +118,11 @@ pub async fn post_scene(
     // What messages call a document sent as the body itself.
     const BODY: &str = "body";
     let (id, document, kind, name, bundle) = match media_type {
-        MediaType::Json => {
+        MediaType::Document(kind) => {
             let bytes = body_bytes(request, &()).await?;
-            let id = posted_id(DocumentKind::Json, query.id, &bytes)?;
-            let text = body_text(&bytes, "JSON")?;
-            (id, text, DocumentKind::Json, BODY.to_owned(), None)
-        }
-        MediaType::Xml => {
-            let bytes = body_bytes(request, &()).await?;
-            let id = posted_id(DocumentKind::MitsubaXml, query.id, &bytes)?;
-            let text = body_text(&bytes, "XML")?;
-            (id, text, DocumentKind::MitsubaXml, BODY.to_owned(), None)
+            let id = posted_id(kind, query.id, &bytes)?;
+            let text = body_text(&bytes, kind.label())?;
+            (id, text, kind, BODY.to_owned(), None)
         }
         MediaType::Multipart => {
             let reading = state.upload_permit()?;
@@ -227,10 +222,7 @@ pub async fn post_scene(
     };
     let target = Target {
         id,
-        field: match kind {
-            DocumentKind::Json => "name",
-            DocumentKind::MitsubaXml => "id",
-        },
+        field: kind.id_field(),
         replace: query.replace,
     };
     let (replaced, summary) = scene_changes::post(&state, target, posted).await?;
@@ -343,8 +335,8 @@ struct Upload {
 
 /// Reads a `multipart/form-data` upload of at most `limits.max_upload_bytes`
 /// bytes, each asset at most `limits.max_asset_bytes`: one part
-/// named `scene` (the document; `.xml` file name or an XML content type
-/// means Mitsuba XML, JSON otherwise) and any number named `asset`, each
+/// named `scene` (the document, of the format its file name's extension
+/// says, else its content type, else JSON) and any number named `asset`, each
 /// with a `filename` that is the relative path the document uses, written
 /// to `bundle`.
 async fn read_upload(
@@ -366,17 +358,16 @@ async fn read_upload(
     while let Some(part) = parts.next_field().await? {
         match part.name() {
             Some("scene") => {
-                let xml = part.file_name().is_some_and(|f| f.ends_with(".xml"))
-                    || part
-                        .content_type()
-                        .is_some_and(|m| m.essence_str().ends_with("xml"));
+                let kind = part
+                    .file_name()
+                    .and_then(|f| DocumentKind::of_file_name(std::path::Path::new(f)))
+                    .or_else(|| {
+                        let essence = part.content_type()?.essence_str().to_ascii_lowercase();
+                        DocumentKind::of_media_type(&essence)
+                    })
+                    .unwrap_or(DocumentKind::Json);
                 let name = part.file_name().unwrap_or("scene").to_owned();
                 let text = part.text().await?;
-                let kind = if xml {
-                    DocumentKind::MitsubaXml
-                } else {
-                    DocumentKind::Json
-                };
                 if document.replace((text, kind, name)).is_some() {
                     return Err(ApiError::invalid("scene", "more than one `scene` part"));
                 }
