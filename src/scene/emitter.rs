@@ -93,6 +93,11 @@ const LIGHTS: &[(&str, Parse)] = &[
     ("directional", directional::parse),
 ];
 
+/// The light plugin names a scene's `lights` accept, for messages and docs.
+pub fn light_names() -> Vec<&'static str> {
+    LIGHTS.iter().map(|(name, _)| *name).collect()
+}
+
 /// An emitted quantity (`intensity`, `irradiance`): a colour in
 /// `[0, MAX_RADIANCE]`, `default` when absent.
 fn power(params: &mut Params, name: &str, default: f64) -> Result<[f64; 3], SceneError> {

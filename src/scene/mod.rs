@@ -12,7 +12,7 @@ pub(crate) mod bundle;
 mod bvh;
 mod camera;
 mod digest;
-mod emitter;
+pub mod emitter;
 mod environment;
 mod error;
 mod files;

@@ -167,6 +167,11 @@ const PLUGINS: &[(&str, Parse)] = &[
     ("checkerboard", checkerboard::parse),
 ];
 
+/// The texture plugin names a texture document's `type` accepts, for messages and docs.
+pub fn plugin_names() -> Vec<&'static str> {
+    PLUGINS.iter().map(|(name, _)| *name).collect()
+}
+
 /// The `to_uv` parameter: the identity if absent.
 fn to_uv(params: &mut Params) -> Result<DAffine2, SceneError> {
     let Some(value) = params.take("to_uv") else {

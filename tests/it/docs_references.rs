@@ -347,3 +347,37 @@ fn architecture_names_what_the_code_has() {
         "docs/ARCHITECTURE.md names what the repository does not have: {missing:?}"
     );
 }
+
+/// The names in the first column of the first table after `heading` in
+/// `doc` (the backticked word opening a row's first cell).
+fn table_names(doc: &str, heading: &str) -> Vec<String> {
+    let start = doc
+        .lines()
+        .position(|l| l == heading)
+        .unwrap_or_else(|| panic!("no heading {heading:?}"));
+    doc.lines()
+        .skip(start + 1)
+        .skip_while(|l| !l.starts_with('|'))
+        .take_while(|l| l.starts_with('|'))
+        .filter_map(|row| {
+            let first = row.split('|').nth(1)?.trim();
+            first.strip_prefix('`')?.split('`').next().map(str::to_owned)
+        })
+        .collect()
+}
+
+/// docs/scene-format.md's tables of materials, textures and lights name
+/// exactly the plugins the registries accept, in their order.
+#[test]
+fn the_scene_format_tables_are_the_registries() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let doc = std::fs::read_to_string(root.join("docs/scene-format.md")).unwrap();
+    use bmc_irradiance::scene::{emitter, material, texture};
+    for (heading, registry) in [
+        ("## Materials", material::plugin_names()),
+        ("### Textures", texture::plugin_names()),
+        ("### Lights", emitter::light_names()),
+    ] {
+        assert_eq!(table_names(&doc, heading), registry, "{heading}");
+    }
+}
