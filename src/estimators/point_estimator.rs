@@ -25,6 +25,8 @@
 //! (§10.5; the default); and the decomposition `auto`
 //! resolved per scene (§14).
 
+mod resolve;
+
 use std::sync::Arc;
 
 use rayon::prelude::*;
@@ -34,11 +36,8 @@ use super::calibration::{Calibrations, ErrorCalibration, TrainingSet, calibrate,
 use super::error::EstimatorError;
 use super::hemisphere_estimate::HemisphereRule;
 use super::integral_prior::{IntegralPrior, PriorAt, PriorScales, combine_direct, combine_part};
-use super::lengthscale::{FALLBACK_LENGTHSCALE, FitConfig, FittedKernels};
-use super::spec::{
-    DEFAULT_KERNEL, DEFAULT_NOISE, DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod,
-    EstimatorSpec, RecordsPriorMode,
-};
+use super::lengthscale::{FitConfig, FittedKernels};
+use super::spec::{DEFAULT_KERNEL, DEFAULT_NOISE, EstimatorSpec, RecordsPriorMode};
 use crate::bmc::cache::{CachedQuadrature, QuadratureCache};
 use crate::bmc::control_variate::BmcControlVariate;
 use crate::bmc::estimator::{BayesianEstimator, BmcVariance, SampleMeanEstimator, SamplingPdf};
@@ -49,7 +48,7 @@ use crate::render::QueryPoint;
 use crate::render::Transport;
 use crate::render::environment_prior::PriorChoice;
 use crate::render::{Decomposition, IrradianceEstimate, IrradianceOptions, Rgb};
-use crate::sphere::{SampleSetKind, SampleSetSpec};
+use crate::sphere::SampleSetSpec;
 
 /// A checked estimator, ready to run.
 #[derive(Debug, Clone)]
@@ -133,101 +132,6 @@ impl Estimates {
     /// Rays the estimates traced, all points together.
     pub fn rays(&self) -> u64 {
         self.estimates.iter().map(|e| e.rays).sum()
-    }
-}
-
-impl EstimatorSpec {
-    /// Checks the options against the method (module docs).
-    pub fn resolve(&self) -> Result<PointEstimator, EstimatorError> {
-        let samples = self.samples as usize;
-        if samples == 0 {
-            return Err(EstimatorError::invalid("samples", "must be at least 1"));
-        }
-        let (set_kind, set_seed) = self.sample_set.unwrap_or((DEFAULT_SAMPLE_SET, 0));
-        if self.method != EstimatorMethod::Bmc && self.kernel.is_some() {
-            return Err(EstimatorError::invalid(
-                "kernel",
-                "only `bmc` takes a kernel",
-            ));
-        }
-        if self.records_prior == RecordsPriorMode::Set(true) && self.method == EstimatorMethod::Mc {
-            return Err(EstimatorError::invalid(
-                "records_prior",
-                "`mc` stays plain Monte Carlo; `qmc` and `bmc` take the records prior",
-            ));
-        }
-        let prior = self.prior.unwrap_or(match self.method {
-            EstimatorMethod::Bmc => PriorChoice::Environment,
-            EstimatorMethod::Mc | EstimatorMethod::Qmc => PriorChoice::None,
-        });
-        let rule = self.rule(samples, set_kind, set_seed)?;
-        Ok(PointEstimator {
-            rule,
-            prior,
-            // No error model is calibrated on real scenes as it is (§10.5):
-            // QMC's is too wide, the GP's assumes a smooth integrand, and
-            // MC's sample variance is blind to light that its few samples
-            // all missed.
-            calibrate: self.calibrate.unwrap_or(true),
-            spec: *self,
-            indirect_part: false,
-            corrected: false,
-        })
-    }
-
-    fn rule(
-        &self,
-        samples: usize,
-        set_kind: SampleSetKind,
-        set_seed: u64,
-    ) -> Result<PointRule, EstimatorError> {
-        match self.method {
-            EstimatorMethod::Mc if self.sample_set.is_some() => Err(EstimatorError::invalid(
-                "sample_set",
-                "`mc` draws fresh random directions; only `qmc` and `bmc` take a sample set",
-            )),
-            EstimatorMethod::Mc => Ok(PointRule::Mc { count: samples }),
-            EstimatorMethod::Qmc => {
-                let pdf = match set_kind {
-                    SampleSetKind::FibonacciCosine => SamplingPdf::Cosine,
-                    SampleSetKind::Fibonacci => SamplingPdf::Uniform,
-                    _ => {
-                        return Err(EstimatorError::invalid(
-                            "sample_set.kind",
-                            "`qmc` takes `fibonacci_cosine` or `fibonacci`",
-                        ));
-                    }
-                };
-                SampleMeanEstimator::quasi_monte_carlo(Density::Lambert, pdf, samples)
-                    .map(PointRule::Qmc)
-                    .map_err(|e| EstimatorError::invalid("samples", e.to_string()))
-            }
-            EstimatorMethod::Bmc => {
-                let kernel = self.kernel.unwrap_or_default();
-                let variance = kernel.variance.unwrap_or(DEFAULT_VARIANCE);
-                // Check the numbers now (a stand-in ℓ for "auto"), so bad
-                // input is refused before any work.
-                Kernel::new(
-                    kernel.kind.unwrap_or(DEFAULT_KERNEL),
-                    kernel.lengthscale.value().unwrap_or(FALLBACK_LENGTHSCALE),
-                    variance,
-                    kernel.noise.unwrap_or(DEFAULT_NOISE),
-                )
-                .map_err(EstimatorError::kernel)?;
-                let sample_set = SampleSetSpec {
-                    kind: set_kind,
-                    count: samples,
-                    seed: set_seed,
-                };
-                Ok(PointRule::Bmc(BmcSetup {
-                    sample_set,
-                    kind: kernel.kind,
-                    lengthscale: kernel.lengthscale.value(),
-                    variance,
-                    noise: kernel.noise,
-                }))
-            }
-        }
     }
 }
 

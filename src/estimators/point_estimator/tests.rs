@@ -1,5 +1,7 @@
 use super::*;
+use crate::estimators::spec::{DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod};
 use crate::estimators::{KernelSpec, Lengthscale};
+use crate::sphere::SampleSetKind;
 
 fn spec(method: EstimatorMethod) -> EstimatorSpec {
     EstimatorSpec {

@@ -33,21 +33,23 @@
 //! bounce through them replaces the truncation at `max_depth` by the
 //! cache's own fixed point; records therefore gather this way only when
 //! their paths' depth (counted from the record's point) is at least
-//! [`AMBIENT_MIN_DEPTH`], where the truncated tail is
+//! [`AMBIENT_MIN_DEPTH`](super::config::AMBIENT_MIN_DEPTH), where the truncated tail is
 //! negligible, and trace exact paths otherwise. In a reproducible
 //! placement pass the bounces only read the private cache (a miss falls
 //! back to one path), so every record of a batch sees the same cache.
 //!
 
+mod gather;
+mod reflection;
+mod traced_record;
+
 use std::f64::consts::PI;
 
 use glam::DVec3;
 use rand::{Rng, RngExt};
-use rand_pcg::Pcg64;
 
 use super::config::{
-    AMBIENT_ACCURACY_FACTOR, AMBIENT_MIN_DEPTH, CachedShading, MAX_BMC_EXPONENT, PlacementOptions,
-    indirect_paths,
+    AMBIENT_ACCURACY_FACTOR, CachedShading, MAX_BMC_EXPONENT, PlacementOptions, indirect_paths,
 };
 use super::dense::{DENSE_INDIRECT_PATHS, DENSE_LIGHT_FACTOR};
 use super::direct_light::{Surface, direct_radiance, mis_weights};
@@ -58,12 +60,15 @@ use super::stats::ShadingStats;
 use crate::cache::{Accuracy, CacheError, IrradianceCache, RadiusLimits, Record, RecordRule};
 use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::{
-    AveragedPaths, Evaluation, FirstSegment, PathLengths, PathLimits, PixelSample, QueryPoint,
-    RadianceSample, RenderError, Rgb, TraceStats, Transport, warp,
+    Evaluation, FirstSegment, PathLengths, PathLimits, QueryPoint, RadianceSample, RenderError,
+    Rgb, TraceStats, Transport, warp,
 };
 use crate::scene::{Ray, SurfaceHit};
 use crate::sphere::Frame;
 use crate::stats::RunningMean;
+pub use gather::{Gather, RecordGather};
+use reflection::Reflection;
+pub use traced_record::{TracedRecord, trace_record};
 
 /// Shading through one irradiance cache: the scene's transport, the cache
 /// that is read and extended, and its rules and options. The methods carry
@@ -99,92 +104,7 @@ impl<'a> CachedIntegrator<'a> {
     }
 }
 
-/// Where a record's rays get their incident radiance.
-#[derive(Clone, Copy)]
-pub enum Gather<'a> {
-    /// One path-traced estimate per ray ([`Transport::hemisphere_samples`]).
-    Paths,
-    /// An ambient bounce through `integrator`'s cache (module docs): at each
-    /// ray's hit, direct light by one light sample plus `(k_d/π) E_ind` from
-    /// the cache, with `bounce.on_miss` where no record covers the hit.
-    Cache {
-        integrator: CachedIntegrator<'a>,
-        bounce: Bounce,
-    },
-    /// Each ray traced to its first hit `y` once and `y` shaded through a
-    /// frozen cache, `integrator`'s (the `secondary` module): direct light
-    /// by [`RecordGather::per_direction`] stratified light samples,
-    /// `(k_d/π) E_ind(y)` looked up at the integrator's accuracy, glossy
-    /// lobes by one lobe-sampled path; where no record covers `y`, one path
-    /// ([`OnMiss::PathTrace`]). The cache is only read.
-    Secondary { integrator: CachedIntegrator<'a> },
-}
-
-impl<'a> Gather<'a> {
-    /// How a record at `level` gathers: through the integrator's secondary
-    /// cache if it has one and `paths` reach [`AMBIENT_MIN_DEPTH`] (the
-    /// options exclude ambient bounces then); through the integrator's cache
-    /// while `level < ambient_bounces` and `paths` reach it; by paths
-    /// otherwise. With `insert_nested` a miss at a bounce creates a
-    /// record one level deeper; without it the cache is only read (a
-    /// fallback path serves the miss), which keeps a placement batch
-    /// deterministic.
-    pub fn for_record(
-        integrator: CachedIntegrator<'a>,
-        paths: PathLimits,
-        level: u32,
-        insert_nested: bool,
-    ) -> Self {
-        if paths.max_depth < AMBIENT_MIN_DEPTH {
-            return Gather::Paths;
-        }
-        if let Some(cache) = integrator.secondary {
-            let integrator = CachedIntegrator {
-                cache,
-                secondary: None,
-                ..integrator
-            };
-            return Gather::Secondary { integrator };
-        }
-        if level >= integrator.shading.options.ambient_bounces {
-            return Gather::Paths;
-        }
-        let on_miss = if insert_nested {
-            OnMiss::Insert
-        } else {
-            OnMiss::PathTrace
-        };
-        Gather::Cache {
-            integrator,
-            bounce: Bounce {
-                paths,
-                level,
-                on_miss,
-            },
-        }
-    }
-}
-
-/// How a record's rays gather, and how many estimates each direction averages.
-#[derive(Clone, Copy)]
-pub struct RecordGather<'a> {
-    /// The paths the rays sum.
-    pub paths: PathLimits,
-    /// Estimates averaged per direction (≥ 1); by paths, those share their
-    /// first segment; through the secondary cache, the light samples at it.
-    pub per_direction: u32,
-    pub gather: Gather<'a>,
-}
-
 impl RecordGather<'_> {
-    /// The paths each direction averages when gathering by paths.
-    fn averaged_paths(&self) -> AveragedPaths {
-        AveragedPaths {
-            limits: self.paths,
-            per_direction: self.per_direction,
-        }
-    }
-
     /// Incident radiance along each local direction of a record at `point`
     /// in `frame`, each the mean of `per_direction` estimates; rays and
     /// nested records are counted in `stats`.
@@ -284,34 +204,6 @@ impl RecordGather<'_> {
             .collect()
     }
 }
-
-/// How one reflection at a surface point is shaded.
-#[derive(Clone, Copy)]
-struct Reflection<'a> {
-    /// Accuracy, occlusion test and path limits of lookups and records.
-    placement: &'a PlacementOptions,
-    light_samples: u32,
-    /// Level of a record created here (0 at a camera or viewer hit).
-    level: u32,
-    on_miss: OnMiss,
-    /// The camera ray of a pixel this shading is (see [`ShadePoint::sample`]).
-    sample: Option<PixelSample>,
-    /// Add indirect light (path lengths ≥ 2 from the point).
-    indirect: bool,
-    /// Glossy lobes by BMC; otherwise by one lobe-sampled path.
-    glossy_bmc: bool,
-    /// Dirac-delta bounces (mirrors, glass) a camera path has followed
-    /// through the cache to reach this point.
-    delta_chain: u32,
-    /// Cosine-distributed paths that estimate the indirect irradiance
-    /// where no record covers the point ([`OnMiss::PathTrace`]).
-    fallback_paths: u32,
-}
-
-/// Longest chain of delta bounces a camera path follows through the cache
-/// before it is path traced (two mirrors facing each other would otherwise
-/// never end it).
-const MAX_DELTA_CHAIN: u32 = 8;
 
 impl CachedIntegrator<'_> {
     /// Radiance leaving the surface at `hit` towards the unit world direction
@@ -531,20 +423,6 @@ impl CachedIntegrator<'_> {
         };
         let incident = self.transport.incident_radiance(ray, limits, rng, trace);
         Ok(done(radiance + throughput * incident.radiance))
-    }
-
-    /// Whether a delta bounce at a point shaded as `r` is followed through
-    /// the cache: on camera paths (level 0), for at most
-    /// [`MAX_DELTA_CHAIN`] bounces, and where paths may be at least
-    /// [`AMBIENT_MIN_DEPTH`] long. The surface the chain reaches is shaded
-    /// with the records of the camera's depth, so the chain's bounces are
-    /// not counted against `max_depth`: the same approximation as a bounce
-    /// through the cache (module docs), negligible where the truncated tail
-    /// is.
-    fn through_delta(&self, r: &Reflection) -> bool {
-        r.level == 0
-            && r.delta_chain < MAX_DELTA_CHAIN
-            && r.placement.paths.max_depth >= AMBIENT_MIN_DEPTH
     }
 
     /// Radiance arriving along `ray` from the surface it hits, shaded as a
@@ -809,70 +687,6 @@ pub fn gather_record<R: Rng + ?Sized>(
     let frame = point.turned_frame(rng);
     let samples = how.samples(transport, point, &frame, rule.directions(), rng, stats)?;
     Ok(GatheredRecord { frame, samples })
-}
-
-/// A record's first segments only ([`trace_record`]): enough for its
-/// radius, which depends on the distances alone.
-pub struct TracedRecord {
-    frame: Frame,
-    segments: Vec<FirstSegment>,
-    /// The record's generator, as the first segments left it (they draw
-    /// nothing), for the paths that continue from them.
-    rng: Pcg64,
-}
-
-impl TracedRecord {
-    /// Distance to the first hit along each direction (∞ where none).
-    pub fn distances(&self) -> Vec<f64> {
-        self.segments.iter().map(FirstSegment::distance).collect()
-    }
-
-    /// The record's radiance samples from its first segments, gathered as
-    /// `how` says (the `how` it was traced with): the same bits as
-    /// [`gather_record`] with the same generator. Rays are counted in
-    /// `stats`.
-    pub fn continue_paths(
-        mut self,
-        transport: &Transport,
-        how: &RecordGather,
-        stats: &mut ShadingStats,
-    ) -> Result<GatheredRecord, RenderError> {
-        let samples = how.continue_segments(transport, &self.segments, &mut self.rng, stats)?;
-        Ok(GatheredRecord {
-            frame: self.frame,
-            samples,
-        })
-    }
-}
-
-/// The first step of [`gather_record`] by paths or through the secondary
-/// cache: the frame turned by a random angle from `rng`, then each
-/// direction's first segment; the rest waits for
-/// [`TracedRecord::continue_paths`]. Rays are counted in `stats`.
-pub fn trace_record(
-    transport: &Transport,
-    rule: &RecordRule,
-    target: &PlacementPoint,
-    how: &RecordGather,
-    mut rng: Pcg64,
-    stats: &mut ShadingStats,
-) -> TracedRecord {
-    let point = &target.point;
-    let frame = point.turned_frame(&mut rng);
-    let mut trace = TraceStats::default();
-    let segments = transport.hemisphere_first_segments(
-        point,
-        &frame,
-        rule.directions(),
-        how.paths,
-        &mut trace,
-    );
-    stats.rays += trace.rays;
-    TracedRecord {
-        frame,
-        segments,
-        rng,
-    }
 }
 
 #[cfg(test)]

@@ -1,3 +1,4 @@
+use super::build::PARALLEL_RANGE;
 use super::*;
 use rand::{RngExt, SeedableRng};
 

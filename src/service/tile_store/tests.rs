@@ -1,4 +1,5 @@
 use super::*;
+use crate::service::import_check::Verdict;
 
 fn pass(seed: f32) -> RenderedPass {
     let rgb = (0..6).map(|i| [i as f32 * seed, 1.0, 2.0]).collect();
