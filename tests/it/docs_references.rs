@@ -361,7 +361,11 @@ fn table_names(doc: &str, heading: &str) -> Vec<String> {
         .take_while(|l| l.starts_with('|'))
         .filter_map(|row| {
             let first = row.split('|').nth(1)?.trim();
-            first.strip_prefix('`')?.split('`').next().map(str::to_owned)
+            first
+                .strip_prefix('`')?
+                .split('`')
+                .next()
+                .map(str::to_owned)
         })
         .collect()
 }
