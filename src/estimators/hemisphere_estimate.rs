@@ -399,6 +399,7 @@ mod tests {
             wall_estimate(IrradianceOptions {
                 max_depth: crate::render::PathDepth::constant(max_depth),
                 method: IrradianceMethod::Hemisphere,
+                light_samples: None,
                 ..options(1, 17)
             })
         };
