@@ -7,7 +7,7 @@
 //! A preset renders `passes` passes of `samples_per_pixel` camera rays each
 //! (see [`crate::render::TileRequest::pass`]): pass `k` is an independent
 //! render with its own camera samples that shares the tile's records, and
-//! the mean of passes `0..=k` (`service::tile_render`, docs/math.md §16.5) is the
+//! the mean of passes `0..=k` (`integrator::progressive`, docs/math.md §16.5) is the
 //! progressive image after `k + 1` passes; the mean of all is the final one.
 
 use std::fmt;
