@@ -17,8 +17,8 @@ use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
 use crate::integrator::cached::{CachedSpec, CachedTileReport};
-use crate::integrator::progressive::{TileParams, Unmemoised, render_progressive};
-use crate::integrator::{BoundIntegrator, IntegratorSpec, Method, Preset};
+use crate::integrator::progressive::{TileJob, TileParams, Unmemoised, render_progressive};
+use crate::integrator::{BoundIntegrator, Integrator, IntegratorSpec, Method, Preset};
 use crate::render::{
     Cancel, ImageSettings, PathDepth, RenderError, RenderedTile, TileRequest, Transport,
 };
@@ -154,7 +154,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
         let render = || {
             transport.render_image_by(&settings, args.tile, &|request| {
                 let (tile, r) = match &tile_params {
-                    Some(params) => preset_tile(&transport, &bound, params, request)?,
+                    Some(params) => preset_tile(&transport, &bound, integrator, params, request)?,
                     None => bound.render_tile(request, None, &Cancel::never())?,
                 };
                 report.lock().unwrap_or_else(|e| e.into_inner()).add(&r);
@@ -212,21 +212,27 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
 }
 
 /// The tile `request` names as the progressive job of `params` (its
-/// rectangle), and the records' report when it placed any.
+/// rectangle) with `integrator` (`params`' resolved once, bound as
+/// `bound`), and the records' report when it placed any.
 fn preset_tile(
     transport: &Transport,
     bound: &BoundIntegrator,
+    integrator: Integrator,
     params: &TileParams,
     request: &TileRequest,
 ) -> Result<(RenderedTile, CachedTileReport), RenderError> {
-    let job = TileParams {
+    let tile_params = TileParams {
         x: request.x,
         y: request.y,
         width: request.width,
         height: request.height,
         ..*params
-    }
-    .job(transport.scene())?;
+    };
+    let job = TileJob {
+        request: tile_params.request(transport.scene())?,
+        integrator,
+        denoise: params.denoise,
+    };
     let tile = render_progressive(transport, bound, &job, &Unmemoised, &Cancel::never())?;
     let report = tile.records.map(|r| r.report).unwrap_or_default();
     Ok((

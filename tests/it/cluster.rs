@@ -146,14 +146,7 @@ fn redis_server() -> (Process, String) {
 
 /// `/health` of the replica at `addr`.
 async fn health(client: &reqwest::Client, addr: &str) -> serde_json::Value {
-    client
-        .get(format!("http://{addr}/health"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap()
+    crate::common::get_json_at(client, &format!("http://{addr}/health")).await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]

@@ -10,7 +10,7 @@
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::common::{TINY_SCENE, peak_rss, scene_ids_at, serve_with};
+use crate::common::{TINY_SCENE, get_json_at, peak_rss, scene_ids_at, serve_with};
 use bmc_irradiance::testing::{
     BOUNDARY, jpeg_claiming, ref_doubling_xml, scene_upload as upload, two_part_exr,
 };
@@ -191,14 +191,7 @@ async fn small_files_claiming_large_payloads_are_refused_in_bounded_memory() {
     eprintln!("peak RSS {} MiB", peak >> 20);
     // Any one of the claims would take it past this.
     assert!(peak < 512 << 20, "peak RSS {} MiB", peak >> 20);
-    let health: Value = client
-        .get(url("/health"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let health = get_json_at(&client, &url("/health")).await;
     assert_eq!(health["status"], "ok", "{health}");
     assert_eq!(scene_ids_at(&client, &url("")).await, ["tiny"]);
 }

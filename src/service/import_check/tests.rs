@@ -134,12 +134,21 @@ fn picked(decoded: &DecodedImport, export: &[u8], key: &[u8; 32]) -> Vec<Picked>
     pick(tiles, export, key).unwrap()
 }
 
-fn verdict_of(transport: &Transport, export: &[u8], key: &[u8; 32]) -> Verdict {
-    let store = TileStore::new(1 << 24, 4096);
+/// `export` decoded by `store` for `transport`'s scene.
+fn decoded_by(store: &TileStore, transport: &Transport, export: &[u8]) -> DecodedImport {
     let digest = *transport.scene().digest.as_bytes();
-    let decoded = store
+    store
         .decode_import(&digest, transport.scene().bounds(), export)
-        .unwrap();
+        .unwrap()
+}
+
+/// `export` decoded by a store that holds nothing.
+fn decoded(transport: &Transport, export: &[u8]) -> DecodedImport {
+    decoded_by(&TileStore::new(1 << 24, 4096), transport, export)
+}
+
+fn verdict_of(transport: &Transport, export: &[u8], key: &[u8; 32]) -> Verdict {
+    let decoded = decoded(transport, export);
     check(transport, &picked(&decoded, export, key), &Cancel::never()).unwrap()
 }
 
@@ -181,11 +190,7 @@ fn genuine_records_pass_and_scaled_ones_are_refused() {
 fn the_records_checked_are_keyed_by_the_import() {
     let transport = cornell(32);
     let export = genuine_export(&transport, 1.0);
-    let store = TileStore::new(1 << 24, 4096);
-    let digest = *transport.scene().digest.as_bytes();
-    let decoded = store
-        .decode_import(&digest, transport.scene().bounds(), &export)
-        .unwrap();
+    let decoded = decoded(&transport, &export);
     let places = |key: &[u8; 32]| -> Vec<(usize, usize)> {
         picked(&decoded, &export, key)
             .iter()
@@ -206,9 +211,7 @@ fn the_records_checked_are_keyed_by_the_import() {
     }
     // A held tile is not checked: its records would not be added.
     let holder = TileStore::new(1 << 24, 4096);
-    let first = holder
-        .decode_import(&digest, transport.scene().bounds(), &export)
-        .unwrap();
+    let first = decoded_by(&holder, &transport, &export);
     let verdict = check(
         &transport,
         &picked(&first, &export, &[1; 32]),
@@ -217,9 +220,7 @@ fn the_records_checked_are_keyed_by_the_import() {
     .unwrap();
     let report = holder.add_import(first.accept(&verdict).unwrap());
     assert_eq!((report.imported, report.checked), (2, 64));
-    let again = holder
-        .decode_import(&digest, transport.scene().bounds(), &export)
-        .unwrap();
+    let again = decoded_by(&holder, &transport, &export);
     assert!(picked(&again, &export, &[1; 32]).is_empty());
 }
 
@@ -228,11 +229,7 @@ fn the_records_checked_are_keyed_by_the_import() {
 fn a_cancelled_check_stops() {
     let transport = cornell(32);
     let export = genuine_export(&transport, 1.0);
-    let store = TileStore::new(1 << 24, 4096);
-    let digest = *transport.scene().digest.as_bytes();
-    let decoded = store
-        .decode_import(&digest, transport.scene().bounds(), &export)
-        .unwrap();
+    let decoded = decoded(&transport, &export);
     let cancel = Cancel::new();
     cancel.cancel();
     assert!(check(&transport, &picked(&decoded, &export, &[1; 32]), &cancel).is_err());

@@ -199,17 +199,15 @@ pub fn assert_same_answer_without_the_kept_work(
     );
 }
 
+/// `GET url` as JSON.
+pub async fn get_json_at(client: &reqwest::Client, url: &str) -> serde_json::Value {
+    client.get(url).send().await.unwrap().json().await.unwrap()
+}
+
 /// The ids of the scenes the service at `base` (`http://…`) holds, sorted.
 pub async fn scene_ids_at(client: &reqwest::Client, base: &str) -> Vec<String> {
-    let scenes: serde_json::Value = client
-        .get(format!("{base}/v1/scenes"))
-        .send()
+    get_json_at(client, &format!("{base}/v1/scenes"))
         .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    scenes
         .as_array()
         .unwrap()
         .iter()
