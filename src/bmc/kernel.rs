@@ -23,11 +23,16 @@ pub const MAX_LENGTHSCALE: f64 = 1e3;
 pub const MAX_VARIANCE: f64 = 1e100;
 
 /// Shape of the covariance as a function of `d/ℓ`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum KernelKind {
     /// `σ² exp(−d²/(2ℓ²)) = σ² exp((ω·ω' − 1)/ℓ²)`: a spherical Gaussian
     /// with sharpness `λ = 1/ℓ²` (infinitely smooth radiance).
+    #[value(
+        name = "se",
+        alias = "squared_exponential",
+        alias = "squared-exponential"
+    )]
     SquaredExponential,
     /// Matérn ν = 3/2: `σ² (1 + √3 r) e^{−√3 r}`, `r = d/ℓ` (once differentiable).
     Matern32,

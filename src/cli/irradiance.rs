@@ -1,7 +1,10 @@
 //! The `irradiance` subcommand: irradiance at the points of a CSV file,
-//! written as CSV to the given writer (stdout in the binary). The estimator
-//! is the library's [`EstimatorSpec`], as for `POST /v1/scenes/{id}/irradiance`:
-//! the same options and seed give the same numbers through either.
+//! written as CSV to the given writer (stdout in the binary). Its options
+//! are the library's [`PointQuerySpec`], the body of `POST
+//! /v1/scenes/{id}/irradiance`, and it runs the same [`PointQuery`] with
+//! the service's default configuration and records held for the run: the
+//! same query and seed give the same numbers through either, on a service
+//! that has rendered nothing of the scene yet.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -11,18 +14,16 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::in_thread_pool;
-use super::quadrature::{KernelArg, SetArg};
 use crate::bmc::cache::QuadratureCache;
 use crate::estimators::calibration::Calibrations;
 use crate::estimators::lengthscale::FittedKernels;
 use crate::estimators::points_csv::{parse_points, write_irradiance};
-use crate::estimators::{
-    AmortisedRays, DEFAULT_METHOD, DEFAULT_SAMPLES, EstimatorCaches, EstimatorMethod,
-    EstimatorSpec, KernelSpec, Lengthscale, RecordsPriorMode,
+use crate::integrator::point_query::{
+    HeldRecords, PointQuery, PointQuerySpec, PointRecords, QueryState,
 };
-use crate::render::environment_prior::PriorChoice;
-use crate::render::{Cancel, IrradianceMethod, IrradianceOptions, PathDepth, Transport};
+use crate::render::{Cancel, IrradianceOptions, PathDepth, Transport};
 use crate::service::Config;
+use crate::service::irradiance_caches::per_cache_bytes;
 
 /// Command-line arguments of `bmc-irradiance irradiance`.
 #[derive(Clone, Debug, clap::Args)]
@@ -32,175 +33,98 @@ pub struct IrradianceArgs {
     /// CSV of query points, rows `x,y,z,nx,ny,nz` (header optional).
     #[arg(long)]
     pub points: PathBuf,
-    /// Hemisphere directions per point (the service's default too).
-    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
-    pub samples: u32,
-    /// Light samples per point for the split direct part (default:
-    /// `--samples`); each is one shadow ray.
-    #[arg(long, conflicts_with = "reference")]
-    pub light_samples: Option<u32>,
-    /// Longest light path in segments from the point (1 = direct light
-    /// only); default: the scene's depth less the camera's segment (Mitsuba's
-    /// integrator `max_depth` − 1), else the service's (16).
-    #[arg(long, value_parser = super::max_depth_parser())]
-    pub max_depth: Option<PathDepth>,
+    #[command(flatten)]
+    pub query: PointQuerySpec,
     /// Direct light only (same as --max-depth 1).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "max_depth")]
     pub direct_only: bool,
-    /// `split`: direct light by light sampling + the rest through the
-    /// hemisphere; `hemisphere`: everything through the hemisphere.
-    /// `auto` picks `hemisphere` for a scene lit only by a smooth environment.
-    #[arg(long, alias = "method", value_enum, default_value_t = IrradianceMethod::Auto)]
-    pub decomposition: IrradianceMethod,
-    /// Prior mean of the hemisphere values (default: `environment` for
-    /// `bmc`, `none` for `mc` and `qmc`).
-    #[arg(long, value_enum)]
-    pub prior: Option<PriorChoice>,
-    /// Hemisphere estimator: `mc` (cosine-weighted random directions), `qmc`
-    /// (spherical Fibonacci, equal weights) or `bmc` (Bayesian quadrature;
-    /// the service's default too).
-    #[arg(long, value_enum, default_value_t = DEFAULT_METHOD)]
-    pub estimator: EstimatorMethod,
-    /// `qmc` and `bmc`: the sample set (default fibonacci-cosine).
-    #[arg(long, value_enum)]
-    pub sample_set: Option<SetArg>,
-    /// Seed of a random sample set (uniform, cosine, stratified).
-    #[arg(long, default_value_t = 0)]
-    pub set_seed: u64,
-    /// `bmc`: the kernel family (default: selected by marginal likelihood
-    /// with an `auto` lengthscale, else se).
-    #[arg(long, value_enum)]
-    pub kernel: Option<KernelArg>,
-    /// `bmc`: the kernel lengthscale, a number (chordal units) or `auto`
-    /// (default: fitted by marginal likelihood).
-    #[arg(long)]
-    pub lengthscale: Option<Lengthscale>,
-    /// `bmc`: the kernel noise σ_n² (default: fitted with `auto`, else 1e-3).
-    #[arg(long)]
-    pub noise: Option<f64>,
-    /// Reference mode: 65536 samples and depth 64 (overrides both).
-    #[arg(long, conflicts_with_all = ["samples", "max_depth"])]
+    /// Reference mode: 65536 samples, depth 64 (or 1 with --direct-only)
+    /// and the estimator's own error model (`--calibrate false`).
+    #[arg(long, conflicts_with_all = ["samples", "max_depth", "light_samples", "calibrate"])]
     pub reference: bool,
-    /// Seed of all random streams; same seed, same numbers (the service's
-    /// default too).
-    #[arg(long, default_value_t = IrradianceOptions::default().seed)]
-    pub seed: u64,
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Report the estimator's own error model instead of error bars
-    /// calibrated on the scene (docs/math.md §10.5); implied by
-    /// `--reference`.
-    #[arg(long)]
-    pub model_errors: bool,
     /// Append standard-error columns `se_r,se_g,se_b`.
     #[arg(long)]
     pub std_error: bool,
 }
 
 impl IrradianceArgs {
-    /// The library options these arguments ask for, on a scene whose
-    /// default depth from points is `scene_depth` ([`PathDepth::for_points`]).
-    pub fn options(&self, scene_depth: PathDepth) -> IrradianceOptions {
-        let method = self.decomposition;
-        let base = if self.reference {
-            IrradianceOptions::reference(self.seed)
-        } else {
-            IrradianceOptions {
-                samples: self.samples,
-                light_samples: self.light_samples,
-                max_depth: self.max_depth.unwrap_or(scene_depth),
-                seed: self.seed,
-                ..IrradianceOptions::default()
-            }
-        };
-        IrradianceOptions {
-            method,
-            direct_only: self.direct_only,
-            ..base
-        }
-    }
-}
-
-impl IrradianceArgs {
-    /// The estimator these arguments name.
-    pub fn estimator(&self) -> EstimatorSpec {
-        let bmc_options =
-            self.kernel.is_some() || self.lengthscale.is_some() || self.noise.is_some();
-        EstimatorSpec {
-            method: self.estimator,
-            samples: if self.reference {
-                IrradianceOptions::reference(self.seed).samples
-            } else {
-                self.samples
-            },
-            sample_set: self.sample_set.map(|kind| (kind.into(), self.set_seed)),
-            kernel: bmc_options.then(|| KernelSpec {
-                kind: self.kernel.map(Into::into),
-                lengthscale: self.lengthscale.unwrap_or_default(),
-                variance: None,
-                noise: self.noise,
-            }),
-            prior: self.prior,
+    /// The query these arguments name, its points still to be read.
+    pub fn spec(&self) -> PointQuerySpec {
+        let mut spec = self.query.clone();
+        if self.reference {
+            let reference = IrradianceOptions::reference(spec.seed);
+            spec.estimator.samples = Some(reference.samples);
+            spec.max_depth = Some(reference.max_depth);
             // A reference reports its own sample variance: at its sample
             // count nothing is left for a calibration to add (§10.5).
-            calibrate: (self.model_errors || self.reference).then_some(false),
-            // A run of this command has no irradiance cache to draw on.
-            records_prior: RecordsPriorMode::default(),
+            spec.estimator.calibrate = Some(false);
         }
+        if self.direct_only {
+            spec.max_depth = Some(PathDepth::DIRECT);
+        }
+        spec
     }
 }
 
 /// Runs the subcommand; progress goes to stderr (hidden when it is not a
 /// terminal), results to `out`.
 pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Result<()> {
-    // Everything but the scene's default depth is checked before it loads.
-    args.options(PathDepth::DIRECT).validate()?;
-    let estimator = args.estimator().resolve()?;
+    let config = Config::default_config();
+    let mut spec = args.spec();
+    // Everything but the points and the scene's depth is checked before the scene loads.
+    spec.estimator.resolve()?;
     let text = std::fs::read_to_string(&args.points)
         .with_context(|| format!("reading points file {}", args.points.display()))?;
-    let points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
+    spec.points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
     let scene = args.scene.load(&mut std::io::stderr())?;
-    let options = args.options(PathDepth::for_points(&scene));
+    let max_samples = u32::try_from(config.limits.max_samples).unwrap_or(u32::MAX);
+    let query: PointQuery = spec.resolve(&scene, max_samples)?;
     let transport = Transport::new(Arc::new(scene));
 
-    let progress = ProgressBar::new(points.len() as u64);
+    let progress = ProgressBar::new(spec.points.len() as u64);
     progress.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} points, {elapsed} elapsed, ETA {eta}")
             .context("progress bar template")?,
     );
-    // Only this run uses the fitted kernel and the weights, so their caches live as long.
+    // What a service keeps between queries lives as long as this run.
     let kernels = FittedKernels::default();
     let calibrations = Calibrations::default();
-    let quadratures = QuadratureCache::new(Config::default_config().cache.factorisation_bytes);
-    let amortised = AmortisedRays::default();
+    let quadratures = Arc::new(QuadratureCache::new(config.cache.factorisation_bytes));
+    let irradiance_bytes = usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX);
+    let gatherings = PointRecords::new(
+        per_cache_bytes(irradiance_bytes),
+        config.cache.irradiance_bytes,
+    );
+    let store = HeldRecords::default();
     let estimate = || {
-        let caches = EstimatorCaches {
+        let state = QueryState {
             kernels: &kernels,
-            quadratures: &quadratures,
             calibrations: &calibrations,
-            records: None,
-            direct: None,
-            amortised: &amortised,
+            quadratures: &quadratures,
+            store: &store,
+            gatherings: &gatherings,
+            shared: Vec::new(),
+            max_records: config.limits.max_tile_area,
         };
-        estimator.estimate(
-            &transport,
-            caches,
-            &points,
-            &options,
-            &|| progress.inc(1),
-            &Cancel::never(),
-        )
+        query.estimate(&transport, state, &|| progress.inc(1), &Cancel::never())
     };
-    let estimates = in_thread_pool(args.threads, estimate)??.estimates;
+    let answer = in_thread_pool(args.threads, estimate)??;
     progress.finish_and_clear();
-    write_irradiance(out, &points, &estimates, args.std_error).context("writing results")?;
+    let std_dev = args.std_error.then_some(answer.std_dev.as_slice());
+    write_irradiance(out, &spec.points, &answer.irradiance, std_dev).context("writing results")?;
     Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimators::{
+        DEFAULT_METHOD, DEFAULT_SAMPLES, EstimatorMethod, EstimatorSpec, Lengthscale,
+    };
+    use crate::render::IrradianceMethod;
     use clap::Parser;
 
     #[derive(Parser)]
@@ -214,43 +138,79 @@ mod tests {
         Cli::try_parse_from(words).map(|cli| cli.args)
     }
 
-    #[test]
-    fn arguments_map_to_options() {
-        let args = parse("--scene s.json --points p.csv --samples 64 --max-depth 3 --seed 9")
-            .expect("valid");
-        let o = args.options(PathDepth::default());
-        assert_eq!((o.samples, o.max_depth.get(), o.seed), (64, 3, 9));
-        assert_eq!(o.method, IrradianceMethod::Auto);
-        assert!(!o.direct_only);
-
-        let args =
-            parse("--scene s.json --points p.csv --reference --direct-only --method hemisphere")
-                .expect("valid");
-        let expected = IrradianceOptions {
-            method: IrradianceMethod::Hemisphere,
-            direct_only: true,
-            ..IrradianceOptions::reference(1)
-        };
-        assert_eq!(args.options(PathDepth::default()), expected);
-        // Without --max-depth, the scene's depth.
-        let args = parse("--scene s.json --points p.csv").expect("valid");
-        assert_eq!(args.options(PathDepth::constant(5)).max_depth.get(), 5);
+    fn spec(line: &str) -> PointQuerySpec {
+        parse(&format!("--scene s.json --points p.csv {line}"))
+            .expect("valid")
+            .spec()
     }
 
-    /// The rule the service's route applies, from the library: the
-    /// hemisphere decomposition takes no light samples, `auto` ignores them.
+    /// The command line and a request are one document: the same options
+    /// parse to the same spec, and none to the request's `{}`.
+    #[test]
+    fn arguments_are_the_request_document() {
+        let none: PointQuerySpec = serde_json::from_str(r#"{"points": []}"#).unwrap();
+        assert_eq!(spec(""), none);
+        assert_eq!(
+            (none.estimator.method(), none.estimator.samples()),
+            (DEFAULT_METHOD, DEFAULT_SAMPLES)
+        );
+        let cases = [
+            (
+                "--estimator bmc --samples 32 --kernel matern52 --lengthscale 0.5 \
+                 --sample-set fibonacci --decomposition hemisphere --max-depth 3 --seed 9",
+                r#"{"points": [], "seed": 9, "max_depth": 3, "estimator": {"method": "bmc",
+                   "samples": 32, "decomposition": "hemisphere", "sample_set": {"kind": "fibonacci"},
+                   "kernel": {"kind": "matern52", "lengthscale": 0.5}}}"#,
+            ),
+            (
+                "--estimator qmc --light-samples 8 --prior environment --calibrate false \
+                 --records-prior false --target 0.02 --max-samples 512",
+                r#"{"points": [], "estimator": {"method": "qmc", "light_samples": 8,
+                   "prior": "environment", "calibrate": false, "records_prior": false},
+                   "target": {"relative_error": 0.02, "max_samples": 512}}"#,
+            ),
+            (
+                "--sample-set uniform --set-seed 4 --lengthscale auto --noise 0.01",
+                r#"{"points": [], "estimator": {"sample_set": {"kind": "uniform", "seed": 4},
+                   "kernel": {"lengthscale": "auto", "noise": 0.01}}}"#,
+            ),
+        ];
+        for (line, json) in cases {
+            let wire: PointQuerySpec = serde_json::from_str(json).expect(json);
+            assert_eq!(spec(line), wire, "{line}");
+        }
+    }
+
+    #[test]
+    fn reference_and_direct_only_set_the_budget() {
+        let reference = spec("--reference --direct-only --method hemisphere --estimator mc");
+        let estimator = reference.estimator;
+        assert_eq!(
+            estimator.samples,
+            Some(IrradianceOptions::reference(1).samples)
+        );
+        assert_eq!(estimator.calibrate, Some(false));
+        assert_eq!(estimator.decomposition, IrradianceMethod::Hemisphere);
+        assert_eq!(reference.max_depth, Some(PathDepth::DIRECT));
+        assert_eq!(spec("--reference").max_depth, Some(PathDepth::constant(64)));
+    }
+
+    /// The rule the service applies, from the library: the hemisphere
+    /// decomposition takes no light samples, `auto` ignores them.
     #[test]
     fn light_samples_need_a_decomposition_that_takes_them() {
-        let options = |line: &str| parse(line).expect("valid").options(PathDepth::default());
-        let base = "--scene s.json --points p.csv --light-samples 8";
-        let refused = options(&format!("{base} --decomposition hemisphere")).validate();
-        assert_eq!(refused.unwrap_err().field(), Some("light_samples"));
-        assert!(options(base).validate().is_ok());
-        assert!(
-            options(&format!("{base} --decomposition split"))
-                .validate()
-                .is_ok()
-        );
+        let transport = crate::testing::cornell(8);
+        let resolve = |line: &str| {
+            spec(&format!("--light-samples 8 {line}")).resolve(transport.scene(), 4096)
+        };
+        match resolve("--decomposition hemisphere") {
+            Err(crate::estimators::EstimatorError::Invalid { field, .. }) => {
+                assert_eq!(field, "light_samples")
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(resolve("").is_ok());
+        assert!(resolve("--decomposition split").is_ok());
     }
 
     #[test]
@@ -258,6 +218,9 @@ mod tests {
         assert!(parse("--scene s.json --points p.csv --reference --samples 5").is_err());
         assert!(parse("--scene s.json --points p.csv --method sideways").is_err());
         assert!(parse("--scene s.json --points p.csv --lengthscale short").is_err());
+        assert!(parse("--scene s.json --points p.csv --direct-only --max-depth 3").is_err());
+        // A target's options without the target itself.
+        assert!(parse("--scene s.json --points p.csv --confidence 0.9").is_err());
     }
 
     #[test]
@@ -269,34 +232,33 @@ mod tests {
 
     #[test]
     fn estimator_arguments_map_to_the_library_spec() {
-        // Without options, the service's defaults.
-        let args = parse("--scene s.json --points p.csv").expect("valid");
-        let spec = args.estimator();
-        assert_eq!(
-            (spec.method, spec.samples),
-            (DEFAULT_METHOD, DEFAULT_SAMPLES)
+        let args = spec(
+            "--samples 64 --estimator bmc --sample-set fibonacci --kernel matern52 --lengthscale 0.5",
         );
-        assert_eq!(args.seed, IrradianceOptions::default().seed);
-        let args = parse(
-            "--scene s.json --points p.csv --samples 64 --estimator bmc --sample-set fibonacci \
-             --kernel matern52 --lengthscale 0.5",
-        )
-        .expect("valid");
-        let spec = args.estimator();
-        assert_eq!(spec.method, EstimatorMethod::Bmc);
-        assert_eq!(spec.samples, 64);
+        let EstimatorSpec {
+            method,
+            samples,
+            sample_set,
+            kernel,
+            ..
+        } = args.estimator;
+        assert_eq!((method, samples), (Some(EstimatorMethod::Bmc), Some(64)));
         assert_eq!(
-            spec.sample_set,
+            sample_set.map(|s| (s.kind(), s.seed())),
             Some((crate::sphere::SampleSetKind::Fibonacci, 0))
         );
-        let kernel = spec.kernel.expect("kernel options given");
+        let kernel = kernel.expect("kernel options given");
         assert_eq!(kernel.kind, Some(crate::bmc::KernelKind::Matern52));
-        assert_eq!(kernel.lengthscale, Lengthscale::Value(0.5));
-        let args = parse("--scene s.json --points p.csv --estimator bmc --lengthscale auto")
-            .expect("valid");
+        assert_eq!(kernel.lengthscale(), Lengthscale::Value(0.5));
         assert_eq!(
-            args.estimator().kernel.unwrap().lengthscale,
+            spec("--lengthscale auto")
+                .estimator
+                .kernel
+                .unwrap()
+                .lengthscale(),
             Lengthscale::Auto
         );
+        // No kernel option, no kernel: a `qmc` spec stays valid.
+        assert_eq!(spec("--estimator qmc").estimator.kernel, None);
     }
 }

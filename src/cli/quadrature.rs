@@ -8,60 +8,6 @@ use crate::bmc::{BmcError, Density, Kernel, KernelKind, KernelMeanMethod, PriorM
 use crate::sphere::{SampleSetKind, SampleSetSpec};
 use clap::{Args, ValueEnum};
 
-/// Sample set names accepted on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SetArg {
-    /// Spherical Fibonacci, uniform area.
-    Fibonacci,
-    /// Spherical Fibonacci, cosine-distributed.
-    #[value(alias = "fibonacci_cosine")]
-    FibonacciCosine,
-    /// Uniform random.
-    Uniform,
-    /// Cosine-weighted random.
-    Cosine,
-    /// Jittered equal-area strata.
-    Stratified,
-    /// Jittered strata of equal cosine-weighted measure.
-    #[value(alias = "stratified_cosine")]
-    StratifiedCosine,
-}
-
-impl From<SetArg> for SampleSetKind {
-    fn from(arg: SetArg) -> Self {
-        match arg {
-            SetArg::Fibonacci => Self::Fibonacci,
-            SetArg::FibonacciCosine => Self::FibonacciCosine,
-            SetArg::Uniform => Self::Uniform,
-            SetArg::Cosine => Self::Cosine,
-            SetArg::Stratified => Self::Stratified,
-            SetArg::StratifiedCosine => Self::StratifiedCosine,
-        }
-    }
-}
-
-/// Kernel names accepted on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum KernelArg {
-    /// Squared exponential (spherical Gaussian).
-    #[value(alias = "squared_exponential", alias = "squared-exponential")]
-    Se,
-    /// Matérn ν = 3/2.
-    Matern32,
-    /// Matérn ν = 5/2.
-    Matern52,
-}
-
-impl From<KernelArg> for KernelKind {
-    fn from(arg: KernelArg) -> Self {
-        match arg {
-            KernelArg::Se => Self::SquaredExponential,
-            KernelArg::Matern32 => Self::Matern32,
-            KernelArg::Matern52 => Self::Matern52,
-        }
-    }
-}
-
 /// Density names accepted on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum DensityArg {
@@ -97,7 +43,7 @@ pub enum KernelMeanArg {
 pub struct QuadratureArgs {
     /// Sample set.
     #[arg(long, value_enum, default_value = "fibonacci")]
-    pub set: SetArg,
+    pub set: SampleSetKind,
     /// Number of sample directions N.
     #[arg(long, default_value_t = 64)]
     pub samples: usize,
@@ -106,7 +52,7 @@ pub struct QuadratureArgs {
     pub seed: u64,
     /// Kernel.
     #[arg(long, value_enum, default_value = "se")]
-    pub kernel: KernelArg,
+    pub kernel: KernelKind,
     /// Kernel lengthscale ℓ (chordal distance).
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub lengthscale: f64,
@@ -158,16 +104,11 @@ impl QuadratureArgs {
     pub fn spec(&self) -> Result<QuadratureSpec, BmcError> {
         Ok(QuadratureSpec {
             sample_set: SampleSetSpec {
-                kind: self.set.into(),
+                kind: self.set,
                 count: self.samples,
                 seed: self.seed,
             },
-            kernel: Kernel::new(
-                self.kernel.into(),
-                self.lengthscale,
-                self.variance,
-                self.noise,
-            )?,
+            kernel: Kernel::new(self.kernel, self.lengthscale, self.variance, self.noise)?,
             density: self.density()?,
             prior_mean: match self.prior_mean {
                 PriorMeanArg::Zero => PriorMean::Zero,

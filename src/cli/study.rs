@@ -65,16 +65,10 @@ pub struct SceneStudyArgs {
     /// Seed of the points, their reference and the request seeds.
     #[arg(long, default_value_t = 2026)]
     pub seed: u64,
-    /// `bmc` rows: the kernel family (default: selected by marginal
-    /// likelihood with an `auto` lengthscale, else se).
-    #[arg(long, value_enum)]
-    pub kernel: Option<super::quadrature::KernelArg>,
-    /// `bmc` rows: the lengthscale, a number or `auto` (default).
-    #[arg(long)]
-    pub lengthscale: Option<crate::estimators::Lengthscale>,
-    /// `bmc` rows: the kernel noise σ_n² (default: fitted with `auto`).
-    #[arg(long)]
-    pub noise: Option<f64>,
+    /// `bmc` rows: the kernel (`--kernel`, `--lengthscale`, `--variance`,
+    /// `--noise`, as the `irradiance` command takes them).
+    #[command(flatten)]
+    pub kernel: Option<crate::estimators::KernelSpec>,
     /// Also run `qmc` and `bmc` with the records prior (docs/math.md §10.7),
     /// on records placed by rendering the camera image once with this
     /// preset's cache settings (`draft`, `preview`, `standard`, `final`).
@@ -122,13 +116,7 @@ pub fn run_scene(args: &SceneStudyArgs) -> anyhow::Result<String> {
         max_depth: args.max_depth,
         reference_samples: args.reference_samples,
         seed: args.seed,
-        bmc_kernel: (args.kernel.is_some() || args.lengthscale.is_some() || args.noise.is_some())
-            .then(|| crate::estimators::KernelSpec {
-                kind: args.kernel.map(Into::into),
-                lengthscale: args.lengthscale.unwrap_or_default(),
-                variance: None,
-                noise: args.noise,
-            }),
+        bmc_kernel: args.kernel,
         records_from: args.records_from,
         direct_records: args.direct_records,
     };

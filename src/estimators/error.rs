@@ -9,11 +9,15 @@ use crate::render::RenderError;
 pub enum EstimatorError {
     /// An option of the `EstimatorSpec` outside its domain; `field` is
     /// below the spec (`samples`, `kernel.variance`).
-    #[error("{message}")]
+    #[error("estimator `{field}`: {message}")]
     Invalid { field: String, message: String },
+    /// A field of a point query beside its estimator and target
+    /// (`points[3].normal`, `max_depth`); `field` is below the query.
+    #[error("`{field}`: {message}")]
+    InvalidQuery { field: String, message: String },
     /// An error target (`estimators::error_target`) outside its
     /// domain; `field` is below the target (empty: the target as a whole).
-    #[error("{message}")]
+    #[error("target `{field}`: {message}")]
     InvalidTarget { field: String, message: String },
     /// The marginal-likelihood fit of an `"auto"` lengthscale failed.
     #[error("lengthscale fit failed: {0}")]

@@ -19,6 +19,9 @@
 //! their mean (with its indirect part) is combined with the priors at the
 //! point once, the stopping rule then reading the posterior (§10.6).
 
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
 use super::error::EstimatorError;
 use super::integral_prior::{PriorScales, share};
 use super::point_estimator::{
@@ -30,6 +33,50 @@ use crate::render::Rgb;
 use crate::render::Transport;
 use crate::render::{IndirectPart, IrradianceEstimate, IrradianceOptions};
 use crate::stats::two_sided_normal_quantile;
+
+/// Confidence of a target that names none.
+pub const DEFAULT_CONFIDENCE: f64 = 0.95;
+
+/// An error target as a request (`"target": {…}`) and the command line
+/// (`--target 0.02 --confidence 0.95 --max-samples 4096`) name it;
+/// [`TargetSpec::resolve`] fills the cap and checks every number.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema, clap::Args)]
+#[serde(deny_unknown_fields)]
+pub struct TargetSpec {
+    /// Largest relative error of each point's luminance, in (0, 1].
+    // Not `required` on the command line, where it would be even with no
+    // target (clap-rs/clap#5092); a target without it is still refused.
+    #[arg(long = "target", value_name = "RELATIVE_ERROR", required = false)]
+    pub relative_error: f64,
+    /// Probability that the error is within it, in [0.5, 0.9999]; default 0.95.
+    // No clap default: the target is `None` unless an argument of it is named.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[arg(long)]
+    pub confidence: Option<f64>,
+    /// Most hemisphere samples per point, from one batch's samples up to
+    /// `limits.max_samples`; default `limits.max_samples`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[arg(long)]
+    pub max_samples: Option<u32>,
+}
+
+impl TargetSpec {
+    /// The target for `estimator`'s batches, capped at `max_samples` per
+    /// point unless the spec names a cap (module docs).
+    pub fn resolve(
+        &self,
+        estimator: &PointEstimator,
+        max_samples: u32,
+    ) -> Result<ErrorTarget, EstimatorError> {
+        let target = ErrorTarget {
+            relative_error: self.relative_error,
+            confidence: self.confidence.unwrap_or(DEFAULT_CONFIDENCE),
+            max_samples: self.max_samples.unwrap_or(max_samples),
+        };
+        target.validate(estimator)?;
+        Ok(target)
+    }
+}
 
 /// What a caller asks of every point's estimate.
 #[derive(Clone, Copy, Debug, PartialEq)]

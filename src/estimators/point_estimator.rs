@@ -190,7 +190,7 @@ impl PointEstimator {
             Some(caches.calibrations.get_or_calibrate(key, || {
                 // Light that every equally weighted direction missed (§10.5).
                 let unseen = match self.rule {
-                    PointRule::Mc { .. } | PointRule::Qmc(_) => unseen_light(self.spec.samples),
+                    PointRule::Mc { .. } | PointRule::Qmc(_) => unseen_light(self.spec.samples()),
                     // The corrected rule's bar is a sample variance too
                     // (§10.6), blind to light all its directions missed.
                     PointRule::Bmc(_) if self.corrected => unseen_light(self.samples()),
@@ -374,9 +374,9 @@ impl PointEstimator {
     /// the corrected `bmc` of error targets.
     pub fn samples(&self) -> u32 {
         if self.corrected {
-            2 * self.spec.samples
+            2 * self.spec.samples()
         } else {
-            self.spec.samples
+            self.spec.samples()
         }
     }
 
@@ -396,7 +396,7 @@ impl PointEstimator {
     /// Whether the estimator leans on the records prior (§10.7): the spec
     /// asked, or left it to the method (`RecordsPriorMode::Auto`).
     pub fn records_prior(&self) -> bool {
-        self.spec.records_prior.applies_to(self.spec.method)
+        self.spec.uses_records()
     }
 
     /// The records prior this estimator uses: the caches', if it uses one.

@@ -8,14 +8,12 @@
 
 use std::io::{self, Write};
 
-use glam::DVec3;
+use crate::render::{PointDoc, QueryPoint, RenderError};
 
-use crate::render::IrradianceEstimate;
-use crate::render::QueryPoint;
-use crate::render::RenderError;
-
-/// Parses a points file; see the module docs for the accepted format.
-pub fn parse_points(text: &str) -> Result<Vec<QueryPoint>, RenderError> {
+/// Parses a points file; see the module docs for the accepted format. The
+/// points are returned as written (each checked), so they reach an
+/// estimator exactly as the same numbers in a request would.
+pub fn parse_points(text: &str) -> Result<Vec<PointDoc>, RenderError> {
     let mut points = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
@@ -40,9 +38,11 @@ pub fn parse_points(text: &str) -> Result<Vec<QueryPoint>, RenderError> {
                 .parse::<f64>()
                 .map_err(|_| row_error(format!("field {} ({field:?}) is not a number", k + 1)))?;
         }
-        let position = DVec3::new(values[0], values[1], values[2]);
-        let normal = DVec3::new(values[3], values[4], values[5]);
-        let point = QueryPoint::new(position, normal).map_err(|e| row_error(e.to_string()))?;
+        let point = PointDoc {
+            position: [values[0], values[1], values[2]],
+            normal: [values[3], values[4], values[5]],
+        };
+        point.point().map_err(|e| row_error(e.to_string()))?;
         points.push(point);
     }
     Ok(points)
@@ -60,27 +60,25 @@ pub fn write_points(out: &mut dyn Write, points: &[QueryPoint]) -> io::Result<()
     Ok(())
 }
 
-/// Writes one `x,y,z,r,g,b` row per point, with a header; with
-/// `with_std_error`, three more columns `se_r,se_g,se_b` hold the standard
-/// errors. Numbers use Rust's shortest round-trip formatting.
+/// Writes one `x,y,z,r,g,b` row per point, with a header; with `std_dev`,
+/// three more columns `se_r,se_g,se_b` hold the standard errors. Numbers
+/// use Rust's shortest round-trip formatting.
 pub fn write_irradiance(
     out: &mut dyn Write,
-    points: &[QueryPoint],
-    estimates: &[IrradianceEstimate],
-    with_std_error: bool,
+    points: &[PointDoc],
+    irradiance: &[[f64; 3]],
+    std_dev: Option<&[[f64; 3]]>,
 ) -> io::Result<()> {
     write!(out, "x,y,z,r,g,b")?;
-    if with_std_error {
+    if std_dev.is_some() {
         write!(out, ",se_r,se_g,se_b")?;
     }
     writeln!(out)?;
-    for (point, estimate) in points.iter().zip(estimates) {
-        let p = point.position();
-        let e = estimate.irradiance;
-        write!(out, "{},{},{},{},{},{}", p.x, p.y, p.z, e.r, e.g, e.b)?;
-        if with_std_error {
-            let s = estimate.std_error;
-            write!(out, ",{},{},{}", s.r, s.g, s.b)?;
+    for (i, (point, e)) in points.iter().zip(irradiance).enumerate() {
+        let p = point.position;
+        write!(out, "{},{},{},{},{},{}", p[0], p[1], p[2], e[0], e[1], e[2])?;
+        if let Some(s) = std_dev.and_then(|s| s.get(i)) {
+            write!(out, ",{},{},{}", s[0], s[1], s[2])?;
         }
         writeln!(out)?;
     }
@@ -90,7 +88,7 @@ pub fn write_irradiance(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::Rgb;
+    use glam::DVec3;
 
     #[test]
     fn written_points_read_back_exactly() {
@@ -102,7 +100,7 @@ mod tests {
         write_points(&mut text, &points).unwrap();
         let read = parse_points(std::str::from_utf8(&text).unwrap()).unwrap();
         assert_eq!(read.len(), points.len());
-        for (a, b) in read.iter().zip(&points) {
+        for (a, b) in read.iter().map(|p| p.point().unwrap()).zip(&points) {
             assert_eq!(a.position(), b.position());
             // Normals are normalised again when read: equal to the last ulp.
             assert!((a.normal() - b.normal()).length() < 1e-15);
@@ -114,8 +112,9 @@ mod tests {
         let text = "x,y,z,nx,ny,nz\n0,0,0,0,0,2\n\n# a comment\n 1.5, -1 ,2e-1,1,0,0\n";
         let points = parse_points(text).unwrap();
         assert_eq!(points.len(), 2);
-        assert_eq!(points[0].normal(), DVec3::Z);
-        assert_eq!(points[1].position(), DVec3::new(1.5, -1.0, 0.2));
+        assert_eq!(points[0].normal, [0.0, 0.0, 2.0]);
+        assert_eq!(points[0].point().unwrap().normal(), DVec3::Z);
+        assert_eq!(points[1].position, [1.5, -1.0, 0.2]);
     }
 
     #[test]
@@ -140,16 +139,8 @@ mod tests {
     #[test]
     fn output_has_one_row_per_point() {
         let points = parse_points("1,2,3,0,0,1\n").unwrap();
-        let estimates = [IrradianceEstimate {
-            irradiance: Rgb::new(0.5, 1.0, 2.0),
-            std_error: Rgb::splat(0.25),
-            rays: 10,
-            indirect: None,
-            unseen_light: [0.0; 3],
-            direct_strata: None,
-        }];
         let mut out = Vec::new();
-        write_irradiance(&mut out, &points, &estimates, true).unwrap();
+        write_irradiance(&mut out, &points, &[[0.5, 1.0, 2.0]], Some(&[[0.25; 3]])).unwrap();
         assert_eq!(
             String::from_utf8(out).unwrap(),
             "x,y,z,r,g,b,se_r,se_g,se_b\n1,2,3,0.5,1,2,0.25,0.25,0.25\n"

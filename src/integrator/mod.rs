@@ -18,6 +18,7 @@
 pub mod cached;
 mod method;
 pub mod path;
+pub mod point_query;
 mod preset;
 pub mod progressive;
 mod radiance;

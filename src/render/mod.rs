@@ -59,7 +59,7 @@ pub use path::{
     AveragedPaths, FirstSegment, PathDepth, PathLengths, PathLimits, RadianceSample,
     SharedFirstVertex, TraceStats, power_heuristic,
 };
-pub use query::QueryPoint;
+pub use query::{PointDoc, QueryPoint};
 pub use sample_plan::SamplePlan;
 pub use shadow_probe::SHADOW_PROBES;
 pub use tile::{

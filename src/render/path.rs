@@ -158,6 +158,18 @@ impl Default for PathDepth {
     }
 }
 
+/// `--max-depth N` on the command line, with [`PathDepth::new`]'s message.
+impl std::str::FromStr for PathDepth {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        let segments: u32 = text
+            .parse()
+            .map_err(|_| format!("expected a whole number of segments, got {text:?}"))?;
+        Self::new(segments).map_err(|e| e.to_string())
+    }
+}
+
 impl TryFrom<u32> for PathDepth {
     type Error = RenderError;
 

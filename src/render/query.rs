@@ -8,6 +8,23 @@ use rand::{Rng, RngExt};
 use super::error::RenderError;
 use crate::sphere::Frame;
 
+/// A query point as a request or a points file writes it: world position
+/// and the normal of the hemisphere of interest.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PointDoc {
+    pub position: [f64; 3],
+    /// Need not be unit length; must be finite and non-zero.
+    pub normal: [f64; 3],
+}
+
+impl PointDoc {
+    /// The checked point (normal normalised); errors name the bad field.
+    pub fn point(&self) -> Result<QueryPoint, RenderError> {
+        QueryPoint::new(DVec3::from(self.position), DVec3::from(self.normal))
+    }
+}
+
 /// A position with a unit normal; the hemisphere of interest is the side the
 /// normal points to.
 ///

@@ -61,9 +61,9 @@ use super::scenes::{self, NotInserted, SceneRegistry};
 use super::server;
 use super::shared_store::SharedStore;
 use super::state::AppState;
-use super::tile_priors::TilePriors;
 use super::tile_store::TileStore;
 use crate::bmc::cache::QuadratureCache;
+use crate::integrator::point_query::PointRecords;
 
 /// How often histogram samples are folded into buckets when nobody scrapes.
 const METRICS_UPKEEP_PERIOD: Duration = Duration::from_secs(5);
@@ -131,7 +131,7 @@ impl Application {
         let irradiance_caches = IrradianceCaches::new(
             usize::try_from(config.cache.irradiance_bytes).unwrap_or(usize::MAX),
         );
-        let tile_priors = TilePriors::new(
+        let point_records = PointRecords::new(
             irradiance_caches.per_cache_bytes(),
             config.cache.irradiance_bytes,
         );
@@ -160,7 +160,7 @@ impl Application {
             pool,
             metrics,
             scenes: registry,
-            tile_priors,
+            point_records,
             irradiance_caches,
             tiles,
             posted,

@@ -355,6 +355,7 @@ impl From<crate::estimators::EstimatorError> for ApiError {
             EstimatorError::InvalidTarget { field, message } => {
                 ApiError::invalid(field, message).within("target")
             }
+            EstimatorError::InvalidQuery { field, message } => ApiError::invalid(field, message),
             EstimatorError::Fit(message) => ApiError::Internal {
                 message: format!("lengthscale fit failed: {message}"),
             },

@@ -6,11 +6,11 @@ use std::sync::Arc;
 
 use super::config::Limits;
 use super::error::{ApiError, AtField};
-use super::irradiance_caches::SceneCache;
 use super::scenes::LoadedScene;
 use super::state::AppState;
 use crate::cache::{CacheConfig, IrradianceCache};
 use crate::integrator::cached::CachedShading;
+use crate::integrator::cached::SceneCache;
 use crate::integrator::{Integrator, IntegratorSpec};
 use crate::render::PathDepth;
 

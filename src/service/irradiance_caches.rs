@@ -23,33 +23,18 @@
 //! within [`DIRECT_SHARE`]⁻¹ of the cache's own budget (a quarter each),
 //! weighed with it.
 
-use std::collections::HashSet;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use moka::sync::Cache;
 use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::scenes::LoadedScene;
-use crate::cache::{
-    Accuracy, CacheConfig, CacheError, CacheStats, IrradianceCache, RECORD_BYTES, TwinCaches,
-};
-use crate::integrator::cached::{
-    CachedShading, RecordSource, RecordsKey, TwinRule, direct_records,
-};
-use crate::render::{Cancel, Decomposition, PathDepth, RenderError, Transport};
+use crate::cache::{CacheConfig, CacheError, CacheStats, RECORD_BYTES};
+use crate::integrator::cached::{CachedShading, DIRECT_SHARE, PriorSource, RecordsKey, SceneCache};
 
 /// Each cache may use `1/SHARE` of the total budget.
 pub const SHARE: usize = 4;
-
-/// The direct-light twins of a cache's records, both kinds, and their
-/// shadow probes may use `1/DIRECT_SHARE` of the cache's budget, a quarter
-/// each (beyond it their own FIFO eviction drops the oldest).
-pub const DIRECT_SHARE: usize = 4;
-
-/// Seed of every direct-light twin (with its place: the same record has the
-/// same twin in every replica and after every restart).
-const DIRECT_SEED: u64 = 0x00D1_2EC7;
 
 /// Identity of one cache.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -75,150 +60,9 @@ pub struct ConfigurationStats {
     pub secondary_records: u64,
 }
 
-/// One cache with the BMC rules its records are computed with (built once
-/// per cache, so no request refactorises them).
-pub struct SceneCache {
-    pub cache: IrradianceCache,
-    pub shading: CachedShading,
-    /// Direct-light twins of the records (docs/math.md §10.8) for queries
-    /// under the hemisphere decomposition (the record rule's) and for split
-    /// ones (light-sampled).
-    hemisphere_twins: DirectTwins,
-    split_twins: DirectTwins,
-    /// The configuration as people read it in `GET /v1/scenes/{id}/cache`.
-    description: serde_json::Value,
-}
-
-impl SceneCache {
-    /// An empty cache of `config` for records computed with `shading`'s
-    /// rules; each kind of its direct-light twins, and their probes, take a
-    /// quarter of `1/DIRECT_SHARE` of its budget (at least one record).
-    pub fn new(
-        config: CacheConfig,
-        shading: CachedShading,
-        description: serde_json::Value,
-    ) -> Result<Self, CacheError> {
-        let direct = CacheConfig {
-            byte_budget: (config.byte_budget / (4 * DIRECT_SHARE)).max(RECORD_BYTES),
-            ..config
-        };
-        Ok(Self {
-            cache: IrradianceCache::new(config)?,
-            hemisphere_twins: DirectTwins::new(direct)?,
-            split_twins: DirectTwins::new(direct)?,
-            shading,
-            description,
-        })
-    }
-
-    /// The direct-light twins of every record held now (docs/math.md §10.8)
-    /// for queries under `decomposition`, made for the records that have
-    /// none yet. Returns them and the rays traced for the new ones.
-    pub fn direct_twins(
-        &self,
-        transport: &Transport,
-        decomposition: Decomposition,
-        cancel: &Cancel,
-    ) -> Result<(&TwinCaches, u64), RenderError> {
-        let direct = match decomposition {
-            Decomposition::Hemisphere => &self.hemisphere_twins,
-            Decomposition::Split => &self.split_twins,
-        };
-        // One request makes the missing twins; others wait for them rather
-        // than trace the same rays.
-        let mut mirrored = direct.mirrored.lock().unwrap_or_else(|e| e.into_inner());
-        let records = self.cache.records();
-        // Forget the places of records the cache has evicted since.
-        let held: HashSet<[u64; 3]> = records.iter().map(place).collect();
-        mirrored.retain(|p| held.contains(p));
-        let new: Vec<_> = records
-            .into_iter()
-            .filter(|r| !mirrored.contains(&place(r)))
-            .collect();
-        let rays = direct_records(
-            transport,
-            &new,
-            TwinRule::for_queries(decomposition, &self.shading.rule),
-            &direct.twins,
-            DIRECT_SEED,
-            cancel,
-        )?;
-        mirrored.extend(new.iter().map(place));
-        Ok((&direct.twins, rays))
-    }
-}
-
-/// A record's place as bits (records are told apart by where they are).
-fn place(record: &crate::cache::Record) -> [u64; 3] {
-    record.position.to_array().map(f64::to_bits)
-}
-
-/// The direct-light twins of one cache's records.
-struct DirectTwins {
-    twins: TwinCaches,
-    /// The places of the records whose twin has been made.
-    mirrored: Mutex<HashSet<[u64; 3]>>,
-}
-
-impl DirectTwins {
-    fn new(config: CacheConfig) -> Result<Self, CacheError> {
-        Ok(Self {
-            twins: TwinCaches::new(config)?,
-            mirrored: Mutex::new(HashSet::new()),
-        })
-    }
-
-    fn clear(&self) {
-        let mut mirrored = self.mirrored.lock().unwrap_or_else(|e| e.into_inner());
-        self.twins.clear();
-        mirrored.clear();
-    }
-}
-
-/// One cache of a scene version as a prior source: its records sum paths
-/// of up to `max_depth` segments counted from the camera, so one segment
-/// fewer from their own point.
-pub struct PriorSource {
-    max_depth: PathDepth,
-    entry: Arc<SceneCache>,
-    origin: &'static str,
-}
-
-impl PriorSource {
-    /// `entry`'s records, whose camera paths had `max_depth` segments;
-    /// `origin` names them in responses.
-    pub fn new(max_depth: PathDepth, entry: Arc<SceneCache>, origin: &'static str) -> Self {
-        Self {
-            max_depth,
-            entry,
-            origin,
-        }
-    }
-}
-
-impl RecordSource for PriorSource {
-    fn records(&self) -> (&IrradianceCache, Accuracy) {
-        (&self.entry.cache, self.entry.shading.accuracy())
-    }
-
-    fn origin(&self) -> &'static str {
-        self.origin
-    }
-
-    fn depth_from_point(&self) -> Option<PathDepth> {
-        self.max_depth.after_first_segment()
-    }
-
-    fn direct_twins(
-        &self,
-        transport: &Transport,
-        decomposition: Decomposition,
-        cancel: &Cancel,
-    ) -> Result<Option<(&TwinCaches, u64)>, RenderError> {
-        self.entry
-            .direct_twins(transport, decomposition, cancel)
-            .map(Some)
-    }
+/// The byte budget of each cache when all share `total_bytes`.
+pub fn per_cache_bytes(total_bytes: usize) -> usize {
+    (total_bytes / SHARE).max(RECORD_BYTES)
 }
 
 /// All irradiance caches of the service.
@@ -231,7 +75,7 @@ pub struct IrradianceCaches {
 impl IrradianceCaches {
     /// Caches sharing `total_bytes` (module docs).
     pub fn new(total_bytes: usize) -> Self {
-        let per_cache_bytes = (total_bytes / SHARE).max(RECORD_BYTES);
+        let per_cache_bytes = per_cache_bytes(total_bytes);
         let kib = |bytes: usize| u32::try_from(bytes.div_ceil(1024)).unwrap_or(u32::MAX);
         Self {
             caches: Cache::builder()
@@ -326,15 +170,7 @@ impl IrradianceCaches {
     /// Empties every cache of this version of `scene`, secondary caches
     /// included; returns the records dropped.
     pub fn clear(&self, scene: &LoadedScene) -> u64 {
-        self.of_scene(scene)
-            .map(|(_, entry)| {
-                let records = entry.cache.stats().records;
-                entry.cache.clear();
-                entry.hemisphere_twins.clear();
-                entry.split_twins.clear();
-                records + entry.shading.secondary.clear()
-            })
-            .sum()
+        self.of_scene(scene).map(|(_, entry)| entry.clear()).sum()
     }
 
     /// Drops the caches of every version of scene `id` older than

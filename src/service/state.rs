@@ -12,10 +12,10 @@ use super::irradiance_caches::IrradianceCaches;
 use super::metrics::Metrics;
 use super::pool::CpuPool;
 use super::posted_scenes::PostedScenes;
-use super::scenes::SceneRegistry;
+use super::scenes::{LoadedScene, SceneRegistry};
 use super::shared_store::SharedStore;
-use super::tile_priors::TilePriors;
 use super::tile_store::TileStore;
+use crate::integrator::point_query::{PointRecords, QueryState};
 
 /// Shared, read-mostly state of one running service.
 pub struct AppState {
@@ -29,8 +29,9 @@ pub struct AppState {
     pub scenes: SceneRegistry,
     /// Irradiance-cache records per (scene version, estimator configuration).
     pub irradiance_caches: IrradianceCaches,
-    /// Reproducible tiles' records gathered as priors of point queries.
-    pub tile_priors: TilePriors,
+    /// The tile store's records (reproducible tiles' and those placed among
+    /// query points) gathered as priors of point queries.
+    pub point_records: PointRecords,
     /// BMC factorisations and weights, `cache.factorisation_bytes` big, shared by
     /// `/v1/quadratures` and every BMC point request (see `routes::quadratures`).
     pub quadratures: Arc<QuadratureCache>,
@@ -61,6 +62,21 @@ impl AppState {
             self.config.limits.max_assets,
             incoming.as_deref(),
         )?)
+    }
+
+    /// What a point query of `scene` reuses and adds to: the scene's fitted
+    /// kernels and calibrations, the quadrature cache, the tile store's
+    /// records and their gatherings, and the scene's shared caches.
+    pub fn point_query_state<'a>(&'a self, scene: &'a LoadedScene) -> QueryState<'a, TileStore> {
+        QueryState {
+            kernels: &scene.kernels,
+            calibrations: &scene.calibrations,
+            quadratures: &self.quadratures,
+            store: &self.tiles,
+            gatherings: &self.point_records,
+            shared: self.irradiance_caches.prior_sources(scene).collect(),
+            max_records: self.config.limits.max_tile_area,
+        }
     }
 
     /// A permit to read an upload or import body, or 503 (retry in a second)

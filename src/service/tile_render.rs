@@ -3,7 +3,7 @@
 //! work a reproducible tile has done kept for the next request.
 //!
 //! What a reproducible tile keeps for the next request: `tile_store`; its
-//! records serve point queries from there (`tile_priors`).
+//! records serve point queries from there (`integrator::point_query::PointRecords`).
 
 use std::sync::Arc;
 
@@ -106,7 +106,7 @@ impl PassMemo for StoreMemo<'_> {
 /// Renders `job` on the calling (pool) thread, its reproducible parts kept
 /// in the tile store; stops once `cancel` is set. A reproducible tile's
 /// records stay out of the shared cache: point queries meet them through
-/// the tile store (`tile_priors`), the same on every replica whichever of
+/// the tile store (`integrator::point_query::PointRecords`), the same on every replica whichever of
 /// them rendered the tile.
 pub fn render_progressive(
     state: &AppState,

@@ -50,14 +50,15 @@ use crate::cache::log::{self, AppendLog, LogEntry, LogReport};
 use crate::cache::{CacheConfig, MAX_IRRADIANCE, RECORD_BYTES, RadiusLimits, Record};
 use crate::image::Image;
 use crate::integrator::cached::CachedTileReport;
+use crate::integrator::point_query::RecordsStore;
 use crate::integrator::progressive::{RenderedPass, TileRecords};
-use crate::render::PathDepth;
+use crate::render::{PathDepth, RenderError};
+
 #[cfg(test)]
 pub(super) use import::DecodedImport;
 pub use import::{ImportError, ImportReport};
 
-/// A content key (BLAKE3 of a canonical description).
-pub type Key = [u8; 32];
+pub use crate::integrator::point_query::Key;
 
 /// Memoised parts of reproducible tiles (module docs), kept on disk too
 /// when the store was opened on a log.
@@ -508,6 +509,23 @@ fn decode_pass(bytes: &[u8], max_area: usize) -> Option<RenderedPass> {
         rays,
         cache_hits,
     })
+}
+
+/// Point queries' records prior reads the tile store's entries and keeps
+/// the records placed among their points in it, like a tile's
+/// (`integrator::point_query`).
+impl RecordsStore for TileStore {
+    fn records_or(
+        &self,
+        key: Key,
+        place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
+    ) -> Result<Arc<TileRecords>, RenderError> {
+        TileStore::records_or(self, key, place)
+    }
+
+    fn records_of(&self, scene: &[u8; 32]) -> Vec<(Key, Arc<TileRecords>)> {
+        self.tiles_of(scene)
+    }
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ use crate::bmc::BmcError;
 pub const MAX_SAMPLES: usize = 8192;
 
 /// How the directions are placed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum SampleSetKind {
     /// Spherical Fibonacci, uniform area: `cos θ_i = 1 − (i + ½)/N`,
@@ -28,6 +28,7 @@ pub enum SampleSetKind {
     Fibonacci,
     /// Spherical Fibonacci, cosine-distributed: `cos θ_i = sqrt(1 − (i + ½)/N)`.
     /// Seed unused.
+    #[value(alias = "fibonacci_cosine")]
     FibonacciCosine,
     /// Independent uniform directions (`pdf = 1/(2π)`).
     Uniform,
@@ -43,6 +44,7 @@ pub enum SampleSetKind {
     /// point per cell. The equal-weight mean over it is an unbiased estimate
     /// of `∫ f cos θ/π` (stratified sampling), with a smaller variance than
     /// independent draws wherever `f` varies smoothly between cells.
+    #[value(alias = "stratified_cosine")]
     StratifiedCosine,
 }
 

@@ -390,15 +390,15 @@ pub fn run(
             let mut kernel = None;
             for (calibrate, runs) in [false, true].into_iter().zip(&mut runs) {
                 let spec = EstimatorSpec {
-                    method,
-                    samples,
-                    sample_set: None,
+                    method: Some(method),
+                    samples: Some(samples),
                     kernel: options
                         .bmc_kernel
                         .filter(|_| method == EstimatorMethod::Bmc),
                     prior,
                     calibrate: Some(calibrate),
                     records_prior: RecordsPriorMode::Set(records_prior),
+                    ..EstimatorSpec::default()
                 };
                 let estimator = spec.resolve()?;
                 for s in 0..options.seeds {

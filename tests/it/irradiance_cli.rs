@@ -89,67 +89,94 @@ fn bad_rows_and_bad_options_fail_with_a_message() {
     std::fs::remove_file(good).ok();
 }
 
-/// The CLI and `POST /v1/scenes/{id}/irradiance` translate into the same
-/// library estimator, so the same options and seed give the same numbers,
-/// and so do their defaults: a command line and a request that name no
-/// estimator, samples or seed.
+/// The CLI and `POST /v1/scenes/{id}/irradiance` take one document (the
+/// library's `PointQuerySpec`) and run one `PointQuery`, so the same
+/// options and seed give the same numbers, and so do their defaults: a
+/// command line and a request that name no estimator, samples or seed. That
+/// holds for error targets, and for a query of enough points to place
+/// records among them (the records prior), on a service that has rendered
+/// nothing of the scene before (the last case: the service keeps them).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cli_and_http_give_the_same_numbers_for_each_estimator() {
     let cornell = include_str!("../../scenes/cornell-box.json");
     let app = crate::common::spawn_app_with_scenes(&[("cornell-box.json", cornell)], |_| {}).await;
-    let rows = [
+    let few = vec![
         [0.0, -0.999, 0.3, 0.0, 1.0, 0.0],
         [-0.999, 0.2, 0.0, 1.0, 0.0, 0.0],
         [0.3, 0.999, -0.2, 0.0, -1.0, 0.0],
     ];
-    let csv: String = rows
-        .iter()
-        .map(|r| r.map(|v| v.to_string()).join(",") + "\n")
+    // A floor grid of 64 points, enough for records to be placed among them.
+    let grid: Vec<[f64; 6]> = (0..64)
+        .map(|i| {
+            let at = |k: usize| -0.875 + 0.25 * k as f64;
+            [at(i % 8), -0.999, at(i / 8), 0.0, 1.0, 0.0]
+        })
         .collect();
-    let points = write_points("cli-vs-http", &csv);
     let cases = [
-        ("", serde_json::Value::Null),
+        (&few, "", serde_json::json!({})),
         (
+            &few,
             "--estimator bmc --samples 64 --lengthscale 0.5 --seed 3",
-            serde_json::json!({"method": "bmc", "samples": 64,
-                               "kernel": {"lengthscale": 0.5}}),
+            serde_json::json!({"seed": 3, "estimator": {"method": "bmc", "samples": 64,
+                               "kernel": {"lengthscale": 0.5}}}),
         ),
         (
+            &few,
             "--estimator bmc --samples 32 --kernel matern52 --sample-set fibonacci \
              --decomposition hemisphere --seed 3",
-            serde_json::json!({"method": "bmc", "samples": 32, "decomposition": "hemisphere",
-                               "sample_set": {"kind": "fibonacci"},
-                               "kernel": {"kind": "matern52"}}),
+            serde_json::json!({"seed": 3, "estimator": {"method": "bmc", "samples": 32,
+                               "decomposition": "hemisphere", "sample_set": {"kind": "fibonacci"},
+                               "kernel": {"kind": "matern52"}}}),
         ),
         (
+            &few,
             "--estimator qmc --samples 64 --seed 3",
-            serde_json::json!({"method": "qmc", "samples": 64}),
+            serde_json::json!({"seed": 3, "estimator": {"method": "qmc", "samples": 64}}),
         ),
         (
+            &few,
             "--estimator mc --samples 64 --seed 3",
-            serde_json::json!({"method": "mc", "samples": 64}),
+            serde_json::json!({"seed": 3, "estimator": {"method": "mc", "samples": 64}}),
+        ),
+        (
+            &few,
+            "--samples 32 --target 0.1 --max-samples 256 --max-depth 2",
+            serde_json::json!({"max_depth": 2, "estimator": {"samples": 32},
+                               "target": {"relative_error": 0.1, "max_samples": 256}}),
+        ),
+        (
+            &grid,
+            "--samples 16 --max-depth 2",
+            serde_json::json!({"max_depth": 2, "estimator": {"samples": 16}}),
         ),
     ];
-    for (args, estimator) in cases {
+    for (rows, args, mut body) in cases {
+        let csv: String = rows
+            .iter()
+            .map(|r| r.map(|v| v.to_string()).join(",") + "\n")
+            .collect();
+        let points = write_points("cli-vs-http", &csv);
         let cli = tokio::task::spawn_blocking({
             let points = points.clone();
             move || run_ok(&points, &format!("{args} --std-error"))
         })
         .await
         .unwrap();
-        let mut body = serde_json::json!({
-            "points": rows.iter().map(|r| serde_json::json!({
-                "position": [r[0], r[1], r[2]], "normal": [r[3], r[4], r[5]]})).collect::<Vec<_>>(),
-        });
-        if !estimator.is_null() {
-            body["estimator"] = estimator;
-            body["seed"] = serde_json::json!(3);
-        }
+        std::fs::remove_file(points).ok();
+        body["points"] = rows
+            .iter()
+            .map(|r| serde_json::json!({"position": [r[0], r[1], r[2]], "normal": [r[3], r[4], r[5]]}))
+            .collect();
         let response = app
             .post_json("/v1/scenes/cornell-box/irradiance", &body)
             .await;
         assert_eq!(response.status(), reqwest::StatusCode::OK, "{args}");
         let http: serde_json::Value = response.json().await.unwrap();
+        if rows.len() == grid.len() {
+            let moved = http["records_prior_points"].as_u64().unwrap_or(0);
+            assert!(moved > 0, "records placed among the grid serve it: {http}");
+        }
+        assert_eq!(cli.len(), rows.len(), "{args}");
         for (i, row) in cli.iter().enumerate() {
             let value: Vec<f64> = serde_json::from_value(http["irradiance"][i].clone()).unwrap();
             let std_dev: Vec<f64> = serde_json::from_value(http["std_dev"][i].clone()).unwrap();
@@ -157,5 +184,4 @@ async fn cli_and_http_give_the_same_numbers_for_each_estimator() {
             assert_eq!(row[6..9], std_dev[..], "{args}: point {i}");
         }
     }
-    std::fs::remove_file(points).ok();
 }

@@ -390,3 +390,34 @@ fn routes_never_import_each_other() {
         );
     }
 }
+
+/// Routes translate (docs/ARCHITECTURE.md): none names the machinery the
+/// library's point query and tile jobs run — priors, estimators' caches,
+/// record placement, the estimate calls themselves.
+#[test]
+fn routes_hold_no_estimator_logic() {
+    let machinery = [
+        "point_priors",
+        "EstimatorCaches",
+        "PointEstimator",
+        "place_among",
+        "estimate_to_target",
+        "RecordsPrior",
+        "DirectPrior",
+        "prior_sources(",
+        "priors_combined",
+        "render_tile(",
+    ];
+    let routes = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/service/routes");
+    let mut files = Vec::new();
+    rust_files(&routes, &mut files);
+    for path in files {
+        let text = non_test_text(&path);
+        let named: Vec<&str> = machinery
+            .iter()
+            .copied()
+            .filter(|name| text.contains(name))
+            .collect();
+        assert!(named.is_empty(), "{} runs {named:?}", path.display());
+    }
+}

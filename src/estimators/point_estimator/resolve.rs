@@ -8,8 +8,8 @@ use crate::bmc::{Density, Kernel};
 use crate::estimators::error::EstimatorError;
 use crate::estimators::lengthscale::FALLBACK_LENGTHSCALE;
 use crate::estimators::spec::{
-    DEFAULT_KERNEL, DEFAULT_NOISE, DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod,
-    EstimatorSpec, RecordsPriorMode,
+    DEFAULT_KERNEL, DEFAULT_NOISE, DEFAULT_VARIANCE, EstimatorMethod, EstimatorSpec,
+    RecordsPriorMode, SampleSetChoice,
 };
 use crate::render::environment_prior::PriorChoice;
 use crate::sphere::{SampleSetKind, SampleSetSpec};
@@ -17,28 +17,33 @@ use crate::sphere::{SampleSetKind, SampleSetSpec};
 impl EstimatorSpec {
     /// Checks the options against the method (module docs).
     pub fn resolve(&self) -> Result<PointEstimator, EstimatorError> {
-        let samples = self.samples as usize;
+        let method = self.method();
+        let samples = self.samples() as usize;
         if samples == 0 {
             return Err(EstimatorError::invalid("samples", "must be at least 1"));
         }
-        let (set_kind, set_seed) = self.sample_set.unwrap_or((DEFAULT_SAMPLE_SET, 0));
-        if self.method != EstimatorMethod::Bmc && self.kernel.is_some() {
+        let chosen = self.sample_set.unwrap_or_default();
+        let set = SampleSetChoice {
+            kind: Some(chosen.kind()),
+            seed: Some(chosen.seed()),
+        };
+        if method != EstimatorMethod::Bmc && self.kernel.is_some() {
             return Err(EstimatorError::invalid(
                 "kernel",
                 "only `bmc` takes a kernel",
             ));
         }
-        if self.records_prior == RecordsPriorMode::Set(true) && self.method == EstimatorMethod::Mc {
+        if self.records_prior == RecordsPriorMode::Set(true) && method == EstimatorMethod::Mc {
             return Err(EstimatorError::invalid(
                 "records_prior",
                 "`mc` stays plain Monte Carlo; `qmc` and `bmc` take the records prior",
             ));
         }
-        let prior = self.prior.unwrap_or(match self.method {
+        let prior = self.prior.unwrap_or(match method {
             EstimatorMethod::Bmc => PriorChoice::Environment,
             EstimatorMethod::Mc | EstimatorMethod::Qmc => PriorChoice::None,
         });
-        let rule = self.rule(samples, set_kind, set_seed)?;
+        let rule = self.rule(method, samples, set)?;
         Ok(PointEstimator {
             rule,
             prior,
@@ -47,7 +52,15 @@ impl EstimatorSpec {
             // MC's sample variance is blind to light that its few samples
             // all missed.
             calibrate: self.calibrate.unwrap_or(true),
-            spec: *self,
+            // Defaults filled in: a spec that names them and one that
+            // leaves them are one estimator, with one calibration.
+            spec: EstimatorSpec {
+                method: Some(method),
+                samples: Some(samples as u32),
+                sample_set: Some(set),
+                prior: Some(prior),
+                ..*self
+            },
             indirect_part: false,
             corrected: false,
         })
@@ -55,18 +68,18 @@ impl EstimatorSpec {
 
     fn rule(
         &self,
+        method: EstimatorMethod,
         samples: usize,
-        set_kind: SampleSetKind,
-        set_seed: u64,
+        set: SampleSetChoice,
     ) -> Result<PointRule, EstimatorError> {
-        match self.method {
+        match method {
             EstimatorMethod::Mc if self.sample_set.is_some() => Err(EstimatorError::invalid(
                 "sample_set",
                 "`mc` draws fresh random directions; only `qmc` and `bmc` take a sample set",
             )),
             EstimatorMethod::Mc => Ok(PointRule::Mc { count: samples }),
             EstimatorMethod::Qmc => {
-                let pdf = match set_kind {
+                let pdf = match set.kind() {
                     SampleSetKind::FibonacciCosine => SamplingPdf::Cosine,
                     SampleSetKind::Fibonacci => SamplingPdf::Uniform,
                     _ => {
@@ -87,20 +100,20 @@ impl EstimatorSpec {
                 // input is refused before any work.
                 Kernel::new(
                     kernel.kind.unwrap_or(DEFAULT_KERNEL),
-                    kernel.lengthscale.value().unwrap_or(FALLBACK_LENGTHSCALE),
+                    kernel.lengthscale().value().unwrap_or(FALLBACK_LENGTHSCALE),
                     variance,
                     kernel.noise.unwrap_or(DEFAULT_NOISE),
                 )
                 .map_err(EstimatorError::kernel)?;
                 let sample_set = SampleSetSpec {
-                    kind: set_kind,
+                    kind: set.kind(),
                     count: samples,
-                    seed: set_seed,
+                    seed: set.seed(),
                 };
                 Ok(PointRule::Bmc(BmcSetup {
                     sample_set,
                     kind: kernel.kind,
-                    lengthscale: kernel.lengthscale.value(),
+                    lengthscale: kernel.lengthscale().value(),
                     variance,
                     noise: kernel.noise,
                 }))

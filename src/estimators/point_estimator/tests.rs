@@ -1,17 +1,16 @@
 use super::*;
-use crate::estimators::spec::{DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod};
+use crate::estimators::spec::{
+    DEFAULT_SAMPLE_SET, DEFAULT_VARIANCE, EstimatorMethod, SampleSetChoice,
+};
 use crate::estimators::{KernelSpec, Lengthscale};
 use crate::sphere::SampleSetKind;
 
 fn spec(method: EstimatorMethod) -> EstimatorSpec {
     EstimatorSpec {
-        method,
-        samples: 16,
-        sample_set: None,
-        kernel: None,
-        prior: None,
-        calibrate: None,
+        method: Some(method),
+        samples: Some(16),
         records_prior: RecordsPriorMode::Set(false),
+        ..EstimatorSpec::default()
     }
 }
 
@@ -34,12 +33,18 @@ fn options_are_checked_against_the_method() {
         })
     ));
     let mc_with_set = EstimatorSpec {
-        sample_set: Some((SampleSetKind::Fibonacci, 0)),
+        sample_set: Some(SampleSetChoice {
+            kind: Some(SampleSetKind::Fibonacci),
+            seed: None,
+        }),
         ..spec(EstimatorMethod::Mc)
     };
     assert_eq!(field(mc_with_set.resolve()), "sample_set");
     let qmc_random = EstimatorSpec {
-        sample_set: Some((SampleSetKind::Uniform, 3)),
+        sample_set: Some(SampleSetChoice {
+            kind: Some(SampleSetKind::Uniform),
+            seed: Some(3),
+        }),
         ..spec(EstimatorMethod::Qmc)
     };
     assert_eq!(field(qmc_random.resolve()), "sample_set.kind");
@@ -49,7 +54,7 @@ fn options_are_checked_against_the_method() {
     };
     assert_eq!(field(qmc_kernel.resolve()), "kernel");
     let zero = EstimatorSpec {
-        samples: 0,
+        samples: Some(0),
         ..spec(EstimatorMethod::Bmc)
     };
     assert_eq!(field(zero.resolve()), "samples");

@@ -68,13 +68,10 @@ pub fn run_target(
         ("bmc", EstimatorMethod::Bmc),
     ] {
         let spec = |samples| EstimatorSpec {
-            method,
-            samples,
-            sample_set: None,
-            kernel: None,
-            prior: None,
-            calibrate: None,
+            method: Some(method),
+            samples: Some(samples),
             records_prior: RecordsPriorMode::Set(false),
+            ..EstimatorSpec::default()
         };
         let request = |samples, s: u64| IrradianceOptions {
             samples,

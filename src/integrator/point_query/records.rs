@@ -1,38 +1,91 @@
-//! Reproducible tiles' records, and records placed among point queries'
-//! own points, as priors of point queries (docs/math.md §10.10, §10.11).
+//! Records entries held under content keys — reproducible tiles' records
+//! and records placed among point queries' own points — as priors of point
+//! queries (docs/math.md §10.10, §10.11).
 //!
-//! A reproducible tile's records (`tile_store`) are a function of the
-//! scene's content and the tile's request, and a replica holds the same
-//! ones whether it computed them, merged them from another replica, loaded
-//! them from its log after a restart or imported them. For point queries,
+//! A [`RecordsStore`] holds records entries by content key: the service's
+//! tile store, or [`HeldRecords`] in memory for one run of the command
+//! line. A reproducible tile's records are a function of the scene's
+//! content and the tile's request, and a replica holds the same ones
+//! whether it computed them, merged them from another replica, loaded them
+//! from its log after a restart or imported them. For point queries,
 //! the records held for one scene content and one camera depth are gathered
 //! into one cache, inserted in the order of their tiles' content keys, so a
 //! query meets the same prior, bit for bit, wherever the same tiles are
-//! held. A gathering is built once per set of tiles held and kept
-//! ([`TilePriors`]); its direct-light twins (§10.8) are made by the first
+//! held. A gathering is built once per set of entries held and kept
+//! ([`PointRecords`]); its direct-light twins (§10.8) are made by the first
 //! query that needs them, all with one rule ([`TWIN_DIRECTIONS`]).
 //!
 //! A query of at least [`MIN_POINTS_FOR_RECORDS`] points places records
 //! among its own points (`integrator::cached::point_records`), and the
 //! first such query of a scene content and depth among the calibration's
 //! training points too, so the error bars are fitted on points with
-//! records placed the same way (§10.11). Both are kept in the tile store
-//! under content keys, like a tile's, and gathered with them.
+//! records placed the same way (§10.11). Both are kept in the store under
+//! content keys, like a tile's, and gathered with them.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
 use moka::sync::Cache;
 
-use super::irradiance_caches::{PriorSource, SceneCache};
-use super::scenes::LoadedScene;
-use super::tile_store::{Key, TileStore};
 use crate::bmc::cache::QuadratureCache;
 use crate::cache::{CacheConfig, CacheError};
 use crate::estimators::calibration::calibration_points;
-use crate::integrator::cached::{CachedShading, CachedSpec, CachedTileReport, point_records};
+use crate::integrator::cached::{
+    CachedShading, CachedSpec, CachedTileReport, PriorSource, SceneCache, point_records,
+};
 use crate::integrator::progressive::TileRecords;
-use crate::render::{Cancel, PathDepth, QueryPoint, RenderError};
+use crate::render::{Cancel, PathDepth, QueryPoint, RenderError, Transport};
+
+/// A content key: BLAKE3 of a canonical description of what an entry
+/// (records, a pass) depends on.
+pub type Key = [u8; 32];
+
+/// Records entries by content key.
+pub trait RecordsStore: Sync {
+    /// The entry `key`, placed by `place` unless held.
+    fn records_or(
+        &self,
+        key: Key,
+        place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
+    ) -> Result<Arc<TileRecords>, RenderError>;
+
+    /// Every entry held for the scene of content digest `scene`, in key order.
+    fn records_of(&self, scene: &[u8; 32]) -> Vec<(Key, Arc<TileRecords>)>;
+}
+
+/// Records entries in memory, for as long as the value lives (one run of
+/// the command line): the same entries a service holds after the same
+/// queries on a fresh scene, so the same numbers.
+#[derive(Default)]
+pub struct HeldRecords {
+    entries: Mutex<BTreeMap<Key, Arc<TileRecords>>>,
+}
+
+impl RecordsStore for HeldRecords {
+    fn records_or(
+        &self,
+        key: Key,
+        place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
+    ) -> Result<Arc<TileRecords>, RenderError> {
+        // One caller at a time: a run places each entry once.
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(held) = entries.get(&key) {
+            return Ok(held.clone());
+        }
+        let placed = Arc::new(place()?);
+        entries.insert(key, placed.clone());
+        Ok(placed)
+    }
+
+    fn records_of(&self, scene: &[u8; 32]) -> Vec<(Key, Arc<TileRecords>)> {
+        let entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        entries
+            .iter()
+            .filter(|(_, t)| &t.scene == scene)
+            .map(|(key, t)| (*key, t.clone()))
+            .collect()
+    }
+}
 
 /// Directions of the rule that makes the gathered records' direct-light
 /// twins: as many as the final preset's records have, with which the twins
@@ -55,18 +108,26 @@ pub const MIN_POINTS_FOR_RECORDS: usize = 64;
 /// so a request's seed changes its own samples, not the records).
 const POINT_RECORDS_SEED: u64 = 0x9017_5EC0;
 
-/// A scene's records as the tile store holds them, and the quadrature
-/// cache the rules made for them use: what gathering and placing read.
-#[derive(Clone, Copy)]
-pub struct SceneRecords<'a> {
-    pub scene: &'a LoadedScene,
-    pub tiles: &'a TileStore,
+/// A scene's records as a store holds them, and the quadrature cache the
+/// rules made for them use: what gathering and placing read.
+pub struct SceneRecords<'a, S> {
+    pub transport: &'a Transport,
+    pub store: &'a S,
     pub quadratures: &'a Arc<QuadratureCache>,
 }
 
-/// Gatherings of the tile store's records: reproducible tiles' and those
-/// placed among query points (module docs).
-pub struct TilePriors {
+// References only: copied whatever `S` is (a derive would ask `S: Copy`).
+impl<S> Clone for SceneRecords<'_, S> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<S> Copy for SceneRecords<'_, S> {}
+
+/// Gatherings of a store's records: reproducible tiles' and those placed
+/// among query points (module docs).
+pub struct PointRecords {
     /// By the content key of the scene, depth and entries gathered.
     gathered: Cache<Key, Arc<SceneCache>>,
     /// The byte budget of one gathering (its oldest tiles' records, in key
@@ -77,7 +138,7 @@ pub struct TilePriors {
     point_record_rules: Mutex<Option<CachedShading>>,
 }
 
-impl TilePriors {
+impl PointRecords {
     /// Gatherings of `gathering_bytes` each, `total_bytes` together.
     pub fn new(gathering_bytes: usize, total_bytes: u64) -> Self {
         Self {
@@ -93,17 +154,20 @@ impl TilePriors {
         }
     }
 
-    /// The gatherings of the records entries `tiles` holds for `scene`'s
-    /// content (tiles' and query points'), one per camera depth.
-    pub fn sources(&self, at: SceneRecords) -> Result<Vec<PriorSource>, CacheError> {
+    /// The gatherings of the records entries the store holds for the
+    /// scene's content (tiles' and query points'), one per camera depth.
+    pub fn sources<S: RecordsStore>(
+        &self,
+        at: SceneRecords<S>,
+    ) -> Result<Vec<PriorSource>, CacheError> {
         let SceneRecords {
-            scene,
-            tiles,
+            transport,
+            store,
             quadratures,
         } = at;
-        let digest = scene.transport.scene().digest.as_bytes();
+        let digest = transport.scene().digest.as_bytes();
         let mut by_depth: BTreeMap<u32, Vec<_>> = BTreeMap::new();
-        for (key, tile) in tiles.tiles_of(digest) {
+        for (key, tile) in store.records_of(digest) {
             if !tile.records.is_empty() {
                 by_depth
                     .entry(tile.max_depth.get())
@@ -151,24 +215,23 @@ impl TilePriors {
     /// calibration's training points, for queries of `from_point` segments
     /// from the point (at least 2, so a query of direct light only still
     /// leaves places for twins); each set once per scene content, kept in
-    /// `tiles`. Returns the rays traced now.
-    pub fn place_among(
+    /// the store. Returns the rays traced now.
+    pub fn place_among<S: RecordsStore>(
         &self,
-        at: SceneRecords,
+        at: SceneRecords<S>,
         points: &[QueryPoint],
         from_point: PathDepth,
         max_records: usize,
         cancel: &Cancel,
     ) -> Result<u64, RenderError> {
         let SceneRecords {
-            scene,
-            tiles,
+            transport,
+            store,
             quadratures,
         } = at;
         if points.len() < MIN_POINTS_FOR_RECORDS || points.len() > max_records {
             return Ok(0);
         }
-        let transport = &scene.transport;
         // A query of direct light only uses the records as places for twins,
         // and their values never: one path per direction is enough there.
         let (rules, paths) = if from_point.has_reflections() {
@@ -201,7 +264,7 @@ impl TilePriors {
                 }
             }
             let key = *hasher.finalize().as_bytes();
-            tiles.records_or(key, || {
+            store.records_or(key, || {
                 let (records, placement) = point_records(
                     transport,
                     &rules,
@@ -211,7 +274,7 @@ impl TilePriors {
                     cancel,
                 )?;
                 rays += placement.rays;
-                Ok::<_, RenderError>(TileRecords {
+                Ok(TileRecords {
                     scene: digest,
                     max_depth: camera_depth,
                     records,
