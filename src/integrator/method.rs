@@ -24,10 +24,9 @@ pub enum Method {
     Path,
     /// Direct light by light sampling, diffuse indirect light interpolated
     /// from irradiance-cache records computed by BMC, glossy reflection by
-    /// BMC with the Phong density (`cached`). `"bmc"` is accepted
-    /// as an alias (the name this had before `"bmc"` came to mean one
-    /// quadrature per point, as it does for point queries).
+    /// BMC with the Phong density (`cache`). `"bmc"` names one thing
+    /// across the API, a point estimator (a quadrature per point), so it
+    /// is not a name of this integrator, which it once was.
     #[default]
-    #[serde(alias = "bmc")]
     Cache,
 }

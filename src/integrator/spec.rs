@@ -153,9 +153,12 @@ mod tests {
             parse(r#"{"method": "path"}"#).unwrap(),
             IntegratorSpec::Path(PathSpec {})
         );
-        let cache = parse(r#"{"samples": 16, "method": "bmc"}"#).unwrap();
+        let cache = parse(r#"{"samples": 16, "method": "cache"}"#).unwrap();
         assert_eq!(cache.cached().and_then(|c| c.samples), Some(16));
         assert_eq!(cache.method(), Method::Cache);
+        // `bmc` is a point estimator's name, never a tile integrator's.
+        let err = parse(r#"{"method": "bmc"}"#).unwrap_err();
+        assert!(err.contains("expected `path` or `cache`"), "{err}");
     }
 
     #[test]

@@ -32,7 +32,7 @@ fn seeds() -> Vec<(&'static str, Value)> {
         (
             "/v1/scenes/tiny/tiles",
             json!({"x": 0, "y": 0, "width": 4, "height": 4, "format": "json",
-                   "samples_per_pixel": 2, "estimator": {"method": "bmc", "samples": 16,
+                   "samples_per_pixel": 2, "estimator": {"method": "cache", "samples": 16,
                    "accuracy": 0.5, "paths_per_direction": 2}, "max_depth": 4, "seed": 3}),
         ),
         (
