@@ -42,8 +42,7 @@ use crate::render::seed::point_rng;
 use crate::render::{Decomposition, IndirectPart, IrradianceEstimate, IrradianceOptions};
 use crate::render::{PathLengths, PathLimits, TraceStats};
 
-/// What [`Transport::irradiance_with_estimator`] runs for the hemisphere
-/// part.
+/// The rule of the hemisphere part, run by [`HemisphereRule::estimate`].
 #[derive(Clone, Copy)]
 pub struct HemisphereRule<'a> {
     /// The rule; it must integrate against the Lambert density `cos θ/π`.
@@ -68,23 +67,8 @@ struct ResolvedRule<'a> {
     indirect_part: bool,
 }
 
-impl Transport {
-    /// The prior mean the hemisphere part uses for `choice` under
-    /// `decomposition`: the environment prior where the hemisphere integrand
-    /// contains the environment seen directly (the hemisphere decomposition
-    /// of a scene with an environment), else none.
-    pub fn hemisphere_prior(
-        &self,
-        choice: PriorChoice,
-        decomposition: Decomposition,
-    ) -> Option<&EnvironmentPrior> {
-        match (choice, decomposition) {
-            (PriorChoice::Environment, Decomposition::Hemisphere) => self.environment_prior(),
-            _ => None,
-        }
-    }
-
-    /// Irradiance at every point with `rule` for the hemisphere part
+impl HemisphereRule<'_> {
+    /// Irradiance at every point of `transport`'s scene with this rule for the hemisphere part
     /// (module docs), in parallel on the current rayon pool.
     ///
     /// `options.light_samples()` is the number of light samples of the
@@ -92,171 +76,172 @@ impl Transport {
     /// estimator's. `on_done`
     /// is called once per finished point; stops between points once `cancel`
     /// is set.
-    pub fn irradiance_with_estimator(
+    pub fn estimate(
         &self,
+        transport: &Transport,
         points: &[QueryPoint],
-        rule: HemisphereRule,
         options: &IrradianceOptions,
         on_done: &(dyn Fn() + Sync),
         cancel: &Cancel,
     ) -> Result<Vec<IrradianceEstimate>, RenderError> {
         options.validate()?;
-        let decomposition = self.decomposition(options.method);
+        let decomposition = transport.decomposition(options.method);
         let resolved = ResolvedRule {
-            estimator: rule.estimator,
-            prior: self.hemisphere_prior(rule.prior, decomposition),
+            estimator: self.estimator,
+            prior: transport.hemisphere_prior(self.prior, decomposition),
             decomposition,
-            indirect_part: rule.indirect_part,
+            indirect_part: self.indirect_part,
         };
         points
             .par_iter()
             .enumerate()
             .map(|(i, point)| {
                 cancel.check()?;
-                let estimate = self.estimate_point(point, i as u64, &resolved, options);
+                let estimate = estimate_point(transport, point, i as u64, &resolved, options);
                 on_done();
                 estimate
             })
             .collect()
     }
+}
 
-    fn estimate_point(
-        &self,
-        point: &QueryPoint,
-        index: u64,
-        rule: &ResolvedRule,
-        options: &IrradianceOptions,
-    ) -> Result<IrradianceEstimate, RenderError> {
-        let ResolvedRule {
-            estimator,
-            prior,
-            decomposition,
-            indirect_part,
-        } = *rule;
-        let mut rng = point_rng(options.seed, index);
-        let mut stats = TraceStats::default();
-        let depth = options.effective_max_depth();
-        let frame = point.turned_frame(&mut rng);
-        let lengths = match decomposition {
-            Decomposition::Hemisphere => Some(PathLengths::All),
-            Decomposition::Split => depth.has_reflections().then_some(PathLengths::Indirect),
+/// One point's estimate (module docs).
+fn estimate_point(
+    transport: &Transport,
+    point: &QueryPoint,
+    index: u64,
+    rule: &ResolvedRule,
+    options: &IrradianceOptions,
+) -> Result<IrradianceEstimate, RenderError> {
+    let ResolvedRule {
+        estimator,
+        prior,
+        decomposition,
+        indirect_part,
+    } = *rule;
+    let mut rng = point_rng(options.seed, index);
+    let mut stats = TraceStats::default();
+    let depth = options.effective_max_depth();
+    let frame = point.turned_frame(&mut rng);
+    let lengths = match decomposition {
+        Decomposition::Hemisphere => Some(PathLengths::All),
+        Decomposition::Split => depth.has_reflections().then_some(PathLengths::Indirect),
+    };
+    let (mut irradiance, mut variance) = (Rgb::BLACK, Rgb::BLACK);
+    let mut indirect = None;
+    let mut unseen_light = [1.0; 3];
+    let mut direct_strata = None;
+    if let Some(lengths) = lengths {
+        let directions = estimator.directions(&mut rng);
+        let limits = PathLimits {
+            max_depth: depth,
+            lengths,
         };
-        let (mut irradiance, mut variance) = (Rgb::BLACK, Rgb::BLACK);
-        let mut indirect = None;
-        let mut unseen_light = [1.0; 3];
-        let mut direct_strata = None;
-        if let Some(lengths) = lengths {
-            let directions = estimator.directions(&mut rng);
-            let limits = PathLimits {
-                max_depth: depth,
-                lengths,
-            };
-            let samples =
-                self.hemisphere_samples(point, &frame, &directions, limits, &mut rng, &mut stats);
-            // The prior at each direction (zero where a direction carries
-            // nothing) and its exact Lambert integral (docs/math.md §10.4).
-            let (prior_values, prior_integral) = match prior {
-                Some(prior) => (
-                    directions
-                        .iter()
-                        .map(|d| {
-                            if d.z > 0.0 && d.is_finite() {
-                                prior.radiance(frame.to_world(d.normalize()))
-                            } else {
-                                Rgb::BLACK
-                            }
-                        })
-                        .collect(),
-                    prior.lambert_integral(point.normal()),
-                ),
-                None => (vec![Rgb::BLACK; directions.len()], Rgb::BLACK),
-            };
-            let estimate = |values: &[f64]| {
-                estimator
-                    .estimate(&directions, values)
-                    .map_err(|err| RenderError::InvalidOption {
-                        field: "estimator",
-                        reason: err.to_string(),
+        let samples =
+            transport.hemisphere_samples(point, &frame, &directions, limits, &mut rng, &mut stats);
+        // The prior at each direction (zero where a direction carries
+        // nothing) and its exact Lambert integral (docs/math.md §10.4).
+        let (prior_values, prior_integral) = match prior {
+            Some(prior) => (
+                directions
+                    .iter()
+                    .map(|d| {
+                        if d.z > 0.0 && d.is_finite() {
+                            prior.radiance(frame.to_world(d.normalize()))
+                        } else {
+                            Rgb::BLACK
+                        }
                     })
-            };
-            // Only paths that reflect have an indirect part (at depth 1 it
-            // is zero by definition, and no prior may move it). Under the
-            // hemisphere decomposition it is the same rule over each value
-            // less the emission its direction sees directly (docs/math.md
-            // §10.7), with the share of the variance that is the part's.
-            let hemisphere_part =
-                indirect_part && lengths == PathLengths::All && depth.has_reflections();
-            let mut value = [0.0; 3];
-            let mut var = [0.0; 3];
-            let mut part = [0.0; 3];
-            let mut share = [1.0; 3];
-            for c in 0..3 {
+                    .collect(),
+                prior.lambert_integral(point.normal()),
+            ),
+            None => (vec![Rgb::BLACK; directions.len()], Rgb::BLACK),
+        };
+        let estimate = |values: &[f64]| {
+            estimator
+                .estimate(&directions, values)
+                .map_err(|err| RenderError::InvalidOption {
+                    field: "estimator",
+                    reason: err.to_string(),
+                })
+        };
+        // Only paths that reflect have an indirect part (at depth 1 it
+        // is zero by definition, and no prior may move it). Under the
+        // hemisphere decomposition it is the same rule over each value
+        // less the emission its direction sees directly (docs/math.md
+        // §10.7), with the share of the variance that is the part's.
+        let hemisphere_part =
+            indirect_part && lengths == PathLengths::All && depth.has_reflections();
+        let mut value = [0.0; 3];
+        let mut var = [0.0; 3];
+        let mut part = [0.0; 3];
+        let mut share = [1.0; 3];
+        for c in 0..3 {
+            let channel: Vec<f64> = samples
+                .iter()
+                .zip(&prior_values)
+                .map(|(s, m)| s.radiance.to_array()[c] - m.to_array()[c])
+                .collect();
+            let mut e = estimate(&channel)?;
+            e.value += prior_integral.to_array()[c];
+            if e.value < 0.0 && prior.is_some() {
+                // A negative total of a non-negative integral: the rule
+                // without the prior on the same samples, which the
+                // negative-weight guard covers (docs/math.md §3.6).
+                let raw: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
+                e = estimate(&raw)?;
+            }
+            let e = irradiance_from_lambert(e);
+            value[c] = e.value;
+            var[c] = e.variance;
+            if hemisphere_part {
                 let channel: Vec<f64> = samples
                     .iter()
-                    .zip(&prior_values)
-                    .map(|(s, m)| s.radiance.to_array()[c] - m.to_array()[c])
+                    .map(|s| s.radiance.to_array()[c] - s.direct.to_array()[c])
                     .collect();
-                let mut e = estimate(&channel)?;
-                e.value += prior_integral.to_array()[c];
-                if e.value < 0.0 && prior.is_some() {
-                    // A negative total of a non-negative integral: the rule
-                    // without the prior on the same samples, which the
-                    // negative-weight guard covers (docs/math.md §3.6).
-                    let raw: Vec<f64> = samples.iter().map(|s| s.radiance.to_array()[c]).collect();
-                    e = estimate(&raw)?;
-                }
-                let e = irradiance_from_lambert(e);
-                value[c] = e.value;
-                var[c] = e.variance;
-                if hemisphere_part {
-                    let channel: Vec<f64> = samples
-                        .iter()
-                        .map(|s| s.radiance.to_array()[c] - s.direct.to_array()[c])
-                        .collect();
-                    let p = irradiance_from_lambert(estimate(&channel)?);
-                    part[c] = p.value;
-                    if e.variance > 0.0 {
-                        share[c] = (p.variance / e.variance).clamp(0.0, 1.0);
-                    }
+                let p = irradiance_from_lambert(estimate(&channel)?);
+                part[c] = p.value;
+                if e.variance > 0.0 {
+                    share[c] = (p.variance / e.variance).clamp(0.0, 1.0);
                 }
             }
-            irradiance = Rgb::from_array(value);
-            variance = Rgb::from_array(var);
-            indirect = if lengths == PathLengths::Indirect {
-                Some(IndirectPart::whole(irradiance))
-            } else if hemisphere_part {
-                Some(IndirectPart {
-                    irradiance: Rgb::from_array(part),
-                    variance_share: Rgb::from_array(share),
-                })
-            } else {
-                None
-            };
         }
-        if decomposition == Decomposition::Split {
-            let (direct, strata) =
-                self.direct_irradiance(point, options.light_samples(), &mut rng, &mut stats);
-            direct_strata = strata;
-            irradiance += direct.mean;
-            unseen_light = nothing_seen(direct.mean);
-            let indirect_variance = variance;
-            variance += direct.variance_of_mean;
-            // The indirect part's share is its own variance over the
-            // whole's (docs/math.md §10.7): a prior on it must not take
-            // away the light samples' variance.
-            if let Some(part) = indirect.as_mut() {
-                part.variance_share = share(indirect_variance, variance);
-            }
-        }
-        Ok(IrradianceEstimate {
-            irradiance,
-            std_error: variance.map(f64::sqrt),
-            rays: stats.rays,
-            indirect,
-            unseen_light,
-            direct_strata,
-        })
+        irradiance = Rgb::from_array(value);
+        variance = Rgb::from_array(var);
+        indirect = if lengths == PathLengths::Indirect {
+            Some(IndirectPart::whole(irradiance))
+        } else if hemisphere_part {
+            Some(IndirectPart {
+                irradiance: Rgb::from_array(part),
+                variance_share: Rgb::from_array(share),
+            })
+        } else {
+            None
+        };
     }
+    if decomposition == Decomposition::Split {
+        let (direct, strata) =
+            transport.direct_irradiance(point, options.light_samples(), &mut rng, &mut stats);
+        direct_strata = strata;
+        irradiance += direct.mean;
+        unseen_light = nothing_seen(direct.mean);
+        let indirect_variance = variance;
+        variance += direct.variance_of_mean;
+        // The indirect part's share is its own variance over the
+        // whole's (docs/math.md §10.7): a prior on it must not take
+        // away the light samples' variance.
+        if let Some(part) = indirect.as_mut() {
+            part.variance_share = share(indirect_variance, variance);
+        }
+    }
+    Ok(IrradianceEstimate {
+        irradiance,
+        std_error: variance.map(f64::sqrt),
+        rays: stats.rays,
+        indirect,
+        unseen_light,
+        direct_strata,
+    })
 }
 
 #[cfg(test)]
@@ -317,9 +302,14 @@ mod tests {
             prior: PriorChoice::None,
             indirect_part: true,
         };
-        cornell(8)
-            .irradiance_with_estimator(&[wall_point()], rule, &options, &|| {}, &Cancel::never())
-            .unwrap()[0]
+        rule.estimate(
+            &cornell(8),
+            &[wall_point()],
+            &options,
+            &|| {},
+            &Cancel::never(),
+        )
+        .unwrap()[0]
     }
 
     #[test]
@@ -338,32 +328,32 @@ mod tests {
         let (mut bmc_sq, mut mc_sq, mut within) = (0.0, 0.0, 0);
         let runs = 32;
         for seed in 0..runs {
-            let b = transport
-                .irradiance_with_estimator(
-                    &point,
-                    HemisphereRule {
-                        estimator: &bmc,
-                        prior: PriorChoice::None,
-                        indirect_part: false,
-                    },
-                    &options(4096, seed),
-                    &|| {},
-                    &Cancel::never(),
-                )
-                .unwrap()[0];
-            let m = transport
-                .irradiance_with_estimator(
-                    &point,
-                    HemisphereRule {
-                        estimator: &mc,
-                        prior: PriorChoice::None,
-                        indirect_part: false,
-                    },
-                    &options(4096, seed),
-                    &|| {},
-                    &Cancel::never(),
-                )
-                .unwrap()[0];
+            let b = HemisphereRule {
+                estimator: &bmc,
+                prior: PriorChoice::None,
+                indirect_part: false,
+            }
+            .estimate(
+                &transport,
+                &point,
+                &options(4096, seed),
+                &|| {},
+                &Cancel::never(),
+            )
+            .unwrap()[0];
+            let m = HemisphereRule {
+                estimator: &mc,
+                prior: PriorChoice::None,
+                indirect_part: false,
+            }
+            .estimate(
+                &transport,
+                &point,
+                &options(4096, seed),
+                &|| {},
+                &Cancel::never(),
+            )
+            .unwrap()[0];
             let (e_b, e_m, e_r) = (
                 b.irradiance.luminance(),
                 m.irradiance.luminance(),
@@ -469,13 +459,14 @@ mod tests {
                 .build()
                 .unwrap()
                 .install(|| {
-                    transport.irradiance_with_estimator(
+                    HemisphereRule {
+                        estimator: &estimator,
+                        prior: PriorChoice::None,
+                        indirect_part: false,
+                    }
+                    .estimate(
+                        &transport,
                         &points,
-                        HemisphereRule {
-                            estimator: &estimator,
-                            prior: PriorChoice::None,
-                            indirect_part: false,
-                        },
                         &options(4, 5),
                         &|| {},
                         &Cancel::never(),

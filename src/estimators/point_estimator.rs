@@ -489,7 +489,7 @@ impl PointEstimator {
                 prior,
                 indirect_part: self.indirect_part,
             };
-            transport.irradiance_with_estimator(points, rule, options, on_done, cancel)
+            rule.estimate(transport, points, options, on_done, cancel)
         };
         let (estimates, kernel, quadrature_cached) = match &self.rule {
             // Plain MC keeps its own path (the reference estimator).

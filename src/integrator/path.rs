@@ -1,6 +1,6 @@
 //! The path tracer: unidirectional path tracing with next-event
 //! estimation, MIS and Russian roulette (the kernels of
-//! [`crate::render::Transport::incident_radiance`]), emitters seen directly
+//! [`crate::render::PathTracer::incident_radiance`]), emitters seen directly
 //! included: the unbiased reference every other integrator is measured
 //! against. It shades camera rays through the shared pixel loop
 //! ([`render_tile_with`]), spreading each pixel's first light and BSDF
@@ -45,6 +45,7 @@ impl<'a> PathIntegrator<'a> {
         };
         Evaluation::of(
             self.transport
+                .paths()
                 .incident_radiance(ray, limits, rng, stats)
                 .radiance,
         )
@@ -121,6 +122,7 @@ impl CameraRayShader for PathTracer<'_> {
         let first = SharedFirstVertex::new(sample.index, sample.count, sample.pattern);
         Evaluation::of(
             self.transport
+                .paths()
                 .incident_radiance_stratified(ray, limits, first, rng, stats)
                 .radiance,
         )

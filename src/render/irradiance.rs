@@ -321,7 +321,7 @@ impl Transport {
                 let ray = self
                     .scene()
                     .spawn_ray(point.position(), point.normal(), dir);
-                self.trace_first_segment(ray, limits, stats)
+                self.paths().trace_first_segment(ray, limits, stats)
             })
             .collect()
     }
@@ -337,7 +337,10 @@ impl Transport {
     ) -> Vec<RadianceSample> {
         traced
             .iter()
-            .map(|t| self.continue_averaged(t, paths.limits, paths.per_direction, rng, stats))
+            .map(|t| {
+                self.paths()
+                    .continue_averaged(t, paths.limits, paths.per_direction, rng, stats)
+            })
             .collect()
     }
 

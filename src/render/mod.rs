@@ -31,6 +31,7 @@ pub(crate) mod lights;
 mod mean;
 pub mod microfacet;
 mod path;
+mod path_tracer;
 mod pixel_variance;
 #[doc(hidden)]
 pub mod polygon;
@@ -59,6 +60,7 @@ pub use path::{
     AveragedPaths, FirstSegment, PathDepth, PathLengths, PathLimits, RadianceSample,
     SharedFirstVertex, TraceStats, power_heuristic,
 };
+pub use path_tracer::PathTracer;
 pub use query::{PointDoc, QueryPoint};
 pub use sample_plan::SamplePlan;
 pub use shadow_probe::SHADOW_PROBES;

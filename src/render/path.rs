@@ -1,7 +1,8 @@
-//! Incident radiance `L_i(x, ω)` along one ray by unidirectional path tracing
-//! with next-event estimation, multiple importance sampling and Russian
-//! roulette (pbrt-v4 §13.4 `PathIntegrator`; Veach 1997 ch. 9 for the power
-//! heuristic).
+//! Paths as requests bound them and the path tracer reports them: the
+//! depth ([`PathDepth`]), the lengths summed ([`PathLimits`]), radiance
+//! along a direction ([`RadianceSample`]), a ray traced to its first hit
+//! ([`FirstSegment`]) and how its first vertex is sampled; the power
+//! heuristic. The kernel that traces them is `render::path_tracer`.
 //!
 //! **Path length** counts segments from the query point: length 1 is light
 //! arriving straight from an emitter or the environment along `ω`; length
@@ -9,28 +10,15 @@
 //! `max_depth = 1` is direct light only — the same meaning as Mitsuba 3's
 //! `max_depth` for an `irradiancemeter` sensor.
 //!
-//! The first direction is chosen by the caller (a hemisphere estimator), so
-//! emission found by the first segment is taken at full weight. At later
-//! vertices light is gathered twice — by a light sample and by the BSDF-sampled
-//! continuation — and the two are weighted by the power heuristic so nothing is
-//! counted twice.
 
 use glam::DVec3;
-use rand::{Rng, RngExt};
 
 use super::error::RenderError;
-use super::lights::{emitted_radiance, environment_radiance};
-use super::mean::MeanEstimate;
 use super::seed::mix;
-use super::strata::{GridStrata, SharedStrata};
+use super::strata::SharedStrata;
 pub use super::trace_stats::TraceStats;
-use super::transport::Transport;
 use crate::color::Rgb;
-use crate::scene::{Ray, Scene, SurfaceHit};
-
-/// Russian roulette starts once a path has this many segments: the first
-/// bounces carry most of the energy and are never cut (pbrt-v4 uses `depth > 1`).
-const ROULETTE_START: u32 = 2;
+use crate::scene::{Scene, SurfaceHit};
 
 /// Which path lengths a radiance estimate includes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -198,7 +186,7 @@ impl std::fmt::Display for PathDepth {
 
 /// Paths averaged per direction: each direction's radiance is the mean of
 /// `per_direction ≥ 1` paths of `limits`, sharing their first segment
-/// ([`Transport::incident_radiance_averaged`]).
+/// ([`PathTracer::incident_radiance_averaged`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AveragedPaths {
     pub limits: PathLimits,
@@ -215,7 +203,7 @@ pub struct RadianceSample {
     pub distance: f64,
     /// Variance of `radiance` as an estimate, per channel, (W/(m²·sr))²,
     /// from the spread of the paths it averages
-    /// ([`Transport::incident_radiance_averaged`]); zero for a single path,
+    /// ([`PathTracer::incident_radiance_averaged`]); zero for a single path,
     /// whose spread is unknown.
     pub variance: Rgb,
     /// The part of `radiance` that is emission seen directly along the
@@ -235,267 +223,14 @@ impl RadianceSample {
     };
 }
 
-impl Transport {
-    /// Incident radiance at `ray.origin` from direction `ray.dir` (world),
-    /// summed over the paths `limits` allows.
-    ///
-    /// Spawn the ray with [`crate::scene::Scene::spawn_ray`] so it leaves the query surface
-    /// cleanly.
-    pub fn incident_radiance<R: Rng + ?Sized>(
-        &self,
-        ray: Ray,
-        limits: PathLimits,
-        rng: &mut R,
-        stats: &mut TraceStats,
-    ) -> RadianceSample {
-        self.incident_radiance_averaged(ray, limits, 1, rng, stats)
-    }
-
-    /// The mean of `paths ≥ 1` path estimates of [`Self::incident_radiance`]
-    /// that share their first segment: the ray is traced once and `paths`
-    /// independent continuations leave its hit. Every continuation is an
-    /// unbiased path sample, so the mean is unbiased; it saves `paths − 1`
-    /// closest-hit rays, and the continuations' light samples at the first
-    /// hit are stratified over the light's unit square (stratum `j` of a
-    /// near-square `s_x × s_y = paths` grid), which lowers the variance of
-    /// the one-bounce term that dominates indirect light. The sample's
-    /// `variance` is the continuations' sample variance over `paths`.
-    pub fn incident_radiance_averaged<R: Rng + ?Sized>(
-        &self,
-        ray: Ray,
-        limits: PathLimits,
-        paths: u32,
-        rng: &mut R,
-        stats: &mut TraceStats,
-    ) -> RadianceSample {
-        let traced = self.trace_first_segment(ray, limits, stats);
-        self.continue_averaged(&traced, limits, paths, rng, stats)
-    }
-
-    /// [`Self::incident_radiance`] for ray `first.index` of a group of
-    /// rays (a pixel's) whose first-vertex light and BSDF samples are
-    /// spread over the group's shared patterns (`render::strata`): each
-    /// sample stays uniform on its own, so the estimate stays unbiased, and
-    /// the group's mean gets the stratification's lower variance.
-    pub fn incident_radiance_stratified<R: Rng + ?Sized>(
-        &self,
-        ray: Ray,
-        limits: PathLimits,
-        first: SharedFirstVertex,
-        rng: &mut R,
-        stats: &mut TraceStats,
-    ) -> RadianceSample {
-        let traced = self.trace_first_segment(ray, limits, stats);
-        let first = |_| FirstVertex::Shared(first);
-        self.continue_first_segment(&traced, limits, 1, first, rng, stats)
-    }
-
-    /// The first step of [`Self::incident_radiance_averaged`]: `ray` traced
-    /// and what it sees directly, with no random number drawn, so the
-    /// continuations may follow later ([`Self::continue_averaged`]) and give
-    /// the same bits as the one-step call with the same generator.
-    pub fn trace_first_segment(
-        &self,
-        ray: Ray,
-        limits: PathLimits,
-        stats: &mut TraceStats,
-    ) -> FirstSegment {
-        let scene = self.scene();
-        let mut sample = RadianceSample::NONE;
-        // The first segment's direction came from the caller, so emission
-        // found by it is taken at full weight.
-        let direct = limits.lengths == PathLengths::All;
-        stats.rays += 1;
-        let Some(hit) = scene.intersect(&ray) else {
-            if direct {
-                sample.direct = environment_radiance(scene, ray.dir);
-                sample.radiance = sample.direct;
-            }
-            return FirstSegment { sample, hit: None };
-        };
-        sample.distance = hit.t;
-        if direct {
-            sample.direct = emitted_radiance(scene, &hit, ray.dir);
-            sample.radiance = sample.direct;
-        }
-        FirstSegment {
-            sample,
-            hit: Some((hit, ray.dir)),
-        }
-    }
-
-    /// The solid-angle density with which a light sample from `origin`
-    /// (where `traced` started) would have chosen the emission `traced`
-    /// found directly (its `direct`): the environment's where it escaped, the
-    /// area emitter's where it hit one; the weight of that emission against
-    /// light samples in multiple importance sampling.
-    pub fn light_pdf_of(&self, origin: DVec3, traced: &FirstSegment, dir: DVec3) -> f64 {
-        let scene = self.scene();
-        match &traced.hit {
-            None => self.lights().pdf_environment(scene, origin, dir),
-            Some((hit, _)) => self.lights().pdf_area_hit(scene, origin, hit),
-        }
-    }
-
-    /// The second step of [`Self::incident_radiance_averaged`]: the mean of
-    /// `paths` continuations from the hit of `traced`.
-    pub fn continue_averaged<R: Rng + ?Sized>(
-        &self,
-        traced: &FirstSegment,
-        limits: PathLimits,
-        paths: u32,
-        rng: &mut R,
-        stats: &mut TraceStats,
-    ) -> RadianceSample {
-        let strata = GridStrata::new(paths);
-        let first = |j| FirstVertex::Grid(strata, j);
-        self.continue_first_segment(traced, limits, paths, first, rng, stats)
-    }
-
-    /// `paths` continuations from the hit of `traced`, the `j`-th drawing
-    /// its first-vertex samples as `first(j)` says, averaged.
-    fn continue_first_segment<R: Rng + ?Sized>(
-        &self,
-        traced: &FirstSegment,
-        limits: PathLimits,
-        paths: u32,
-        first: impl Fn(u32) -> FirstVertex,
-        rng: &mut R,
-        stats: &mut TraceStats,
-    ) -> RadianceSample {
-        let mut sample = traced.sample;
-        let Some((hit, dir)) = traced.hit else {
-            return sample;
-        };
-        let paths = paths.max(1);
-        // Given the shared hit the continuations are independent, so their
-        // spread estimates the variance of their mean (an upper bound, as
-        // their first light samples are stratified).
-        let continuations = MeanEstimate::of(
-            (0..paths)
-                .map(|j| self.continue_path(hit, dir, limits.max_depth, first(j), rng, stats)),
-        );
-        sample.radiance += continuations.mean;
-        sample.variance = continuations.variance_of_mean;
-        sample
-    }
-
-    /// Radiance of path lengths `2..=max_depth` arriving along `dir` from
-    /// the first hit `hit` (its emission excluded): NEE at every vertex,
-    /// the first one's samples drawn as `first` says.
-    fn continue_path<R: Rng + ?Sized>(
-        &self,
-        hit: SurfaceHit,
-        dir: DVec3,
-        max_depth: PathDepth,
-        first: FirstVertex,
-        rng: &mut R,
-        stats: &mut TraceStats,
-    ) -> Rgb {
-        let scene = self.scene();
-        let mut radiance = Rgb::BLACK;
-        let mut beta = Rgb::WHITE;
-        let (mut hit, mut dir) = (hit, dir);
-        // `hit` was reached by segment `depth`.
-        for depth in 1..max_depth.get() {
-            let Some(bsdf) = self.bsdf_at(&hit) else {
-                break;
-            };
-            // Reflection happens in the shading frame (interpolated mesh
-            // normals where present), as in Mitsuba 3; rays still leave
-            // from the geometric surface, on the side of their direction.
-            let frame = bsdf.frame_at(&hit);
-            let wo = frame.to_local(-dir);
-            if !bsdf.scatters_towards(wo) || bsdf.is_black() {
-                // Back faces of one-sided BSDFs are black, as in Mitsuba 3.
-                break;
-            }
-            let flags = bsdf.flags();
-
-            // Next-event estimation: a path of length depth + 1 ending on a
-            // light, for the parts a light sample can reach (not deltas).
-            if flags.diffuse || flags.glossy {
-                let u_select = rng.random();
-                let mut u = [rng.random(), rng.random()];
-                if depth == 1 {
-                    u = first.light(u);
-                }
-                if let Some(light) = self.lights().sample(scene, hit.position, u_select, u) {
-                    let wi = frame.to_local(light.wi);
-                    let f = bsdf.eval(wo, wi);
-                    if !f.is_black() && light.visible_from(scene, hit.position, hit.normal, stats) {
-                        // A delta light is out of the BSDF sample's reach.
-                        let weight = if light.delta {
-                            1.0
-                        } else {
-                            power_heuristic(light.pdf, bsdf.pdf(wo, wi))
-                        };
-                        radiance += beta * f * light.radiance * (wi.z.abs() * weight / light.pdf);
-                    }
-                }
-            }
-
-            // Continue the path by sampling the BSDF.
-            let lobe = rng.random();
-            let mut u = [rng.random(), rng.random()];
-            if depth == 1 {
-                u = first.bsdf(u);
-            }
-            let Some(sample) = bsdf.sample(wo, lobe, u) else {
-                break;
-            };
-            beta *= sample.value * (sample.wi.z.abs() / sample.pdf);
-            if depth >= ROULETTE_START {
-                let max = beta.max_component();
-                if max < 1.0 {
-                    let q = (1.0 - max).max(0.0);
-                    if rng.random::<f64>() < q {
-                        break;
-                    }
-                    beta *= 1.0 / (1.0 - q);
-                }
-            }
-            let origin = hit.position;
-            let ray = scene.spawn_ray(origin, hit.normal, frame.to_world(sample.wi));
-            dir = ray.dir;
-            // Segment depth + 1: light it finds was also reachable by the
-            // light sample above, so both are weighted by the power
-            // heuristic, unless a delta chose it, which no light sample can.
-            let mis = |light_pdf: f64| {
-                if sample.delta {
-                    1.0
-                } else {
-                    power_heuristic(sample.pdf, light_pdf)
-                }
-            };
-            stats.rays += 1;
-            let Some(next) = scene.intersect(&ray) else {
-                let le = environment_radiance(scene, dir);
-                if !le.is_black() {
-                    let weight = mis(self.lights().pdf_environment(scene, origin, dir));
-                    radiance += beta * le * weight;
-                }
-                break;
-            };
-            let le = emitted_radiance(scene, &next, dir);
-            if !le.is_black() {
-                let weight = mis(self.lights().pdf_area_hit(scene, origin, &next));
-                radiance += beta * le * weight;
-            }
-            hit = next;
-        }
-        radiance
-    }
-}
-
 /// A ray traced to its first hit, its continuations still to come
-/// ([`Transport::trace_first_segment`]).
+/// ([`PathTracer::trace_first_segment`]).
 #[derive(Clone, Copy, Debug)]
 pub struct FirstSegment {
     /// What the segment sees directly, and its length.
-    sample: RadianceSample,
+    pub(super) sample: RadianceSample,
     /// The hit and the ray's direction, if it hit anything.
-    hit: Option<(SurfaceHit, DVec3)>,
+    pub(super) hit: Option<(SurfaceHit, DVec3)>,
 }
 
 impl FirstSegment {
@@ -521,40 +256,13 @@ impl FirstSegment {
     }
 }
 
-/// How a path's first-vertex samples (at the hit of its first segment)
-/// are drawn from their uniform numbers.
-#[derive(Clone, Copy, Debug)]
-enum FirstVertex {
-    /// The light sample within cell `j` of a grid (the continuations of
-    /// one first segment); the BSDF sample as drawn.
-    Grid(GridStrata, u32),
-    /// Both within the cells of a group's shared patterns.
-    Shared(SharedFirstVertex),
-}
-
-impl FirstVertex {
-    fn light(&self, u: [f64; 2]) -> [f64; 2] {
-        match self {
-            FirstVertex::Grid(strata, j) => strata.sample(*j, u),
-            FirstVertex::Shared(s) => s.light.sample(s.index, u),
-        }
-    }
-
-    fn bsdf(&self, u: [f64; 2]) -> [f64; 2] {
-        match self {
-            FirstVertex::Grid(..) => u,
-            FirstVertex::Shared(s) => s.bsdf.sample(s.index, u),
-        }
-    }
-}
-
 /// Ray `index` of a group of `count` rays that spread their first-vertex
 /// light samples and BSDF samples over two shared patterns (docs/math.md §16).
 #[derive(Clone, Copy, Debug)]
 pub struct SharedFirstVertex {
-    light: SharedStrata,
-    bsdf: SharedStrata,
-    index: u64,
+    pub(super) light: SharedStrata,
+    pub(super) bsdf: SharedStrata,
+    pub(super) index: u64,
 }
 
 impl SharedFirstVertex {
@@ -644,10 +352,12 @@ mod tests {
             for index in 0..size {
                 let first = SharedFirstVertex::new(index, size, seeds);
                 shared += transport
+                    .paths()
                     .incident_radiance_stratified(ray, limits, first, &mut rng, &mut stats)
                     .radiance
                     .luminance();
                 independent += transport
+                    .paths()
                     .incident_radiance(ray, limits, &mut rng, &mut stats)
                     .radiance
                     .luminance();

@@ -473,9 +473,11 @@ fn paths_sharing_a_first_segment_are_unbiased_and_cheaper() {
         let (mut shared, mut single) = (TraceStats::default(), TraceStats::default());
         let estimate = MeanEstimate::of((0..2000).map(|_| {
             (0..4).for_each(|_| {
-                t.incident_radiance(from, limits, &mut rng, &mut single);
+                t.paths()
+                    .incident_radiance(from, limits, &mut rng, &mut single);
             });
-            t.incident_radiance_averaged(from, limits, 4, &mut rng, &mut shared)
+            t.paths()
+                .incident_radiance_averaged(from, limits, 4, &mut rng, &mut shared)
                 .radiance
         }));
         for c in 0..3 {
@@ -523,12 +525,14 @@ fn paths_sharing_a_first_segment_are_unbiased_and_cheaper() {
     let mut rng = point_rng(5, 0);
     let mut stats = TraceStats::default();
     let shared = MeanEstimate::of((0..4000).map(|_| {
-        t.incident_radiance_averaged(ray, limits, 8, &mut rng, &mut stats)
+        t.paths()
+            .incident_radiance_averaged(ray, limits, 8, &mut rng, &mut stats)
             .radiance
     }));
     let single = MeanEstimate::of((0..4000).map(|_| {
         (0..8).fold(Rgb::BLACK, |sum, _| {
             sum + t
+                .paths()
                 .incident_radiance(ray, limits, &mut rng, &mut stats)
                 .radiance
         }) * (1.0 / 8.0)

@@ -391,15 +391,20 @@ impl CachedIntegrator<'_> {
                 max_depth: r.placement.paths.max_depth,
                 lengths: PathLengths::All,
             };
-            let traced = self.transport.trace_first_segment(ray, limits, trace);
+            let traced = self
+                .transport
+                .paths()
+                .trace_first_segment(ray, limits, trace);
             let light_pdf = self
                 .transport
+                .paths()
                 .light_pdf_of(s.hit.position, &traced, ray.dir);
             let weight = mis_weights(r.light_samples, light_pdf, sample.pdf).1;
             radiance += sample.value * traced.sample().direct * (weight * cos_over_pdf);
             if r.indirect && !throughput.is_black() {
                 let incident = self
                     .transport
+                    .paths()
                     .continue_averaged(&traced, limits, 1, rng, trace);
                 radiance += throughput * (incident.radiance - incident.direct);
             }
@@ -421,7 +426,10 @@ impl CachedIntegrator<'_> {
                 PathLengths::Indirect
             },
         };
-        let incident = self.transport.incident_radiance(ray, limits, rng, trace);
+        let incident = self
+            .transport
+            .paths()
+            .incident_radiance(ray, limits, rng, trace);
         Ok(done(radiance + throughput * incident.radiance))
     }
 
