@@ -8,7 +8,7 @@
 //! SE kernel ℓ = 0.5, noise 1e-3, GLS prior mean) both ways, alternating, so
 //! that load from other processes affects both equally. The in-process side
 //! does what the service's CPU job does — cache lookup of the weights, the
-//! estimator, `irradiance_with_estimator` on a rayon pool of `threads`
+//! estimator, `HemisphereRule::estimate` on a rayon pool of `threads`
 //! threads — while the service side adds JSON encoding, HTTP on loopback,
 //! validation, the CPU-pool hand-off and JSON decoding in the client.
 //! It also times the first request with `"lengthscale": "auto"` (which fits
@@ -93,17 +93,12 @@ fn main() -> anyhow::Result<()> {
         let (quadrature, _) = spec.quadrature(&cache)?;
         let estimator = BayesianEstimator::new(quadrature, BmcVariance::AmplitudeFit);
         let estimates = pool.install(|| {
-            transport.irradiance_with_estimator(
-                &query,
-                HemisphereRule {
-                    estimator: &estimator,
-                    prior: PriorChoice::None,
-                    indirect_part: false,
-                },
-                &options,
-                &|| {},
-                &Cancel::never(),
-            )
+            HemisphereRule {
+                estimator: &estimator,
+                prior: PriorChoice::None,
+                indirect_part: false,
+            }
+            .estimate(&transport, &query, &options, &|| {}, &Cancel::never())
         })?;
         std::hint::black_box(estimates);
         Ok(start.elapsed())

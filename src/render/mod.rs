@@ -6,10 +6,11 @@
 //! z = surface normal ([`crate::sphere::Frame`]); surfaces reflect and emit on
 //! their front side only, as in Mitsuba 3 (see `bsdf`).
 //!
-//! Entry points: [`Transport`] (built once per scene) with
-//! `incident_radiance`, `hemisphere_samples`, `direct_irradiance`,
-//! `irradiance_with_estimator` (any MC/QMC/BMC estimator),
-//! `irradiance` and `irradiance_at_points`; the pixel loop every
+//! Entry points: [`Transport`] (built once per scene) with its path
+//! kernel ([`PathTracer`], `transport.paths()`: incident radiance along
+//! rays), `hemisphere_samples`, `direct_irradiance`, `irradiance` and
+//! `irradiance_at_points` (any MC/QMC/BMC rule runs through
+//! `estimators::HemisphereRule::estimate`); the pixel loop every
 //! integrator's camera tiles go through (`tile`) and the whole image
 //! assembled from tiles (`film`). Integrators live in
 //! the `integrator` module.
