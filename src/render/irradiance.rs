@@ -27,6 +27,7 @@ use rand::{Rng, RngExt};
 use rayon::prelude::*;
 
 use super::cancel::Cancel;
+use super::environment_prior::{EnvironmentPrior, PriorChoice};
 use super::error::RenderError;
 use super::lights::environment_radiance;
 use super::mean::{MeanEstimate, StrataVariance};
@@ -87,6 +88,21 @@ pub enum Decomposition {
 pub const SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE: f64 = 1.0;
 
 impl Transport {
+    /// The prior mean the hemisphere part uses for `choice` under
+    /// `decomposition`: the environment prior where the hemisphere integrand
+    /// contains the environment seen directly (the hemisphere decomposition
+    /// of a scene with an environment), else none.
+    pub fn hemisphere_prior(
+        &self,
+        choice: PriorChoice,
+        decomposition: Decomposition,
+    ) -> Option<&EnvironmentPrior> {
+        match (choice, decomposition) {
+            (PriorChoice::Environment, Decomposition::Hemisphere) => self.environment_prior(),
+            _ => None,
+        }
+    }
+
     /// The decomposition `method` stands for in this scene: itself, or for
     /// `auto` `hemisphere` when the scene has no emitting surface and an
     /// environment whose relative variance is at most

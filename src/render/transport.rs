@@ -6,9 +6,8 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use super::Decomposition;
 use super::bsdf::Bsdf;
-use super::environment_prior::{EnvironmentPrior, PriorChoice};
+use super::environment_prior::EnvironmentPrior;
 use super::environment_sampling::environment_relative_variance;
 use super::lights::LightSampler;
 use crate::scene::{Material, Scene, SurfaceHit};
@@ -66,21 +65,6 @@ impl Transport {
     /// The environment prior mean (docs/math.md §10.4), if the scene has an environment.
     pub fn environment_prior(&self) -> Option<&EnvironmentPrior> {
         self.environment_prior.as_ref()
-    }
-
-    /// The prior mean the hemisphere part uses for `choice` under
-    /// `decomposition`: the environment prior where the hemisphere integrand
-    /// contains the environment seen directly (the hemisphere decomposition
-    /// of a scene with an environment), else none.
-    pub fn hemisphere_prior(
-        &self,
-        choice: PriorChoice,
-        decomposition: Decomposition,
-    ) -> Option<&EnvironmentPrior> {
-        match (choice, decomposition) {
-            (PriorChoice::Environment, Decomposition::Hemisphere) => self.environment_prior(),
-            _ => None,
-        }
     }
 
     /// `Var L / (E L)²` of the environment's radiance over the sphere

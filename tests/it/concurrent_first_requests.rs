@@ -68,7 +68,7 @@ fn first_requests() -> Vec<(&'static str, Option<Value>)> {
             "/v1/scenes/box/radiance",
             Some(json!({
                 "points": [{"position": [0.1, 0.6, -1.0], "normal": [0, 0, 1], "direction": [0.2, -0.1, 1.0]}],
-                "estimator": {"method": "bmc", "samples": 16, "light_samples": 1},
+                "estimator": {"method": "cache", "samples": 16, "light_samples": 1},
                 "repeats": 1, "max_depth": 3, "seed": 3,
             })),
         ),

@@ -421,3 +421,24 @@ fn routes_hold_no_estimator_logic() {
         assert!(named.is_empty(), "{} runs {named:?}", path.display());
     }
 }
+
+/// `Transport` is the scene's light-transport state; the kernels built on
+/// it are types of their own (`PathTracer`, `HemisphereRule`), so no module
+/// outside `render` adds methods to it.
+#[test]
+fn only_render_adds_methods_to_transport() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    for path in files {
+        if path.starts_with(src.join("render")) {
+            continue;
+        }
+        let text = non_test_text(&path);
+        assert!(
+            !text.contains("impl Transport"),
+            "{} adds methods to Transport",
+            path.display()
+        );
+    }
+}

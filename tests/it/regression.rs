@@ -61,7 +61,7 @@ async fn fixed_seed_results_are_unchanged() {
             "reproducible cached tile",
             "tiles",
             tile(
-                json!({"method": "bmc", "samples": 64, "paths_per_direction": 2,
+                json!({"method": "cache", "samples": 64, "paths_per_direction": 2,
                         "light_samples": 4, "reproducible": true}),
             ),
         ),

@@ -305,7 +305,7 @@ fn cases() -> Vec<Case> {
                 t["width"] = json!(1);
                 t["height"] = json!(1);
                 t["estimator"] =
-                    json!({"method": "bmc", "samples": 4096, "paths_per_direction": 65536});
+                    json!({"method": "cache", "samples": 4096, "paths_per_direction": 65536});
             })),
             status: S::UNPROCESSABLE_ENTITY,
             code: "limit_exceeded",
@@ -317,7 +317,7 @@ fn cases() -> Vec<Case> {
             path: "/v1/scenes/tiny/radiance",
             body: Body::Json(json!({
                 "points": [{"position": [0, 0, 0], "normal": [0, 0, 1], "direction": [0, 0, 1]}],
-                "estimator": {"method": "bmc", "samples": 4096, "paths_per_direction": 65536},
+                "estimator": {"method": "cache", "samples": 4096, "paths_per_direction": 65536},
             })),
             status: S::UNPROCESSABLE_ENTITY,
             code: "limit_exceeded",
@@ -392,7 +392,7 @@ fn cases() -> Vec<Case> {
             "tile: too many ambient bounces",
             Method::POST,
             tiles,
-            tile(|t| t["estimator"] = json!({"method": "bmc", "ambient_bounces": 99})),
+            tile(|t| t["estimator"] = json!({"method": "cache", "ambient_bounces": 99})),
             "estimator.ambient_bounces",
         ),
         unprocessable(

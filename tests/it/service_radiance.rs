@@ -41,7 +41,7 @@ async fn cached_radiance_agrees_with_path_tracing_and_fills_the_cache() {
     };
     let path = post(request(json!({"method": "path"}), 2048)).await;
     let bmc = post(request(
-        json!({"method": "bmc", "samples": 128, "paths_per_direction": 4, "light_samples": 64}),
+        json!({"method": "cache", "samples": 128, "paths_per_direction": 4, "light_samples": 64}),
         4,
     ))
     .await;
@@ -86,7 +86,7 @@ async fn radiance_through_the_secondary_cache_agrees_with_path_tracing() {
         }
     };
     let path = post(json!({"method": "path"}), 2048, 3).await;
-    let estimator = json!({"method": "bmc", "samples": 128, "paths_per_direction": 4,
+    let estimator = json!({"method": "cache", "samples": 128, "paths_per_direction": 4,
                            "light_samples": 64, "secondary_cache": true});
     let building = post(estimator.clone(), 4, 3).await;
     let cache: Value = app.get("/v1/scenes/box/cache").await.json().await.unwrap();

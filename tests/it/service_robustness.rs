@@ -497,7 +497,7 @@ async fn fits_for_seeds_a_fibonacci_set_ignores_are_kept_once() {
 async fn cache_stats_count_the_bytes_of_the_records_rule() {
     let app = spawn_app_with_scenes(&[("tiny.json", TINY_SCENE)], |_| {}).await;
     let tile = json!({"x": 0, "y": 0, "width": 8, "height": 8, "format": "json",
-                      "estimator": {"method": "bmc", "samples": 64}});
+                      "estimator": {"method": "cache", "samples": 64}});
     let response = app.post_json("/v1/scenes/tiny/tiles", &tile).await;
     assert_eq!(response.status(), StatusCode::OK);
     let stats: Value = app.get("/v1/scenes/tiny/cache").await.json().await.unwrap();

@@ -106,7 +106,7 @@ fn small_cornell(side: u32) -> String {
 
 /// A cheap `bmc` tile of the small Cornell box.
 fn bmc_tile(x: u32, y: u32, side: u32, extra: Value) -> Value {
-    let mut estimator = json!({"method": "bmc", "samples": 16, "light_samples": 2, "accuracy": 0.5,
+    let mut estimator = json!({"method": "cache", "samples": 16, "light_samples": 2, "accuracy": 0.5,
                "reproducible": false});
     for (key, value) in extra.as_object().unwrap() {
         estimator[key] = value.clone();
@@ -169,7 +169,7 @@ async fn clear_cache(app: &crate::common::TestApp) -> Value {
 }
 
 #[tokio::test]
-async fn bmc_tiles_fill_the_shared_cache_and_reuse_it() {
+async fn cache_tiles_fill_the_shared_cache_and_reuse_it() {
     let app = spawn_app_with_scenes(&[("box.json", &small_cornell(16))], |_| {}).await;
     assert!(
         cache_stats(&app).await["caches"]
@@ -244,7 +244,7 @@ async fn bmc_tiles_fill_the_shared_cache_and_reuse_it() {
 }
 
 #[tokio::test]
-async fn reproducible_bmc_tiles_ignore_what_ran_before() {
+async fn reproducible_cache_tiles_ignore_what_ran_before() {
     let app = spawn_app_with_scenes(&[("box.json", &small_cornell(16))], |_| {}).await;
     let request = bmc_tile(4, 4, 8, json!({"reproducible": true}));
     let cold = app.post_json("/v1/scenes/box/tiles", &request).await;

@@ -240,7 +240,7 @@ class _Points(_Chunking):
         if max_depth is not None:
             base["max_depth"] = int(max_depth)
         paths_per_point = repeats if repeats is not None else 16
-        if (integrator or {}).get("method", "cache") in ("cache", "bmc"):
+        if (integrator or {}).get("method", "cache") == "cache":
             options = integrator or {}
             paths_per_point += (
                 int(options.get("samples") or 64)
