@@ -38,7 +38,8 @@
 //!   load) is stopped by, below every layer.
 //! - [`bmc`] and [`sphere`]: the math — kernels, densities, kernel means,
 //!   factorisations, BMC weights and variances, hyperparameter fits;
-//!   hemisphere frames and sample sets.
+//!   hemisphere frames and sample sets; [`optics`]: Fresnel terms,
+//!   microfacet distributions and direction warps the BSDFs are made of.
 //! - [`image`]: RGB images with per-pixel variance; EXR/PNG/JSON encodings,
 //!   relative RMSE.
 //! - [`study`]: the convergence study on synthetic environments and the
@@ -48,7 +49,7 @@
 //! its root; `stats` (running means and variances) is private to the crate.
 //! A few items are public only for the tests, benches and examples and are
 //! hidden from these docs (`testing`, `scene::generate`, `render::polygon`,
-//! `render::warp`, the service's `AppState` and `CpuPool`); nothing outside
+//! `optics::warp`, the service's `AppState` and `CpuPool`); nothing outside
 //! this repository should rely on them.
 
 pub mod bmc;
@@ -61,6 +62,7 @@ pub mod image;
 pub mod integrator;
 pub(crate) mod isolated;
 pub mod loadtest;
+pub mod optics;
 pub mod render;
 pub mod scene;
 pub mod service;
