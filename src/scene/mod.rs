@@ -499,7 +499,7 @@ impl Scene {
         // emitters') share it.
         let mut seen = std::collections::HashSet::new();
         let emitted = self.emitters.iter().filter_map(|e| match e {
-            Emitter::Area { radiance, .. } => Some(radiance),
+            Emitter::Area(area) => Some(&area.radiance),
             _ => None,
         });
         let textures: u64 = self

@@ -117,7 +117,7 @@ fn cornell_box_matches_the_mitsuba_reference() {
     assert!((green.normal + DVec3::X).length() < 1e-6);
     // The light: centre (0, 0.99, 0.01), 0.46 × 0.38, facing -y, white BSDF.
     assert_eq!(scene.emitters.len(), 1);
-    let Emitter::Area { shape, radiance } = scene.emitters[0].clone() else {
+    let Emitter::Area(emitter::AreaLight { shape, radiance }) = scene.emitters[0].clone() else {
         panic!("{:?}", scene.emitters[0])
     };
     assert_eq!(

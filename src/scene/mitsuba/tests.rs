@@ -8,6 +8,10 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use proptest::prelude::*;
 
+use crate::scene::emitter::AreaLight;
+use crate::scene::emitter::directional::DirectionalLight;
+use crate::scene::emitter::point::PointLight;
+use crate::scene::emitter::spot::SpotLight;
 use crate::scene::material::Distribution;
 use crate::scene::material::blend::BlendMaterial;
 use crate::scene::material::conductor::ConductorMaterial;
@@ -344,10 +348,10 @@ fn emitters_area_constant_envmap_and_point() {
       <emitter type="constant"><rgb name="radiance" value="0.1"/></emitter>"#);
     assert_eq!(
         scene.emitters,
-        vec![Emitter::Area {
+        vec![Emitter::Area(AreaLight {
             shape: 0,
             radiance: Texture::Constant([1.0, 2.0, 3.0])
-        }]
+        })]
     );
     assert!(matches!(
         scene.environment,
@@ -387,21 +391,21 @@ fn emitters_area_constant_envmap_and_point() {
     assert_eq!(
         scene.emitters,
         vec![
-            Emitter::Point {
+            Emitter::Point(PointLight {
                 position: [0.0, 1.0, 0.0],
                 intensity: [2.0; 3]
-            },
-            Emitter::Spot {
+            }),
+            Emitter::Spot(SpotLight {
                 position: [0.0, 2.0, 0.0],
                 direction: [0.0, -1.0, 0.0],
                 intensity: [1.0; 3],
                 cutoff_angle: 30f64.to_radians(),
                 beam_width: 22.5f64.to_radians(),
-            },
-            Emitter::Directional {
+            }),
+            Emitter::Directional(DirectionalLight {
                 direction: [0.0, -1.0, 0.0],
                 irradiance: [3.0; 3]
-            },
+            }),
         ]
     );
 }
