@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 const FAMILIES: &[(&str, &str)] = &[
     ("scene/material.rs", "scene/material"),
     ("scene/emitter.rs", "scene/emitter"),
+    ("scene/texture.rs", "scene/texture"),
 ];
 
 /// One registry line.
