@@ -33,7 +33,8 @@
 //!   ([`estimators::lengthscale`]), calibrated error bars
 //!   ([`estimators::calibration`]) and error targets ([`estimators::error_target`]);
 //!   [`render::seed`] holds the random streams every result is reproducible by.
-//! - [`scene`]: JSON and Mitsuba 3 XML scenes, the camera, rays and the BVH.
+//! - [`scene`]: JSON and Mitsuba 3 XML scenes, the camera, rays and the BVH;
+//!   the BSDF, light and texture plugins, each in a file of its own.
 //! - [`cancel`]: the flag a long library call (a tile, a query, a scene
 //!   load) is stopped by, below every layer.
 //! - [`bmc`] and [`sphere`]: the math — kernels, densities, kernel means,

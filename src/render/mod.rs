@@ -1,5 +1,7 @@
-//! Light transport: reflection models, light sampling, incident radiance
-//! along a ray and irradiance at points. Knows scenes, never HTTP.
+//! Light transport: light sampling, incident radiance along a ray and
+//! irradiance at points, through the scene's reflection models
+//! ([`Bsdf`], built from `scene::material`'s plugins) and lights
+//! (`scene::emitter`'s). Knows scenes, never HTTP.
 //!
 //! Conventions shared by every file here: radiance in W/(m²·sr) and
 //! irradiance in W/m², per linear RGB channel ([`Rgb`]); local frames have

@@ -6,7 +6,7 @@
 //! A light document is `{"type": PLUGIN, PARAMETER: value, …}` with
 //! Mitsuba's plugin and parameter names. Each light has its own file below
 //! holding its parameters' docs, their parsing and validation through
-//! [`Params`], and its behaviour for next-event estimation ([`Light`]: the
+//! `Params`, and its behaviour for next-event estimation ([`Light`]: the
 //! reach that weighs its selection at a point, and sampling a direction
 //! towards it); the `plugins!` invocation below is the registry of the
 //! `lights` plugins: each line declares the light's module and generates

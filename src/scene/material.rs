@@ -1,9 +1,9 @@
 //! Surface materials: the BSDF plugins, one file each under
 //! `scene/material/` (Mitsuba 3's plugin names), each holding its
-//! parameters' docs, their parsing and validation through [`Params`], its
+//! parameters' docs, their parsing and validation through `Params`, its
 //! reflection model (implementing [`Model`]: `eval`, `pdf`, `sample` in the
 //! local frame, z = normal) and its build step from the parameters to the
-//! model with the textures valued at a point ([`Plugin::build`], pbrt-v4's
+//! model with the textures valued at a point (`build`, pbrt-v4's
 //! `GetBxDF`), its tests beside it. The registry is one list, the
 //! `plugins!` invocation below: each line generates the plugin's `mod`,
 //! its variants of [`Material`] (parameters) and [`Bsdf`] (model), its
@@ -134,7 +134,7 @@ macro_rules! plugins {
         }
 
         /// A surface's BSDF: the model of a [`Material`] with its textures
-        /// valued ([`Plugin::build`]); see `bsdf.rs`.
+        /// valued (`Parameters::build`); see `bsdf.rs`.
         #[derive(Clone, Debug, PartialEq)]
         pub enum Bsdf {
             $($variant(<$file::$plugin as Plugin>::Model),)*

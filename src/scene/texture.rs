@@ -7,7 +7,7 @@
 //! Mitsuba 3's plugin and parameter names, so a Mitsuba `<texture>`
 //! translates into one by copying its properties. Each plugin has its own
 //! file below holding its parameters' docs, their parsing and validation
-//! through [`Params`], and its lookups ([`Plugin`]: `eval` at `(u, v)`,
+//! through `Params`, and its lookups ([`Plugin`]: `eval` at `(u, v)`,
 //! `mean`, `max`); the `plugins!` invocation below is the registry: each
 //! line declares the plugin's module and generates its [`Texture`]
 //! variant, its parser entry and its dispatch arm. Every plugin takes

@@ -13,7 +13,7 @@
 //! Parameters (Mitsuba 3's names):
 //! - `distribution`: `beckmann` (default, as Mitsuba 3) or `ggx`;
 //! - `alpha`, or `alpha_u` and `alpha_v` (anisotropic): roughness, default
-//!   0.1, numbers or textures ([`super::optics::roughness`]); below
+//!   0.1, numbers or textures (`optics::roughness`); below
 //!   `MIN_ALPHA` the surface is the smooth `conductor`;
 //! - `eta`, `k`, `material`, `specular_reflectance`: as `conductor`'s.
 //!

@@ -21,7 +21,7 @@
 //!
 //! Parameters (Mitsuba 3's names): `distribution` (`beckmann` default,
 //! or `ggx`); `alpha` or `alpha_u`/`alpha_v`, default 0.1, numbers or
-//! textures ([`super::optics::roughness`]; below `MIN_ALPHA` the interface
+//! textures (`optics::roughness`; below `MIN_ALPHA` the interface
 //! is the smooth `dielectric`); `int_ior`, `ext_ior`,
 //! `specular_reflectance`, `specular_transmittance`: as `dielectric`'s.
 

@@ -22,7 +22,7 @@
 //! and the base by the cosine otherwise.
 //!
 //! Parameters (Mitsuba 3's names): `distribution` (default `beckmann`)
-//! and `alpha` ([`super::optics::roughness`]; one number, isotropic, as
+//! and `alpha` (`optics::roughness`; one number, isotropic, as
 //! Mitsuba's: the tables depend on it; default 0.1; below `MIN_ALPHA` the
 //! coating is the smooth `plastic`'s); `diffuse_reflectance`,
 //! `specular_reflectance`, `int_ior`, `ext_ior`, `nonlinear`: as

@@ -55,7 +55,7 @@ impl Wrap {
     }
 }
 
-/// A [`Bitmap`] with its lookup settings.
+/// A [`Bitmap`](super::Bitmap) with its lookup settings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BitmapTexture {
     pub bitmap: SharedBitmap,
