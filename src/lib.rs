@@ -33,12 +33,14 @@
 //!   ([`estimators::lengthscale`]), calibrated error bars
 //!   ([`estimators::calibration`]) and error targets ([`estimators::error_target`]);
 //!   [`render::seed`] holds the random streams every result is reproducible by.
-//! - [`scene`]: JSON and Mitsuba 3 XML scenes, the camera, rays and the BVH.
+//! - [`scene`]: JSON and Mitsuba 3 XML scenes, the camera, rays and the BVH;
+//!   the BSDF, light and texture plugins, each in a file of its own.
 //! - [`cancel`]: the flag a long library call (a tile, a query, a scene
 //!   load) is stopped by, below every layer.
 //! - [`bmc`] and [`sphere`]: the math — kernels, densities, kernel means,
 //!   factorisations, BMC weights and variances, hyperparameter fits;
-//!   hemisphere frames and sample sets.
+//!   hemisphere frames and sample sets; [`optics`]: Fresnel terms,
+//!   microfacet distributions and direction warps the BSDFs are made of.
 //! - [`image`]: RGB images with per-pixel variance; EXR/PNG/JSON encodings,
 //!   relative RMSE.
 //! - [`study`]: the convergence study on synthetic environments and the
@@ -48,7 +50,7 @@
 //! its root; `stats` (running means and variances) is private to the crate.
 //! A few items are public only for the tests, benches and examples and are
 //! hidden from these docs (`testing`, `scene::generate`, `render::polygon`,
-//! `render::warp`, the service's `AppState` and `CpuPool`); nothing outside
+//! `optics::warp`, the service's `AppState` and `CpuPool`); nothing outside
 //! this repository should rely on them.
 
 pub mod bmc;
@@ -61,6 +63,7 @@ pub mod image;
 pub mod integrator;
 pub(crate) mod isolated;
 pub mod loadtest;
+pub mod optics;
 pub mod render;
 pub mod scene;
 pub mod service;

@@ -137,7 +137,7 @@ pub fn inverse_erf(p: f64) -> f64 {
 /// `start`: a step that would leave the bracket, which shrinks around the
 /// root at every evaluation, is a bisection instead. Stops when
 /// `|f(x) − target| ≤ tolerance` or neither the step nor the bracket can
-/// shrink further. The inverse CDFs of samplers (`render::microfacet`,
+/// shrink further. The inverse CDFs of samplers (`optics::microfacet`,
 /// `scene::pixel_filter`) are found this way.
 pub fn solve_increasing(
     f: impl Fn(f64) -> f64,

@@ -1,11 +1,11 @@
-"""Reference values of Mitsuba 3's rough BSDF lobes for `src/render/bsdfs/`.
+"""Reference values of Mitsuba 3's rough BSDF lobes for `src/scene/material/`.
 
 Evaluates `roughconductor` and `roughdielectric` (GGX and Beckmann,
 isotropic and anisotropic, from outside and from inside) at fixed direction
 pairs in the standard local frame (x = the `alpha_u` tangent, z = the
 normal) and writes, per case, Mitsuba's BSDF value without the cosine and,
 for GGX (which both sample by visible normals), its sampling density.
-The Rust unit test `render::bsdfs::mitsuba_agreement` reads the file.
+The Rust unit test `scene::material::mitsuba_agreement` reads the file.
 
 Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
 

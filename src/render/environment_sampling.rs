@@ -26,8 +26,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::distribution::Distribution2D;
-use super::warp;
 use crate::color::Rgb;
+use crate::optics::warp;
 use crate::scene::{Environment, EnvironmentMap};
 
 /// Fraction of the mean texel weight added to every texel's weight.

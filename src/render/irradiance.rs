@@ -39,8 +39,8 @@ use super::query::QueryPoint;
 use super::seed::point_rng;
 use super::strata::SharedStrata;
 use super::transport::Transport;
-use super::warp;
 use crate::color::Rgb;
+use crate::optics::warp;
 use crate::sphere::Frame;
 use std::f64::consts::PI;
 

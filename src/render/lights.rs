@@ -5,7 +5,8 @@
 //! Strategy (pbrt-v4 §12.6 "Light Sampling" and §12.5 "Infinite Lights"):
 //! - Every light, the environment included, is chosen at the shading point
 //!   `x` in proportion to an estimate of the irradiance it can bring there
-//!   ([`Reach::at`], docs/math.md §15.2): the importance of pbrt-v4's light
+//!   ([`Reach::at`], docs/math.md §15.2; each light's file in
+//!   `scene::emitter` says what its reach is): the importance of pbrt-v4's light
 //!   BVH without its orientation bounds, evaluated for every light, so a
 //!   sample costs a pass over the lights (one per emitting shape, few in
 //!   the scenes seen). Choosing by power alone, as before, gave the studio
@@ -29,25 +30,8 @@ use glam::DVec3;
 use super::environment_sampling::{EnvironmentSampler, environment_mean_luminance};
 use super::trace_stats::TraceStats;
 use crate::color::Rgb;
+use crate::scene::emitter::{LightSample, Reach};
 use crate::scene::{Emitter, Scene, SurfaceHit};
-
-/// A direction towards a light with what it carries.
-#[derive(Clone, Copy, Debug)]
-pub struct LightSample {
-    /// Unit world direction from the shading point towards the light.
-    pub wi: DVec3,
-    /// Emitted radiance arriving along `-wi` if nothing is in between, W/(m²·sr).
-    pub radiance: Rgb,
-    /// Solid-angle density including light selection, sr⁻¹.
-    pub pdf: f64,
-    /// The light's point (with its surface normal on an area light), for
-    /// the shadow ray; `None` for light from infinitely far (the environment,
-    /// a directional light), whose shadow ray is unbounded.
-    pub target: Option<(DVec3, Option<DVec3>)>,
-    /// Whether the light is a Dirac delta (point, spot, directional): no
-    /// BSDF-sampled ray can find it, so it needs no MIS weight.
-    pub delta: bool,
-}
 
 impl LightSample {
     /// Whether nothing blocks this light from the surface point `x` with
@@ -67,118 +51,6 @@ impl LightSample {
     /// escapes the scene also finds).
     pub fn is_environment(&self) -> bool {
         self.target.is_none() && !self.delta
-    }
-}
-
-/// Mitsuba 3's spot falloff for a direction at angle `theta` from the
-/// axis: 1 within `beam_width`, linear in angle down to 0 at `cutoff_angle`.
-pub fn spot_falloff(theta: f64, cutoff_angle: f64, beam_width: f64) -> f64 {
-    if theta >= cutoff_angle {
-        0.0
-    } else if theta <= beam_width {
-        1.0
-    } else {
-        (cutoff_angle - theta) / (cutoff_angle - beam_width)
-    }
-}
-
-/// What choosing a light at a point needs to know of it: its estimated
-/// irradiance there is [`Reach::at`].
-#[derive(Clone, Copy, Debug)]
-enum Reach {
-    /// An emitting surface: `A lum(L̄)`, its bounding sphere's centre and
-    /// squared radius.
-    Surface {
-        strength: f64,
-        center: DVec3,
-        radius2: f64,
-    },
-    /// A point light, or a spot light with its cone: `lum(I)`.
-    Point {
-        position: DVec3,
-        intensity: f64,
-        cone: Option<Cone>,
-    },
-    /// Light from infinitely far, the same at every point: `lum(E)` of a
-    /// directional light, `π lum(L̄)` of the environment.
-    Distant(f64),
-}
-
-/// A spot light's cone: unit axis and angles, radians.
-#[derive(Clone, Copy, Debug)]
-struct Cone {
-    axis: DVec3,
-    cutoff_angle: f64,
-    beam_width: f64,
-}
-
-impl Reach {
-    /// Estimated irradiance (luminance) the light can bring to `x`, W/m²
-    /// (module docs); 0 where it brings nothing.
-    fn at(&self, x: DVec3) -> f64 {
-        match *self {
-            Reach::Surface {
-                strength,
-                center,
-                radius2,
-            } => strength / (center - x).length_squared().max(radius2),
-            Reach::Point {
-                position,
-                intensity,
-                cone,
-            } => {
-                let d = x - position;
-                let dist2 = d.length_squared();
-                if dist2 <= 0.0 {
-                    return 0.0;
-                }
-                let falloff = cone.map_or(1.0, |c| {
-                    let theta = c.axis.dot(d / dist2.sqrt()).clamp(-1.0, 1.0).acos();
-                    spot_falloff(theta, c.cutoff_angle, c.beam_width)
-                });
-                intensity * falloff / dist2
-            }
-            Reach::Distant(e) => e,
-        }
-    }
-}
-
-/// The reach of `emitter` (module docs).
-fn emitter_reach(scene: &Scene, emitter: &Emitter) -> Reach {
-    let lum = |c: &[f64; 3]| Rgb::from_array(*c).luminance();
-    match emitter {
-        Emitter::Area { shape, radiance } => {
-            let (lo, hi) = scene.shape_bounds(*shape);
-            Reach::Surface {
-                strength: scene.shape_area(*shape) * lum(&radiance.mean()),
-                center: 0.5 * (lo + hi),
-                radius2: (0.5 * (hi - lo)).length_squared(),
-            }
-        }
-        Emitter::Point {
-            position,
-            intensity,
-        } => Reach::Point {
-            position: DVec3::from_array(*position),
-            intensity: lum(intensity),
-            cone: None,
-        },
-        Emitter::Spot {
-            position,
-            direction,
-            intensity,
-            cutoff_angle,
-            beam_width,
-        } => Reach::Point {
-            position: DVec3::from_array(*position),
-            intensity: lum(intensity),
-            cone: Some(Cone {
-                axis: DVec3::from_array(*direction).normalize_or_zero(),
-                cutoff_angle: *cutoff_angle,
-                beam_width: *beam_width,
-            }),
-        },
-        Emitter::Directional { irradiance, .. } => Reach::Distant(lum(irradiance)),
     }
 }
 
@@ -206,7 +78,7 @@ impl LightSampler {
         let mut lights = Vec::new();
         let mut index = vec![None; scene.emitters.len()];
         for (i, emitter) in scene.emitters.iter().enumerate() {
-            let reach = emitter_reach(scene, emitter);
+            let reach = emitter.reach(scene);
             let strength = match reach {
                 Reach::Surface { strength, .. } => strength,
                 Reach::Point { intensity, .. } => intensity,
@@ -296,70 +168,7 @@ impl LightSampler {
             }
             Light::Emitter(i) => i,
         };
-        let point_light = |position: &[f64; 3], intensity: Rgb| {
-            let p = DVec3::from_array(*position);
-            let d = p - x;
-            let dist2 = d.length_squared();
-            (dist2 > 0.0).then(|| LightSample {
-                wi: d / dist2.sqrt(),
-                radiance: intensity * (1.0 / dist2),
-                pdf: p_select,
-                target: Some((p, None)),
-                delta: true,
-            })
-        };
-        match &scene.emitters[i] {
-            Emitter::Area { shape, radiance } => {
-                let (point, normal, pdf_area, uv) = scene.sample_shape_area_uv(*shape, u);
-                let d = point - x;
-                let dist2 = d.length_squared();
-                if dist2 <= 0.0 || pdf_area <= 0.0 {
-                    return None;
-                }
-                let wi = d / dist2.sqrt();
-                let cos_light = -normal.dot(wi);
-                if cos_light <= 0.0 {
-                    return None;
-                }
-                Some(LightSample {
-                    wi,
-                    radiance: Rgb::from_array(radiance.eval(uv)),
-                    pdf: p_select * pdf_area * dist2 / cos_light,
-                    target: Some((point, Some(normal))),
-                    delta: false,
-                })
-            }
-            Emitter::Point {
-                position,
-                intensity,
-            } => point_light(position, Rgb::from_array(*intensity)),
-            Emitter::Spot {
-                position,
-                direction,
-                intensity,
-                cutoff_angle,
-                beam_width,
-            } => {
-                let axis = DVec3::from_array(*direction);
-                let towards_x = (x - DVec3::from_array(*position)).normalize_or_zero();
-                let theta = axis.dot(towards_x).clamp(-1.0, 1.0).acos();
-                let falloff = spot_falloff(theta, *cutoff_angle, *beam_width);
-                if falloff <= 0.0 {
-                    return None;
-                }
-                point_light(position, Rgb::from_array(*intensity) * falloff)
-            }
-            Emitter::Directional {
-                direction,
-                irradiance,
-            } => Some(LightSample {
-                wi: -DVec3::from_array(*direction),
-                radiance: Rgb::from_array(*irradiance),
-                pdf: p_select,
-                target: None,
-                delta: true,
-            }),
-        }
+        scene.emitters[i].sample(scene, x, p_select, u)
     }
 
     /// Whether the scene has a light other than the environment (an
@@ -423,8 +232,8 @@ pub fn environment_radiance(scene: &Scene, dir: DVec3) -> Rgb {
 /// Radiance emitted by the surface at `hit` towards `-dir` (front side only).
 pub fn emitted_radiance(scene: &Scene, hit: &SurfaceHit, dir: DVec3) -> Rgb {
     match hit.emitter.and_then(|e| scene.emitters.get(e)) {
-        Some(Emitter::Area { radiance, .. }) if hit.normal.dot(dir) < 0.0 => {
-            Rgb::from_array(radiance.eval(hit.uv))
+        Some(Emitter::Area(area)) if hit.normal.dot(dir) < 0.0 => {
+            Rgb::from_array(area.radiance.eval(hit.uv))
         }
         _ => Rgb::BLACK,
     }

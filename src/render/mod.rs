@@ -1,10 +1,12 @@
-//! Light transport: reflection models, light sampling, incident radiance
-//! along a ray and irradiance at points. Knows scenes, never HTTP.
+//! Light transport: light sampling, incident radiance along a ray and
+//! irradiance at points, through the scene's reflection models
+//! ([`Bsdf`], built from `scene::material`'s plugins) and lights
+//! (`scene::emitter`'s). Knows scenes, never HTTP.
 //!
 //! Conventions shared by every file here: radiance in W/(m²·sr) and
 //! irradiance in W/m², per linear RGB channel ([`Rgb`]); local frames have
 //! z = surface normal ([`crate::sphere::Frame`]); surfaces reflect and emit on
-//! their front side only, as in Mitsuba 3 (see `bsdf`).
+//! their front side only, as in Mitsuba 3 (see `scene::material`).
 //!
 //! Entry points: [`Transport`] (built once per scene) with its path
 //! kernel ([`PathTracer`], `transport.paths()`: incident radiance along
@@ -15,22 +17,16 @@
 //! assembled from tiles (`film`). Integrators live in
 //! the `integrator` module.
 
-mod bsdf;
-pub mod bsdfs;
 mod cancel;
-#[cfg(test)]
-pub(crate) mod chi_square;
 mod distribution;
 pub mod environment_prior;
 pub(crate) mod environment_sampling;
 mod error;
 mod film;
-pub mod fresnel;
 mod guide_buffers;
 mod irradiance;
 pub(crate) mod lights;
 mod mean;
-pub mod microfacet;
 mod path;
 mod path_tracer;
 mod pixel_variance;
@@ -44,11 +40,9 @@ pub(crate) mod strata;
 pub(crate) mod tile;
 mod trace_stats;
 mod transport;
-#[doc(hidden)]
-pub mod warp;
 
 pub use crate::color::Rgb;
-pub use bsdf::{Bsdf, BsdfFlags, LobeSample};
+pub use crate::scene::material::{Bsdf, BsdfFlags, LobeSample};
 pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};

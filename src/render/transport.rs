@@ -6,10 +6,10 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use super::bsdf::Bsdf;
 use super::environment_prior::EnvironmentPrior;
 use super::environment_sampling::environment_relative_variance;
 use super::lights::LightSampler;
+use crate::scene::material::Bsdf;
 use crate::scene::{Material, Scene, SurfaceHit};
 
 /// Per-scene state for light transport: the scene, its light-selection

@@ -1,12 +1,18 @@
-//! Surface materials as data: what a scene file says about a surface's
-//! BSDF, validated once here (evaluation and sampling live with the light
-//! transport, `render::bsdf`).
+//! Surface materials: the BSDF plugins, one file each under
+//! `scene/material/` (Mitsuba 3's plugin names), each holding its
+//! parameters' docs, their parsing and validation through `Params`, its
+//! reflection model (implementing [`Model`]: `eval`, `pdf`, `sample` in the
+//! local frame, z = normal) and its build step from the parameters to the
+//! model with the textures valued at a point (`build`, pbrt-v4's
+//! `GetBxDF`), its tests beside it. The registry is one list, the
+//! `plugins!` invocation below: each line generates the plugin's `mod`,
+//! its variants of [`Material`] (parameters) and [`Bsdf`] (model), its
+//! entry in the name → parser table and its dispatch arms, so a plugin is
+//! registered whole or not at all.
 //!
 //! A material document is `{"id": …, "type": PLUGIN, PARAMETER: value, …}`
 //! with Mitsuba 3's plugin and parameter names, so a Mitsuba `<bsdf>`
-//! translates into one by copying its properties. Each plugin parses its
-//! own parameters in its own file below (`diffuse.rs`, `conductor.rs`, …),
-//! opening with their docs; [`PLUGINS`] is the registry. Parameters take:
+//! translates into one by copying its properties. Parameters take:
 //! - colours: a number (grey) or `[r, g, b]`, linear RGB; the reflectances
 //!   and transmittances Mitsuba textures also take a texture document
 //!   ([`Texture`], `scene::texture`);
@@ -18,17 +24,13 @@
 //!   of any size, which every shading point would walk, so a material may
 //!   expand to at most [`MAX_MATERIAL_NODES`] plugins.
 
-mod blend;
-mod conductor;
-mod dielectric;
-mod diffuse;
-mod glossy;
+mod bsdf;
 pub mod ior;
-mod mask;
 pub mod metals;
+#[cfg(test)]
+mod mitsuba_agreement;
 mod optics;
-mod plastic;
-mod twosided;
+mod plugin;
 
 use std::sync::Arc;
 
@@ -38,6 +40,9 @@ use super::format::MaterialDoc;
 use super::params::Nested;
 pub(crate) use super::params::Params;
 use super::texture::Texture;
+use crate::optics::microfacet::{MIN_ALPHA, Microfacet, MicrofacetKind};
+pub use bsdf::{BsdfFlags, LobeSample, Lookup, Model, flip, reflect};
+pub use plugin::Plugin;
 
 /// Most plugins one material may expand to, counting a shared nested
 /// material each time it is used: shading walks the whole tree at every
@@ -77,13 +82,6 @@ pub struct Roughness {
     pub textures: Option<Box<[Texture; 2]>>,
 }
 
-/// The roughness textures of `roughness`, if any.
-fn roughness_textures(roughness: &Option<Roughness>) -> impl Iterator<Item = &Texture> {
-    roughness
-        .iter()
-        .flat_map(|r| r.textures.iter().flat_map(|t| t.iter()))
-}
-
 impl Roughness {
     /// `(alpha_u, alpha_v)` at texture coordinates `uv`.
     pub fn at(&self, uv: glam::DVec2) -> (f64, f64) {
@@ -92,82 +90,100 @@ impl Roughness {
             None => (self.alpha_u, self.alpha_v),
         }
     }
+
+    /// The slope textures, if the roughness varies over the surface.
+    pub fn textures(&self) -> impl Iterator<Item = &Texture> {
+        self.textures.iter().flat_map(|t| t.iter())
+    }
+
+    /// The distribution with the slopes valued by `lookup`, or `None` when
+    /// they are below what the microfacet models resolve (the plugin then
+    /// builds its smooth model instead).
+    pub fn microfacet(&self, lookup: Lookup) -> Option<Microfacet> {
+        let kind = match self.distribution {
+            Distribution::Beckmann => MicrofacetKind::Beckmann,
+            Distribution::Ggx => MicrofacetKind::Ggx,
+        };
+        match (lookup, &self.textures) {
+            // A roughness map's texels below the smallest roughness stay
+            // rough (the material is rough wherever it is, as its mean says).
+            (Lookup::At(uv), Some(_)) => {
+                let (u, v) = self.at(uv);
+                Microfacet::new(kind, u.max(MIN_ALPHA), v.max(MIN_ALPHA))
+            }
+            _ => Microfacet::new(kind, self.alpha_u, self.alpha_v),
+        }
+    }
 }
 
-/// A surface's BSDF with its parameters validated (see each plugin's file
-/// for the meaning of its fields).
-#[derive(Clone, Debug, PartialEq)]
-pub enum Material {
-    /// Lambertian reflector; `reflectance` is the albedo in [0, 1] per channel.
-    Diffuse { reflectance: Texture },
-    /// Diffuse albedo plus a normalised Phong lobe with albedo `specular`
-    /// (at normal incidence) and exponent `exponent ≥ 0`.
-    Glossy {
-        diffuse: RgbArray,
-        specular: RgbArray,
-        exponent: f64,
-    },
-    /// A metal: smooth (`roughness: None`, a mirror) or microfacet.
-    Conductor {
-        eta: RgbArray,
-        k: RgbArray,
-        specular_reflectance: Texture,
-        roughness: Option<Roughness>,
-    },
-    /// An interface between dielectrics of relative index `eta =
-    /// int_ior / ext_ior`: smooth, microfacet, or a thin slab.
-    Dielectric {
-        eta: f64,
-        specular_reflectance: Texture,
-        specular_transmittance: Texture,
-        roughness: Option<Roughness>,
-        thin: bool,
-    },
-    /// A diffuse base under a dielectric coating of relative index `eta`,
-    /// smooth (`roughness: None`) or microfacet (isotropic).
-    Plastic {
-        diffuse_reflectance: Texture,
-        specular_reflectance: Texture,
-        eta: f64,
-        nonlinear: bool,
-        roughness: Option<Roughness>,
-    },
-    /// `front` on the side the normal points to, `back` on the other.
-    TwoSided {
-        front: Arc<Material>,
-        back: Arc<Material>,
-    },
-    /// `(1 − w) f₀ + w f₁` with `w` the luminance of `weight`.
-    Blend {
-        weight: Texture,
-        bsdfs: [Arc<Material>; 2],
-    },
-    /// `bsdf` where the surface is present (probability: the luminance of
-    /// `opacity`), straight through elsewhere.
-    Mask {
-        opacity: Texture,
-        bsdf: Arc<Material>,
-    },
+/// The BSDF plugins: `Variant(file::Parameters) = "name"`, one line each.
+/// For each line the macro declares `pub mod file;` (the plugin's file),
+/// the variant `Material::Variant(Parameters)` and the variant
+/// `Bsdf::Variant(<Parameters as Plugin>::Model)`, the parser of `"name"`
+/// and the arms dispatching to the plugin's [`Plugin`] and [`Model`]
+/// implementations.
+macro_rules! plugins {
+    ($($variant:ident($file:ident::$plugin:ident) = $name:literal,)*) => {
+        $(pub mod $file;)*
+
+        /// A surface's BSDF plugin with its parameters validated (each
+        /// plugin's file documents its fields).
+        #[derive(Clone, Debug, PartialEq)]
+        pub enum Material {
+            $($variant($file::$plugin),)*
+        }
+
+        /// A surface's BSDF: the model of a [`Material`] with its textures
+        /// valued (`Parameters::build`); see `bsdf.rs`.
+        #[derive(Clone, Debug, PartialEq)]
+        pub enum Bsdf {
+            $($variant(<$file::$plugin as Plugin>::Model),)*
+        }
+
+        /// Every material plugin, by its `type`.
+        const PLUGINS: &[(&str, Parse)] = &[
+            $(($name, |params| Ok(Material::$variant($file::$plugin::parse(params)?))),)*
+        ];
+
+        impl Material {
+            /// The plugin's parameters, for dispatch.
+            fn plugin(&self) -> &dyn Parameters {
+                match self {
+                    $(Material::$variant(p) => p,)*
+                }
+            }
+        }
+
+        impl Bsdf {
+            /// The plugin's model, for dispatch.
+            fn model(&self) -> &dyn Model {
+                match self {
+                    $(Bsdf::$variant(m) => m,)*
+                }
+            }
+        }
+    };
 }
+
+plugins! {
+    Diffuse(diffuse::DiffuseMaterial) = "diffuse",
+    Glossy(glossy::GlossyMaterial) = "glossy",
+    Conductor(conductor::ConductorMaterial) = "conductor",
+    RoughConductor(rough_conductor::RoughConductorMaterial) = "roughconductor",
+    Dielectric(dielectric::DielectricMaterial) = "dielectric",
+    ThinDielectric(thin_dielectric::ThinDielectricMaterial) = "thindielectric",
+    RoughDielectric(rough_dielectric::RoughDielectricMaterial) = "roughdielectric",
+    Plastic(plastic::PlasticMaterial) = "plastic",
+    RoughPlastic(rough_plastic::RoughPlasticMaterial) = "roughplastic",
+    TwoSided(twosided::TwoSidedMaterial) = "twosided",
+    Blend(blend::BlendMaterial) = "blendbsdf",
+    Mask(mask::MaskMaterial) = "mask",
+}
+
+use plugin::Parameters;
 
 /// A plugin's parser: its parameters to a material.
 type Parse = fn(&mut Params) -> Result<Material, SceneError>;
-
-/// Every material plugin, by its `type`: one line per plugin.
-const PLUGINS: &[(&str, Parse)] = &[
-    ("diffuse", diffuse::parse),
-    ("glossy", glossy::parse),
-    ("conductor", conductor::parse_smooth),
-    ("roughconductor", conductor::parse_rough),
-    ("dielectric", dielectric::parse_smooth),
-    ("thindielectric", dielectric::parse_thin),
-    ("roughdielectric", dielectric::parse_rough),
-    ("plastic", plastic::parse_smooth),
-    ("roughplastic", plastic::parse_rough),
-    ("twosided", twosided::parse),
-    ("blendbsdf", blend::parse),
-    ("mask", mask::parse),
-];
 
 /// The plugin names [`Material::from_doc`] accepts, for messages and docs.
 pub fn plugin_names() -> Vec<&'static str> {
@@ -206,13 +222,7 @@ impl Material {
     /// counting costs at most `cap` steps whatever the sharing.
     pub fn nodes_up_to(&self, cap: usize) -> usize {
         let mut count = 1;
-        let nested: &[&Arc<Material>] = match self {
-            Material::TwoSided { front, back } => &[front, back],
-            Material::Blend { bsdfs, .. } => &[&bsdfs[0], &bsdfs[1]],
-            Material::Mask { bsdf, .. } => &[bsdf],
-            _ => &[],
-        };
-        for inner in nested {
+        for inner in self.plugin().nested() {
             if count >= cap {
                 break;
             }
@@ -237,48 +247,24 @@ impl Material {
 
     /// The textures of the material's parameters (nested materials' too).
     pub fn textures(&self) -> Vec<&Texture> {
-        match self {
-            Material::Diffuse { reflectance } => vec![reflectance],
-            Material::Glossy { .. } => Vec::new(),
-            Material::Conductor {
-                specular_reflectance,
-                roughness,
-                ..
-            } => [specular_reflectance]
-                .into_iter()
-                .chain(roughness_textures(roughness))
-                .collect(),
-            Material::Dielectric {
-                specular_reflectance,
-                specular_transmittance,
-                roughness,
-                ..
-            } => [specular_reflectance, specular_transmittance]
-                .into_iter()
-                .chain(roughness_textures(roughness))
-                .collect(),
-            Material::Plastic {
-                diffuse_reflectance,
-                specular_reflectance,
-                ..
-            } => vec![diffuse_reflectance, specular_reflectance],
-            Material::TwoSided { front, back } => {
-                let mut all = front.textures();
-                all.extend(back.textures());
-                all
-            }
-            Material::Blend { weight, bsdfs } => {
-                let mut all = vec![weight];
-                all.extend(bsdfs[0].textures());
-                all.extend(bsdfs[1].textures());
-                all
-            }
-            Material::Mask { opacity, bsdf } => {
-                let mut all = vec![opacity];
-                all.extend(bsdf.textures());
-                all
-            }
+        let plugin = self.plugin();
+        let mut all = plugin.textures();
+        for inner in plugin.nested() {
+            all.extend(inner.textures());
         }
+        all
+    }
+
+    /// Whether the material may be one side of a `twosided` one (a
+    /// dielectric is the same from both sides, a two-sided one is already).
+    pub(crate) fn may_be_a_side(&self) -> bool {
+        self.plugin().may_be_a_side()
+    }
+
+    /// The material's BSDF with its textures valued by `lookup`, reusing
+    /// the precomputations of `template` (a BSDF of the same material).
+    pub(crate) fn build(&self, lookup: Lookup, template: Option<&Bsdf>) -> Bsdf {
+        self.plugin().build(lookup, template)
     }
 
     /// True if a parameter varies over the surface (a texture).
@@ -336,7 +322,7 @@ impl Material {
 
     /// The materials nested under `bsdf` (one object or a list), each with
     /// its field path.
-    fn nested(params: &mut Params) -> Result<Vec<(String, Arc<Material>)>, SceneError> {
+    pub(crate) fn nested(params: &mut Params) -> Result<Vec<(String, Arc<Material>)>, SceneError> {
         let mut out = Vec::new();
         let declared = params.declared::<Declared>();
         for (field, nested) in params.nested("bsdf")? {
@@ -356,9 +342,15 @@ impl Material {
                 }
                 // Only the parameters' names are wanted: any material
                 // stands in for the one named.
-                (Nested::Reference(_), None) => Arc::new(Material::Diffuse {
-                    reflectance: Texture::Constant([0.5; 3]),
-                }),
+                (Nested::Reference(_), None) => {
+                    let grey = serde_json::json!({"reflectance": 0.5});
+                    let grey = grey.as_object().expect("an object").clone();
+                    Arc::new(Self::parse(
+                        "diffuse",
+                        &mut Params::new(&field, grey),
+                        &field,
+                    )?)
+                }
             };
             out.push((field, material));
         }

@@ -1,5 +1,8 @@
 //! Scene model and ray tracing: loading JSON scenes (`docs/scene-format.md`),
 //! shapes, materials, emitters, environment lighting, the camera and the BVH.
+//! The plugin families (`material`: BSDFs, `emitter`: lights, `texture`)
+//! keep each plugin in a file of its own, registered by one line of their
+//! `plugins!` invocation.
 //!
 //! All geometry is f64 at the API. Everything is immutable after loading, so
 //! a [`Scene`] is `Send + Sync` and callers trace rays in parallel (rayon).
@@ -499,7 +502,7 @@ impl Scene {
         // emitters') share it.
         let mut seen = std::collections::HashSet::new();
         let emitted = self.emitters.iter().filter_map(|e| match e {
-            Emitter::Area { radiance, .. } => Some(radiance),
+            Emitter::Area(area) => Some(&area.radiance),
             _ => None,
         });
         let textures: u64 = self

@@ -205,7 +205,7 @@ mod tests {
     use rand_pcg::Pcg64;
 
     use super::*;
-    use crate::render::chi_square::ChiSquare;
+    use crate::optics::chi_square::ChiSquare;
 
     /// `∫ f₁` over `[a, b]` by the midpoint rule.
     fn mass(f: &dyn Fn(f64) -> f64, a: f64, b: f64) -> f64 {

@@ -117,7 +117,7 @@ fn cornell_box_matches_the_mitsuba_reference() {
     assert!((green.normal + DVec3::X).length() < 1e-6);
     // The light: centre (0, 0.99, 0.01), 0.46 × 0.38, facing -y, white BSDF.
     assert_eq!(scene.emitters.len(), 1);
-    let Emitter::Area { shape, radiance } = scene.emitters[0].clone() else {
+    let Emitter::Area(emitter::AreaLight { shape, radiance }) = scene.emitters[0].clone() else {
         panic!("{:?}", scene.emitters[0])
     };
     assert_eq!(
@@ -605,12 +605,12 @@ fn bundled_sky_and_mesh_scenes_load() {
     assert!(
         sky.materials
             .iter()
-            .any(|m| matches!(m, Material::Glossy { .. }))
+            .any(|m| matches!(m, Material::Glossy(_)))
     );
     assert!(
         sky.materials
             .iter()
-            .any(|m| matches!(m, Material::Diffuse { .. }))
+            .any(|m| matches!(m, Material::Diffuse(_)))
     );
     // The camera's centre ray lands on something.
     assert!(
@@ -831,7 +831,9 @@ fn nested_materials_may_name_earlier_ones_by_id() {
         &scenes_dir(),
     )
     .unwrap();
-    let Material::Blend { bsdfs, .. } = &scene.materials[1] else {
+    let Material::Blend(crate::scene::material::blend::BlendMaterial { bsdfs, .. }) =
+        &scene.materials[1]
+    else {
         panic!("{:?}", scene.materials[1])
     };
     assert_eq!(*bsdfs[0], scene.materials[0]);

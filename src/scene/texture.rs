@@ -4,23 +4,23 @@
 //!
 //! A textured parameter is written as a constant (a number or `[r, g, b]`)
 //! or as a texture document `{"type": PLUGIN, PARAMETER: value, …}` with
-//! Mitsuba 3's plugin and parameter names; each plugin parses its own
-//! parameters in its own file (`bitmap.rs`, `checkerboard.rs`) and
-//! [`PLUGINS`] is the registry. Every plugin takes `to_uv`, an affine
+//! Mitsuba 3's plugin and parameter names, so a Mitsuba `<texture>`
+//! translates into one by copying its properties. Each plugin has its own
+//! file below holding its parameters' docs, their parsing and validation
+//! through `Params`, and its lookups ([`Plugin`]: `eval` at `(u, v)`,
+//! `mean`, `max`); the `plugins!` invocation below is the registry: each
+//! line declares the plugin's module and generates its [`Texture`]
+//! variant, its parser entry and its dispatch arm. Every plugin takes
+//! `to_uv`, an affine
 //! transform of the texture coordinates written like a `to_world` (its
 //! x and y rows act on `(u, v)`; Mitsuba's `to_uv`).
-
-mod bitmap;
-mod checkerboard;
 
 use std::sync::Arc;
 
 use glam::{DAffine2, DVec2};
-use serde_json::Value;
+use serde_json::{Map, Value};
 
 pub use super::bitmap::Bitmap;
-pub use bitmap::{BitmapTexture, Filter, Wrap};
-pub use checkerboard::Checkerboard;
 
 use super::error::SceneError;
 use super::format::TransformDoc;
@@ -29,12 +29,74 @@ use super::params::Params;
 /// A linear RGB triple.
 use crate::color::{RgbArray, luminance};
 
-/// A colour over a surface: linear RGB as a function of `(u, v)`.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Texture {
-    Constant(RgbArray),
-    Bitmap(BitmapTexture),
-    Checkerboard(Checkerboard),
+/// What a texture plugin offers: its lookups over the texture coordinates.
+pub trait Plugin {
+    /// The colour at texture coordinates `uv`, linear RGB.
+    fn eval(&self, uv: DVec2) -> RgbArray;
+
+    /// The texture as a number at `uv` (Mitsuba 3's `eval_1`): the
+    /// luminance of the colour unless the plugin says otherwise.
+    fn eval_scalar(&self, uv: DVec2) -> f64 {
+        luminance(self.eval(uv))
+    }
+
+    /// The mean colour over the unit square of texture coordinates.
+    fn mean(&self) -> RgbArray;
+
+    /// The largest channel value anywhere.
+    fn max(&self) -> f64;
+}
+
+/// The texture plugins: `Variant(file::Type) = "name"`, one line each.
+/// For each line the macro declares `pub mod file;` (the plugin's file),
+/// the variant `Texture::Variant(Type)`, the parser of `"name"` (the
+/// type's `parse(&mut Params)`) and the arm dispatching to its [`Plugin`]
+/// implementation.
+macro_rules! plugins {
+    ($($variant:ident($file:ident::$plugin:ident) = $name:literal,)*) => {
+        $(pub mod $file;)*
+
+        /// A colour over a surface: linear RGB as a function of `(u, v)`.
+        #[derive(Clone, Debug, PartialEq)]
+        pub enum Texture {
+            Constant(RgbArray),
+            $($variant($file::$plugin),)*
+        }
+
+        /// Every texture plugin, by its `type`.
+        const PLUGINS: &[(&str, Parse)] = &[$(($name, $file::$plugin::parse),)*];
+
+        impl Texture {
+            /// The parameters a translated document of plugin `kind`
+            /// states even at their defaults, so that its canonical form
+            /// (which the scene digest hashes) stays what it was.
+            pub(crate) fn stated_defaults(kind: &str) -> Map<String, Value> {
+                match kind {
+                    $($name => $file::$plugin::stated_defaults(),)*
+                    _ => Map::new(),
+                }
+            }
+
+            /// The plugin behind a texture that varies, for dispatch, or
+            /// the value of a constant.
+            fn plugin(&self) -> Result<&dyn Plugin, RgbArray> {
+                match self {
+                    Texture::Constant(c) => Err(*c),
+                    $(Texture::$variant(t) => Ok(t),)*
+                }
+            }
+        }
+    };
+}
+
+plugins! {
+    Bitmap(bitmap::BitmapTexture) = "bitmap",
+    Checkerboard(checkerboard::CheckerboardTexture) = "checkerboard",
+}
+
+/// The largest of a colour's channels (0 for black).
+pub(crate) fn max_channel(c: RgbArray) -> f64 {
+    c.into_iter().fold(0.0, f64::max)
 }
 
 impl From<RgbArray> for Texture {
@@ -46,21 +108,19 @@ impl From<RgbArray> for Texture {
 impl Texture {
     /// The colour at texture coordinates `uv`.
     pub fn eval(&self, uv: DVec2) -> RgbArray {
-        match self {
-            Texture::Constant(c) => *c,
-            Texture::Bitmap(b) => b.eval(uv),
-            Texture::Checkerboard(c) => c.eval(uv),
+        match self.plugin() {
+            Ok(p) => p.eval(uv),
+            Err(c) => c,
         }
     }
 
     /// The texture as a number at `uv` (a blend weight, an opacity), as
     /// Mitsuba 3's `eval_1` gives it: the luminance of the colour, except
-    /// that a checkerboard's scalar lookup swaps its two colours (Mitsuba's
-    /// `checkerboard` does, and scenes are authored against it).
+    /// where a plugin says otherwise (the checkerboard's swaps its colours).
     pub fn eval_scalar(&self, uv: DVec2) -> f64 {
-        match self {
-            Texture::Checkerboard(c) => luminance(c.eval_swapped(uv)),
-            other => luminance(other.eval(uv)),
+        match self.plugin() {
+            Ok(p) => p.eval_scalar(uv),
+            Err(c) => luminance(c),
         }
     }
 
@@ -72,20 +132,17 @@ impl Texture {
     /// The mean colour over the unit square of texture coordinates (what
     /// stands for the texture where no surface point is at hand).
     pub fn mean(&self) -> RgbArray {
-        match self {
-            Texture::Constant(c) => *c,
-            Texture::Bitmap(b) => b.mean(),
-            Texture::Checkerboard(c) => c.mean(),
+        match self.plugin() {
+            Ok(p) => p.mean(),
+            Err(c) => c,
         }
     }
 
     /// The largest channel value anywhere.
     pub fn max(&self) -> f64 {
-        let max = |c: RgbArray| c.into_iter().fold(0.0, f64::max);
-        match self {
-            Texture::Constant(c) => max(*c),
-            Texture::Bitmap(b) => b.max(),
-            Texture::Checkerboard(c) => max(c.color0).max(max(c.color1)),
+        match self.plugin() {
+            Ok(p) => p.max(),
+            Err(c) => max_channel(c),
         }
     }
 
@@ -94,6 +151,20 @@ impl Texture {
         match self {
             Texture::Constant(c) => Some(*c),
             _ => None,
+        }
+    }
+
+    /// The parameters of a `kind` document that its plugin does not take,
+    /// when the others parse (none otherwise: the loader then reports the
+    /// error), so that a translator can drop them with a warning.
+    pub(crate) fn unknown_parameters(kind: &str, params: &Map<String, Value>) -> Vec<String> {
+        let Some((_, parse)) = PLUGINS.iter().find(|(n, _)| *n == kind) else {
+            return Vec::new();
+        };
+        let mut params = Params::new("", params.clone());
+        match parse(&mut params) {
+            Ok(_) => params.remaining(),
+            Err(_) => Vec::new(),
         }
     }
 
@@ -161,19 +232,13 @@ pub(crate) fn required_albedo(params: &mut Params, name: &str) -> Result<Texture
 /// A plugin's parser: its parameters to a texture.
 type Parse = fn(&mut Params) -> Result<Texture, SceneError>;
 
-/// Every texture plugin, by its `type`: one line per plugin.
-const PLUGINS: &[(&str, Parse)] = &[
-    ("bitmap", bitmap::parse),
-    ("checkerboard", checkerboard::parse),
-];
-
 /// The texture plugin names a texture document's `type` accepts, for messages and docs.
 pub fn plugin_names() -> Vec<&'static str> {
     PLUGINS.iter().map(|(name, _)| *name).collect()
 }
 
 /// The `to_uv` parameter: the identity if absent.
-fn to_uv(params: &mut Params) -> Result<DAffine2, SceneError> {
+pub(crate) fn to_uv(params: &mut Params) -> Result<DAffine2, SceneError> {
     let Some(value) = params.take("to_uv") else {
         return Ok(DAffine2::IDENTITY);
     };

@@ -15,11 +15,12 @@ use bmc_irradiance::integrator::cached::{
     CacheShadingOptions, Gather, PlacementCache, PlacementOptions, PlacementPoint, RecordGather,
     ShadingStats, compute_record, lookup, place_and_shade, place_records,
 };
+use bmc_irradiance::optics::warp;
 use bmc_irradiance::render::Cancel;
 use bmc_irradiance::render::MeanEstimate;
 use bmc_irradiance::render::seed::point_rng;
 use bmc_irradiance::render::{
-    PathDepth, PathLengths, PathLimits, QueryPoint, Rgb, TraceStats, Transport, warp,
+    PathDepth, PathLengths, PathLimits, QueryPoint, Rgb, TraceStats, Transport,
 };
 use bmc_irradiance::scene::Scene;
 use bmc_irradiance::sphere::{Frame, SampleSetKind, SampleSetSpec};

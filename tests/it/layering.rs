@@ -327,7 +327,7 @@ fn lower_layers_never_name_upper_ones() {
     // record store, whose records serve them as a prior.
     let layers: [&[&str]; 8] = [
         &["stats", "color"],
-        &["sphere", "bmc"],
+        &["sphere", "bmc", "optics"],
         &["scene"],
         &["render"],
         &["estimators"],

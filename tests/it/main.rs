@@ -21,6 +21,7 @@ mod loadtest;
 mod mitsuba_images;
 mod mitsuba_irradiance;
 mod mitsuba_xml;
+mod plugin_layout;
 mod readme_commands;
 mod regression;
 mod scene_parameters;

@@ -37,8 +37,9 @@ use rand::{Rng, RngExt};
 use crate::bmc::cache::QuadratureCache;
 use crate::bmc::{Density, KernelMeanMethod};
 use crate::cache::{CacheError, RecordRuleSpec};
+use crate::optics::warp;
 use crate::render::strata::GridStrata;
-use crate::render::{Evaluation, RadianceSample, Rgb, warp};
+use crate::render::{Evaluation, RadianceSample, Rgb};
 use crate::sphere::Frame;
 use crate::stats::RunningMean;
 

@@ -33,8 +33,9 @@ use super::record_estimate::{PlacementPoint, diffuse_front};
 use super::secondary_caches::{SecondaryCache, SecondaryKey};
 use super::shade::{CachedIntegrator, Gather};
 use crate::cache::{CacheConfig, IrradianceCache, PixelFootprint};
+use crate::optics::warp;
 use crate::render::seed::point_rng;
-use crate::render::{Cancel, PathLimits, QueryPoint, RenderError, Transport, warp};
+use crate::render::{Cancel, PathLimits, QueryPoint, RenderError, Transport};
 use crate::scene::Ray;
 use crate::sphere::Frame;
 

@@ -58,10 +58,11 @@ use super::record_estimate::{GatheredRecord, PlacementPoint, finish_records, loo
 use super::shade_point::{Bounce, OnMiss, ShadePoint};
 use super::stats::ShadingStats;
 use crate::cache::{Accuracy, CacheError, IrradianceCache, RadiusLimits, Record, RecordRule};
+use crate::optics::warp;
 use crate::render::lights::{emitted_radiance, environment_radiance};
 use crate::render::{
     Evaluation, FirstSegment, PathLengths, PathLimits, QueryPoint, RadianceSample, RenderError,
-    Rgb, TraceStats, Transport, warp,
+    Rgb, TraceStats, Transport,
 };
 use crate::scene::{Ray, SurfaceHit};
 use crate::sphere::Frame;

@@ -6,6 +6,12 @@
 /// The index of air, Mitsuba's default exterior medium.
 pub const AIR: f64 = 1.000277;
 
+/// The index of BK7 glass, Mitsuba's default interior of dielectrics.
+pub const BK7: f64 = 1.5046;
+
+/// The index of polypropylene, Mitsuba's default coating of plastics.
+pub const POLYPROPYLENE: f64 = 1.49;
+
 /// `(name, index)`, the names lower case.
 pub const NAMED_MEDIA: [(&str, f64); 23] = [
     ("vacuum", 1.0),
@@ -25,8 +31,8 @@ pub const NAMED_MEDIA: [(&str, f64); 23] = [
     ("fused quartz", 1.458),
     ("pyrex", 1.470),
     ("acrylic glass", 1.49),
-    ("polypropylene", 1.49),
-    ("bk7", 1.5046),
+    ("polypropylene", POLYPROPYLENE),
+    ("bk7", BK7),
     ("sodium chloride", 1.544),
     ("amber", 1.55),
     ("pet", 1.5750),

@@ -3,6 +3,12 @@ use crate::scene::budget::{Budget, LoadLimits};
 use crate::scene::texture::Texture;
 use serde_json::json;
 
+use super::conductor::ConductorMaterial;
+use super::dielectric::DielectricMaterial;
+use super::rough_conductor::RoughConductorMaterial;
+use super::rough_plastic::RoughPlasticMaterial;
+use super::thin_dielectric::ThinDielectricMaterial;
+use super::twosided::TwoSidedMaterial;
 use super::*;
 
 fn parse(doc: serde_json::Value) -> Result<Material, SceneError> {
@@ -31,12 +37,12 @@ fn every_plugin_parses_with_mitsubas_defaults() {
     let gold = parse(
         json!({"id": "g", "type": "roughconductor", "material": "Au", "distribution": "ggx"}),
     );
-    let Ok(Material::Conductor {
+    let Ok(Material::RoughConductor(RoughConductorMaterial {
         eta,
-        roughness: Some(r),
+        roughness: r,
         specular_reflectance,
         ..
-    }) = gold
+    })) = gold
     else {
         panic!("{gold:?}")
     };
@@ -48,30 +54,30 @@ fn every_plugin_parses_with_mitsubas_defaults() {
     assert_eq!(specular_reflectance, Texture::from([1.0; 3]));
     assert_eq!(
         parse(json!({"id": "m", "type": "conductor"})).unwrap(),
-        Material::Conductor {
+        Material::Conductor(ConductorMaterial {
             eta: [0.0; 3],
             k: [1.0; 3],
             specular_reflectance: Texture::from([1.0; 3]),
-            roughness: None
-        },
+        }),
         "Mitsuba's default conductor is the perfect mirror `none`"
     );
-    let Ok(Material::Dielectric { eta, thin, .. }) =
+    let Ok(Material::ThinDielectric(ThinDielectricMaterial { eta, .. })) =
         parse(json!({"id": "w", "type": "thindielectric", "int_ior": "water", "ext_ior": 1.0}))
     else {
         panic!()
     };
-    assert!((eta - 1.333).abs() < 1e-12 && thin);
-    let Ok(Material::Dielectric { eta, .. }) = parse(json!({"id": "d", "type": "dielectric"}))
+    assert!((eta - 1.333).abs() < 1e-12);
+    let Ok(Material::Dielectric(DielectricMaterial { eta, .. })) =
+        parse(json!({"id": "d", "type": "dielectric"}))
     else {
         panic!()
     };
     assert!((eta - 1.5046 / ior::AIR).abs() < 1e-12, "BK7 in air");
-    let Ok(Material::Plastic {
+    let Ok(Material::RoughPlastic(RoughPlasticMaterial {
         diffuse_reflectance,
-        roughness: Some(r),
+        roughness: r,
         ..
-    }) =
+    })) =
         parse(json!({"id": "p", "type": "roughplastic", "diffuse_reflectance": 0.3, "alpha": 0.2}))
     else {
         panic!()
@@ -83,12 +89,10 @@ fn every_plugin_parses_with_mitsubas_defaults() {
         {"type": "plastic"}
     ]}))
     .unwrap();
-    let Material::TwoSided { front, back } = two else {
+    let Material::TwoSided(TwoSidedMaterial { front, back }) = two else {
         panic!()
     };
-    assert!(
-        matches!(*front, Material::Diffuse { .. }) && matches!(*back, Material::Plastic { .. })
-    );
+    assert!(matches!(*front, Material::Diffuse(_)) && matches!(*back, Material::Plastic(_)));
 }
 
 #[test]
@@ -169,9 +173,8 @@ fn bad_parameters_are_named_by_their_field() {
 #[test]
 fn roughness_maps_are_textures_on_conductors_and_dielectrics_only() {
     let checker = json!({"type": "checkerboard", "color0": 0.05, "color1": 0.4});
-    let Ok(Material::Conductor {
-        roughness: Some(r), ..
-    }) = parse(json!({"id": "c", "type": "roughconductor", "alpha_u": checker, "alpha_v": 0.2}))
+    let Ok(Material::RoughConductor(RoughConductorMaterial { roughness: r, .. })) =
+        parse(json!({"id": "c", "type": "roughconductor", "alpha_u": checker, "alpha_v": 0.2}))
     else {
         panic!()
     };
@@ -187,12 +190,12 @@ fn roughness_maps_are_textures_on_conductors_and_dielectrics_only() {
         "{u} {v}"
     );
     assert!(
-        Material::Conductor {
+        Material::RoughConductor(RoughConductorMaterial {
             eta: [0.2; 3],
             k: [3.0; 3],
             specular_reflectance: Texture::from([1.0; 3]),
-            roughness: Some(r),
-        }
+            roughness: r,
+        })
         .is_textured()
     );
     let too_rough = json!({"type": "checkerboard", "color0": 0.1, "color1": 5.0});

@@ -1,15 +1,17 @@
 //! Top-level Mitsuba emitters: `envmap` and `constant` become the scene's
-//! environment; `point`, `spot` and `directional` its delta lights. Area
-//! emitters live on shapes (`shape.rs`).
+//! environment; the light plugins of the scene model (`scene::emitter`:
+//! `point`, `spot`, `directional`) its delta lights, their properties
+//! copied. Area emitters live on shapes (`shape.rs`).
 
 use glam::DVec3;
 use serde_json::{Map, Value};
 
+use crate::scene::emitter::{Emitter, light_names};
 use crate::scene::format::{EnvironmentDoc, EnvironmentKind};
 use crate::scene::transform;
 
 use super::parse::{Element, quote};
-use super::props::Props;
+use super::props::{Props, number, vec3};
 use super::texture::{color, value};
 use super::transform::Ops;
 use super::{Ctx, XmlError};
@@ -43,7 +45,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<(), XmlError
                 to_world: to_world.into_doc(ctx, "environment.to_world"),
             }
         }
-        "point" | "spot" | "directional" => return light(ctx, el, kind, props),
+        kind if light_names().contains(&kind) => return light(ctx, el, kind, props),
         "area" => {
             return Err(el.error(
                 "type",
@@ -89,54 +91,68 @@ fn placement(t: Option<&Element>) -> Result<Option<(DVec3, DVec3)>, XmlError> {
     )))
 }
 
-/// `point`, `spot` and `directional` become the scene's `lights`, with
-/// Mitsuba's parameter names; `to_world` gives a point or spot light its
-/// position and a spot or directional light its axis.
+/// Properties that place a light: where the plugin does not take them
+/// (a point light's `direction`, a directional light's `position`), they
+/// are dropped without a word, as `to_world` gives every light both.
+const PLACEMENT: [&str; 2] = ["position", "direction"];
+
+/// A light plugin of the scene model becomes one of the scene's `lights`
+/// by copying its properties under their (Mitsuba's) names: points and
+/// vectors as `[x, y, z]`, colours as `[r, g, b]` (a number too where the
+/// plugin takes a colour), other numbers as they are; `to_world` gives it
+/// a `position` (its translation) and a `direction` (where it sends +z).
+/// The plugin's own parser validates them; properties it does not take
+/// are reported as unsupported.
 fn light<'a>(
     ctx: &mut Ctx<'a>,
     el: &'a Element,
     kind: &str,
     mut props: Props<'a>,
 ) -> Result<(), XmlError> {
-    let mut doc = Map::new();
-    doc.insert("type".into(), Value::from(kind));
     let field = format!("lights[{}]", ctx.lights.len());
     ctx.origin(field.clone(), el);
-    let (position, direction) = (props.point("position")?, props.point("direction")?);
     let placed = placement(props.get("to_world")?)?;
-    if placed.is_some() && (position.is_some() || direction.is_some()) {
+    let mut doc = Map::new();
+    let mut copied = Vec::new();
+    for child in &el.children {
+        let Some(name) = child.attr("name").filter(|n| *n != "to_world") else {
+            continue;
+        };
+        let target = ctx.deref(child)?;
+        let value = match target.tag.as_str() {
+            "point" | "vector" => Value::from(vec3(target, 0.0)?.to_vec()),
+            "float" | "integer" if !Emitter::takes_colour(kind, name) => {
+                Value::from(number(target, "value")?)
+            }
+            _ => Value::from(value(ctx, child)?.to_vec()),
+        };
+        doc.insert(name.to_string(), value);
+        copied.push((name, child));
+    }
+    if placed.is_some() && PLACEMENT.iter().any(|n| doc.contains_key(*n)) {
         return Err(el.error(
             "to_world",
             "give `to_world`, or `position`/`direction`, not both",
         ));
     }
-    let (position, direction) = match placed {
-        Some((p, d)) => (Some(p.to_array()), Some(d.to_array())),
-        None => (position, direction),
-    };
-    if let (Some(p), false) = (position, kind == "directional") {
-        doc.insert("position".into(), Value::from(p.to_vec()));
+    if let Some((p, d)) = placed {
+        doc.insert("position".into(), Value::from(p.to_array().to_vec()));
+        doc.insert("direction".into(), Value::from(d.to_array().to_vec()));
     }
-    if let (Some(d), false) = (direction, kind == "point") {
-        doc.insert("direction".into(), Value::from(d.to_vec()));
+    for name in Emitter::unknown_parameters(kind, &doc) {
+        doc.remove(&name);
+        if PLACEMENT.contains(&name.as_str()) {
+            props.get(&name)?;
+        }
     }
-    let emitted = if kind == "directional" {
-        "irradiance"
-    } else {
-        "intensity"
-    };
-    if let Some(c) = props.get(emitted)? {
-        doc.insert(emitted.into(), Value::from(value(ctx, c)?.to_vec()));
-        ctx.origin(format!("{field}.{emitted}"), c);
-    }
-    if kind == "spot" {
-        for name in ["cutoff_angle", "beam_width"] {
-            if let Some(x) = props.opt_float(name)? {
-                doc.insert(name.into(), Value::from(x));
-            }
+    for (name, child) in copied {
+        if doc.contains_key(name) {
+            props.get(name)?;
+            ctx.origin(format!("{field}.{name}"), child);
         }
     }
     props.finish(ctx)?;
+    doc.insert("type".into(), Value::from(kind));
     ctx.lights.push(doc);
     Ok(())
 }

@@ -8,7 +8,19 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use proptest::prelude::*;
 
+use crate::scene::emitter::AreaLight;
+use crate::scene::emitter::directional::DirectionalLight;
+use crate::scene::emitter::point::PointLight;
+use crate::scene::emitter::spot::SpotLight;
 use crate::scene::material::Distribution;
+use crate::scene::material::blend::BlendMaterial;
+use crate::scene::material::conductor::ConductorMaterial;
+use crate::scene::material::dielectric::DielectricMaterial;
+use crate::scene::material::diffuse::DiffuseMaterial;
+use crate::scene::material::plastic::PlasticMaterial;
+use crate::scene::material::rough_conductor::RoughConductorMaterial;
+use crate::scene::material::rough_plastic::RoughPlasticMaterial;
+use crate::scene::material::twosided::TwoSidedMaterial;
 use crate::scene::{Emitter, Environment, Material, PixelFilter, Scene, SceneError};
 
 use super::{MitsubaOptions, Warnings};
@@ -208,9 +220,9 @@ fn shapes_without_bsdf_get_mitsubas_default_diffuse() {
     let m = scene.shape_material(0);
     assert_eq!(
         scene.materials[m],
-        Material::Diffuse {
+        Material::Diffuse(DiffuseMaterial {
             reflectance: Texture::from([0.5; 3])
-        }
+        })
     );
     assert_eq!(scene.material_ids[m], "default-diffuse@mitsuba");
 }
@@ -235,32 +247,26 @@ fn bsdf_mappings() {
         let i = scene.material_ids.iter().position(|m| m == id).unwrap();
         scene.materials[i].clone()
     };
-    let grey = Material::Diffuse {
+    let grey = Material::Diffuse(DiffuseMaterial {
         reflectance: Texture::from([0.25; 3]),
-    };
+    });
     assert_eq!(
         by_id("two"),
-        Material::TwoSided {
+        Material::TwoSided(TwoSidedMaterial {
             front: std::sync::Arc::new(grey.clone()),
             back: std::sync::Arc::new(grey)
-        }
+        })
     );
     assert_eq!(
         by_id("plastic"),
-        Material::Plastic {
+        Material::Plastic(PlasticMaterial {
             diffuse_reflectance: Texture::from([0.6, 0.4, 0.2]),
             specular_reflectance: Texture::from([1.0; 3]),
             eta: 1.5,
             nonlinear: false,
-            roughness: None,
-        }
+        })
     );
-    let Material::Plastic {
-        eta,
-        roughness: Some(roughness),
-        ..
-    } = by_id("rough")
-    else {
+    let Material::RoughPlastic(RoughPlasticMaterial { eta, roughness, .. }) = by_id("rough") else {
         panic!("{:?}", by_id("rough"))
     };
     assert!((eta - 1.49 / 1.000277).abs() < 1e-12, "Mitsuba's defaults");
@@ -268,19 +274,15 @@ fn bsdf_mappings() {
     assert_eq!((roughness.alpha_u, roughness.alpha_v), (0.1, 0.1));
     assert_eq!(
         by_id("mirror"),
-        Material::Conductor {
+        Material::Conductor(ConductorMaterial {
             eta: [0.0; 3],
             k: [1.0; 3],
             specular_reflectance: Texture::from([1.0; 3]),
-            roughness: None,
-        }
+        })
     );
-    let Material::Conductor {
-        eta,
-        k,
-        roughness: Some(roughness),
-        ..
-    } = by_id("metal")
+    let Material::RoughConductor(RoughConductorMaterial {
+        eta, k, roughness, ..
+    }) = by_id("metal")
     else {
         panic!()
     };
@@ -291,26 +293,16 @@ fn bsdf_mappings() {
         "Mitsuba's default"
     );
     assert_eq!((roughness.alpha_u, roughness.alpha_v), (0.5, 0.2));
-    let Material::Conductor { eta, .. } = by_id("gold") else {
+    let Material::Conductor(ConductorMaterial { eta, .. }) = by_id("gold") else {
         panic!()
     };
     assert!(eta[0] < eta[2], "gold: {eta:?}");
-    let Material::Dielectric { eta, thin, .. } = by_id("water") else {
+    let Material::Dielectric(DielectricMaterial { eta, .. }) = by_id("water") else {
         panic!()
     };
-    assert!((eta - 1.333 / 1.000277).abs() < 1e-12 && !thin);
-    assert!(matches!(
-        by_id("pane"),
-        Material::Dielectric { thin: true, .. }
-    ));
-    assert!(matches!(
-        by_id("frosted"),
-        Material::Dielectric {
-            roughness: Some(_),
-            thin: false,
-            ..
-        }
-    ));
+    assert!((eta - 1.333 / 1.000277).abs() < 1e-12);
+    assert!(matches!(by_id("pane"), Material::ThinDielectric(_)));
+    assert!(matches!(by_id("frosted"), Material::RoughDielectric(_)));
 }
 
 #[test]
@@ -356,10 +348,10 @@ fn emitters_area_constant_envmap_and_point() {
       <emitter type="constant"><rgb name="radiance" value="0.1"/></emitter>"#);
     assert_eq!(
         scene.emitters,
-        vec![Emitter::Area {
+        vec![Emitter::Area(AreaLight {
             shape: 0,
             radiance: Texture::Constant([1.0, 2.0, 3.0])
-        }]
+        })]
     );
     assert!(matches!(
         scene.environment,
@@ -399,21 +391,21 @@ fn emitters_area_constant_envmap_and_point() {
     assert_eq!(
         scene.emitters,
         vec![
-            Emitter::Point {
+            Emitter::Point(PointLight {
                 position: [0.0, 1.0, 0.0],
                 intensity: [2.0; 3]
-            },
-            Emitter::Spot {
+            }),
+            Emitter::Spot(SpotLight {
                 position: [0.0, 2.0, 0.0],
                 direction: [0.0, -1.0, 0.0],
                 intensity: [1.0; 3],
                 cutoff_angle: 30f64.to_radians(),
                 beam_width: 22.5f64.to_radians(),
-            },
-            Emitter::Directional {
+            }),
+            Emitter::Directional(DirectionalLight {
                 direction: [0.0, -1.0, 0.0],
                 irradiance: [3.0; 3]
-            },
+            }),
         ]
     );
 }
@@ -614,9 +606,9 @@ fn textures_become_texture_documents_or_lenient_means() {
         <transform name="to_uv"><scale x="4" y="2"/></transform></texture></bsdf>"#,
     );
     let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
-    let Material::Diffuse {
+    let Material::Diffuse(DiffuseMaterial {
         reflectance: Texture::Checkerboard(board),
-    } = &scene.materials[i]
+    }) = &scene.materials[i]
     else {
         panic!("{:?}", scene.materials[i])
     };
@@ -632,7 +624,7 @@ fn textures_become_texture_documents_or_lenient_means() {
             <shape type="rectangle"><ref id="t"/></shape>"#,
     );
     assert!(scene.materials.iter().any(|m| matches!(m,
-        Material::Conductor { roughness: Some(r), .. } if r.textures.is_some())));
+        Material::RoughConductor(RoughConductorMaterial { roughness: r, .. }) if r.textures.is_some())));
     for (body, what) in [
         (
             r#"<bsdf type="roughplastic" id="t"><texture type="checkerboard" name="alpha">
@@ -655,10 +647,10 @@ fn textures_become_texture_documents_or_lenient_means() {
         );
         let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
         match &scene.materials[i] {
-            Material::Plastic {
-                roughness: Some(r), ..
-            } => assert!((r.alpha_u - 0.2).abs() < 1e-12, "{r:?}"),
-            Material::Diffuse { reflectance } => {
+            Material::RoughPlastic(RoughPlasticMaterial { roughness: r, .. }) => {
+                assert!((r.alpha_u - 0.2).abs() < 1e-12, "{r:?}")
+            }
+            Material::Diffuse(DiffuseMaterial { reflectance }) => {
                 assert_eq!(*reflectance, Texture::from([0.5; 3]))
             }
             other => panic!("{other:?}"),
@@ -677,7 +669,7 @@ fn textures_become_texture_documents_or_lenient_means() {
     let (scene, warnings) = load_in(&wrap(bitmap), &dir.0, false).unwrap();
     assert!(warnings.is_empty(), "{warnings:?}");
     let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
-    let Material::Diffuse { reflectance } = &scene.materials[i] else {
+    let Material::Diffuse(DiffuseMaterial { reflectance }) = &scene.materials[i] else {
         panic!()
     };
     let left = reflectance.eval(glam::DVec2::new(0.25, 0.5));
@@ -893,7 +885,7 @@ fn bitmap_reflectance(dir: &Path, file: &str) -> Result<[f64; 3], SceneError> {
     );
     let (scene, _) = load_in(&wrap(&bitmap), dir, true)?;
     let i = scene.material_ids.iter().position(|m| m == "t").unwrap();
-    let Material::Diffuse { reflectance } = &scene.materials[i] else {
+    let Material::Diffuse(DiffuseMaterial { reflectance }) = &scene.materials[i] else {
         panic!()
     };
     Ok(reflectance.mean())
@@ -1192,7 +1184,7 @@ fn referenced_bsdfs_are_shared_and_trees_that_double_are_refused() {
     // Two levels: seven plugins, each referenced BSDF held once.
     let (scene, _) = load(&doubling_blends(2)).unwrap();
     let b2 = scene.material_ids.iter().position(|id| id == "b2").unwrap();
-    let Material::Blend { bsdfs, .. } = &scene.materials[b2] else {
+    let Material::Blend(BlendMaterial { bsdfs, .. }) = &scene.materials[b2] else {
         panic!("{:?}", scene.materials[b2])
     };
     assert!(std::sync::Arc::ptr_eq(&bsdfs[0], &bsdfs[1]));

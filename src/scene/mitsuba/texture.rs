@@ -1,6 +1,7 @@
 //! Colour-valued properties. A BSDF's textured parameters become texture
-//! documents (`scene::texture`: `bitmap` and `checkerboard` with their
-//! Mitsuba parameters) through [`parameter`]; everything else that takes a
+//! documents (`scene::texture`, whose plugins take Mitsuba's names) through
+//! [`parameter`], which copies the `<texture>`'s properties for the
+//! plugin's own parser to read; everything else that takes a
 //! colour (emitters' radiance) becomes one RGB triple through [`value`].
 //! Constant `<rgb>`, `<float>` and single-valued `<spectrum>` are exact;
 //! with `lenient`, a texture where only a constant is supported becomes
@@ -10,6 +11,8 @@
 use serde_json::{Map, Value};
 
 use crate::color::RgbArray;
+use crate::scene::params::Params;
+use crate::scene::texture::{Texture, plugin_names};
 
 use super::parse::{Element, quote};
 use super::props::{Props, numbers};
@@ -19,9 +22,6 @@ use super::{Ctx, XmlError};
 /// Mitsuba's default for unspecified reflectances, used as the lenient
 /// stand-in for textures that have no sensible mean.
 const GREY: RgbArray = [0.5; 3];
-
-/// The texture plugins the scene model has (`scene::texture`).
-const TEXTURES: &[&str] = &["bitmap", "checkerboard"];
 
 /// The RGB value of property `name` of `props`, or `default` if absent.
 pub(crate) fn color<'a>(
@@ -41,42 +41,72 @@ pub(crate) fn color<'a>(
 pub(crate) fn parameter<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Value, XmlError> {
     let target = ctx.deref(el)?;
     let kind = target.attr("type").unwrap_or("");
-    if target.tag != "texture" || !TEXTURES.contains(&kind) {
+    if target.tag != "texture" || !plugin_names().contains(&kind) {
         return Ok(Value::from(value(ctx, el)?.to_vec()));
     }
     ctx.enter(target)?;
-    let mut props = Props::new(target);
-    let mut doc = Map::new();
+    let mut doc = document(ctx, target, kind)?;
     doc.insert("type".into(), Value::from(kind));
-    if kind == "bitmap" {
-        let name = props
-            .string("filename")?
-            .ok_or_else(|| target.error("filename", "a bitmap needs a `filename`"))?;
-        doc.insert("filename".into(), Value::from(name));
-        doc.insert("raw".into(), Value::from(props.boolean("raw", false)?));
-        for name in ["filter_type", "wrap_mode"] {
-            if let Some(v) = props.string(name)? {
-                doc.insert(name.into(), Value::from(v));
-            }
-        }
-        // The storage format changes precision, not the picture.
-        props.ignore(&["format"]);
-    } else {
-        for (name, default) in [("color0", [0.4; 3]), ("color1", [0.2; 3])] {
-            let c = color(ctx, &mut props, name, default)?;
-            doc.insert(name.into(), Value::from(c.to_vec()));
-        }
-    }
-    if let Some(t) = props.get("to_uv")?
-        && let Some(transform) = Ops::read(t)?.doc()
-    {
-        let ops = serde_json::to_value(&transform.ops)
-            .map_err(|e| t.error("", format!("cannot translate: {e}")))?;
-        doc.insert("to_uv".into(), ops);
-    }
-    props.finish(ctx)?;
     ctx.leave();
     Ok(Value::Object(doc))
+}
+
+/// The parameters of `<texture>` element `el` of plugin `kind`, which the
+/// scene model has: its properties copied under their names (strings and
+/// booleans as they are, colours as `[r, g, b]`, `to_uv` as a transform
+/// document) with the defaults the plugin's documents state. Those the
+/// plugin does not take are reported as unsupported; `format`, the
+/// storage precision, changes nothing in the picture and is dropped.
+fn document<'a>(
+    ctx: &mut Ctx<'a>,
+    el: &'a Element,
+    kind: &str,
+) -> Result<Map<String, Value>, XmlError> {
+    let mut props = Props::new(el);
+    props.ignore(&["format"]);
+    let mut doc = Texture::stated_defaults(kind);
+    for child in &el.children {
+        let Some(name) = child.attr("name").filter(|n| *n != "format") else {
+            continue;
+        };
+        let target = ctx.deref(child)?;
+        let value = match target.tag.as_str() {
+            "string" => Value::from(
+                target
+                    .attr("value")
+                    .ok_or_else(|| target.error("value", "missing attribute `value`"))?,
+            ),
+            "boolean" => match target.attr("value").map(str::trim) {
+                Some("true") => Value::Bool(true),
+                Some("false") => Value::Bool(false),
+                other => {
+                    return Err(target.error(
+                        "value",
+                        format!(
+                            "{} is not a boolean (true or false)",
+                            quote(other.unwrap_or_default())
+                        ),
+                    ));
+                }
+            },
+            "transform" => match Ops::read(child)?.doc() {
+                Some(transform) => serde_json::to_value(&transform.ops)
+                    .map_err(|e| child.error("", format!("cannot translate: {e}")))?,
+                None => continue,
+            },
+            _ => Value::from(value(ctx, child)?.to_vec()),
+        };
+        doc.insert(name.to_string(), value);
+    }
+    for name in Texture::unknown_parameters(kind, &doc) {
+        doc.remove(&name);
+    }
+    let names: Vec<String> = doc.keys().cloned().collect();
+    for name in names {
+        props.get(&name)?;
+    }
+    props.finish(ctx)?;
+    Ok(doc)
 }
 
 /// The RGB value of a colour element (following `<ref>`s).
@@ -96,7 +126,7 @@ pub(crate) fn value<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<RgbArray, 
         "spectrum" => spectrum(ctx, target),
         "texture" => {
             let kind = target.attr("type").unwrap_or("");
-            let supported = TEXTURES.contains(&kind);
+            let supported = plugin_names().contains(&kind);
             ctx.unsupported(
                 target,
                 "type",
@@ -164,38 +194,24 @@ fn spectrum(ctx: &mut Ctx, el: &Element) -> Result<RgbArray, XmlError> {
 }
 
 /// The mean linear colour of texture element `el`, the stand-in of a
-/// lenient document: a bitmap's texels (each file decoded once for the
-/// whole load, within its budget), a checkerboard's two colours; mid grey
-/// for other types. A strict document fails where a stand-in is needed,
-/// so it gets mid grey without any image being decoded.
+/// lenient document: the plugin's own mean of the texture its properties
+/// make (a bitmap's image decoded once for the whole load, within its
+/// budget); mid grey for types the scene model lacks. A strict document
+/// fails where a stand-in is needed, so it gets mid grey without any image
+/// being decoded.
 pub(crate) fn mean<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<RgbArray, XmlError> {
-    if !ctx.lenient {
+    let kind = el.attr("type").unwrap_or("");
+    if !ctx.lenient || !plugin_names().contains(&kind) {
         return Ok(GREY);
     }
-    let mut props = Props::new(el);
-    let out = match el.attr("type").unwrap_or("") {
-        "bitmap" => {
-            let name = props
-                .string("filename")?
-                .ok_or_else(|| el.error("filename", "a bitmap needs a `filename`"))?;
-            let raw = props.boolean("raw", false)?;
-            ctx.bitmaps
-                .load(name, raw, "filename")
-                .map_err(|e| XmlError {
-                    source: Some(Box::new(e)),
-                    ..el.error("filename", "")
-                })?
-                .mean()
-        }
-        "checkerboard" => {
-            let a = color(ctx, &mut props, "color0", [0.4; 3])?;
-            let b = color(ctx, &mut props, "color1", [0.2; 3])?;
-            std::array::from_fn(|i| 0.5 * (a[i] + b[i]))
-        }
-        _ => return Ok(GREY),
-    };
-    // Whatever else it holds does not change its mean.
-    props.ignore(&["filter_type", "wrap_mode", "format", "to_uv"]);
-    props.finish(ctx)?;
-    Ok(out)
+    let mut doc = document(ctx, el, kind)?;
+    // The mean is over the unit square, whatever maps onto it.
+    doc.remove("to_uv");
+    doc.insert("type".into(), Value::from(kind));
+    let params = Params::new("", Map::new()).with_bitmaps(ctx.bitmaps);
+    let texture = Texture::parse(&params, "", Value::Object(doc)).map_err(|e| XmlError {
+        source: Some(Box::new(e)),
+        ..el.error("", "")
+    })?;
+    Ok(texture.mean())
 }

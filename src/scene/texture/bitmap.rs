@@ -14,8 +14,9 @@
 //! wrapped by the wrap mode.
 
 use glam::{DAffine2, DVec2};
+use serde_json::{Map, Value};
 
-use super::{SharedBitmap, Texture};
+use super::{Plugin, SharedBitmap, Texture, to_uv};
 use crate::color::RgbArray;
 use crate::scene::error::SceneError;
 use crate::scene::params::Params;
@@ -54,7 +55,7 @@ impl Wrap {
     }
 }
 
-/// A [`Bitmap`] with its lookup settings.
+/// A [`Bitmap`](super::Bitmap) with its lookup settings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BitmapTexture {
     pub bitmap: SharedBitmap,
@@ -63,9 +64,9 @@ pub struct BitmapTexture {
     pub to_uv: DAffine2,
 }
 
-impl BitmapTexture {
+impl Plugin for BitmapTexture {
     /// The filtered colour at texture coordinates `uv`.
-    pub fn eval(&self, uv: DVec2) -> RgbArray {
+    fn eval(&self, uv: DVec2) -> RgbArray {
         let b = &*self.bitmap;
         let (width, height) = (b.width(), b.height());
         let uv = self.to_uv.transform_point2(uv);
@@ -90,53 +91,64 @@ impl BitmapTexture {
     }
 
     /// The mean of the texels.
-    pub fn mean(&self) -> RgbArray {
+    fn mean(&self) -> RgbArray {
         self.bitmap.mean()
     }
 
     /// The largest texel channel.
-    pub fn max(&self) -> f64 {
+    fn max(&self) -> f64 {
         self.bitmap.max()
     }
 }
 
-pub(super) fn parse(params: &mut Params) -> Result<Texture, SceneError> {
-    let filename = params
-        .string("filename")?
-        .ok_or_else(|| params.missing("filename"))?;
-    let raw = params.boolean("raw", false)?;
-    let filter = match params.string("filter_type")?.as_deref() {
-        None | Some("bilinear") => Filter::Bilinear,
-        Some("nearest") => Filter::Nearest,
-        Some(other) => {
-            return Err(params.invalid(
-                "filter_type",
-                format!("{other:?} is not `bilinear` or `nearest`"),
-            ));
-        }
-    };
-    let wrap = match params.string("wrap_mode")?.as_deref() {
-        None | Some("repeat") => Wrap::Repeat,
-        Some("mirror") => Wrap::Mirror,
-        Some("clamp") => Wrap::Clamp,
-        Some(other) => {
-            return Err(params.invalid(
-                "wrap_mode",
-                format!("{other:?} is not `repeat`, `mirror` or `clamp`"),
-            ));
-        }
-    };
-    let to_uv = super::to_uv(params)?;
-    let field = params.field("filename");
-    let Some(bitmaps) = params.bitmaps() else {
-        // Only the parameter names are wanted (`Material::unknown_parameters`).
-        return Ok(Texture::Constant([0.5; 3]));
-    };
-    let bitmap = bitmaps.load(&filename, raw, &field)?;
-    Ok(Texture::Bitmap(BitmapTexture {
-        bitmap,
-        filter,
-        wrap,
-        to_uv,
-    }))
+impl BitmapTexture {
+    /// The defaults a translated document states: `raw`.
+    pub(crate) fn stated_defaults() -> Map<String, Value> {
+        let mut doc = Map::new();
+        doc.insert("raw".into(), Value::from(false));
+        doc
+    }
+
+    /// The parameters of a texture document, each validated once (the
+    /// image read through the document's bitmaps).
+    pub(crate) fn parse(params: &mut Params) -> Result<Texture, SceneError> {
+        let filename = params
+            .string("filename")?
+            .ok_or_else(|| params.missing("filename"))?;
+        let raw = params.boolean("raw", false)?;
+        let filter = match params.string("filter_type")?.as_deref() {
+            None | Some("bilinear") => Filter::Bilinear,
+            Some("nearest") => Filter::Nearest,
+            Some(other) => {
+                return Err(params.invalid(
+                    "filter_type",
+                    format!("{other:?} is not `bilinear` or `nearest`"),
+                ));
+            }
+        };
+        let wrap = match params.string("wrap_mode")?.as_deref() {
+            None | Some("repeat") => Wrap::Repeat,
+            Some("mirror") => Wrap::Mirror,
+            Some("clamp") => Wrap::Clamp,
+            Some(other) => {
+                return Err(params.invalid(
+                    "wrap_mode",
+                    format!("{other:?} is not `repeat`, `mirror` or `clamp`"),
+                ));
+            }
+        };
+        let to_uv = to_uv(params)?;
+        let field = params.field("filename");
+        let Some(bitmaps) = params.bitmaps() else {
+            // Only the parameter names are wanted (`Material::unknown_parameters`).
+            return Ok(Texture::Constant([0.5; 3]));
+        };
+        let bitmap = bitmaps.load(&filename, raw, &field)?;
+        Ok(Texture::Bitmap(BitmapTexture {
+            bitmap,
+            filter,
+            wrap,
+            to_uv,
+        }))
+    }
 }

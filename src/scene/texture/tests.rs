@@ -3,6 +3,8 @@ use std::path::Path;
 use glam::{DAffine2, DVec2};
 use serde_json::json;
 
+use super::bitmap::{BitmapTexture, Filter, Wrap};
+use super::checkerboard::CheckerboardTexture;
 use super::*;
 use crate::scene::bitmap::{self, Bitmaps, read_bitmap};
 use crate::scene::budget::{Budget, LoadLimits};
@@ -75,7 +77,7 @@ fn nearest_lookup_picks_the_texel_under_the_point() {
 
 #[test]
 fn checkerboard_alternates_per_half_period_and_follows_to_uv() {
-    let board = Checkerboard {
+    let board = CheckerboardTexture {
         color0: [0.4; 3],
         color1: [0.2; 3],
         to_uv: DAffine2::IDENTITY,
@@ -84,7 +86,7 @@ fn checkerboard_alternates_per_half_period_and_follows_to_uv() {
     assert_eq!(board.eval(DVec2::new(0.75, 0.25)), [0.2; 3]);
     assert_eq!(board.eval(DVec2::new(0.75, 0.75)), [0.4; 3]);
     assert_eq!(board.eval(DVec2::new(-0.25, 0.25)), [0.2; 3]);
-    let scaled = Checkerboard {
+    let scaled = CheckerboardTexture {
         to_uv: DAffine2::from_scale(DVec2::splat(2.0)),
         ..board.clone()
     };

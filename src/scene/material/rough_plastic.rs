@@ -21,10 +21,12 @@
 //! ((1 − T) w + T (1 − w))`, `w` the specular over total mean reflectance,
 //! and the base by the cosine otherwise.
 //!
-//! Parameters (Mitsuba 3's names): `distribution` (default `beckmann`),
-//! `alpha` (isotropic only, default 0.1), `diffuse_reflectance` (0.5),
-//! `specular_reflectance` (1), `int_ior` (polypropylene), `ext_ior` (air),
-//! `nonlinear` (false).
+//! Parameters (Mitsuba 3's names): `distribution` (default `beckmann`)
+//! and `alpha` (`optics::roughness`; one number, isotropic, as
+//! Mitsuba's: the tables depend on it; default 0.1; below `MIN_ALPHA` the
+//! coating is the smooth `plastic`'s); `diffuse_reflectance`,
+//! `specular_reflectance`, `int_ior`, `ext_ior`, `nonlinear`: as
+//! `plastic`'s.
 
 use std::num::NonZeroUsize;
 use std::sync::Arc;
@@ -32,12 +34,17 @@ use std::sync::Arc;
 use gauss_quad::legendre::GaussLegendre;
 use glam::DVec3;
 
-use super::plastic::coated_base;
-use super::{LobeSample, reflect};
+use super::plastic::{Plastic, coated_base};
+use super::{
+    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, ior, optics,
+    reflect,
+};
+use crate::scene::error::SceneError;
+use crate::scene::texture::{self, Texture};
 use crate::color::Rgb;
-use crate::render::fresnel;
-use crate::render::microfacet::Microfacet;
-use crate::render::warp;
+use crate::optics::fresnel;
+use crate::optics::microfacet::Microfacet;
+use crate::optics::warp;
 
 /// Cosines at which the coating's transmittance is tabulated (Mitsuba's
 /// `MI_ROUGH_TRANSMITTANCE_RES`).
@@ -268,17 +275,122 @@ impl RoughPlastic {
     }
 
     /// `ρ(ω_o)` with `ρ/π` the base's largest value for this `ω_o` over
-    /// `ω_i` (see `render::bsdf::Bsdf::lambertian`), for `cos_o > 0`.
+    /// `ω_i` (see `Bsdf::lambertian`), for `cos_o > 0`.
     pub fn lambertian(&self, cos_o: f64) -> Rgb {
         let t_max = self.transmittance.iter().copied().fold(0.0, f64::max);
         self.diffuse * (std::f64::consts::PI * self.transmittance_at(cos_o) * t_max)
     }
 }
 
+/// The parameters of a `roughplastic` material; see the module docs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoughPlasticMaterial {
+    /// The coating's roughness (isotropic, no texture).
+    pub roughness: Roughness,
+    /// The base's albedo `ρ`, in [0, 1].
+    pub diffuse_reflectance: Texture,
+    /// A factor on the coating's reflection, in [0, 1].
+    pub specular_reflectance: Texture,
+    /// The coating's index over the outside's, `int_ior / ext_ior`.
+    pub eta: f64,
+    /// Whether inner bounces darken and saturate the base's colour.
+    pub nonlinear: bool,
+}
+
+impl Plugin for RoughPlasticMaterial {
+    type Model = RoughPlastic;
+}
+
+impl RoughPlasticMaterial {
+    /// The parameters of a material document, each validated once.
+    pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
+        // Its tables depend on the roughness, so it is one number, as in
+        // Mitsuba (whose roughplastic takes no texture for it either).
+        for name in ["alpha", "alpha_u", "alpha_v"] {
+            if params.peek(name).is_some_and(serde_json::Value::is_object) {
+                return Err(params.invalid(name, "roughplastic takes a number, not a texture"));
+            }
+        }
+        let roughness = optics::roughness(params)?;
+        if roughness.alpha_u != roughness.alpha_v {
+            return Err(SceneError::invalid(
+                params.field("alpha_u"),
+                "roughplastic is isotropic (as Mitsuba's): give one `alpha`",
+            ));
+        }
+        Ok(Self {
+            roughness,
+            diffuse_reflectance: texture::albedo(params, "diffuse_reflectance", [0.5; 3])?,
+            specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
+            eta: optics::relative_ior(params, ior::POLYPROPYLENE)?,
+            nonlinear: params.boolean("nonlinear", false)?,
+        })
+    }
+}
+
+impl Parameters for RoughPlasticMaterial {
+    fn textures(&self) -> Vec<&Texture> {
+        vec![&self.diffuse_reflectance, &self.specular_reflectance]
+    }
+
+    fn build(&self, lookup: Lookup, template: Option<&Bsdf>) -> Bsdf {
+        let diffuse = lookup.rgb(&self.diffuse_reflectance);
+        let specular = lookup.rgb(&self.specular_reflectance);
+        let (eta, nonlinear) = (self.eta, self.nonlinear);
+        match (self.roughness.microfacet(Lookup::Mean), template) {
+            (Some(_), Some(Bsdf::RoughPlastic(t))) => {
+                Bsdf::RoughPlastic(t.retinted(diffuse, specular, nonlinear))
+            }
+            (Some(distribution), _) => Bsdf::RoughPlastic(RoughPlastic::new(
+                distribution,
+                diffuse,
+                specular,
+                eta,
+                nonlinear,
+            )),
+            (None, Some(Bsdf::Plastic(t))) => Bsdf::Plastic(t.retinted(diffuse, specular, nonlinear)),
+            (None, _) => Bsdf::Plastic(Plastic::new(diffuse, specular, eta, nonlinear)),
+        }
+    }
+}
+
+impl Model for RoughPlastic {
+    fn eval(&self, wo: DVec3, wi: DVec3) -> Rgb {
+        RoughPlastic::eval(self, wo, wi)
+    }
+
+    fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
+        RoughPlastic::pdf(self, wo, wi)
+    }
+
+    fn sample(&self, wo: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<LobeSample> {
+        RoughPlastic::sample(self, wo, u_lobe, u)
+    }
+
+    fn flags(&self) -> BsdfFlags {
+        BsdfFlags {
+            diffuse: true,
+            glossy: true,
+            ..BsdfFlags::default()
+        }
+    }
+
+    /// As the smooth plastic's, with the rough coating's transmittance
+    /// `T(θ_o) max T`; `r` is the coating's lobe plus the base's loss
+    /// towards grazing.
+    fn lambertian(&self, wo: DVec3) -> Rgb {
+        if wo.z > 0.0 {
+            RoughPlastic::lambertian(self, wo.z)
+        } else {
+            Rgb::BLACK
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::microfacet::MicrofacetKind;
+    use crate::optics::microfacet::MicrofacetKind;
 
     #[test]
     fn the_coating_transmits_what_it_does_not_reflect_when_smooth_enough() {

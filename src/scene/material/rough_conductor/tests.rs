@@ -5,8 +5,8 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::*;
-use crate::render::chi_square::ChiSquare;
-use crate::render::microfacet::MicrofacetKind;
+use crate::optics::chi_square::ChiSquare;
+use crate::optics::microfacet::MicrofacetKind;
 
 fn direction(theta: f64, phi: f64) -> DVec3 {
     DVec3::new(

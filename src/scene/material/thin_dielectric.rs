@@ -6,15 +6,16 @@
 //! inner bounces) and transmits `T = 1 − R`, both into delta directions:
 //! the mirror direction and `−ω_o`.
 //!
-//! Parameters (Mitsuba 3's names): `int_ior`, `ext_ior` (numbers or named
-//! media), whose ratio is `eta`; `specular_reflectance`,
-//! `specular_transmittance` (factors, default 1).
+//! Parameters: as `dielectric`'s (`int_ior`, `ext_ior`,
+//! `specular_reflectance`, `specular_transmittance`), Mitsuba 3's.
 
 use glam::DVec3;
 
-use super::LobeSample;
+use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, ior, optics};
 use crate::color::Rgb;
-use crate::render::fresnel;
+use crate::scene::error::SceneError;
+use crate::scene::texture::{self, Texture};
+use crate::optics::fresnel;
 
 /// A thin dielectric slab; see the module docs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,6 +52,69 @@ impl ThinDielectric {
             pdf,
             delta: true,
         })
+    }
+}
+
+/// The parameters of a `thindielectric` material; see the module docs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ThinDielectricMaterial {
+    /// Interior over exterior index of refraction, `int_ior / ext_ior`.
+    pub eta: f64,
+    /// Factors on the reflected and transmitted light, in [0, 1].
+    pub specular_reflectance: Texture,
+    pub specular_transmittance: Texture,
+}
+
+impl Plugin for ThinDielectricMaterial {
+    type Model = ThinDielectric;
+}
+
+impl ThinDielectricMaterial {
+    /// The parameters of a material document, each validated once.
+    pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
+        Ok(Self {
+            eta: optics::relative_ior(params, ior::BK7)?,
+            specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
+            specular_transmittance: texture::albedo(params, "specular_transmittance", [1.0; 3])?,
+        })
+    }
+}
+
+impl Parameters for ThinDielectricMaterial {
+    fn textures(&self) -> Vec<&Texture> {
+        vec![&self.specular_reflectance, &self.specular_transmittance]
+    }
+
+    /// A dielectric is the same from both sides.
+    fn may_be_a_side(&self) -> bool {
+        false
+    }
+
+    fn build(&self, lookup: Lookup, _: Option<&Bsdf>) -> Bsdf {
+        let (eta, specular_reflectance, specular_transmittance) = (
+            self.eta,
+            lookup.rgb(&self.specular_reflectance),
+            lookup.rgb(&self.specular_transmittance),
+        );
+        Bsdf::ThinDielectric(ThinDielectric {
+            eta,
+            specular_reflectance,
+            specular_transmittance,
+        })
+    }
+}
+
+impl Model for ThinDielectric {
+    fn sample(&self, wo: DVec3, u_lobe: f64, _: [f64; 2]) -> Option<LobeSample> {
+        ThinDielectric::sample(self, wo, u_lobe)
+    }
+
+    fn flags(&self) -> BsdfFlags {
+        BsdfFlags {
+            delta: true,
+            transmission: true,
+            ..BsdfFlags::default()
+        }
     }
 }
 

@@ -20,16 +20,23 @@
 //! outside with `η` inverted, so every formula runs with `ω_o` above.
 //!
 //! Parameters (Mitsuba 3's names): `distribution` (`beckmann` default,
-//! or `ggx`); `alpha` or `alpha_u`/`alpha_v`, default 0.1; `int_ior`,
-//! `ext_ior` (numbers or named media), whose ratio is `eta`;
-//! `specular_reflectance`, `specular_transmittance`, default 1.
+//! or `ggx`); `alpha` or `alpha_u`/`alpha_v`, default 0.1, numbers or
+//! textures (`optics::roughness`; below `MIN_ALPHA` the interface
+//! is the smooth `dielectric`); `int_ior`, `ext_ior`,
+//! `specular_reflectance`, `specular_transmittance`: as `dielectric`'s.
 
 use glam::DVec3;
 
-use super::{LobeSample, reflect};
+use super::dielectric::Dielectric;
+use super::{
+    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, ior, optics,
+    reflect,
+};
 use crate::color::Rgb;
-use crate::render::fresnel;
-use crate::render::microfacet::Microfacet;
+use crate::scene::error::SceneError;
+use crate::scene::texture::{self, Texture};
+use crate::optics::fresnel;
+use crate::optics::microfacet::Microfacet;
 
 /// A rough dielectric interface; see the module docs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -159,6 +166,94 @@ impl RoughDielectric {
         };
         let wi = if flip { -wi } else { wi };
         LobeSample::spread(wi, self.pdf(wo, wi), || self.eval(wo, wi))
+    }
+}
+
+/// The parameters of a `roughdielectric` material; see the module docs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoughDielectricMaterial {
+    /// Interior over exterior index of refraction, `int_ior / ext_ior`.
+    pub eta: f64,
+    /// Factors on the reflected and transmitted light, in [0, 1].
+    pub specular_reflectance: Texture,
+    pub specular_transmittance: Texture,
+    pub roughness: Roughness,
+}
+
+impl Plugin for RoughDielectricMaterial {
+    type Model = RoughDielectric;
+}
+
+impl RoughDielectricMaterial {
+    /// The parameters of a material document, each validated once.
+    pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
+        Ok(Self {
+            eta: optics::relative_ior(params, ior::BK7)?,
+            specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
+            specular_transmittance: texture::albedo(params, "specular_transmittance", [1.0; 3])?,
+            roughness: optics::roughness(params)?,
+        })
+    }
+}
+
+impl Parameters for RoughDielectricMaterial {
+    fn textures(&self) -> Vec<&Texture> {
+        let mut all = vec![&self.specular_reflectance, &self.specular_transmittance];
+        all.extend(self.roughness.textures());
+        all
+    }
+
+    /// A dielectric is the same from both sides.
+    fn may_be_a_side(&self) -> bool {
+        false
+    }
+
+    fn build(&self, lookup: Lookup, _: Option<&Bsdf>) -> Bsdf {
+        let (eta, specular_reflectance, specular_transmittance) = (
+            self.eta,
+            lookup.rgb(&self.specular_reflectance),
+            lookup.rgb(&self.specular_transmittance),
+        );
+        match self.roughness.microfacet(lookup) {
+            Some(distribution) => Bsdf::RoughDielectric(RoughDielectric {
+                distribution,
+                eta,
+                specular_reflectance,
+                specular_transmittance,
+            }),
+            None => Bsdf::Dielectric(Dielectric {
+                eta,
+                specular_reflectance,
+                specular_transmittance,
+            }),
+        }
+    }
+}
+
+impl Model for RoughDielectric {
+    fn eval(&self, wo: DVec3, wi: DVec3) -> Rgb {
+        RoughDielectric::eval(self, wo, wi)
+    }
+
+    fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
+        RoughDielectric::pdf(self, wo, wi)
+    }
+
+    fn sample(&self, wo: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<LobeSample> {
+        RoughDielectric::sample(self, wo, u_lobe, u)
+    }
+
+    fn flags(&self) -> BsdfFlags {
+        BsdfFlags {
+            glossy: true,
+            transmission: true,
+            ..BsdfFlags::default()
+        }
+    }
+
+    fn is_anisotropic(&self) -> bool {
+        let (u, v) = self.distribution.alpha();
+        u != v
     }
 }
 

@@ -4,135 +4,82 @@
 //! irradiance cache assumes. The models' own files test reciprocity,
 //! chi-square sampling and agreement with Mitsuba 3.
 
-use std::sync::Arc;
-
-use crate::scene::texture::Texture;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
+use serde_json::json;
 
 use super::*;
-use crate::scene::material::metals::named_metal;
+use crate::scene::material::Params;
+use crate::scene::material::dielectric::Dielectric;
+use crate::scene::material::rough_dielectric::RoughDielectric;
 
-fn ggx(alpha: f64) -> Roughness {
-    Roughness {
-        distribution: Distribution::Ggx,
-        alpha_u: alpha,
-        alpha_v: alpha,
-        textures: None,
-    }
+/// The material a document describes (`type` and parameters).
+fn material(doc: serde_json::Value) -> Material {
+    let mut params = doc.as_object().unwrap().clone();
+    let kind = params.remove("type").unwrap();
+    let mut params = Params::new("test", params);
+    let material = Material::parse(kind.as_str().unwrap(), &mut params, "test").unwrap();
+    params.finish().unwrap();
+    material
 }
 
 /// One material of each model, with unit factors so furnaces can be exact.
 fn materials() -> Vec<(&'static str, Material)> {
-    let (eta, k) = named_metal("Au").unwrap();
-    let white = [1.0; 3];
-    let dielectric = |roughness, thin| Material::Dielectric {
-        eta: 1.5,
-        specular_reflectance: Texture::from(white),
-        specular_transmittance: Texture::from(white),
-        roughness,
-        thin,
+    let glass = json!({"ext_ior": 1.0, "int_ior": 1.5});
+    let with = |kind: &str, base: &serde_json::Value, more: serde_json::Value| {
+        let mut doc = base.as_object().unwrap().clone();
+        doc.extend(more.as_object().unwrap().clone());
+        doc.insert("type".into(), kind.into());
+        serde_json::Value::Object(doc)
     };
-    let plastic = Material::Plastic {
-        diffuse_reflectance: Texture::from([0.2, 0.5, 0.8]),
-        specular_reflectance: Texture::from(white),
-        eta: 1.49,
-        nonlinear: false,
-        roughness: None,
-    };
-    let rough_plastic = Material::Plastic {
-        diffuse_reflectance: Texture::from([0.2, 0.5, 0.8]),
-        specular_reflectance: Texture::from(white),
-        eta: 1.49,
-        nonlinear: false,
-        roughness: Some(Roughness {
-            distribution: Distribution::Beckmann,
-            alpha_u: 0.2,
-            alpha_v: 0.2,
-            textures: None,
-        }),
-    };
+    let plastic = json!({"type": "plastic", "diffuse_reflectance": [0.2, 0.5, 0.8], "int_ior": 1.49, "ext_ior": 1.0});
+    let mirror = json!({"type": "conductor", "eta": 0.0, "k": 1.0});
+    let rough_mirror = json!({"type": "roughconductor", "eta": 0.0, "k": 1.0, "distribution": "ggx", "alpha": 0.3});
+    let diffuse = json!({"type": "diffuse", "reflectance": 1.0});
     vec![
-        (
-            "diffuse",
-            Material::Diffuse {
-                reflectance: Texture::from(white),
-            },
-        ),
+        ("diffuse", material(diffuse.clone())),
         (
             "glossy",
-            Material::Glossy {
-                diffuse: [0.3; 3],
-                specular: [0.6; 3],
-                exponent: 30.0,
-            },
+            material(json!({"type": "glossy", "diffuse": 0.3, "specular": 0.6, "exponent": 30.0})),
         ),
-        (
-            "mirror",
-            Material::Conductor {
-                eta: [0.0; 3],
-                k: [1.0; 3],
-                specular_reflectance: Texture::from(white),
-                roughness: None,
-            },
-        ),
+        ("mirror", material(mirror.clone())),
         (
             "rough gold",
-            Material::Conductor {
-                eta,
-                k,
-                specular_reflectance: Texture::from(white),
-                roughness: Some(ggx(0.3)),
-            },
+            material(
+                json!({"type": "roughconductor", "material": "Au", "distribution": "ggx", "alpha": 0.3}),
+            ),
         ),
-        ("glass", dielectric(None, false)),
-        ("thin glass", dielectric(None, true)),
-        ("rough glass", dielectric(Some(ggx(0.2)), false)),
-        ("plastic", plastic.clone()),
-        ("rough plastic", rough_plastic),
+        ("glass", material(with("dielectric", &glass, json!({})))),
+        (
+            "thin glass",
+            material(with("thindielectric", &glass, json!({}))),
+        ),
+        (
+            "rough glass",
+            material(with(
+                "roughdielectric",
+                &glass,
+                json!({"distribution": "ggx", "alpha": 0.2}),
+            )),
+        ),
+        ("plastic", material(plastic.clone())),
+        (
+            "rough plastic",
+            material(with("roughplastic", &plastic, json!({"alpha": 0.2}))),
+        ),
         (
             "blend",
-            Material::Blend {
-                weight: Texture::from([0.3; 3]),
-                bsdfs: [
-                    Arc::new(Material::Conductor {
-                        eta: [0.0; 3],
-                        k: [1.0; 3],
-                        specular_reflectance: Texture::from(white),
-                        roughness: Some(ggx(0.3)),
-                    }),
-                    Arc::new(plastic.clone()),
-                ],
-            },
+            material(json!({"type": "blendbsdf", "weight": 0.3, "bsdf": [rough_mirror, plastic]})),
         ),
         (
             "mask",
-            Material::Mask {
-                opacity: Texture::from([0.6; 3]),
-                bsdf: Arc::new(Material::Blend {
-                    weight: Texture::from([0.5; 3]),
-                    bsdfs: [
-                        Arc::new(Material::Diffuse {
-                            reflectance: Texture::from(white),
-                        }),
-                        Arc::new(Material::Conductor {
-                            eta: [0.0; 3],
-                            k: [1.0; 3],
-                            specular_reflectance: Texture::from(white),
-                            roughness: None,
-                        }),
-                    ],
-                }),
-            },
+            material(json!({"type": "mask", "opacity": 0.6, "bsdf": {
+                "type": "blendbsdf", "weight": 0.5, "bsdf": [diffuse, mirror]
+            }})),
         ),
         (
             "two-sided",
-            Material::TwoSided {
-                front: Arc::new(plastic),
-                back: Arc::new(Material::Diffuse {
-                    reflectance: Texture::from(white),
-                }),
-            },
+            material(json!({"type": "twosided", "bsdf": [plastic, diffuse]})),
         ),
     ]
 }
@@ -219,13 +166,9 @@ fn white_furnace_conserves_energy() {
             // In the radiance convention, light refracted into the denser
             // side is concentrated by 1/η², so only the throughput from the
             // denser side may exceed 1 (by up to η²).
-            let limit = match (&material, wo.z < 0.0) {
-                (
-                    Material::Dielectric {
-                        eta, thin: false, ..
-                    },
-                    true,
-                ) => eta * eta,
+            let limit = match (&bsdf, wo.z < 0.0) {
+                (Bsdf::Dielectric(Dielectric { eta, .. }), true) => eta * eta,
+                (Bsdf::RoughDielectric(RoughDielectric { eta, .. }), true) => eta * eta,
                 _ => 1.0,
             };
             assert!(
@@ -247,20 +190,12 @@ fn white_furnace_conserves_energy() {
 
 #[test]
 fn two_sided_materials_see_the_surface_turned_around() {
-    let front = Material::Plastic {
-        diffuse_reflectance: Texture::from([0.2, 0.5, 0.8]),
-        specular_reflectance: Texture::from([1.0; 3]),
-        eta: 1.49,
-        nonlinear: false,
-        roughness: None,
-    };
-    let back = Material::Diffuse {
-        reflectance: Texture::from([0.7, 0.1, 0.1]),
-    };
-    let both = Bsdf::from(&Material::TwoSided {
-        front: Arc::new(front.clone()),
-        back: Arc::new(back.clone()),
-    });
+    let front = json!({"type": "plastic", "diffuse_reflectance": [0.2, 0.5, 0.8], "int_ior": 1.49, "ext_ior": 1.0});
+    let back = json!({"type": "diffuse", "reflectance": [0.7, 0.1, 0.1]});
+    let both = Bsdf::from(&material(
+        json!({"type": "twosided", "bsdf": [front, back]}),
+    ));
+    let (front, back) = (material(front), material(back));
     let (front, back) = (Bsdf::from(&front), Bsdf::from(&back));
     let (wo, wi) = (
         DVec3::new(0.3, 0.1, 0.9).normalize(),
@@ -289,7 +224,7 @@ fn the_lambertian_part_is_what_the_cache_may_take_out() {
             let rho = bsdf.lambertian(wo);
             assert_eq!(rho.is_black(), !bsdf.flags().diffuse, "{name}");
             for _ in 0..100 {
-                let wi = crate::render::warp::cosine_hemisphere([rng.random(), rng.random()]);
+                let wi = crate::optics::warp::cosine_hemisphere([rng.random(), rng.random()]);
                 let rest = bsdf.eval(wo, wi) - rho * std::f64::consts::FRAC_1_PI;
                 // Phong's rest is its lobe (≥ 0); plastic's is the coating's
                 // loss towards grazing (≤ 0, and at most F(θ_i) − F(0) of it).

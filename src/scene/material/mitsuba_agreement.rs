@@ -9,7 +9,7 @@ use serde::Deserialize;
 use super::rough_conductor::RoughConductor;
 use super::rough_dielectric::RoughDielectric;
 use crate::color::Rgb;
-use crate::render::microfacet::{Microfacet, MicrofacetKind};
+use crate::optics::microfacet::{Microfacet, MicrofacetKind};
 
 #[derive(Deserialize)]
 struct Reference {

@@ -5,7 +5,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::*;
-use crate::render::chi_square::ChiSquare;
+use crate::optics::chi_square::ChiSquare;
 
 /// `θ = (π/2) t²`: resolution where sharp lobes peak, at the normal.
 fn theta_of(t: f64) -> f64 {
