@@ -29,15 +29,16 @@ use crate::scene::{Ray, SurfaceHit};
 const ROULETTE_START: u32 = 2;
 
 /// The path kernel of a scene's [`Transport`]: incident radiance along rays
-/// (module docs). Cheap to make ([`Transport::paths`]); holds nothing else.
+/// (module docs), made by [`Transport::paths`]; it holds nothing else.
 #[derive(Clone, Copy)]
 pub struct PathTracer<'a> {
     transport: &'a Transport,
 }
 
-impl<'a> PathTracer<'a> {
-    pub fn new(transport: &'a Transport) -> Self {
-        Self { transport }
+impl Transport {
+    /// The path kernel: incident radiance along rays of this scene.
+    pub fn paths(&self) -> PathTracer<'_> {
+        PathTracer { transport: self }
     }
 }
 

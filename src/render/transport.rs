@@ -49,11 +49,6 @@ impl Transport {
         }
     }
 
-    /// The path kernel: incident radiance along rays of this scene.
-    pub fn paths(&self) -> super::path_tracer::PathTracer<'_> {
-        super::path_tracer::PathTracer::new(self)
-    }
-
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
