@@ -22,7 +22,7 @@ use utoipa::ToSchema;
 pub use records::{
     HeldRecords, Key, MIN_POINTS_FOR_RECORDS, PointRecords, RecordsStore, SceneRecords,
 };
-pub use spec::{DEFAULT_SEED, PointQuerySpec};
+pub use spec::PointQuerySpec;
 
 use crate::bmc::KernelKind;
 use crate::bmc::cache::QuadratureCache;

@@ -151,6 +151,9 @@ pub struct IrradianceOptions {
     pub seed: u64,
 }
 
+/// Seed of every random stream of a query or command that names none.
+pub const DEFAULT_SEED: u64 = 1;
+
 impl Default for IrradianceOptions {
     fn default() -> Self {
         Self {
@@ -159,7 +162,7 @@ impl Default for IrradianceOptions {
             max_depth: PathDepth::default(),
             direct_only: false,
             method: IrradianceMethod::Split,
-            seed: 1,
+            seed: DEFAULT_SEED,
         }
     }
 }

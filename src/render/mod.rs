@@ -47,8 +47,8 @@ pub use cancel::Cancel;
 pub use error::RenderError;
 pub use film::{ImageSettings, RenderedImage};
 pub use irradiance::{
-    Decomposition, IndirectPart, IrradianceEstimate, IrradianceMethod, IrradianceOptions,
-    SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE, nothing_seen,
+    DEFAULT_SEED, Decomposition, IndirectPart, IrradianceEstimate, IrradianceMethod,
+    IrradianceOptions, SMOOTH_ENVIRONMENT_RELATIVE_VARIANCE, nothing_seen,
 };
 pub use mean::{Evaluation, MIN_STRATA_BLOCKS, MeanEstimate, StrataVariance};
 pub use path::{

@@ -30,6 +30,7 @@ pub mod metals;
 #[cfg(test)]
 mod mitsuba_agreement;
 mod optics;
+pub use optics::Interface;
 mod plugin;
 
 use std::sync::Arc;

@@ -11,11 +11,8 @@ use super::PointQuery;
 use crate::estimators::EstimatorError;
 use crate::estimators::EstimatorSpec;
 use crate::estimators::error_target::TargetSpec;
-use crate::render::{IrradianceOptions, PathDepth, PointDoc, RenderError};
+use crate::render::{DEFAULT_SEED, IrradianceOptions, PathDepth, PointDoc, RenderError};
 use crate::scene::Scene;
-
-/// Seed of a query that names none.
-pub const DEFAULT_SEED: u64 = 1;
 
 /// Irradiance `E(x, n)` at points (module docs).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema, clap::Args)]

@@ -13,10 +13,11 @@
 
 use glam::DVec3;
 
-use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, ior, optics};
+use super::optics::Interface;
+use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin};
 use crate::color::Rgb;
 use crate::scene::error::SceneError;
-use crate::scene::texture::{self, Texture};
+use crate::scene::texture::Texture;
 use crate::optics::fresnel;
 
 /// A smooth dielectric interface; see the module docs.
@@ -61,13 +62,7 @@ impl Dielectric {
 
 /// The parameters of a `dielectric` material; see the module docs.
 #[derive(Clone, Debug, PartialEq)]
-pub struct DielectricMaterial {
-    /// Interior over exterior index of refraction, `int_ior / ext_ior`.
-    pub eta: f64,
-    /// Factors on the reflected and transmitted light, in [0, 1].
-    pub specular_reflectance: Texture,
-    pub specular_transmittance: Texture,
-}
+pub struct DielectricMaterial(pub Interface);
 
 impl Plugin for DielectricMaterial {
     type Model = Dielectric;
@@ -76,17 +71,13 @@ impl Plugin for DielectricMaterial {
 impl DielectricMaterial {
     /// The parameters of a material document, each validated once.
     pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
-        Ok(Self {
-            eta: optics::relative_ior(params, ior::BK7)?,
-            specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
-            specular_transmittance: texture::albedo(params, "specular_transmittance", [1.0; 3])?,
-        })
+        Interface::parse(params).map(Self)
     }
 }
 
 impl Parameters for DielectricMaterial {
     fn textures(&self) -> Vec<&Texture> {
-        vec![&self.specular_reflectance, &self.specular_transmittance]
+        self.0.textures()
     }
 
     /// A dielectric is the same from both sides.
@@ -95,11 +86,7 @@ impl Parameters for DielectricMaterial {
     }
 
     fn build(&self, lookup: Lookup, _: Option<&Bsdf>) -> Bsdf {
-        let (eta, specular_reflectance, specular_transmittance) = (
-            self.eta,
-            lookup.rgb(&self.specular_reflectance),
-            lookup.rgb(&self.specular_transmittance),
-        );
+        let (eta, specular_reflectance, specular_transmittance) = self.0.at(lookup);
         Bsdf::Dielectric(Dielectric {
             eta,
             specular_reflectance,

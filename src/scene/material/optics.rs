@@ -5,10 +5,10 @@
 
 use serde_json::Value;
 
-use super::{Distribution, Params, Roughness, ior as media, metals};
-use crate::color::RgbArray;
+use super::{Distribution, Lookup, Params, Roughness, ior as media, metals};
+use crate::color::{Rgb, RgbArray};
 use crate::scene::error::SceneError;
-use crate::scene::texture::Texture;
+use crate::scene::texture::{self, Texture};
 
 /// Mitsuba's default `alpha` of rough BSDFs.
 const DEFAULT_ALPHA: f64 = 0.1;
@@ -181,5 +181,42 @@ fn alpha(params: &mut Params, name: &str) -> Result<Option<Texture>, SceneError>
         Some(a) if a > 0.0 && a <= 4.0 => Ok(Some(Texture::Constant([a; 3]))),
         Some(a) => Err(params.invalid(name, format!("{a} is not a roughness in (0, 4]"))),
         None => Ok(None),
+    }
+}
+
+/// What every dielectric plugin takes (`dielectric`, `thindielectric`,
+/// `roughdielectric`; Mitsuba 3's names and defaults): the relative index
+/// `int_ior / ext_ior` (interior default BK7, exterior air) and factors on
+/// the reflected and transmitted light.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Interface {
+    /// Interior over exterior index of refraction, in [`IOR_RANGE`] ratios, ≠ 1.
+    pub eta: f64,
+    /// Factors on the reflected and transmitted light, in [0, 1], default 1.
+    pub specular_reflectance: Texture,
+    pub specular_transmittance: Texture,
+}
+
+impl Interface {
+    /// Read in Mitsuba's order: the indices, then the two factors.
+    pub(super) fn parse(params: &mut Params) -> Result<Self, SceneError> {
+        Ok(Self {
+            eta: relative_ior(params, media::BK7)?,
+            specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
+            specular_transmittance: texture::albedo(params, "specular_transmittance", [1.0; 3])?,
+        })
+    }
+
+    pub(super) fn textures(&self) -> Vec<&Texture> {
+        vec![&self.specular_reflectance, &self.specular_transmittance]
+    }
+
+    /// `(eta, reflectance factor, transmittance factor)` where `lookup` says.
+    pub(super) fn at(&self, lookup: Lookup) -> (f64, Rgb, Rgb) {
+        (
+            self.eta,
+            lookup.rgb(&self.specular_reflectance),
+            lookup.rgb(&self.specular_transmittance),
+        )
     }
 }

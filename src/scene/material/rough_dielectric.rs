@@ -28,13 +28,14 @@
 use glam::DVec3;
 
 use super::dielectric::Dielectric;
+use super::optics::Interface;
 use super::{
-    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, ior, optics,
+    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, optics,
     reflect,
 };
 use crate::color::Rgb;
 use crate::scene::error::SceneError;
-use crate::scene::texture::{self, Texture};
+use crate::scene::texture::Texture;
 use crate::optics::fresnel;
 use crate::optics::microfacet::Microfacet;
 
@@ -172,11 +173,7 @@ impl RoughDielectric {
 /// The parameters of a `roughdielectric` material; see the module docs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoughDielectricMaterial {
-    /// Interior over exterior index of refraction, `int_ior / ext_ior`.
-    pub eta: f64,
-    /// Factors on the reflected and transmitted light, in [0, 1].
-    pub specular_reflectance: Texture,
-    pub specular_transmittance: Texture,
+    pub interface: Interface,
     pub roughness: Roughness,
 }
 
@@ -188,9 +185,7 @@ impl RoughDielectricMaterial {
     /// The parameters of a material document, each validated once.
     pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
         Ok(Self {
-            eta: optics::relative_ior(params, ior::BK7)?,
-            specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
-            specular_transmittance: texture::albedo(params, "specular_transmittance", [1.0; 3])?,
+            interface: Interface::parse(params)?,
             roughness: optics::roughness(params)?,
         })
     }
@@ -198,7 +193,7 @@ impl RoughDielectricMaterial {
 
 impl Parameters for RoughDielectricMaterial {
     fn textures(&self) -> Vec<&Texture> {
-        let mut all = vec![&self.specular_reflectance, &self.specular_transmittance];
+        let mut all = self.interface.textures();
         all.extend(self.roughness.textures());
         all
     }
@@ -209,11 +204,7 @@ impl Parameters for RoughDielectricMaterial {
     }
 
     fn build(&self, lookup: Lookup, _: Option<&Bsdf>) -> Bsdf {
-        let (eta, specular_reflectance, specular_transmittance) = (
-            self.eta,
-            lookup.rgb(&self.specular_reflectance),
-            lookup.rgb(&self.specular_transmittance),
-        );
+        let (eta, specular_reflectance, specular_transmittance) = self.interface.at(lookup);
         match self.roughness.microfacet(lookup) {
             Some(distribution) => Bsdf::RoughDielectric(RoughDielectric {
                 distribution,

@@ -3,6 +3,7 @@ use crate::scene::budget::{Budget, LoadLimits};
 use crate::scene::texture::Texture;
 use serde_json::json;
 
+use super::Interface;
 use super::conductor::ConductorMaterial;
 use super::dielectric::DielectricMaterial;
 use super::rough_conductor::RoughConductorMaterial;
@@ -61,13 +62,13 @@ fn every_plugin_parses_with_mitsubas_defaults() {
         }),
         "Mitsuba's default conductor is the perfect mirror `none`"
     );
-    let Ok(Material::ThinDielectric(ThinDielectricMaterial { eta, .. })) =
+    let Ok(Material::ThinDielectric(ThinDielectricMaterial(Interface { eta, .. }))) =
         parse(json!({"id": "w", "type": "thindielectric", "int_ior": "water", "ext_ior": 1.0}))
     else {
         panic!()
     };
     assert!((eta - 1.333).abs() < 1e-12);
-    let Ok(Material::Dielectric(DielectricMaterial { eta, .. })) =
+    let Ok(Material::Dielectric(DielectricMaterial(Interface { eta, .. }))) =
         parse(json!({"id": "d", "type": "dielectric"}))
     else {
         panic!()

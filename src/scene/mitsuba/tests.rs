@@ -13,6 +13,7 @@ use crate::scene::emitter::directional::DirectionalLight;
 use crate::scene::emitter::point::PointLight;
 use crate::scene::emitter::spot::SpotLight;
 use crate::scene::material::Distribution;
+use crate::scene::material::Interface;
 use crate::scene::material::blend::BlendMaterial;
 use crate::scene::material::conductor::ConductorMaterial;
 use crate::scene::material::dielectric::DielectricMaterial;
@@ -297,7 +298,7 @@ fn bsdf_mappings() {
         panic!()
     };
     assert!(eta[0] < eta[2], "gold: {eta:?}");
-    let Material::Dielectric(DielectricMaterial { eta, .. }) = by_id("water") else {
+    let Material::Dielectric(DielectricMaterial(Interface { eta, .. })) = by_id("water") else {
         panic!()
     };
     assert!((eta - 1.333 / 1.000277).abs() < 1e-12);
