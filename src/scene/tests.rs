@@ -700,7 +700,12 @@ fn mesh_files_are_shared_by_canonical_path() {
     let a = files.resolve("meshes/blob.obj", "f").unwrap();
     let b = files.resolve("./meshes/../meshes/blob.obj", "f").unwrap();
     assert_eq!(a, b);
-    let wanted = [a, b].map(|p| ((p, 0), format::ShapeKind::Obj, "f".to_string()));
+    let obj = format::ShapeKind::named("obj")
+        .unwrap()
+        .plugin()
+        .mesh_file
+        .unwrap();
+    let wanted = [a, b].map(|p| ((p, 0), obj, "f".to_string()));
     let budget = budget::Budget::new(&LoadLimits::default());
     let meshes = loader::MeshFiles::read_all(wanted.to_vec(), MAX_TRIANGLES, &budget).unwrap();
     assert_eq!(meshes.len(), 1);

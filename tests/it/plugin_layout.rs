@@ -13,6 +13,7 @@ const FAMILIES: &[(&str, &str)] = &[
     ("scene/material.rs", "scene/material"),
     ("scene/emitter.rs", "scene/emitter"),
     ("scene/texture.rs", "scene/texture"),
+    ("scene/shape.rs", "scene/shape"),
 ];
 
 /// One registry line.
