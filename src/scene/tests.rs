@@ -853,3 +853,23 @@ fn nested_materials_may_name_earlier_ones_by_id() {
     .unwrap();
     assert_eq!(e.field(), Some("materials[0].bsdf[0]"), "{e}");
 }
+
+/// A shape's `type` reads and writes as the derived enum it replaced did:
+/// serde's message lists the registry's names, and the document (which
+/// the digest hashes) serialises each kind as its name.
+#[test]
+fn shape_types_are_the_registry_names() {
+    let dir = TempDir::new("shape-types");
+    let bad = r#"{"type": "spheroid", "material": "m"}"#;
+    let e = from_str(&scene_json(bad, ""), &dir.0).err().unwrap();
+    assert!(
+        e.to_string().contains(
+            "unknown variant `spheroid`, expected one of `rectangle`, `cube`, `sphere`, `disk`, `obj`, `ply`, `serialized`, `triangles`"
+        ),
+        "{e}"
+    );
+    for name in crate::scene::shape::plugin_names() {
+        let kind: format::ShapeKind = serde_json::from_str(&format!("{name:?}")).unwrap();
+        assert_eq!(serde_json::to_string(&kind).unwrap(), format!("{name:?}"));
+    }
+}
