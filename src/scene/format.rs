@@ -53,19 +53,14 @@ pub struct MaterialDoc {
     pub params: serde_json::Map<String, serde_json::Value>,
 }
 
-#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum ShapeKind {
-    Rectangle,
-    Cube,
-    Sphere,
-    Disk,
-    Obj,
-    Ply,
-    Serialized,
-    Triangles,
-}
+/// A shape's `type`: a plugin of the shape registry (`scene::shape`), by
+/// its index there; (de)serialised there, as the plugin's name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ShapeKind(pub(crate) usize);
 
+/// A shape: the family's generic fields, then every plugin's own ones,
+/// each optional here; the plugin's file (`scene/shape/`) documents and
+/// validates those it takes, the loader refuses the others.
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ShapeDoc {
@@ -80,34 +75,49 @@ pub struct ShapeDoc {
     /// Turn the front side (and with it the emitting side) around.
     #[serde(default)]
     pub flip_normals: bool,
-    /// sphere: centre in local coordinates (default origin).
+    /// `sphere`.
     pub center: Option<Vec3>,
-    /// sphere: radius in local units (default 1).
+    /// `sphere`.
     pub radius: Option<f64>,
-    /// obj: path relative to the scene file.
+    /// Mesh-file plugins (`obj`, `ply`, `serialized`).
     pub filename: Option<String>,
-    /// triangles: vertex positions.
+    /// `triangles`.
     pub positions: Option<Vec<Vec3>>,
-    /// triangles: counter-clockwise (seen from the front) vertex indices.
+    /// `triangles`.
     pub indices: Option<Vec<[u64; 3]>>,
-    /// triangles: optional per-vertex shading normals.
+    /// `triangles`.
     pub normals: Option<Vec<Vec3>>,
-    /// triangles: optional per-vertex texture coordinates `[u, v]`.
+    /// `triangles`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uvs: Option<Vec<[f64; 2]>>,
-    /// obj and triangles: replace each texture coordinate `v` by `1 − v`
-    /// (default true for obj, whose files put `v = 0` at an image's
-    /// bottom, false for triangles; Mitsuba 3's).
+    /// Mesh plugins (`obj`, `ply`, `serialized`, `triangles`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub flip_tex_coords: Option<bool>,
-    /// obj: where the file gives no vertex normals, shade with each
-    /// triangle's own normal (faceted) instead of smooth vertex normals
-    /// (default false, Mitsuba 3's `face_normals`).
+    /// Mesh-file plugins.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub face_normals: Option<bool>,
-    /// serialized: which mesh of the file (default 0, the first).
+    /// `serialized`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shape_index: Option<u32>,
+}
+
+impl ShapeDoc {
+    /// The plugins' own fields by name, whether each is given, in the
+    /// order the loader checks them.
+    pub fn kind_fields(&self) -> [(&'static str, bool); 10] {
+        [
+            ("center", self.center.is_some()),
+            ("radius", self.radius.is_some()),
+            ("positions", self.positions.is_some()),
+            ("indices", self.indices.is_some()),
+            ("normals", self.normals.is_some()),
+            ("uvs", self.uvs.is_some()),
+            ("filename", self.filename.is_some()),
+            ("face_normals", self.face_normals.is_some()),
+            ("flip_tex_coords", self.flip_tex_coords.is_some()),
+            ("shape_index", self.shape_index.is_some()),
+        ]
+    }
 }
 
 #[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]

@@ -16,11 +16,13 @@ use super::emitter::{self, Emitter};
 use super::environment::{Environment, EnvironmentMap};
 use super::error::SceneError;
 use super::files::Files;
-use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, ShapeKind};
+use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc};
 use super::material::{Declared, Material};
-use super::mesh::{self, MeshData};
-use super::{Camera, MAX_PATH_DEPTH, MAX_SHAPES, MAX_TRIANGLES, Scene, transform};
-use geometry::{GeometryBuilder, similarity_scale};
+use super::mesh::MeshData;
+use super::shape::ReadMesh;
+use super::transform::{self, similarity_scale};
+use super::{Camera, MAX_PATH_DEPTH, MAX_SHAPES, MAX_TRIANGLES, Scene};
+use geometry::GeometryBuilder;
 
 /// Largest accepted scene file (inline triangle lists can be big).
 const MAX_SCENE_BYTES: u64 = 1 << 30;
@@ -147,19 +149,17 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
     let (mut wanted, mut keys) = (Vec::new(), Vec::with_capacity(doc.shapes.len()));
     let mut inline = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
-        let key = match (s.kind, &s.filename, &s.indices) {
-            (ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized, Some(name), _) => {
+        let plugin = s.kind.plugin();
+        let key = match (plugin.mesh_file, &s.filename) {
+            (Some(read), Some(name)) => {
                 let field = format!("shapes[{i}].filename");
                 let key = (files.resolve(name, &field)?, s.shape_index.unwrap_or(0));
-                wanted.push((key.clone(), s.kind, field));
+                wanted.push((key.clone(), read, field));
                 Some(key)
-            }
-            (ShapeKind::Triangles, _, Some(indices)) => {
-                inline += indices.len();
-                None
             }
             _ => None,
         };
+        inline += (plugin.inline_triangles)(s);
         keys.push(key);
     }
     let meshes = MeshFiles::read_all(wanted, MAX_TRIANGLES - inline.min(MAX_TRIANGLES), budget)?;
@@ -171,13 +171,13 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
     let mut triangles = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
         let field = format!("shapes[{i}]");
-        let shape_triangles = match (s.kind, &shape_meshes[i], &s.indices) {
-            (ShapeKind::Rectangle, ..) => 2,
-            (ShapeKind::Cube, ..) => 12,
-            (_, Some(mesh), _) => mesh.indices.len(),
-            (ShapeKind::Triangles, _, Some(indices)) => indices.len(),
-            _ => 0,
-        };
+        let plugin = s.kind.plugin();
+        // A plugin's triangles are fixed, listed inline or in its file.
+        let shape_triangles = plugin.fixed_triangles
+            + (plugin.inline_triangles)(s)
+            + shape_meshes[i]
+                .as_ref()
+                .map_or(0, |mesh| mesh.indices.len());
         triangles += shape_triangles;
         check_triangles(triangles, &field)?;
         budget.reserve(
@@ -282,8 +282,8 @@ pub(super) struct MeshFiles {
 }
 
 impl MeshFiles {
-    /// Reads the mesh files `wanted` ((canonical path, mesh index), format,
-    /// the field that names it) in parallel, each once, each refused past
+    /// Reads the mesh files `wanted` ((canonical path, mesh index), the
+    /// shape plugin's reader, the field that names it) in parallel, each once, each refused past
     /// `max_triangles`. The first error in `wanted`'s order is returned,
     /// whatever finished first.
     ///
@@ -291,7 +291,7 @@ impl MeshFiles {
     /// reserve what a file's header claims before reading it), so the
     /// meshes held at once stay within the load's budget.
     pub(super) fn read_all(
-        wanted: Vec<(MeshKey, ShapeKind, String)>,
+        wanted: Vec<(MeshKey, ReadMesh, String)>,
         max_triangles: usize,
         budget: &Budget,
     ) -> Result<MeshFiles, SceneError> {
@@ -303,19 +303,9 @@ impl MeshFiles {
             .collect();
         let read: Vec<Result<(MeshKey, Arc<MeshData>), SceneError>> = unique
             .into_par_iter()
-            .map(|((path, index), kind, field)| {
+            .map(|((path, index), read, field)| {
                 budget.check_cancel()?;
-                let mesh = match kind {
-                    ShapeKind::Ply => super::ply::read_ply(&path, &field, max_triangles, budget)?,
-                    ShapeKind::Serialized => super::serialized::read_serialized(
-                        &path,
-                        index,
-                        &field,
-                        max_triangles,
-                        budget,
-                    )?,
-                    _ => mesh::load_obj(&path, &field, max_triangles)?,
-                };
+                let mesh = read(&path, index, &field, max_triangles, budget)?;
                 budget.reserve(mesh.heap_bytes(), &field, "its mesh")?;
                 Ok(((path, index), Arc::new(mesh)))
             })

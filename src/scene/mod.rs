@@ -35,7 +35,7 @@ mod read;
 mod serialized;
 
 pub(crate) use loader::read_scene_file;
-mod shape;
+pub mod shape;
 pub mod texture;
 mod transform;
 

@@ -1,16 +1,245 @@
-//! Placed shapes: triangle meshes (rectangles, cubes, OBJ files and inline
-//! lists all become triangles, exactly) and the analytic sphere and disk.
+//! Placed shapes: triangle meshes (rectangles, cubes, mesh files and inline
+//! lists all become triangles, exactly) and the analytic sphere and disk;
+//! and the shape family, the plugins a document's `shapes` name by `type`.
 //!
 //! Spheres are intersected analytically (no tessellation error); their
 //! `to_world` must therefore be a similarity (rotation, uniform scale,
 //! translation). Disks accept any affine `to_world` (an ellipse stays planar
 //! and its area scales by a constant, so area sampling stays uniform).
+//!
+//! Each shape plugin has its own file below holding its parameters' docs,
+//! which of [`ShapeDoc`]'s kind-specific fields it takes, their validation
+//! and its local geometry ([`Plugin`]); the `plugins!` invocation below is
+//! the registry of the `shapes` plugins. The generic fields (`type`, `id`,
+//! `material`, `to_world`, `emitter`, `flip_normals`) are the family's,
+//! handled once by the loader. A shape document stays the typed
+//! [`ShapeDoc`] (not `Params`) so that its errors keep serde's field path
+//! and line/column.
 
 use std::f64::consts::PI;
 
-use glam::{DAffine3, DMat3, DVec2, DVec3};
+use std::borrow::Cow;
+use std::path::Path;
 
+use glam::{DAffine3, DMat3, DVec2, DVec3};
+use serde::de::{self, Deserializer, EnumAccess, Unexpected, VariantAccess, Visitor};
+use serde::{Deserialize, Serialize, Serializer};
+
+use super::budget::Budget;
 use super::bvh::Aabb;
+use super::error::SceneError;
+use super::format::{ShapeDoc, ShapeKind};
+use super::mesh::MeshData;
+
+/// A shape plugin: what the loader needs of one `type` of shape. Each
+/// plugin's file implements it on its (unit) type.
+pub(crate) trait Plugin {
+    /// The kind-specific fields of [`ShapeDoc`] the plugin takes; a
+    /// document giving any other is refused, naming that field.
+    const FIELDS: &'static [&'static str] = &[];
+    /// The reader of the mesh file its `filename` names, for plugins whose
+    /// mesh is a file: the loader reads every such file once, in parallel,
+    /// within the load's budget, before building any shape.
+    const MESH_FILE: Option<ReadMesh> = None;
+    /// Whether Mitsuba 3 has the plugin under the same name (the Mitsuba
+    /// reader maps `<shape type=…>` through this registry).
+    const MITSUBA: bool = true;
+    /// Triangles of its fixed local mesh, counted before any is built.
+    const FIXED_TRIANGLES: usize = 0;
+
+    /// Triangles the document lists inline, counted before any mesh file
+    /// is read (they narrow what the files may hold).
+    fn inline_triangles(_doc: &ShapeDoc) -> usize {
+        0
+    }
+
+    /// The shape's geometry from its validated document: a local mesh for
+    /// the loader to place, or analytic geometry in world space.
+    fn build<'a>(doc: &'a ShapeDoc, input: &Input<'a>) -> Result<Local<'a>, SceneError>;
+}
+
+/// Reads mesh `index` (0 but for `serialized`) of a file: path, index, the
+/// field naming the file (for errors), the most triangles it may hold, the
+/// budget its readers reserve from.
+pub(crate) type ReadMesh = fn(&Path, u32, &str, usize, &Budget) -> Result<MeshData, SceneError>;
+
+/// What a plugin's [`Plugin::build`] is given beside its document.
+pub(crate) struct Input<'a> {
+    /// The shape's field path, e.g. `shapes[2]`.
+    pub field: &'a str,
+    /// Local to world.
+    pub to_world: &'a DAffine3,
+    /// The mesh read from its `filename` (plugins with a
+    /// [`Plugin::MESH_FILE`]), `None` when it names none.
+    pub mesh_file: Option<&'a MeshData>,
+    /// How many more triangles the scene may hold.
+    pub max_triangles: usize,
+}
+
+/// A shape's geometry as its plugin builds it.
+pub(crate) enum Local<'a> {
+    /// A mesh in local coordinates, which the loader places with the
+    /// shape's `to_world` (`flip_tex_coords`: each `v` becomes `1 − v`).
+    Mesh {
+        data: Cow<'a, MeshData>,
+        flip_tex_coords: bool,
+    },
+    /// Analytic geometry in world space and its area, world units².
+    Analytic(Geometry, f64),
+}
+
+/// One registered plugin, as the loader dispatches to it.
+pub(crate) struct Entry {
+    pub name: &'static str,
+    pub fields: &'static [&'static str],
+    pub mesh_file: Option<ReadMesh>,
+    pub mitsuba: bool,
+    pub fixed_triangles: usize,
+    pub inline_triangles: fn(&ShapeDoc) -> usize,
+    pub build: for<'a> fn(&'a ShapeDoc, &Input<'a>) -> Result<Local<'a>, SceneError>,
+}
+
+/// The `shapes` plugins: `Variant(file::Type) = "name"`, one line each.
+/// For each line the macro declares `pub mod file;` (the plugin's file)
+/// and its [`Entry`]; a shape's `type` ([`ShapeKind`]) is its index in the
+/// registry, (de)serialised as the plugin's name.
+macro_rules! plugins {
+    ($($variant:ident($file:ident::$plugin:ident) = $name:literal,)*) => {
+        $(pub mod $file;)*
+
+        /// Every shape plugin, in registry order.
+        const PLUGINS: &[Entry] = &[
+            $(Entry {
+                name: $name,
+                fields: <$file::$plugin as Plugin>::FIELDS,
+                mesh_file: <$file::$plugin as Plugin>::MESH_FILE,
+                mitsuba: <$file::$plugin as Plugin>::MITSUBA,
+                fixed_triangles: <$file::$plugin as Plugin>::FIXED_TRIANGLES,
+                inline_triangles: <$file::$plugin as Plugin>::inline_triangles,
+                build: <$file::$plugin as Plugin>::build,
+            },)*
+        ];
+
+        /// The plugin names, as serde wants them for its messages.
+        const NAMES: &[&str] = &[$($name,)*];
+    };
+}
+
+// The order is the scene format's (docs/scene-format.md) and the one
+// serde's "expected one of" messages list.
+plugins! {
+    Rectangle(rectangle::RectangleShape) = "rectangle",
+    Cube(cube::CubeShape) = "cube",
+    Sphere(sphere::SphereShape) = "sphere",
+    Disk(disk::DiskShape) = "disk",
+    Obj(obj::ObjShape) = "obj",
+    Ply(ply::PlyShape) = "ply",
+    Serialized(serialized::SerializedShape) = "serialized",
+    Triangles(triangles::TrianglesShape) = "triangles",
+}
+
+/// The shape plugin names a scene's `shapes` accept, for docs.
+pub fn plugin_names() -> Vec<&'static str> {
+    NAMES.to_vec()
+}
+
+impl ShapeKind {
+    /// The plugin named `name`.
+    pub(crate) fn named(name: &str) -> Option<ShapeKind> {
+        NAMES.iter().position(|n| *n == name).map(ShapeKind)
+    }
+
+    /// Its plugin.
+    pub(crate) fn plugin(self) -> &'static Entry {
+        &PLUGINS[self.0]
+    }
+}
+
+// A kind (de)serialises as a unit variant named after its plugin, exactly
+// as the derived enum it replaces did (the scene digest hashes the
+// serialised document; serde's messages list `NAMES`).
+impl Serialize for ShapeKind {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_unit_variant("ShapeKind", self.0 as u32, NAMES[self.0])
+    }
+}
+
+impl<'de> Deserialize<'de> for ShapeKind {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        /// The variant's name (what a derived enum's field visitor reads).
+        struct Name(ShapeKind);
+        impl<'de> Deserialize<'de> for Name {
+            fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+                deserializer.deserialize_identifier(NameVisitor)
+            }
+        }
+        struct NameVisitor;
+        impl Visitor<'_> for NameVisitor {
+            type Value = Name;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("variant identifier")
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<Name, E> {
+                match usize::try_from(v) {
+                    Ok(i) if i < NAMES.len() => Ok(Name(ShapeKind(i))),
+                    _ => Err(E::invalid_value(
+                        Unexpected::Unsigned(v),
+                        &format!("variant index 0 <= i < {}", NAMES.len()).as_str(),
+                    )),
+                }
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<Name, E> {
+                ShapeKind::named(v)
+                    .map(Name)
+                    .ok_or_else(|| E::unknown_variant(v, NAMES))
+            }
+            fn visit_bytes<E: de::Error>(self, v: &[u8]) -> Result<Name, E> {
+                self.visit_str(&String::from_utf8_lossy(v))
+            }
+        }
+        struct KindVisitor;
+        impl<'de> Visitor<'de> for KindVisitor {
+            type Value = ShapeKind;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("enum ShapeKind")
+            }
+            fn visit_enum<A: EnumAccess<'de>>(self, data: A) -> Result<ShapeKind, A::Error> {
+                let (Name(kind), variant) = data.variant()?;
+                variant.unit_variant()?;
+                Ok(kind)
+            }
+        }
+        deserializer.deserialize_enum("ShapeKind", NAMES, KindVisitor)
+    }
+}
+
+/// The local mesh of a mesh-file plugin (`obj`, `ply`, `serialized`): the
+/// file's mesh, whose normals `face_normals` discards (as in Mitsuba) and
+/// which gets smooth ones where the file has none; `flip_tex_coords`
+/// defaults to `flip_default`.
+pub(crate) fn file_mesh<'a>(
+    doc: &ShapeDoc,
+    input: &Input<'a>,
+    flip_default: bool,
+) -> Result<Local<'a>, SceneError> {
+    // Read while sizing the scene (the loader's `build`); none where the
+    // shape names no file.
+    let data = input
+        .mesh_file
+        .ok_or_else(|| SceneError::invalid(input.field, "missing field `filename`"))?;
+    let data = match (doc.face_normals == Some(true), data.normals.is_some()) {
+        (true, true) => Cow::Owned(MeshData {
+            normals: None,
+            ..data.clone()
+        }),
+        (false, false) => Cow::Owned(data.clone().with_smooth_normals()),
+        _ => Cow::Borrowed(data),
+    };
+    Ok(Local::Mesh {
+        data,
+        flip_tex_coords: doc.flip_tex_coords.unwrap_or(flip_default),
+    })
+}
 
 #[derive(Clone, Debug)]
 pub(crate) enum Geometry {

@@ -700,7 +700,12 @@ fn mesh_files_are_shared_by_canonical_path() {
     let a = files.resolve("meshes/blob.obj", "f").unwrap();
     let b = files.resolve("./meshes/../meshes/blob.obj", "f").unwrap();
     assert_eq!(a, b);
-    let wanted = [a, b].map(|p| ((p, 0), format::ShapeKind::Obj, "f".to_string()));
+    let obj = format::ShapeKind::named("obj")
+        .unwrap()
+        .plugin()
+        .mesh_file
+        .unwrap();
+    let wanted = [a, b].map(|p| ((p, 0), obj, "f".to_string()));
     let budget = budget::Budget::new(&LoadLimits::default());
     let meshes = loader::MeshFiles::read_all(wanted.to_vec(), MAX_TRIANGLES, &budget).unwrap();
     assert_eq!(meshes.len(), 1);
@@ -847,4 +852,24 @@ fn nested_materials_may_name_earlier_ones_by_id() {
     .err()
     .unwrap();
     assert_eq!(e.field(), Some("materials[0].bsdf[0]"), "{e}");
+}
+
+/// A shape's `type` reads and writes as the derived enum it replaced did:
+/// serde's message lists the registry's names, and the document (which
+/// the digest hashes) serialises each kind as its name.
+#[test]
+fn shape_types_are_the_registry_names() {
+    let dir = TempDir::new("shape-types");
+    let bad = r#"{"type": "spheroid", "material": "m"}"#;
+    let e = from_str(&scene_json(bad, ""), &dir.0).err().unwrap();
+    assert!(
+        e.to_string().contains(
+            "unknown variant `spheroid`, expected one of `rectangle`, `cube`, `sphere`, `disk`, `obj`, `ply`, `serialized`, `triangles`"
+        ),
+        "{e}"
+    );
+    for name in crate::scene::shape::plugin_names() {
+        let kind: format::ShapeKind = serde_json::from_str(&format!("{name:?}")).unwrap();
+        assert_eq!(serde_json::to_string(&kind).unwrap(), format!("{name:?}"));
+    }
 }

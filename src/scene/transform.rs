@@ -152,6 +152,20 @@ pub fn normal_matrix(t: &DAffine3) -> DMat3 {
     t.matrix3.inverse().transpose()
 }
 
+/// The uniform scale `s` if `m = s·R` with `R` orthogonal (to 1e-6).
+pub(crate) fn similarity_scale(m: &DMat3) -> Option<f64> {
+    let cols = [m.x_axis, m.y_axis, m.z_axis];
+    let s = cols[0].length();
+    let tol = 1e-6 * s * s;
+    let ok = cols
+        .iter()
+        .all(|c| (c.length_squared() - s * s).abs() <= tol)
+        && cols[0].dot(cols[1]).abs() <= tol
+        && cols[1].dot(cols[2]).abs() <= tol
+        && cols[0].dot(cols[2]).abs() <= tol;
+    ok.then_some(s)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -370,16 +370,17 @@ fn table_names(doc: &str, heading: &str) -> Vec<String> {
         .collect()
 }
 
-/// docs/scene-format.md's tables of materials, textures and lights name
+/// docs/scene-format.md's tables of materials, textures, shapes and lights name
 /// exactly the plugins the registries accept, in their order.
 #[test]
 fn the_scene_format_tables_are_the_registries() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let doc = std::fs::read_to_string(root.join("docs/scene-format.md")).unwrap();
-    use bmc_irradiance::scene::{emitter, material, texture};
+    use bmc_irradiance::scene::{emitter, material, shape, texture};
     for (heading, registry) in [
         ("## Materials", material::plugin_names()),
         ("### Textures", texture::plugin_names()),
+        ("## Shapes", shape::plugin_names()),
         ("### Lights", emitter::light_names()),
     ] {
         assert_eq!(table_names(&doc, heading), registry, "{heading}");

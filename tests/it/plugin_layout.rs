@@ -13,6 +13,7 @@ const FAMILIES: &[(&str, &str)] = &[
     ("scene/material.rs", "scene/material"),
     ("scene/emitter.rs", "scene/emitter"),
     ("scene/texture.rs", "scene/texture"),
+    ("scene/shape.rs", "scene/shape"),
 ];
 
 /// One registry line.
@@ -226,5 +227,37 @@ fn the_old_split_layouts_are_refused() {
         "pub struct ConductorMaterial;\n",
     );
     write("render/bsdf.rs", "pub use crate::scene::material::Bsdf;\n");
+    assert!(layout_errors(dir.path(), &family).is_empty());
+}
+
+#[test]
+fn a_half_registered_shape_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |path: &str, text: &str| {
+        let path = dir.path().join(path);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, text).unwrap();
+    };
+    let family = [("scene/shape.rs", "scene/shape")];
+    let registry = "plugins! {\n    Sphere(sphere::SphereShape) = \"sphere\",\n    Disk(disk::DiskShape) = \"disk\",\n}\n";
+    write("scene/shape.rs", registry);
+    write("scene/shape/sphere.rs", "pub struct SphereShape;\n");
+    // A registry line without its file.
+    let errors = layout_errors(dir.path(), &family);
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(errors[0].starts_with("disk: no file"), "{errors:?}");
+    // Its file, but the kind still dispatched by name in the loader.
+    write("scene/shape/disk.rs", "pub struct DiskShape;\n");
+    write(
+        "scene/loader/geometry.rs",
+        "fn build() { let _ = DiskShape; }\n",
+    );
+    let errors = layout_errors(dir.path(), &family);
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(
+        errors[0].contains("geometry.rs names DiskShape"),
+        "{errors:?}"
+    );
+    write("scene/loader/geometry.rs", "fn build() {}\n");
     assert!(layout_errors(dir.path(), &family).is_empty());
 }

@@ -1,18 +1,18 @@
 //! The scene's geometry as a JSON document's shapes describe it: the
 //! builder that places each shape in the world (its fields checked, its
 //! mesh transformed into world-space triangles, or its analytic geometry)
-//! and finally builds the BVHs ([`GeometryBuilder`]), and the shapes given
-//! by their parameters: inline triangle lists and spheres.
+//! and finally builds the BVHs ([`GeometryBuilder`]). Each shape's own
+//! geometry is its plugin's (`scene::shape`).
 
-use glam::{DAffine3, DMat3, DVec2, DVec3};
+use glam::{DAffine3, DVec2, DVec3};
 
 use super::reject_fields;
 use crate::scene::bvh::{Aabb, Bvh};
 use crate::scene::digest::SceneDigest;
 use crate::scene::error::SceneError;
-use crate::scene::format::{ShapeDoc, ShapeKind};
-use crate::scene::mesh::{self, MeshData};
-use crate::scene::shape::{self, Geometry, Shape, Triangle, TriangleAccel, TriangleTag};
+use crate::scene::format::ShapeDoc;
+use crate::scene::mesh::MeshData;
+use crate::scene::shape::{Geometry, Input, Local, Shape, Triangle, TriangleAccel, TriangleTag};
 use crate::scene::{Camera, MAX_TRIANGLES, Scene, transform};
 
 /// Accumulates shapes and world-space triangles, then builds the BVHs.
@@ -45,86 +45,31 @@ impl GeometryBuilder {
             Some(t) => transform::build(t, &format!("{field}.to_world"))?,
             None => DAffine3::IDENTITY,
         };
-        let kind = format!("{:?}", s.kind).to_lowercase();
-        let sphere_fields = [
-            ("center", s.center.is_some()),
-            ("radius", s.radius.is_some()),
-        ];
-        let inline_fields = [
-            ("positions", s.positions.is_some()),
-            ("indices", s.indices.is_some()),
-            ("normals", s.normals.is_some()),
-            ("uvs", s.uvs.is_some()),
-        ];
-        let file_field = [
-            ("filename", s.filename.is_some()),
-            ("face_normals", s.face_normals.is_some()),
-        ];
-        let mesh_field = [("flip_tex_coords", s.flip_tex_coords.is_some())];
-        let serialized_field = [("shape_index", s.shape_index.is_some())];
-        let (reject_sphere, reject_inline, reject_file) = match s.kind {
-            ShapeKind::Sphere => (false, true, true),
-            ShapeKind::Triangles => (true, false, true),
-            ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized => (true, true, false),
-            _ => (true, true, true),
-        };
-        let reject_mesh = reject_inline && reject_file;
-        for (reject, fields) in [
-            (reject_sphere, &sphere_fields[..]),
-            (reject_inline, &inline_fields[..]),
-            (reject_file, &file_field[..]),
-            (reject_mesh, &mesh_field[..]),
-            (s.kind != ShapeKind::Serialized, &serialized_field[..]),
-        ] {
-            if reject {
-                reject_fields(field, &kind, fields)?;
-            }
+        let plugin = s.kind.plugin();
+        // Each plugin's own fields, the others refused in one order.
+        for (name, given) in s.kind_fields() {
+            let refused = given && !plugin.fields.contains(&name);
+            reject_fields(field, plugin.name, &[(name, refused)])?;
         }
-        let remaining = MAX_TRIANGLES - self.triangles.len();
-        let placement = Placement {
-            to_world,
-            flip_normals: s.flip_normals,
-            flip_tex_coords: s.flip_tex_coords.unwrap_or(s.kind == ShapeKind::Obj),
+        let input = Input {
+            field,
+            to_world: &to_world,
+            mesh_file,
+            max_triangles: MAX_TRIANGLES - self.triangles.len(),
         };
-        let (geometry, area) = match s.kind {
-            ShapeKind::Rectangle => self.add_mesh(&mesh::rectangle(), &placement, field)?,
-            ShapeKind::Cube => self.add_mesh(&mesh::cube(), &placement, field)?,
-            ShapeKind::Obj | ShapeKind::Ply | ShapeKind::Serialized => {
-                // Read while sizing the scene (see `build`); none where the
-                // shape names no file.
-                let data = mesh_file
-                    .ok_or_else(|| SceneError::invalid(field, "missing field `filename`"))?;
-                // `face_normals` discards the file's normals, as in Mitsuba;
-                // without it a mesh that has none gets smooth ones.
-                match (s.face_normals == Some(true), data.normals.is_some()) {
-                    (true, true) => {
-                        let flat = MeshData {
-                            normals: None,
-                            ..data.clone()
-                        };
-                        self.add_mesh(&flat, &placement, field)?
-                    }
-                    (false, false) => {
-                        let smooth = data.clone().with_smooth_normals();
-                        self.add_mesh(&smooth, &placement, field)?
-                    }
-                    _ => self.add_mesh(data, &placement, field)?,
-                }
-            }
-            ShapeKind::Triangles => {
-                let data = inline_mesh(s, field, remaining)?;
+        let (geometry, area) = match (plugin.build)(s, &input)? {
+            Local::Mesh {
+                data,
+                flip_tex_coords,
+            } => {
+                let placement = Placement {
+                    to_world,
+                    flip_normals: s.flip_normals,
+                    flip_tex_coords,
+                };
                 self.add_mesh(&data, &placement, field)?
             }
-            ShapeKind::Sphere => sphere(s, &to_world, field)?,
-            ShapeKind::Disk => {
-                let normal = (transform::normal_matrix(&to_world) * DVec3::Z).normalize();
-                let geometry = Geometry::Disk {
-                    to_world,
-                    to_local: to_world.inverse(),
-                    normal,
-                };
-                (geometry, shape::disk_area(&to_world))
-            }
+            Local::Analytic(geometry, area) => (geometry, area),
         };
         if !(area > 0.0 && area.is_finite()) {
             return Err(SceneError::invalid(
@@ -286,113 +231,4 @@ impl GeometryBuilder {
             bounds: all,
         }
     }
-}
-
-fn inline_mesh(s: &ShapeDoc, field: &str, max_triangles: usize) -> Result<MeshData, SceneError> {
-    let missing = |name: &str| SceneError::invalid(field, format!("missing field `{name}`"));
-    let positions = s.positions.as_ref().ok_or_else(|| missing("positions"))?;
-    let indices = s.indices.as_ref().ok_or_else(|| missing("indices"))?;
-    if indices.is_empty() || indices.len() > max_triangles {
-        return Err(SceneError::invalid(
-            format!("{field}.indices"),
-            format!("{} triangles; need 1..={max_triangles}", indices.len()),
-        ));
-    }
-    let positions = positions
-        .iter()
-        .enumerate()
-        .map(|(i, p)| transform::check_vec3(p, &format!("{field}.positions[{i}]")))
-        .collect::<Result<Vec<_>, _>>()?;
-    let mut out = Vec::with_capacity(indices.len());
-    for (k, tri) in indices.iter().enumerate() {
-        for (j, &i) in tri.iter().enumerate() {
-            if i as usize >= positions.len() {
-                return Err(SceneError::invalid(
-                    format!("{field}.indices[{k}][{j}]"),
-                    format!("vertex {i} does not exist ({} positions)", positions.len()),
-                ));
-            }
-        }
-        out.push(tri.map(|i| i as u32));
-    }
-    let normals = match &s.normals {
-        None => None,
-        Some(ns) => {
-            if ns.len() != positions.len() {
-                return Err(SceneError::invalid(
-                    format!("{field}.normals"),
-                    format!("{} normals for {} positions", ns.len(), positions.len()),
-                ));
-            }
-            let mut out = Vec::with_capacity(ns.len());
-            for (i, n) in ns.iter().enumerate() {
-                let f = format!("{field}.normals[{i}]");
-                let n = transform::check_vec3(n, &f)?
-                    .try_normalize()
-                    .ok_or_else(|| SceneError::invalid(f, "zero-length normal"))?;
-                out.push(n);
-            }
-            Some(out)
-        }
-    };
-    let uvs = match &s.uvs {
-        None => None,
-        Some(uvs) => {
-            let f = format!("{field}.uvs");
-            if uvs.len() != positions.len() {
-                return Err(SceneError::invalid(
-                    f,
-                    format!("{} uvs for {} positions", uvs.len(), positions.len()),
-                ));
-            }
-            if let Some(i) = uvs.iter().position(|uv| !uv.iter().all(|x| x.is_finite())) {
-                return Err(SceneError::invalid(format!("{f}[{i}]"), "not finite"));
-            }
-            Some(uvs.iter().map(|&uv| DVec2::from(uv)).collect())
-        }
-    };
-    Ok(MeshData {
-        positions,
-        indices: out,
-        normals,
-        uvs,
-    })
-}
-
-fn sphere(s: &ShapeDoc, to_world: &DAffine3, field: &str) -> Result<(Geometry, f64), SceneError> {
-    let center = transform::check_vec3(&s.center.unwrap_or([0.0; 3]), &format!("{field}.center"))?;
-    let radius = s.radius.unwrap_or(1.0);
-    if !(radius > 0.0 && radius.is_finite()) {
-        return Err(SceneError::invalid(
-            format!("{field}.radius"),
-            format!("{radius} is not a positive radius"),
-        ));
-    }
-    let scale = similarity_scale(&to_world.matrix3).ok_or_else(|| {
-        SceneError::invalid(
-            format!("{field}.to_world"),
-            "a sphere's transform must be a similarity (rotation, uniform scale, translation); use a mesh for ellipsoids",
-        )
-    })?;
-    let radius = radius * scale;
-    let geometry = Geometry::Sphere {
-        center: to_world.transform_point3(center),
-        radius,
-        to_local: (to_world.matrix3 / scale).transpose(),
-    };
-    Ok((geometry, 4.0 * std::f64::consts::PI * radius * radius))
-}
-
-/// The uniform scale `s` if `m = s·R` with `R` orthogonal (to 1e-6).
-pub(super) fn similarity_scale(m: &DMat3) -> Option<f64> {
-    let cols = [m.x_axis, m.y_axis, m.z_axis];
-    let s = cols[0].length();
-    let tol = 1e-6 * s * s;
-    let ok = cols
-        .iter()
-        .all(|c| (c.length_squared() - s * s).abs() <= tol)
-        && cols[0].dot(cols[1]).abs() <= tol
-        && cols[1].dot(cols[2]).abs() <= tol
-        && cols[0].dot(cols[2]).abs() <= tol;
-    ok.then_some(s)
 }

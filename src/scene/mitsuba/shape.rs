@@ -1,5 +1,6 @@
-//! Mitsuba shapes → document shapes. `rectangle`, `cube`, `sphere`, `disk`,
-//! `obj`, `ply` and `serialized` map one to one (same local geometry; the loader reads
+//! Mitsuba shapes → document shapes. The shape registry's Mitsuba plugins
+//! (`rectangle`, `cube`, `sphere`, `disk`, `obj`, `ply`, `serialized`) map
+//! one to one (same local geometry; the loader reads
 //! mesh files, with smooth vertex normals where a file has none unless
 //! `face_normals` is set, Mitsuba's default); an `instance` of a
 //! `shapegroup` adds the group's shapes with the instance's `to_world`
@@ -46,18 +47,14 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
         None => Ops::default(),
     }
     .then(outer);
-    let kind = match kind {
-        "rectangle" => ShapeKind::Rectangle,
-        "cube" => ShapeKind::Cube,
-        "sphere" => ShapeKind::Sphere,
-        "disk" => ShapeKind::Disk,
-        "obj" => ShapeKind::Obj,
-        "ply" => ShapeKind::Ply,
-        "serialized" => ShapeKind::Serialized,
+    // Mitsuba's shape plugins are the registry's of the same name.
+    let registered = ShapeKind::named(kind).filter(|k| k.plugin().mitsuba);
+    let kind = match (registered, kind) {
+        (Some(kind), _) => kind,
         // Declares shapes for instances; adds nothing by itself.
-        "shapegroup" => return Ok(()),
-        "instance" => return instance(ctx, el, props, &to_world),
-        other => {
+        (None, "shapegroup") => return Ok(()),
+        (None, "instance") => return instance(ctx, el, props, &to_world),
+        (None, other) => {
             return ctx.unsupported(
                 el,
                 "type",
