@@ -6,17 +6,10 @@
 use std::path::{Path, PathBuf};
 
 fn files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            files(&path, out);
-        } else if path
-            .extension()
-            .is_some_and(|e| e == "rs" || e == "md" || e == "py" || e == "toml" || e == "sh")
-        {
-            out.push(path);
-        }
-    }
+    out.extend(crate::common::files_with(
+        dir,
+        &["rs", "md", "py", "toml", "sh"],
+    ));
 }
 
 fn sources() -> Vec<(PathBuf, String)> {
