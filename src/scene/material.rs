@@ -29,8 +29,8 @@ pub mod ior;
 pub mod metals;
 #[cfg(test)]
 mod mitsuba_agreement;
-mod optics;
-pub use optics::Interface;
+mod optical_params;
+pub use optical_params::Interface;
 mod plugin;
 
 use std::sync::Arc;

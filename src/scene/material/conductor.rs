@@ -10,7 +10,7 @@
 
 use glam::DVec3;
 
-use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, optics};
+use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, optical_params};
 use crate::color::{Rgb, RgbArray};
 use crate::scene::error::SceneError;
 use crate::scene::texture::{self, Texture};
@@ -63,7 +63,7 @@ impl Plugin for ConductorMaterial {
 impl ConductorMaterial {
     /// The parameters of a material document, each validated once.
     pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
-        let (eta, k) = optics::metal(params)?;
+        let (eta, k) = optical_params::metal(params)?;
         Ok(Self {
             eta,
             k,

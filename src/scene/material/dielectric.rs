@@ -13,7 +13,7 @@
 
 use glam::DVec3;
 
-use super::optics::Interface;
+use super::Interface;
 use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin};
 use crate::color::Rgb;
 use crate::scene::error::SceneError;

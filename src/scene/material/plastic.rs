@@ -26,7 +26,7 @@ use std::num::NonZeroUsize;
 
 use glam::DVec3;
 
-use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, ior, optics};
+use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, ior, optical_params};
 use gauss_quad::legendre::GaussLegendre;
 
 use crate::color::Rgb;
@@ -237,7 +237,7 @@ impl PlasticMaterial {
         Ok(Self {
             diffuse_reflectance: texture::albedo(params, "diffuse_reflectance", [0.5; 3])?,
             specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
-            eta: optics::relative_ior(params, ior::POLYPROPYLENE)?,
+            eta: optical_params::relative_ior(params, ior::POLYPROPYLENE)?,
             nonlinear: params.boolean("nonlinear", false)?,
         })
     }

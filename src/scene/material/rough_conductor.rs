@@ -13,7 +13,7 @@
 //! Parameters (Mitsuba 3's names):
 //! - `distribution`: `beckmann` (default, as Mitsuba 3) or `ggx`;
 //! - `alpha`, or `alpha_u` and `alpha_v` (anisotropic): roughness, default
-//!   0.1, numbers or textures (`optics::roughness`); below
+//!   0.1, numbers or textures (`optical_params::roughness`); below
 //!   `MIN_ALPHA` the surface is the smooth `conductor`;
 //! - `eta`, `k`, `material`, `specular_reflectance`: as `conductor`'s.
 //!
@@ -25,7 +25,7 @@ use glam::DVec3;
 
 use super::conductor::Conductor;
 use super::{
-    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, optics,
+    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, optical_params,
     reflect,
 };
 use crate::color::{Rgb, RgbArray};
@@ -113,12 +113,12 @@ impl Plugin for RoughConductorMaterial {
 impl RoughConductorMaterial {
     /// The parameters of a material document, each validated once.
     pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
-        let (eta, k) = optics::metal(params)?;
+        let (eta, k) = optical_params::metal(params)?;
         Ok(Self {
             eta,
             k,
             specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
-            roughness: optics::roughness(params)?,
+            roughness: optical_params::roughness(params)?,
         })
     }
 }

@@ -21,16 +21,16 @@
 //!
 //! Parameters (Mitsuba 3's names): `distribution` (`beckmann` default,
 //! or `ggx`); `alpha` or `alpha_u`/`alpha_v`, default 0.1, numbers or
-//! textures (`optics::roughness`; below `MIN_ALPHA` the interface
+//! textures (`optical_params::roughness`; below `MIN_ALPHA` the interface
 //! is the smooth `dielectric`); `int_ior`, `ext_ior`,
 //! `specular_reflectance`, `specular_transmittance`: as `dielectric`'s.
 
 use glam::DVec3;
 
 use super::dielectric::Dielectric;
-use super::optics::Interface;
+use super::Interface;
 use super::{
-    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, optics,
+    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, optical_params,
     reflect,
 };
 use crate::color::Rgb;
@@ -186,7 +186,7 @@ impl RoughDielectricMaterial {
     pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
         Ok(Self {
             interface: Interface::parse(params)?,
-            roughness: optics::roughness(params)?,
+            roughness: optical_params::roughness(params)?,
         })
     }
 }

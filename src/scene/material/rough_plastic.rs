@@ -22,7 +22,7 @@
 //! and the base by the cosine otherwise.
 //!
 //! Parameters (Mitsuba 3's names): `distribution` (default `beckmann`)
-//! and `alpha` (`optics::roughness`; one number, isotropic, as
+//! and `alpha` (`optical_params::roughness`; one number, isotropic, as
 //! Mitsuba's: the tables depend on it; default 0.1; below `MIN_ALPHA` the
 //! coating is the smooth `plastic`'s); `diffuse_reflectance`,
 //! `specular_reflectance`, `int_ior`, `ext_ior`, `nonlinear`: as
@@ -36,7 +36,7 @@ use glam::DVec3;
 
 use super::plastic::{Plastic, coated_base};
 use super::{
-    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, ior, optics,
+    Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, Roughness, ior, optical_params,
     reflect,
 };
 use crate::scene::error::SceneError;
@@ -311,7 +311,7 @@ impl RoughPlasticMaterial {
                 return Err(params.invalid(name, "roughplastic takes a number, not a texture"));
             }
         }
-        let roughness = optics::roughness(params)?;
+        let roughness = optical_params::roughness(params)?;
         if roughness.alpha_u != roughness.alpha_v {
             return Err(SceneError::invalid(
                 params.field("alpha_u"),
@@ -322,7 +322,7 @@ impl RoughPlasticMaterial {
             roughness,
             diffuse_reflectance: texture::albedo(params, "diffuse_reflectance", [0.5; 3])?,
             specular_reflectance: texture::albedo(params, "specular_reflectance", [1.0; 3])?,
-            eta: optics::relative_ior(params, ior::POLYPROPYLENE)?,
+            eta: optical_params::relative_ior(params, ior::POLYPROPYLENE)?,
             nonlinear: params.boolean("nonlinear", false)?,
         })
     }
