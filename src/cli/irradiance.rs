@@ -80,7 +80,7 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
         .with_context(|| format!("reading points file {}", args.points.display()))?;
     spec.points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
     let scene = args.scene.load(&mut std::io::stderr())?;
-    let max_samples = u32::try_from(config.limits.max_samples).unwrap_or(u32::MAX);
+    let max_samples = config.limits.target_max_samples();
     let query: PointQuery = spec.resolve(&scene, max_samples)?;
     let transport = Transport::new(Arc::new(scene));
 

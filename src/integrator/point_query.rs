@@ -214,7 +214,7 @@ impl PointQuery {
             direct: (!direct.is_empty()).then_some(direct),
             amortised: &amortised,
         };
-        let (estimates, targeted) = match &self.target {
+        let (mut estimates, targeted) = match &self.target {
             None => (
                 self.estimator.estimate(
                     transport,
@@ -273,7 +273,7 @@ impl PointQuery {
                 .iter()
                 .map(|t: &TargetedEstimate| t.estimate)
                 .collect(),
-            None => estimates.estimates.clone(),
+            None => std::mem::take(&mut estimates.estimates),
         };
         let amortised_rays = amortised.get();
         let rgb = |c: crate::color::Rgb| [c.r, c.g, c.b];

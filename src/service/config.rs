@@ -381,6 +381,12 @@ impl Limits {
         Duration::from_secs(self.request_deadline_secs)
     }
 
+    /// `max_samples` as the per-point sample cap a point query's error
+    /// target takes when it names none.
+    pub fn target_max_samples(&self) -> u32 {
+        u32::try_from(self.max_samples).unwrap_or(u32::MAX)
+    }
+
     /// Refuses a request whose estimated paths exceed `max_paths_per_request`
     /// (422 `limit_exceeded` naming `estimated_paths`). Each per-request
     /// limit alone is modest, but they multiply: a one-pixel tile with 4096

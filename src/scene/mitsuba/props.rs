@@ -40,6 +40,21 @@ pub(crate) fn number(el: &Element, attr: &str) -> Result<f64, XmlError> {
     }
 }
 
+/// The `true` or `false` of a `<boolean>` element's `value`.
+pub(crate) fn boolean_value(el: &Element) -> Result<bool, XmlError> {
+    match el.attr("value").map(str::trim) {
+        Some("true") => Ok(true),
+        Some("false") => Ok(false),
+        other => Err(el.error(
+            "value",
+            format!(
+                "{} is not a boolean (true or false)",
+                quote(other.unwrap_or_default())
+            ),
+        )),
+    }
+}
+
 /// A 3-vector from `value="x, y, z"` or from `x`/`y`/`z` attributes, each
 /// defaulting to `default` (Mitsuba's `<point>`, `<vector>`, `<translate>`,
 /// `<scale>`, `<rotate>` axis).
@@ -143,19 +158,9 @@ impl<'a> Props<'a> {
     }
 
     pub fn boolean(&mut self, name: &str, default: bool) -> Result<bool, XmlError> {
-        let Some(c) = self.typed(name, &["boolean"])? else {
-            return Ok(default);
-        };
-        match c.attr("value").map(str::trim) {
-            Some("true") => Ok(true),
-            Some("false") => Ok(false),
-            other => Err(c.error(
-                "value",
-                format!(
-                    "{} is not a boolean (true or false)",
-                    quote(other.unwrap_or_default())
-                ),
-            )),
+        match self.typed(name, &["boolean"])? {
+            Some(c) => boolean_value(c),
+            None => Ok(default),
         }
     }
 

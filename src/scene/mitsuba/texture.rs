@@ -76,19 +76,7 @@ fn document<'a>(
                     .attr("value")
                     .ok_or_else(|| target.error("value", "missing attribute `value`"))?,
             ),
-            "boolean" => match target.attr("value").map(str::trim) {
-                Some("true") => Value::Bool(true),
-                Some("false") => Value::Bool(false),
-                other => {
-                    return Err(target.error(
-                        "value",
-                        format!(
-                            "{} is not a boolean (true or false)",
-                            quote(other.unwrap_or_default())
-                        ),
-                    ));
-                }
-            },
+            "boolean" => Value::Bool(super::props::boolean_value(target)?),
             "transform" => match Ops::read(child)?.doc() {
                 Some(transform) => serde_json::to_value(&transform.ops)
                     .map_err(|e| child.error("", format!("cannot translate: {e}")))?,

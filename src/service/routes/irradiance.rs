@@ -54,10 +54,7 @@ pub async fn irradiance(
     if let Some(cap) = request.target.and_then(|t| t.max_samples) {
         ApiError::check_limit("target.max_samples", u64::from(cap), max_samples)?;
     }
-    let query = request.resolve(
-        scene.transport.scene(),
-        u32::try_from(limits.max_samples).unwrap_or(u32::MAX),
-    )?;
+    let query = request.resolve(scene.transport.scene(), limits.target_max_samples())?;
     limits.check_work(query.estimated_paths())?;
 
     let worker = state.clone();
