@@ -8,8 +8,11 @@
 //! declared `type` are rejected by the loader.
 
 use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
-use serde::de::{MapAccess, SeqAccess, Visitor};
-use serde::{Deserialize, Deserializer, Serialize};
+use std::collections::BTreeMap;
+
+use serde::de::{self, MapAccess, SeqAccess, Unexpected, Visitor};
+use serde::ser::SerializeMap;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 pub use crate::color::RgbArray;
 pub type Vec3 = [f64; 3];
@@ -58,13 +61,16 @@ pub struct MaterialDoc {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ShapeKind(pub(crate) usize);
 
-/// A shape: the family's generic fields, then every plugin's own ones,
-/// each optional here; the plugin's file (`scene/shape/`) documents and
-/// validates those it takes, the loader refuses the others.
-#[derive(Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A shape: the family's generic fields, typed here, and its plugin's own
+/// parameters ([`ShapeParam`]s by name), which the plugin's file
+/// (`scene/shape/`) documents, reads and validates; the loader refuses the
+/// names the plugin does not take.
+///
+/// (De)serialised as one flat JSON object by hand rather than with
+/// `#[serde(flatten)]`, which would buffer every value (a large inline mesh
+/// several times over) and lose the line and column of errors.
+#[derive(Debug)]
 pub struct ShapeDoc {
-    #[serde(rename = "type")]
     pub kind: ShapeKind,
     /// Optional name for messages and tooling.
     pub id: Option<String>,
@@ -73,50 +79,236 @@ pub struct ShapeDoc {
     pub to_world: Option<TransformDoc>,
     pub emitter: Option<EmitterDoc>,
     /// Turn the front side (and with it the emitting side) around.
-    #[serde(default)]
     pub flip_normals: bool,
-    /// `sphere`.
-    pub center: Option<Vec3>,
-    /// `sphere`.
-    pub radius: Option<f64>,
-    /// Mesh-file plugins (`obj`, `ply`, `serialized`).
-    pub filename: Option<String>,
-    /// `triangles`.
-    pub positions: Option<Vec<Vec3>>,
-    /// `triangles`.
-    pub indices: Option<Vec<[u64; 3]>>,
-    /// `triangles`.
-    pub normals: Option<Vec<Vec3>>,
-    /// `triangles`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub uvs: Option<Vec<[f64; 2]>>,
-    /// Mesh plugins (`obj`, `ply`, `serialized`, `triangles`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub flip_tex_coords: Option<bool>,
-    /// Mesh-file plugins.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub face_normals: Option<bool>,
-    /// `serialized`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shape_index: Option<u32>,
+    /// The plugin's parameters, by name (ordered, so the document
+    /// serialises, and the scene's digest hashes, the same either way).
+    pub params: BTreeMap<String, ShapeParam>,
 }
 
+/// The generic fields of [`ShapeDoc`], in serialisation order.
+const SHAPE_FIELDS: &[&str] = &[
+    "type",
+    "id",
+    "material",
+    "to_world",
+    "emitter",
+    "flip_normals",
+];
+
 impl ShapeDoc {
-    /// The plugins' own fields by name, whether each is given, in the
-    /// order the loader checks them.
-    pub fn kind_fields(&self) -> [(&'static str, bool); 10] {
-        [
-            ("center", self.center.is_some()),
-            ("radius", self.radius.is_some()),
-            ("positions", self.positions.is_some()),
-            ("indices", self.indices.is_some()),
-            ("normals", self.normals.is_some()),
-            ("uvs", self.uvs.is_some()),
-            ("filename", self.filename.is_some()),
-            ("face_normals", self.face_normals.is_some()),
-            ("flip_tex_coords", self.flip_tex_coords.is_some()),
-            ("shape_index", self.shape_index.is_some()),
-        ]
+    /// A document with only the required fields set.
+    pub fn new(kind: ShapeKind, material: String) -> Self {
+        Self {
+            kind,
+            id: None,
+            material,
+            to_world: None,
+            emitter: None,
+            flip_normals: false,
+            params: BTreeMap::new(),
+        }
+    }
+}
+
+impl Serialize for ShapeDoc {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(None)?;
+        map.serialize_entry("type", &self.kind)?;
+        map.serialize_entry("id", &self.id)?;
+        map.serialize_entry("material", &self.material)?;
+        map.serialize_entry("to_world", &self.to_world)?;
+        map.serialize_entry("emitter", &self.emitter)?;
+        map.serialize_entry("flip_normals", &self.flip_normals)?;
+        for (name, value) in &self.params {
+            map.serialize_entry(name, value)?;
+        }
+        map.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for ShapeDoc {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct DocVisitor;
+        impl<'de> Visitor<'de> for DocVisitor {
+            type Value = ShapeDoc;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a shape object")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<ShapeDoc, A::Error> {
+                let (mut kind, mut material) = (None, None);
+                let mut doc = ShapeDoc::new(ShapeKind(0), String::new());
+                let mut seen = Vec::new();
+                while let Some(key) = map.next_key::<String>()? {
+                    if seen.contains(&key) || doc.params.contains_key(&key) {
+                        let name = SHAPE_FIELDS.iter().find(|f| **f == key);
+                        return Err(match name {
+                            Some(name) => de::Error::duplicate_field(name),
+                            None => de::Error::custom(format!("duplicate field `{key}`")),
+                        });
+                    }
+                    match key.as_str() {
+                        "type" => kind = Some(map.next_value()?),
+                        "id" => doc.id = map.next_value()?,
+                        "material" => material = Some(map.next_value()?),
+                        "to_world" => doc.to_world = map.next_value()?,
+                        "emitter" => doc.emitter = map.next_value()?,
+                        "flip_normals" => doc.flip_normals = map.next_value()?,
+                        _ => {
+                            let value = map.next_value()?;
+                            doc.params.insert(key, value);
+                            continue;
+                        }
+                    }
+                    seen.push(key);
+                }
+                doc.kind = kind.ok_or_else(|| de::Error::missing_field("type"))?;
+                doc.material = material.ok_or_else(|| de::Error::missing_field("material"))?;
+                Ok(doc)
+            }
+        }
+        deserializer.deserialize_map(DocVisitor)
+    }
+}
+
+/// One parameter of a shape plugin as the document gives it, in the value
+/// kinds JSON has; the plugin reads it into its own type (`scene::shape`'s
+/// `ShapeFields`). A list of number lists is stored flat, so a large
+/// inline mesh costs 8 bytes a number, as a typed one would.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ShapeParam {
+    Bool(bool),
+    Number(f64),
+    Text(String),
+    /// `[x, y, …]` (also the empty list).
+    Numbers(Vec<f64>),
+    /// `[[…], […], …]`: rows of `arity` numbers each, row-major.
+    Rows {
+        arity: usize,
+        values: Vec<f64>,
+    },
+}
+
+impl Serialize for ShapeParam {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            ShapeParam::Bool(b) => serializer.serialize_bool(*b),
+            ShapeParam::Number(x) => serializer.serialize_f64(*x),
+            ShapeParam::Text(t) => serializer.serialize_str(t),
+            ShapeParam::Numbers(v) => v.serialize(serializer),
+            ShapeParam::Rows { arity, values } => {
+                serializer.collect_seq(values.chunks(*arity.max(&1)))
+            }
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ShapeParam {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_any(ParamVisitor)
+    }
+}
+
+/// What the first entry of a list made it: numbers, or rows of so many.
+#[derive(Clone, Copy, PartialEq)]
+enum Entry {
+    Number,
+    Row(usize),
+}
+
+/// One entry of a list, appended to `values`; `expected` is what the
+/// list's first entry was (`None` for the first).
+struct EntrySeed<'v> {
+    values: &'v mut Vec<f64>,
+    expected: Option<Entry>,
+}
+
+impl<'de> de::DeserializeSeed<'de> for EntrySeed<'_> {
+    type Value = Entry;
+    fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<Entry, D::Error> {
+        deserializer.deserialize_any(self)
+    }
+}
+
+impl<'de> Visitor<'de> for EntrySeed<'_> {
+    type Value = Entry;
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self.expected {
+            None => f.write_str("a number or a list of numbers"),
+            Some(Entry::Number) => f.write_str("a number, as the list's first entry"),
+            Some(Entry::Row(n)) => write!(f, "a list of {n} numbers, as the list's first entry"),
+        }
+    }
+    fn visit_f64<E: de::Error>(self, x: f64) -> Result<Entry, E> {
+        if self.expected.is_some_and(|e| e != Entry::Number) {
+            return Err(E::invalid_type(Unexpected::Float(x), &self));
+        }
+        self.values.push(x);
+        Ok(Entry::Number)
+    }
+    fn visit_u64<E: de::Error>(self, x: u64) -> Result<Entry, E> {
+        self.visit_f64(x as f64)
+    }
+    fn visit_i64<E: de::Error>(self, x: i64) -> Result<Entry, E> {
+        self.visit_f64(x as f64)
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Entry, A::Error> {
+        if self.expected == Some(Entry::Number) {
+            return Err(de::Error::invalid_type(Unexpected::Seq, &self));
+        }
+        let mut n = 0;
+        while let Some(x) = seq.next_element::<f64>()? {
+            self.values.push(x);
+            n += 1;
+        }
+        match self.expected {
+            Some(Entry::Row(want)) if want != n => Err(de::Error::invalid_length(n, &self)),
+            _ => Ok(Entry::Row(n)),
+        }
+    }
+}
+
+struct ParamVisitor;
+
+impl<'de> Visitor<'de> for ParamVisitor {
+    type Value = ShapeParam;
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a number, a string, a boolean or a list of numbers or of number lists")
+    }
+    fn visit_bool<E: de::Error>(self, b: bool) -> Result<ShapeParam, E> {
+        Ok(ShapeParam::Bool(b))
+    }
+    fn visit_f64<E: de::Error>(self, x: f64) -> Result<ShapeParam, E> {
+        Ok(ShapeParam::Number(x))
+    }
+    fn visit_u64<E: de::Error>(self, x: u64) -> Result<ShapeParam, E> {
+        Ok(ShapeParam::Number(x as f64))
+    }
+    fn visit_i64<E: de::Error>(self, x: i64) -> Result<ShapeParam, E> {
+        Ok(ShapeParam::Number(x as f64))
+    }
+    fn visit_str<E: de::Error>(self, s: &str) -> Result<ShapeParam, E> {
+        Ok(ShapeParam::Text(s.to_owned()))
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<ShapeParam, A::Error> {
+        let mut values = Vec::new();
+        let first = seq.next_element_seed(EntrySeed {
+            values: &mut values,
+            expected: None,
+        })?;
+        let Some(first) = first else {
+            return Ok(ShapeParam::Numbers(values));
+        };
+        while seq
+            .next_element_seed(EntrySeed {
+                values: &mut values,
+                expected: Some(first),
+            })?
+            .is_some()
+        {}
+        Ok(match first {
+            Entry::Number => ShapeParam::Numbers(values),
+            Entry::Row(arity) => ShapeParam::Rows { arity, values },
+        })
     }
 }
 

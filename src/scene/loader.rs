@@ -19,7 +19,7 @@ use super::files::Files;
 use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc};
 use super::material::{Declared, Material};
 use super::mesh::MeshData;
-use super::shape::ReadMesh;
+use super::shape::{ReadMesh, ShapeFields};
 use super::transform::{self, similarity_scale};
 use super::{Camera, MAX_PATH_DEPTH, MAX_SHAPES, MAX_TRIANGLES, Scene};
 use geometry::GeometryBuilder;
@@ -149,17 +149,23 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
     let (mut wanted, mut keys) = (Vec::new(), Vec::with_capacity(doc.shapes.len()));
     let mut inline = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
+        let field = format!("shapes[{i}]");
+        let fields = ShapeFields {
+            doc: s,
+            field: &field,
+        };
         let plugin = s.kind.plugin();
-        let key = match (plugin.mesh_file, &s.filename) {
+        plugin.check_fields(&fields)?;
+        let key = match (plugin.mesh_file, fields.text("filename")?) {
             (Some(read), Some(name)) => {
-                let field = format!("shapes[{i}].filename");
-                let key = (files.resolve(name, &field)?, s.shape_index.unwrap_or(0));
+                let field = fields.path("filename");
+                let key = (files.resolve(name, &field)?, (plugin.mesh_index)(&fields)?);
                 wanted.push((key.clone(), read, field));
                 Some(key)
             }
             _ => None,
         };
-        inline += (plugin.inline_triangles)(s);
+        inline += (plugin.inline_triangles)(&fields)?;
         keys.push(key);
     }
     let meshes = MeshFiles::read_all(wanted, MAX_TRIANGLES - inline.min(MAX_TRIANGLES), budget)?;
@@ -172,9 +178,13 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
     for (i, s) in doc.shapes.iter().enumerate() {
         let field = format!("shapes[{i}]");
         let plugin = s.kind.plugin();
+        let fields = ShapeFields {
+            doc: s,
+            field: &field,
+        };
         // A plugin's triangles are fixed, listed inline or in its file.
         let shape_triangles = plugin.fixed_triangles
-            + (plugin.inline_triangles)(s)
+            + (plugin.inline_triangles)(&fields)?
             + shape_meshes[i]
                 .as_ref()
                 .map_or(0, |mesh| mesh.indices.len());

@@ -8,34 +8,37 @@
 //! and its area scales by a constant, so area sampling stays uniform).
 //!
 //! Each shape plugin has its own file below holding its parameters' docs,
-//! which of [`ShapeDoc`]'s kind-specific fields it takes, their validation
-//! and its local geometry ([`Plugin`]); the `plugins!` invocation below is
-//! the registry of the `shapes` plugins. The generic fields (`type`, `id`,
-//! `material`, `to_world`, `emitter`, `flip_normals`) are the family's,
-//! handled once by the loader. A shape document stays the typed
-//! [`ShapeDoc`] (not `Params`) so that its errors keep serde's field path
-//! and line/column.
+//! their reading and validation ([`ShapeFields`]) and its geometry: a local
+//! mesh, or an analytic [`Surface`] with its intersection, hit details and
+//! sampling ([`Plugin`]); the `plugins!` invocation below is the registry
+//! of the `shapes` plugins. The generic fields (`type`, `id`, `material`,
+//! `to_world`, `emitter`, `flip_normals`) are the family's, handled once by
+//! the loader.
 
 use std::f64::consts::PI;
 
 use std::borrow::Cow;
 use std::path::Path;
+use std::sync::Arc;
 
-use glam::{DAffine3, DMat3, DVec2, DVec3};
+use glam::{DAffine3, DVec2, DVec3};
 use serde::de::{self, Deserializer, EnumAccess, Unexpected, VariantAccess, Visitor};
 use serde::{Deserialize, Serialize, Serializer};
 
 use super::budget::Budget;
 use super::bvh::Aabb;
 use super::error::SceneError;
-use super::format::{ShapeDoc, ShapeKind};
+use super::format::ShapeKind;
 use super::mesh::MeshData;
+
+mod fields;
+pub(crate) use fields::ShapeFields;
 
 /// A shape plugin: what the loader needs of one `type` of shape. Each
 /// plugin's file implements it on its (unit) type.
 pub(crate) trait Plugin {
-    /// The kind-specific fields of [`ShapeDoc`] the plugin takes; a
-    /// document giving any other is refused, naming that field.
+    /// The parameters the plugin takes; a document giving any other is
+    /// refused, naming that field.
     const FIELDS: &'static [&'static str] = &[];
     /// The reader of the mesh file its `filename` names, for plugins whose
     /// mesh is a file: the loader reads every such file once, in parallel,
@@ -47,15 +50,39 @@ pub(crate) trait Plugin {
     /// Triangles of its fixed local mesh, counted before any is built.
     const FIXED_TRIANGLES: usize = 0;
 
-    /// Triangles the document lists inline, counted before any mesh file
-    /// is read (they narrow what the files may hold).
-    fn inline_triangles(_doc: &ShapeDoc) -> usize {
-        0
+    /// Which mesh of its file to read (plugins with a
+    /// [`Plugin::MESH_FILE`]; files of one mesh have only mesh 0).
+    fn mesh_index(_: &ShapeFields) -> Result<u32, SceneError> {
+        Ok(0)
     }
 
-    /// The shape's geometry from its validated document: a local mesh for
-    /// the loader to place, or analytic geometry in world space.
-    fn build<'a>(doc: &'a ShapeDoc, input: &Input<'a>) -> Result<Local<'a>, SceneError>;
+    /// Triangles the document lists inline, counted before any mesh file
+    /// is read (they narrow what the files may hold).
+    fn inline_triangles(_: &ShapeFields) -> Result<usize, SceneError> {
+        Ok(0)
+    }
+
+    /// The shape's geometry from its document: a local mesh for the loader
+    /// to place, or analytic geometry in world space.
+    fn build<'a>(fields: &ShapeFields<'a>, input: &Input<'a>) -> Result<Local<'a>, SceneError>;
+}
+
+/// An analytic surface in world space, as its plugin intersects, describes
+/// and samples it. Normals are the surface's own (outward) ones: the shape
+/// turns them for `flip_normals`.
+pub(crate) trait Surface: std::fmt::Debug + Send + Sync {
+    /// World bounds.
+    fn bounds(&self) -> Aabb;
+    /// Distance along a unit-direction ray, if in (0, t_max).
+    fn intersect(&self, o: DVec3, d: DVec3, t_max: f64) -> Option<f64>;
+    /// Surface point, normal, texture coordinates and ∂p/∂u (any length) of
+    /// a hit at `t`, the point projected back onto the surface so the error
+    /// is a few ulps.
+    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, DVec3);
+    /// A point uniform by area from `u` in [0,1)², and its normal.
+    fn sample(&self, u: [f64; 2]) -> (DVec3, DVec3);
+    /// Surface area, world units².
+    fn area(&self) -> f64;
 }
 
 /// Reads mesh `index` (0 but for `serialized`) of a file: path, index, the
@@ -84,8 +111,8 @@ pub(crate) enum Local<'a> {
         data: Cow<'a, MeshData>,
         flip_tex_coords: bool,
     },
-    /// Analytic geometry in world space and its area, world units².
-    Analytic(Geometry, f64),
+    /// Analytic geometry in world space.
+    Analytic(Arc<dyn Surface>),
 }
 
 /// One registered plugin, as the loader dispatches to it.
@@ -95,8 +122,9 @@ pub(crate) struct Entry {
     pub mesh_file: Option<ReadMesh>,
     pub mitsuba: bool,
     pub fixed_triangles: usize,
-    pub inline_triangles: fn(&ShapeDoc) -> usize,
-    pub build: for<'a> fn(&'a ShapeDoc, &Input<'a>) -> Result<Local<'a>, SceneError>,
+    pub mesh_index: fn(&ShapeFields) -> Result<u32, SceneError>,
+    pub inline_triangles: fn(&ShapeFields) -> Result<usize, SceneError>,
+    pub build: for<'a> fn(&ShapeFields<'a>, &Input<'a>) -> Result<Local<'a>, SceneError>,
 }
 
 /// The `shapes` plugins: `Variant(file::Type) = "name"`, one line each.
@@ -115,6 +143,7 @@ macro_rules! plugins {
                 mesh_file: <$file::$plugin as Plugin>::MESH_FILE,
                 mitsuba: <$file::$plugin as Plugin>::MITSUBA,
                 fixed_triangles: <$file::$plugin as Plugin>::FIXED_TRIANGLES,
+                mesh_index: <$file::$plugin as Plugin>::mesh_index,
                 inline_triangles: <$file::$plugin as Plugin>::inline_triangles,
                 build: <$file::$plugin as Plugin>::build,
             },)*
@@ -141,6 +170,24 @@ plugins! {
 /// The shape plugin names a scene's `shapes` accept, for docs.
 pub fn plugin_names() -> Vec<&'static str> {
     NAMES.to_vec()
+}
+
+impl Entry {
+    /// Refuses a document parameter the plugin does not take, naming it.
+    pub(crate) fn check_fields(&self, fields: &ShapeFields) -> Result<(), SceneError> {
+        match fields
+            .doc
+            .params
+            .keys()
+            .find(|k| !self.fields.contains(&k.as_str()))
+        {
+            Some(name) => Err(SceneError::invalid(
+                fields.path(name),
+                format!("not a field of a {}", self.name),
+            )),
+            None => Ok(()),
+        }
+    }
 }
 
 impl ShapeKind {
@@ -218,16 +265,15 @@ impl<'de> Deserialize<'de> for ShapeKind {
 /// which gets smooth ones where the file has none; `flip_tex_coords`
 /// defaults to `flip_default`.
 pub(crate) fn file_mesh<'a>(
-    doc: &ShapeDoc,
+    fields: &ShapeFields,
     input: &Input<'a>,
     flip_default: bool,
 ) -> Result<Local<'a>, SceneError> {
     // Read while sizing the scene (the loader's `build`); none where the
     // shape names no file.
-    let data = input
-        .mesh_file
-        .ok_or_else(|| SceneError::invalid(input.field, "missing field `filename`"))?;
-    let data = match (doc.face_normals == Some(true), data.normals.is_some()) {
+    let data = input.mesh_file.ok_or_else(|| fields.missing("filename"))?;
+    let face_normals = fields.boolean("face_normals")?.unwrap_or(false);
+    let data = match (face_normals, data.normals.is_some()) {
         (true, true) => Cow::Owned(MeshData {
             normals: None,
             ..data.clone()
@@ -237,7 +283,7 @@ pub(crate) fn file_mesh<'a>(
     };
     Ok(Local::Mesh {
         data,
-        flip_tex_coords: doc.flip_tex_coords.unwrap_or(flip_default),
+        flip_tex_coords: fields.boolean("flip_tex_coords")?.unwrap_or(flip_default),
     })
 }
 
@@ -250,20 +296,8 @@ pub(crate) enum Geometry {
         count: usize,
         cdf: Vec<f64>,
     },
-    /// `to_local` is the rotation from world to the sphere's own frame,
-    /// whose z axis is the texture's pole (Mitsuba 3's parametrisation).
-    Sphere {
-        center: DVec3,
-        radius: f64,
-        to_local: DMat3,
-    },
-    /// Image of the unit disk in local xy under `to_world`.
-    Disk {
-        to_world: DAffine3,
-        to_local: DAffine3,
-        /// Unit world normal of the local +z side.
-        normal: DVec3,
-    },
+    /// A plugin's analytic surface.
+    Analytic(Arc<dyn Surface>),
 }
 
 #[derive(Clone, Debug)]
@@ -397,18 +431,7 @@ impl Shape {
     /// World bounds of an analytic shape (meshes are bounded per triangle).
     pub fn analytic_bounds(&self) -> Aabb {
         match &self.geometry {
-            Geometry::Sphere { center, radius, .. } => Aabb {
-                min: center - DVec3::splat(*radius),
-                max: center + DVec3::splat(*radius),
-            },
-            Geometry::Disk { to_world, .. } => {
-                let (a, b) = (to_world.matrix3.x_axis, to_world.matrix3.y_axis);
-                let half = (a * a + b * b).map(f64::sqrt);
-                Aabb {
-                    min: to_world.translation - half,
-                    max: to_world.translation + half,
-                }
-            }
+            Geometry::Analytic(surface) => surface.bounds(),
             Geometry::Mesh { .. } => Aabb::EMPTY,
         }
     }
@@ -417,78 +440,17 @@ impl Shape {
     #[inline]
     pub fn intersect_analytic(&self, o: DVec3, d: DVec3, t_max: f64) -> Option<f64> {
         match &self.geometry {
-            Geometry::Sphere { center, radius, .. } => {
-                // Hearn & Baker's form of the discriminant, which stays
-                // accurate for distant spheres (Ray Tracing Gems ch. 7).
-                let oc = o - *center;
-                let b = oc.dot(d);
-                let f = oc - d * b;
-                let disc = radius * radius - f.length_squared();
-                if disc < 0.0 {
-                    return None;
-                }
-                let c = oc.length_squared() - radius * radius;
-                let q = -b - disc.sqrt().copysign(b);
-                let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
-                let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-                [near, far].into_iter().find(|&t| t > 0.0 && t < t_max)
-            }
-            Geometry::Disk { to_local, .. } => {
-                let ol = to_local.transform_point3(o);
-                let dl = to_local.transform_vector3(d);
-                if dl.z == 0.0 {
-                    return None;
-                }
-                let t = -ol.z / dl.z;
-                if !(t > 0.0 && t < t_max) {
-                    return None;
-                }
-                let x = ol.x + t * dl.x;
-                let y = ol.y + t * dl.y;
-                (x * x + y * y <= 1.0).then_some(t)
-            }
+            Geometry::Analytic(surface) => surface.intersect(o, d, t_max),
             Geometry::Mesh { .. } => None,
         }
     }
 
-    /// Surface point, front normal and texture coordinates of an analytic
-    /// hit at `t`, the point projected back onto the surface so the error
-    /// is a few ulps. Texture coordinates follow Mitsuba 3: on a sphere
-    /// `(φ/2π, θ/π)` of the local direction (θ from the local +z pole, φ
-    /// from +x towards +y); on a disk `(r, φ/2π)` of the local point.
+    /// Surface point, front normal, texture coordinates and unit ∂p/∂u
+    /// (module docs of `SurfaceHit::dp_du`) of an analytic hit at `t`.
     pub fn analytic_hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, DVec3) {
-        let p = o + d * t;
-        let azimuth = |y: f64, x: f64| y.atan2(x).rem_euclid(2.0 * PI) / (2.0 * PI);
-        // The last entry is the unit ∂p/∂u of the shape's (u, v) (module
-        // docs of `SurfaceHit::dp_du`): along the azimuth on a sphere,
-        // outwards along the radius on a disk.
         let (p, n, uv, dp_du) = match &self.geometry {
-            Geometry::Sphere {
-                center,
-                radius,
-                to_local,
-            } => {
-                let n = (p - *center).normalize();
-                let l = *to_local * n;
-                let uv = DVec2::new(azimuth(l.y, l.x), l.z.clamp(-1.0, 1.0).acos() / PI);
-                let dp_du = to_local.transpose() * DVec3::new(-l.y, l.x, 0.0);
-                (*center + n * *radius, n, uv, dp_du)
-            }
-            Geometry::Disk {
-                to_world,
-                to_local,
-                normal,
-            } => {
-                let l = to_local.transform_point3(p);
-                let dp_du = to_world.transform_vector3(DVec3::new(l.x, l.y, 0.0));
-                (
-                    to_world.transform_point3(DVec3::new(l.x, l.y, 0.0)),
-                    *normal,
-                    DVec2::new(l.truncate().length(), azimuth(l.y, l.x)),
-                    dp_du,
-                )
-            }
-            Geometry::Mesh { .. } => (p, DVec3::Z, DVec2::ZERO, DVec3::ZERO),
+            Geometry::Analytic(surface) => surface.hit(o, d, t),
+            Geometry::Mesh { .. } => (o + d * t, DVec3::Z, DVec2::ZERO, DVec3::ZERO),
         };
         (
             p,
@@ -501,26 +463,16 @@ impl Shape {
     /// Uniform point by area on an analytic shape: (point, front normal).
     pub fn sample_analytic(&self, u: [f64; 2]) -> (DVec3, DVec3) {
         let (p, n) = match &self.geometry {
-            Geometry::Sphere { center, radius, .. } => {
-                let z = 1.0 - 2.0 * u[0];
-                let r = (1.0 - z * z).max(0.0).sqrt();
-                let (s, c) = (2.0 * PI * u[1]).sin_cos();
-                let n = DVec3::new(r * c, r * s, z);
-                (*center + n * *radius, n)
-            }
-            Geometry::Disk {
-                to_world, normal, ..
-            } => {
-                let q = concentric_disk(u);
-                (
-                    to_world.transform_point3(DVec3::new(q.x, q.y, 0.0)),
-                    *normal,
-                )
-            }
+            Geometry::Analytic(surface) => surface.sample(u),
             Geometry::Mesh { .. } => (DVec3::ZERO, DVec3::Z),
         };
         (p, if self.flip { -n } else { n })
     }
+}
+
+/// The azimuth of `(x, y)` as a fraction of a turn, in [0, 1).
+pub(crate) fn azimuth(y: f64, x: f64) -> f64 {
+    y.atan2(x).rem_euclid(2.0 * PI) / (2.0 * PI)
 }
 
 /// Shirley & Chiu's concentric map of [0,1)² onto the unit disk
@@ -547,78 +499,9 @@ pub(crate) fn sample_barycentric(u: [f64; 2]) -> (f64, f64) {
     (su * (1.0 - u[1]), su * u[1])
 }
 
-/// Area of the image of the unit disk under `to_world`.
-pub(crate) fn disk_area(to_world: &DAffine3) -> f64 {
-    PI * to_world
-        .matrix3
-        .x_axis
-        .cross(to_world.matrix3.y_axis)
-        .length()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn sphere_hit_from_outside_and_inside() {
-        let s = Shape {
-            geometry: Geometry::Sphere {
-                center: DVec3::new(0.0, 0.0, 5.0),
-                radius: 1.0,
-                to_local: DMat3::IDENTITY,
-            },
-            material: 0,
-            emitter: None,
-            flip: false,
-            area: 4.0 * PI,
-        };
-        let t = s
-            .intersect_analytic(DVec3::ZERO, DVec3::Z, f64::INFINITY)
-            .unwrap();
-        assert!((t - 4.0).abs() < 1e-12);
-        let (p, n, ..) = s.analytic_hit(DVec3::ZERO, DVec3::Z, t);
-        assert!((p - DVec3::new(0.0, 0.0, 4.0)).length() < 1e-12);
-        assert_eq!(n, -DVec3::Z); // outward normal, not flipped toward the ray
-        let t = s
-            .intersect_analytic(DVec3::new(0.0, 0.0, 5.0), DVec3::X, f64::INFINITY)
-            .unwrap();
-        assert!((t - 1.0).abs() < 1e-12);
-        assert!(s.intersect_analytic(DVec3::ZERO, DVec3::Z, 3.5).is_none());
-        assert!(
-            s.intersect_analytic(DVec3::ZERO, -DVec3::Z, f64::INFINITY)
-                .is_none()
-        );
-    }
-
-    #[test]
-    fn disk_hit_respects_radius_and_normal() {
-        let to_world = DAffine3::from_translation(DVec3::new(0.0, 1.0, 0.0))
-            * DAffine3::from_rotation_x(-PI / 2.0)
-            * DAffine3::from_scale(DVec3::new(2.0, 1.0, 1.0));
-        let s = Shape {
-            geometry: Geometry::Disk {
-                to_world,
-                to_local: to_world.inverse(),
-                normal: (to_world.matrix3.inverse().transpose() * DVec3::Z).normalize(),
-            },
-            material: 0,
-            emitter: None,
-            flip: true,
-            area: disk_area(&to_world),
-        };
-        assert!((s.area - 2.0 * PI).abs() < 1e-12);
-        // Ellipse in y = 1 with semi-axes 2 (x) and 1 (z); rotating +z by
-        // −90° about x gives +y, and flip turns the front to −y.
-        let o = DVec3::new(1.9, 0.0, 0.0);
-        let t = s.intersect_analytic(o, DVec3::Y, 10.0).unwrap();
-        assert!((t - 1.0).abs() < 1e-12);
-        assert!((s.analytic_hit(o, DVec3::Y, t).1 + DVec3::Y).length() < 1e-12);
-        assert!(
-            s.intersect_analytic(DVec3::new(0.0, 0.0, 1.1), DVec3::Y, 10.0)
-                .is_none()
-        );
-    }
 
     #[test]
     fn triangle_intersection_reports_barycentrics() {

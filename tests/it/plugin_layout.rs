@@ -8,13 +8,25 @@
 
 use std::path::{Path, PathBuf};
 
-/// The families: their module file (holding the registry) and folder.
-const FAMILIES: &[(&str, &str)] = &[
-    ("scene/material.rs", "scene/material"),
-    ("scene/emitter.rs", "scene/emitter"),
-    ("scene/texture.rs", "scene/texture"),
-    ("scene/shape.rs", "scene/shape"),
+/// The families: their module file (holding the registry), folder, and
+/// Mitsuba reader if it is a generic property copier (the BSDF reader
+/// still names Mitsuba's default `diffuse` and this project's own
+/// `glossy`; the emitter reader reads `<point>` properties).
+const FAMILIES: &[Family] = &[
+    ("scene/material.rs", "scene/material", None),
+    ("scene/emitter.rs", "scene/emitter", None),
+    ("scene/texture.rs", "scene/texture", None),
+    (
+        "scene/shape.rs",
+        "scene/shape",
+        Some("scene/mitsuba/shape.rs"),
+    ),
 ];
+
+type Family = (&'static str, &'static str, Option<&'static str>);
+
+/// Where the JSON document is read for every family: its types and loader.
+const DOCUMENT_READERS: &[&str] = &["scene/format.rs", "scene/loader.rs", "scene/loader"];
 
 /// One registry line.
 #[derive(Debug)]
@@ -91,7 +103,7 @@ fn count_word(text: &str, word: &str) -> usize {
 }
 
 /// What breaks the layout under `src`, one message each.
-fn layout_errors(src: &Path, families: &[(&str, &str)]) -> Vec<String> {
+fn layout_errors(src: &Path, families: &[Family]) -> Vec<String> {
     let mut files = Vec::new();
     rust_files(src, &mut files);
     let sources: Vec<(PathBuf, String)> = files
@@ -103,7 +115,7 @@ fn layout_errors(src: &Path, families: &[(&str, &str)]) -> Vec<String> {
         })
         .collect();
     let mut errors = Vec::new();
-    for (module, folder) in families {
+    for (module, folder, mitsuba) in families {
         let module_path = src.join(module);
         let Ok(text) = std::fs::read_to_string(&module_path) else {
             errors.push(format!("{module}: missing"));
@@ -157,6 +169,21 @@ fn layout_errors(src: &Path, families: &[(&str, &str)]) -> Vec<String> {
                         p.plugin
                     ));
                 }
+                // Nor do the document's generic readers dispatch on the
+                // plugin's name (a `match kind { "sphere" => … }`).
+                let quoted = format!("\"{}\"", p.name);
+                let reader = DOCUMENT_READERS
+                    .iter()
+                    .chain(mitsuba)
+                    .any(|r| file.starts_with(src.join(r)));
+                if reader && code.contains(&quoted) {
+                    errors.push(format!(
+                        "{}: {} handles {} by name",
+                        p.name,
+                        file.display(),
+                        quoted
+                    ));
+                }
             }
         }
     }
@@ -178,7 +205,7 @@ fn the_old_split_layouts_are_refused() {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         std::fs::write(path, text).unwrap();
     };
-    let family = [("scene/material.rs", "scene/material")];
+    let family = [("scene/material.rs", "scene/material", None)];
     // A name → parser table, parameters and model in two layers: no registry.
     write(
         "scene/material.rs",
@@ -232,7 +259,11 @@ fn a_half_registered_shape_is_refused() {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         std::fs::write(path, text).unwrap();
     };
-    let family = [("scene/shape.rs", "scene/shape")];
+    let family = [(
+        "scene/shape.rs",
+        "scene/shape",
+        Some("scene/mitsuba/shape.rs"),
+    )];
     let registry = "plugins! {\n    Sphere(sphere::SphereShape) = \"sphere\",\n    Disk(disk::DiskShape) = \"disk\",\n}\n";
     write("scene/shape.rs", registry);
     write("scene/shape/sphere.rs", "pub struct SphereShape;\n");
@@ -254,4 +285,15 @@ fn a_half_registered_shape_is_refused() {
     );
     write("scene/loader/geometry.rs", "fn build() {}\n");
     assert!(layout_errors(dir.path(), &family).is_empty());
+    // The Mitsuba reader reading a kind's properties by its name.
+    write(
+        "scene/mitsuba/shape.rs",
+        "fn add() { match kind { \"sphere\" => radius(), _ => {} } }\n",
+    );
+    let errors = layout_errors(dir.path(), &family);
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(
+        errors[0].contains("handles \"sphere\" by name"),
+        "{errors:?}"
+    );
 }

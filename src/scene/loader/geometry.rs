@@ -6,13 +6,14 @@
 
 use glam::{DAffine3, DVec2, DVec3};
 
-use super::reject_fields;
 use crate::scene::bvh::{Aabb, Bvh};
 use crate::scene::digest::SceneDigest;
 use crate::scene::error::SceneError;
 use crate::scene::format::ShapeDoc;
 use crate::scene::mesh::MeshData;
-use crate::scene::shape::{Geometry, Input, Local, Shape, Triangle, TriangleAccel, TriangleTag};
+use crate::scene::shape::{
+    Geometry, Input, Local, Shape, ShapeFields, Triangle, TriangleAccel, TriangleTag,
+};
 use crate::scene::{Camera, MAX_TRIANGLES, Scene, transform};
 
 /// Accumulates shapes and world-space triangles, then builds the BVHs.
@@ -46,18 +47,14 @@ impl GeometryBuilder {
             None => DAffine3::IDENTITY,
         };
         let plugin = s.kind.plugin();
-        // Each plugin's own fields, the others refused in one order.
-        for (name, given) in s.kind_fields() {
-            let refused = given && !plugin.fields.contains(&name);
-            reject_fields(field, plugin.name, &[(name, refused)])?;
-        }
         let input = Input {
             field,
             to_world: &to_world,
             mesh_file,
             max_triangles: MAX_TRIANGLES - self.triangles.len(),
         };
-        let (geometry, area) = match (plugin.build)(s, &input)? {
+        let fields = ShapeFields { doc: s, field };
+        let (geometry, area) = match (plugin.build)(&fields, &input)? {
             Local::Mesh {
                 data,
                 flip_tex_coords,
@@ -69,7 +66,10 @@ impl GeometryBuilder {
                 };
                 self.add_mesh(&data, &placement, field)?
             }
-            Local::Analytic(geometry, area) => (geometry, area),
+            Local::Analytic(surface) => {
+                let area = surface.area();
+                (Geometry::Analytic(surface), area)
+            }
         };
         if !(area > 0.0 && area.is_finite()) {
             return Err(SceneError::invalid(

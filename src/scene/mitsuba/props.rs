@@ -174,12 +174,6 @@ impl<'a> Props<'a> {
         }
     }
 
-    pub fn point(&mut self, name: &str) -> Result<Option<[f64; 3]>, XmlError> {
-        self.typed(name, &["point", "vector"])?
-            .map(|c| vec3(c, 0.0))
-            .transpose()
-    }
-
     /// Nested objects of kind `tag` (`<bsdf>`, `<emitter>`, ...), given
     /// inline or as `<ref id>` to one; refs are followed.
     pub fn nested(&mut self, ctx: &Ctx<'a>, tag: &str) -> Result<Vec<&'a Element>, XmlError> {

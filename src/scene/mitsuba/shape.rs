@@ -1,41 +1,17 @@
 //! Mitsuba shapes → document shapes. The shape registry's Mitsuba plugins
-//! (`rectangle`, `cube`, `sphere`, `disk`, `obj`, `ply`, `serialized`) map
-//! one to one (same local geometry; the loader reads
-//! mesh files, with smooth vertex normals where a file has none unless
-//! `face_normals` is set, Mitsuba's default); an `instance` of a
-//! `shapegroup` adds the group's shapes with the instance's `to_world`
-//! applied after their own.
+//! map one to one, each property the plugin takes copied under its name
+//! (the plugin's file reads and validates it, with Mitsuba's defaults); an
+//! `instance` of a `shapegroup` adds the group's shapes with the
+//! instance's `to_world` applied after their own.
 
 use crate::scene::MAX_SHAPES;
-use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind};
+use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind, ShapeParam};
 
 use super::parse::{Element, quote};
-use super::props::Props;
+use super::props::{Props, boolean_value, number, vec3};
 use super::texture::parameter;
 use super::transform::Ops;
 use super::{Ctx, XmlError, bsdf};
-
-/// A document shape with only the required fields set.
-pub(crate) fn shape_doc(kind: ShapeKind, material: String) -> ShapeDoc {
-    ShapeDoc {
-        uvs: None,
-        flip_tex_coords: None,
-        face_normals: None,
-        shape_index: None,
-        kind,
-        id: None,
-        material,
-        to_world: None,
-        emitter: None,
-        flip_normals: false,
-        center: None,
-        radius: None,
-        filename: None,
-        positions: None,
-        indices: None,
-        normals: None,
-    }
-}
 
 /// Adds the shape(s) of `<shape>` element `el`; `outer` is applied after the
 /// shape's own `to_world` (an enclosing instance's transform).
@@ -72,7 +48,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
         [b] => bsdf::material(ctx, b)?,
         _ => return Err(el.error("bsdf", "a shape takes at most one BSDF")),
     };
-    let mut doc = shape_doc(kind, material);
+    let mut doc = ShapeDoc::new(kind, material);
     doc.id = el.attr("id").map(str::to_string);
     doc.flip_normals = props.boolean("flip_normals", false)?;
     doc.emitter = match emitters[..] {
@@ -80,30 +56,13 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
         [e] => Some(area(ctx, e)?),
         _ => return Err(el.error("emitter", "a shape takes at most one emitter")),
     };
-    match el.attr("type") {
-        Some("sphere") => {
-            doc.center = props.point("center")?;
-            doc.radius = props.opt_float("radius")?;
+    // The plugin's own parameters, copied under their names; whatever it
+    // does not take is left for `finish` to report.
+    for name in kind.plugin().fields {
+        if let Some(child) = props.get(name)? {
+            doc.params
+                .insert(name.to_string(), param(ctx.deref(child)?)?);
         }
-        Some("obj") => {
-            // Resolved by the shared loader, exactly as a JSON `obj`.
-            doc.filename = Some(filename(&mut props)?.to_string());
-            doc.face_normals = Some(props.boolean("face_normals", false)?);
-            doc.flip_tex_coords = Some(props.boolean("flip_tex_coords", true)?);
-        }
-        Some("ply") => {
-            // Read by the shared loader, beside `obj` files, in parallel.
-            doc.filename = Some(filename(&mut props)?.to_string());
-            doc.face_normals = Some(props.boolean("face_normals", false)?);
-            doc.flip_tex_coords = Some(props.boolean("flip_tex_coords", false)?);
-        }
-        Some("serialized") => {
-            doc.filename = Some(filename(&mut props)?.to_string());
-            doc.face_normals = Some(props.boolean("face_normals", false)?);
-            let index = props.int("shape_index", 0, 0..=i64::from(u32::MAX))?;
-            doc.shape_index = Some(index as u32);
-        }
-        _ => {}
     }
     props.finish(ctx)?;
     let field = format!("shapes[{}]", ctx.shapes.len());
@@ -113,10 +72,28 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
     Ok(())
 }
 
-fn filename<'a>(props: &mut Props<'a>) -> Result<&'a str, XmlError> {
-    props
-        .string("filename")?
-        .ok_or_else(|| props.el.error("filename", "missing property `filename`"))
+/// A shape plugin's parameter from its Mitsuba property: numbers, booleans
+/// and strings as they are, points and vectors as `[x, y, z]`.
+fn param(el: &Element) -> Result<ShapeParam, XmlError> {
+    Ok(match el.tag.as_str() {
+        "float" | "integer" => ShapeParam::Number(number(el, "value")?),
+        "boolean" => ShapeParam::Bool(boolean_value(el)?),
+        "string" => ShapeParam::Text(
+            el.attr("value")
+                .ok_or_else(|| el.error("value", "missing attribute `value`"))?
+                .to_string(),
+        ),
+        "point" | "vector" => ShapeParam::Numbers(vec3(el, 0.0)?.to_vec()),
+        other => {
+            return Err(el.error(
+                "",
+                format!(
+                    "a shape's {} cannot be a <{other}>",
+                    quote(el.attr("name").unwrap_or(""))
+                ),
+            ));
+        }
+    })
 }
 
 /// `<emitter type="area">` inside a shape.

@@ -9,10 +9,9 @@
 
 use std::path::Path;
 
-use super::{Input, Local, Plugin, ReadMesh, file_mesh};
+use super::{Input, Local, Plugin, ReadMesh, ShapeFields, file_mesh};
 use crate::scene::budget::Budget;
 use crate::scene::error::SceneError;
-use crate::scene::format::ShapeDoc;
 use crate::scene::mesh::MeshData;
 
 /// The PLY plugin; see the module docs.
@@ -33,7 +32,7 @@ impl Plugin for PlyShape {
     const FIELDS: &'static [&'static str] = &["filename", "face_normals", "flip_tex_coords"];
     const MESH_FILE: Option<ReadMesh> = Some(read);
 
-    fn build<'a>(s: &'a ShapeDoc, input: &Input<'a>) -> Result<Local<'a>, SceneError> {
-        file_mesh(s, input, false)
+    fn build<'a>(fields: &ShapeFields<'a>, input: &Input<'a>) -> Result<Local<'a>, SceneError> {
+        file_mesh(fields, input, false)
     }
 }

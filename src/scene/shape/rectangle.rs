@@ -3,9 +3,8 @@
 
 use std::borrow::Cow;
 
-use super::{Input, Local, Plugin};
+use super::{Input, Local, Plugin, ShapeFields};
 use crate::scene::error::SceneError;
-use crate::scene::format::ShapeDoc;
 use crate::scene::mesh;
 
 /// The rectangle plugin; see the module docs.
@@ -14,7 +13,7 @@ pub struct RectangleShape;
 impl Plugin for RectangleShape {
     const FIXED_TRIANGLES: usize = 2;
 
-    fn build<'a>(_: &'a ShapeDoc, _: &Input<'a>) -> Result<Local<'a>, SceneError> {
+    fn build<'a>(_: &ShapeFields<'a>, _: &Input<'a>) -> Result<Local<'a>, SceneError> {
         Ok(Local::Mesh {
             data: Cow::Owned(mesh::rectangle()),
             flip_tex_coords: false,

@@ -8,9 +8,8 @@
 //! `face_normals` (shade each triangle flat, default false),
 //! `flip_tex_coords` (replace each `v` by `1 − v`, default false).
 
-use super::{Input, Local, Plugin, ReadMesh, file_mesh};
+use super::{Input, Local, Plugin, ReadMesh, ShapeFields, file_mesh};
 use crate::scene::error::SceneError;
-use crate::scene::format::ShapeDoc;
 use crate::scene::serialized::read_serialized;
 
 /// The serialized plugin; see the module docs.
@@ -21,7 +20,12 @@ impl Plugin for SerializedShape {
         &["filename", "face_normals", "flip_tex_coords", "shape_index"];
     const MESH_FILE: Option<ReadMesh> = Some(read_serialized);
 
-    fn build<'a>(s: &'a ShapeDoc, input: &Input<'a>) -> Result<Local<'a>, SceneError> {
-        file_mesh(s, input, false)
+    fn mesh_index(fields: &ShapeFields) -> Result<u32, SceneError> {
+        let index = fields.index("shape_index", u32::MAX.into())?;
+        Ok(index.unwrap_or(0) as u32)
+    }
+
+    fn build<'a>(fields: &ShapeFields<'a>, input: &Input<'a>) -> Result<Local<'a>, SceneError> {
+        file_mesh(fields, input, false)
     }
 }

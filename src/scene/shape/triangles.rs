@@ -12,11 +12,10 @@
 
 use std::borrow::Cow;
 
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 
-use super::{Input, Local, Plugin};
+use super::{Input, Local, Plugin, ShapeFields};
 use crate::scene::error::SceneError;
-use crate::scene::format::ShapeDoc;
 use crate::scene::mesh::MeshData;
 use crate::scene::transform;
 
@@ -29,81 +28,79 @@ impl Plugin for TrianglesShape {
     // Mitsuba has no inline triangle lists.
     const MITSUBA: bool = false;
 
-    fn inline_triangles(doc: &ShapeDoc) -> usize {
-        doc.indices.as_ref().map_or(0, Vec::len)
+    fn inline_triangles(fields: &ShapeFields) -> Result<usize, SceneError> {
+        Ok(fields.rows("indices", 3)?.map_or(0, |i| i.len() / 3))
     }
 
-    fn build<'a>(s: &'a ShapeDoc, input: &Input<'a>) -> Result<Local<'a>, SceneError> {
-        let data = inline_mesh(s, input.field, input.max_triangles)?;
+    fn build<'a>(fields: &ShapeFields<'a>, input: &Input<'a>) -> Result<Local<'a>, SceneError> {
+        let data = inline_mesh(fields, input.max_triangles)?;
         Ok(Local::Mesh {
             data: Cow::Owned(data),
-            flip_tex_coords: s.flip_tex_coords.unwrap_or(false),
+            flip_tex_coords: fields.boolean("flip_tex_coords")?.unwrap_or(false),
         })
     }
 }
 
 /// The mesh the document lists, each field checked.
-fn inline_mesh(s: &ShapeDoc, field: &str, max_triangles: usize) -> Result<MeshData, SceneError> {
-    let missing = |name: &str| SceneError::invalid(field, format!("missing field `{name}`"));
-    let positions = s.positions.as_ref().ok_or_else(|| missing("positions"))?;
-    let indices = s.indices.as_ref().ok_or_else(|| missing("indices"))?;
-    if indices.is_empty() || indices.len() > max_triangles {
+fn inline_mesh(f: &ShapeFields, max_triangles: usize) -> Result<MeshData, SceneError> {
+    let positions = f.rows("positions", 3)?.ok_or_else(|| f.missing("positions"))?;
+    let indices = f.rows("indices", 3)?.ok_or_else(|| f.missing("indices"))?;
+    let triangles = indices.len() / 3;
+    if triangles == 0 || triangles > max_triangles {
         return Err(SceneError::invalid(
-            format!("{field}.indices"),
-            format!("{} triangles; need 1..={max_triangles}", indices.len()),
+            f.path("indices"),
+            format!("{triangles} triangles; need 1..={max_triangles}"),
         ));
     }
-    let positions = positions
-        .iter()
-        .enumerate()
-        .map(|(i, p)| transform::check_vec3(p, &format!("{field}.positions[{i}]")))
-        .collect::<Result<Vec<_>, _>>()?;
-    let mut out = Vec::with_capacity(indices.len());
-    for (k, tri) in indices.iter().enumerate() {
+    let positions = rows3(positions, &f.path("positions"))?;
+    let mut out = Vec::with_capacity(triangles);
+    for (k, tri) in indices.chunks_exact(3).enumerate() {
+        let mut vertices = [0u32; 3];
         for (j, &i) in tri.iter().enumerate() {
-            if i as usize >= positions.len() {
+            if !(i >= 0.0 && i.fract() == 0.0 && i < positions.len() as f64) {
                 return Err(SceneError::invalid(
-                    format!("{field}.indices[{k}][{j}]"),
+                    format!("{}.indices[{k}][{j}]", f.field),
                     format!("vertex {i} does not exist ({} positions)", positions.len()),
                 ));
             }
+            vertices[j] = i as u32;
         }
-        out.push(tri.map(|i| i as u32));
+        out.push(vertices);
     }
-    let normals = match &s.normals {
+    let normals = match f.rows("normals", 3)? {
         None => None,
         Some(ns) => {
-            if ns.len() != positions.len() {
+            let field = f.path("normals");
+            if ns.len() != 3 * positions.len() {
                 return Err(SceneError::invalid(
-                    format!("{field}.normals"),
-                    format!("{} normals for {} positions", ns.len(), positions.len()),
+                    field,
+                    format!("{} normals for {} positions", ns.len() / 3, positions.len()),
                 ));
             }
-            let mut out = Vec::with_capacity(ns.len());
-            for (i, n) in ns.iter().enumerate() {
-                let f = format!("{field}.normals[{i}]");
-                let n = transform::check_vec3(n, &f)?
-                    .try_normalize()
-                    .ok_or_else(|| SceneError::invalid(f, "zero-length normal"))?;
+            let mut out = Vec::with_capacity(positions.len());
+            for (i, n) in rows3(ns, &field)?.into_iter().enumerate() {
+                let n = n.try_normalize().ok_or_else(|| {
+                    SceneError::invalid(format!("{field}[{i}]"), "zero-length normal")
+                })?;
                 out.push(n);
             }
             Some(out)
         }
     };
-    let uvs = match &s.uvs {
+    let uvs = match f.rows("uvs", 2)? {
         None => None,
         Some(uvs) => {
-            let f = format!("{field}.uvs");
-            if uvs.len() != positions.len() {
+            let field = f.path("uvs");
+            if uvs.len() != 2 * positions.len() {
                 return Err(SceneError::invalid(
-                    f,
-                    format!("{} uvs for {} positions", uvs.len(), positions.len()),
+                    field,
+                    format!("{} uvs for {} positions", uvs.len() / 2, positions.len()),
                 ));
             }
-            if let Some(i) = uvs.iter().position(|uv| !uv.iter().all(|x| x.is_finite())) {
-                return Err(SceneError::invalid(format!("{f}[{i}]"), "not finite"));
+            if let Some(i) = uvs.iter().position(|x| !x.is_finite()) {
+                return Err(SceneError::invalid(format!("{field}[{}]", i / 2), "not finite"));
             }
-            Some(uvs.iter().map(|&uv| DVec2::from(uv)).collect())
+            Some(uvs.chunks_exact(2).map(|uv| DVec2::new(uv[0], uv[1])).collect())
         }
     };
     Ok(MeshData {
@@ -112,4 +109,13 @@ fn inline_mesh(s: &ShapeDoc, field: &str, max_triangles: usize) -> Result<MeshDa
         normals,
         uvs,
     })
+}
+
+/// Rows of three finite numbers as vectors; `field` names the list.
+fn rows3(values: &[f64], field: &str) -> Result<Vec<DVec3>, SceneError> {
+    values
+        .chunks_exact(3)
+        .enumerate()
+        .map(|(i, p)| transform::check_vec3(&[p[0], p[1], p[2]], &format!("{field}[{i}]")))
+        .collect()
 }
