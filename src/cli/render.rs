@@ -17,11 +17,9 @@ use crate::image::exr_io::{read_exr, write_exr};
 use crate::image::png_io::write_png;
 use crate::image::{ToneMap, relative_rmse};
 use crate::integrator::cached::{CachedSpec, CachedTileReport};
-use crate::integrator::progressive::{TileJob, TileParams, Unmemoised, render_progressive};
-use crate::integrator::{BoundIntegrator, Integrator, IntegratorSpec, Method, Preset};
-use crate::render::{
-    Cancel, ImageSettings, PathDepth, RenderError, RenderedTile, TileRequest, Transport,
-};
+use crate::integrator::progressive::{HeldBlocks, TileJob, TileParams, render_progressive};
+use crate::integrator::{Integrator, IntegratorSpec, Method, Preset};
+use crate::render::{Cancel, ImageSettings, PathDepth, RenderError, TileRequest, Transport};
 use crate::scene::Scene;
 
 /// Command-line arguments of `bmc-irradiance render`.
@@ -151,10 +149,22 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
         progress.reset();
         let pass_start = Instant::now();
         let report = Mutex::new(CachedTileReport::default());
+        // A preset's record blocks, each placed once for the tiles around it.
+        let blocks = HeldBlocks::default();
         let render = || {
             transport.render_image_by(&settings, args.tile, &|request| {
                 let (tile, r) = match &tile_params {
-                    Some(params) => preset_tile(&transport, &bound, integrator, params, request)?,
+                    Some(params) => {
+                        let job = preset_job(&transport, integrator, params, request)?;
+                        let tile = render_progressive(
+                            &transport,
+                            &bound,
+                            &job,
+                            &blocks,
+                            &Cancel::never(),
+                        )?;
+                        (tile.into_rendered(request), CachedTileReport::default())
+                    }
                     None => bound.render_tile(request, None, &Cancel::never())?,
                 };
                 report.lock().unwrap_or_else(|e| e.into_inner()).add(&r);
@@ -164,7 +174,8 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
         };
         let rendered = in_thread_pool(args.threads, render)??;
         let seconds = pass_start.elapsed().as_secs_f64();
-        let r = report.into_inner().unwrap_or_else(|e| e.into_inner());
+        let mut r = report.into_inner().unwrap_or_else(|e| e.into_inner());
+        r.add(&blocks.report());
         if bound.cached().is_some() {
             let stats = cache.stats();
             progress.suspend(|| {
@@ -211,16 +222,14 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
     Ok(())
 }
 
-/// The tile `request` names as the progressive job of `params` (its
-/// rectangle) with `integrator` (`params`' resolved once, bound as
-/// `bound`), and the records' report when it placed any.
-fn preset_tile(
+/// The progressive job of `params` for the tile `request` names (its
+/// rectangle), with `integrator` (`params`' resolved once).
+fn preset_job(
     transport: &Transport,
-    bound: &BoundIntegrator,
     integrator: Integrator,
     params: &TileParams,
     request: &TileRequest,
-) -> Result<(RenderedTile, CachedTileReport), RenderError> {
+) -> Result<TileJob, RenderError> {
     let tile_params = TileParams {
         x: request.x,
         y: request.y,
@@ -228,23 +237,11 @@ fn preset_tile(
         height: request.height,
         ..*params
     };
-    let job = TileJob {
+    Ok(TileJob {
         request: tile_params.request(transport.scene())?,
         integrator,
         denoise: params.denoise,
-    };
-    let tile = render_progressive(transport, bound, &job, &Unmemoised, &Cancel::never())?;
-    let report = tile.records.map(|r| r.report).unwrap_or_default();
-    Ok((
-        RenderedTile {
-            x: request.x,
-            y: request.y,
-            image: tile.image,
-            shared: Vec::new(),
-            rays: tile.rays,
-        },
-        report,
-    ))
+    })
 }
 
 /// Where a rendered image goes: an EXR or a PNG (by `--out`'s extension),

@@ -2,9 +2,12 @@
 //! requested one, averaged (docs/math.md §16.5), the same for the service's
 //! tile routes and the command line's `render --preset`.
 //!
-//! A reproducible tile's records are placed once and shared by its passes;
-//! what a caller keeps of them and of the passes between requests (the
-//! service's tile store) is a [`PassMemo`], [`Unmemoised`] for none.
+//! A reproducible tile's records are those of the record blocks around it
+//! (`integrator::cached::tiles`, "Record blocks"), placed once per block and
+//! shared by its passes and by the tiles around; what a caller keeps of
+//! them and of the passes between requests (the service's tile store) is a
+//! [`PassMemo`]: [`HeldBlocks`] keeps the blocks for one render,
+//! [`Unmemoised`] nothing.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
@@ -12,8 +15,10 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use super::{BoundIntegrator, Integrator, IntegratorSpec, Preset};
 use crate::cache::Record;
 use crate::image::{Image, denoise};
-use crate::integrator::cached::CachedTileReport;
-use crate::render::{Cancel, PathDepth, RenderError, SamplePlan, TileRequest, Transport};
+use crate::integrator::cached::{CachedTileReport, RecordBlock, block_margin, block_pixels};
+use crate::render::{
+    Cancel, PathDepth, RenderError, RenderedTile, SamplePlan, TileRequest, Transport,
+};
 use crate::scene::Scene;
 
 /// A tile as a caller names it, before any check: the rectangle, the
@@ -111,7 +116,12 @@ impl TileJob {
         let camera = area
             .saturating_mul(u64::from(r.samples_per_pixel))
             .saturating_mul(u64::from(r.pass) + 1);
-        self.integrator.estimated_paths(camera, area)
+        // A reproducible tile may place the records of every block around it.
+        let records = match self.integrator.cached() {
+            Some(c) if self.reproducible() => block_pixels(r, block_margin(c.options.max_pixels)),
+            _ => area,
+        };
+        self.integrator.estimated_paths(camera, records)
     }
 
     /// The rays per pixel of the pass after `before` (docs/math.md §16.5):
@@ -143,7 +153,8 @@ impl TileJob {
     }
 }
 
-/// The records a reproducible tile placed, and what placing them took.
+/// The records of one record block (or of a tile placing its own), and
+/// what placing them took.
 pub struct TileRecords {
     /// The content digest of the scene they belong to (`scene::SceneDigest`).
     pub scene: [u8; 32],
@@ -174,9 +185,11 @@ pub struct RenderedPass {
 /// Only reproducible jobs consult it (their output is a function of the
 /// scene and the job).
 pub trait PassMemo {
-    /// The tile's records, placed by `place` unless kept.
+    /// The records of `block` (a rectangle of the block grid with the job's
+    /// depth and seed), placed by `place` unless kept.
     fn records_or(
         &self,
+        block: &TileRequest,
         place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
     ) -> Result<Arc<TileRecords>, RenderError>;
 
@@ -194,9 +207,56 @@ pub struct Unmemoised;
 impl PassMemo for Unmemoised {
     fn records_or(
         &self,
+        _block: &TileRequest,
         place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
     ) -> Result<Arc<TileRecords>, RenderError> {
         place().map(Arc::new)
+    }
+
+    fn pass_or(
+        &self,
+        _pass: u32,
+        render: impl FnOnce() -> Result<RenderedPass, RenderError> + Send,
+    ) -> Result<Arc<RenderedPass>, RenderError> {
+        render().map(Arc::new)
+    }
+}
+
+/// Keeps the record blocks' records in memory, passes not: the memo of one
+/// render of an image with one job's settings (the blocks are told apart
+/// by their corner only).
+pub struct HeldBlocks {
+    records: moka::sync::Cache<[u32; 2], Arc<TileRecords>>,
+}
+
+impl Default for HeldBlocks {
+    fn default() -> Self {
+        Self {
+            records: moka::sync::Cache::new(u64::MAX),
+        }
+    }
+}
+
+impl HeldBlocks {
+    /// What placing the held blocks took, each counted once.
+    pub fn report(&self) -> CachedTileReport {
+        let mut report = CachedTileReport::default();
+        for (_, block) in self.records.iter() {
+            report.add(&block.report);
+        }
+        report
+    }
+}
+
+impl PassMemo for HeldBlocks {
+    fn records_or(
+        &self,
+        block: &TileRequest,
+        place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
+    ) -> Result<Arc<TileRecords>, RenderError> {
+        // Tiles rendered in parallel wait for a block another is placing.
+        crate::isolated::try_get_with(&self.records, [block.x, block.y], || place().map(Arc::new))
+            .map_err(|e: Arc<RenderError>| (*e).clone())
     }
 
     fn pass_or(
@@ -212,8 +272,9 @@ impl PassMemo for Unmemoised {
 pub struct ProgressiveTile {
     /// The mean of passes `0..=pass`.
     pub image: Image,
-    /// The tile's own records (reproducible cache tiles only).
-    pub records: Option<Arc<TileRecords>>,
+    /// The records of the blocks that shaded it (reproducible cache tiles
+    /// only), row-major.
+    pub records: Vec<Arc<TileRecords>>,
     /// Rays traced by this call (kept parts cost none).
     pub rays: u64,
     /// Records this call placed.
@@ -222,6 +283,19 @@ pub struct ProgressiveTile {
     pub cache_hits: u64,
     /// Passes this call rendered (the rest were kept by `memo`).
     pub passes_rendered: u32,
+}
+
+impl ProgressiveTile {
+    /// The tile as a rendered tile of `request`'s corner (its image and rays).
+    pub fn into_rendered(self, request: &TileRequest) -> RenderedTile {
+        RenderedTile {
+            x: request.x,
+            y: request.y,
+            image: self.image,
+            shared: Vec::new(),
+            rays: self.rays,
+        }
+    }
 }
 
 /// Renders `job` with `bound` (its integrator bound to `transport`) on the
@@ -238,21 +312,34 @@ pub fn render_progressive(
     let reproducible = job.reproducible();
     // Atomics, as the closures that set them may run on a pool of their own.
     let created = AtomicU64::new(0);
-    // The tile's records, once for every pass.
-    let records = match (bound.cached(), reproducible) {
-        (Some(integrator), true) => Some(memo.records_or(|| {
-            let (records, report) = integrator.tile_records(&job.request, cancel)?;
-            rays += report.placement.rays + report.secondary.rays;
-            created.store(report.placement.records_created, Relaxed);
-            Ok(TileRecords {
-                scene: *transport.scene().digest.as_bytes(),
-                max_depth: job.request.max_depth,
-                records,
-                report,
-            })
-        })?),
-        _ => None,
-    };
+    // The records of the blocks around the tile, once for every pass.
+    let mut records = Vec::new();
+    let mut rects = Vec::new();
+    if let (Some(integrator), true) = (bound.cached(), reproducible) {
+        for block in integrator.record_blocks(&job.request) {
+            rects.push([block.x, block.y, block.width, block.height]);
+            records.push(memo.records_or(&block, || {
+                let (records, report) = integrator.tile_records(&block, cancel)?;
+                rays += report.placement.rays + report.secondary.rays;
+                created.fetch_add(report.placement.records_created, Relaxed);
+                Ok(TileRecords {
+                    scene: *transport.scene().digest.as_bytes(),
+                    max_depth: block.max_depth,
+                    records,
+                    report,
+                })
+            })?);
+        }
+    }
+    let blocks: Vec<RecordBlock> = records
+        .iter()
+        .zip(rects)
+        .map(|(b, rect)| RecordBlock {
+            rect,
+            records: &b.records,
+            dense: b.report.dense(),
+        })
+        .collect();
     let mut passes = Vec::with_capacity(job.request.pass as usize + 1);
     for pass in 0..=job.request.pass {
         let request = TileRequest {
@@ -264,16 +351,10 @@ pub fn render_progressive(
             rendered.store(true, Relaxed);
             let plan = job.plan(&passes)?;
             let plan = plan.as_ref();
-            let (tile, cache_hits) = match (bound.cached(), &records) {
-                (Some(i), Some(records)) => {
-                    let dense = records.report.dense();
-                    let (tile, stats) = i.render_tile_from_records(
-                        &request,
-                        plan,
-                        &records.records,
-                        dense,
-                        cancel,
-                    )?;
+            let (tile, cache_hits) = match (bound.cached(), reproducible) {
+                (Some(i), true) => {
+                    let (tile, stats) =
+                        i.render_tile_from_blocks(&request, plan, &blocks, cancel)?;
                     (tile, stats.cache_hits)
                 }
                 _ => {

@@ -189,6 +189,8 @@ pub struct PixelSample {
     /// Two uniform words per pixel ([`pixel_pattern`]), the same for all
     /// its rays in every pass: the seeds of its shared patterns.
     pub pattern: [u64; 2],
+    /// The pixel: column and row in the image.
+    pub pixel: [u32; 2],
 }
 
 /// Radiance arriving at the camera along a camera ray, W/(m²·sr), with the
@@ -311,6 +313,7 @@ pub fn render_tile_with(
                     index,
                     count,
                     pattern,
+                    pixel: [px, py],
                 };
                 match visible(shader.scene(), ray, &mut stats) {
                     Some(ray) => shader.radiance(ray, sample, &mut rng, &mut stats),

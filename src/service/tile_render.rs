@@ -13,10 +13,11 @@ use super::integrator::{CachedSetup, cached_setup, resolve_integrator};
 use super::scenes::LoadedScene;
 use super::state::AppState;
 use super::tile_store::{Key, TileStore};
+use crate::integrator::Integrator;
 use crate::integrator::progressive::{
     self, PassMemo, ProgressiveTile, RenderedPass, TileJob, TileParams, TileRecords,
 };
-use crate::render::{Cancel, RenderError};
+use crate::render::{Cancel, RenderError, TileRequest};
 use crate::scene::Scene;
 
 /// The job of `params` on `scene`, every field checked against its camera's
@@ -44,16 +45,17 @@ pub fn check_work(job: &TileJob, limits: &Limits) -> Result<(), ApiError> {
     limits.check_work(job.estimated_paths())
 }
 
-/// The content key of a tile's records: everything they depend on, the
-/// release included (a new release may compute them differently, so it
-/// never reads an older release's entries from the tile log).
-fn records_key(job: &TileJob, scene: &LoadedScene) -> Key {
-    let r = &job.request;
+/// The content key of the records of `block` (a record block, or a tile
+/// of its own): everything they depend on, the release included (a new
+/// release may compute them differently, so it never reads an older
+/// release's entries from the tile log).
+fn records_key(block: &TileRequest, integrator: &Integrator, scene: &LoadedScene) -> Key {
+    let r = block;
     let text = format!(
         "records\0{}\0{}\0{}\0{} {} {} {} {} {}",
         env!("CARGO_PKG_VERSION"),
         scene.transport.scene().digest,
-        job.integrator.content_key(),
+        integrator.content_key(),
         r.x,
         r.y,
         r.width,
@@ -67,8 +69,10 @@ fn records_key(job: &TileJob, scene: &LoadedScene) -> Key {
 /// The tile store as a [`PassMemo`] for one job.
 struct StoreMemo<'a> {
     store: &'a TileStore,
+    scene: &'a LoadedScene,
     job: &'a TileJob,
-    records: Key,
+    /// The key of the tile's own rectangle, depth and seed.
+    tile: Key,
 }
 
 impl StoreMemo<'_> {
@@ -77,8 +81,10 @@ impl StoreMemo<'_> {
         let mut hasher = blake3::Hasher::new();
         // Passes of a ladder take their rays per pixel from the passes
         // before (`TileJob::plan`), which older entries did not.
-        hasher.update(b"adaptive pass\0");
-        hasher.update(&self.records);
+        // Passes shaded by the record blocks around the tile (not only
+        // its own records) differ from older entries.
+        hasher.update(b"adaptive pass\0record blocks\0");
+        hasher.update(&self.tile);
         hasher.update(&self.job.request.samples_per_pixel.to_le_bytes());
         hasher.update(&self.job.request.passes.to_le_bytes());
         hasher.update(&pass.to_le_bytes());
@@ -89,9 +95,11 @@ impl StoreMemo<'_> {
 impl PassMemo for StoreMemo<'_> {
     fn records_or(
         &self,
+        block: &TileRequest,
         place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
     ) -> Result<Arc<TileRecords>, RenderError> {
-        self.store.records_or(self.records, place)
+        let key = records_key(block, &self.job.integrator, self.scene);
+        self.store.records_or(key, place)
     }
 
     fn pass_or(
@@ -121,8 +129,9 @@ pub fn render_progressive(
         .bind(transport, setup.as_ref().map(CachedSetup::binding))?;
     let memo = StoreMemo {
         store: &state.tiles,
+        scene,
         job,
-        records: records_key(job, scene),
+        tile: records_key(&job.request, &job.integrator, scene),
     };
     Ok(progressive::render_progressive(
         transport, &bound, job, &memo, cancel,

@@ -10,7 +10,9 @@ use crate::common::{TestApp, copy_dir, spawn_app_in};
 use serde_json::{Value, json};
 
 /// The Cornell box with a 64×48 camera: four 32-pixel tiles (the bottom
-/// row 16 pixels high).
+/// row 16 pixels high), all shaded by the records of the image's one
+/// record block (`integrator::cached::tiles`): one records entry, each
+/// tile's passes entries of their own.
 fn scenes_dir() -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     let mut doc: Value =
@@ -78,7 +80,7 @@ async fn tiles_survive_a_restart_and_a_torn_log() {
     let (images, records, rays) = render_all(&first).await;
     assert!(rays > 0);
     let stored = first.health().await["tiles"].clone();
-    assert_eq!(stored["tiles"], json!(4), "{stored}");
+    assert_eq!(stored["tiles"], json!(1), "{stored}");
     assert!(stored["log_bytes"].as_u64().unwrap() > 0);
     drop(first);
     released(data.path()).await;
@@ -88,7 +90,7 @@ async fn tiles_survive_a_restart_and_a_torn_log() {
     let second = spawn(data.path()).await;
     let loaded = second.health().await["tiles"].clone();
     assert_eq!(loaded["dropped_bytes"], json!(0), "{loaded}");
-    assert_eq!(loaded["tiles"], json!(4), "{loaded}");
+    assert_eq!(loaded["tiles"], json!(1), "{loaded}");
     let (again, records_again, rays_again) = render_all(&second).await;
     assert_eq!(rays_again, 0);
     assert_eq!(again, images);
@@ -269,7 +271,7 @@ async fn records_export_from_one_service_and_import_into_another() {
         .json()
         .await
         .unwrap();
-    assert_eq!(imported["imported"], 4, "{imported}");
+    assert_eq!(imported["imported"], 1, "{imported}");
     assert!(imported["records"].as_u64().unwrap() > 0);
     // Records of every tile come from the import: the passes cost camera
     // rays only, and the images are the first service's.
@@ -287,7 +289,7 @@ async fn records_export_from_one_service_and_import_into_another() {
         .unwrap();
     assert_eq!(
         (again["imported"].as_u64(), again["already_held"].as_u64()),
-        (Some(0), Some(4))
+        (Some(0), Some(1))
     );
 
     // Another scene's content, a cut export, and something else entirely.
@@ -298,7 +300,8 @@ async fn records_export_from_one_service_and_import_into_another() {
     assert_eq!(posted.status(), 201);
     for (id, body, field) in [
         ("other", export.clone(), "entries[0]"),
-        ("box", export[..export.len() - 5].to_vec(), "entries[3]"),
+        // The export's one entry, cut.
+        ("box", export[..export.len() - 5].to_vec(), "entries[0]"),
         ("box", b"not an export".to_vec(), "body"),
     ] {
         let response = post_records(&second, id, body).await.unwrap();
@@ -518,7 +521,7 @@ async fn poisoned_records_imports_are_refused() {
     assert_eq!(health["tiles"]["tiles"], 0, "{health}");
     // The genuine export still imports, and gives the first service's bytes.
     let imported: Value = post(export).await.unwrap().json().await.unwrap();
-    assert_eq!(imported["imported"], 4, "{imported}");
+    assert_eq!(imported["imported"], 1, "{imported}");
     let url = "/v1/scenes/box/tiles/0/0.png?size=32&preset=draft";
     assert_eq!(second.get(url).await.bytes().await.unwrap(), images[0]);
 }
@@ -534,11 +537,14 @@ async fn poisoned_records_imports_are_refused() {
 #[tokio::test]
 async fn records_scaled_by_a_thousand_are_refused() {
     let (images, export, second) = exported_and_another().await;
-    // Held before the import: the first tile, computed here.
+    // Held before the import: the first tile of another seed, computed
+    // here (its own record block, not the export's).
     let url =
         |(tx, ty): (u32, u32)| format!("/v1/scenes/box/tiles/{tx}/{ty}.png?size=32&preset=draft");
-    let held = second.get(&url(TILES[0])).await;
-    assert_eq!(held.bytes().await.unwrap(), images[0]);
+    let other_seed = format!("{}&seed=5", url(TILES[0]));
+    let held = second.get(&other_seed).await;
+    assert_eq!(held.status(), 200);
+    let held = held.bytes().await.unwrap();
     let post = |body: Vec<u8>| post_records(&second, "box", body);
     let response = post(scaled(&export, 1000.0)).await.unwrap();
     assert_eq!(response.status(), 422);
@@ -558,10 +564,12 @@ async fn records_scaled_by_a_thousand_are_refused() {
         "{body}"
     );
     // Healthy, the tile it held kept, nothing of the import added: the
-    // other tiles are computed, as the first service computed them.
+    // tiles are computed, as the first service computed them (the first
+    // places the block's records).
     let health: Value = second.get("/health").await.json().await.unwrap();
     assert_eq!(health["status"], "ok", "{health}");
     assert_eq!(health["tiles"]["tiles"], 1, "{health}");
+    assert_eq!(second.get(&other_seed).await.bytes().await.unwrap(), held);
     for (i, tile) in TILES.into_iter().enumerate() {
         let response = second.get(&url(tile)).await;
         let created = response.headers()["x-records-created"]
@@ -570,15 +578,15 @@ async fn records_scaled_by_a_thousand_are_refused() {
             .to_owned();
         assert_eq!(
             created == "0",
-            i == 0,
+            i != 0,
             "{tile:?}: {created} records created"
         );
         assert_eq!(response.bytes().await.unwrap(), images[i], "{tile:?}");
     }
-    // The genuine export (from another run, into a service that holds part
-    // of it) is checked and added.
+    // The genuine export (from another run, into a service that holds
+    // records of another seed) is checked and added.
     let third = spawn_app_in(scenes_dir(), |_| {}).await;
-    assert_eq!(third.get(&url(TILES[0])).await.status(), 200);
+    assert_eq!(third.get(&other_seed).await.status(), 200);
     let imported = post_records(&third, "box", export).await.unwrap();
     assert_eq!(imported.status(), 200);
     let imported: Value = imported.json().await.unwrap();
@@ -587,7 +595,7 @@ async fn records_scaled_by_a_thousand_are_refused() {
             imported["imported"].as_u64(),
             imported["already_held"].as_u64()
         ),
-        (Some(3), Some(1)),
+        (Some(1), Some(0)),
         "{imported}"
     );
     assert!(imported["checked"].as_u64().unwrap() > 0, "{imported}");

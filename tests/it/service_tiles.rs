@@ -275,16 +275,20 @@ async fn reproducible_cache_tiles_ignore_what_ran_before() {
 async fn secondary_cache_tiles_are_the_same_whichever_request_built_the_cache() {
     let scene = small_cornell(16);
     let scenes = [("box.json", scene.as_str())];
-    let tile = |x, y, secondary: bool| {
+    // The image is one record block: a tile of another seed places its
+    // records afresh (the seed is part of their key), a tile of the same
+    // seed finds them.
+    let tile = |x, y, seed: u64, secondary: bool| {
         let extra = json!({"reproducible": true, "secondary_cache": secondary});
         let mut t = bmc_tile(x, y, 8, extra);
         // Long enough paths for a cached bounce (AMBIENT_MIN_DEPTH from the hit).
         t["max_depth"] = json!(17);
+        t["seed"] = json!(seed);
         t
     };
     let first_app = spawn_app_with_scenes(&scenes, |_| {}).await;
     let building = first_app
-        .post_json("/v1/scenes/box/tiles", &tile(4, 4, true))
+        .post_json("/v1/scenes/box/tiles", &tile(4, 4, 9, true))
         .await;
     assert_eq!(building.status(), StatusCode::OK);
     let rays_building = header(&building, "x-rays");
@@ -292,21 +296,21 @@ async fn secondary_cache_tiles_are_the_same_whichever_request_built_the_cache() 
 
     let second_app = spawn_app_with_scenes(&scenes, |_| {}).await;
     let other = second_app
-        .post_json("/v1/scenes/box/tiles", &tile(8, 8, true))
+        .post_json("/v1/scenes/box/tiles", &tile(8, 8, 10, true))
         .await;
     assert_eq!(other.status(), StatusCode::OK);
     let rays_other = header(&other, "x-rays");
     let other = other.bytes().await.unwrap();
     let reading = second_app
-        .post_json("/v1/scenes/box/tiles", &tile(4, 4, true))
+        .post_json("/v1/scenes/box/tiles", &tile(4, 4, 9, true))
         .await;
     assert_eq!(reading.status(), StatusCode::OK);
     assert!(header(&reading, "x-rays") < rays_building);
     assert_eq!(reading.bytes().await.unwrap(), building);
 
-    // DELETE drops the secondary cache with the records; a request for a
-    // tile not rendered yet on this server builds both again, as the first
-    // request on the other server did.
+    // DELETE drops the secondary cache with the records; a request whose
+    // records are not placed yet on this server builds both again, as the
+    // first request on the other server did.
     let before = cache_stats(&first_app).await;
     let (records, secondary) = (
         &before["caches"][0]["stats"]["records"],
@@ -320,13 +324,13 @@ async fn secondary_cache_tiles_are_the_same_whichever_request_built_the_cache() 
     );
     assert_eq!(cleared["caches"][0]["secondary_records"], 0);
     let rebuilt = first_app
-        .post_json("/v1/scenes/box/tiles", &tile(8, 8, true))
+        .post_json("/v1/scenes/box/tiles", &tile(8, 8, 10, true))
         .await;
     assert_eq!(header(&rebuilt, "x-rays"), rays_other);
     assert_eq!(rebuilt.bytes().await.unwrap(), other);
 
     let by_paths = first_app
-        .post_json("/v1/scenes/box/tiles", &tile(4, 4, false))
+        .post_json("/v1/scenes/box/tiles", &tile(4, 4, 9, false))
         .await;
     assert_eq!(by_paths.status(), StatusCode::OK);
     assert_ne!(by_paths.bytes().await.unwrap(), building);

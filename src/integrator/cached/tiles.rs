@@ -18,7 +18,22 @@
 //! With `reproducible`, both passes use a private cache (same configuration
 //! as the shared one), so the tile is bit-identical whatever the thread
 //! count or the shared cache's content; the private records that the shared
-//! cache does not already cover are then published to it. Otherwise records
+//! cache does not already cover are then published to it.
+//!
+//! # Record blocks: no tile seams
+//! A tile shaded only by its own records shows its edges: pixels on either
+//! side of a boundary interpolate different, independently noisy records.
+//! Progressive tiles (`integrator::progressive`: presets, GET tiles,
+//! `render --preset`) therefore place records per **block** of a fixed grid
+//! of the image ([`RECORD_BLOCK`] pixels, aligned to its top-left corner),
+//! each block's records a function of the block alone ([`Self::tile_records`]
+//! of its rectangle), and shade a tile with the records of every block
+//! within [`block_margin`] blocks of it ([`Self::record_blocks`],
+//! [`Self::render_tile_from_blocks`]). A record reaches at most `max_pixels`
+//! footprints from its point, so every record that covers a pixel comes
+//! from a block the pixel's tile includes, whatever the tiling: the image
+//! does not depend on how it is cut into tiles, and tiles share the cost of
+//! the blocks they have in common. Otherwise records
 //! are placed in and read from the shared cache: a second request for the
 //! same tile finds them and traces only camera, shadow and fallback rays.
 
@@ -36,7 +51,7 @@ use super::secondary::secondary_cache_of;
 use super::shade::{CachedIntegrator, Gather};
 use super::shade_point::{OnMiss, ShadePoint};
 use super::stats::ShadingStats;
-use crate::cache::{IrradianceCache, PixelFootprint, Record};
+use crate::cache::{CacheConfig, IrradianceCache, PixelFootprint, Record};
 use crate::render::lights::environment_radiance;
 use crate::render::{
     CameraRayShader, Cancel, Evaluation, PathDepth, PixelSample, QueryPoint, RenderError,
@@ -87,14 +102,90 @@ impl CachedTileReport {
     }
 }
 
+/// Side of the blocks reproducible records are placed in, pixels: the
+/// tile size of GET tiles, so an aligned tile is one block (module docs).
+pub const RECORD_BLOCK: u32 = 64;
+
+/// How far from its placement point, in image pixels, a record may reach
+/// per pixel footprint of its radius: 1 where the surface faces the
+/// camera, more where the covered points lie nearer the camera than the
+/// record (their footprints are smaller). For a radius of `m` footprints
+/// at distance `t`, a point up to `m·f` nearer has a footprint at least
+/// `(t − m·f)/t` of the record's, so the reach is at most `m·t/(t − m·f)`
+/// pixels: 1.13 `m` for `m = 40` at a 0.16° pixel (256 pixels over 40°);
+/// 1.25 leaves room for wider pixels.
+const BLOCK_REACH: f64 = 1.25;
+
+/// Blocks on each side of a tile whose records may cover its pixels, for
+/// records of at most `max_pixels` footprints (module docs).
+pub fn block_margin(max_pixels: f64) -> u32 {
+    (BLOCK_REACH * max_pixels / f64::from(RECORD_BLOCK)).ceil() as u32
+}
+
+/// The blocks within `margin` blocks of `request`'s rectangle, clipped to
+/// an image of `resolution`, row-major: each a request for the block's
+/// rectangle with `request`'s depth and seed (what its records depend on).
+pub fn record_blocks(
+    request: &TileRequest,
+    margin: u32,
+    resolution: (u32, u32),
+) -> Vec<TileRequest> {
+    let b = RECORD_BLOCK;
+    let last = |start: u32, size: u32, image: u32| {
+        ((start + size.max(1) - 1) / b + margin).min(image.max(1).div_ceil(b) - 1)
+    };
+    let (x1, y1) = (
+        last(request.x, request.width, resolution.0),
+        last(request.y, request.height, resolution.1),
+    );
+    let (x0, y0) = (
+        (request.x / b).saturating_sub(margin),
+        (request.y / b).saturating_sub(margin),
+    );
+    (y0..=y1)
+        .flat_map(|by| (x0..=x1).map(move |bx| (bx, by)))
+        .map(|(bx, by)| TileRequest {
+            x: bx * b,
+            y: by * b,
+            width: b.min(resolution.0 - bx * b),
+            height: b.min(resolution.1 - by * b),
+            ..*request
+        })
+        .collect()
+}
+
+/// The pixels of the blocks (module docs) placed for `request`, at most
+/// (the blocks of its margin not clipped to the image): what a work budget
+/// weighs as records.
+pub fn block_pixels(request: &TileRequest, margin: u32) -> u64 {
+    let b = RECORD_BLOCK;
+    let blocks = |start: u32, size: u32| {
+        u64::from((start + size.max(1) - 1) / b - start / b + 1 + 2 * margin)
+    };
+    blocks(request.x, request.width) * blocks(request.y, request.height) * u64::from(b * b)
+}
+
+/// One block's records (module docs), as a tile shades with them.
+#[derive(Clone, Copy, Debug)]
+pub struct RecordBlock<'a> {
+    /// The block's rectangle: x, y, width, height in pixels.
+    pub rect: [u32; 4],
+    /// Its records, in placement order.
+    pub records: &'a [Record],
+    /// The block placed none as its probe found it too dense
+    /// ([`CachedTileReport::dense`]): its pixels take the dense shading.
+    pub dense: bool,
+}
+
 /// Shades camera rays through a cache (module docs), collecting counters
 /// and the first error (the pixel loop's shader interface cannot fail).
 struct CacheRayShader<'a> {
     integrator: CachedIntegrator<'a>,
     /// The request's depth, counted from the camera.
     depth: PathDepth,
-    /// The tile placed no records (`dense`).
-    dense: bool,
+    /// Rectangles (x, y, width, height) whose pixels placed no records
+    /// (`dense`).
+    dense: Vec<[u32; 4]>,
     stats: Mutex<ShadingStats>,
     error: Mutex<Option<RenderError>>,
 }
@@ -117,11 +208,16 @@ impl CameraRayShader for CacheRayShader<'_> {
             return Evaluation::of(environment_radiance(scene, ray.dir));
         };
         let mut local = ShadingStats::default();
+        let [px, py] = sample.pixel;
+        let dense = self
+            .dense
+            .iter()
+            .any(|&[x, y, w, h]| (x..x + w).contains(&px) && (y..y + h).contains(&py));
         let how = ShadePoint {
             max_depth: self.depth,
             on_miss: OnMiss::PathTrace,
             sample: Some(sample),
-            dense: self.dense,
+            dense,
         };
         let result = self
             .integrator
@@ -195,13 +291,18 @@ impl CachedIntegrator<'_> {
         if !self.shading.options.reproducible {
             let mut report =
                 self.place_tile_records(request, |c| PlacementCache::Shared(c), cancel)?;
-            let (tile, shading) = self.shade_tile(request, plan, report.dense(), cancel)?;
+            let dense = own_rect_if(request, report.dense());
+            let (tile, shading) = self.shade_tile(request, plan, dense, cancel)?;
             report.shading = shading;
             return Ok((add_placement_rays(tile, &report), report));
         }
         let (records, mut report) = self.tile_records(request, cancel)?;
-        let (tile, shading) =
-            self.render_tile_from_records(request, plan, &records, report.dense(), cancel)?;
+        let block = RecordBlock {
+            rect: [request.x, request.y, request.width, request.height],
+            records: &records,
+            dense: report.dense(),
+        };
+        let (tile, shading) = self.render_tile_from_blocks(request, plan, &[block], cancel)?;
         report.shading = shading;
         report.records_published = self.publish(&records)?;
         Ok((add_placement_rays(tile, &report), report))
@@ -212,7 +313,7 @@ impl CachedIntegrator<'_> {
     /// rectangle, `max_depth` and `seed` only — not of its pass or samples
     /// per pixel, the thread count or the shared cache — in insertion order.
     /// A caller may keep them and shade any pass of the tile with
-    /// [`Self::render_tile_from_records`] without placing them again.
+    /// [`Self::render_tile_from_blocks`] without placing them again.
     pub fn tile_records(
         &self,
         request: &TileRequest,
@@ -228,26 +329,39 @@ impl CachedIntegrator<'_> {
         Ok((private.records(), report))
     }
 
-    /// One tile shaded through a private cache holding exactly `records`
-    /// (inserted in their order, as [`Self::tile_records`] returns them), so
-    /// the result is bit-identical whatever ran before; returns the tile
-    /// (camera and shading rays only) and the shading counters. `dense`:
-    /// the placement found the tile dense ([`CachedTileReport::dense`]).
-    pub fn render_tile_from_records(
+    /// The blocks whose records shade `request` in a progressive tile
+    /// (module docs), row-major.
+    pub fn record_blocks(&self, request: &TileRequest) -> Vec<TileRequest> {
+        let margin = block_margin(self.shading.options.max_pixels);
+        record_blocks(request, margin, self.transport.scene().camera.resolution())
+    }
+
+    /// One tile shaded through a private cache holding exactly the records
+    /// of `blocks` (each as [`Self::tile_records`] returns them, the blocks
+    /// in a fixed order), so the result is bit-identical whatever ran
+    /// before; returns the tile (camera and shading rays only) and the
+    /// shading counters. The records are taken as placed: their radii were
+    /// clamped against their own block's neighbours, not again here, so a
+    /// record shades alike in every tile that includes its block.
+    pub fn render_tile_from_blocks(
         &self,
         request: &TileRequest,
         plan: Option<&SamplePlan>,
-        records: &[Record],
-        dense: bool,
+        blocks: &[RecordBlock],
         cancel: &Cancel,
     ) -> Result<(RenderedTile, ShadingStats), RenderError> {
-        let private = self.private_cache()?;
-        for (i, record) in records.iter().enumerate() {
+        let private = IrradianceCache::new(CacheConfig {
+            neighbour_clamp: false,
+            ..*self.cache.config()
+        })?;
+        let records = blocks.iter().flat_map(|b| b.records);
+        for (i, record) in records.enumerate() {
             if i % 256 == 0 {
                 cancel.check()?;
             }
             private.insert(*record)?;
         }
+        let dense = blocks.iter().filter(|b| b.dense).map(|b| b.rect).collect();
         CachedIntegrator {
             cache: &private,
             ..*self
@@ -345,7 +459,7 @@ impl CachedIntegrator<'_> {
         &self,
         request: &TileRequest,
         plan: Option<&SamplePlan>,
-        dense: bool,
+        dense: Vec<[u32; 4]>,
         cancel: &Cancel,
     ) -> Result<(RenderedTile, ShadingStats), RenderError> {
         let camera = &self.transport.scene().camera;
@@ -363,6 +477,14 @@ impl CachedIntegrator<'_> {
         let mut stats = shader.stats.into_inner().unwrap_or_else(|p| p.into_inner());
         stats.rays = tile.rays;
         Ok((tile, stats))
+    }
+}
+
+/// `request`'s rectangle if `dense`, for [`CacheRayShader::dense`].
+fn own_rect_if(request: &TileRequest, dense: bool) -> Vec<[u32; 4]> {
+    match dense {
+        true => vec![[request.x, request.y, request.width, request.height]],
+        false => Vec::new(),
     }
 }
 

@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::image::{ImageEncoding, ToneMap, png_io};
-use crate::integrator::cached::{record_overlay, record_views};
+use crate::integrator::cached::{RecordView, record_overlay, record_views};
 use crate::integrator::progressive::TileParams;
 use crate::integrator::{IntegratorSpec, Preset};
 use crate::service::error::{ApiError, ErrorBody};
@@ -273,9 +273,23 @@ pub async fn get_tile(
                     (bytes, 0)
                 }
                 Aov::Records => {
-                    let records = tile.records.as_ref().map_or(&[][..], |r| &r.records[..]);
-                    let views = record_views(camera, records);
+                    // The records placed at the tile's pixels, of the
+                    // blocks that shaded it.
                     let r = &job.request;
+                    let records: Vec<_> = tile
+                        .records
+                        .iter()
+                        .flat_map(|b| b.records.iter().copied())
+                        .collect();
+                    let inside = |v: &RecordView| {
+                        let [px, py] = v.pixel;
+                        (f64::from(r.x)..f64::from(r.x + r.width)).contains(&px)
+                            && (f64::from(r.y)..f64::from(r.y + r.height)).contains(&py)
+                    };
+                    let views: Vec<RecordView> = record_views(camera, &records)
+                        .into_iter()
+                        .filter(inside)
+                        .collect();
                     let bytes = match format {
                         ImageEncoding::Png => png_io::encode_png8(
                             &record_overlay(&views, r.x, r.y, r.width, r.height),
