@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use super::{BoundIntegrator, Integrator, IntegratorSpec, Preset};
 use crate::cache::Record;
 use crate::image::{Image, denoise};
-use crate::integrator::cached::{CachedTileReport, RecordBlock, block_margin, block_pixels};
+use crate::integrator::cached::{CachedTileReport, RecordBlock, block_margin, record_blocks};
 use crate::render::{
     Cancel, PathDepth, RenderError, RenderedTile, SamplePlan, TileRequest, Transport,
 };
@@ -108,9 +108,10 @@ impl TileJob {
         self.integrator.reproducible()
     }
 
-    /// Camera paths of every pass plus at most one record per pixel: what
-    /// a work budget weighs.
-    pub fn estimated_paths(&self) -> u64 {
+    /// Camera paths of every pass plus at most one record per pixel of
+    /// the record blocks it may place (on an image of `resolution`): what a
+    /// work budget weighs.
+    pub fn estimated_paths(&self, resolution: (u32, u32)) -> u64 {
         let r = &self.request;
         let area = u64::from(r.width) * u64::from(r.height);
         let camera = area
@@ -118,7 +119,13 @@ impl TileJob {
             .saturating_mul(u64::from(r.pass) + 1);
         // A reproducible tile may place the records of every block around it.
         let records = match self.integrator.cached() {
-            Some(c) if self.reproducible() => block_pixels(r, block_margin(c.options.max_pixels)),
+            Some(c) if self.reproducible() => {
+                let blocks = record_blocks(r, block_margin(c.options.max_pixels), resolution);
+                blocks
+                    .iter()
+                    .map(|b| u64::from(b.width) * u64::from(b.height))
+                    .sum()
+            }
             _ => area,
         };
         self.integrator.estimated_paths(camera, records)

@@ -39,10 +39,11 @@ pub fn tile_job(params: &TileParams, scene: &Scene, limits: &Limits) -> Result<T
     })
 }
 
-/// Refuses a job whose estimated paths exceed the work budget: camera
-/// paths of every pass, plus at most one record per pixel.
-pub fn check_work(job: &TileJob, limits: &Limits) -> Result<(), ApiError> {
-    limits.check_work(job.estimated_paths())
+/// Refuses a job on `scene` whose estimated paths exceed the work budget:
+/// camera paths of every pass, plus at most one record per pixel of the
+/// record blocks it may place.
+pub fn check_work(job: &TileJob, scene: &Scene, limits: &Limits) -> Result<(), ApiError> {
+    limits.check_work(job.estimated_paths(scene.camera.resolution()))
 }
 
 /// The content key of the records of `block` (a record block, or a tile

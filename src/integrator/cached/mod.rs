@@ -67,6 +67,4 @@ pub use shade::{CachedIntegrator, Gather, RecordGather, compute_record};
 pub use shade_point::{Bounce, OnMiss, ShadePoint};
 pub use spec::{CachedConfig, CachedSpec, DEFAULT_GLOSSY_BINS, DEFAULT_RECORD_SAMPLES, RecordsKey};
 pub use stats::ShadingStats;
-pub use tiles::{
-    CachedTileReport, RECORD_BLOCK, RecordBlock, block_margin, block_pixels, record_blocks,
-};
+pub use tiles::{CachedTileReport, RECORD_BLOCK, RecordBlock, block_margin, record_blocks};

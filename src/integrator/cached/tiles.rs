@@ -154,17 +154,6 @@ pub fn record_blocks(
         .collect()
 }
 
-/// The pixels of the blocks (module docs) placed for `request`, at most
-/// (the blocks of its margin not clipped to the image): what a work budget
-/// weighs as records.
-pub fn block_pixels(request: &TileRequest, margin: u32) -> u64 {
-    let b = RECORD_BLOCK;
-    let blocks = |start: u32, size: u32| {
-        u64::from((start + size.max(1) - 1) / b - start / b + 1 + 2 * margin)
-    };
-    blocks(request.x, request.width) * blocks(request.y, request.height) * u64::from(b * b)
-}
-
 /// One block's records (module docs), as a tile shades with them.
 #[derive(Clone, Copy, Debug)]
 pub struct RecordBlock<'a> {

@@ -250,7 +250,7 @@ pub async fn get_tile(
     if if_none_match(&headers, &etag) {
         return Ok((StatusCode::NOT_MODIFIED, common).into_response());
     }
-    check_work(&job, limits)?;
+    check_work(&job, scene.transport.scene(), limits)?;
     let shared = state.clone();
     let (tile, body, views_count) = state
         .pool

@@ -118,7 +118,7 @@ pub async fn tile(
         denoise: doc.denoise,
     };
     let job = tile_job(&params, scene.transport.scene(), limits)?;
-    check_work(&job, limits)?;
+    check_work(&job, scene.transport.scene(), limits)?;
     let format = doc.format;
     let shared = state.clone();
     let (tile, body) = state
