@@ -6,8 +6,7 @@
 //! (`integrator::cached::tiles`, "Record blocks"), placed once per block and
 //! shared by its passes and by the tiles around; what a caller keeps of
 //! them and of the passes between requests (the service's tile store) is a
-//! [`PassMemo`]: [`HeldBlocks`] keeps the blocks for one render,
-//! [`Unmemoised`] nothing.
+//! [`PassMemo`]; [`HeldBlocks`] keeps the blocks for one render.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
@@ -206,27 +205,6 @@ pub trait PassMemo {
         pass: u32,
         render: impl FnOnce() -> Result<RenderedPass, RenderError> + Send,
     ) -> Result<Arc<RenderedPass>, RenderError>;
-}
-
-/// Keeps nothing: every part is computed.
-pub struct Unmemoised;
-
-impl PassMemo for Unmemoised {
-    fn records_or(
-        &self,
-        _block: &TileRequest,
-        place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
-    ) -> Result<Arc<TileRecords>, RenderError> {
-        place().map(Arc::new)
-    }
-
-    fn pass_or(
-        &self,
-        _pass: u32,
-        render: impl FnOnce() -> Result<RenderedPass, RenderError> + Send,
-    ) -> Result<Arc<RenderedPass>, RenderError> {
-        render().map(Arc::new)
-    }
 }
 
 /// Keeps the record blocks' records in memory, passes not: the memo of one

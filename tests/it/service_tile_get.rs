@@ -372,3 +372,31 @@ async fn the_cli_renders_a_preset_as_the_get_tiles_do() {
         }
     }
 }
+
+/// No tile seams (issue 67): two adjacent GET tiles and the one tile
+/// holding both give every pixel the same value, so their shared edge is
+/// the image's own (each tile is shaded by the records of the blocks
+/// around it, not by its own records only). The first pass of the ladder
+/// is uniform, so nothing else of a pixel depends on its tile.
+#[tokio::test]
+async fn adjacent_tiles_share_their_edge_with_the_tile_holding_both() {
+    let app = spawn().await;
+    let app = &app;
+    let tile = |tx: u32, size: u32| async move {
+        let url = format!("/v1/scenes/box/tiles/{tx}/0.json?size={size}&preset=draft&pass=0");
+        let (status, _, body) = fetch(app, &url).await;
+        assert_eq!(status, StatusCode::OK, "{url}");
+        serde_json::from_slice::<Value>(&body).unwrap()
+    };
+    let (left, right, both) = (tile(0, 32).await, tile(1, 32).await, tile(0, 48).await);
+    let pixel = |t: &Value, width: usize, x: usize, y: usize| t["rgb"][y * width + x].clone();
+    for y in 0..32 {
+        for x in 0..48 {
+            let apart = match x < 32 {
+                true => pixel(&left, 32, x, y),
+                false => pixel(&right, 16, x - 32, y),
+            };
+            assert_eq!(apart, pixel(&both, 48, x, y), "({x}, {y})");
+        }
+    }
+}
