@@ -18,7 +18,9 @@
 //! With `reproducible`, both passes use a private cache (same configuration
 //! as the shared one), so the tile is bit-identical whatever the thread
 //! count or the shared cache's content; the private records that the shared
-//! cache does not already cover are then published to it.
+//! cache does not already cover are then published to it. Otherwise records
+//! are placed in and read from the shared cache: a second request for the
+//! same tile finds them and traces only camera, shadow and fallback rays.
 //!
 //! # Record blocks: no tile seams
 //! A tile shaded only by its own records shows its edges: pixels on either
@@ -26,16 +28,17 @@
 //! Progressive tiles (`integrator::progressive`: presets, GET tiles,
 //! `render --preset`) therefore place records per **block** of a fixed grid
 //! of the image ([`RECORD_BLOCK`] pixels, aligned to its top-left corner),
-//! each block's records a function of the block alone ([`Self::tile_records`]
+//! each block's records a function of the block alone ([`CachedIntegrator::tile_records`]
 //! of its rectangle), and shade a tile with the records of every block
-//! within [`block_margin`] blocks of it ([`Self::record_blocks`],
-//! [`Self::render_tile_from_blocks`]). A record reaches at most `max_pixels`
+//! within [`block_margin`] blocks of it ([`CachedIntegrator::record_blocks`],
+//! [`CachedIntegrator::render_tile_from_blocks`]). A record reaches at most `max_pixels`
 //! footprints from its point, so every record that covers a pixel comes
 //! from a block the pixel's tile includes, whatever the tiling: the image
 //! does not depend on how it is cut into tiles, and tiles share the cost of
-//! the blocks they have in common. Otherwise records
-//! are placed in and read from the shared cache: a second request for the
-//! same tile finds them and traces only camera, shadow and fallback rays.
+//! the blocks they have in common. (Lookups at points reached through a
+//! mirror or glass chain, or by a glossy lobe's samples, may lie outside
+//! the tile's blocks: there no record covers them and they are path
+//! traced, so those pixels still depend on the tiling, without bias.)
 
 use std::sync::Mutex;
 
