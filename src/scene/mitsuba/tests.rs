@@ -194,6 +194,48 @@ fn lookat_camera_matches_json_look_at() {
     );
 }
 
+/// A `<lookat>` without `up`, or with a zero one, takes Mitsuba 3's: the
+/// first tangent of `coordinate_system(normalize(target − origin))`, which
+/// is (1, 0, 0) for a view along −z; checked against the explicit `up` it
+/// stands for, along −z and along a slanted direction.
+#[test]
+fn lookat_without_up_takes_mitsubas() {
+    let camera = |lookat: &str| {
+        let text = format!(
+            r#"<scene version="3.0.0"><bsdf type="diffuse" id="w"/>
+               <sensor type="perspective"><float name="fov" value="40"/>
+               <transform name="to_world">{lookat}</transform>
+               <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+               </sensor></scene>"#
+        );
+        let (scene, _) = load_in(&text, &scenes_dir(), false).unwrap_or_else(|e| panic!("{e}"));
+        format!("{:?}", scene.camera)
+    };
+    let down = camera(r#"<lookat origin="0, 0, 5" target="0, 0, 0"/>"#);
+    assert_eq!(
+        down,
+        camera(r#"<lookat origin="0, 0, 5" target="0, 0, 0" up="0 0 0"/>"#)
+    );
+    assert_eq!(
+        down,
+        camera(r#"<lookat origin="0, 0, 5" target="0, 0, 0" up="1, 0, 0"/>"#)
+    );
+    let n = DVec3::new(1.0, 2.0, -2.0).normalize();
+    let s = crate::sphere::Frame::from_normal(n).s;
+    let slanted = camera(r#"<lookat origin="0, 0, 0" target="1, 2, -2"/>"#);
+    let explicit = format!(
+        r#"<lookat origin="0, 0, 0" target="1, 2, -2" up="{}, {}, {}"/>"#,
+        s.x, s.y, s.z
+    );
+    assert_eq!(slanted, camera(&explicit));
+    // A view of zero length stays refused.
+    let same = r#"<lookat origin="1, 1, 1" target="1, 1, 1"/>"#;
+    let text = format!(
+        r#"<scene version="3.0.0"><sensor type="perspective"><transform name="to_world">{same}</transform></sensor></scene>"#
+    );
+    assert!(load_in(&text, &scenes_dir(), false).is_err());
+}
+
 #[test]
 fn analytic_shapes_and_flip_normals() {
     let scene = ok(r#"

@@ -4,10 +4,13 @@
 //! loader (finite, magnitude ≤ 1e12, invertible); its errors are mapped back
 //! to the operation's line through the recorded origins.
 
+use glam::DVec3;
+
 use super::parse::Element;
 use super::props::{numbers, vec3};
 use super::{Ctx, Origin, XmlError};
 use crate::scene::format::{TransformDoc, TransformOp};
+use crate::sphere::Frame;
 
 /// Operations with the element each came from.
 #[derive(Clone, Default)]
@@ -20,6 +23,18 @@ fn three(el: &Element, attr: &str) -> Result<[f64; 3], XmlError> {
     match numbers(el, attr)?[..] {
         [x, y, z] => Ok([x, y, z]),
         ref v => Err(el.error(attr, format!("expected 3 numbers, found {}", v.len()))),
+    }
+}
+
+/// A `<lookat>`'s `up`, or where it is absent or zero, Mitsuba 3's choice:
+/// the first tangent of its coordinate system about the viewing direction
+/// (`coordinate_system`, Duff et al.'s basis, [`Frame::from_normal`]). A
+/// view of zero length keeps the zero, which the loader refuses.
+fn up_or_default(up: [f64; 3], origin: [f64; 3], target: [f64; 3]) -> [f64; 3] {
+    let view = (DVec3::from(target) - DVec3::from(origin)).normalize_or_zero();
+    match up == [0.0; 3] && view != DVec3::ZERO {
+        true => Frame::from_normal(view).s.to_array(),
+        false => up,
     }
 }
 
@@ -63,11 +78,18 @@ fn op(c: &Element) -> Result<TransformOp, XmlError> {
             };
             TransformOp::Matrix(rows)
         }
-        "lookat" => TransformOp::LookAt {
-            origin: three(c, "origin")?,
-            target: three(c, "target")?,
-            up: three(c, "up")?,
-        },
+        "lookat" => {
+            let (origin, target) = (three(c, "origin")?, three(c, "target")?);
+            let up = match c.attr("up") {
+                Some(_) => three(c, "up")?,
+                None => [0.0; 3],
+            };
+            TransformOp::LookAt {
+                origin,
+                target,
+                up: up_or_default(up, origin, target),
+            }
+        }
         other => {
             return Err(c.error(
                 "",
