@@ -17,6 +17,7 @@ mod sensor;
 mod shape;
 mod texture;
 mod transform;
+mod upgrade;
 
 #[cfg(test)]
 mod tests;
@@ -340,10 +341,16 @@ fn translate_and_build(
 ) -> Result<(Scene, Warnings), SceneError> {
     let budget = Budget::new(limits);
     let bitmaps = Bitmaps::new(files, &budget);
-    let scene_el = parse::parse(text, &options.parameters).map_err(|e| e.into_scene_error(file))?;
+    let mut scene_el =
+        parse::parse(text, &options.parameters).map_err(|e| e.into_scene_error(file))?;
+    let version = scene_el.attr("version").and_then(upgrade::parse_version);
+    let upgraded = version.map_or_else(Vec::new, |v| upgrade::upgrade(&mut scene_el, v));
     let ids = parse::index_ids(&scene_el).map_err(|e| e.into_scene_error(file))?;
     budget.check_cancel()?;
     let mut ctx = Ctx::new(ids, options, &bitmaps);
+    for change in upgraded {
+        ctx.warn(&scene_el, change);
+    }
     let converted = convert_scene(&mut ctx, &scene_el);
     // A strict document's unsupported features come first: an error met
     // afterwards may be one of their stand-ins failing.
@@ -381,21 +388,21 @@ pub(crate) fn load(
 }
 
 /// Supported `<scene version>`: Mitsuba 2 and 3 share the plugin names and
-/// conventions used here.
+/// conventions used here; Mitsuba 0.x documents were upgraded to them
+/// (`upgrade`).
 fn check_version(ctx: &mut Ctx, scene: &Element) -> Result<(), XmlError> {
     let version = scene
         .attr("version")
         .ok_or_else(|| scene.error("version", "missing `version` (e.g. \"3.0.0\")"))?;
-    let major = version
-        .split('.')
-        .next()
-        .and_then(|m| m.parse::<u32>().ok());
-    match major {
-        Some(2 | 3) => Ok(()),
+    match upgrade::parse_version(version) {
+        Some((0..=3, _, _)) => Ok(()),
         _ => ctx.unsupported(
             scene,
             "version",
-            &format!("version {} is not a Mitsuba 2 or 3 scene", quote(version)),
+            &format!(
+                "version {} is not a Mitsuba 0.x, 2 or 3 scene",
+                quote(version)
+            ),
             "reading it with Mitsuba 3 conventions",
         ),
     }

@@ -867,8 +867,9 @@ fn parse_level_errors_carry_lines() {
         "</shape>".repeat(200)
     );
     assert!(load_err(&deep).to_string().contains("nested deeper"));
-    let e = load_err(r#"<scene version="0.6.0"/>"#);
-    assert!(e.to_string().contains("0.6.0"));
+    // Mitsuba 0.x documents are upgraded; a version from the future is not read.
+    let e = load_err(r#"<scene version="4.0.0"/>"#);
+    assert!(e.to_string().contains("4.0.0"), "{e}");
     let e = load_err(r#"<scene/>"#);
     assert!(e.to_string().contains("version"));
     let e = load_err(r#"<scene version="3.0.0"/>"#);
@@ -1291,4 +1292,72 @@ fn a_cancelled_load_stops() {
     }
     let json = Scene::load_within(&dir.join("mesh.json"), &dir, &options(false), &limits);
     assert!(matches!(json, Err(SceneError::Cancelled)));
+}
+
+/// A Mitsuba 0.5 document (camelCase names, `<lookAt>`, a diffuse BSDF's
+/// `diffuseReflectance`, `uscale`/`vscale`) is read as Mitsuba 3 upgrades
+/// it: the same scene (content digest) as the 3.0 document written by
+/// hand, with the upgrades listed among the warnings, in strict mode.
+#[test]
+fn mitsuba_0_5_documents_are_upgraded_as_mitsuba_3_upgrades_them() {
+    let scene = |version: &str, body: &str| {
+        let text = format!(
+            r#"<scene version="{version}">
+  <sensor type="perspective"><float name="fov" value="40"/>
+    <transform name="{to_world}"><{lookat} origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <sampler type="independent"><integer name="{spp}" value="16"/></sampler>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+  {body}
+  <emitter type="point"><point name="position" x="0" y="2" z="2"/><rgb name="intensity" value="1"/></emitter>
+</scene>"#,
+            to_world = if version == "0.5.0" {
+                "toWorld"
+            } else {
+                "to_world"
+            },
+            lookat = if version == "0.5.0" {
+                "lookAt"
+            } else {
+                "lookat"
+            },
+            spp = if version == "0.5.0" {
+                "sampleCount"
+            } else {
+                "sample_count"
+            },
+        );
+        load_in(&text, &scenes_dir(), false).unwrap_or_else(|e| panic!("{version}: {e}"))
+    };
+    let (old, warnings) = scene(
+        "0.5.0",
+        r#"<bsdf type="diffuse" id="w"><texture type="checkerboard" name="diffuseReflectance">
+             <float name="uscale" value="2"/><float name="vscale" value="3"/></texture></bsdf>
+           <bsdf type="dielectric" id="g"><float name="intIOR" value="1.33"/><float name="extIOR" value="1.0"/></bsdf>
+           <shape type="sphere"><ref id="g"/></shape>
+           <shape type="rectangle"><ref id="w"/><transform name="toWorld"><translate z="-1"/></transform></shape>"#,
+    );
+    let (new, none) = scene(
+        "3.0.0",
+        r#"<bsdf type="diffuse" id="w"><texture type="checkerboard" name="reflectance">
+             <transform name="to_uv"><scale x="2" y="3"/></transform></texture></bsdf>
+           <bsdf type="dielectric" id="g"><float name="int_ior" value="1.33"/><float name="ext_ior" value="1.0"/></bsdf>
+           <shape type="sphere"><ref id="g"/></shape>
+           <shape type="rectangle"><ref id="w"/><transform name="to_world"><translate z="-1"/></transform></shape>"#,
+    );
+    assert_eq!(old.digest, new.digest);
+    assert_eq!(none.total(), 0, "{none:?}");
+    let said: Vec<String> = warnings.iter().map(|w| w.message.clone()).collect();
+    for expected in [
+        "`toWorld` read as `to_world` (2×)",
+        "`intIOR` read as `int_ior` (1×)",
+        "<lookAt> read as <lookat> (1×)",
+        "a diffuse BSDF's `diffuse_reflectance` read as `reflectance` (1×)",
+        "`uoffset`/`voffset`/`uscale`/`vscale` read as a `to_uv` transform (1×)",
+    ] {
+        assert!(
+            said.iter().any(|m| m.ends_with(expected)),
+            "{expected}: {said:?}"
+        );
+    }
 }
