@@ -147,7 +147,8 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
     // is built.
     // Each shape's mesh file is resolved once, here.
     let (mut wanted, mut keys) = (Vec::new(), Vec::with_capacity(doc.shapes.len()));
-    let mut inline = 0usize;
+    // Each shape's inline triangles, counted once.
+    let mut inline = Vec::with_capacity(doc.shapes.len());
     for (i, s) in doc.shapes.iter().enumerate() {
         let field = format!("shapes[{i}]");
         let fields = ShapeFields {
@@ -165,10 +166,11 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
             }
             _ => None,
         };
-        inline += (plugin.inline_triangles)(&fields)?;
+        inline.push((plugin.inline_triangles)(&fields)?);
         keys.push(key);
     }
-    let meshes = MeshFiles::read_all(wanted, MAX_TRIANGLES - inline.min(MAX_TRIANGLES), budget)?;
+    let listed = inline.iter().sum::<usize>().min(MAX_TRIANGLES);
+    let meshes = MeshFiles::read_all(wanted, MAX_TRIANGLES - listed, budget)?;
     // The mesh of each shape that names a file.
     let shape_meshes: Vec<Option<Arc<MeshData>>> = keys
         .iter()
@@ -177,14 +179,9 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
     let mut triangles = 0usize;
     for (i, s) in doc.shapes.iter().enumerate() {
         let field = format!("shapes[{i}]");
-        let plugin = s.kind.plugin();
-        let fields = ShapeFields {
-            doc: s,
-            field: &field,
-        };
         // A plugin's triangles are fixed, listed inline or in its file.
-        let shape_triangles = plugin.fixed_triangles
-            + (plugin.inline_triangles)(&fields)?
+        let shape_triangles = s.kind.plugin().fixed_triangles
+            + inline[i]
             + shape_meshes[i]
                 .as_ref()
                 .map_or(0, |mesh| mesh.indices.len());

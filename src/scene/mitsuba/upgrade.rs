@@ -69,11 +69,12 @@ fn walk(el: &mut Element, parent: Option<(&str, &str)>, changed: &mut BTreeMap<S
     if uv_transform(el) {
         count("`uoffset`/`voffset`/`uscale`/`vscale` read as a `to_uv` transform".into());
     }
-    let tag = el.tag.clone();
-    let kind = el.attr("type").unwrap_or("").to_owned();
-    for child in &mut el.children {
-        walk(child, Some((&tag, &kind)), changed);
+    let mut children = std::mem::take(&mut el.children);
+    let parent = Some((el.tag.as_str(), el.attr("type").unwrap_or("")));
+    for child in &mut children {
+        walk(child, parent, changed);
     }
+    el.children = children;
 }
 
 /// Mitsuba 3's camelCase → snake_case of a property name, step for step

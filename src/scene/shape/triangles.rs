@@ -67,16 +67,10 @@ fn inline_mesh(f: &ShapeFields, max_triangles: usize) -> Result<MeshData, SceneE
         }
         out.push(vertices);
     }
-    let normals = match f.rows("normals", 3)? {
+    let normals = match per_vertex(f, "normals", 3, positions.len())? {
         None => None,
         Some(ns) => {
             let field = f.path("normals");
-            if ns.len() != 3 * positions.len() {
-                return Err(SceneError::invalid(
-                    field,
-                    format!("{} normals for {} positions", ns.len() / 3, positions.len()),
-                ));
-            }
             let mut out = Vec::with_capacity(positions.len());
             for (i, n) in rows3(ns, &field)?.into_iter().enumerate() {
                 let n = n.try_normalize().ok_or_else(|| {
@@ -87,18 +81,12 @@ fn inline_mesh(f: &ShapeFields, max_triangles: usize) -> Result<MeshData, SceneE
             Some(out)
         }
     };
-    let uvs = match f.rows("uvs", 2)? {
+    let uvs = match per_vertex(f, "uvs", 2, positions.len())? {
         None => None,
         Some(uvs) => {
-            let field = f.path("uvs");
-            if uvs.len() != 2 * positions.len() {
-                return Err(SceneError::invalid(
-                    field,
-                    format!("{} uvs for {} positions", uvs.len() / 2, positions.len()),
-                ));
-            }
             if let Some(i) = uvs.iter().position(|x| !x.is_finite()) {
-                return Err(SceneError::invalid(format!("{field}[{}]", i / 2), "not finite"));
+                let field = format!("{}[{}]", f.path("uvs"), i / 2);
+                return Err(SceneError::invalid(field, "not finite"));
             }
             Some(uvs.chunks_exact(2).map(|uv| DVec2::new(uv[0], uv[1])).collect())
         }
@@ -109,6 +97,24 @@ fn inline_mesh(f: &ShapeFields, max_triangles: usize) -> Result<MeshData, SceneE
         normals,
         uvs,
     })
+}
+
+/// Optional list `name` of one row of `arity` numbers per vertex, refused
+/// (naming it) when its length is not the `vertices`'.
+fn per_vertex<'a>(
+    f: &ShapeFields<'a>,
+    name: &str,
+    arity: usize,
+    vertices: usize,
+) -> Result<Option<&'a [f64]>, SceneError> {
+    let rows = f.rows(name, arity)?;
+    match rows {
+        Some(r) if r.len() != arity * vertices => Err(SceneError::invalid(
+            f.path(name),
+            format!("{} {name} for {vertices} positions", r.len() / arity),
+        )),
+        _ => Ok(rows),
+    }
 }
 
 /// Rows of three finite numbers as vectors; `field` names the list.
