@@ -7,6 +7,9 @@
 //! into a throughput. Channels are linear (no gamma) and in the scene's units,
 //! e.g. W/(m²·sr) for radiance and W/m² for irradiance.
 
+pub mod cie;
+pub mod spectrum;
+
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Sub};
 
 /// Linear RGB as three numbers in channel order: the form scene documents

@@ -121,6 +121,12 @@ impl<'a> Bitmaps<'a> {
         }
     }
 
+    /// The scene's file names, which the scene's other readers resolve
+    /// through too.
+    pub(crate) fn files(&self) -> &'a Files {
+        self.files
+    }
+
     /// The load's budget, which the scene's other readers share.
     pub(crate) fn budget(&self) -> &'a Budget {
         self.budget

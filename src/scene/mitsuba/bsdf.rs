@@ -9,6 +9,7 @@
 use serde_json::{Map, Value};
 
 use crate::color::RgbArray;
+use crate::color::spectrum::SpectrumUse;
 use crate::scene::format::MaterialDoc;
 use crate::scene::material::{Material, plugin_names};
 
@@ -140,7 +141,7 @@ fn describe<'a>(
             continue;
         };
         let value = match target.tag.as_str() {
-            "rgb" | "spectrum" | "texture" => parameter(ctx, child)?,
+            "rgb" | "spectrum" | "texture" => parameter(ctx, child, spectrum_use(name))?,
             "float" | "integer" => Value::from(super::props::number(target, "value")?),
             "string" => Value::from(target.attr("value").unwrap_or_default()),
             "boolean" => match target.attr("value").map(str::trim) {
@@ -202,4 +203,14 @@ fn describe<'a>(
     }
     ctx.leave();
     Ok((kind.to_string(), params))
+}
+
+/// What a BSDF's colour property describes, as Mitsuba's BSDFs read it: a
+/// conductor's complex index of refraction (`eta`, `k`) has no upper
+/// bound, every other colour is a reflectance or transmittance.
+fn spectrum_use(name: &str) -> SpectrumUse {
+    match name {
+        "eta" | "k" => SpectrumUse::Unbounded,
+        _ => SpectrumUse::Reflectance,
+    }
 }

@@ -6,6 +6,7 @@
 use glam::DVec3;
 use serde_json::{Map, Value};
 
+use crate::color::spectrum::SpectrumUse;
 use crate::scene::emitter::{Emitter, light_names};
 use crate::scene::format::{EnvironmentDoc, EnvironmentKind};
 use crate::scene::transform;
@@ -22,7 +23,13 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<(), XmlError
     let environment = match kind {
         "constant" => EnvironmentDoc {
             kind: EnvironmentKind::Constant,
-            radiance: Some(color(ctx, &mut props, "radiance", [1.0; 3])?),
+            radiance: Some(color(
+                ctx,
+                &mut props,
+                "radiance",
+                [1.0; 3],
+                SpectrumUse::Emission,
+            )?),
             filename: None,
             scale: None,
             to_world: None,
@@ -124,7 +131,7 @@ fn light<'a>(
             "float" | "integer" if !Emitter::takes_colour(kind, name) => {
                 Value::from(number(target, "value")?)
             }
-            _ => Value::from(value(ctx, child)?.to_vec()),
+            _ => Value::from(value(ctx, child, SpectrumUse::Emission)?.to_vec()),
         };
         doc.insert(name.to_string(), value);
         copied.push((name, child));

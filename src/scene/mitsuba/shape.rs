@@ -4,6 +4,7 @@
 //! `instance` of a `shapegroup` adds the group's shapes with the
 //! instance's `to_world` applied after their own.
 
+use crate::color::spectrum::SpectrumUse;
 use crate::scene::MAX_SHAPES;
 use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind, ShapeParam};
 
@@ -104,7 +105,7 @@ fn area<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<EmitterDoc, XmlError> 
     let mut props = Props::new(el);
     // A colour, or a texture over the shape (Mitsuba's textured area light).
     let radiance = match props.get("radiance")? {
-        Some(child) => parameter(ctx, child)?,
+        Some(child) => parameter(ctx, child, SpectrumUse::Emission)?,
         None => serde_json::Value::from(vec![1.0; 3]),
     };
     props.finish(ctx)?;

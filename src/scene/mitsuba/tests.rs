@@ -454,6 +454,89 @@ fn emitters_area_constant_envmap_and_point() {
 }
 
 #[test]
+fn spectra_read_as_mitsubas_rgb_variants_read_them() {
+    // A one-valued spectrum on an emitter is the equal-energy white.
+    let white = [1.204794, 0.948291, 0.908916];
+    let scene = ok(r#"
+      <shape type="rectangle"><ref id="w"/><emitter type="area"><spectrum name="radiance" value="2"/></emitter></shape>
+      <emitter type="constant"><spectrum name="radiance" value="1"/></emitter>"#);
+    let [
+        Emitter::Area(AreaLight {
+            radiance: Texture::Constant(radiance),
+            ..
+        }),
+    ] = scene.emitters[..]
+    else {
+        panic!("{:?}", scene.emitters)
+    };
+    let Some(Environment::Constant { radiance: sky }) = scene.environment else {
+        panic!()
+    };
+    for c in 0..3 {
+        assert!((radiance[c] - 2.0 * white[c]).abs() < 1e-5, "{radiance:?}");
+        assert!((sky[c] - white[c]).abs() < 1e-5, "{sky:?}");
+    }
+
+    // A spectrum file is resolved beside the scene and read once.
+    let dir = Scratch::new("spectra");
+    std::fs::write(dir.0.join("flat.spd"), "# flat\n360 1\n830 1\n").unwrap();
+    std::fs::write(dir.0.join("bad.spd"), "400 0.5\n500 half\n").unwrap();
+    let light = |spectrum: &str| {
+        wrap(&format!(
+            r#"<emitter type="point"><point name="position" value="0 1 0"/>{spectrum}</emitter>"#
+        ))
+    };
+    let (scene, _) = load_in(
+        &light(r#"<spectrum name="intensity" filename="flat.spd"/>"#),
+        &dir.0,
+        false,
+    )
+    .unwrap();
+    let Emitter::Point(PointLight { intensity, .. }) = scene.emitters[0] else {
+        panic!()
+    };
+    // Mitsuba 3.9.1: spectrum_list_to_srgb([360, 830], [1, 1], false, false).
+    let flat = [1.20488, 0.948229, 0.909267];
+    for c in 0..3 {
+        assert!((intensity[c] - flat[c]).abs() < 2e-5, "{intensity:?}");
+    }
+
+    // Malformed spectra are refused naming the attribute and the problem.
+    for (spectrum, says) in [
+        (
+            r#"<spectrum name="intensity" value="1" filename="flat.spd"/>"#,
+            "exactly one",
+        ),
+        (
+            r#"<spectrum name="intensity" filename="missing.spd"/>"#,
+            "filename",
+        ),
+        (
+            r#"<spectrum name="intensity" filename="bad.spd"/>"#,
+            "line 2",
+        ),
+        (
+            r#"<spectrum name="intensity" filename="../outside.spd"/>"#,
+            "filename",
+        ),
+        (
+            r#"<spectrum name="intensity" value="500:1, 400:2"/>"#,
+            "must increase",
+        ),
+        (
+            r#"<spectrum name="intensity" type="blackbody"/>"#,
+            "blackbody",
+        ),
+    ] {
+        let e = load_in(&light(spectrum), &dir.0, false)
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(says), "{spectrum}: {e}");
+    }
+}
+
+#[test]
 fn sensor_fov_axes_and_focal_length() {
     let cam = |sensor: &str| {
         let text = format!(

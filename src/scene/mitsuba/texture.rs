@@ -3,15 +3,18 @@
 //! [`parameter`], which copies the `<texture>`'s properties for the
 //! plugin's own parser to read; everything else that takes a
 //! colour (emitters' radiance) becomes one RGB triple through [`value`].
-//! Constant `<rgb>`, `<float>` and single-valued `<spectrum>` are exact;
-//! with `lenient`, a texture where only a constant is supported becomes
-//! its mean linear colour, a sampled spectrum the mean of its values,
-//! anything else mid grey.
+//! Constant `<rgb>` and `<float>` are exact, and so is `<spectrum>` (one
+//! value, `λ:v` pairs or a spectrum file), read into RGB as Mitsuba 3's
+//! RGB variants read it for what the property describes
+//! ([`SpectrumUse`]); with `lenient`, a texture where only a constant is
+//! supported becomes its mean linear colour, anything else mid grey.
 
 use serde_json::{Map, Value};
 
 use crate::color::RgbArray;
+use crate::color::spectrum::{SampledSpectrum, SpectrumUse, uniform_to_rgb};
 use crate::scene::params::Params;
+use crate::scene::read::read_to_string;
 use crate::scene::texture::{Texture, plugin_names};
 
 use super::parse::{Element, quote};
@@ -23,26 +26,37 @@ use super::{Ctx, XmlError};
 /// stand-in for textures that have no sensible mean.
 const GREY: RgbArray = [0.5; 3];
 
-/// The RGB value of property `name` of `props`, or `default` if absent.
+/// Largest spectrum file read, in bytes (a 1-nm table over 300–1000 nm is
+/// about 10 kB).
+const MAX_SPECTRUM_FILE_BYTES: u64 = 1 << 20;
+
+/// The RGB value of property `name` of `props`, describing `usage`, or
+/// `default` if absent.
 pub(crate) fn color<'a>(
     ctx: &mut Ctx<'a>,
     props: &mut Props<'a>,
     name: &str,
     default: RgbArray,
+    usage: SpectrumUse,
 ) -> Result<RgbArray, XmlError> {
     match props.get(name)? {
-        Some(el) => value(ctx, el),
+        Some(el) => value(ctx, el, usage),
         None => Ok(default),
     }
 }
 
-/// The document value of a BSDF's colour property `el` (following
-/// `<ref>`s): `[r, g, b]`, or a texture document for a supported texture.
-pub(crate) fn parameter<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Value, XmlError> {
+/// The document value of a colour property `el` describing `usage`
+/// (following `<ref>`s): `[r, g, b]`, or a texture document for a
+/// supported texture.
+pub(crate) fn parameter<'a>(
+    ctx: &mut Ctx<'a>,
+    el: &'a Element,
+    usage: SpectrumUse,
+) -> Result<Value, XmlError> {
     let target = ctx.deref(el)?;
     let kind = target.attr("type").unwrap_or("");
     if target.tag != "texture" || !plugin_names().contains(&kind) {
-        return Ok(Value::from(value(ctx, el)?.to_vec()));
+        return Ok(Value::from(value(ctx, el, usage)?.to_vec()));
     }
     ctx.enter(target)?;
     let mut doc = document(ctx, target, kind)?;
@@ -82,7 +96,9 @@ fn document<'a>(
                     .map_err(|e| child.error("", format!("cannot translate: {e}")))?,
                 None => continue,
             },
-            _ => Value::from(value(ctx, child)?.to_vec()),
+            // A texture's own colours are reflectance-like whatever uses
+            // the texture, as Mitsuba's texture plugins read them.
+            _ => Value::from(value(ctx, child, SpectrumUse::Reflectance)?.to_vec()),
         };
         doc.insert(name.to_string(), value);
     }
@@ -97,8 +113,13 @@ fn document<'a>(
     Ok(doc)
 }
 
-/// The RGB value of a colour element (following `<ref>`s).
-pub(crate) fn value<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<RgbArray, XmlError> {
+/// The RGB value of a colour element describing `usage` (following
+/// `<ref>`s).
+pub(crate) fn value<'a>(
+    ctx: &mut Ctx<'a>,
+    el: &'a Element,
+    usage: SpectrumUse,
+) -> Result<RgbArray, XmlError> {
     let target = ctx.deref(el)?;
     ctx.enter(target)?;
     let out = match target.tag.as_str() {
@@ -111,7 +132,7 @@ pub(crate) fn value<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<RgbArray, 
             )),
         },
         "float" => Ok([super::props::number(target, "value")?; 3]),
-        "spectrum" => spectrum(ctx, target),
+        "spectrum" => spectrum(ctx, target, usage),
         "texture" => {
             let kind = target.attr("type").unwrap_or("");
             let supported = plugin_names().contains(&kind);
@@ -140,45 +161,45 @@ pub(crate) fn value<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<RgbArray, 
     out
 }
 
-fn spectrum(ctx: &mut Ctx, el: &Element) -> Result<RgbArray, XmlError> {
-    if el.attr("filename").is_some() {
+/// A `<spectrum>` property as Mitsuba 3's RGB variants read it for
+/// `usage`: one value, `λ:v` pairs, or a spectrum file (relative to the
+/// scene file, within the scenes directory), exactly one of them.
+fn spectrum(ctx: &mut Ctx, el: &Element, usage: SpectrumUse) -> Result<RgbArray, XmlError> {
+    if let Some(kind) = el.attr("type") {
         ctx.unsupported(
             el,
-            "filename",
-            "spectra read from files are not supported",
+            "type",
+            &format!("spectrum plugin {} is not supported", quote(kind)),
             "using mid grey",
         )?;
         return Ok(GREY);
     }
-    let text = el
-        .attr("value")
-        .ok_or_else(|| el.error("value", "missing attribute `value`"))?;
-    if !text.contains(':') {
-        return Ok([super::props::number(el, "value")?; 3]);
-    }
-    // Sampled spectrum "λ1:v1, λ2:v2, ...".
-    let mut values = Vec::new();
-    for pair in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let v = pair
-            .split_once(':')
-            .and_then(|(_, v)| v.trim().parse::<f64>().ok())
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| {
-                el.error(
-                    "value",
-                    format!("{} is not `wavelength:value`", quote(pair)),
-                )
-            })?;
-        values.push(v);
-    }
-    ctx.unsupported(
-        el,
-        "value",
-        "sampled spectra are not supported (the scene model is RGB)",
-        "using the mean of the sampled values as grey",
-    )?;
-    let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
-    Ok([mean; 3])
+    let sampled = match (el.attr("value"), el.attr("filename")) {
+        (Some(text), None) if !text.contains(':') => {
+            return Ok(uniform_to_rgb(super::props::number(el, "value")?, usage));
+        }
+        (Some(text), None) => {
+            SampledSpectrum::parse_pairs(text).map_err(|e| el.error("value", e))?
+        }
+        (None, Some(name)) => {
+            let path = ctx
+                .bitmaps
+                .files()
+                .resolve(name, "filename")
+                .map_err(|e| el.error("filename", e.to_string()))?;
+            let text = read_to_string(&path, MAX_SPECTRUM_FILE_BYTES)
+                .map_err(|e| el.error("filename", format!("cannot read {}: {e}", quote(name))))?;
+            SampledSpectrum::parse_file(&text)
+                .map_err(|e| el.error("filename", format!("{}: {e}", quote(name))))?
+        }
+        _ => {
+            return Err(el.error(
+                "value",
+                "a <spectrum> takes `value` or `filename`, exactly one of them",
+            ));
+        }
+    };
+    Ok(sampled.to_rgb(usage).to_array())
 }
 
 /// The mean linear colour of texture element `el`, the stand-in of a
