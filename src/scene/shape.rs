@@ -161,6 +161,7 @@ plugins! {
     Cube(cube::CubeShape) = "cube",
     Sphere(sphere::SphereShape) = "sphere",
     Disk(disk::DiskShape) = "disk",
+    Cylinder(cylinder::CylinderShape) = "cylinder",
     Obj(obj::ObjShape) = "obj",
     Ply(ply::PlyShape) = "ply",
     Serialized(serialized::SerializedShape) = "serialized",

@@ -545,14 +545,28 @@ fn broken_inputs_name_the_field_or_file() {
         from_str(&text, &root).err().unwrap().field(),
         Some("shapes[0].to_world")
     );
-    let text = scene_json(
-        r#"{"type": "sphere", "material": "m", "to_world": [{"scale": [1, 2, 1]}]}"#,
-        "",
-    );
-    assert_eq!(
-        from_str(&text, &root).err().unwrap().field(),
-        Some("shapes[0].to_world")
-    );
+    // Non-similarity spheres and cylinders, a cylinder without an axis.
+    for (shape, field) in [
+        (
+            r#"{"type": "sphere", "material": "m", "to_world": [{"scale": [1, 2, 1]}]}"#,
+            "shapes[0].to_world",
+        ),
+        (
+            r#"{"type": "cylinder", "material": "m", "to_world": [{"scale": [1, 1, 3]}]}"#,
+            "shapes[0].to_world",
+        ),
+        (
+            r#"{"type": "cylinder", "material": "m", "p0": [1, 2, 3], "p1": [1, 2, 3]}"#,
+            "shapes[0].p1",
+        ),
+        (
+            r#"{"type": "cylinder", "material": "m", "radius": 0}"#,
+            "shapes[0].radius",
+        ),
+    ] {
+        let text = scene_json(shape, "");
+        assert_eq!(from_str(&text, &root).err().unwrap().field(), Some(field));
+    }
     // Out-of-range index in an inline mesh.
     let text = scene_json(
         r#"{"type": "triangles", "material": "m", "positions": [[0,0,0],[1,0,0],[0,1,0]], "indices": [[0, 1, 3]]}"#,
@@ -764,6 +778,8 @@ mod fuzz {
         r#"{"type": "cube", "material": "nope"}"#,
         r#"{"type": "cube", "material": "m", "material": "m"}"#,
         r#"{"type": "sphere", "material": "m", "radius": -1}"#,
+        r#"{"type": "cylinder", "material": "m", "p0": [0, 0, 0], "p1": [0, 2, 0], "radius": 0.5}"#,
+        r#"{"type": "cylinder", "material": "m", "p1": [0, 0, 0]}"#,
     ];
 
     proptest! {
@@ -864,7 +880,7 @@ fn shape_types_are_the_registry_names() {
     let e = from_str(&scene_json(bad, ""), &dir.0).err().unwrap();
     assert!(
         e.to_string().contains(
-            "unknown variant `spheroid`, expected one of `rectangle`, `cube`, `sphere`, `disk`, `obj`, `ply`, `serialized`, `triangles`"
+            "unknown variant `spheroid`, expected one of `rectangle`, `cube`, `sphere`, `disk`, `cylinder`, `obj`, `ply`, `serialized`, `triangles`"
         ),
         "{e}"
     );

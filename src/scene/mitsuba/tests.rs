@@ -818,8 +818,8 @@ fn unknown_plugin_names_plugin_and_line() {
     let (_, warnings) = load_in(&text, &scenes_dir(), true).unwrap();
     assert!(warnings[0].message.contains("principled"));
 
-    let e = err(r#"<shape type="cylinder"/>"#);
-    assert!(e.contains("cylinder"), "{e}");
+    let e = err(r#"<shape type="ellipsoids"/>"#);
+    assert!(e.contains("ellipsoids"), "{e}");
     let e = err(r#"<emitter type="projector"/>"#);
     assert!(e.contains("projector"), "{e}");
     let text = wrap(r#"<bsdf type="diffuse"><float name="roughness" value="1"/></bsdf>"#);
