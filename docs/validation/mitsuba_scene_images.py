@@ -9,7 +9,8 @@ roughness on conductors and a dielectric), `anisotropy.xml` (anisotropic
 lobes along each shape's u direction), `textured_lights.xml` (area lights
 with checkerboard and bitmap radiance), `spectra.xml` (spectra on emitters,
 reflectances and a conductor's `eta`/`k`, and a `.spd` file), `cylinders.xml`
-(textured, open and emitting cylinders), `envmap.xml` (a rotated, scaled HDR map),
+(textured, open and emitting cylinders), `orthographic.xml` (an
+orthographic sensor), `envmap.xml` (a rotated, scaled HDR map),
 `hide_emitters.xml` and `thinlens.xml`; and `studio`, the bundled
 `scenes/studio.xml` (every kind of material and light at once), at 80x60 to
 `tests/data/mitsuba/studio_mitsuba.exr`.
@@ -27,7 +28,7 @@ the images the scenes read:
 Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
 
     python docs/validation/mitsuba_scene_images.py --assets --spp 16384 \
-        lights textures materials rough_maps anisotropy textured_lights spectra cylinders envmap hide_emitters thinlens studio
+        lights textures materials rough_maps anisotropy textured_lights spectra cylinders orthographic envmap hide_emitters thinlens studio
 """
 
 import argparse

@@ -61,7 +61,7 @@ impl Transport {
         }
         let bsdf = self.bsdf_at(&hit)?;
         let wo = bsdf.frame_at(&hit).to_local(-ray.dir);
-        let depth = (hit.position - camera.origin()).length();
+        let depth = (hit.position - ray.origin).length();
         Some((
             hit.shading_normal,
             hit.position,

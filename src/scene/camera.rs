@@ -23,8 +23,12 @@ pub struct Camera {
     height: u32,
     /// Camera → world (may carry a uniform scale; directions are normalised).
     to_world: DAffine3,
-    /// tan of the half field of view along x and y.
+    /// Half the image's extent along x and y at unit distance: tan of the
+    /// half field of view (perspective), or in camera units on the image
+    /// plane itself (orthographic).
     tan_half: (f64, f64),
+    /// Rays leave a plane, not a point: Mitsuba's `orthographic`.
+    orthographic: bool,
     lens: Option<Lens>,
     /// Where in the image a pixel's camera samples fall.
     filter: PixelFilter,
@@ -70,18 +74,48 @@ impl Camera {
             height,
             to_world,
             tan_half,
+            orthographic: false,
             lens: None,
             filter: PixelFilter::Box,
         }
     }
 
-    pub(crate) fn from_doc(doc: &CameraDoc, field: &str) -> Result<Self, SceneError> {
-        if !(doc.fov > 0.0 && doc.fov < 180.0) {
-            return Err(SceneError::invalid(
-                format!("{field}.fov"),
-                format!("{} is not a field of view in (0, 180) degrees", doc.fov),
-            ));
+    /// An orthographic camera at `to_world`: parallel rays along its +z
+    /// from the rectangle x ∈ [−1, 1], y ∈ [−1/aspect, 1/aspect] of its xy
+    /// plane (Mitsuba 3's `orthographic`, rays from its near plane at 0).
+    pub fn orthographic(to_world: DAffine3, width: u32, height: u32) -> Self {
+        let aspect = width as f64 / height as f64;
+        Self {
+            tan_half: (1.0, 1.0 / aspect),
+            orthographic: true,
+            // The field of view is unused.
+            ..Self::new(to_world, 90.0, FovAxis::X, width, height)
         }
+    }
+
+    pub(crate) fn from_doc(doc: &CameraDoc, field: &str) -> Result<Self, SceneError> {
+        let fov = match (doc.kind, doc.fov) {
+            (CameraKind::Orthographic, None) => None,
+            (CameraKind::Orthographic, Some(_)) => {
+                return Err(SceneError::invalid(
+                    format!("{field}.fov"),
+                    "an orthographic camera has no field of view; `to_world`'s scale sizes its image",
+                ));
+            }
+            (_, None) => {
+                return Err(SceneError::invalid(
+                    field,
+                    "a perspective or thinlens camera needs `fov`",
+                ));
+            }
+            (_, Some(fov)) if fov > 0.0 && fov < 180.0 => Some(fov),
+            (_, Some(fov)) => {
+                return Err(SceneError::invalid(
+                    format!("{field}.fov"),
+                    format!("{fov} is not a field of view in (0, 180) degrees"),
+                ));
+            }
+        };
         for (name, value) in [("width", doc.width), ("height", doc.height)] {
             if value == 0 || value > MAX_RESOLUTION {
                 return Err(SceneError::invalid(
@@ -116,7 +150,7 @@ impl Camera {
             ("focus_distance", doc.focus_distance),
         ];
         let lens = match doc.kind {
-            CameraKind::Perspective => {
+            CameraKind::Perspective | CameraKind::Orthographic => {
                 if let Some((name, _)) = lens_fields.iter().find(|(_, v)| v.is_some()) {
                     return Err(SceneError::invalid(
                         format!("{field}.{name}"),
@@ -150,10 +184,14 @@ impl Camera {
             Some(f) => PixelFilter::from_doc(f, &format!("{field}.filter"))?,
             None => PixelFilter::Box,
         };
+        let camera = match fov {
+            Some(fov) => Self::new(to_world, fov, doc.fov_axis, doc.width, doc.height),
+            None => Self::orthographic(to_world, doc.width, doc.height),
+        };
         Ok(Self {
             lens,
             filter,
-            ..Self::new(to_world, doc.fov, doc.fov_axis, doc.width, doc.height)
+            ..camera
         })
     }
 
@@ -182,7 +220,7 @@ impl Camera {
         let Some(lens) = self.lens else {
             return self.generate_ray(px, py);
         };
-        let focus = self.local_direction(px, py) * lens.focus_distance;
+        let focus = self.image_plane(px, py) * lens.focus_distance;
         let a = super::shape::concentric_disk(lens_sample) * lens.aperture_radius;
         let aperture = DVec3::new(a.x, a.y, 0.0);
         Ray {
@@ -195,12 +233,15 @@ impl Camera {
         }
     }
 
-    /// The pinhole ray's direction through (px, py) in the camera frame,
-    /// scaled to `z = 1`.
-    fn local_direction(&self, px: f64, py: f64) -> DVec3 {
+    /// The point of the image plane `z = 1` (perspective) or `z = 0`
+    /// (orthographic) that (px, py) maps to, in the camera frame: the
+    /// pinhole ray's direction scaled to `z = 1`, or the orthographic ray's
+    /// origin.
+    fn image_plane(&self, px: f64, py: f64) -> DVec3 {
         let sx = 1.0 - 2.0 * px / self.width as f64;
         let sy = 1.0 - 2.0 * py / self.height as f64;
-        DVec3::new(sx * self.tan_half.0, sy * self.tan_half.1, 1.0)
+        let z = if self.orthographic { 0.0 } else { 1.0 };
+        DVec3::new(sx * self.tan_half.0, sy * self.tan_half.1, z)
     }
 
     /// Image size in pixels, (width, height).
@@ -208,20 +249,34 @@ impl Camera {
         (self.width, self.height)
     }
 
-    /// Camera position in world space.
-    pub fn origin(&self) -> DVec3 {
-        self.to_world.translation
-    }
-
     /// Primary ray through the continuous pixel position (px, py): (0, 0) is
     /// the image's top-left corner, (width, height) its bottom-right corner,
     /// pixel centres are at half-integers. `t_max` is infinite.
     pub fn generate_ray(&self, px: f64, py: f64) -> Ray {
-        let local = self.local_direction(px, py);
+        let local = self.image_plane(px, py);
+        let (origin, dir) = match self.orthographic {
+            true => (self.to_world.transform_point3(local), DVec3::Z),
+            false => (self.to_world.translation, local),
+        };
         Ray {
-            origin: self.to_world.translation,
-            dir: self.to_world.transform_vector3(local).normalize(),
+            origin,
+            dir: self.to_world.transform_vector3(dir).normalize(),
             t_max: f64::INFINITY,
+        }
+    }
+
+    /// World length that `pixels` pixels span across the image at
+    /// distance `t` along the ray through (px, py): the angle between that
+    /// ray and the one `pixels` to its right times `t` (perspective), the
+    /// fixed spacing of parallel rays (orthographic).
+    pub fn span_at(&self, px: f64, py: f64, pixels: f64, t: f64) -> f64 {
+        let (a, b) = (
+            self.generate_ray(px, py),
+            self.generate_ray(px + pixels, py),
+        );
+        match self.orthographic {
+            true => (a.origin - b.origin).length(),
+            false => t * a.dir.angle_between(b.dir),
         }
     }
 }
@@ -236,8 +291,9 @@ impl Camera {
         if local.z <= 0.0 {
             return None;
         }
-        let sx = local.x / local.z / self.tan_half.0;
-        let sy = local.y / local.z / self.tan_half.1;
+        let z = if self.orthographic { 1.0 } else { local.z };
+        let sx = local.x / z / self.tan_half.0;
+        let sy = local.y / z / self.tan_half.1;
         let px = (1.0 - sx) * self.width as f64 / 2.0;
         let py = (1.0 - sy) * self.height as f64 / 2.0;
         Some((px, py, local.z))
@@ -247,6 +303,7 @@ impl Camera {
     /// x, at the image centre).
     pub fn pixel_size_at(&self, depth: f64) -> f64 {
         let scale = self.to_world.matrix3.x_axis.length();
+        let depth = if self.orthographic { 1.0 } else { depth };
         2.0 * self.tan_half.0 * depth * scale / self.width as f64
     }
 }
@@ -305,6 +362,46 @@ mod tests {
     }
 
     #[test]
+    fn an_orthographic_camera_sends_parallel_rays_from_its_scaled_plane() {
+        let cam = Camera::from_doc(
+            &doc(serde_json::json!({"type": "orthographic", "fov": null,
+                "origin": null, "target": null, "up": null, "width": 8, "height": 4,
+                "to_world": [{"scale": [3, 3, 1]}, {"translate": [0, 0, 5]}]})),
+            "camera",
+        )
+        .unwrap();
+        // The image spans x ∈ [−3, 3], y ∈ [−1.5, 1.5]; +x of the camera is
+        // the image's left, as for the perspective camera.
+        let corner = cam.generate_ray(0.0, 0.0);
+        assert!((corner.origin - DVec3::new(3.0, 1.5, 5.0)).length() < 1e-12);
+        let centre = cam.generate_ray(4.0, 2.0);
+        assert!((centre.origin - DVec3::new(0.0, 0.0, 5.0)).length() < 1e-12);
+        assert_eq!((corner.dir, centre.dir), (DVec3::Z, DVec3::Z));
+        assert!((cam.span_at(1.5, 2.5, 1.0, 100.0) - 0.75).abs() < 1e-12);
+        assert!((cam.pixel_size_at(100.0) - 0.75).abs() < 1e-12);
+        for (px, py) in [(0.5, 0.5), (7.25, 3.0)] {
+            let ray = cam.generate_ray(px, py);
+            let (x, y, depth) = cam.raster(ray.origin + 2.5 * ray.dir).unwrap();
+            assert!((x - px).abs() < 1e-9 && (y - py).abs() < 1e-9);
+            assert!((depth - 2.5).abs() < 1e-12);
+        }
+        let field = |extra| {
+            Camera::from_doc(&doc(extra), "camera")
+                .unwrap_err()
+                .field()
+                .map(str::to_string)
+        };
+        assert_eq!(
+            field(serde_json::json!({"type": "orthographic"})).as_deref(),
+            Some("camera.fov")
+        );
+        assert_eq!(
+            field(serde_json::json!({"fov": null})).as_deref(),
+            Some("camera")
+        );
+    }
+
+    #[test]
     fn raster_inverts_generate_ray() {
         let to_world =
             transform::look_at(DVec3::new(0.3, 0.2, 3.9), DVec3::ZERO, DVec3::Y).unwrap();
@@ -316,7 +413,7 @@ mod tests {
             assert!(depth > 0.0);
         }
         assert!(
-            cam.raster(cam.origin() - cam.generate_ray(100.0, 50.0).dir)
+            cam.raster(to_world.translation - cam.generate_ray(100.0, 50.0).dir)
                 .is_none()
         );
     }

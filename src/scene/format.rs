@@ -358,6 +358,10 @@ pub enum CameraKind {
     Perspective,
     /// A perspective camera with a thin lens: depth of field.
     Thinlens,
+    /// Parallel rays along the camera's +z, leaving its xy plane: the image
+    /// spans x ∈ [−1, 1] and y ∈ [−1/aspect, 1/aspect] of camera space,
+    /// which `to_world`'s scale sizes (Mitsuba 3's `orthographic`).
+    Orthographic,
 }
 
 #[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
@@ -375,8 +379,10 @@ pub enum FovAxis {
 pub struct CameraDoc {
     #[serde(rename = "type", default)]
     pub kind: CameraKind,
-    /// Full field of view in degrees along `fov_axis`.
-    pub fov: f64,
+    /// Full field of view in degrees along `fov_axis` (perspective and
+    /// thinlens cameras; an orthographic camera has none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov: Option<f64>,
     #[serde(default)]
     pub fov_axis: FovAxis,
     pub width: u32,

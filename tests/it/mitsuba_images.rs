@@ -143,6 +143,20 @@ fn cylinders_agree_with_mitsuba() {
     );
 }
 
+/// An orthographic sensor sized by its `to_world`'s scale, wider than tall,
+/// looking obliquely at spheres, a textured cylinder and a floor
+/// (`tests/data/mitsuba/orthographic.xml`, reference by
+/// `docs/validation/mitsuba_scene_images.py`).
+#[test]
+fn orthographic_sensor_agrees_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "orthographic.xml",
+        &[],
+        "orthographic_mitsuba.exr",
+    );
+}
+
 /// Bitmaps (8-bit sRGB PNG, linear EXR; nearest and bilinear; repeat,
 /// mirror and clamp; `to_uv`) and checkerboards on rectangles, a rotated
 /// cube, a rotated sphere, a disk, an OBJ quad and a PLY quad

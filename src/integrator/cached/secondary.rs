@@ -142,9 +142,7 @@ fn candidates(
             if !diffuse_front(transport, &x, ray.dir) {
                 return Ok(Vec::new());
             }
-            let pixel = ray
-                .dir
-                .angle_between(camera.generate_ray(cx + f64::from(stride), cy).dir);
+
             let frame = Frame::from_normal(x.shading_normal);
             let mut rng = point_rng(SEED, u64::from(i));
             let mut found = Vec::new();
@@ -157,7 +155,10 @@ fn candidates(
                 if !diffuse_front(transport, &y, bounce.dir) {
                     continue;
                 }
-                let size = (pixel * (x.t + y.t)).max(f64::MIN_POSITIVE);
+                // The grid spacing seen from the camera, at y's distance
+                // along the path.
+                let span = camera.span_at(cx, cy, f64::from(stride), x.t + y.t);
+                let size = span.max(f64::MIN_POSITIVE);
                 found.push(PlacementPoint {
                     point: QueryPoint::new(y.position, y.shading_normal)?,
                     footprint: Some(PixelFootprint::new(size, o.min_pixels, o.max_pixels)?),

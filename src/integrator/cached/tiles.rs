@@ -255,9 +255,7 @@ impl CachedIntegrator<'_> {
                 if !diffuse_front(self.transport, &hit, ray.dir) {
                     return Ok(None);
                 }
-                let next = camera.generate_ray(cx + 1.0, cy);
-                let angle = ray.dir.angle_between(next.dir);
-                let size = (hit.t * angle).max(f64::MIN_POSITIVE);
+                let size = camera.span_at(cx, cy, 1.0, hit.t).max(f64::MIN_POSITIVE);
                 let footprint = PixelFootprint::new(size, options.min_pixels, options.max_pixels)?;
                 Ok(Some(PlacementPoint {
                     point: QueryPoint::new(hit.position, hit.shading_normal)?,

@@ -1,4 +1,5 @@
-//! `<sensor type="perspective">` with its `<film>` → the document camera.
+//! `<sensor type="perspective">` (or `thinlens`, `orthographic`) with its
+//! `<film>` → the document camera.
 //! `fov_axis` `x`, `y`, `smaller`, `larger` map directly; `diagonal` and
 //! `focal_length` (35 mm equivalent, Mitsuba's default "50mm") are converted
 //! to a horizontal field of view, as Mitsuba's `parse_fov` does. The film
@@ -43,11 +44,11 @@ pub(crate) fn default_camera() -> CameraDoc {
     let (width, height) = DEFAULT_SIZE;
     CameraDoc {
         kind: CameraKind::Perspective,
-        fov: fov_x_from_diagonal(
+        fov: Some(fov_x_from_diagonal(
             diagonal_fov_of_focal_length(DEFAULT_FOCAL_LENGTH),
             width,
             height,
-        ),
+        )),
         fov_axis: FovAxis::X,
         width,
         height,
@@ -70,6 +71,7 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
             props.ignore(&["focus_distance"]);
             (CameraKind::Perspective, None, None)
         }
+        "orthographic" => (CameraKind::Orthographic, None, None),
         "thinlens" => (
             CameraKind::Thinlens,
             Some(props.opt_float("aperture_radius")?.ok_or_else(|| {
@@ -81,7 +83,7 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
             return Err(el.error(
                 "type",
                 format!(
-                    "sensor type {} is not supported (perspective, thinlens)",
+                    "sensor type {} is not supported (perspective, thinlens, orthographic)",
                     quote(other)
                 ),
             ));
@@ -96,10 +98,56 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
         [film] => read_film(ctx, film)?,
         _ => return Err(el.error("film", "a sensor takes one <film>")),
     };
+    let (fov, fov_axis) = match kind {
+        // Its image is sized by `to_world`'s scale.
+        CameraKind::Orthographic => (None, FovAxis::X),
+        _ => {
+            let (fov, axis) = field_of_view(&mut props, el, width, height)?;
+            (Some(fov), axis)
+        }
+    };
+    let to_world = match props.get("to_world")? {
+        Some(t) => Ops::read(t)?,
+        None => Ops::default(),
+    };
+    props.ignore(&["near_clip", "far_clip", "shutter_open", "shutter_close"]);
+    props.ignore_tags(&["sampler"]);
+    props.finish(ctx)?;
+    ctx.origin("camera", el);
+    Ok(CameraDoc {
+        kind,
+        aperture_radius,
+        focus_distance,
+        fov,
+        fov_axis,
+        width,
+        height,
+        // Mitsuba's default pose is the identity.
+        to_world: Some(
+            to_world
+                .into_doc(ctx, "camera.to_world")
+                .unwrap_or(IDENTITY),
+        ),
+        origin: None,
+        target: None,
+        up: None,
+        filter: Some(filter),
+    })
+}
+
+/// The horizontal field of view of a perspective sensor, degrees, and the
+/// axis it is along: `fov` along `fov_axis`, or a 35 mm-equivalent
+/// `focal_length` (default "50mm"), as Mitsuba's `parse_fov` reads them.
+fn field_of_view<'a>(
+    props: &mut Props<'a>,
+    el: &'a Element,
+    width: u32,
+    height: u32,
+) -> Result<(f64, FovAxis), XmlError> {
     let fov = props.opt_float("fov")?;
     let focal = props.string("focal_length")?;
     let axis = props.string("fov_axis")?;
-    let (fov, fov_axis) = match (fov, focal) {
+    Ok(match (fov, focal) {
         (Some(_), Some(_)) => {
             return Err(el.error("fov", "give either `fov` or `focal_length`, not both"));
         }
@@ -133,33 +181,6 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
             let diagonal = diagonal_fov_of_focal_length(mm);
             (fov_x_from_diagonal(diagonal, width, height), FovAxis::X)
         }
-    };
-    let to_world = match props.get("to_world")? {
-        Some(t) => Ops::read(t)?,
-        None => Ops::default(),
-    };
-    props.ignore(&["near_clip", "far_clip", "shutter_open", "shutter_close"]);
-    props.ignore_tags(&["sampler"]);
-    props.finish(ctx)?;
-    ctx.origin("camera", el);
-    Ok(CameraDoc {
-        kind,
-        aperture_radius,
-        focus_distance,
-        fov,
-        fov_axis,
-        width,
-        height,
-        // Mitsuba's default pose is the identity.
-        to_world: Some(
-            to_world
-                .into_doc(ctx, "camera.to_world")
-                .unwrap_or(IDENTITY),
-        ),
-        origin: None,
-        target: None,
-        up: None,
-        filter: Some(filter),
     })
 }
 
