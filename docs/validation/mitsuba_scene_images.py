@@ -10,7 +10,8 @@ lobes along each shape's u direction), `textured_lights.xml` (area lights
 with checkerboard and bitmap radiance), `spectra.xml` (spectra on emitters,
 reflectances and a conductor's `eta`/`k`, and a `.spd` file), `cylinders.xml`
 (textured, open and emitting cylinders), `orthographic.xml` (an
-orthographic sensor), `envmap.xml` (a rotated, scaled HDR map),
+orthographic sensor), `point_cloud_0_6.xml` (a Mitsuba 0.6 file, written
+by `--assets`), `envmap.xml` (a rotated, scaled HDR map),
 `hide_emitters.xml` and `thinlens.xml`; and `studio`, the bundled
 `scenes/studio.xml` (every kind of material and light at once), at 80x60 to
 `tests/data/mitsuba/studio_mitsuba.exr`.
@@ -28,7 +29,7 @@ the images the scenes read:
 Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
 
     python docs/validation/mitsuba_scene_images.py --assets --spp 16384 \
-        lights textures materials rough_maps anisotropy textured_lights spectra cylinders orthographic envmap hide_emitters thinlens studio
+        lights textures materials rough_maps anisotropy textured_lights spectra cylinders orthographic point_cloud_0_6 envmap hide_emitters thinlens studio
 """
 
 import argparse
@@ -65,7 +66,81 @@ def sky(width=32, height=16):
     return texels
 
 
+# The Mitsuba 0.6 scene that published point-cloud figures are rendered with
+# (the widely copied template of the point-cloud renderers on GitHub: camelCase
+# properties, `ldsampler`, `farClip`/`nearClip`, a film `banner`, a glossy
+# ground and a tilted area light), filled with 200 points of our own on a
+# sphere, coloured by position as the template colours them.
+POINT_CLOUD_HEAD = """<scene version="0.6.0">
+    <default name="spp" value="256"/>
+    <integrator type="path">
+        <integer name="maxDepth" value="-1"/>
+    </integrator>
+    <sensor type="perspective">
+        <float name="farClip" value="100"/>
+        <float name="nearClip" value="0.1"/>
+        <transform name="toWorld">
+            <lookat origin="3,3,3" target="0,0,0" up="0,0,1"/>
+        </transform>
+        <float name="fov" value="25"/>
+        <sampler type="ldsampler">
+            <integer name="sampleCount" value="$spp"/>
+        </sampler>
+        <film type="hdrfilm">
+            <integer name="width" value="64"/>
+            <integer name="height" value="48"/>
+            <rfilter type="gaussian"/>
+            <boolean name="banner" value="false"/>
+        </film>
+    </sensor>
+    <bsdf type="roughplastic" id="surfaceMaterial">
+        <string name="distribution" value="ggx"/>
+        <float name="alpha" value="0.05"/>
+        <float name="intIOR" value="1.46"/>
+        <rgb name="diffuseReflectance" value="1,1,1"/>
+    </bsdf>
+"""
+POINT_CLOUD_BALL = """
+    <shape type="sphere">
+        <float name="radius" value="0.025"/>
+        <transform name="toWorld">
+            <translate x="{:.6f}" y="{:.6f}" z="{:.6f}"/>
+        </transform>
+        <bsdf type="diffuse">
+            <rgb name="reflectance" value="{:.6f},{:.6f},{:.6f}"/>
+        </bsdf>
+    </shape>
+"""
+POINT_CLOUD_TAIL = """
+    <shape type="rectangle">
+        <ref name="bsdf" id="surfaceMaterial"/>
+        <transform name="toWorld">
+            <scale x="10" y="10" z="1"/>
+            <translate x="0" y="0" z="-0.5"/>
+        </transform>
+    </shape>
+    <shape type="rectangle">
+        <transform name="toWorld">
+            <scale x="10" y="10" z="1"/>
+            <lookat origin="-4,4,20" target="0,0,0" up="0,0,1"/>
+        </transform>
+        <emitter type="area">
+            <rgb name="radiance" value="6,6,6"/>
+        </emitter>
+    </shape>
+</scene>
+"""
+
+
+def point_cloud():
+    points = np.random.default_rng(1).normal(size=(200, 3))
+    points *= 0.4 / np.linalg.norm(points, axis=1)[:, None]
+    balls = "".join(POINT_CLOUD_BALL.format(*p, *np.clip(p + 0.5, 0.001, 1)) for p in points)
+    return POINT_CLOUD_HEAD + balls + POINT_CLOUD_TAIL
+
+
 def write_assets():
+    open(f"{DIR}/point_cloud_0_6.xml", "w").write(point_cloud())
     texels = uv_grid()
     mi.Bitmap(np.round(texels * 255).astype(np.uint8)).write(f"{DIR}/uv_grid.png")
     mi.Bitmap(texels.astype(np.float32)).write(f"{DIR}/uv_grid.exr")
