@@ -1,5 +1,6 @@
-//! The `irradiance` subcommand: irradiance at the points of a CSV file,
-//! written as CSV to the given writer (stdout in the binary). Its options
+//! The `irradiance` subcommand: irradiance at the points of a CSV file, or
+//! without one at the scene's irradiance meters (`scene::meter`), written
+//! as CSV to the given writer (stdout in the binary). Its options
 //! are the library's [`PointQuerySpec`], the body of `POST
 //! /v1/scenes/{id}/irradiance`, and it runs the same [`PointQuery`] with
 //! the service's default configuration and records held for the run: the
@@ -17,11 +18,12 @@ use super::in_thread_pool;
 use crate::bmc::cache::QuadratureCache;
 use crate::estimators::calibration::Calibrations;
 use crate::estimators::lengthscale::FittedKernels;
-use crate::estimators::points_csv::{parse_points, write_irradiance};
+use crate::estimators::points_csv::{parse_points, write_irradiance, write_meters};
 use crate::integrator::point_query::{
     HeldRecords, PointQuery, PointQuerySpec, PointRecords, QueryState,
 };
-use crate::render::{Cancel, IrradianceOptions, PathDepth, Transport};
+use crate::render::{Cancel, IrradianceOptions, PathDepth, PointDoc, Transport};
+use crate::scene::meter::meter_value;
 use crate::service::Config;
 use crate::service::irradiance_caches::per_cache_bytes;
 
@@ -31,8 +33,10 @@ pub struct IrradianceArgs {
     #[command(flatten)]
     pub scene: super::scene_args::SceneArgs,
     /// CSV of query points, rows `x,y,z,nx,ny,nz` (header optional).
+    /// Without it, the scene's irradiance meters are answered, one row
+    /// `meter,r,g,b,se_r,se_g,se_b` each.
     #[arg(long)]
-    pub points: PathBuf,
+    pub points: Option<PathBuf>,
     #[command(flatten)]
     pub query: PointQuerySpec,
     /// Direct light only (same as --max-depth 1).
@@ -76,10 +80,34 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     let mut spec = args.spec();
     // Everything but the points and the scene's depth is checked before the scene loads.
     spec.estimator.resolve()?;
-    let text = std::fs::read_to_string(&args.points)
-        .with_context(|| format!("reading points file {}", args.points.display()))?;
-    spec.points = parse_points(&text).with_context(|| format!("in {}", args.points.display()))?;
+    let text = match &args.points {
+        Some(path) => Some(
+            std::fs::read_to_string(path)
+                .with_context(|| format!("reading points file {}", path.display()))?,
+        ),
+        None => None,
+    };
+    if let (Some(text), Some(path)) = (&text, &args.points) {
+        spec.points = parse_points(text).with_context(|| format!("in {}", path.display()))?;
+    }
     let scene = args.scene.load(&mut std::io::stderr())?;
+    let meters = scene.meters.clone();
+    if text.is_none() {
+        anyhow::ensure!(
+            !meters.is_empty(),
+            "the scene has no irradiance meters (a shape's <sensor type=\"irradiancemeter\">, \
+             or \"sensor\": {{\"type\": \"irradiancemeter\"}} on a JSON shape); give --points"
+        );
+        spec.max_depth = spec.max_depth.or(Some(PathDepth::for_meters(&scene)));
+        spec.points = meters
+            .iter()
+            .flat_map(|m| scene.meter_points(m))
+            .map(|(p, n)| PointDoc {
+                position: p.to_array(),
+                normal: n.to_array(),
+            })
+            .collect();
+    }
     let max_samples = config.limits.target_max_samples();
     let query: PointQuery = spec.resolve(&scene, max_samples)?;
     let transport = Transport::new(Arc::new(scene));
@@ -113,6 +141,15 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     };
     let answer = in_thread_pool(args.threads, estimate)??;
     progress.finish_and_clear();
+    if text.is_none() {
+        let per_meter = answer.irradiance.len() / meters.len();
+        let values: Vec<_> = (answer.irradiance.chunks(per_meter))
+            .zip(answer.std_dev.chunks(per_meter))
+            .map(|(values, std_dev)| meter_value(values, std_dev))
+            .collect();
+        write_meters(out, &meters, &values).context("writing results")?;
+        return Ok(());
+    }
     let std_dev = args.std_error.then_some(answer.std_dev.as_slice());
     write_irradiance(out, &spec.points, &answer.irradiance, std_dev).context("writing results")?;
     Ok(())

@@ -9,6 +9,7 @@
 use std::io::{self, Write};
 
 use crate::render::{PointDoc, QueryPoint, RenderError};
+use crate::scene::meter::IrradianceMeter;
 
 /// Parses a points file; see the module docs for the accepted format. The
 /// points are returned as written (each checked), so they reach an
@@ -81,6 +82,26 @@ pub fn write_irradiance(
             write!(out, ",{},{},{}", s[0], s[1], s[2])?;
         }
         writeln!(out)?;
+    }
+    Ok(())
+}
+
+/// Writes one `meter,r,g,b,se_r,se_g,se_b` row per irradiance meter (its
+/// id, its value and standard error, W/m²), with a header.
+pub fn write_meters(
+    out: &mut dyn Write,
+    meters: &[IrradianceMeter],
+    values: &[([f64; 3], [f64; 3])],
+) -> io::Result<()> {
+    writeln!(out, "meter,r,g,b,se_r,se_g,se_b")?;
+    for (meter, (e, s)) in meters.iter().zip(values) {
+        // An id is the user's text: quoted as CSV quotes fields.
+        let id = meter.id.replace('"', "\"\"");
+        writeln!(
+            out,
+            "\"{id}\",{},{},{},{},{},{}",
+            e[0], e[1], e[2], s[0], s[1], s[2]
+        )?;
     }
     Ok(())
 }

@@ -105,6 +105,14 @@ impl PathDepth {
         scene.max_depth.map_or(fallback, PathDepth)
     }
 
+    /// The depth of a query at `scene`'s irradiance meters that names none:
+    /// the scene's depth counted from the meter, the scene's sensor, as a
+    /// camera's is counted from the camera (Mitsuba's meters count so),
+    /// else the default.
+    pub fn for_meters(scene: &Scene) -> PathDepth {
+        Self::for_camera(scene, Self::DEFAULT)
+    }
+
     /// The depth of a query from surface points on `scene` that names none,
     /// in segments from the point: the scene's depth less the camera's
     /// segment (at least one), else the default.

@@ -80,6 +80,8 @@ pub struct ShapeDoc {
     pub emitter: Option<EmitterDoc>,
     /// Turn the front side (and with it the emitting side) around.
     pub flip_normals: bool,
+    /// A sensor on the shape (an irradiance meter).
+    pub sensor: Option<SensorDoc>,
     /// The plugin's parameters, by name (ordered, so the document
     /// serialises, and the scene's digest hashes, the same either way).
     pub params: BTreeMap<String, ShapeParam>,
@@ -93,6 +95,7 @@ const SHAPE_FIELDS: &[&str] = &[
     "to_world",
     "emitter",
     "flip_normals",
+    "sensor",
 ];
 
 impl ShapeDoc {
@@ -105,6 +108,7 @@ impl ShapeDoc {
             to_world: None,
             emitter: None,
             flip_normals: false,
+            sensor: None,
             params: BTreeMap::new(),
         }
     }
@@ -119,6 +123,10 @@ impl Serialize for ShapeDoc {
         map.serialize_entry("to_world", &self.to_world)?;
         map.serialize_entry("emitter", &self.emitter)?;
         map.serialize_entry("flip_normals", &self.flip_normals)?;
+        // Only when given: shapes without one keep their digests.
+        if let Some(sensor) = &self.sensor {
+            map.serialize_entry("sensor", sensor)?;
+        }
         for (name, value) in &self.params {
             map.serialize_entry(name, value)?;
         }
@@ -153,6 +161,7 @@ impl<'de> Deserialize<'de> for ShapeDoc {
                         "to_world" => doc.to_world = map.next_value()?,
                         "emitter" => doc.emitter = map.next_value()?,
                         "flip_normals" => doc.flip_normals = map.next_value()?,
+                        "sensor" => doc.sensor = map.next_value()?,
                         _ => {
                             let value = map.next_value()?;
                             doc.params.insert(key, value);
@@ -168,6 +177,15 @@ impl<'de> Deserialize<'de> for ShapeDoc {
         }
         deserializer.deserialize_map(DocVisitor)
     }
+}
+
+/// A sensor a shape carries: Mitsuba 3's `irradiancemeter`, the mean
+/// irradiance over the shape's front side (`scene::meter`), which the
+/// `irradiance` command reports when given no points.
+#[derive(Debug, Serialize, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum SensorDoc {
+    Irradiancemeter,
 }
 
 /// One parameter of a shape plugin as the document gives it, in the value

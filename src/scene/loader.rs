@@ -16,9 +16,10 @@ use super::emitter::{self, Emitter};
 use super::environment::{Environment, EnvironmentMap};
 use super::error::SceneError;
 use super::files::Files;
-use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc};
+use super::format::{EnvironmentDoc, EnvironmentKind, SceneDoc, SensorDoc};
 use super::material::{Declared, Material};
 use super::mesh::MeshData;
+use super::meter::IrradianceMeter;
 use super::shape::{ReadMesh, ShapeFields};
 use super::transform::{self, similarity_scale};
 use super::{Camera, MAX_PATH_DEPTH, MAX_SHAPES, MAX_TRIANGLES, Scene};
@@ -198,6 +199,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
         ..GeometryBuilder::default()
     };
     let mut emitters = Vec::new();
+    let mut meters = Vec::new();
     for (i, s) in doc.shapes.iter().enumerate() {
         budget.check_cancel()?;
         let field = format!("shapes[{i}]");
@@ -223,6 +225,12 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
             }
             None => None,
         };
+        if let Some(SensorDoc::Irradiancemeter) = s.sensor {
+            meters.push(IrradianceMeter {
+                id: s.id.clone().unwrap_or_else(|| field.clone()),
+                shape: i,
+            });
+        }
         builder.add_shape(s, &field, material, emitter, shape_meshes[i].as_deref())?;
     }
     for (i, light) in doc.lights.iter().enumerate() {
@@ -253,6 +261,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
         materials,
         material_ids,
         emitters,
+        meters,
         environment,
         camera,
         hide_emitters: doc.hide_emitters,

@@ -26,6 +26,7 @@ pub mod generate;
 mod loader;
 pub mod material;
 mod mesh;
+pub mod meter;
 mod mitsuba;
 mod params;
 mod pixel_filter;
@@ -159,6 +160,8 @@ pub struct Scene {
     /// Material ids from the scene file, parallel to `materials`.
     pub material_ids: Vec<String>,
     pub emitters: Vec<Emitter>,
+    /// The irradiance meters on the scene's shapes, in document order.
+    pub meters: Vec<meter::IrradianceMeter>,
     pub environment: Option<Environment>,
     pub camera: Camera,
     /// Camera rays pass through area emitters and see no environment

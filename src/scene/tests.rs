@@ -870,6 +870,35 @@ fn nested_materials_may_name_earlier_ones_by_id() {
     assert_eq!(e.field(), Some("materials[0].bsdf[0]"), "{e}");
 }
 
+/// A shape's `sensor` makes it an irradiance meter, named by the shape's id
+/// (or its field path); its points lie on the shape with its front normal.
+#[test]
+fn irradiance_meters_are_shapes_with_a_sensor() {
+    let dir = TempDir::new("meters");
+    let text = scene_json(
+        r#"{"type": "disk", "material": "m", "id": "desk", "sensor": {"type": "irradiancemeter"},
+            "to_world": [{"scale": [0.1, 0.1, 0.1]}, {"translate": [0, 0, -2]}]},
+           {"type": "rectangle", "material": "m", "sensor": {"type": "irradiancemeter"}}"#,
+        "",
+    );
+    let scene = from_str(&text, &dir.0).unwrap();
+    let ids: Vec<_> = scene.meters.iter().map(|m| m.id.as_str()).collect();
+    assert_eq!(ids, ["desk", "shapes[1]"]);
+    let points = scene.meter_points(&scene.meters[0]);
+    assert_eq!(points.len(), meter::METER_GRID * meter::METER_GRID);
+    for (p, n) in points {
+        assert!((p.z + 2.0).abs() < 1e-12 && p.truncate().length() < 0.1);
+        assert!((n - DVec3::Z).length() < 1e-12);
+    }
+    let bad = scene_json(
+        r#"{"type": "disk", "material": "m", "sensor": {"type": "radiancemeter"}}"#,
+        "",
+    );
+    let e = from_str(&bad, &dir.0).err().unwrap();
+    assert!(e.to_string().contains("radiancemeter"), "{e}");
+    assert_eq!(e.field(), Some("shapes[0].sensor.type"));
+}
+
 /// A shape's `type` reads and writes as the derived enum it replaced did:
 /// serde's message lists the registry's names, and the document (which
 /// the digest hashes) serialises each kind as its name.

@@ -84,3 +84,60 @@ fn irradiance_agrees_with_mitsubas_meter() {
         "nrmse {nrmse}, bias {bias}"
     );
 }
+
+/// The irradiance meters of a Mitsuba scene (`tests/data/mitsuba/meters.xml`:
+/// two small disks and a wide one, whose value is the mean over its area)
+/// answered by `bmc-irradiance irradiance` without points, against Mitsuba
+/// 3.9.1's `irradiancemeter` at 4 M samples each (`meters_mitsuba.csv`, by
+/// `docs/validation/mitsuba_meters.py`). The scene's `max_depth` counts
+/// from the meter as Mitsuba counts it: read as a camera's depth, one
+/// segment fewer, red was 1.7 % low on average. Measured over seeds 1–6
+/// at 1,024 samples: rms z 0.63, every |z| < 2, standard errors 0.55 % of
+/// the values on average.
+#[test]
+fn the_scenes_meters_agree_with_mitsubas() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mitsuba");
+    let parse = |text: &str| -> Vec<(String, Vec<f64>)> {
+        text.lines()
+            .skip(1)
+            .map(|l| {
+                let (name, values) = l.split_once(',').unwrap();
+                let values = values.split(',').map(|f| f.parse().unwrap()).collect();
+                (name.trim_matches('"').to_string(), values)
+            })
+            .collect()
+    };
+    let reference = parse(&std::fs::read_to_string(dir.join("meters_mitsuba.csv")).unwrap());
+    let output = Command::new(env!("CARGO_BIN_EXE_bmc-irradiance"))
+        .args(["irradiance", "--scene"])
+        .arg(dir.join("meters.xml"))
+        .args(["--samples", "1024", "--seed", "5"])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stdout = String::from_utf8(output.stdout).unwrap();
+    assert!(
+        stdout.starts_with("meter,r,g,b,se_r,se_g,se_b\n"),
+        "{stdout}"
+    );
+    let ours = parse(&stdout);
+    let names: Vec<_> = ours.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["floor_meter", "wall_meter", "floor_wide"]);
+    let mut bias = [0.0; 3];
+    for ((name, o), (_, m)) in ours.iter().zip(&reference) {
+        for c in 0..3 {
+            let z = (o[c] - m[c]) / o[3 + c].hypot(m[3 + c]);
+            assert!(z.abs() < 3.5, "{name} channel {c}: {o:?} against {m:?}");
+            assert!(
+                o[3 + c] < 0.02 * o[c],
+                "{name}: an error bar that says something"
+            );
+            bias[c] += (o[c] / m[c] - 1.0) / 3.0;
+        }
+    }
+    assert!(bias.iter().all(|b| b.abs() < 0.01), "{bias:?}");
+}

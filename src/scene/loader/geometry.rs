@@ -215,6 +215,7 @@ impl GeometryBuilder {
             materials: Vec::new(),
             material_ids: Vec::new(),
             emitters: Vec::new(),
+            meters: Vec::new(),
             environment: None,
             camera: Camera::new(DAffine3::IDENTITY, 45.0, Default::default(), 1, 1),
             hide_emitters: false,

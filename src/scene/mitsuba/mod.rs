@@ -479,6 +479,9 @@ fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, 
     }
     let camera = match ctx.camera.take() {
         Some(c) => c,
+        // A scene of meters needs no camera for what it measures; its
+        // images get Mitsuba's default one.
+        None if ctx.shapes.iter().any(|s| s.sensor.is_some()) => sensor::default_camera(),
         None => {
             ctx.unsupported(
                 scene,

@@ -6,7 +6,7 @@
 
 use crate::color::spectrum::SpectrumUse;
 use crate::scene::MAX_SHAPES;
-use crate::scene::format::{EmitterDoc, EmitterKind, ShapeDoc, ShapeKind, ShapeParam};
+use crate::scene::format::{EmitterDoc, EmitterKind, SensorDoc, ShapeDoc, ShapeKind, ShapeParam};
 
 use super::parse::{Element, quote};
 use super::props::{Props, boolean_value, number, vec3};
@@ -44,6 +44,7 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
         return Err(el.error("", format!("more than {MAX_SHAPES} shapes")));
     }
     let emitters = props.nested(ctx, "emitter")?;
+    let sensors = props.nested(ctx, "sensor")?;
     let material = match props.nested(ctx, "bsdf")?[..] {
         [] => bsdf::default_material(ctx, !emitters.is_empty()),
         [b] => bsdf::material(ctx, b)?,
@@ -56,6 +57,11 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
         [] => None,
         [e] => Some(area(ctx, e)?),
         _ => return Err(el.error("emitter", "a shape takes at most one emitter")),
+    };
+    doc.sensor = match sensors[..] {
+        [] => None,
+        [s] => meter(ctx, s)?,
+        _ => return Err(el.error("sensor", "a shape takes at most one sensor")),
     };
     // The plugin's own parameters, copied under their names; whatever it
     // does not take is left for `finish` to report.
@@ -71,6 +77,32 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
     doc.to_world = to_world.into_doc(ctx, &format!("{field}.to_world"));
     ctx.shapes.push(doc);
     Ok(())
+}
+
+/// `<sensor type="irradiancemeter">` inside a shape: the shape's meter
+/// (`scene::meter`). Its film (one pixel) and sampler change nothing in
+/// the scene; other sensor types on a shape are not supported.
+fn meter<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<Option<SensorDoc>, XmlError> {
+    match el.attr("type").unwrap_or("") {
+        "irradiancemeter" => {
+            let mut props = Props::new(el);
+            props.ignore_tags(&["film", "sampler"]);
+            props.finish(ctx)?;
+            Ok(Some(SensorDoc::Irradiancemeter))
+        }
+        other => {
+            ctx.unsupported(
+                el,
+                "type",
+                &format!(
+                    "sensor type {} on a shape is not supported (irradiancemeter)",
+                    quote(other)
+                ),
+                "leaving the sensor out",
+            )?;
+            Ok(None)
+        }
+    }
 }
 
 /// A shape plugin's parameter from its Mitsuba property: numbers, booleans

@@ -820,6 +820,8 @@ fn unknown_plugin_names_plugin_and_line() {
 
     let e = err(r#"<shape type="ellipsoids"/>"#);
     assert!(e.contains("ellipsoids"), "{e}");
+    let e = err(r#"<shape type="disk"><sensor type="radiancemeter"/></shape>"#);
+    assert!(e.contains("radiancemeter"), "{e}");
     let e = err(r#"<emitter type="projector"/>"#);
     assert!(e.contains("projector"), "{e}");
     let text = wrap(r#"<bsdf type="diffuse"><float name="roughness" value="1"/></bsdf>"#);
