@@ -1446,3 +1446,96 @@ fn mitsuba_0_5_documents_are_upgraded_as_mitsuba_3_upgrades_them() {
         );
     }
 }
+
+/// The backticked names of a cell of the plugin table outside parentheses.
+fn plugin_names_in(cell: &str) -> Vec<String> {
+    let mut names = Vec::new();
+    let (mut depth, mut name) = (0, None::<String>);
+    for c in cell.chars() {
+        match (c, &mut name) {
+            ('(', None) => depth += 1,
+            (')', None) => depth -= 1,
+            ('`', None) if depth == 0 => name = Some(String::new()),
+            ('`', Some(n)) => {
+                names.push(std::mem::take(n));
+                name = None;
+            }
+            (c, Some(n)) => n.push(c),
+            _ => {}
+        }
+    }
+    names
+}
+
+/// docs/scene-format.md's "Mitsuba 3's plugins at a glance" against the
+/// reader: every plugin of an "exact" cell loads strictly or fails for
+/// something other than being unsupported (a probe gives no parameters),
+/// and every plugin of a "refused" cell is refused by name.
+#[test]
+fn the_plugin_table_is_what_the_reader_does() {
+    let doc =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scene-format.md"))
+            .unwrap();
+    let table = &doc[doc.find("### Mitsuba 3's plugins at a glance").unwrap()..];
+    let probe = |kind: &str, name: &str| -> String {
+        let body = match kind {
+            "BSDFs" => format!(
+                r#"<bsdf type="{name}" id="p"/><shape type="rectangle"><ref id="p"/></shape>"#
+            ),
+            "textures" => format!(
+                r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="{name}" name="reflectance"/></bsdf></shape>"#
+            ),
+            "emitters" if name == "area" => {
+                r#"<shape type="rectangle"><emitter type="area"/></shape>"#.to_string()
+            }
+            "emitters" => format!(r#"<emitter type="{name}"/>"#),
+            "shapes" if name == "instance" => r#"<shape type="shapegroup" id="g">
+                <shape type="disk"/></shape><shape type="instance"><ref id="g"/></shape>"#
+                .to_string(),
+            "shapes" => format!(r#"<shape type="{name}"/>"#),
+            "sensors" if name.ends_with("meter") => {
+                return match load(&format!(
+                    r#"<scene version="3.0.0"><shape type="disk"><sensor type="{name}"/></shape></scene>"#
+                )) {
+                    Ok(_) => String::new(),
+                    Err(e) => e.to_string(),
+                };
+            }
+            "sensors" => {
+                return match load(&format!(
+                    r#"<scene version="3.0.0"><sensor type="{name}"/></scene>"#
+                )) {
+                    Ok(_) => String::new(),
+                    Err(e) => e.to_string(),
+                };
+            }
+            _ => unreachable!(),
+        };
+        match load(&wrap(&body)) {
+            Ok(_) => String::new(),
+            Err(e) => e.to_string(),
+        }
+    };
+    let mut checked = 0;
+    for row in table.lines().filter(|l| l.starts_with("| ")) {
+        let cells: Vec<&str> = row.split(" | ").collect();
+        let kind = cells[0].trim_start_matches("| ");
+        if !["BSDFs", "textures", "emitters", "shapes", "sensors"].contains(&kind) {
+            continue;
+        }
+        for name in plugin_names_in(cells[1]) {
+            let e = probe(kind, &name);
+            assert!(!e.contains("not supported"), "{kind} {name} is exact: {e}");
+            checked += 1;
+        }
+        for name in plugin_names_in(cells[3]) {
+            let e = probe(kind, &name);
+            assert!(
+                e.contains("not supported") && e.contains(&name),
+                "{kind} {name} is refused: {e:?}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 40, "{checked} names read from the table");
+}
