@@ -322,6 +322,14 @@ mod tests {
         serde_json::from_value(value).unwrap()
     }
 
+    /// The field the error of a camera document with `extra` names.
+    fn field(extra: serde_json::Value) -> Option<String> {
+        Camera::from_doc(&doc(extra), "camera")
+            .unwrap_err()
+            .field()
+            .map(str::to_string)
+    }
+
     #[test]
     fn a_thin_lens_focuses_its_rays_on_the_focal_plane() {
         let cam = Camera::from_doc(
@@ -341,12 +349,6 @@ mod tests {
             let t = (focus - ray.origin).dot(ray.dir);
             assert!((ray.origin + ray.dir * t - focus).length() < 1e-9);
         }
-        let field = |extra| {
-            Camera::from_doc(&doc(extra), "camera")
-                .unwrap_err()
-                .field()
-                .map(str::to_string)
-        };
         assert_eq!(
             field(serde_json::json!({"aperture_radius": 0.1})).as_deref(),
             Some("camera.aperture_radius")
@@ -385,12 +387,6 @@ mod tests {
             assert!((x - px).abs() < 1e-9 && (y - py).abs() < 1e-9);
             assert!((depth - 2.5).abs() < 1e-12);
         }
-        let field = |extra| {
-            Camera::from_doc(&doc(extra), "camera")
-                .unwrap_err()
-                .field()
-                .map(str::to_string)
-        };
         assert_eq!(
             field(serde_json::json!({"type": "orthographic"})).as_deref(),
             Some("camera.fov")
