@@ -501,6 +501,25 @@ fn spectra_read_as_mitsubas_rgb_variants_read_them() {
         assert!((intensity[c] - flat[c]).abs() < 2e-5, "{intensity:?}");
     }
 
+    // `uniform` spectra and `rawconstant` textures are their values as they
+    // are, with no white point on an emitter.
+    for (given, expected) in [
+        (
+            r#"<spectrum name="intensity" type="uniform"><float name="value" value="2"/></spectrum>"#,
+            [2.0; 3],
+        ),
+        (
+            r#"<texture name="intensity" type="rawconstant"><vector name="value" value="1, 2, 3"/></texture>"#,
+            [1.0, 2.0, 3.0],
+        ),
+    ] {
+        let (scene, _) = load_in(&light(given), &dir.0, false).unwrap();
+        let Emitter::Point(PointLight { intensity, .. }) = scene.emitters[0] else {
+            panic!()
+        };
+        assert_eq!(intensity, expected, "{given}");
+    }
+
     // Malformed spectra are refused naming the attribute and the problem.
     for (spectrum, says) in [
         (

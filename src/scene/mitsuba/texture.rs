@@ -133,6 +133,7 @@ pub(crate) fn value<'a>(
         },
         "float" => Ok([super::props::number(target, "value")?; 3]),
         "spectrum" => spectrum(ctx, target, usage),
+        "texture" if target.attr("type") == Some("rawconstant") => raw_constant(ctx, target),
         "texture" => {
             let kind = target.attr("type").unwrap_or("");
             let supported = plugin_names().contains(&kind);
@@ -164,7 +165,16 @@ pub(crate) fn value<'a>(
 /// A `<spectrum>` property as Mitsuba 3's RGB variants read it for
 /// `usage`: one value, `λ:v` pairs, or a spectrum file (relative to the
 /// scene file, within the scenes directory), exactly one of them.
-fn spectrum(ctx: &mut Ctx, el: &Element, usage: SpectrumUse) -> Result<RgbArray, XmlError> {
+fn spectrum<'a>(
+    ctx: &mut Ctx<'a>,
+    el: &'a Element,
+    usage: SpectrumUse,
+) -> Result<RgbArray, XmlError> {
+    // A `uniform` spectrum plugin is its value in every channel, as a
+    // texture object it is not converted for emitters.
+    if el.attr("type") == Some("uniform") {
+        return raw_constant(ctx, el);
+    }
     if let Some(kind) = el.attr("type") {
         ctx.unsupported(
             el,
@@ -200,6 +210,30 @@ fn spectrum(ctx: &mut Ctx, el: &Element, usage: SpectrumUse) -> Result<RgbArray,
         }
     };
     Ok(sampled.to_rgb(usage).to_array())
+}
+
+/// The constant of a `<texture type="rawconstant">` or a `<spectrum
+/// type="uniform">`: its `value`, a `<float>` in every channel or a
+/// `<vector>`/`<point>` per channel, used as it is (Mitsuba converts
+/// neither).
+fn raw_constant<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<RgbArray, XmlError> {
+    let mut props = Props::new(el);
+    let value = props
+        .get("value")?
+        .ok_or_else(|| el.error("value", "missing property `value`"))?;
+    let value = ctx.deref(value)?;
+    let rgb = match value.tag.as_str() {
+        "float" => [super::props::number(value, "value")?; 3],
+        "vector" | "point" => super::props::vec3(value, 0.0)?,
+        other => {
+            return Err(value.error(
+                "",
+                format!("a constant's `value` is a <float> or a <vector>, not a <{other}>"),
+            ));
+        }
+    };
+    props.finish(ctx)?;
+    Ok(rgb)
 }
 
 /// The mean linear colour of texture element `el`, the stand-in of a
