@@ -242,6 +242,25 @@ impl<'a> Ctx<'a> {
     /// An unsupported feature: with `lenient` a warning saying what is done
     /// instead (`fallback`), else a problem that fails the document once it
     /// has been read through, so that every such problem is named at once.
+    /// Participating media (`<medium>`, in a shape, a sensor or the
+    /// scene) are not in the scene model: each is refused by name
+    /// (lenient: left out, the space it fills rendered as vacuum).
+    fn media(&mut self, media: &[&Element]) -> Result<(), XmlError> {
+        for medium in media {
+            let kind = medium.attr("type").unwrap_or("");
+            self.unsupported(
+                medium,
+                "type",
+                &format!(
+                    "participating media are not supported (<medium type={}>)",
+                    quote(kind)
+                ),
+                "leaving the medium out: vacuum",
+            )?;
+        }
+        Ok(())
+    }
+
     fn unsupported(
         &mut self,
         el: &Element,
@@ -469,6 +488,7 @@ fn convert_scene<'a>(ctx: &mut Ctx<'a>, scene: &'a Element) -> Result<SceneDoc, 
                     ctx.camera = Some(sensor::camera(ctx, el)?);
                 }
             }
+            "medium" => ctx.media(&[el])?,
             _ => ctx.unsupported(
                 el,
                 "",

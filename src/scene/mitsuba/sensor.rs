@@ -112,6 +112,8 @@ pub(crate) fn camera<'a>(ctx: &mut Ctx<'a>, el: &'a Element) -> Result<CameraDoc
     };
     props.ignore(&["near_clip", "far_clip", "shutter_open", "shutter_close"]);
     props.ignore_tags(&["sampler"]);
+    let media = props.nested(ctx, "medium")?;
+    ctx.media(&media)?;
     props.finish(ctx)?;
     ctx.origin("camera", el);
     Ok(CameraDoc {

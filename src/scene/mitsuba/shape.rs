@@ -45,6 +45,8 @@ pub(crate) fn add<'a>(ctx: &mut Ctx<'a>, el: &'a Element, outer: &Ops) -> Result
     }
     let emitters = props.nested(ctx, "emitter")?;
     let sensors = props.nested(ctx, "sensor")?;
+    let media = props.nested(ctx, "medium")?;
+    ctx.media(&media)?;
     let material = match props.nested(ctx, "bsdf")?[..] {
         [] => bsdf::default_material(ctx, !emitters.is_empty()),
         [b] => bsdf::material(ctx, b)?,

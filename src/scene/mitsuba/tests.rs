@@ -841,6 +841,18 @@ fn unknown_plugin_names_plugin_and_line() {
     assert!(e.contains("ellipsoids"), "{e}");
     let e = err(r#"<shape type="disk"><sensor type="radiancemeter"/></shape>"#);
     assert!(e.contains("radiancemeter"), "{e}");
+    for medium in [
+        r#"<shape type="sphere"><medium type="homogeneous" name="interior"/></shape>"#,
+        r#"<medium type="heterogeneous" id="fog"/>"#,
+    ] {
+        let e = err(medium);
+        assert!(e.contains("participating media are not supported"), "{e}");
+        let (_, warnings) = load_in(&wrap(medium), &scenes_dir(), true).unwrap();
+        assert!(
+            warnings.iter().any(|w| w.message.contains("vacuum")),
+            "{warnings:?}"
+        );
+    }
     let e = err(r#"<emitter type="projector"/>"#);
     assert!(e.contains("projector"), "{e}");
     let text = wrap(r#"<bsdf type="diffuse"><float name="roughness" value="1"/></bsdf>"#);
