@@ -80,34 +80,35 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     let mut spec = args.spec();
     // Everything but the points and the scene's depth is checked before the scene loads.
     spec.estimator.resolve()?;
-    let text = match &args.points {
-        Some(path) => Some(
-            std::fs::read_to_string(path)
-                .with_context(|| format!("reading points file {}", path.display()))?,
-        ),
-        None => None,
-    };
-    if let (Some(text), Some(path)) = (&text, &args.points) {
-        spec.points = parse_points(text).with_context(|| format!("in {}", path.display()))?;
+    if let Some(path) = &args.points {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading points file {}", path.display()))?;
+        spec.points = parse_points(&text).with_context(|| format!("in {}", path.display()))?;
     }
     let scene = args.scene.load(&mut std::io::stderr())?;
-    let meters = scene.meters.clone();
-    if text.is_none() {
-        anyhow::ensure!(
-            !meters.is_empty(),
-            "the scene has no irradiance meters (a shape's <sensor type=\"irradiancemeter\">, \
-             or \"sensor\": {{\"type\": \"irradiancemeter\"}} on a JSON shape); give --points"
-        );
-        spec.max_depth = spec.max_depth.or(Some(PathDepth::for_meters(&scene)));
-        spec.points = meters
-            .iter()
-            .flat_map(|m| scene.meter_points(m))
-            .map(|(p, n)| PointDoc {
-                position: p.to_array(),
-                normal: n.to_array(),
-            })
-            .collect();
-    }
+    // Without points, the scene's meters (kept apart: the scene moves into
+    // the transport).
+    let meters = match args.points {
+        Some(_) => None,
+        None => {
+            anyhow::ensure!(
+                !scene.meters.is_empty(),
+                "the scene has no irradiance meters (a shape's <sensor type=\"irradiancemeter\">, \
+                 or \"sensor\": {{\"type\": \"irradiancemeter\"}} on a JSON shape); give --points"
+            );
+            spec.max_depth = spec.max_depth.or(Some(PathDepth::for_meters(&scene)));
+            spec.points = scene
+                .meters
+                .iter()
+                .flat_map(|m| scene.meter_points(m))
+                .map(|(p, n)| PointDoc {
+                    position: p.to_array(),
+                    normal: n.to_array(),
+                })
+                .collect();
+            Some(scene.meters.clone())
+        }
+    };
     let max_samples = config.limits.target_max_samples();
     let query: PointQuery = spec.resolve(&scene, max_samples)?;
     let transport = Transport::new(Arc::new(scene));
@@ -141,9 +142,11 @@ pub fn run_irradiance(args: &IrradianceArgs, out: &mut dyn Write) -> anyhow::Res
     };
     let answer = in_thread_pool(args.threads, estimate)??;
     progress.finish_and_clear();
-    if text.is_none() {
+    if let Some(meters) = meters {
         let per_meter = answer.irradiance.len() / meters.len();
-        let values: Vec<_> = (answer.irradiance.chunks(per_meter))
+        let values: Vec<_> = answer
+            .irradiance
+            .chunks(per_meter)
             .zip(answer.std_dev.chunks(per_meter))
             .map(|(values, std_dev)| meter_value(values, std_dev))
             .collect();

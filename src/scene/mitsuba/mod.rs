@@ -239,9 +239,6 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    /// An unsupported feature: with `lenient` a warning saying what is done
-    /// instead (`fallback`), else a problem that fails the document once it
-    /// has been read through, so that every such problem is named at once.
     /// Participating media (`<medium>`, in a shape, a sensor or the
     /// scene) are not in the scene model: each is refused by name
     /// (lenient: left out, the space it fills rendered as vacuum).
@@ -261,6 +258,9 @@ impl<'a> Ctx<'a> {
         Ok(())
     }
 
+    /// An unsupported feature: with `lenient` a warning saying what is done
+    /// instead (`fallback`), else a problem that fails the document once it
+    /// has been read through, so that every such problem is named at once.
     fn unsupported(
         &mut self,
         el: &Element,

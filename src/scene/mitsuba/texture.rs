@@ -170,19 +170,20 @@ fn spectrum<'a>(
     el: &'a Element,
     usage: SpectrumUse,
 ) -> Result<RgbArray, XmlError> {
-    // A `uniform` spectrum plugin is its value in every channel, as a
-    // texture object it is not converted for emitters.
-    if el.attr("type") == Some("uniform") {
-        return raw_constant(ctx, el);
-    }
-    if let Some(kind) = el.attr("type") {
-        ctx.unsupported(
-            el,
-            "type",
-            &format!("spectrum plugin {} is not supported", quote(kind)),
-            "using mid grey",
-        )?;
-        return Ok(GREY);
+    match el.attr("type") {
+        // A `uniform` spectrum plugin is its value in every channel: as a
+        // texture object it is not converted for emitters.
+        Some("uniform") => return raw_constant(ctx, el),
+        Some(kind) => {
+            ctx.unsupported(
+                el,
+                "type",
+                &format!("spectrum plugin {} is not supported", quote(kind)),
+                "using mid grey",
+            )?;
+            return Ok(GREY);
+        }
+        None => {}
     }
     let sampled = match (el.attr("value"), el.attr("filename")) {
         (Some(text), None) if !text.contains(':') => {
