@@ -39,6 +39,12 @@ pub struct RenderArgs {
     /// the preset's, as they do on a tile request.
     #[arg(long, value_enum, conflicts_with_all = ["method", "repeat"])]
     pub preset: Option<Preset>,
+    /// Denoise each tile (`true`) or not (`false`) as the tiles' `denoise`
+    /// does (with `--preset`): OIDN in a build with the `oidn` feature, else
+    /// the guided filter of docs/math.md §16.6. Default: as the preset does
+    /// on the scene.
+    #[arg(long, requires = "preset")]
+    pub denoise: Option<bool>,
     /// Camera rays per pixel (default 64; with `--preset`, the preset's
     /// passes, or one pass of this many rays).
     #[arg(long)]
@@ -124,7 +130,7 @@ pub fn run_render(args: &RenderArgs, out: &mut dyn Write) -> anyhow::Result<()> 
         max_depth: args.max_depth.map(PathDepth::get),
         seed: args.seed,
         estimator: IntegratorSpec::Cache(args.cache),
-        denoise: false,
+        denoise: args.denoise,
     });
     let (integrator, spp) = match &tile_params {
         Some(params) => {
@@ -240,7 +246,7 @@ fn preset_job(
     Ok(TileJob {
         request: tile_params.request(transport.scene())?,
         integrator,
-        denoise: params.denoise,
+        denoise: params.denoise(transport.scene()),
     })
 }
 

@@ -58,6 +58,10 @@ pub struct GuidePixel {
     /// emitter): such a pixel weighs its neighbours by value alone and lends
     /// nothing to pixels with a normal.
     pub normal: Option<DVec3>,
+    /// The mean of the rays' shading normals, zero where none hit a
+    /// surface: the normal image a path tracer hands OIDN (which weighs
+    /// it itself at edges), where the filter here wants `normal`'s test.
+    pub mean_normal: DVec3,
     /// The first hits' mean position, world units.
     pub position: DVec3,
     /// World length one pixel spans at the hit's depth.
@@ -220,6 +224,7 @@ mod tests {
         let pixels = (0..SIDE * SIDE)
             .map(|i| GuidePixel {
                 normal: Some(DVec3::Z),
+                mean_normal: DVec3::Z,
                 position: DVec3::new(f64::from(i % SIDE), f64::from(i / SIDE), 0.0),
                 footprint: 1.0,
                 albedo: [albedo; 3],

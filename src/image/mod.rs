@@ -13,6 +13,8 @@ mod denoise;
 mod error;
 pub(crate) mod exr_io;
 mod false_colour;
+#[cfg(feature = "oidn")]
+pub mod oidn;
 pub(crate) mod png_io;
 
 use serde::Serialize;
@@ -129,6 +131,27 @@ impl Image {
     /// Per-pixel variance of the estimate (see the type's docs), if known.
     pub fn variance(&self) -> Option<&[f32]> {
         self.variance.as_deref()
+    }
+
+    /// The `width`×`height` rectangle whose top-left corner is (`x`, `y`),
+    /// variance included.
+    pub fn crop(&self, x: u32, y: u32, width: u32, height: u32) -> Result<Image, ImageError> {
+        if x.saturating_add(width) > self.width || y.saturating_add(height) > self.height {
+            return Err(ImageError::invalid(
+                "crop",
+                format!(
+                    "{width}×{height} at ({x}, {y}) outside a {}×{} image",
+                    self.width, self.height
+                ),
+            ));
+        }
+        let rows = (y..y + height).flat_map(|r| {
+            let start = (r * self.width + x) as usize;
+            start..start + width as usize
+        });
+        let rgb = rows.clone().map(|i| self.rgb[i]).collect();
+        let variance = self.variance.as_ref().map(|v| rows.map(|i| v[i]).collect());
+        Image::from_parts(width, height, rgb, variance)
     }
 
     /// Pixel at column `x`, row `y` (`None` outside the image).
@@ -302,6 +325,17 @@ mod tests {
         assert_eq!(image.pixel(4, 0), None);
         assert!(image.insert(&tile, 3, 0).is_err());
         assert!(image.insert(&tile, 0, u32::MAX).is_err());
+    }
+
+    #[test]
+    fn crop_undoes_insert() {
+        let tile = ramp(2, 3, 10.0);
+        let mut image = ramp(5, 4, 0.0);
+        image.insert(&tile, 3, 1).expect("fits");
+        assert_eq!(image.crop(3, 1, 2, 3).expect("inside"), tile);
+        assert_eq!(image.crop(0, 0, 5, 4).expect("inside"), image);
+        assert!(image.crop(4, 0, 2, 1).is_err());
+        assert!(image.crop(0, u32::MAX, 1, 2).is_err());
     }
 
     #[test]

@@ -15,9 +15,13 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+use glam::DVec3;
+
 use super::cached::CachedSpec;
-use super::spec::IntegratorSpec;
+use super::spec::{IntegratorSpec, PathSpec};
 use crate::render::PathDepth;
+use crate::scene::Scene;
+use crate::scene::material::{Lookup, Material};
 
 /// A named quality level.
 #[derive(
@@ -61,7 +65,7 @@ pub enum Preset {
     Final,
 }
 
-/// Everything a preset fixes.
+/// Everything a preset fixes on a scene.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TileSettings {
     /// The cache integrator with every knob a preset fixes set
@@ -74,6 +78,10 @@ pub struct TileSettings {
     pub passes: u32,
     /// Longest path in segments from the camera.
     pub max_depth: PathDepth,
+    /// Whether tiles are denoised when the request does not say: path
+    /// traced tiles are, cached ones not (their records' error is shared
+    /// by neighbouring pixels, which a denoiser takes for signal).
+    pub denoise: bool,
 }
 
 impl TileSettings {
@@ -102,7 +110,39 @@ impl Preset {
         }
     }
 
-    /// The preset's knobs. Records: spherical Fibonacci directions with the
+    /// The preset's knobs on `scene`: the irradiance cache's
+    /// ([`Preset::settings`]), or path tracing and a denoiser
+    /// ([`Preset::path_settings`]) where records do not pay: on a scene
+    /// with surfaces that make caustics ([`makes_caustics`]), records carry
+    /// light that their directions sample badly, and their error shows as
+    /// blotches no denoiser removes (docs/math.md §16.7).
+    pub fn settings_on(self, scene: &Scene) -> TileSettings {
+        if scene.materials.iter().any(makes_caustics) {
+            self.path_settings()
+        } else {
+            self.settings()
+        }
+    }
+
+    /// The preset as path tracing, denoised by default: the cached
+    /// preset's passes (so a client's ladder of passes is the same on
+    /// every scene), of about its time on the bundled scenes.
+    pub fn path_settings(self) -> TileSettings {
+        let spp = match self {
+            Preset::Draft | Preset::Preview | Preset::Interactive => 4,
+            Preset::Standard => 16,
+            Preset::Final => 48,
+        };
+        TileSettings {
+            integrator: IntegratorSpec::Path(PathSpec {}),
+            samples_per_pixel: spp,
+            passes: self.settings().passes,
+            max_depth: PathDepth::constant(64),
+            denoise: true,
+        }
+    }
+
+    /// The preset's knobs with the irradiance cache. Records: spherical Fibonacci directions with the
     /// default SE kernel; more directions and paths per direction lower the
     /// records' Monte Carlo noise, a smaller accuracy places more of them
     /// (docs/BENCHMARKS.md "Irradiance cache" for how each knob trades).
@@ -145,6 +185,7 @@ impl Preset {
             samples_per_pixel: spp,
             passes,
             max_depth: PathDepth::constant(64),
+            denoise: false,
             integrator: IntegratorSpec::Cache(CachedSpec {
                 samples: Some(samples),
                 glossy_samples: Some(glossy),
@@ -159,6 +200,41 @@ impl Preset {
             }),
         }
     }
+}
+
+/// Sampling density (sr⁻¹) above which a lobe counts as sharp: GGX of
+/// roughness α has its peak near `1/(4π α²)` at normal incidence, so this
+/// is α ≈ 0.2 (Phong exponents near 12 if Phong were path traced; the
+/// cache integrates Phong lobes by BMC, which sees their shape).
+pub const SHARP_LOBE_DENSITY: f64 = 2.0;
+
+/// Whether `material` images light sources sharply enough to make
+/// caustics that records cannot sample: a Dirac delta (mirror, glass), or
+/// a microfacet lobe whose density at normal incidence peaks above
+/// [`SHARP_LOBE_DENSITY`] (the textures at their means). Probed by the
+/// lobe's own sampling, so it holds for every plugin.
+pub fn makes_caustics(material: &Material) -> bool {
+    let bsdf = material.build(Lookup::Mean, None);
+    let flags = bsdf.flags();
+    if flags.delta {
+        return true;
+    }
+    if !flags.glossy || bsdf.phong().is_some() {
+        return false;
+    }
+    let wo = DVec3::Z;
+    // A fixed 16 × 16 grid of lobe samples: deterministic, and dense enough
+    // to land near a peak whose half-width is α.
+    (0..256).any(|i| {
+        let u = [
+            (f64::from(i % 16) + 0.5) / 16.0,
+            (f64::from(i / 16) + 0.5) / 16.0,
+        ];
+        (0..4).any(|l| {
+            bsdf.sample(wo, (f64::from(l) + 0.5) / 4.0, u)
+                .is_some_and(|s| bsdf.pdf(wo, s.wi) > SHARP_LOBE_DENSITY)
+        })
+    })
 }
 
 impl fmt::Display for Preset {
@@ -203,6 +279,40 @@ mod tests {
             assert_eq!(preset.name().parse::<Preset>(), Ok(preset));
         }
         assert_eq!(Preset::default(), Preset::Preview);
+        for preset in Preset::ALL {
+            let path = preset.path_settings();
+            assert_eq!(path.passes, preset.settings().passes, "{preset}");
+            assert!(path.denoise && !preset.settings().denoise);
+        }
         assert!("best".parse::<Preset>().unwrap_err().contains("preview"));
+    }
+
+    /// The tutorials' box (a glass and a mirror sphere) and the studio (glass,
+    /// rough gold, a smooth plastic coat) make caustics; the Cornell box and
+    /// the sky scene (Lambertian and Phong lobes, which the cache integrates)
+    /// do not.
+    #[test]
+    fn caustic_surfaces_are_found_by_their_lobes() {
+        let load = |file: &str| {
+            let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+            Scene::load(&root.join(file), root).expect("a bundled scene")
+        };
+        let caustics =
+            |scene: &Scene| -> Vec<bool> { scene.materials.iter().map(makes_caustics).collect() };
+        let cbox = load("tests/data/mitsuba-tutorials/cbox.xml");
+        assert_eq!(cbox.material_ids[4..], ["glass", "mirror"]);
+        assert_eq!(caustics(&cbox), [false, false, false, false, true, true]);
+        let studio = load("scenes/studio.xml");
+        assert_eq!(studio.material_ids[1..4], ["gold", "glass", "red-plastic"]);
+        assert_eq!(caustics(&studio), [false, true, true, true, false]);
+        for file in ["scenes/cornell-box.json", "scenes/sky.json"] {
+            let scene = load(file);
+            assert!(!caustics(&scene).contains(&true), "{file}");
+            assert_eq!(Preset::Final.settings_on(&scene), Preset::Final.settings());
+        }
+        assert_eq!(
+            Preset::Final.settings_on(&studio),
+            Preset::Final.path_settings()
+        );
     }
 }

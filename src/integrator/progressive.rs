@@ -38,8 +38,9 @@ pub struct TileParams {
     pub seed: u64,
     /// The integrator's knobs over the preset's.
     pub estimator: IntegratorSpec,
-    /// Filter the averaged passes with the tile's guides (docs/math.md §16.6).
-    pub denoise: bool,
+    /// Denoise the averaged passes with the tile's guides (docs/math.md
+    /// §16.6, §16.7); `None`: as the preset does on the scene.
+    pub denoise: Option<bool>,
 }
 
 impl TileParams {
@@ -49,7 +50,7 @@ impl TileParams {
     /// up to `pass`. The depth is the request's, else the scene's (what the
     /// scene's author rendered it with), else the preset's.
     pub fn request(&self, scene: &Scene) -> Result<TileRequest, RenderError> {
-        let settings = self.preset.settings();
+        let settings = self.preset.settings_on(scene);
         let passes = match self.samples_per_pixel {
             Some(_) => 1,
             None => settings.passes,
@@ -74,17 +75,31 @@ impl TileParams {
         })
     }
 
-    /// The integrator's knobs: the request's over the preset's.
-    pub fn integrator_spec(&self) -> IntegratorSpec {
-        self.estimator.over(self.preset.settings().integrator)
+    /// The integrator's knobs on `scene`: the request's over the preset's.
+    /// Cache knobs named on a scene the preset path traces are taken over
+    /// the preset's cache settings; none named leaves the preset's choice.
+    pub fn integrator_spec(&self, scene: &Scene) -> IntegratorSpec {
+        match self.estimator {
+            IntegratorSpec::Cache(knobs) if knobs == Default::default() => {
+                self.preset.settings_on(scene).integrator
+            }
+            named => named.over(self.preset.settings().integrator),
+        }
+    }
+
+    /// Whether the tile is denoised on `scene`: as asked, else as the
+    /// preset does there.
+    pub fn denoise(&self, scene: &Scene) -> bool {
+        self.denoise
+            .unwrap_or_else(|| self.preset.settings_on(scene).denoise)
     }
 
     /// The job on `scene`, every field checked (errors name the field).
     pub fn job(&self, scene: &Scene) -> Result<TileJob, RenderError> {
         Ok(TileJob {
             request: self.request(scene)?,
-            integrator: self.integrator_spec().resolve()?,
-            denoise: self.denoise,
+            integrator: self.integrator_spec(scene).resolve()?,
+            denoise: self.denoise(scene),
         })
     }
 }
@@ -107,11 +122,55 @@ impl TileJob {
         self.integrator.reproducible()
     }
 
+    /// Whether the tile is denoised by a filter that sees beyond it (OIDN,
+    /// in a build with the `oidn` feature; [`TileJob::context`]).
+    fn denoised_in_context(&self) -> bool {
+        self.denoise && cfg!(feature = "oidn")
+    }
+
+    /// The passes that make the tile on an image of `resolution`: the
+    /// request itself, or for a tile denoised by a filter that sees far,
+    /// the tile and [`DENOISER_MARGIN`] within the image (so
+    /// a pixel near the tile's edge is denoised with the pixels around it
+    /// as in the whole image: no tile seams), each pass of an even number
+    /// of rays rendered as two passes of half as many (so even the first
+    /// has two independent halves to measure the denoised error from,
+    /// docs/math.md §16.7; the rays per pixel are the request's).
+    pub fn context(&self, resolution: (u32, u32)) -> TileRequest {
+        let r = self.request;
+        if !self.denoised_in_context() {
+            return r;
+        }
+        let r = if r.samples_per_pixel.is_multiple_of(2) {
+            TileRequest {
+                samples_per_pixel: r.samples_per_pixel / 2,
+                passes: 2 * r.passes,
+                pass: 2 * r.pass + 1,
+                ..r
+            }
+        } else {
+            r
+        };
+        let (x0, y0) = (
+            r.x.saturating_sub(DENOISER_MARGIN),
+            r.y.saturating_sub(DENOISER_MARGIN),
+        );
+        let x1 = (r.x + r.width + DENOISER_MARGIN).min(resolution.0.max(r.x + r.width));
+        let y1 = (r.y + r.height + DENOISER_MARGIN).min(resolution.1.max(r.y + r.height));
+        TileRequest {
+            x: x0,
+            y: y0,
+            width: x1 - x0,
+            height: y1 - y0,
+            ..r
+        }
+    }
+
     /// Camera paths of every pass plus at most one record per pixel of
     /// the record blocks it may place (on an image of `resolution`): what a
     /// work budget weighs.
     pub fn estimated_paths(&self, resolution: (u32, u32)) -> u64 {
-        let r = &self.request;
+        let r = &self.context(resolution);
         let area = u64::from(r.width) * u64::from(r.height);
         let camera = area
             .saturating_mul(u64::from(r.samples_per_pixel))
@@ -131,12 +190,20 @@ impl TileJob {
     }
 
     /// The rays per pixel of the pass after `before` (docs/math.md §16.5):
-    /// none for a single pass (every pixel its `samples_per_pixel`); for a
-    /// preset's ladder of passes, `samples_per_pixel` each in the first,
+    /// none for a single pass or a tile OIDN denoises (every pixel its
+    /// `samples_per_pixel`); for a preset's ladder of passes,
+    /// `samples_per_pixel` each in the first,
     /// then as the first pass's standard errors around each pixel ask.
-    pub fn plan(&self, before: &[Arc<RenderedPass>]) -> Result<Option<SamplePlan>, RenderError> {
-        let r = &self.request;
-        if r.passes < 2 {
+    /// The passes cover `rect` (the tile or its [`TileJob::context`]).
+    pub fn plan(
+        &self,
+        rect: &TileRequest,
+        before: &[Arc<RenderedPass>],
+    ) -> Result<Option<SamplePlan>, RenderError> {
+        let r = rect;
+        // OIDN denoises images of even noise better than images whose rays
+        // went where the first pass was noisiest (docs/math.md §16.7).
+        if r.passes < 2 || self.denoised_in_context() {
             return Ok(None);
         }
         let area = r.width as usize * r.height as usize;
@@ -199,10 +266,11 @@ pub trait PassMemo {
         place: impl FnOnce() -> Result<TileRecords, RenderError> + Send,
     ) -> Result<Arc<TileRecords>, RenderError>;
 
-    /// Pass `pass`, rendered by `render` unless kept.
+    /// The pass `request` names (its rectangle and `pass`), rendered by
+    /// `render` unless kept.
     fn pass_or(
         &self,
-        pass: u32,
+        request: &TileRequest,
         render: impl FnOnce() -> Result<RenderedPass, RenderError> + Send,
     ) -> Result<Arc<RenderedPass>, RenderError>;
 }
@@ -246,7 +314,7 @@ impl PassMemo for HeldBlocks {
 
     fn pass_or(
         &self,
-        _pass: u32,
+        _request: &TileRequest,
         render: impl FnOnce() -> Result<RenderedPass, RenderError> + Send,
     ) -> Result<Arc<RenderedPass>, RenderError> {
         render().map(Arc::new)
@@ -293,15 +361,18 @@ pub fn render_progressive(
     memo: &impl PassMemo,
     cancel: &Cancel,
 ) -> Result<ProgressiveTile, RenderError> {
-    let (mut rays, mut cache_hits, mut passes_rendered) = (0, 0, 0);
+    let (mut rays, mut cache_hits, mut passes_rendered) = (0, 0, 0u32);
     let reproducible = job.reproducible();
+    // The rectangle the passes cover: the tile, or with a denoiser that
+    // needs to see around it, the tile and a margin (cropped at the end).
+    let context = job.context(transport.scene().camera.resolution());
     // Atomics, as the closures that set them may run on a pool of their own.
     let created = AtomicU64::new(0);
     // The records of the blocks around the tile, once for every pass.
     let mut records = Vec::new();
     let mut rects = Vec::new();
     if let (Some(integrator), true) = (bound.cached(), reproducible) {
-        for block in integrator.record_blocks(&job.request) {
+        for block in integrator.record_blocks(&context) {
             rects.push([block.x, block.y, block.width, block.height]);
             records.push(memo.records_or(&block, || {
                 let (records, report) = integrator.tile_records(&block, cancel)?;
@@ -325,16 +396,13 @@ pub fn render_progressive(
             dense: b.report.dense(),
         })
         .collect();
-    let mut passes = Vec::with_capacity(job.request.pass as usize + 1);
-    for pass in 0..=job.request.pass {
-        let request = TileRequest {
-            pass,
-            ..job.request
-        };
+    let mut passes = Vec::with_capacity(context.pass as usize + 1);
+    for pass in 0..=context.pass {
+        let request = TileRequest { pass, ..context };
         let rendered = AtomicBool::new(false);
         let render = || -> Result<RenderedPass, RenderError> {
             rendered.store(true, Relaxed);
-            let plan = job.plan(&passes)?;
+            let plan = job.plan(&context, &passes)?;
             let plan = plan.as_ref();
             let (tile, cache_hits) = match (bound.cached(), reproducible) {
                 (Some(i), true) => {
@@ -357,7 +425,7 @@ pub fn render_progressive(
             })
         };
         let pass_image = if reproducible {
-            memo.pass_or(pass, render)?
+            memo.pass_or(&request, render)?
         } else {
             Arc::new(render()?)
         };
@@ -369,13 +437,18 @@ pub fn render_progressive(
         passes.push(pass_image);
     }
     let records_created = created.into_inner();
-    let mut image = mean_of_passes(&passes, job.request.samples_per_pixel)?.image;
+    // Passes counted as the request counts them (a pass split in two is one).
+    let passes_rendered = passes_rendered.div_ceil(context.passes / job.request.passes);
+    let spp = context.samples_per_pixel;
+    let mut image = mean_of_passes(&passes, spp)?.image;
     if job.denoise {
         cancel.check()?;
-        let r = &job.request;
-        let (guides, guide_rays) = transport.guide_buffers(r.x, r.y, r.width, r.height);
+        let c = &context;
+        let (guides, guide_rays) = transport.guide_buffers(c.x, c.y, c.width, c.height);
         rays += guide_rays;
-        image = denoise(&image, &guides)?;
+        image = denoised(image, &passes, spp, &guides)?;
+        let r = &job.request;
+        image = image.crop(r.x - c.x, r.y - c.y, r.width, r.height)?;
     }
     Ok(ProgressiveTile {
         image,
@@ -385,6 +458,51 @@ pub fn render_progressive(
         cache_hits,
         passes_rendered,
     })
+}
+
+/// Pixels of context a tile OIDN denoises is rendered with on each side:
+/// its network sees far beyond a pixel's neighbours (the guided filter of
+/// docs/math.md §16.6 sees its tile only).
+pub const DENOISER_MARGIN: u32 = 16;
+
+/// `image`, the mean of `passes` (`spp` rays per pixel where a pass has no
+/// counts), denoised with `guides`: by OIDN when the build has it and there
+/// are two passes or more to measure its error from (docs/math.md §16.7),
+/// else by the guided filter that keeps each pixel's own error bar (§16.6).
+fn denoised(
+    image: Image,
+    passes: &[Arc<RenderedPass>],
+    spp: u32,
+    guides: &crate::image::GuideBuffers,
+) -> Result<Image, RenderError> {
+    #[cfg(feature = "oidn")]
+    if passes.len() >= 2 {
+        // Even and odd passes: two independent renders of the same pixels.
+        let half = |first: usize| {
+            let own: Vec<_> = passes.iter().skip(first).step_by(2).cloned().collect();
+            mean_of_passes(&own, spp)
+        };
+        let (a, b) = (half(0)?, half(1)?);
+        // Var(F) = n_a n_b / (n_a + n_b)² · Var(A − B) for the mean F of
+        // halves of n_a and n_b rays (docs/math.md §16.7).
+        let scale: Vec<f64> = a
+            .rays
+            .iter()
+            .zip(&b.rays)
+            .map(|(&na, &nb)| {
+                let (na, nb) = (f64::from(na), f64::from(nb));
+                na * nb / ((na + nb) * (na + nb))
+            })
+            .collect();
+        return Ok(crate::image::oidn::denoise_with_halves(
+            &image,
+            [&a.image, &b.image],
+            &scale,
+            guides,
+        )?);
+    }
+    let _ = (passes, spp);
+    Ok(denoise(&image, guides)?)
 }
 
 /// The mean of a tile's passes: each pixel's rays over all of them

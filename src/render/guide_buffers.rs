@@ -84,6 +84,7 @@ fn guide_of(seen: &[Option<Seen>]) -> GuidePixel {
         / count;
     let mut guide = GuidePixel {
         normal: None,
+        mean_normal: seen.iter().flatten().map(|s| s.0).sum::<DVec3>() / count,
         position: DVec3::ZERO,
         footprint: 0.0,
         albedo: albedo.to_array(),

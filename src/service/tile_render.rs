@@ -34,8 +34,8 @@ pub fn tile_job(params: &TileParams, scene: &Scene, limits: &Limits) -> Result<T
     )?;
     Ok(TileJob {
         request,
-        integrator: resolve_integrator(params.integrator_spec(), limits)?,
-        denoise: params.denoise,
+        integrator: resolve_integrator(params.integrator_spec(scene), limits)?,
+        denoise: params.denoise(scene),
     })
 }
 
@@ -72,23 +72,21 @@ struct StoreMemo<'a> {
     store: &'a TileStore,
     scene: &'a LoadedScene,
     job: &'a TileJob,
-    /// The key of the tile's own rectangle, depth and seed.
-    tile: Key,
 }
 
 impl StoreMemo<'_> {
-    /// The content key of pass `pass`.
-    fn pass_key(&self, pass: u32) -> Key {
+    /// The content key of the pass `request` names.
+    fn pass_key(&self, request: &TileRequest) -> Key {
         let mut hasher = blake3::Hasher::new();
         // Passes of a ladder take their rays per pixel from the passes
         // before (`TileJob::plan`), which older entries did not.
         // Passes shaded by the record blocks around the tile (not only
         // its own records) differ from older entries.
         hasher.update(b"adaptive pass\0record blocks\0");
-        hasher.update(&self.tile);
-        hasher.update(&self.job.request.samples_per_pixel.to_le_bytes());
-        hasher.update(&self.job.request.passes.to_le_bytes());
-        hasher.update(&pass.to_le_bytes());
+        hasher.update(&records_key(request, &self.job.integrator, self.scene));
+        hasher.update(&request.samples_per_pixel.to_le_bytes());
+        hasher.update(&request.passes.to_le_bytes());
+        hasher.update(&request.pass.to_le_bytes());
         *hasher.finalize().as_bytes()
     }
 }
@@ -105,10 +103,10 @@ impl PassMemo for StoreMemo<'_> {
 
     fn pass_or(
         &self,
-        pass: u32,
+        request: &TileRequest,
         render: impl FnOnce() -> Result<RenderedPass, RenderError> + Send,
     ) -> Result<Arc<RenderedPass>, RenderError> {
-        self.store.pass_or(self.pass_key(pass), render)
+        self.store.pass_or(self.pass_key(request), render)
     }
 }
 
@@ -132,7 +130,6 @@ pub fn render_progressive(
         store: &state.tiles,
         scene,
         job,
-        tile: records_key(&job.request, &job.integrator, scene),
     };
     Ok(progressive::render_progressive(
         transport, &bound, job, &memo, cancel,

@@ -38,7 +38,7 @@ class _Images(_Tiles, _Scenes):
         estimator: Estimator | None = ...,
         max_depth: int | None = ...,
         tile: int | None = ...,
-        denoise: bool = ...,
+        denoise: bool | None = ...,
     ) -> Image: ...
 
     # spp, estimator and max_depth are radiance only (POST tiles).
@@ -86,7 +86,7 @@ class _Images(_Tiles, _Scenes):
         estimator: Estimator | None = None,
         max_depth: int | None = None,
         tile: int | None = None,
-        denoise: bool = False,
+        denoise: bool | None = None,
     ) -> Image | list[dict[str, Any]]:
         """The scene camera's whole image, assembled from JSON tiles of
         ``size`` pixels (default 64) fetched ``workers`` at a time, with a
@@ -121,9 +121,11 @@ class _Images(_Tiles, _Scenes):
         name of ``size``.
 
         ``denoise=True`` (radiance only) asks for tiles filtered by their
-        own first-hit guides: each pixel moves by at most its standard
-        error and keeps it as its error bar (the service's docs/math.md
-        §16.6; off by default).
+        own first-hit guides, ``False`` for tiles as rendered; ``None`` (the
+        default) leaves it to the preset, which denoises the path traced
+        presets of scenes with mirrors, glass or sharp gloss (the service's
+        docs/math.md §16.6, §16.7). Each denoised pixel carries a measured
+        standard error.
 
         Errors: a 503 with ``Retry-After`` is retried per tile (the client's
         ``retries``); any other error answer, e.g. 422 for an unknown preset

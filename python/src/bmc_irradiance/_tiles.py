@@ -54,7 +54,7 @@ class _Tiles(_Resource):
         exposure: float | None = None,
         preset: str | None = None,
         pass_index: int | None = None,
-        denoise: bool = False,
+        denoise: bool | None = None,
     ) -> Response:
         """``POST /v1/scenes/{id}/tiles`` of a pixel rectangle."""
         body: dict[str, Any] = {
@@ -79,8 +79,8 @@ class _Tiles(_Resource):
             body["seed"] = int(seed)
         if exposure is not None:
             body["exposure"] = float(exposure)
-        if denoise:
-            body["denoise"] = True
+        if denoise is not None:
+            body["denoise"] = bool(denoise)
         return self._http.post_json(f"/v1/scenes/{_segment(scene)}/tiles", body)
 
     def tile(
@@ -275,11 +275,11 @@ def _grid_query(
     aov: str | None,
     exposure: float | None = None,
     scale: float | None = None,
-    denoise: bool = False,
+    denoise: bool | None = None,
 ) -> dict[str, Any]:
     """The query of a GET tile; ``None`` values are left out (the service's defaults)."""
     return {
-        "denoise": "true" if denoise else None,
+        "denoise": None if denoise is None else ("true" if denoise else "false"),
         "size": None if size is None else int(size),
         "preset": preset,
         "pass": None if pass_index is None else int(pass_index),

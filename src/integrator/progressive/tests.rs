@@ -28,7 +28,7 @@ fn the_depth_is_the_requests_else_the_scenes_else_the_presets() {
             max_depth,
             seed: 1,
             estimator: IntegratorSpec::default(),
-            denoise: false,
+            denoise: None,
         };
         params.job(scene).expect("valid").request.max_depth.get()
     };
@@ -89,11 +89,11 @@ fn a_ladder_plans_its_passes_from_the_first() {
         max_depth: None,
         seed: 1,
         estimator: IntegratorSpec::default(),
-        denoise: false,
+        denoise: None,
     };
     let job = params.job(&scene).unwrap();
     let spp = job.request.samples_per_pixel;
-    let first = job.plan(&[]).unwrap().expect("a ladder");
+    let first = job.plan(&job.request, &[]).unwrap().expect("a ladder");
     assert_eq!(first.counts, vec![spp; 64]);
     // Noise only in columns 6 and 7.
     let variance = (0..64)
@@ -106,7 +106,7 @@ fn a_ladder_plans_its_passes_from_the_first() {
         rays: 0,
         cache_hits: 0,
     });
-    let next = job.plan(&[pass]).unwrap().expect("a ladder");
+    let next = job.plan(&job.request, &[pass]).unwrap().expect("a ladder");
     assert_eq!(next.counts.iter().sum::<u32>(), 64 * spp);
     assert_eq!(next.firsts, vec![spp; 64]);
     for (i, &n) in next.counts.iter().enumerate() {
@@ -120,7 +120,14 @@ fn a_ladder_plans_its_passes_from_the_first() {
         samples_per_pixel: Some(4),
         ..params
     };
-    assert!(single.job(&scene).unwrap().plan(&[]).unwrap().is_none());
+    assert!(
+        single
+            .job(&scene)
+            .unwrap()
+            .plan(&single.job(&scene).unwrap().request, &[])
+            .unwrap()
+            .is_none()
+    );
 }
 
 /// With record blocks (`integrator::cached::tiles`), a pixel of a preset's
@@ -148,7 +155,7 @@ fn a_pixel_is_the_same_whatever_tile_renders_it() {
         max_depth: None,
         seed: 7,
         estimator: IntegratorSpec::default(),
-        denoise: false,
+        denoise: None,
     };
     let integrator = params(0, 0, 1, 1)
         .job(transport.scene())

@@ -23,6 +23,19 @@ pub struct PresetDoc {
     /// The integrator and every knob the preset sets, as a tile request's
     /// `estimator` names them (posting it back changes nothing).
     pub estimator: IntegratorSpec,
+    /// What the preset is on a scene with surfaces that make caustics
+    /// (mirrors, glass, sharp microfacet lobes), where records do not pay:
+    /// path tracing, denoised unless a tile asks otherwise.
+    pub on_caustic_scenes: PathTracedDoc,
+}
+
+/// A preset as path tracing.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct PathTracedDoc {
+    /// Camera rays per pixel in each of the preset's `passes`.
+    pub samples_per_pixel: u32,
+    /// Whether tiles are denoised when they do not say.
+    pub denoise: bool,
 }
 
 /// The presets, cheapest first.
@@ -34,6 +47,7 @@ pub async fn presets() -> Json<Vec<PresetDoc>> {
             .iter()
             .map(|&p| {
                 let s = p.settings();
+                let path = p.path_settings();
                 PresetDoc {
                     name: p.name().to_owned(),
                     default: p == Preset::default(),
@@ -41,6 +55,10 @@ pub async fn presets() -> Json<Vec<PresetDoc>> {
                     passes: s.passes,
                     max_depth: s.max_depth.get(),
                     estimator: s.integrator,
+                    on_caustic_scenes: PathTracedDoc {
+                        samples_per_pixel: path.samples_per_pixel,
+                        denoise: path.denoise,
+                    },
                 }
             })
             .collect(),

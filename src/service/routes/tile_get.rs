@@ -89,7 +89,7 @@ pub struct TileQuery {
     pub aov: Option<Aov>,
     /// `std_dev` PNG only: relative standard error at the top of the colour map; default 0.2.
     pub scale: Option<f64>,
-    /// Denoise the tile (docs/math.md §16.6); each pixel keeps its standard error; default false.
+    /// Denoise the tile, each pixel with a calibrated standard error (docs/math.md §16.6, §16.7); default: as the preset does on the scene.
     pub denoise: Option<bool>,
 }
 
@@ -223,7 +223,7 @@ pub async fn get_tile(
         max_depth: None,
         seed: query.seed.unwrap_or(1),
         estimator: IntegratorSpec::default(),
-        denoise: query.denoise.unwrap_or(false),
+        denoise: query.denoise,
     };
     let job = tile_job(&params, scene.transport.scene(), limits)?;
     // Everything the bytes depend on, as canonical JSON.

@@ -66,10 +66,12 @@ pub struct TileRequestDoc {
     /// PNG only: exposure in stops (values scaled by 2^exposure); default 0.
     #[serde(default)]
     pub exposure: f32,
-    /// Denoise the tile with its own guides and error bars (docs/math.md
-    /// §16.6); each pixel keeps its standard error. Default false.
-    #[serde(default)]
-    pub denoise: bool,
+    /// Denoise the tile with the camera's first-hit guides, each pixel
+    /// with a calibrated standard error (docs/math.md §16.6, §16.7);
+    /// default: as the preset does on the scene (path traced scenes
+    /// denoised, cached ones not; `GET /v1/presets`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub denoise: Option<bool>,
 }
 
 fn default_format() -> ImageEncoding {
