@@ -20,6 +20,9 @@ pub const X_CACHE_HITS: HeaderName = HeaderName::from_static("x-cache-hits");
 pub const X_PASSES: HeaderName = HeaderName::from_static("x-passes");
 /// Passes this request rendered (the rest were memoised).
 pub const X_PASSES_RENDERED: HeaderName = HeaderName::from_static("x-passes-rendered");
+/// 1 if the tile was denoised (asked for, or the preset's choice on the
+/// scene), else 0.
+pub const X_DENOISED: HeaderName = HeaderName::from_static("x-denoised");
 /// Records shown by a `records` AOV.
 pub const X_RECORDS: HeaderName = HeaderName::from_static("x-records");
 /// The relative standard error at the top of a `std_dev` PNG's colour map.
@@ -29,7 +32,7 @@ pub const SERVER_TIMING: HeaderName = HeaderName::from_static("server-timing");
 
 /// Every header a tile response may carry beyond the standard ones, for
 /// pages of other origins to read (CORS `Access-Control-Expose-Headers`).
-pub const EXPOSED: [HeaderName; 11] = [
+pub const EXPOSED: [HeaderName; 12] = [
     header::ETAG,
     SERVER_TIMING,
     X_TILE_X,
@@ -40,6 +43,7 @@ pub const EXPOSED: [HeaderName; 11] = [
     X_CACHE_HITS,
     X_PASSES,
     X_PASSES_RENDERED,
+    X_DENOISED,
     X_STD_DEV_SCALE,
 ];
 
@@ -64,6 +68,7 @@ pub fn tile_headers(
         (X_CACHE_HITS, tile.cache_hits),
         (X_PASSES, u64::from(job.request.passes)),
         (X_PASSES_RENDERED, u64::from(tile.passes_rendered)),
+        (X_DENOISED, u64::from(job.denoise)),
     ] {
         headers.insert(name, HeaderValue::from(n));
     }

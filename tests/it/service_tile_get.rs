@@ -139,6 +139,7 @@ async fn passes_refine_without_redoing_earlier_work() {
     let passes = number(&h0, "x-passes");
     assert!(passes >= 2);
     assert_eq!(number(&h0, "x-passes-rendered"), 1);
+    assert_eq!(number(&h0, "x-denoised"), 0);
     let (_, h1, p1) = fetch(&app, &pass(1)).await;
     // Pass 1 reuses pass 0 and the records: one more pass, no records.
     assert_eq!(number(&h1, "x-passes-rendered"), 1);
@@ -273,6 +274,35 @@ async fn denoised_tiles_stay_within_their_error_bars() {
         squared_error[1] < 0.9 * squared_error[0],
         "{squared_error:?}"
     );
+}
+
+/// A mirror makes caustics, which records sample badly: the same preset
+/// path traces the scene and denoises its tiles unless a tile says not to
+/// (docs/math.md §16.7).
+#[tokio::test]
+async fn a_scene_with_a_mirror_is_path_traced_and_denoised_by_default() {
+    let dir = scenes_dir();
+    let path = dir.path().join("box.json");
+    let mut doc: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let white = doc["materials"][0]["id"].clone();
+    doc["materials"][0] = json!({"id": white, "type": "conductor"});
+    std::fs::write(&path, doc.to_string()).unwrap();
+    let app = spawn_app_in(dir, |_| {}).await;
+    let url = format!("/v1/scenes/box/tiles/0/0.exr?{DRAFT}");
+    let (status, headers, _) = fetch(&app, &url).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(number(&headers, "x-denoised"), 1);
+    assert_eq!(number(&headers, "x-records-created"), 0);
+    assert_eq!(number(&headers, "x-cache-hits"), 0);
+    let (_, raw_headers, _) = fetch(&app, &format!("{url}&denoise=false")).await;
+    assert_eq!(number(&raw_headers, "x-denoised"), 0);
+    assert_ne!(raw_headers["etag"], headers["etag"]);
+    // Naming the cache's knobs asks for the cache.
+    let body = json!({"x": 0, "y": 0, "width": 16, "height": 16, "preset": "draft",
+        "estimator": {"method": "cache", "samples": 32}, "format": "json"});
+    let response = app.post_json("/v1/scenes/box/tiles", &body).await;
+    assert_eq!(response.status(), StatusCode::OK);
+    assert!(number(response.headers(), "x-records-created") > 0);
 }
 
 #[tokio::test]

@@ -17,7 +17,7 @@
     // The steps every radiance tile climbs ({preset, pass, label}), and the
     // labels of the steps shown on the whole image so far, in order.
     ladder: [], shownLog: [],
-    preset: "preview", exposure: 0, denoise: false, uncertainty: false, records: false,
+    preset: "preview", exposure: 0, denoise: false, denoised: false, uncertainty: false, records: false,
     zoom: 1, panX: 0, panY: 0,
     // Bumped whenever what the tiles show changes; older answers are dropped.
     generation: 0,
@@ -195,7 +195,11 @@
     layer.clearRect(job.tx * TILE, job.ty * TILE, bitmap.width, bitmap.height);
     layer.drawImage(bitmap, job.tx * TILE, job.ty * TILE);
     bitmap.close();
-    if (job.aov === "radiance") state.drawn.radiance.set(job.key, job.step);
+    if (job.aov === "radiance") {
+      state.drawn.radiance.set(job.key, job.step);
+      // Denoised as asked, or by the preset's choice on this scene.
+      state.denoised = response.headers.get("x-denoised") === "1";
+    }
     else state.drawn[job.aov].add(job.key);
     if (job.aov === "std_dev") {
       state.stdDevScale = Number(response.headers.get("x-std-dev-scale") || state.stdDevScale);
@@ -222,7 +226,7 @@
       const label = state.ladder[low].label;
       if (state.shownLog[state.shownLog.length - 1] !== label) state.shownLog.push(label);
       const ahead = steps.filter((s) => s > low).length;
-      const shown = state.denoise ? `${label}, denoised` : label;
+      const shown = state.denoised ? `${label}, denoised` : label;
       text = ahead ? `${shown}; ${ahead} of ${total} tiles at ${state.ladder[high].label}` : shown;
     }
     $("shown").textContent = text;
