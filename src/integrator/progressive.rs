@@ -363,8 +363,9 @@ pub fn render_progressive(
 ) -> Result<ProgressiveTile, RenderError> {
     let (mut rays, mut cache_hits, mut passes_rendered) = (0, 0, 0u32);
     let reproducible = job.reproducible();
-    // The rectangle the passes cover: the tile, or with a denoiser that
-    // needs to see around it, the tile and a margin (cropped at the end).
+    // The passes as rendered: the tile's, or for a denoiser that needs to
+    // see around it, over the tile and a margin (cropped at the end), each
+    // split in two halves (`TileJob::context`).
     let context = job.context(transport.scene().camera.resolution());
     // Atomics, as the closures that set them may run on a pool of their own.
     let created = AtomicU64::new(0);
