@@ -12,7 +12,8 @@ reflectances and a conductor's `eta`/`k`, and a `.spd` file), `cylinders.xml`
 (textured, open and emitting cylinders), `orthographic.xml` (an
 orthographic sensor), `point_cloud_0_6.xml` (a Mitsuba 0.6 file, written
 by `--assets`), `envmap.xml` (a rotated, scaled HDR map),
-`hide_emitters.xml` and `thinlens.xml`; and `studio`, the bundled
+`hide_emitters.xml`, `thinlens.xml`, `shading_normals.xml` (bump and normal
+maps on rectangles, spheres, a mirrored OBJ quad and a two-sided disk); and `studio`, the bundled
 `scenes/studio.xml` (every kind of material and light at once), at 80x60 to
 `tests/data/mitsuba/studio_mitsuba.exr`.
 
@@ -24,12 +25,14 @@ the images the scenes read:
   colours name their column (red), row (green) and parity (blue), so any
   flip or shift of texture coordinates changes the picture;
 - `sky.hdr`: a 32x16 sky, coarse enough that the lookup's interpolation
-  shows, with a warm patch for a low sun.
+  shows, with a warm patch for a low sun;
+- `bumps.png`: a 32x32 height field; `normals.png`: a 16x16 tangent-space
+  normal map (both 8-bit, read `raw`).
 
 Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
 
     python docs/validation/mitsuba_scene_images.py --assets --spp 16384 \
-        lights textures materials rough_maps anisotropy textured_lights spectra cylinders orthographic point_cloud_0_6 envmap hide_emitters thinlens studio
+        lights textures materials rough_maps anisotropy textured_lights spectra cylinders orthographic point_cloud_0_6 envmap hide_emitters thinlens shading_normals studio
 """
 
 import argparse
@@ -139,8 +142,29 @@ def point_cloud():
     return POINT_CLOUD_HEAD + balls + POINT_CLOUD_TAIL
 
 
+def bumps(size=32):
+    """A height field in [0, 1]: round bumps on a gentle ramp in u, so that
+    a flip of either texture direction or of the gradient's sign shows."""
+    y, x = np.mgrid[0:size, 0:size] + 0.5
+    h = 0.3 * x / size
+    for cx, cy, r in [(8, 8, 5), (22, 10, 7), (12, 23, 6), (26, 26, 4)]:
+        h += 0.6 * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (r * r))
+    return np.clip(h, 0, 1)
+
+
+def normals(size=16):
+    """A tangent-space normal map: normals tilted along x by the column and
+    along y by the row (by up to 0.6), encoded (n + 1)/2."""
+    y, x = np.mgrid[0:size, 0:size] + 0.5
+    n = np.stack([0.6 * np.sin(2 * np.pi * x / size), 0.6 * (2 * y / size - 1), np.ones_like(x)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return (n + 1) / 2
+
+
 def write_assets():
     open(f"{DIR}/point_cloud_0_6.xml", "w").write(point_cloud())
+    mi.Bitmap(np.round(bumps() * 255).astype(np.uint8)).write(f"{DIR}/bumps.png")
+    mi.Bitmap(np.round(normals() * 255).astype(np.uint8)).write(f"{DIR}/normals.png")
     texels = uv_grid()
     mi.Bitmap(np.round(texels * 255).astype(np.uint8)).write(f"{DIR}/uv_grid.png")
     mi.Bitmap(texels.astype(np.float32)).write(f"{DIR}/uv_grid.exr")

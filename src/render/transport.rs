@@ -83,6 +83,6 @@ impl Transport {
             return Some(Cow::Borrowed(template));
         }
         let material = &self.scene.materials[hit.material];
-        Some(Cow::Owned(Bsdf::textured(material, hit.uv, template)))
+        Some(Cow::Owned(Bsdf::textured(material, hit, template)))
     }
 }

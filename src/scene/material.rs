@@ -30,6 +30,7 @@ pub mod metals;
 #[cfg(test)]
 mod mitsuba_agreement;
 mod optical_params;
+mod perturbed;
 pub use optical_params::Interface;
 mod plugin;
 
@@ -42,7 +43,7 @@ use super::params::Nested;
 pub(crate) use super::params::Params;
 use super::texture::Texture;
 use crate::optics::microfacet::{MIN_ALPHA, Microfacet, MicrofacetKind};
-pub use bsdf::{BsdfFlags, LobeSample, Lookup, Model, flip, reflect};
+pub use bsdf::{BsdfFlags, LobeSample, Lookup, Model, SurfacePoint, flip, reflect};
 pub use plugin::Plugin;
 
 /// Most plugins one material may expand to, counting a shared nested
@@ -108,8 +109,8 @@ impl Roughness {
         match (lookup, &self.textures) {
             // A roughness map's texels below the smallest roughness stay
             // rough (the material is rough wherever it is, as its mean says).
-            (Lookup::At(uv), Some(_)) => {
-                let (u, v) = self.at(uv);
+            (Lookup::At(p), Some(_)) => {
+                let (u, v) = self.at(p.uv);
                 Microfacet::new(kind, u.max(MIN_ALPHA), v.max(MIN_ALPHA))
             }
             _ => Microfacet::new(kind, self.alpha_u, self.alpha_v),
@@ -179,6 +180,8 @@ plugins! {
     TwoSided(twosided::TwoSidedMaterial) = "twosided",
     Blend(blend::BlendMaterial) = "blendbsdf",
     Mask(mask::MaskMaterial) = "mask",
+    BumpMap(bumpmap::BumpMapMaterial) = "bumpmap",
+    NormalMap(normalmap::NormalMapMaterial) = "normalmap",
 }
 
 use plugin::Parameters;

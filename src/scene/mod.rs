@@ -113,11 +113,14 @@ pub struct SurfaceHit {
     /// `uvs` on meshes that have them, the barycentrics `(b1, b2)` on
     /// those that do not; see `docs/scene-format.md`).
     pub uv: DVec2,
-    /// Unit direction in which `u` grows on the surface (∂p/∂u normalised;
-    /// not necessarily orthogonal to the shading normal): the tangent of
-    /// anisotropic BSDFs' shading frame, as in Mitsuba 3
-    /// ([`SurfaceHit::shading_frame`]). Zero where `u` does not vary.
+    /// ∂p/∂u, world units per unit of `u` (not necessarily orthogonal to
+    /// the shading normal): the tangent of the shading frame of
+    /// anisotropic and normal-mapped BSDFs, as in Mitsuba 3
+    /// ([`SurfaceHit::shading_frame`]), and with [`Self::dp_dv`] what a
+    /// bump map tilts. Zero where `u` does not vary.
     pub dp_du: DVec3,
+    /// ∂p/∂v, world units per unit of `v`.
+    pub dp_dv: DVec3,
     /// Index into [`Scene::materials`].
     pub material: usize,
     /// Index into [`Scene::emitters`] if the shape is an area light.
@@ -129,10 +132,11 @@ pub struct SurfaceHit {
 }
 
 impl SurfaceHit {
-    /// The shading frame of an anisotropic BSDF: the shading normal, and
-    /// `dp_du` made orthogonal to it as the first tangent (Mitsuba 3's
-    /// `sh_frame`); where `dp_du` is zero or along the normal, the frame
-    /// [`Frame::from_normal`] builds.
+    /// The shading frame of an anisotropic or normal-mapped BSDF: the
+    /// shading normal, and `dp_du` made orthogonal to it as the first
+    /// tangent and `n × s` the bitangent (Mitsuba 3.9's `sh_frame`, even
+    /// where the texture coordinates are mirrored); where `dp_du` is zero
+    /// or along the normal, the frame [`Frame::from_normal`] builds.
     pub fn shading_frame(&self) -> crate::sphere::Frame {
         let n = self.shading_normal;
         match (self.dp_du - n * n.dot(self.dp_du)).try_normalize() {
@@ -285,7 +289,7 @@ impl Scene {
         );
         if let Some(t) = t_analytic {
             let shape = &self.shapes[analytic_hit];
-            let (position, normal, uv, dp_du) = shape.analytic_hit(o, d, t);
+            let (position, normal, uv, [dp_du, dp_dv]) = shape.analytic_hit(o, d, t);
             return Some(SurfaceHit {
                 t,
                 position,
@@ -293,6 +297,7 @@ impl Scene {
                 shading_normal: normal,
                 uv,
                 dp_du,
+                dp_dv,
                 material: shape.material,
                 emitter: shape.emitter,
                 shape: analytic_hit,
@@ -310,20 +315,23 @@ impl Scene {
                 .unwrap_or(normal),
             None => normal,
         };
-        // ∂p/∂u from the texture coordinates' parametrisation (the
-        // barycentric one where the mesh has none: ∂p/∂u = e1).
-        let (uv, dp_du) = match self.vertex_uvs.get(tag.uvs as usize) {
+        // ∂p/∂u and ∂p/∂v from the texture coordinates' parametrisation
+        // (the barycentric one where the mesh has none: e1 and e2).
+        let (uv, [dp_du, dp_dv]) = match self.vertex_uvs.get(tag.uvs as usize) {
             Some(t) => {
                 let (d1, d2) = (t[1] - t[0], t[2] - t[0]);
                 let det = d1.x * d2.y - d1.y * d2.x;
-                let dp_du = if det.abs() > 1e-20 {
-                    (tri.e1 * d2.y - tri.e2 * d1.y) / det
+                let dp = if det.abs() > 1e-20 {
+                    [
+                        (tri.e1 * d2.y - tri.e2 * d1.y) / det,
+                        (tri.e2 * d1.x - tri.e1 * d2.x) / det,
+                    ]
                 } else {
-                    DVec3::ZERO
+                    [DVec3::ZERO; 2]
                 };
-                (t[0] * (1.0 - u - v) + t[1] * u + t[2] * v, dp_du)
+                (t[0] * (1.0 - u - v) + t[1] * u + t[2] * v, dp)
             }
-            None => (DVec2::new(u, v), tri.e1),
+            None => (DVec2::new(u, v), [tri.e1, tri.e2]),
         };
         Some(SurfaceHit {
             t,
@@ -331,7 +339,8 @@ impl Scene {
             normal,
             shading_normal,
             uv,
-            dp_du: dp_du.normalize_or_zero(),
+            dp_du,
+            dp_dv,
             material: shape.material,
             emitter: shape.emitter,
             shape: tag.shape as usize,

@@ -75,10 +75,11 @@ pub(crate) trait Surface: std::fmt::Debug + Send + Sync {
     fn bounds(&self) -> Aabb;
     /// Distance along a unit-direction ray, if in (0, t_max).
     fn intersect(&self, o: DVec3, d: DVec3, t_max: f64) -> Option<f64>;
-    /// Surface point, normal, texture coordinates and ∂p/∂u (any length) of
-    /// a hit at `t`, the point projected back onto the surface so the error
-    /// is a few ulps.
-    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, DVec3);
+    /// Surface point, normal, texture coordinates and `[∂p/∂u, ∂p/∂v]`
+    /// (Mitsuba 3's, lengths included: bump maps scale by them) of a hit
+    /// at `t`, the point projected back onto the surface so the error is a
+    /// few ulps.
+    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, [DVec3; 2]);
     /// A point uniform by area from `u` in [0,1)², and its normal.
     fn sample(&self, u: [f64; 2]) -> (DVec3, DVec3);
     /// Surface area, world units².
@@ -446,19 +447,14 @@ impl Shape {
         }
     }
 
-    /// Surface point, front normal, texture coordinates and unit ∂p/∂u
-    /// (module docs of `SurfaceHit::dp_du`) of an analytic hit at `t`.
-    pub fn analytic_hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, DVec3) {
-        let (p, n, uv, dp_du) = match &self.geometry {
+    /// Surface point, front normal, texture coordinates and `[∂p/∂u,
+    /// ∂p/∂v]` (`SurfaceHit::dp_du`) of an analytic hit at `t`.
+    pub fn analytic_hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, [DVec3; 2]) {
+        let (p, n, uv, dp) = match &self.geometry {
             Geometry::Analytic(surface) => surface.hit(o, d, t),
-            Geometry::Mesh { .. } => (o + d * t, DVec3::Z, DVec2::ZERO, DVec3::ZERO),
+            Geometry::Mesh { .. } => (o + d * t, DVec3::Z, DVec2::ZERO, [DVec3::ZERO; 2]),
         };
-        (
-            p,
-            if self.flip { -n } else { n },
-            uv,
-            dp_du.normalize_or_zero(),
-        )
+        (p, if self.flip { -n } else { n }, uv, dp)
     }
 
     /// Uniform point by area on an analytic shape: (point, front normal).

@@ -40,6 +40,13 @@ pub trait Plugin {
         luminance(self.eval(uv))
     }
 
+    /// `(∂/∂u, ∂/∂v)` of [`Self::eval_scalar`] at `uv` (Mitsuba 3's
+    /// `eval_1_grad`, which bump maps tilt the normal by): zero unless the
+    /// plugin says otherwise, as for textures constant between jumps.
+    fn gradient_scalar(&self, _uv: DVec2) -> DVec2 {
+        DVec2::ZERO
+    }
+
     /// The mean colour over the unit square of texture coordinates.
     fn mean(&self) -> RgbArray;
 
@@ -121,6 +128,14 @@ impl Texture {
         match self.plugin() {
             Ok(p) => p.eval_scalar(uv),
             Err(c) => luminance(c),
+        }
+    }
+
+    /// [`Plugin::gradient_scalar`]: `(∂/∂u, ∂/∂v)` of [`Self::eval_scalar`].
+    pub fn gradient_scalar(&self, uv: DVec2) -> DVec2 {
+        match self.plugin() {
+            Ok(p) => p.gradient_scalar(uv),
+            Err(_) => DVec2::ZERO,
         }
     }
 
@@ -219,6 +234,16 @@ pub(crate) fn albedo(
         )),
         _ => Ok(texture),
     }
+}
+
+/// Parameter `name` of `params` as a number, a colour or a texture of any
+/// non-negative values (a height field), `None` when absent.
+pub(crate) fn values(params: &mut Params, name: &str) -> Result<Option<Texture>, SceneError> {
+    if !params.peek(name).is_some_and(Value::is_object) {
+        return Ok(params.color(name)?.map(Texture::Constant));
+    }
+    let doc = params.take(name).expect("present");
+    Texture::parse(params, name, doc).map(Some)
 }
 
 /// [`albedo`] that must be given.

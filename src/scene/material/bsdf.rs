@@ -206,11 +206,11 @@ impl Bsdf {
         self.model().phong()
     }
 
-    /// The BSDF of a textured `material` at texture coordinates `uv`;
-    /// `template` is `Bsdf::from(material)`, whose precomputed tables (the
-    /// plastics' coatings) are reused.
-    pub fn textured(material: &Material, uv: DVec2, template: &Bsdf) -> Bsdf {
-        material.build(Lookup::At(uv), Some(template))
+    /// The BSDF of a textured `material` at `hit`; `template` is
+    /// `Bsdf::from(material)`, whose precomputed tables (the plastics'
+    /// coatings) are reused.
+    pub fn textured(material: &Material, hit: &SurfaceHit, template: &Bsdf) -> Bsdf {
+        material.build(Lookup::At(SurfacePoint::of(hit)), Some(template))
     }
 }
 
@@ -227,17 +227,55 @@ impl From<&Material> for Bsdf {
 /// `GetBxDF` at a surface point, or the material as a whole).
 #[derive(Clone, Copy, Debug)]
 pub enum Lookup {
-    /// At texture coordinates `(u, v)`.
-    At(DVec2),
+    /// At a surface point.
+    At(SurfacePoint),
     /// Their means.
     Mean,
+}
+
+/// A surface point as a material's build step sees it: its texture
+/// coordinates, and its parametrisation and geometric normal in the local
+/// frame of [`SurfaceHit::shading_frame`] (z = the shading normal), which
+/// bump and normal maps tilt.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    pub uv: DVec2,
+    /// ∂p/∂u, local frame.
+    pub dp_du: DVec3,
+    /// ∂p/∂v, local frame.
+    pub dp_dv: DVec3,
+    /// The unit geometric normal of the front side, local frame.
+    pub normal: DVec3,
+}
+
+impl SurfacePoint {
+    /// `hit` in its shading frame.
+    pub fn of(hit: &SurfaceHit) -> Self {
+        let frame = hit.shading_frame();
+        Self {
+            uv: hit.uv,
+            dp_du: frame.to_local(hit.dp_du),
+            dp_dv: frame.to_local(hit.dp_dv),
+            normal: frame.to_local(hit.normal),
+        }
+    }
+
+    /// A flat surface at `uv` parametrised along its frame's axes.
+    pub fn flat(uv: DVec2) -> Self {
+        Self {
+            uv,
+            dp_du: DVec3::X,
+            dp_dv: DVec3::Y,
+            normal: DVec3::Z,
+        }
+    }
 }
 
 impl Lookup {
     /// A colour texture's value, linear RGB.
     pub fn rgb(self, t: &Texture) -> Rgb {
         match self {
-            Lookup::At(uv) => Rgb::from_array(t.eval(uv)),
+            Lookup::At(p) => Rgb::from_array(t.eval(p.uv)),
             Lookup::Mean => Rgb::from_array(t.mean()),
         }
     }
@@ -245,7 +283,7 @@ impl Lookup {
     /// A scalar texture's value (Mitsuba's `eval_1`).
     pub fn scalar(self, t: &Texture) -> f64 {
         match self {
-            Lookup::At(uv) => t.eval_scalar(uv),
+            Lookup::At(p) => t.eval_scalar(p.uv),
             Lookup::Mean => t.mean_scalar(),
         }
     }

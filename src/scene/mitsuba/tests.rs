@@ -1570,3 +1570,36 @@ fn the_plugin_table_is_what_the_reader_does() {
     }
     assert!(checked > 40, "{checked} names read from the table");
 }
+
+#[test]
+fn a_bump_maps_height_texture_may_have_any_name_but_only_one() {
+    use crate::scene::material::Material;
+    let checker = |name: &str| {
+        format!(
+            r#"<texture type="checkerboard" name="{name}"><rgb name="color0" value="0.2"/></texture>"#
+        )
+    };
+    let scene = ok(&format!(
+        r#"<shape type="rectangle"><bsdf type="bumpmap">{}<float name="scale" value="0.5"/>
+           <bsdf type="roughplastic"/></bsdf></shape>"#,
+        checker("arbitrary")
+    ));
+    assert!(
+        scene
+            .materials
+            .iter()
+            .any(|m| matches!(m, Material::BumpMap(b) if b.scale == 0.5)),
+        "{:?}",
+        scene.materials
+    );
+    let e = err(&format!(
+        r#"<shape type="rectangle"><bsdf type="bumpmap">{}{}<bsdf type="diffuse"/></bsdf></shape>"#,
+        checker("one"),
+        checker("two")
+    ));
+    assert!(e.contains("no supported property \"two\""), "{e}");
+    let e = err(
+        r#"<shape type="rectangle"><bsdf type="normalmap"><bsdf type="diffuse"/></bsdf></shape>"#,
+    );
+    assert!(e.contains("normalmap"), "{e}");
+}

@@ -130,8 +130,8 @@ impl Surface for Cylinder {
     }
 
     /// Texture coordinates follow Mitsuba 3: `(φ/2π, z)` of the local
-    /// point; ∂p/∂u runs along the circumference.
-    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, DVec3) {
+    /// point; ∂p/∂u runs along the circumference, ∂p/∂v along the axis.
+    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, [DVec3; 2]) {
         let l = self.to_local.transform_point3(o + d * t);
         // Projected back onto the unit cylinder against round-off.
         let (x, y) = (l.x, l.y);
@@ -139,8 +139,11 @@ impl Surface for Cylinder {
         let (x, y) = (x / r, y / r);
         let p = self.to_world.transform_point3(DVec3::new(x, y, l.z));
         let n = (self.normal_matrix * DVec3::new(x, y, 0.0)).normalize();
-        let dp_du = self.to_world.transform_vector3(DVec3::new(-y, x, 0.0));
-        (p, n, DVec2::new(azimuth(y, x), l.z), dp_du)
+        let dp = [
+            self.to_world.transform_vector3(DVec3::new(-y, x, 0.0) * (2.0 * PI)),
+            self.to_world.transform_vector3(DVec3::Z),
+        ];
+        (p, n, DVec2::new(azimuth(y, x), l.z), dp)
     }
 
     fn sample(&self, u: [f64; 2]) -> (DVec3, DVec3) {
@@ -188,11 +191,13 @@ mod tests {
         let o = DVec3::new(2.0, 2.0, 5.0);
         let t = c.intersect(o, -DVec3::Z, f64::INFINITY).unwrap();
         assert!((t - 4.5).abs() < 1e-12);
-        let (p, n, uv, dp_du) = c.hit(o, -DVec3::Z, t);
+        let (p, n, uv, [dp_du, dp_dv]) = c.hit(o, -DVec3::Z, t);
         assert!((p - DVec3::new(2.0, 2.0, 0.5)).length() < 1e-12);
         assert!((n - DVec3::Z).length() < 1e-12, "outward normal {n}");
         assert!((uv.y - 1.0 / 3.0).abs() < 1e-12, "{uv}");
         assert!(dp_du.dot(n).abs() < 1e-12 && dp_du.dot(DVec3::X).abs() < 1e-12);
+        assert!((dp_du.length() - 2.0 * PI * 0.5).abs() < 1e-12, "{dp_du}");
+        assert!((dp_dv - DVec3::new(3.0, 0.0, 0.0)).length() < 1e-12, "{dp_dv}");
         // From inside, the far wall; beyond the ends, nothing (no caps).
         let inside = DVec3::new(2.0, 2.0, 0.0);
         let t = c.intersect(inside, DVec3::Z, f64::INFINITY).unwrap();

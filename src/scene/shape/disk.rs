@@ -67,15 +67,21 @@ impl Surface for Disk {
     }
 
     /// Texture coordinates follow Mitsuba 3: `(r, φ/2π)` of the local
-    /// point; ∂p/∂u runs outwards along the radius.
-    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, DVec3) {
+    /// point; ∂p/∂u runs outwards along the radius, ∂p/∂v along the
+    /// circumference (Mitsuba's).
+    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, [DVec3; 2]) {
         let l = self.to_local.transform_point3(o + d * t);
-        let dp_du = self.to_world.transform_vector3(DVec3::new(l.x, l.y, 0.0));
+        let r = l.truncate().length();
+        let (c, s) = if r > 0.0 { (l.x / r, l.y / r) } else { (1.0, 0.0) };
+        let dp = [
+            self.to_world.transform_vector3(DVec3::new(c, s, 0.0)),
+            self.to_world.transform_vector3(DVec3::new(-s, c, 0.0) * (2.0 * PI * r)),
+        ];
         (
             self.to_world.transform_point3(DVec3::new(l.x, l.y, 0.0)),
             self.normal,
-            DVec2::new(l.truncate().length(), azimuth(l.y, l.x)),
-            dp_du,
+            DVec2::new(r, azimuth(l.y, l.x)),
+            dp,
         )
     }
 

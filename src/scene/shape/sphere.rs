@@ -83,13 +83,24 @@ impl Surface for Sphere {
 
     /// Texture coordinates follow Mitsuba 3: `(φ/2π, θ/π)` of the local
     /// direction (θ from the local +z pole, φ from +x towards +y); ∂p/∂u
-    /// runs along the azimuth.
-    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, DVec3) {
+    /// runs along the azimuth, ∂p/∂v towards the −z pole (at a pole,
+    /// along local x, as Mitsuba's).
+    fn hit(&self, o: DVec3, d: DVec3, t: f64) -> (DVec3, DVec3, DVec2, [DVec3; 2]) {
         let n = (o + d * t - self.center).normalize();
         let l = self.to_local * n;
         let uv = DVec2::new(azimuth(l.y, l.x), l.z.clamp(-1.0, 1.0).acos() / PI);
-        let dp_du = self.to_local.transpose() * DVec3::new(-l.y, l.x, 0.0);
-        (self.center + n * self.radius, n, uv, dp_du)
+        let rd = l.x.hypot(l.y);
+        let dv = if rd > 0.0 {
+            DVec3::new(l.z * l.x / rd, l.z * l.y / rd, -rd)
+        } else {
+            DVec3::X
+        };
+        let to_world = self.to_local.transpose() * self.radius;
+        let dp = [
+            to_world * DVec3::new(-l.y, l.x, 0.0) * (2.0 * PI),
+            to_world * dv * PI,
+        ];
+        (self.center + n * self.radius, n, uv, dp)
     }
 
     fn sample(&self, u: [f64; 2]) -> (DVec3, DVec3) {

@@ -90,6 +90,31 @@ impl Plugin for BitmapTexture {
         }
     }
 
+    /// The derivative of the bilinear blend of the texels' luminances
+    /// (zero for `nearest`, constant between texel centres), through
+    /// `to_uv`'s linear part: Mitsuba 3's `eval_1_grad`.
+    fn gradient_scalar(&self, uv: DVec2) -> DVec2 {
+        let b = &*self.bitmap;
+        let (width, height) = (b.width(), b.height());
+        let size = DVec2::new(width as f64, height as f64);
+        let p = self.to_uv.transform_point2(uv) * size - 0.5;
+        if self.filter == Filter::Nearest || !p.is_finite() {
+            return DVec2::ZERO;
+        }
+        let (fx, fy) = (p.x.floor(), p.y.floor());
+        let (x0, x1) = (self.wrap.index(fx as i64, width), self.wrap.index(fx as i64 + 1, width));
+        let (y0, y1) = (self.wrap.index(fy as i64, height), self.wrap.index(fy as i64 + 1, height));
+        let f = |i, j| crate::color::luminance(b.texel(i, j));
+        let (f00, f10, f01, f11) = (f(x0, y0), f(x1, y0), f(x0, y1), f(x1, y1));
+        let (tx, ty) = (p.x - fx, p.y - fy);
+        // ∂/∂x and ∂/∂y in texels, then to (u, v) by the transpose of to_uv.
+        let texels = DVec2::new(
+            (1.0 - ty) * (f10 - f00) + ty * (f11 - f01),
+            (1.0 - tx) * (f01 - f00) + tx * (f11 - f10),
+        ) * size;
+        self.to_uv.matrix2.transpose() * texels
+    }
+
     /// The mean of the texels.
     fn mean(&self) -> RgbArray {
         self.bitmap.mean()

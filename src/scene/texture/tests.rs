@@ -257,3 +257,34 @@ fn a_scenes_images_are_capped_in_all() {
         "{e}"
     );
 }
+
+#[test]
+fn a_bilinear_bitmaps_gradient_is_the_derivative_of_its_lookup() {
+    // Central differences of `eval_scalar` away from texel centres (where
+    // the bilinear blend has kinks), through a rotating, scaling to_uv.
+    let mut t = quad(Filter::Bilinear, Wrap::Repeat);
+    t.to_uv =
+        DAffine2::from_scale_angle_translation(DVec2::new(1.5, 0.7), 0.4, DVec2::new(0.1, 0.3));
+    let h = 1e-6;
+    for uv in [
+        DVec2::new(0.1, 0.2),
+        DVec2::new(0.43, 0.91),
+        DVec2::new(0.77, 0.35),
+    ] {
+        let g = t.gradient_scalar(uv);
+        let d = |e: DVec2| (t.eval_scalar(uv + e) - t.eval_scalar(uv - e)) / (2.0 * h);
+        let want = DVec2::new(d(DVec2::new(h, 0.0)), d(DVec2::new(0.0, h)));
+        assert!(
+            (g - want).length() < 1e-5 * (1.0 + want.length()),
+            "{uv}: {g} vs {want}"
+        );
+        assert!(want.length() > 0.1, "a texture that varies at {uv}");
+    }
+    // Nearest-texel lookups and constants are flat almost everywhere.
+    let nearest = quad(Filter::Nearest, Wrap::Repeat);
+    assert_eq!(nearest.gradient_scalar(DVec2::new(0.3, 0.6)), DVec2::ZERO);
+    assert_eq!(
+        Texture::Constant([0.2; 3]).gradient_scalar(DVec2::new(0.3, 0.6)),
+        DVec2::ZERO
+    );
+}

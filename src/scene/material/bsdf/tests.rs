@@ -79,7 +79,12 @@ fn materials() -> Vec<(&'static str, Material)> {
         ),
         (
             "two-sided",
-            material(json!({"type": "twosided", "bsdf": [plastic, diffuse]})),
+            material(json!({"type": "twosided", "bsdf": [plastic.clone(), diffuse]})),
+        ),
+        (
+            "normal-mapped",
+            material(json!({"type": "normalmap", "normalmap": [0.65, 0.4, 0.9],
+                "bsdf": with("roughplastic", &plastic, json!({"alpha": 0.2}))})),
         ),
     ]
 }
