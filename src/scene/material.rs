@@ -182,6 +182,7 @@ plugins! {
     Mask(mask::MaskMaterial) = "mask",
     BumpMap(bumpmap::BumpMapMaterial) = "bumpmap",
     NormalMap(normalmap::NormalMapMaterial) = "normalmap",
+    Principled(principled::PrincipledMaterial) = "principled",
 }
 
 use plugin::Parameters;

@@ -167,6 +167,23 @@ fn bump_and_normal_maps_agree_with_mitsuba() {
     );
 }
 
+/// The principled BSDF (`principled`): Mitsuba's defaults, a tinted
+/// anisotropic half-metal, clearcoat, sheen and flatness over textured base
+/// colour and roughness, and transmission on a sphere and a thin slab
+/// (`tests/data/mitsuba/principled.xml`, reference by
+/// `docs/validation/mitsuba_scene_images.py`). Measured: 3.04 % per pixel
+/// against 3.62 % from the noise, mean ratio 0.9993; without the clearcoat,
+/// sheen and anisotropy 7.9 %.
+#[test]
+fn the_principled_bsdf_agrees_with_mitsuba() {
+    assert_agrees_with_mitsuba(
+        "tests/data/mitsuba",
+        "principled.xml",
+        &[],
+        "principled_mitsuba.exr",
+    );
+}
+
 /// An orthographic sensor sized by its `to_world`'s scale, wider than tall,
 /// looking obliquely at spheres, a textured cylinder and a floor
 /// (`tests/data/mitsuba/orthographic.xml`, reference by

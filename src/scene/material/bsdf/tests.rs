@@ -82,6 +82,13 @@ fn materials() -> Vec<(&'static str, Material)> {
             material(json!({"type": "twosided", "bsdf": [plastic.clone(), diffuse]})),
         ),
         (
+            "principled",
+            material(
+                json!({"type": "principled", "base_color": [0.7, 0.5, 0.3], "metallic": 0.3,
+                "sheen": 0.5, "clearcoat": 0.5, "roughness": 0.4}),
+            ),
+        ),
+        (
             "normal-mapped",
             material(json!({"type": "normalmap", "normalmap": [0.65, 0.4, 0.9],
                 "bsdf": with("roughplastic", &plastic, json!({"alpha": 0.2}))})),
@@ -236,8 +243,9 @@ fn the_lambertian_part_is_what_the_cache_may_take_out() {
                 match name {
                     "glossy" => assert!(rest.min_component() >= -1e-12, "{name}: {rest:?}"),
                     // Rough plastic's rest mixes its lobe and the base's
-                    // loss; f = ρ/π + rest stays ≥ 0.
-                    "rough plastic" => {
+                    // loss, the principled one its lobes and the diffuse
+                    // term's departure from its mean; f = ρ/π + rest ≥ 0.
+                    "rough plastic" | "principled" => {
                         let f = rest + rho * std::f64::consts::FRAC_1_PI;
                         assert!(f.min_component() >= -1e-12, "{name}: {rest:?}")
                     }
