@@ -67,6 +67,46 @@ impl std::fmt::Display for ChiSquare {
     }
 }
 
+/// The statistic of `samples` draws of a direction (`None` where a draw
+/// gives none, which the density's missing mass accounts for) against the
+/// solid-angle density `pdf`, over `z_bins × phi_bins` cells of equal
+/// solid angle on the whole sphere, the expected counts integrated by
+/// 16 × 16 midpoints per cell.
+#[cfg(test)]
+pub(crate) fn of_directions(
+    mut draw: impl FnMut() -> Option<glam::DVec3>,
+    pdf: impl Fn(glam::DVec3) -> f64,
+    samples: usize,
+    (z_bins, phi_bins): (usize, usize),
+) -> ChiSquare {
+    use std::f64::consts::TAU;
+    let cell = |w: glam::DVec3| {
+        let i = (((w.z + 1.0) / 2.0 * z_bins as f64) as usize).min(z_bins - 1);
+        let phi = w.y.atan2(w.x).rem_euclid(TAU);
+        let j = ((phi / TAU * phi_bins as f64) as usize).min(phi_bins - 1);
+        i * phi_bins + j
+    };
+    let mut counts = vec![0.0; z_bins * phi_bins];
+    for _ in 0..samples {
+        if let Some(w) = draw() {
+            counts[cell(w)] += 1.0;
+        }
+    }
+    let sub = 16;
+    let (dz, dphi) = (2.0 / (z_bins * sub) as f64, TAU / (phi_bins * sub) as f64);
+    let mut expected = vec![0.0; z_bins * phi_bins];
+    for a in 0..z_bins * sub {
+        let z = -1.0 + (a as f64 + 0.5) * dz;
+        let r = (1.0 - z * z).sqrt();
+        for b in 0..phi_bins * sub {
+            let phi = (b as f64 + 0.5) * dphi;
+            let w = glam::DVec3::new(r * phi.cos(), r * phi.sin(), z);
+            expected[cell(w)] += pdf(w) * dz * dphi * samples as f64;
+        }
+    }
+    ChiSquare::of(&counts, &expected)
+}
+
 /// χ² quantile by the Wilson–Hilferty approximation at `z` standard deviations.
 fn quantile(df: f64, z: f64) -> f64 {
     let h = 2.0 / (9.0 * df);

@@ -259,16 +259,6 @@ impl SurfacePoint {
             normal: frame.to_local(hit.normal),
         }
     }
-
-    /// A flat surface at `uv` parametrised along its frame's axes.
-    pub fn flat(uv: DVec2) -> Self {
-        Self {
-            uv,
-            dp_du: DVec3::X,
-            dp_dv: DVec3::Y,
-            normal: DVec3::Z,
-        }
-    }
 }
 
 impl Lookup {

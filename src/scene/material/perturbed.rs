@@ -147,7 +147,7 @@ mod tests {
     use serde_json::json;
 
     use super::*;
-    use crate::optics::chi_square::ChiSquare;
+    use crate::optics::chi_square;
     use crate::scene::material::{Material, Params};
 
     /// The nested BSDF of document `doc` in a frame tilted to `normal`.
@@ -197,42 +197,6 @@ mod tests {
         assert_eq!(p.pdf(wo, grazing), 0.0);
     }
 
-    /// Pearson's χ² of `SAMPLES` draws from `p` seen from `wo` against
-    /// `p.pdf`, over cells of equal solid angle on the sphere.
-    fn chi_square(p: &Perturbed, wo: DVec3, rng: &mut Pcg64) -> ChiSquare {
-        const Z_BINS: usize = 16;
-        const PHI_BINS: usize = 24;
-        const SAMPLES: usize = 100_000;
-        let cell = |w: DVec3| {
-            let i = (((w.z + 1.0) / 2.0 * Z_BINS as f64) as usize).min(Z_BINS - 1);
-            let phi = w.y.atan2(w.x).rem_euclid(std::f64::consts::TAU);
-            let j = ((phi / std::f64::consts::TAU * PHI_BINS as f64) as usize).min(PHI_BINS - 1);
-            i * PHI_BINS + j
-        };
-        let mut counts = vec![0.0; Z_BINS * PHI_BINS];
-        for _ in 0..SAMPLES {
-            if let Some(s) = p.sample(wo, rng.random(), [rng.random(), rng.random()]) {
-                counts[cell(s.wi)] += 1.0;
-            }
-        }
-        let sub = 12;
-        let (dz, dphi) = (
-            2.0 / (Z_BINS * sub) as f64,
-            std::f64::consts::TAU / (PHI_BINS * sub) as f64,
-        );
-        let mut expected = vec![0.0; Z_BINS * PHI_BINS];
-        for a in 0..Z_BINS * sub {
-            let z = -1.0 + (a as f64 + 0.5) * dz;
-            let r = (1.0 - z * z).sqrt();
-            for b in 0..PHI_BINS * sub {
-                let phi = (b as f64 + 0.5) * dphi;
-                let w = DVec3::new(r * phi.cos(), r * phi.sin(), z);
-                expected[cell(w)] += p.pdf(wo, w) * dz * dphi * SAMPLES as f64;
-            }
-        }
-        ChiSquare::of(&counts, &expected)
-    }
-
     #[test]
     fn samples_follow_the_density_and_carry_evals_value() {
         let mut rng = Pcg64::seed_from_u64(17);
@@ -246,7 +210,15 @@ mod tests {
                 DVec3::new(0.4, 0.2, 0.8).normalize(),
                 DVec3::new(-0.9, 0.1, 0.2).normalize(),
             ] {
-                let test = chi_square(&p, wo, &mut rng);
+                let test = chi_square::of_directions(
+                    || {
+                        p.sample(wo, rng.random(), [rng.random(), rng.random()])
+                            .map(|s| s.wi)
+                    },
+                    |wi| p.pdf(wo, wi),
+                    100_000,
+                    (16, 24),
+                );
                 assert!(test.passes(), "from {wo}: {test}");
                 for _ in 0..200 {
                     let Some(s) = p.sample(wo, rng.random(), [rng.random(), rng.random()]) else {

@@ -6,7 +6,7 @@ use rand_pcg::Pcg64;
 use serde_json::json;
 
 use super::*;
-use crate::optics::chi_square::ChiSquare;
+use crate::optics::chi_square;
 use crate::scene::material::Material;
 
 fn principled(doc: serde_json::Value) -> Principled {
@@ -30,42 +30,6 @@ fn examples() -> Vec<Principled> {
     ]
 }
 
-/// χ² of `SAMPLES` draws from `p` seen from `wo` against `p.pdf`, over
-/// cells of equal solid angle on the sphere.
-fn chi_square(p: &Principled, wo: DVec3, rng: &mut Pcg64) -> ChiSquare {
-    const Z_BINS: usize = 20;
-    const PHI_BINS: usize = 24;
-    const SAMPLES: usize = 200_000;
-    let cell = |w: DVec3| {
-        let i = (((w.z + 1.0) / 2.0 * Z_BINS as f64) as usize).min(Z_BINS - 1);
-        let phi = w.y.atan2(w.x).rem_euclid(std::f64::consts::TAU);
-        let j = ((phi / std::f64::consts::TAU * PHI_BINS as f64) as usize).min(PHI_BINS - 1);
-        i * PHI_BINS + j
-    };
-    let mut counts = vec![0.0; Z_BINS * PHI_BINS];
-    for _ in 0..SAMPLES {
-        if let Some(s) = p.sample(wo, rng.random(), [rng.random(), rng.random()]) {
-            counts[cell(s.wi)] += 1.0;
-        }
-    }
-    let sub = 16;
-    let (dz, dphi) = (
-        2.0 / (Z_BINS * sub) as f64,
-        std::f64::consts::TAU / (PHI_BINS * sub) as f64,
-    );
-    let mut expected = vec![0.0; Z_BINS * PHI_BINS];
-    for a in 0..Z_BINS * sub {
-        let z = -1.0 + (a as f64 + 0.5) * dz;
-        let r = (1.0 - z * z).sqrt();
-        for b in 0..PHI_BINS * sub {
-            let phi = (b as f64 + 0.5) * dphi;
-            let w = DVec3::new(r * phi.cos(), r * phi.sin(), z);
-            expected[cell(w)] += p.pdf(wo, w) * dz * dphi * SAMPLES as f64;
-        }
-    }
-    ChiSquare::of(&counts, &expected)
-}
-
 #[test]
 fn samples_follow_the_density_and_carry_evals_value() {
     let mut rng = Pcg64::seed_from_u64(31);
@@ -78,7 +42,12 @@ fn samples_follow_the_density_and_carry_evals_value() {
             viewers.push(DVec3::new(0.2, -0.4, -0.7).normalize());
         }
         for wo in viewers {
-            let test = chi_square(&p, wo, &mut rng);
+            let test = chi_square::of_directions(
+                || p.sample(wo, rng.random(), [rng.random(), rng.random()]).map(|s| s.wi),
+                |wi| p.pdf(wo, wi),
+                200_000,
+                (20, 24),
+            );
             assert!(test.passes(), "{p:?} from {wo}: {test}");
             for _ in 0..500 {
                 let Some(s) = p.sample(wo, rng.random(), [rng.random(), rng.random()]) else {
