@@ -829,13 +829,13 @@ fn textures_become_texture_documents_or_lenient_means() {
 #[test]
 fn unknown_plugin_names_plugin_and_line() {
     let text = wrap(
-        r#"<bsdf type="principled" id="fancy"/><shape type="rectangle"><ref id="fancy"/></shape>"#,
+        r#"<bsdf type="pplastic" id="fancy"/><shape type="rectangle"><ref id="fancy"/></shape>"#,
     );
     let e = load_err(&text);
-    assert_eq!(syntax_line(&e), line_of(&text, "principled"));
-    assert!(e.to_string().contains("\"principled\""), "{e}");
+    assert_eq!(syntax_line(&e), line_of(&text, "pplastic"));
+    assert!(e.to_string().contains("\"pplastic\""), "{e}");
     let (_, warnings) = load_in(&text, &scenes_dir(), true).unwrap();
-    assert!(warnings[0].message.contains("principled"));
+    assert!(warnings[0].message.contains("pplastic"));
 
     let e = err(r#"<shape type="ellipsoids"/>"#);
     assert!(e.contains("ellipsoids"), "{e}");
