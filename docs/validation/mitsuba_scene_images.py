@@ -14,8 +14,8 @@ orthographic sensor), `point_cloud_0_6.xml` (a Mitsuba 0.6 file, written
 by `--assets`), `envmap.xml` (a rotated, scaled HDR map),
 `hide_emitters.xml`, `thinlens.xml`, `shading_normals.xml` (bump and normal
 maps on rectangles, spheres, a mirrored OBJ quad and a two-sided disk),
-`principled.xml` (the principled BSDF's lobes, textured, and transmission);
-and `studio`, the bundled
+`principled.xml` (the principled BSDF's lobes, textured, and transmission),
+`principled_thin.xml` (thin principled sheets passing light); and `studio`, the bundled
 `scenes/studio.xml` (every kind of material and light at once), at 80x60 to
 `tests/data/mitsuba/studio_mitsuba.exr`.
 
@@ -34,7 +34,7 @@ the images the scenes read:
 Run in a throwaway venv (`pip install mitsuba numpy`), from the repository root:
 
     python docs/validation/mitsuba_scene_images.py --assets --spp 16384 \
-        lights textures materials rough_maps anisotropy textured_lights spectra cylinders orthographic point_cloud_0_6 envmap hide_emitters thinlens shading_normals principled studio
+        lights textures materials rough_maps anisotropy textured_lights spectra cylinders orthographic point_cloud_0_6 envmap hide_emitters thinlens shading_normals principled principled_thin studio
 """
 
 import argparse

@@ -183,6 +183,7 @@ plugins! {
     BumpMap(bumpmap::BumpMapMaterial) = "bumpmap",
     NormalMap(normalmap::NormalMapMaterial) = "normalmap",
     Principled(principled::PrincipledMaterial) = "principled",
+    PrincipledThin(principled_thin::PrincipledThinMaterial) = "principledthin",
 }
 
 use plugin::Parameters;

@@ -204,15 +204,61 @@ pub struct Principled {
     pub rates: [f64; 3],
 }
 
+/// The base colour over its luminance (white for black), the tint of the
+/// specular and sheen lobes.
+pub(super) fn tint(base: Rgb) -> Rgb {
+    let lum = luminance(base.to_array());
+    if lum > 0.0 { base * (1.0 / lum) } else { Rgb::WHITE }
+}
+
+/// The Disney diffuse lobe (Burley 2012) per unit base colour and weight,
+/// cosine included: `lerp((1 − S_o/2)(1 − S_i/2) + R(S_o + S_i + S_o S_i
+/// (R − 1)), f_ss, flatness) |cos θ_i| / π` for light from `wi` reflected
+/// to `wo` about the half vector `h` (module docs).
+pub(super) fn disney_diffuse(roughness: f64, flatness: f64, wo: DVec3, wi: DVec3, h: DVec3) -> f64 {
+    let (so, si) = (schlick_weight(wi.z.abs()), schlick_weight(wo.z.abs()));
+    let f_diff = (1.0 - 0.5 * si) * (1.0 - 0.5 * so);
+    let cos_d = h.dot(wi);
+    let rr = 2.0 * roughness * cos_d * cos_d;
+    let f_retro = rr * (so + si + so * si * (rr - 1.0));
+    let lobe = if flatness > 0.0 {
+        // Hanrahan–Krueger's flattened form.
+        let fss90 = rr / 2.0;
+        let fss = (1.0 + (fss90 - 1.0) * so) * (1.0 + (fss90 - 1.0) * si);
+        let f_ss = 1.25 * (fss * (1.0 / (wi.z.abs() + wo.z.abs()) - 0.5) + 0.5);
+        f_diff + f_retro + (f_ss - f_diff - f_retro) * flatness
+    } else {
+        f_diff + f_retro
+    };
+    wi.z.abs() * FRAC_1_PI * lobe
+}
+
+/// The sheen, cosine included: `sheen S(ω_i·h) lerp(1, tint, sheen_tint)
+/// |cos θ_i|`.
+pub(super) fn sheen(base: Rgb, sheen: f64, sheen_tint: f64, wi: DVec3, h: DVec3) -> Rgb {
+    if sheen <= 0.0 {
+        return Rgb::BLACK;
+    }
+    let c = Rgb::WHITE + (tint(base) - Rgb::WHITE) * sheen_tint;
+    c * (sheen * schlick_weight(h.dot(wi).abs()) * wi.z.abs())
+}
+
+/// The Lambertian part the cache serves of a Disney diffuse lobe of
+/// `weight` seen from `wo`: its cosine-weighted mean over `ω_i` (module
+/// docs).
+pub(super) fn diffuse_mean(base: Rgb, weight: f64, flatness: f64, wo: DVec3) -> Rgb {
+    base * (weight * (1.0 - flatness) * (1.0 - 0.5 * schlick_weight(wo.z.abs())) * (41.0 / 42.0))
+}
+
 /// `(1 − c)⁵`, the Schlick weight, `c` clipped to [0, 1].
-fn schlick_weight(c: f64) -> f64 {
+pub(super) fn schlick_weight(c: f64) -> f64 {
     (1.0 - c).clamp(0.0, 1.0).powi(5)
 }
 
 /// Mitsuba's `calc_schlick`: Schlick's Fresnel from `r0` at `cos_i`
 /// (signed, positive outside), taken at the transmitted angle when light
 /// leaves the denser side.
-fn schlick(r0: Rgb, cos_i: f64, eta: f64) -> Rgb {
+pub(super) fn schlick(r0: Rgb, cos_i: f64, eta: f64) -> Rgb {
     let eta_it = if cos_i >= 0.0 { eta } else { 1.0 / eta };
     let c = if eta_it > 1.0 {
         cos_i.abs()
@@ -226,7 +272,7 @@ fn schlick(r0: Rgb, cos_i: f64, eta: f64) -> Rgb {
 
 /// Smith's masking for GGX of α seen from `v` on either side, zero where
 /// `v` sees the back of `m` (Mitsuba's `smith_g1` and `smith_ggx1`).
-fn smith_g1(alpha: (f64, f64), v: DVec3, m: DVec3) -> f64 {
+pub(super) fn smith_g1(alpha: (f64, f64), v: DVec3, m: DVec3) -> f64 {
     if v.dot(m) * v.z <= 0.0 {
         return 0.0;
     }
@@ -256,7 +302,7 @@ fn sample_gtr1(alpha: f64, u: [f64; 2]) -> DVec3 {
 /// Whether `m` faces both directions as reflection (or, `!reflection`,
 /// refraction) about it needs, `wo` on its front (Mitsuba's
 /// `mac_mic_compatibility`).
-fn compatible(m: DVec3, wo: DVec3, wi: DVec3, reflection: bool) -> bool {
+pub(super) fn compatible(m: DVec3, wo: DVec3, wi: DVec3, reflection: bool) -> bool {
     let m = if wo.z >= 0.0 { m } else { -m };
     wo.dot(m) > 0.0 && if reflection { wi.dot(m) > 0.0 } else { wi.dot(m) < 0.0 }
 }
@@ -322,13 +368,11 @@ impl Principled {
         let mut value = Rgb::BLACK;
         if reflect && compatible(h, wo, wi, true) && f > 0.0 {
             let fp = if front {
-                let lum = luminance(base.to_array());
-                let tint = if lum > 0.0 { base * (1.0 / lum) } else { Rgb::WHITE };
                 let eta_it = if oh >= 0.0 { self.eta } else { 1.0 / self.eta };
                 let r0 = ((eta_it - 1.0) / (eta_it + 1.0)).powi(2);
                 Rgb::WHITE * ((1.0 - self.metallic) * (1.0 - self.spec_tint) * f)
                     + schlick(base, oh, self.eta) * self.metallic
-                    + schlick(tint * r0, oh, self.eta) * ((1.0 - self.metallic) * self.spec_tint)
+                    + schlick(tint(base) * r0, oh, self.eta) * ((1.0 - self.metallic) * self.spec_tint)
             } else {
                 Rgb::WHITE * (bsdf * f)
             };
@@ -350,27 +394,8 @@ impl Principled {
             value += Rgb::splat(0.25 * self.clearcoat * fcc * gtr1(self.clearcoat_alpha, h) * gcc * wi.z);
         }
         if brdf > 0.0 {
-            let (so, si) = (schlick_weight(wi.z.abs()), schlick_weight(wo.z.abs()));
-            let f_diff = (1.0 - 0.5 * si) * (1.0 - 0.5 * so);
-            let cos_d = h.dot(wi);
-            let rr = 2.0 * self.roughness * cos_d * cos_d;
-            let f_retro = rr * (so + si + so * si * (rr - 1.0));
-            let lobe = if self.flatness > 0.0 {
-                let fss90 = rr / 2.0;
-                let fss = (1.0 + (fss90 - 1.0) * so) * (1.0 + (fss90 - 1.0) * si);
-                let f_ss = 1.25 * (fss * (1.0 / (wi.z.abs() + wo.z.abs()) - 0.5) + 0.5);
-                f_diff + f_retro + (f_ss - f_diff - f_retro) * self.flatness
-            } else {
-                f_diff + f_retro
-            };
-            value += base * (brdf * wi.z.abs() * FRAC_1_PI * lobe);
-            if self.sheen > 0.0 && self.metallic < 1.0 {
-                let fd = schlick_weight(cos_d.abs());
-                let lum = luminance(base.to_array());
-                let tint = if lum > 0.0 { base * (1.0 / lum) } else { Rgb::WHITE };
-                let c = Rgb::WHITE + (tint - Rgb::WHITE) * self.sheen_tint;
-                value += c * (self.sheen * (1.0 - self.metallic) * fd * wi.z.abs());
-            }
+            let diffuse = disney_diffuse(self.roughness, self.flatness, wo, wi, h);
+            value += base * (brdf * diffuse) + sheen(base, self.sheen, self.sheen_tint, wi, h) * (1.0 - self.metallic);
         }
         value
     }
@@ -433,9 +458,18 @@ impl Model for Principled {
             .position(|c| u_lobe < c)?;
         // Normals of the upper side, drawn as seen from `wo` turned up.
         let viewer = if wo.z > 0.0 { wo } else { -wo };
+        // A specular or clearcoat normal that reflects through the surface,
+        // or refracts back, gives no direction (Mitsuba's masks, which
+        // `pdf` applies alike).
+        let reflected = |wi: DVec3, m: DVec3| {
+            (wi.z * wo.z > 0.0 && compatible(m, wo, wi, true)).then_some(wi)
+        };
         let wi = match lobe {
             0 => warp::cosine_hemisphere(u),
-            1 => reflect(wo, sample_gtr1(self.clearcoat_alpha, u)),
+            1 => {
+                let m = sample_gtr1(self.clearcoat_alpha, u);
+                reflected(reflect(wo, m), m)?
+            }
             2 => {
                 // Refraction about m: ω_t = −ω_o/η + (ω_o·m/η + cos θ_t) m,
                 // `cos_t` signed for the side light leaves to.
@@ -445,9 +479,13 @@ impl Model for Principled {
                 if fr.reflectance >= 1.0 {
                     return None;
                 }
-                (-wo / fr.eta + (om / fr.eta + fr.cos_t) * m).normalize()
+                let wi = (-wo / fr.eta + (om / fr.eta + fr.cos_t) * m).normalize();
+                (wi.z * wo.z < 0.0 && compatible(m, wo, wi, false)).then_some(wi)?
             }
-            _ => reflect(wo, self.specular.sample(viewer, u).m),
+            _ => {
+                let m = self.specular.sample(viewer, u).m;
+                reflected(reflect(wo, m), m)?
+            }
         };
         let pdf = self.pdf(wo, wi);
         LobeSample::spread(wi, pdf, || self.eval(wo, wi))
@@ -467,11 +505,10 @@ impl Model for Principled {
     /// (module docs).
     fn lambertian(&self, wo: DVec3) -> Rgb {
         let (brdf, _) = self.lobe_weights();
-        if wo.z <= 0.0 || brdf == 0.0 {
+        if wo.z <= 0.0 {
             return Rgb::BLACK;
         }
-        let k = brdf * (1.0 - self.flatness) * (1.0 - 0.5 * schlick_weight(wo.z)) * (41.0 / 42.0);
-        self.base_color * k
+        diffuse_mean(self.base_color, brdf, self.flatness, wo)
     }
 
     fn is_anisotropic(&self) -> bool {

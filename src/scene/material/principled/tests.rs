@@ -27,6 +27,10 @@ fn examples() -> Vec<Principled> {
             "clearcoat_gloss": 0.4, "anisotropic": 0.6})),
         principled(json!({"base_color": [0.9, 0.9, 0.7], "roughness": 0.25, "spec_trans": 0.7,
             "eta": 1.45, "flatness": 0.5})),
+        // Rough: many specular normals reflect through the surface or
+        // refract back, and the clearcoat's broadest GTR1 lobe.
+        principled(json!({"roughness": 0.9, "spec_trans": 0.5, "clearcoat": 1.0,
+            "clearcoat_gloss": 0.0})),
     ]
 }
 
