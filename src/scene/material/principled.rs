@@ -99,10 +99,7 @@ impl PrincipledMaterial {
         let transmits = params
             .peek("spec_trans")
             .is_some_and(|v| v.as_f64() != Some(0.0));
-        let mut weights = Vec::new();
-        for (name, default) in WEIGHTS {
-            weights.push(texture::albedo(params, name, [default; 3])?);
-        }
+        let weights = weights(params, &WEIGHTS)?;
         let eta = match (params.number("eta")?, params.number("specular")?) {
             (Some(_), Some(_)) => {
                 return Err(params.invalid("specular", "give `eta` or `specular`, not both"));
@@ -122,19 +119,14 @@ impl PrincipledMaterial {
                 2.0 / (1.0 - (0.08 * s).sqrt()) - 1.0
             }
         };
-        let mut rates = [1.0; 3];
-        for (rate, name) in rates.iter_mut().zip([
-            "main_specular_sampling_rate",
-            "clearcoat_sampling_rate",
-            "diffuse_reflectance_sampling_rate",
-        ]) {
-            if let Some(r) = params.number(name)? {
-                if !(r.is_finite() && r >= 0.0) {
-                    return Err(params.invalid(name, format!("{r} is not a finite rate ≥ 0")));
-                }
-                *rate = r;
-            }
-        }
+        let rates = rates(
+            params,
+            [
+                "main_specular_sampling_rate",
+                "clearcoat_sampling_rate",
+                "diffuse_reflectance_sampling_rate",
+            ],
+        )?;
         Ok(Self {
             base_color,
             weights,
@@ -157,15 +149,7 @@ impl Parameters for PrincipledMaterial {
         let w: Vec<f64> = self.weights.iter().map(|t| lookup.scalar(t)).collect();
         let [roughness, metallic, spec_trans, spec_tint, sheen, sheen_tint, flatness, clearcoat, clearcoat_gloss, anisotropic] =
             <[f64; 10]>::try_from(w).expect("ten weights");
-        // Mitsuba's `calc_dist_params`.
-        let aspect = (1.0 - 0.9 * anisotropic).sqrt();
-        let r2 = roughness * roughness;
-        let specular = Microfacet::new(
-            MicrofacetKind::Ggx,
-            (r2 / aspect).max(0.001),
-            (r2 * aspect).max(0.001),
-        )
-        .expect("roughness at least 0.001");
+        let specular = ggx(roughness, anisotropic);
         Bsdf::Principled(Principled {
             base_color: lookup.rgb(&self.base_color),
             roughness,
@@ -202,6 +186,38 @@ pub struct Principled {
     pub specular: Microfacet,
     pub eta: f64,
     pub rates: [f64; 3],
+}
+
+/// The textures of scalar parameters in [0, 1] (`(name, default)`), in order.
+pub(super) fn weights(params: &mut Params, names: &[(&str, f64)]) -> Result<Vec<Texture>, SceneError> {
+    names
+        .iter()
+        .map(|&(name, default)| texture::albedo(params, name, [default; 3]))
+        .collect()
+}
+
+/// Lobe sampling rates named `names` (default 1, finite and ≥ 0).
+pub(super) fn rates<const N: usize>(params: &mut Params, names: [&str; N]) -> Result<[f64; N], SceneError> {
+    let mut rates = [1.0; N];
+    for (rate, name) in rates.iter_mut().zip(names) {
+        if let Some(r) = params.number(name)? {
+            if !(r.is_finite() && r >= 0.0) {
+                return Err(params.invalid(name, format!("{r} is not a finite rate ≥ 0")));
+            }
+            *rate = r;
+        }
+    }
+    Ok(rates)
+}
+
+/// GGX of a principled roughness and anisotropy (Mitsuba's
+/// `calc_dist_params`): `α = max(0.001, r²/a)` and `max(0.001, r² a)`,
+/// `a = √(1 − 0.9 anisotropic)`.
+pub(super) fn ggx(roughness: f64, anisotropic: f64) -> Microfacet {
+    let aspect = (1.0 - 0.9 * anisotropic).sqrt();
+    let r2 = roughness * roughness;
+    Microfacet::new(MicrofacetKind::Ggx, (r2 / aspect).max(0.001), (r2 * aspect).max(0.001))
+        .expect("roughness at least 0.001")
 }
 
 /// The base colour over its luminance (white for black), the tint of the

@@ -33,11 +33,13 @@
 
 use glam::DVec3;
 
-use super::principled::{compatible, diffuse_mean, disney_diffuse, schlick, sheen, smith_g1, tint};
+use super::principled::{
+    compatible, diffuse_mean, disney_diffuse, ggx, rates, schlick, sheen, smith_g1, tint, weights,
+};
 use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, reflect};
 use crate::color::Rgb;
 use crate::optics::fresnel;
-use crate::optics::microfacet::{Microfacet, MicrofacetKind};
+use crate::optics::microfacet::Microfacet;
 use crate::optics::warp;
 use crate::scene::error::SceneError;
 use crate::scene::texture::{self, Texture};
@@ -83,24 +85,13 @@ impl PrincipledThinMaterial {
     /// The parameters of a material document, each validated once.
     pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
         let base_color = texture::albedo(params, "base_color", [0.5; 3])?;
-        let mut weights = Vec::new();
-        for (name, default) in WEIGHTS {
-            weights.push(texture::albedo(params, name, [default; 3])?);
-        }
+        let weights = weights(params, &WEIGHTS)?;
         let diff_trans = texture::values(params, "diff_trans")?.unwrap_or(Texture::Constant([0.0; 3]));
         if diff_trans.max() > 2.0 {
             return Err(params.invalid("diff_trans", "reaches above 2, the most light a sheet can pass"));
         }
         let eta = texture::values(params, "eta")?.unwrap_or(Texture::Constant([1.5; 3]));
-        let mut rates = [1.0; 4];
-        for (rate, name) in rates.iter_mut().zip(RATES) {
-            if let Some(r) = params.number(name)? {
-                if !(r.is_finite() && r >= 0.0) {
-                    return Err(params.invalid(name, format!("{r} is not a finite rate ≥ 0")));
-                }
-                *rate = r;
-            }
-        }
+        let rates = rates(params, RATES)?;
         Ok(Self {
             base_color,
             weights,
@@ -128,13 +119,6 @@ impl Parameters for PrincipledThinMaterial {
         let [roughness, spec_trans, spec_tint, sheen, sheen_tint, flatness, anisotropic] =
             <[f64; 7]>::try_from(w).expect("seven weights");
         let eta = lookup.scalar(&self.eta).max(1e-3);
-        // Mitsuba's `calc_dist_params`.
-        let ggx = |r: f64| {
-            let aspect = (1.0 - 0.9 * anisotropic).sqrt();
-            let r2 = r * r;
-            Microfacet::new(MicrofacetKind::Ggx, (r2 / aspect).max(0.001), (r2 * aspect).max(0.001))
-                .expect("roughness at least 0.001")
-        };
         Bsdf::PrincipledThin(PrincipledThin {
             base_color: lookup.rgb(&self.base_color),
             roughness,
@@ -145,8 +129,8 @@ impl Parameters for PrincipledThinMaterial {
             flatness,
             diff_trans: lookup.scalar(&self.diff_trans).clamp(0.0, 2.0) / 2.0,
             eta,
-            reflection: ggx(roughness),
-            transmission: ggx((0.65 * eta - 0.35) * roughness),
+            reflection: ggx(roughness, anisotropic),
+            transmission: ggx((0.65 * eta - 0.35) * roughness, anisotropic),
             rates: self.rates,
         })
     }
