@@ -15,13 +15,10 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
-use glam::DVec3;
-
 use super::cached::CachedSpec;
 use super::spec::{IntegratorSpec, PathSpec};
 use crate::render::PathDepth;
 use crate::scene::Scene;
-use crate::scene::material::{Lookup, Material};
 
 /// A named quality level.
 #[derive(
@@ -113,11 +110,11 @@ impl Preset {
     /// The preset's knobs on `scene`: the irradiance cache's
     /// ([`Preset::settings`]), or path tracing and a denoiser
     /// ([`Preset::path_settings`]) where records do not pay: on a scene
-    /// with surfaces that make caustics ([`makes_caustics`]), records carry
+    /// with surfaces that make caustics ([`Scene::has_caustic_surfaces`]), records carry
     /// light that their directions sample badly, and their error shows as
     /// blotches no denoiser removes (docs/math.md §16.7).
     pub fn settings_on(self, scene: &Scene) -> TileSettings {
-        if scene.materials.iter().any(makes_caustics) {
+        if scene.has_caustic_surfaces() {
             self.path_settings()
         } else {
             self.settings()
@@ -202,41 +199,6 @@ impl Preset {
     }
 }
 
-/// Sampling density (sr⁻¹) above which a lobe counts as sharp: GGX of
-/// roughness α has its peak near `1/(4π α²)` at normal incidence, so this
-/// is α ≈ 0.2 (Phong exponents near 12 if Phong were path traced; the
-/// cache integrates Phong lobes by BMC, which sees their shape).
-pub const SHARP_LOBE_DENSITY: f64 = 2.0;
-
-/// Whether `material` images light sources sharply enough to make
-/// caustics that records cannot sample: a Dirac delta (mirror, glass), or
-/// a microfacet lobe whose density at normal incidence peaks above
-/// [`SHARP_LOBE_DENSITY`] (the textures at their means). Probed by the
-/// lobe's own sampling, so it holds for every plugin.
-pub fn makes_caustics(material: &Material) -> bool {
-    let bsdf = material.build(Lookup::Mean, None);
-    let flags = bsdf.flags();
-    if flags.delta {
-        return true;
-    }
-    if !flags.glossy || bsdf.phong().is_some() {
-        return false;
-    }
-    let wo = DVec3::Z;
-    // A fixed 16 × 16 grid of lobe samples: deterministic, and dense enough
-    // to land near a peak whose half-width is α.
-    (0..256).any(|i| {
-        let u = [
-            (f64::from(i % 16) + 0.5) / 16.0,
-            (f64::from(i / 16) + 0.5) / 16.0,
-        ];
-        (0..4).any(|l| {
-            bsdf.sample(wo, (f64::from(l) + 0.5) / 4.0, u)
-                .is_some_and(|s| bsdf.pdf(wo, s.wi) > SHARP_LOBE_DENSITY)
-        })
-    })
-}
-
 impl fmt::Display for Preset {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
@@ -293,12 +255,18 @@ mod tests {
     /// do not.
     #[test]
     fn caustic_surfaces_are_found_by_their_lobes() {
+        use crate::scene::material::Material;
         let load = |file: &str| {
             let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
             Scene::load(&root.join(file), root).expect("a bundled scene")
         };
-        let caustics =
-            |scene: &Scene| -> Vec<bool> { scene.materials.iter().map(makes_caustics).collect() };
+        let caustics = |scene: &Scene| -> Vec<bool> {
+            scene
+                .materials
+                .iter()
+                .map(Material::makes_caustics)
+                .collect()
+        };
         let cbox = load("tests/data/mitsuba-tutorials/cbox.xml");
         assert_eq!(cbox.material_ids[4..], ["glass", "mirror"]);
         assert_eq!(caustics(&cbox), [false, false, false, false, true, true]);

@@ -258,6 +258,7 @@ pub(super) fn build(doc: SceneDoc, files: &Files, bitmaps: &Bitmaps) -> Result<S
     let mut scene = builder.finish();
     scene.name = doc.name.unwrap_or_default();
     Ok(Scene {
+        caustic_surfaces: materials.iter().any(Material::makes_caustics),
         materials,
         material_ids,
         emitters,

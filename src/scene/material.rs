@@ -56,6 +56,13 @@ pub const MAX_MATERIAL_NODES: usize = 64;
 /// Materials declared so far in a scene, by id, for nested references.
 pub(crate) type Declared = std::collections::HashMap<String, std::sync::Arc<Material>>;
 
+/// Sampling density (sr⁻¹) above which a lobe counts as sharp
+/// ([`Material::makes_caustics`]): GGX of roughness α has its peak near
+/// `1/(4π α²)` at normal incidence, so this is α ≈ 0.2 (Phong exponents
+/// near 12 if Phong were path traced; the cache integrates Phong lobes by
+/// BMC, which sees their shape).
+pub const SHARP_LOBE_DENSITY: f64 = 2.0;
+
 /// Largest accepted Phong exponent; beyond it the lobe is a mirror for all
 /// practical purposes and sampling it in f64 loses precision.
 pub const MAX_PHONG_EXPONENT: f64 = 1e6;
@@ -273,6 +280,36 @@ impl Material {
         self.plugin().build(lookup, template)
     }
 
+    /// Whether the material images light sources sharply enough to make
+    /// caustics that irradiance records cannot sample: a Dirac delta
+    /// (mirror, glass), or a lobe other than Phong's whose density at
+    /// normal incidence peaks above [`SHARP_LOBE_DENSITY`] (the textures at
+    /// their means). Probed by the lobe's own sampling, so it holds for
+    /// every plugin.
+    pub fn makes_caustics(&self) -> bool {
+        let bsdf = self.build(Lookup::Mean, None);
+        let flags = bsdf.flags();
+        if flags.delta {
+            return true;
+        }
+        if !flags.glossy || bsdf.phong().is_some() {
+            return false;
+        }
+        let wo = glam::DVec3::Z;
+        // A fixed 16 × 16 grid of lobe samples: deterministic, and dense
+        // enough to land near a peak whose half-width is α.
+        (0..256).any(|i| {
+            let u = [
+                (f64::from(i % 16) + 0.5) / 16.0,
+                (f64::from(i / 16) + 0.5) / 16.0,
+            ];
+            (0..4).any(|l| {
+                bsdf.sample(wo, (f64::from(l) + 0.5) / 4.0, u)
+                    .is_some_and(|s| bsdf.pdf(wo, s.wi) > SHARP_LOBE_DENSITY)
+            })
+        })
+    }
+
     /// True if a parameter varies over the surface (a texture).
     pub fn is_textured(&self) -> bool {
         self.textures().iter().any(|t| t.constant().is_none())
@@ -361,6 +398,22 @@ impl Material {
             out.push((field, material));
         }
         Ok(out)
+    }
+
+    /// The one material nested under `bsdf` in a `plugin` that wraps one
+    /// (`mask`, `bumpmap`, `normalmap`).
+    pub(crate) fn one_nested(
+        params: &mut Params,
+        plugin: &str,
+    ) -> Result<Arc<Material>, SceneError> {
+        let nested: Vec<_> = Self::nested(params)?.into_iter().map(|(_, m)| m).collect();
+        match <[_; 1]>::try_from(nested) {
+            Ok([bsdf]) => Ok(bsdf),
+            Err(_) => Err(params.invalid(
+                "bsdf",
+                format!("a {plugin} needs exactly one nested material"),
+            )),
+        }
     }
 
     /// The material of plugin `kind` from `params` (a nested BSDF's too).

@@ -175,6 +175,9 @@ pub struct Scene {
     /// camera (Mitsuba's integrator `max_depth`), in
     /// `1..=`[`MAX_PATH_DEPTH`]; `None`: the service's.
     pub max_depth: Option<u32>,
+    /// Whether a material makes caustics ([`Material::makes_caustics`]),
+    /// probed once at load: the presets path trace such scenes.
+    caustic_surfaces: bool,
     shapes: Vec<Shape>,
     /// World-space triangles in authoring order (shape by shape).
     triangles: Vec<Triangle>,
@@ -193,6 +196,12 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// Whether a material of the scene makes caustics
+    /// ([`Material::makes_caustics`]), as probed at load.
+    pub fn has_caustic_surfaces(&self) -> bool {
+        self.caustic_surfaces
+    }
+
     /// Loads a scene file: Mitsuba 3 XML if the extension is `.xml` (strict:
     /// unsupported features are errors), JSON otherwise. Referenced files
     /// must lie inside `scenes_root`.

@@ -220,6 +220,7 @@ impl GeometryBuilder {
             camera: Camera::new(DAffine3::IDENTITY, 45.0, Default::default(), 1, 1),
             hide_emitters: false,
             max_depth: None,
+            caustic_surfaces: false,
             shapes: self.shapes,
             triangles: self.triangles,
             vertex_normals: self.vertex_normals,

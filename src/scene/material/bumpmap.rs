@@ -19,8 +19,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use super::normalmap::{nested_template, one_nested};
-use super::perturbed::Perturbed;
+use super::perturbed::{Perturbed, nested_template};
 use super::{Bsdf, Lookup, Material, Params, Parameters, Plugin};
 use crate::scene::error::SceneError;
 use crate::scene::texture::{self, Texture};
@@ -63,7 +62,7 @@ impl BumpMapMaterial {
         Ok(Self {
             height,
             scale,
-            bsdf: one_nested(params, "bumpmap")?,
+            bsdf: Material::one_nested(params, "bumpmap")?,
             flip_invalid_normals: params.boolean("flip_invalid_normals", true)?,
             shadowing: params.boolean("use_shadowing_function", true)?,
         })

@@ -33,13 +33,7 @@ impl MaskMaterial {
     /// The parameters of a material document, each validated once.
     pub(crate) fn parse(params: &mut Params) -> Result<Self, SceneError> {
         let opacity = texture::albedo(params, "opacity", [0.5; 3])?;
-        let nested: Vec<_> = Material::nested(params)?
-            .into_iter()
-            .map(|(_, m)| m)
-            .collect();
-        let Ok([bsdf]) = <[_; 1]>::try_from(nested) else {
-            return Err(params.invalid("bsdf", "a mask needs exactly one nested material"));
-        };
+        let bsdf = Material::one_nested(params, "mask")?;
         Ok(Self { opacity, bsdf })
     }
 }

@@ -15,7 +15,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use super::perturbed::Perturbed;
+use super::perturbed::{Perturbed, nested_template};
 use super::{Bsdf, Lookup, Material, Params, Parameters, Plugin};
 use crate::scene::error::SceneError;
 use crate::scene::texture::{self, Texture};
@@ -40,27 +40,10 @@ impl NormalMapMaterial {
         let normalmap = texture::values(params, "normalmap")?.ok_or_else(|| params.missing("normalmap"))?;
         Ok(Self {
             normalmap,
-            bsdf: one_nested(params, "normalmap")?,
+            bsdf: Material::one_nested(params, "normalmap")?,
             flip_invalid_normals: params.boolean("flip_invalid_normals", true)?,
             shadowing: params.boolean("use_shadowing_function", true)?,
         })
-    }
-}
-
-/// The one material nested in a `plugin` adapter.
-pub(super) fn one_nested(params: &mut Params, plugin: &str) -> Result<Arc<Material>, SceneError> {
-    let nested: Vec<_> = Material::nested(params)?.into_iter().map(|(_, m)| m).collect();
-    match <[_; 1]>::try_from(nested) {
-        Ok([bsdf]) => Ok(bsdf),
-        Err(_) => Err(params.invalid("bsdf", format!("a {plugin} needs exactly one nested material"))),
-    }
-}
-
-/// The tilted model of `bsdf` from `params`' nested template, if any.
-pub(super) fn nested_template(template: Option<&Bsdf>) -> Option<&Bsdf> {
-    match template {
-        Some(Bsdf::NormalMap(p) | Bsdf::BumpMap(p)) => Some(&p.bsdf),
-        _ => None,
     }
 }
 

@@ -73,6 +73,15 @@ impl Perturbed {
     }
 }
 
+/// The nested BSDF of a bump or normal map's `template`, whose
+/// precomputed tables the nested build reuses.
+pub(super) fn nested_template(template: Option<&Bsdf>) -> Option<&Bsdf> {
+    match template {
+        Some(Bsdf::NormalMap(p) | Bsdf::BumpMap(p)) => Some(&p.bsdf),
+        _ => None,
+    }
+}
+
 /// Conty Estevez et al. 2019, "A microfacet-based shadowing function to solve
 /// the bump terminator problem" (Ray Tracing Gems ch. 12): the tilt as a
 /// microfacet slope, `α² = min(tan²θ_n / 8, 1)`, shadowing

@@ -323,9 +323,21 @@ pub(super) fn compatible(m: DVec3, wo: DVec3, wi: DVec3, reflection: bool) -> bo
     wo.dot(m) > 0.0 && if reflection { wi.dot(m) > 0.0 } else { wi.dot(m) < 0.0 }
 }
 
-/// The lobes' selection probabilities: diffuse, clearcoat, transmission,
-/// specular (module docs), normalised.
-struct Selection([f64; 4]);
+/// The lobe `u` in [0, 1) picks among lobes of selection `weights` (any
+/// scale; `None` when all are zero).
+pub(super) fn pick_lobe<const N: usize>(weights: [f64; N], u: f64) -> Option<usize> {
+    let mut sum = 0.0;
+    normalised(weights).iter().position(|x| {
+        sum += x;
+        u < sum
+    })
+}
+
+/// `weights` over their sum (zeros when they sum to zero).
+pub(super) fn normalised<const N: usize>(weights: [f64; N]) -> [f64; N] {
+    let total: f64 = weights.iter().sum();
+    if total > 0.0 { weights.map(|x| x / total) } else { [0.0; N] }
+}
 
 impl Principled {
     fn lobe_weights(&self) -> (f64, f64) {
@@ -333,13 +345,14 @@ impl Principled {
         (keep * (1.0 - self.spec_trans), keep * self.spec_trans)
     }
 
-    /// The selection probabilities seen from `wo`, with the Fresnel
-    /// reflectance at `wo`'s angle to the normal (module docs).
-    fn selection(&self, wo: DVec3) -> Selection {
+    /// The lobes' selection weights seen from `wo` (diffuse, clearcoat,
+    /// transmission, specular), with the Fresnel reflectance at `wo`'s
+    /// angle to the normal (module docs).
+    fn selection(&self, wo: DVec3) -> [f64; 4] {
         let (brdf, bsdf) = self.lobe_weights();
         let f = fresnel::dielectric(wo.z, self.eta).reflectance;
         let [spec_rate, cc_rate, diff_rate] = self.rates;
-        let p = if wo.z > 0.0 {
+        if wo.z > 0.0 {
             [
                 brdf * diff_rate,
                 0.25 * self.clearcoat * cc_rate,
@@ -350,9 +363,7 @@ impl Principled {
             [0.0, 0.0, 1.0 - f, f]
         } else {
             [0.0; 4]
-        };
-        let total: f64 = p.iter().sum();
-        Selection(if total > 0.0 { p.map(|x| x / total) } else { [0.0; 4] })
+        }
     }
 
     /// The half vector of `wo` and `wi` turned outwards, and the path's
@@ -439,7 +450,7 @@ impl Model for Principled {
         if wo.z == 0.0 || wi.z == 0.0 {
             return 0.0;
         }
-        let Selection([p_diffuse, p_clearcoat, p_trans, p_spec]) = self.selection(wo);
+        let [p_diffuse, p_clearcoat, p_trans, p_spec] = normalised(self.selection(wo));
         let (h, eta_path, reflect) = self.half(wo, wi);
         if !h.is_finite() {
             return 0.0;
@@ -464,14 +475,7 @@ impl Model for Principled {
         if wo.z == 0.0 {
             return None;
         }
-        let Selection(p) = self.selection(wo);
-        let lobe = p
-            .iter()
-            .scan(0.0, |sum, x| {
-                *sum += x;
-                Some(*sum)
-            })
-            .position(|c| u_lobe < c)?;
+        let lobe = pick_lobe(self.selection(wo), u_lobe)?;
         // Normals of the upper side, drawn as seen from `wo` turned up.
         let viewer = if wo.z > 0.0 { wo } else { -wo };
         // A specular or clearcoat normal that reflects through the surface,

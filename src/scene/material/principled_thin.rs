@@ -34,7 +34,8 @@
 use glam::DVec3;
 
 use super::principled::{
-    compatible, diffuse_mean, disney_diffuse, ggx, rates, schlick, sheen, smith_g1, tint, weights,
+    compatible, diffuse_mean, disney_diffuse, ggx, normalised, pick_lobe, rates, schlick, sheen,
+    smith_g1, tint, weights,
 };
 use super::{Bsdf, BsdfFlags, LobeSample, Lookup, Model, Params, Parameters, Plugin, reflect};
 use crate::color::Rgb;
@@ -157,17 +158,16 @@ pub struct PrincipledThin {
 }
 
 impl PrincipledThin {
-    /// The lobes' selection probabilities (module docs), normalised.
+    /// The lobes' selection weights (module docs): specular reflection and
+    /// transmission, diffuse reflection and transmission.
     fn selection(&self) -> [f64; 4] {
         let (st, dt) = (self.spec_trans, self.diff_trans);
-        let p = [
+        [
             st * self.rates[0] / 2.0,
             st * self.rates[1] / 2.0,
             self.rates[2] * (1.0 - st) * (1.0 - dt),
             self.rates[3] * (1.0 - st) * dt,
-        ];
-        let total: f64 = p.iter().sum();
-        if total > 0.0 { p.map(|x| x / total) } else { [0.0; 4] }
+        ]
     }
 
     /// `wo` and `wi` turned to the viewer's side (the sheet is the same
@@ -230,7 +230,7 @@ impl Model for PrincipledThin {
         if wo.z == 0.0 || wi.z == 0.0 {
             return 0.0;
         }
-        let [p_reflect, p_trans, p_diffuse, p_diffuse_trans] = self.selection();
+        let [p_reflect, p_trans, p_diffuse, p_diffuse_trans] = normalised(self.selection());
         let (wo, wi, h) = Self::upright(wo, wi);
         let reflected = wi.z > 0.0;
         let mut pdf = 0.0;
@@ -252,14 +252,7 @@ impl Model for PrincipledThin {
         if wo.z == 0.0 {
             return None;
         }
-        let p = self.selection();
-        let lobe = p
-            .iter()
-            .scan(0.0, |sum, x| {
-                *sum += x;
-                Some(*sum)
-            })
-            .position(|c| u_lobe < c)?;
+        let lobe = pick_lobe(self.selection(), u_lobe)?;
         let s = wo.z.signum();
         let up = wo * s;
         // A specular normal whose reflection leaves the viewer's side, or
